@@ -1,0 +1,281 @@
+"""The one camera model of furrow, and the one place that converts between conventions.
+
+Inside furrow every camera follows **OpenCV**: x right, y down, z forward (metres);
+pixel (i, j) (column i, row j) has its centre at (u, v) = (i, j); ``K`` maps camera
+coordinates to pixels.  This module alone converts to and from
+
+* the nerfstudio / instant-ngp ``transform_matrix`` (camera-to-world, OpenGL axes:
+  x right, y up, z back) and its half-pixel-shifted intrinsics (pixel centre at i + 0.5),
+* the OpenGL view and projection matrices used by ``render/``,
+* OpenGL framebuffer row order (bottom row first) and image row order (top row first).
+
+Nowhere else in the code base flips an axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Diagonal that flips y and z: OpenCV camera axes <-> OpenGL camera axes.
+CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+#: Largest deviation of R^T R from I (and of det R from 1) accepted for a rigid pose.
+RIGID_TOLERANCE = 1e-4
+#: Offset between OpenCV pixel centres (integers) and nerfstudio/OpenGL ones (i + 0.5).
+HALF_PIXEL = 0.5
+
+
+class CameraError(ValueError):
+    """An invalid camera: non-finite, non-rigid, or inconsistent intrinsics."""
+
+
+def check_rigid(m: np.ndarray, what: str = "pose") -> np.ndarray:
+    """Return ``m`` as a float64 (4, 4) array, or raise CameraError naming ``what``.
+
+    A rigid transform has a finite rotation block with R^T R = I, det R = +1 and a last
+    row (0, 0, 0, 1), all within ``RIGID_TOLERANCE``.
+    """
+    m = np.asarray(m, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise CameraError(f"{what}: expected a 4x4 matrix, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise CameraError(f"{what}: pose contains NaN or inf")
+    r = m[:3, :3]
+    err = np.abs(r.T @ r - np.eye(3)).max()
+    if err > RIGID_TOLERANCE or abs(np.linalg.det(r) - 1.0) > RIGID_TOLERANCE:
+        raise CameraError(
+            f"{what}: pose is not rigid (|R^T R - I| = {err:.2e}, det R = {np.linalg.det(r):.6f}; "
+            "scale, shear or reflection are not allowed)"
+        )
+    if np.abs(m[3] - [0, 0, 0, 1]).max() > RIGID_TOLERANCE:
+        raise CameraError(f"{what}: last row of the pose must be (0, 0, 0, 1), got {m[3]}")
+    return m
+
+
+def make_K(fx: float, fy: float, cx: float, cy: float, skew: float = 0.0) -> np.ndarray:
+    """OpenCV intrinsic matrix (3, 3) in pixels."""
+    return np.array([[fx, skew, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera in the OpenCV convention.
+
+    Attributes:
+        K: (3, 3) float64 intrinsics in pixels; pixel (i, j) has its centre at u=i, v=j.
+        cam_from_world: (4, 4) float64 rigid transform, world (metres) -> camera (metres).
+        width: image width in pixels.
+        height: image height in pixels.
+    """
+
+    K: np.ndarray
+    cam_from_world: np.ndarray
+    width: int
+    height: int
+    name: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        K = np.asarray(self.K, dtype=np.float64)
+        label = f"camera {self.name!r}" if self.name else "camera"
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+            raise CameraError(f"{label}: K must be a finite 3x3 matrix")
+        if K[0, 0] <= 0 or K[1, 1] <= 0 or abs(K[2, 2] - 1) > 1e-9 or np.any(K[2, :2] != 0) or K[1, 0] != 0:
+            raise CameraError(f"{label}: K must be upper triangular with fx, fy > 0 and K[2,2] = 1, got {K.tolist()}")
+        if int(self.width) <= 0 or int(self.height) <= 0:
+            raise CameraError(f"{label}: image size must be positive, got {self.width}x{self.height}")
+        pose = check_rigid(self.cam_from_world, label)
+        K.setflags(write=False)
+        pose = pose.copy()
+        pose.setflags(write=False)
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "cam_from_world", pose)
+        object.__setattr__(self, "width", int(self.width))
+        object.__setattr__(self, "height", int(self.height))
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def world_from_cam(self) -> np.ndarray:
+        """(4, 4) camera-to-world transform (OpenCV axes)."""
+        r = self.cam_from_world[:3, :3]
+        t = self.cam_from_world[:3, 3]
+        out = np.eye(4)
+        out[:3, :3] = r.T
+        out[:3, 3] = -r.T @ t
+        return out
+
+    @property
+    def center(self) -> np.ndarray:
+        """(3,) camera centre in world coordinates (metres)."""
+        return self.world_from_cam[:3, 3]
+
+    @property
+    def forward(self) -> np.ndarray:
+        """(3,) unit optical axis (+z of the camera) in world coordinates."""
+        return self.cam_from_world[2, :3].copy()
+
+    def world_to_cam(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points -> (..., 3) camera-frame points."""
+        p = np.asarray(points, dtype=np.float64)
+        return p @ self.cam_from_world[:3, :3].T + self.cam_from_world[:3, 3]
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Project world points.
+
+        Args:
+            points: (..., 3) world coordinates in metres.
+        Returns:
+            uv: (..., 2) pixel coordinates (OpenCV centres); NaN where z <= 0.
+            z: (...,) z-depth along the optical axis in metres.
+        """
+        pc = self.world_to_cam(points)
+        z = pc[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xn = np.where(z > 0, pc[..., 0] / z, np.nan)
+            yn = np.where(z > 0, pc[..., 1] / z, np.nan)
+        K = self.K
+        u = K[0, 0] * xn + K[0, 1] * yn + K[0, 2]
+        v = K[1, 1] * yn + K[1, 2]
+        return np.stack([u, v], axis=-1), z
+
+    def pixel_rays(self, uv: np.ndarray) -> np.ndarray:
+        """(..., 2) pixels -> (..., 3) camera-frame directions with z = 1."""
+        uv = np.asarray(uv, dtype=np.float64)
+        K = self.K
+        y = (uv[..., 1] - K[1, 2]) / K[1, 1]
+        x = (uv[..., 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
+        return np.stack([x, y, np.ones_like(x)], axis=-1)
+
+    def unproject(self, uv: np.ndarray, depth: np.ndarray) -> np.ndarray:
+        """Pixels with z-depth (metres) -> (..., 3) world points."""
+        pc = self.pixel_rays(uv) * np.asarray(depth, dtype=np.float64)[..., None]
+        wfc = self.world_from_cam
+        return pc @ wfc[:3, :3].T + wfc[:3, 3]
+
+    def pixel_grid(self) -> np.ndarray:
+        """(H, W, 2) pixel-centre coordinates (u, v) of every pixel, OpenCV convention."""
+        v, u = np.mgrid[0 : self.height, 0 : self.width].astype(np.float64)
+        return np.stack([u, v], axis=-1)
+
+    def depth_to_points(self, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Back-project a z-depth map (H, W) in metres; 0 / non-finite = no data.
+
+        Returns (points (N, 3) world, mask (H, W) bool of the pixels used).
+        """
+        depth = np.asarray(depth)
+        if depth.shape != (self.height, self.width):
+            raise CameraError(f"depth shape {depth.shape} does not match camera {self.height}x{self.width}")
+        mask = np.isfinite(depth) & (depth > 0)
+        uv = self.pixel_grid()[mask]
+        return self.unproject(uv, depth[mask]), mask
+
+    def footprint(self, depth: float) -> float:
+        """Approximate side (metres) of one pixel at z-depth ``depth`` (mean of fx, fy)."""
+        return float(depth) * 2.0 / (self.K[0, 0] + self.K[1, 1])
+
+    def scaled(self, factor: float) -> "Camera":
+        """The same camera for an image resized by ``factor`` (pixel centres handled exactly)."""
+        K = self.K.copy()
+        K[0, 0] *= factor
+        K[1, 1] *= factor
+        K[0, 1] *= factor
+        # OpenCV centres: u' + 0.5 = factor * (u + 0.5)
+        K[0, 2] = factor * (K[0, 2] + HALF_PIXEL) - HALF_PIXEL
+        K[1, 2] = factor * (K[1, 2] + HALF_PIXEL) - HALF_PIXEL
+        return Camera(K, self.cam_from_world, round(self.width * factor), round(self.height * factor), self.name)
+
+    # ------------------------------------------------------------- conventions
+    def to_nerfstudio(self) -> dict:
+        """nerfstudio frame fields: ``transform_matrix`` (c2w, OpenGL axes) and intrinsics
+        with pixel centres at i + 0.5 (``fl_x fl_y cx cy w h``)."""
+        return {
+            "transform_matrix": (self.world_from_cam @ CV_TO_GL).tolist(),
+            "fl_x": float(self.K[0, 0]),
+            "fl_y": float(self.K[1, 1]),
+            "cx": float(self.K[0, 2] + HALF_PIXEL),
+            "cy": float(self.K[1, 2] + HALF_PIXEL),
+            "w": self.width,
+            "h": self.height,
+        }
+
+    @staticmethod
+    def from_nerfstudio(
+        transform_matrix, fl_x: float, fl_y: float, cx: float, cy: float, w: int, h: int, name: str = ""
+    ) -> "Camera":
+        """Inverse of :meth:`to_nerfstudio` (nerfstudio cx, cy have centres at i + 0.5)."""
+        c2w_gl = check_rigid(transform_matrix, f"camera {name!r}" if name else "transform_matrix")
+        c2w_cv = c2w_gl @ CV_TO_GL
+        return Camera(
+            make_K(fl_x, fl_y, cx - HALF_PIXEL, cy - HALF_PIXEL), invert_rigid(c2w_cv), int(w), int(h), name
+        )
+
+    def gl_view(self) -> np.ndarray:
+        """(4, 4) OpenGL view matrix (world -> eye, eye looks down -z, y up)."""
+        return CV_TO_GL @ self.cam_from_world
+
+    def gl_projection(self, near: float, far: float) -> np.ndarray:
+        """(4, 4) OpenGL projection matrix that reproduces ``K`` exactly.
+
+        NDC x = 2 (u + 0.5) / W - 1 and NDC y = 1 - 2 (v + 0.5) / H for the OpenCV pixel
+        (u, v), so framebuffer row r (bottom first) is image row H - 1 - r; use
+        :func:`gl_rows_to_image` on read-back.  Depth maps [near, far] to NDC [-1, 1].
+        """
+        if not (0 < near < far):
+            raise CameraError(f"need 0 < near < far, got near={near}, far={far}")
+        fx, s, cx = self.K[0]
+        fy, cy = self.K[1, 1], self.K[1, 2]
+        W, H = self.width, self.height
+        P = np.zeros((4, 4))
+        P[0, 0] = 2 * fx / W
+        P[0, 1] = -2 * s / W
+        P[0, 2] = 1 - 2 * (cx + HALF_PIXEL) / W
+        P[1, 1] = 2 * fy / H
+        P[1, 2] = 2 * (cy + HALF_PIXEL) / H - 1
+        P[2, 2] = -(far + near) / (far - near)
+        P[2, 3] = -2 * far * near / (far - near)
+        P[3, 2] = -1.0
+        return P
+
+
+def invert_rigid(m: np.ndarray) -> np.ndarray:
+    """Inverse of a (4, 4) rigid transform."""
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -m[:3, :3].T @ m[:3, 3]
+    return out
+
+
+def gl_rows_to_image(fb: np.ndarray) -> np.ndarray:
+    """OpenGL read-back (bottom row first) -> image rows (top row first). Its own inverse."""
+    return np.ascontiguousarray(fb[::-1])
+
+
+def gl_ndc_depth_to_z(ndc_depth01: np.ndarray, near: float, far: float) -> np.ndarray:
+    """Window depth in [0, 1] (the depth buffer) -> z-depth in metres; 1.0 (cleared) -> 0."""
+    d = np.asarray(ndc_depth01, dtype=np.float64)
+    zn = 2.0 * d - 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = 2.0 * near * far / (far + near - zn * (far - near))
+    return np.where(d >= 1.0, 0.0, z)
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """(4, 4) OpenCV cam_from_world for a camera at ``eye`` looking at ``target``.
+
+    ``up`` is the world direction that should appear upwards in the image (image y points
+    down, so camera -y is aligned with it as far as possible).
+    """
+    eye = np.asarray(eye, dtype=np.float64)
+    z = np.asarray(target, dtype=np.float64) - eye
+    z /= np.linalg.norm(z)
+    up = np.asarray(up, dtype=np.float64)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:  # looking along up: pick any perpendicular
+        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
+    out = np.eye(4)
+    out[:3, :3] = R
+    out[:3, 3] = -R @ eye
+    return out

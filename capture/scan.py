@@ -1,0 +1,176 @@
+"""Scans and scan sets: the data passed from ``capture`` to ``volume``.
+
+A :class:`Scan` is one colour image and one z-depth map seen by one :class:`Camera`;
+a :class:`ScanSet` is the posed set plus the object's bounds.  Both are frozen and
+validated on construction (shapes, dtypes, units) with errors that name the scan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from capture.camera import Camera
+
+
+class ScanError(ValueError):
+    """Invalid scan data; the message names the scan / file."""
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] -> linear (IEC 61966-2-1)."""
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    """Linear values -> sRGB-encoded in [0, 1] (clipped)."""
+    c = np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1 / 2.4) - 0.055).astype(np.float32)
+
+
+def to_uint8_srgb(linear: np.ndarray) -> np.ndarray:
+    """Linear float image -> 8-bit sRGB (rounded)."""
+    return np.round(linear_to_srgb(linear) * 255.0).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class Scan:
+    """One colour + range capture.
+
+    Attributes:
+        rgb: (H, W, 3) uint8 sRGB, or float32 linear radiance.
+        depth: (H, W) float32 z-depth along the optical axis in metres; 0 = no measurement.
+            NaN / inf are accepted on input and replaced by 0 (no measurement).
+        camera: the camera (OpenCV convention) with matching width / height.
+        name: identifier, usually the colour file's path relative to the scan set.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    camera: Camera
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        label = f"scan {self.name!r}" if self.name else "scan"
+        rgb = np.asarray(self.rgb)
+        depth = np.asarray(self.depth)
+        H, W = self.camera.height, self.camera.width
+        if rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise ScanError(f"{label}: colour must be (H, W, 3), got shape {rgb.shape}")
+        if rgb.dtype not in (np.uint8, np.float32):
+            raise ScanError(f"{label}: colour must be uint8 sRGB or float32 linear, got {rgb.dtype}")
+        if rgb.shape[:2] != (H, W):
+            raise ScanError(f"{label}: colour is {rgb.shape[1]}x{rgb.shape[0]} but the camera is {W}x{H}")
+        if depth.shape != (H, W):
+            raise ScanError(f"{label}: depth is {depth.shape[::-1]} (WxH) but the camera is {W}x{H}")
+        depth = depth.astype(np.float32, copy=True)
+        depth[~np.isfinite(depth) | (depth < 0)] = 0.0
+        rgb = rgb.copy()
+        rgb.setflags(write=False)
+        depth.setflags(write=False)
+        object.__setattr__(self, "rgb", rgb)
+        object.__setattr__(self, "depth", depth)
+
+    @property
+    def linear_rgb(self) -> np.ndarray:
+        """(H, W, 3) float32 linear colour."""
+        if self.rgb.dtype == np.uint8:
+            return srgb_to_linear(self.rgb.astype(np.float32) / 255.0)
+        return self.rgb
+
+    @property
+    def srgb8(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB colour."""
+        return self.rgb if self.rgb.dtype == np.uint8 else to_uint8_srgb(self.rgb)
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(H, W) bool: pixels with a depth measurement."""
+        return self.depth > 0
+
+    def points(self) -> np.ndarray:
+        """(N, 3) world points of every valid depth pixel."""
+        return self.camera.depth_to_points(self.depth)[0]
+
+
+@dataclass(frozen=True)
+class ScanSet:
+    """A set of posed scans of one object.
+
+    Attributes:
+        scans: the scans, in capture order.
+        bounds: (2, 3) float64 axis-aligned box [min, max] (metres, world) that contains the
+            object; every later stage (volume, renderer) works inside it.
+        metadata: free-form provenance (source path, generator, seed, ...).
+    """
+
+    scans: tuple[Scan, ...]
+    bounds: np.ndarray
+    metadata: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        scans = tuple(self.scans)
+        if not scans:
+            raise ScanError("a scan set needs at least one scan")
+        b = np.asarray(self.bounds, dtype=np.float64)
+        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
+            raise ScanError(f"scan set bounds must be a finite (2, 3) [min, max] box with max > min, got {b.tolist()}")
+        b = b.copy()
+        b.setflags(write=False)
+        object.__setattr__(self, "scans", scans)
+        object.__setattr__(self, "bounds", b)
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    @property
+    def cameras(self) -> list[Camera]:
+        return [s.camera for s in self.scans]
+
+    @property
+    def size(self) -> float:
+        """Diagonal of the bounds in metres (the object's size)."""
+        return float(np.linalg.norm(self.bounds[1] - self.bounds[0]))
+
+    def select(self, spec: str | None) -> "ScanSet":
+        """Frames chosen python-slice style: ``"0::2"``, ``"3"``, ``"1,4,7"``, ``":10"``."""
+        idx = select_indices(spec, len(self.scans))
+        return ScanSet(tuple(self.scans[i] for i in idx), self.bounds, {**self.metadata, "frames": spec})
+
+
+def select_indices(spec: str | None, n: int) -> list[int]:
+    """Indices of ``range(n)`` picked by a slice spec (``a:b:c``), an index or a comma list."""
+    if spec is None or spec == "":
+        return list(range(n))
+    out: list[int] = []
+    try:
+        for part in spec.split(","):
+            part = part.strip()
+            if ":" in part:
+                bits = [int(b) if b.strip() else None for b in part.split(":")]
+                if len(bits) > 3:
+                    raise ValueError
+                out.extend(range(n)[slice(*bits)])
+            else:
+                i = int(part)
+                if not -n <= i < n:
+                    raise IndexError(f"frame {i} out of range for {n} frames")
+                out.append(i % n)
+    except ValueError:
+        raise ValueError(f"bad frame spec {spec!r}: use python slices like '0::2', '3', or '1,4,7'") from None
+    if not out:
+        raise ValueError(f"frame spec {spec!r} selects no frame out of {n}")
+    return out
+
+
+def bounds_from_points(points: np.ndarray, margin: float = 0.05) -> np.ndarray:
+    """(2, 3) box around points, grown by ``margin`` of its diagonal on every side."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    p = p[np.all(np.isfinite(p), axis=1)]
+    if len(p) == 0:
+        raise ScanError("cannot compute bounds: no valid 3-D points")
+    lo, hi = p.min(0), p.max(0)
+    pad = margin * max(np.linalg.norm(hi - lo), 1e-6)
+    return np.stack([lo - pad, hi + pad])
