@@ -1,0 +1,5 @@
+import sys
+
+from furrow.cli import main
+
+sys.exit(main())
