@@ -1,0 +1,379 @@
+"""Scan sets on disk: nerfstudio ``transforms.json`` (the default) and a plain folder layout.
+
+transforms.json (DESIGN.md "Scan format on disk"): per frame ``file_path``,
+``depth_file_path``, ``transform_matrix`` (camera-to-world, OpenGL axes); intrinsics
+``fl_x fl_y cx cy w h`` globally or per frame, with pixel centres at i + 0.5 (the reader
+subtracts 0.5, the writer adds it back: all conversions live in ``capture.camera``);
+``depth_unit_scale_factor`` = metres per stored depth unit (16-bit PNG in mm: 0.001),
+globally or per frame.  Float EXR depth is in metres when no factor is given; a 16-bit PNG
+without a factor is an error (unknown units).  Depth is z-depth, 0 = no measurement.
+furrow adds an optional ``furrow`` block: ``{"bounds": [[x,y,z],[x,y,z]], "metadata": {...}}``.
+
+Plain folder layout: ``rgb/NAME.png``, ``depth/NAME.png|.exr``, ``cameras/NAME.json`` with
+``K`` (OpenCV, pixel centres at integers), ``cam_from_world`` (OpenCV 4x4), ``width``,
+``height`` and ``depth_unit_scale_factor``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from capture.camera import Camera, CameraError
+from capture.imageio import ScanIOError, depth_to_uint16, read_color, read_depth_raw, write_exr, write_png
+from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, to_uint8_srgb
+
+TRANSFORMS = "transforms.json"
+#: Distortion keys of nerfstudio; furrow's pinhole model requires them to be zero.
+DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
+#: Percentiles of the back-projected depth used for automatic bounds (robust to outliers).
+AUTO_BOUNDS_PERCENTILES = (0.5, 99.5)
+#: Margin added around automatic bounds, as a fraction of their diagonal.
+AUTO_BOUNDS_MARGIN = 0.05
+#: Default 16-bit PNG depth unit written by furrow: millimetres.
+DEFAULT_PNG_DEPTH_UNIT = 0.001
+
+__all__ = ["ScanIOError", "read_scanset", "read_cameras", "write_transforms", "write_plain_folder",
+           "FrameCamera", "resolve_transforms"]
+
+
+@dataclass(frozen=True)
+class FrameCamera:
+    """A camera read from transforms.json without loading its images."""
+
+    camera: Camera
+    file_path: str
+    depth_file_path: str | None
+    depth_unit_scale_factor: float | None
+
+
+def resolve_transforms(path: Path) -> Path:
+    """A transforms.json path, or a folder containing one -> the file; error otherwise."""
+    path = Path(path)
+    if path.is_dir():
+        cand = path / TRANSFORMS
+        if cand.is_file():
+            return cand
+        raise ScanIOError(f"{path}: folder has no {TRANSFORMS}")
+    if not path.exists():
+        raise ScanIOError(f"{path}: no such file or folder")
+    return path
+
+
+def _load_json(path: Path) -> dict:
+    try:
+        data = json.loads(Path(path).read_text())
+    except json.JSONDecodeError as e:
+        raise ScanIOError(f"{path}: invalid JSON ({e})") from None
+    except OSError as e:
+        raise ScanIOError(f"{path}: cannot read ({e.strerror})") from None
+    if not isinstance(data, dict):
+        raise ScanIOError(f"{path}: expected a JSON object at the top level")
+    return data
+
+
+def read_cameras(path: Path) -> list[FrameCamera]:
+    """Cameras of a transforms.json (file or folder), without reading any image."""
+    tj = resolve_transforms(path)
+    meta = _load_json(tj)
+    frames = meta.get("frames")
+    if not isinstance(frames, list) or not frames:
+        raise ScanIOError(f"{tj}: 'frames' must be a non-empty list")
+    out = []
+    for i, fr in enumerate(frames):
+        where = f"{tj} frame {i}"
+        if not isinstance(fr, dict) or "file_path" not in fr:
+            raise ScanIOError(f"{where}: missing 'file_path'")
+        where = f"{tj} frame {i} ({fr['file_path']})"
+
+        def get(key, _fr=fr, _where=where):
+            v = _fr.get(key, meta.get(key))
+            if v is None:
+                raise ScanIOError(f"{_where}: missing intrinsic '{key}' (per frame or global)")
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise ScanIOError(f"{_where}: intrinsic '{key}' is not a number: {v!r}") from None
+            if not np.isfinite(v):
+                raise ScanIOError(f"{_where}: intrinsic '{key}' is not finite")
+            return v
+
+        for k in DISTORTION_KEYS:
+            if abs(float(fr.get(k, meta.get(k, 0.0)) or 0.0)) > 0:
+                raise ScanIOError(f"{where}: lens distortion '{k}' is non-zero; furrow needs undistorted "
+                                  "pinhole images (undistort them first, e.g. with COLMAP image_undistorter)")
+        if "transform_matrix" not in fr:
+            raise ScanIOError(f"{where}: missing 'transform_matrix'")
+        try:
+            tm = np.asarray(fr["transform_matrix"], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ScanIOError(f"{where}: 'transform_matrix' is not a 4x4 number matrix") from None
+        try:
+            cam = Camera.from_nerfstudio(tm, get("fl_x"), get("fl_y"), get("cx"), get("cy"),
+                                         int(get("w")), int(get("h")), name=str(fr["file_path"]))
+        except CameraError as e:
+            raise ScanIOError(f"{where}: {e}") from None
+        unit = fr.get("depth_unit_scale_factor", meta.get("depth_unit_scale_factor"))
+        if unit is not None:
+            try:
+                unit = float(unit)
+            except (TypeError, ValueError):
+                raise ScanIOError(f"{where}: depth_unit_scale_factor {unit!r} is not a number") from None
+            if not (np.isfinite(unit) and unit > 0):
+                raise ScanIOError(f"{where}: depth_unit_scale_factor must be a positive number (metres per "
+                                  f"depth unit), got {unit}")
+        out.append(FrameCamera(cam, str(fr["file_path"]), fr.get("depth_file_path"), unit))
+    return out
+
+
+def _resolve_image(base: Path, rel: str, what: str, where: str) -> Path:
+    p = (base / rel) if not Path(rel).is_absolute() else Path(rel)
+    if p.is_file():
+        return p
+    if not p.suffix:
+        for ext in (".png", ".jpg", ".jpeg", ".exr"):
+            if p.with_suffix(ext).is_file():
+                return p.with_suffix(ext)
+    raise ScanIOError(f"{p}: {what} not found (referenced by {where})")
+
+
+def _depth_metres(raw: np.ndarray, unit: float | None, path: Path) -> np.ndarray:
+    if np.issubdtype(raw.dtype, np.integer):
+        if unit is None:
+            raise ScanIOError(f"{path}: integer depth image but no depth_unit_scale_factor: unknown units "
+                              "(add \"depth_unit_scale_factor\": 0.001 for millimetres)")
+        d = raw.astype(np.float64) * unit
+    else:
+        d = raw.astype(np.float64) * (1.0 if unit is None else unit)
+    bad = ~np.isfinite(d) | (d < 0)
+    d[bad] = 0.0
+    return d.astype(np.float32)
+
+
+def _load_scan(cam: Camera, rgb_path: Path, depth_path: Path | None, unit: float | None, name: str) -> Scan:
+    rgb = read_color(rgb_path)
+    if rgb.shape[:2] != (cam.height, cam.width):
+        raise ScanIOError(f"{rgb_path}: image is {rgb.shape[1]}x{rgb.shape[0]} but its camera says "
+                          f"{cam.width}x{cam.height}")
+    if depth_path is None:
+        depth = np.zeros((cam.height, cam.width), np.float32)
+    else:
+        raw = read_depth_raw(depth_path)
+        if raw.shape != (cam.height, cam.width):
+            raise ScanIOError(f"{depth_path}: depth is {raw.shape[1]}x{raw.shape[0]} but the colour image and "
+                              f"camera are {cam.width}x{cam.height}")
+        depth = _depth_metres(raw, unit, depth_path)
+        if not np.any(depth > 0):
+            raise ScanIOError(f"{depth_path}: depth is all zero (no measurement at all)")
+    try:
+        return Scan(rgb, depth, cam, name)
+    except ScanError as e:
+        raise ScanIOError(f"{rgb_path}: {e}") from None
+
+
+def auto_bounds(scans) -> np.ndarray:
+    """Robust (2, 3) bounds from the back-projected depth of every scan."""
+    pts = [s.points() for s in scans]
+    pts = np.concatenate([p for p in pts if len(p)]) if any(len(p) for p in pts) else np.zeros((0, 3))
+    if len(pts) == 0:
+        raise ScanIOError("cannot derive object bounds: no scan has depth; give \"furrow\": {\"bounds\": ...}")
+    lo = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0)
+    hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1], axis=0)
+    return bounds_from_points(np.stack([lo, hi]), AUTO_BOUNDS_MARGIN)
+
+
+def _read_bounds(block, where: str):
+    if block is None:
+        return None
+    try:
+        b = np.asarray(block, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ScanIOError(f"{where}: bounds must be [[xmin,ymin,zmin],[xmax,ymax,zmax]]") from None
+    if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
+        raise ScanIOError(f"{where}: bounds must be a finite [[min],[max]] box with max > min, got {block}")
+    return b
+
+
+def read_transforms(path: Path, frames: str | None = None, progress=None) -> ScanSet:
+    """Read a nerfstudio transforms.json scan set (see module docstring)."""
+    from capture.scan import select_indices
+
+    tj = resolve_transforms(path)
+    meta = _load_json(tj)
+    cams = read_cameras(tj)
+    idx = select_indices(frames, len(cams))
+    scans = []
+    it = progress(idx, "reading scans") if progress else idx
+    for i in it:
+        fc = cams[i]
+        where = f"{tj} frame {i}"
+        rgb_path = _resolve_image(tj.parent, fc.file_path, "colour image", where)
+        depth_path = None
+        if fc.depth_file_path is not None:
+            depth_path = _resolve_image(tj.parent, fc.depth_file_path, "depth file", where)
+        scans.append(_load_scan(fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor, fc.file_path))
+    fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
+    bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
+    if bounds is None:
+        bounds = auto_bounds(scans)
+    md = dict(fblock.get("metadata", {}))
+    md.update(source=str(tj), format="transforms.json")
+    if frames:
+        md["frames"] = frames
+    return ScanSet(tuple(scans), bounds, md)
+
+
+def read_plain_folder(folder: Path, frames: str | None = None, progress=None) -> ScanSet:
+    """Read the plain folder layout (see module docstring)."""
+    from capture.scan import select_indices
+
+    folder = Path(folder)
+    cam_dir = folder / "cameras"
+    files = sorted(cam_dir.glob("*.json"))
+    if not files:
+        raise ScanIOError(f"{cam_dir}: no camera JSON files")
+    idx = select_indices(frames, len(files))
+    scans = []
+    for i in (progress(idx, "reading scans") if progress else idx):
+        cj = files[i]
+        c = _load_json(cj)
+        try:
+            cam = Camera(np.asarray(c["K"], float), np.asarray(c["cam_from_world"], float),
+                         int(c["width"]), int(c["height"]), name=cj.stem)
+        except KeyError as e:
+            raise ScanIOError(f"{cj}: missing key {e}") from None
+        except (CameraError, TypeError, ValueError) as e:
+            raise ScanIOError(f"{cj}: {e}") from None
+        rgb_path = _resolve_image(folder / "rgb", cj.stem, "colour image", str(cj))
+        depth_path = _resolve_image(folder / "depth", cj.stem, "depth file", str(cj))
+        unit = c.get("depth_unit_scale_factor")
+        scans.append(_load_scan(cam, rgb_path, depth_path, None if unit is None else float(unit), cj.stem))
+    bj = folder / "bounds.json"
+    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else auto_bounds(scans)
+    return ScanSet(tuple(scans), bounds, {"source": str(folder), "format": "plain-folder"})
+
+
+def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSet:
+    """Read a scan set: transforms.json (file or folder holding one) or a plain folder."""
+    path = Path(path)
+    if path.is_dir() and not (path / TRANSFORMS).is_file():
+        if (path / "cameras").is_dir():
+            return read_plain_folder(path, frames, progress)
+        raise ScanIOError(f"{path}: neither a {TRANSFORMS} nor a plain folder layout (cameras/, rgb/, depth/)")
+    return read_transforms(path, frames, progress)
+
+
+# --------------------------------------------------------------------------- writing
+class _AtomicFolder:
+    """Build a folder under a temporary name beside ``target``; rename into place on success."""
+
+    def __init__(self, target: Path, overwrite: bool):
+        self.target = Path(target)
+        self.overwrite = overwrite
+
+    def __enter__(self) -> Path:
+        if self.target.exists() and not self.overwrite:
+            raise ScanIOError(f"{self.target}: already exists (choose another output or allow overwrite)")
+        self.target.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-", dir=self.target.parent))
+        return self.tmp
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            return False
+        if self.target.exists():
+            old = self.target.with_name(f".{self.target.name}.old-{os.getpid()}")
+            os.replace(self.target, old)
+            os.replace(self.tmp, self.target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(self.tmp, self.target)
+        return False
+
+
+def atomic_folder(target: Path, overwrite: bool = False) -> _AtomicFolder:
+    """``with atomic_folder(out) as tmp:`` write into ``tmp``; it becomes ``out`` on success only."""
+    return _AtomicFolder(target, overwrite)
+
+
+def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, depth_format: str, unit: float) -> None:
+    write_png(rgb_path, scan.srgb8)
+    if depth_format == "png":
+        write_png(depth_path, depth_to_uint16(scan.depth, unit, str(depth_path)))
+    else:
+        write_exr(depth_path, scan.depth)
+
+
+def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
+                     png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT, overwrite: bool = False,
+                     extra_files: dict[str, bytes] | None = None, progress=None) -> Path:
+    """Write ``out_dir/transforms.json`` + ``images/`` + ``depth/`` atomically; returns the json path.
+
+    ``depth_format``: ``"png"`` (16-bit, ``png_depth_unit`` metres per unit) or ``"exr"`` (float
+    metres).  ``extra_files``: relative path -> bytes written inside the same atomic folder.
+    """
+    if depth_format not in ("png", "exr"):
+        raise ValueError(f"depth_format must be 'png' or 'exr', got {depth_format!r}")
+    out_dir = Path(out_dir)
+    with atomic_folder(out_dir, overwrite) as tmp:
+        frames = []
+        items = list(enumerate(scanset.scans))
+        for i, s in (progress(items, "writing scans") if progress else items):
+            stem = Path(s.name).stem if s.name else f"frame_{i:04d}"
+            rel_rgb = f"images/{stem}.png"
+            rel_depth = f"depth/{stem}.{depth_format}"
+            _write_images(s, tmp / rel_rgb, tmp / rel_depth, depth_format, png_depth_unit)
+            ns = s.camera.to_nerfstudio()
+            frame = {"file_path": rel_rgb, "depth_file_path": rel_depth, **ns}
+            frame["depth_unit_scale_factor"] = png_depth_unit if depth_format == "png" else 1.0
+            frames.append(frame)
+        meta = {"camera_model": "PINHOLE", "frames": frames,
+                "furrow": {"bounds": np.asarray(scanset.bounds).tolist(),
+                           "metadata": _jsonable(scanset.metadata)}}
+        (tmp / TRANSFORMS).write_text(json.dumps(meta, indent=1))
+        for rel, data in (extra_files or {}).items():
+            (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / rel).write_bytes(data)
+    return out_dir / TRANSFORMS
+
+
+def write_plain_folder(scanset: ScanSet, out_dir: Path, depth_format: str = "exr", overwrite: bool = False) -> Path:
+    """Write the plain folder layout atomically; returns the folder."""
+    out_dir = Path(out_dir)
+    with atomic_folder(out_dir, overwrite) as tmp:
+        for i, s in enumerate(scanset.scans):
+            stem = Path(s.name).stem if s.name else f"frame_{i:04d}"
+            unit = DEFAULT_PNG_DEPTH_UNIT if depth_format == "png" else 1.0
+            _write_images(s, tmp / "rgb" / f"{stem}.png", tmp / "depth" / f"{stem}.{depth_format}", depth_format, unit)
+            cam = {"K": s.camera.K.tolist(), "cam_from_world": s.camera.cam_from_world.tolist(),
+                   "width": s.camera.width, "height": s.camera.height, "depth_unit_scale_factor": unit}
+            (tmp / "cameras").mkdir(exist_ok=True)
+            (tmp / "cameras" / f"{stem}.json").write_text(json.dumps(cam, indent=1))
+        (tmp / "bounds.json").write_text(json.dumps({"bounds": np.asarray(scanset.bounds).tolist()}))
+    return out_dir
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    return str(x)
+
+
+def save_linear_as_srgb_png(path: Path, linear: np.ndarray) -> None:
+    """Convenience: write a linear float image as 8-bit sRGB PNG (atomic)."""
+    write_png(path, to_uint8_srgb(linear))
