@@ -1,0 +1,430 @@
+"""The Model bundle: signed distance pyramid, RGBz images, occluder spheres and mesh.
+
+This is the one data model passed from ``volume`` to ``render`` (METHODS §1.1, §1.4, §3).
+Every type is a frozen dataclass validated on construction; arrays are made read-only.
+
+On disk a model is a folder::
+
+    MODEL/
+      model.json     schema name + version, units, bounds, cameras (nerfstudio convention,
+                     see Camera.to_nerfstudio), levels, spheres / mesh counts,
+                     every parameter used, input provenance
+      pyramid.npz    level_<L>_surface (N,3) int32, level_<L>_values (L,L,L) float32 (optional)
+      rgbz.npz       rgb (N,H,W,3) float32 linear, depth (N,H,W) float32 metres
+      spheres.npz    centers (N,3) float64, radii (N,) float64
+      mesh.npz       vertices (V,3) float32, faces (F,3) int32, colors (V,3) float32 (optional)
+
+:func:`save_model` writes into a temporary folder beside the target and renames it into
+place, so an interrupted run never leaves a half model; :func:`load_model` checks the schema
+and version and fails with an error naming the folder and file.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from capture.camera import Camera
+
+#: Schema name written into model.json.
+SCHEMA = "furrow.model"
+#: Version of the on-disk layout; load_model refuses any other.
+SCHEMA_VERSION = 1
+#: Relative tolerance when checking that all levels of a pyramid span the same cube.
+EXTENT_RTOL = 1e-6
+#: The array files of a model folder.
+ARRAY_FILES = ("pyramid.npz", "rgbz.npz", "spheres.npz", "mesh.npz")
+
+
+class ModelError(ValueError):
+    """An invalid model (in memory or on disk); the message names the field or file."""
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, copy=True)
+    a.setflags(write=False)
+    return a
+
+
+def _is_pow2(n: int) -> bool:
+    return n >= 1 and (n & (n - 1)) == 0
+
+
+# ---------------------------------------------------------------------------- types
+@dataclass(frozen=True)
+class SdfLevel:
+    """One level of the signed distance pyramid: a cube of L^3 voxels (METHODS §1.1).
+
+    Attributes:
+        resolution: L, voxels per side (a power of two inside a pyramid).
+        origin: (3,) float64 world position (metres) of the cube's minimum corner.
+        voxel_size: w, voxel edge length in metres; the cube spans origin + [0, L*w]^3.
+        surface: (N, 3) int32 voxel indices (i, j, k) in x, y, z order of the surface
+            voxels, |signed distance| <= half a voxel diagonal (METHODS §1.1 step 2).
+        values: (L, L, L) float32 signed distance in metres at voxel centres, indexed
+            [i, j, k] (x, y, z), positive outside; or None when not kept.
+    """
+
+    resolution: int
+    origin: np.ndarray
+    voxel_size: float
+    surface: np.ndarray
+    values: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        L = int(self.resolution)
+        if L < 1:
+            raise ModelError(f"SdfLevel: resolution must be >= 1, got {self.resolution}")
+        origin = np.asarray(self.origin, dtype=np.float64)
+        if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+            raise ModelError(f"SdfLevel {L}: origin must be a finite (3,) vector, got {origin!r}")
+        w = float(self.voxel_size)
+        if not (np.isfinite(w) and w > 0):
+            raise ModelError(f"SdfLevel {L}: voxel_size must be finite and > 0, got {w}")
+        surf = np.asarray(self.surface)
+        if surf.size == 0:
+            surf = np.zeros((0, 3), np.int32)
+        if surf.ndim != 2 or surf.shape[1] != 3 or not np.issubdtype(surf.dtype, np.integer):
+            raise ModelError(f"SdfLevel {L}: surface must be an (N, 3) integer array, got {surf.shape} {surf.dtype}")
+        if len(surf) and (surf.min() < 0 or surf.max() >= L):
+            raise ModelError(f"SdfLevel {L}: surface voxel index outside [0, {L})")
+        values = self.values
+        if values is not None:
+            values = np.asarray(values)
+            if values.shape != (L, L, L) or values.dtype != np.float32:
+                raise ModelError(f"SdfLevel {L}: values must be ({L},{L},{L}) float32, got {values.shape} {values.dtype}")
+            if not np.all(np.isfinite(values)):
+                raise ModelError(f"SdfLevel {L}: values contain NaN or inf")
+            values = _ro(values)
+        object.__setattr__(self, "resolution", L)
+        object.__setattr__(self, "origin", _ro(origin))
+        object.__setattr__(self, "voxel_size", w)
+        object.__setattr__(self, "surface", _ro(surf.astype(np.int32)))
+        object.__setattr__(self, "values", values)
+
+    def centers(self) -> np.ndarray:
+        """(N, 3) float64 world centres (metres) of the surface voxels: origin + (ijk + 0.5) w."""
+        return self.origin + (self.surface.astype(np.float64) + 0.5) * self.voxel_size
+
+    @property
+    def extent(self) -> float:
+        """Side of the cube in metres (L * w)."""
+        return self.resolution * self.voxel_size
+
+
+@dataclass(frozen=True)
+class SdfPyramid:
+    """Signed distance levels, coarse -> fine, every power of two up to ``l_opt`` (METHODS §1.1, §1.7).
+
+    Attributes:
+        levels: SdfLevel tuple, strictly increasing power-of-two resolutions, all spanning
+            the same cube (same origin and L*w); the finest has resolution ``l_opt``.
+        l_opt: the resolution chosen by Eq. 1.
+    """
+
+    levels: tuple[SdfLevel, ...]
+    l_opt: int
+
+    def __post_init__(self) -> None:
+        levels = tuple(self.levels)
+        if not levels:
+            raise ModelError("SdfPyramid: needs at least one level")
+        res = [lv.resolution for lv in levels]
+        if any(not _is_pow2(r) for r in res):
+            raise ModelError(f"SdfPyramid: resolutions must be powers of two, got {res}")
+        if any(b <= a for a, b in zip(res, res[1:])):
+            raise ModelError(f"SdfPyramid: resolutions must increase coarse -> fine, got {res}")
+        if int(self.l_opt) != res[-1]:
+            raise ModelError(f"SdfPyramid: finest level {res[-1]} must equal l_opt {self.l_opt}")
+        o, e = levels[0].origin, levels[0].extent
+        for lv in levels[1:]:
+            if not np.allclose(lv.origin, o, rtol=0, atol=EXTENT_RTOL * e) or abs(lv.extent - e) > EXTENT_RTOL * e:
+                raise ModelError(f"SdfPyramid: level {lv.resolution} spans a different cube than level {res[0]}")
+        object.__setattr__(self, "levels", levels)
+        object.__setattr__(self, "l_opt", int(self.l_opt))
+
+    @property
+    def resolutions(self) -> list[int]:
+        return [lv.resolution for lv in self.levels]
+
+    def level(self, resolution: int) -> SdfLevel:
+        for lv in self.levels:
+            if lv.resolution == resolution:
+                return lv
+        raise KeyError(f"no level with resolution {resolution} (have {self.resolutions})")
+
+
+@dataclass(frozen=True)
+class SphereSet:
+    """Occluder approximation by spheres (METHODS §3).
+
+    Attributes:
+        centers: (N, 3) float64 world centres in metres.
+        radii: (N,) float64 radii in metres, > 0.
+    """
+
+    centers: np.ndarray
+    radii: np.ndarray
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.centers, dtype=np.float64).reshape(-1, 3) if np.size(self.centers) == 0 else \
+            np.asarray(self.centers, dtype=np.float64)
+        r = np.asarray(self.radii, dtype=np.float64).reshape(-1)
+        if c.ndim != 2 or c.shape[1] != 3:
+            raise ModelError(f"SphereSet: centers must be (N, 3), got {c.shape}")
+        if r.shape != (len(c),):
+            raise ModelError(f"SphereSet: radii must be ({len(c)},), got {r.shape}")
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(r))) or np.any(r <= 0):
+            raise ModelError("SphereSet: centers and radii must be finite, radii > 0")
+        object.__setattr__(self, "centers", _ro(c))
+        object.__setattr__(self, "radii", _ro(r))
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+
+@dataclass(frozen=True)
+class RgbzImages:
+    """Per-camera colour + geometry depth (METHODS §1.4, the paper's RGBz images).
+
+    Attributes:
+        rgb: (N, H, W, 3) float32 linear colour.
+        depth: (N, H, W) float32 z-depth (metres, along the optical axis) of the geometry
+            projected into each camera; 0 = no geometry.
+        cameras: N cameras (OpenCV convention), all of size W x H.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    cameras: tuple[Camera, ...]
+
+    def __post_init__(self) -> None:
+        cams = tuple(self.cameras)
+        rgb = np.asarray(self.rgb)
+        depth = np.asarray(self.depth)
+        n = len(cams)
+        if rgb.dtype != np.float32 or depth.dtype != np.float32:
+            raise ModelError(f"RgbzImages: rgb and depth must be float32, got {rgb.dtype}, {depth.dtype}")
+        if n == 0:
+            if rgb.size or depth.size:
+                raise ModelError("RgbzImages: images given without cameras")
+            H = W = 0
+        else:
+            H, W = cams[0].height, cams[0].width
+            if any((c.height, c.width) != (H, W) for c in cams):
+                raise ModelError("RgbzImages: all cameras must have the same image size")
+        if rgb.shape != (n, H, W, 3) and not (n == 0 and rgb.size == 0):
+            raise ModelError(f"RgbzImages: rgb must be ({n},{H},{W},3), got {rgb.shape}")
+        if depth.shape != (n, H, W) and not (n == 0 and depth.size == 0):
+            raise ModelError(f"RgbzImages: depth must be ({n},{H},{W}), got {depth.shape}")
+        if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
+            raise ModelError("RgbzImages: depth must be finite and >= 0 (0 = no geometry)")
+        object.__setattr__(self, "rgb", _ro(rgb.reshape(n, H, W, 3)))
+        object.__setattr__(self, "depth", _ro(depth.reshape(n, H, W)))
+        object.__setattr__(self, "cameras", cams)
+
+    def __len__(self) -> int:
+        return len(self.cameras)
+
+
+@dataclass(frozen=True)
+class Model:
+    """Everything the renderers need, built by ``furrow model``.
+
+    Attributes:
+        pyramid: signed distance levels and their surface voxels (METHODS §1.1).
+        rgbz: RGBz images, one per input camera (METHODS §1.4).
+        spheres: occluder sphere set (METHODS §3).
+        mesh_vertices: (V, 3) float32 world positions (metres) of the baseline mesh.
+        mesh_faces: (F, 3) int32 vertex indices, counter-clockwise seen from outside.
+        mesh_colors: (V, 3) float32 linear vertex colours, or None.
+        bounds: (2, 3) float64 [min, max] object box in metres (world).
+        params: every parameter used to build the model (JSON-serialisable).
+        provenance: input description (source path, frames, generator, ...; JSON-serialisable).
+    """
+
+    pyramid: SdfPyramid
+    rgbz: RgbzImages
+    spheres: SphereSet
+    mesh_vertices: np.ndarray
+    mesh_faces: np.ndarray
+    mesh_colors: np.ndarray | None
+    bounds: np.ndarray
+    params: dict = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.pyramid, SdfPyramid):
+            raise ModelError("Model: pyramid must be an SdfPyramid")
+        if not isinstance(self.rgbz, RgbzImages):
+            raise ModelError("Model: rgbz must be RgbzImages")
+        if not isinstance(self.spheres, SphereSet):
+            raise ModelError("Model: spheres must be a SphereSet")
+        v = np.asarray(self.mesh_vertices, dtype=np.float32).reshape(-1, 3) if np.size(self.mesh_vertices) == 0 \
+            else np.asarray(self.mesh_vertices)
+        f = np.asarray(self.mesh_faces).reshape(-1, 3) if np.size(self.mesh_faces) == 0 else np.asarray(self.mesh_faces)
+        if v.ndim != 2 or v.shape[1] != 3 or v.dtype != np.float32 or not np.all(np.isfinite(v)):
+            raise ModelError(f"Model: mesh_vertices must be finite (V, 3) float32, got {v.shape} {v.dtype}")
+        if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+            raise ModelError(f"Model: mesh_faces must be (F, 3) integers, got {f.shape} {f.dtype}")
+        if len(f) and (f.min() < 0 or f.max() >= len(v)):
+            raise ModelError("Model: mesh_faces index a vertex that does not exist")
+        c = self.mesh_colors
+        if c is not None:
+            c = np.asarray(c)
+            if c.shape != v.shape or c.dtype != np.float32 or not np.all(np.isfinite(c)):
+                raise ModelError(f"Model: mesh_colors must be finite ({len(v)}, 3) float32 or None, got {c.shape} {c.dtype}")
+            c = _ro(c)
+        b = np.asarray(self.bounds, dtype=np.float64)
+        if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
+            raise ModelError(f"Model: bounds must be a finite (2, 3) [min, max] box, got {b.tolist()}")
+        for name in ("params", "provenance"):
+            try:
+                json.dumps(getattr(self, name))
+            except (TypeError, ValueError) as e:
+                raise ModelError(f"Model: {name} must be JSON-serialisable ({e})") from None
+        object.__setattr__(self, "mesh_vertices", _ro(v))
+        object.__setattr__(self, "mesh_faces", _ro(f.astype(np.int32)))
+        object.__setattr__(self, "mesh_colors", c)
+        object.__setattr__(self, "bounds", _ro(b))
+
+
+# ---------------------------------------------------------------------------- disk
+def _camera_json(cam: Camera) -> dict:
+    return {"name": cam.name, **cam.to_nerfstudio()}
+
+
+def save_model(model: Model, folder) -> Path:
+    """Write ``model`` to ``folder`` (created or replaced) atomically; returns the folder.
+
+    Everything is written into a temporary folder in the same parent and renamed into place,
+    so an interrupted save leaves either the old folder or nothing.
+    """
+    if not isinstance(model, Model):
+        raise ModelError("save_model: expected a Model")
+    folder = Path(folder)
+    parent = folder.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not (folder / "model.json").exists() and any(folder.iterdir()):
+        raise ModelError(f"{folder}: exists, is not empty and is not a furrow model; refusing to replace it")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=parent))
+    try:
+        pyr = model.pyramid
+        arrays = {}
+        for lv in pyr.levels:
+            arrays[f"level_{lv.resolution}_surface"] = lv.surface
+            if lv.values is not None:
+                arrays[f"level_{lv.resolution}_values"] = lv.values
+        np.savez(tmp / "pyramid.npz", **arrays)
+        np.savez(tmp / "rgbz.npz", rgb=model.rgbz.rgb, depth=model.rgbz.depth)
+        np.savez(tmp / "spheres.npz", centers=model.spheres.centers, radii=model.spheres.radii)
+        mesh = {"vertices": model.mesh_vertices, "faces": model.mesh_faces}
+        if model.mesh_colors is not None:
+            mesh["colors"] = model.mesh_colors
+        np.savez(tmp / "mesh.npz", **mesh)
+        meta = {
+            "schema": SCHEMA,
+            "version": SCHEMA_VERSION,
+            "units": {"length": "metres", "colour": "linear float32", "depth": "z-depth metres, 0 = none",
+                      "sdf": "metres, positive outside", "camera_convention": "nerfstudio transform_matrix "
+                      "(camera-to-world, OpenGL axes), pixel centres at i + 0.5"},
+            "bounds": model.bounds.tolist(),
+            "l_opt": pyr.l_opt,
+            "levels": [{"resolution": lv.resolution, "origin": lv.origin.tolist(), "voxel_size": lv.voxel_size,
+                        "surface_voxels": int(len(lv.surface)), "has_values": lv.values is not None}
+                       for lv in pyr.levels],
+            "cameras": [_camera_json(c) for c in model.rgbz.cameras],
+            "spheres": len(model.spheres),
+            "mesh": {"vertices": int(len(model.mesh_vertices)), "faces": int(len(model.mesh_faces)),
+                     "colors": model.mesh_colors is not None},
+            "params": model.params,
+            "provenance": model.provenance,
+            "files": list(ARRAY_FILES),
+        }
+        with open(tmp / "model.json", "w") as fh:
+            json.dump(meta, fh, indent=1)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if folder.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{folder.name}.old-", dir=parent))
+            os.rmdir(old)
+            os.rename(folder, old)
+            os.rename(tmp, folder)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return folder
+
+
+def _npz(folder: Path, name: str) -> dict:
+    path = folder / name
+    if not path.is_file():
+        raise ModelError(f"{path}: missing model file")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except Exception as e:  # corrupt / truncated zip
+        raise ModelError(f"{path}: cannot read ({type(e).__name__}: {e})") from None
+
+
+def load_model(folder) -> Model:
+    """Read and validate a model folder written by :func:`save_model`.
+
+    Raises ModelError naming the file on a missing folder or file, a wrong schema or
+    version, or arrays that do not match model.json.
+    """
+    folder = Path(folder)
+    mj = folder / "model.json"
+    if not folder.is_dir():
+        raise ModelError(f"{folder}: no such model folder")
+    if not mj.is_file():
+        raise ModelError(f"{mj}: missing (not a furrow model folder)")
+    try:
+        meta = json.loads(mj.read_text())
+    except (OSError, ValueError) as e:
+        raise ModelError(f"{mj}: not valid JSON ({e})") from None
+    if not isinstance(meta, dict) or meta.get("schema") != SCHEMA:
+        raise ModelError(f"{mj}: not a furrow model (schema {meta.get('schema') if isinstance(meta, dict) else None!r})")
+    if meta.get("version") != SCHEMA_VERSION:
+        raise ModelError(f"{mj}: model version {meta.get('version')!r} is not supported (this furrow reads version "
+                         f"{SCHEMA_VERSION}); rebuild it with `furrow model`")
+    try:
+        cams = tuple(Camera.from_nerfstudio(c["transform_matrix"], c["fl_x"], c["fl_y"], c["cx"], c["cy"], c["w"],
+                                            c["h"], c.get("name", "")) for c in meta["cameras"])
+        pyr = _npz(folder, "pyramid.npz")
+        levels = []
+        for lvm in meta["levels"]:
+            L = int(lvm["resolution"])
+            key = f"level_{L}_surface"
+            if key not in pyr:
+                raise ModelError(f"{folder / 'pyramid.npz'}: missing array {key}")
+            if len(pyr[key]) != lvm["surface_voxels"]:
+                raise ModelError(f"{folder / 'pyramid.npz'}: {key} has {len(pyr[key])} voxels, model.json says "
+                                 f"{lvm['surface_voxels']}")
+            vals = pyr.get(f"level_{L}_values") if lvm.get("has_values") else None
+            if lvm.get("has_values") and vals is None:
+                raise ModelError(f"{folder / 'pyramid.npz'}: missing array level_{L}_values")
+            levels.append(SdfLevel(L, np.array(lvm["origin"]), float(lvm["voxel_size"]), pyr[key], vals))
+        pyramid = SdfPyramid(tuple(levels), int(meta["l_opt"]))
+        rz = _npz(folder, "rgbz.npz")
+        sp = _npz(folder, "spheres.npz")
+        me = _npz(folder, "mesh.npz")
+        return Model(pyramid=pyramid, rgbz=RgbzImages(rz["rgb"], rz["depth"], cams),
+                     spheres=SphereSet(sp["centers"], sp["radii"]), mesh_vertices=me["vertices"],
+                     mesh_faces=me["faces"], mesh_colors=me.get("colors"), bounds=np.array(meta["bounds"]),
+                     params=meta.get("params", {}), provenance=meta.get("provenance", {}))
+    except ModelError as e:
+        if str(folder) in str(e):
+            raise
+        raise ModelError(f"{folder}: invalid model: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise ModelError(f"{folder}: invalid model ({type(e).__name__}: {e})") from None
