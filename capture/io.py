@@ -260,12 +260,22 @@ def read_plain_folder(folder: Path, frames: str | None = None, progress=None) ->
 
 
 def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSet:
-    """Read a scan set: transforms.json (file or folder holding one) or a plain folder."""
+    """Read a scan set: transforms.json (file or folder holding one), a plain folder, or a
+    COLMAP folder (``sparse/0`` + ``images/`` + optional ``depth/`` and ``depth_units.json``)."""
     path = Path(path)
     if path.is_dir() and not (path / TRANSFORMS).is_file():
         if (path / "cameras").is_dir():
             return read_plain_folder(path, frames, progress)
-        raise ScanIOError(f"{path}: neither a {TRANSFORMS} nor a plain folder layout (cameras/, rgb/, depth/)")
+        for model in (path / "sparse" / "0", path / "sparse", path):
+            if (model / "cameras.bin").is_file() or (model / "cameras.txt").is_file():
+                from capture.io_colmap import read_colmap
+
+                units = path / "depth_units.json"
+                unit = _load_json(units).get("depth_unit_scale_factor") if units.is_file() else None
+                depth = path / "depth" if (path / "depth").is_dir() else None
+                return read_colmap(model, path / "images", depth, unit, frames)
+        raise ScanIOError(f"{path}: neither a {TRANSFORMS}, a plain folder layout (cameras/, rgb/, depth/) "
+                          "nor a COLMAP layout (sparse/0/, images/, depth/)")
     return read_transforms(path, frames, progress)
 
 
