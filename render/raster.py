@@ -1,0 +1,503 @@
+"""Triangle-mesh rasteriser: colour, z-depth (metres), world normals and coverage.
+
+Used by ``datasets_synthetic`` to render exact ground truth and later as the fixed-mesh
+baseline renderer (DESIGN.md "render/").  The GL path (:class:`MeshRasterizer`) has a slow,
+obviously-correct numpy twin (:func:`rasterize_reference`, per-pixel barycentric) and a test
+comparing them (tests/render/test_raster.py).
+
+Conventions: cameras are :class:`capture.camera.Camera` (OpenCV); the GL matrices come from
+``camera.gl_view()`` / ``camera.gl_projection()`` and read-back rows are flipped by
+``gl_rows_to_image`` only.  Depth is the eye-space z-depth (metres along the optical axis)
+written to a float32 target, 0 = background.  Colour is linear float32.  Supersampling:
+colour (and the coverage ``alpha``) come from a pass at ``supersample`` x the resolution with
+the camera scaled exactly (``Camera.scaled``), averaged over s x s blocks; depth, normals and
+the mask come from a single-sample pass at the native resolution (no mixed depths at edges).
+
+Shaded mode (``lighting=``): SH9 irradiance (``render/shaders/sh9.glsl``) x per-vertex ambient
+occlusion, plus K directional lights with shadow maps, Lambert diffuse and an energy-preserving
+Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, METHODS §4 Eq. 4); strands (vertices
+with a tangent) use Kajiya-Kay: the lobe is evaluated on sin(T, H) and diffuse on sin(T, L).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from capture.camera import Camera, gl_rows_to_image, look_at
+
+#: Near plane never closer than this (metres).
+MIN_NEAR = 1e-3
+#: Near / far are the eye-depth range of the mesh bounds grown by this fraction.
+DEPTH_RANGE_MARGIN = 0.05
+#: Shadow-map resolution (texels per side) and the ortho box margin (fraction of the radius).
+SHADOW_MAP_SIZE = 2048
+SHADOW_BOX_MARGIN = 0.02
+#: Shadow bias along the light direction, in shadow-map texels (thin strands need it small).
+SHADOW_BIAS_TEXELS = 2.0
+#: Most directional lights the shaded program supports.
+MAX_LIGHTS = 4
+
+
+#: Interleaved vertex layout: (attribute name, float count).
+_ATTRIBUTES = (("in_pos", 3), ("in_color", 3), ("in_normal", 3), ("in_tangent", 3), ("in_occl", 1), ("in_spec", 1))
+
+
+class RasterError(ValueError):
+    """Invalid mesh or render request."""
+
+
+@dataclass(frozen=True)
+class RasterMesh:
+    """A triangle mesh with per-vertex attributes (world metres, linear colour).
+
+    Attributes:
+        vertices: (V, 3) float32 world positions in metres.
+        faces: (F, 3) int32 vertex indices (winding is irrelevant: no culling).
+        colors: (V, 3) float32 linear albedo / colour in [0, 1].
+        normals: (V, 3) float32 unit world normals, or None (flat face normals are used).
+        tangents: (V, 3) float32 unit strand directions (zero rows = not a strand), or None.
+        occlusion: (V,) float32 ambient visibility in [0, 1] (1 = unoccluded), or None (= 1).
+        specular: (V,) float32 specular strength in [0, 1], or None (= 0).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    colors: np.ndarray
+    normals: np.ndarray | None = None
+    tangents: np.ndarray | None = None
+    occlusion: np.ndarray | None = None
+    specular: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        v = np.ascontiguousarray(self.vertices, dtype=np.float32)
+        f = np.ascontiguousarray(self.faces, dtype=np.int32)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+            raise RasterError(f"mesh vertices must be (V, 3), got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise RasterError(f"mesh faces must be (F, 3), got {f.shape}")
+        if f.min() < 0 or f.max() >= len(v):
+            raise RasterError(f"mesh faces index vertices out of range [0, {len(v)})")
+        if not np.all(np.isfinite(v)):
+            raise RasterError("mesh vertices contain NaN or inf")
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "faces", f)
+        for name, cols in (("colors", 3), ("normals", 3), ("tangents", 3), ("occlusion", 0), ("specular", 0)):
+            a = getattr(self, name)
+            if a is None:
+                if name == "colors":
+                    raise RasterError("mesh colors are required")
+                continue
+            a = np.ascontiguousarray(a, dtype=np.float32)
+            want = (len(v), cols) if cols else (len(v),)
+            if a.shape != want:
+                raise RasterError(f"mesh {name} must be {want}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise RasterError(f"mesh {name} contain NaN or inf")
+            object.__setattr__(self, name, a)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64 axis-aligned [min, max] of the vertices."""
+        return np.stack([self.vertices.min(0), self.vertices.max(0)]).astype(np.float64)
+
+
+@dataclass(frozen=True)
+class RasterResult:
+    """What one render returns (all (H, W[, 3]) float32, image rows top first).
+
+    Attributes:
+        color: linear colour (background 0), supersampled box average.
+        depth: z-depth in metres along the optical axis, 0 = background (single sample).
+        normal: unit world normals facing the camera, 0 on background (single sample).
+        mask: bool coverage of the single-sample pass (depth > 0).
+        alpha: fraction of supersamples covered (equals ``mask`` when supersample == 1).
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    mask: np.ndarray
+    alpha: np.ndarray
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Environment lighting for the shaded mode (world frame).
+
+    Attributes:
+        sh9: (9, 3) float32 SH coefficients accepted by ``sh9_irradiance`` in sh9.glsl
+            (the ambient part, usually the environment minus the directional lights).
+        light_dirs: (K, 3) unit directions *towards* the lights, K <= MAX_LIGHTS.
+        light_colors: (K, 3) irradiance of each light on a surface facing it.
+        exposure: scale applied to the final radiance.
+        shininess: Blinn-Phong exponent of surfaces.
+        hair_shininess: exponent of the Kajiya-Kay lobe of strands.
+        shadows: whether the lights cast shadow maps.
+    """
+
+    sh9: np.ndarray
+    light_dirs: np.ndarray
+    light_colors: np.ndarray
+    exposure: float = 1.0
+    shininess: float = 40.0
+    hair_shininess: float = 80.0
+    shadows: bool = True
+
+    def __post_init__(self) -> None:
+        sh = np.asarray(self.sh9, dtype=np.float32)
+        d = np.asarray(self.light_dirs, dtype=np.float64).reshape(-1, 3)
+        c = np.asarray(self.light_colors, dtype=np.float32).reshape(-1, 3)
+        if sh.shape != (9, 3) or not np.all(np.isfinite(sh)):
+            raise RasterError(f"lighting sh9 must be finite (9, 3), got {sh.shape}")
+        if len(d) != len(c) or len(d) > MAX_LIGHTS:
+            raise RasterError(f"lighting needs as many light colours as directions, at most {MAX_LIGHTS}")
+        n = np.linalg.norm(d, axis=1, keepdims=True)
+        if np.any(n < 1e-9):
+            raise RasterError("lighting: zero light direction")
+        object.__setattr__(self, "sh9", sh)
+        object.__setattr__(self, "light_dirs", (d / n).astype(np.float32))
+        object.__setattr__(self, "light_colors", c)
+
+
+def depth_range(camera: Camera, bounds: np.ndarray) -> tuple[float, float]:
+    """(near, far) in metres enclosing the eye depth of the 8 corners of ``bounds``."""
+    b = np.asarray(bounds, dtype=np.float64)
+    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    z = camera.world_to_cam(corners)[:, 2]
+    span = max(float(z.max() - z.min()), 1e-3)
+    near = max(float(z.min()) - DEPTH_RANGE_MARGIN * span, MIN_NEAR)
+    far = max(float(z.max()) + DEPTH_RANGE_MARGIN * span, near * 1.01 + 1e-3)
+    return near, far
+
+
+def _box_down(img: np.ndarray, s: int) -> np.ndarray:
+    if s == 1:
+        return img
+    h, w = img.shape[0] // s, img.shape[1] // s
+    return img.reshape(h, s, w, s, *img.shape[2:]).mean(axis=(1, 3)).astype(np.float32)
+
+
+def _ortho(half: float, near: float, far: float) -> np.ndarray:
+    P = np.zeros((4, 4))
+    P[0, 0] = P[1, 1] = 1.0 / half
+    P[2, 2] = -2.0 / (far - near)
+    P[2, 3] = -(far + near) / (far - near)
+    P[3, 3] = 1.0
+    return P
+
+
+def _gl(m: np.ndarray) -> bytes:
+    """Row-major numpy (4, 4) -> column-major bytes for a GLSL mat4 uniform."""
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+
+
+class MeshRasterizer:
+    """Owns the GL programs, buffers and framebuffers of the mesh rasteriser.
+
+    ``ctx`` is an explicit moderngl context (``render.gl.create_context``); it is not released
+    here.  Usage::
+
+        with MeshRasterizer(ctx, supersample=3) as r:
+            r.set_mesh(mesh)
+            r.set_lighting(lighting)      # optional: shaded mode
+            res = r.render(camera)
+    """
+
+    def __init__(self, ctx, supersample: int = 1) -> None:
+        if int(supersample) < 1:
+            raise RasterError(f"supersample must be >= 1, got {supersample}")
+        from render.gl import program
+
+        self.ctx = ctx
+        self.supersample = int(supersample)
+        self._program = program
+        self._prog_flat = program(ctx, "raster_mesh_vert.glsl", "raster_mesh_frag.glsl")
+        self._prog_shaded = None
+        self._prog_shadow = None
+        self._fbos: dict[tuple[int, int], tuple] = {}
+        self._vbo = self._ibo = None
+        self._vaos: dict[str, object] = {}
+        self._mesh: RasterMesh | None = None
+        self._lighting: Lighting | None = None
+        self._shadow: list[tuple] = []  # (texture, fbo, light view-projection)
+        self._released = False
+
+    # ------------------------------------------------------------------ resources
+    def __enter__(self) -> "MeshRasterizer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+    def release(self) -> None:
+        """Free every GL object this rasteriser created (idempotent)."""
+        if self._released:
+            return
+        self._released = True
+        self._free_mesh()
+        self._free_shadows()
+        for tex_c, tex_d, tex_n, rb, fbo in self._fbos.values():
+            for o in (fbo, tex_c, tex_d, tex_n, rb):
+                o.release()
+        self._fbos.clear()
+        for p in (self._prog_flat, self._prog_shaded, self._prog_shadow):
+            if p is not None:
+                p.release()
+
+    def _free_mesh(self) -> None:
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        for b in (self._vbo, self._ibo):
+            if b is not None:
+                b.release()
+        self._vbo = self._ibo = None
+
+    def _free_shadows(self) -> None:
+        for tex, fbo, _ in self._shadow:
+            fbo.release()
+            tex.release()
+        self._shadow = []
+
+    def _check(self) -> None:
+        if self._released:
+            raise RasterError("MeshRasterizer used after release()")
+        if self._mesh is None:
+            raise RasterError("MeshRasterizer: call set_mesh() before rendering")
+
+    # ------------------------------------------------------------------ mesh
+    def set_mesh(self, mesh: RasterMesh) -> None:
+        """Upload ``mesh`` (replaces the previous one; invalidates shadow maps)."""
+        if self._released:
+            raise RasterError("MeshRasterizer used after release()")
+        self._free_mesh()
+        self._free_shadows()
+        V = len(mesh.vertices)
+        normals = mesh.normals if mesh.normals is not None else np.zeros((V, 3), np.float32)
+        tangents = mesh.tangents if mesh.tangents is not None else np.zeros((V, 3), np.float32)
+        occl = mesh.occlusion if mesh.occlusion is not None else np.ones(V, np.float32)
+        spec = mesh.specular if mesh.specular is not None else np.zeros(V, np.float32)
+        data = np.concatenate([mesh.vertices, mesh.colors, normals, tangents, occl[:, None], spec[:, None]], axis=1)
+        self._vbo = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
+        self._ibo = self.ctx.buffer(mesh.faces.tobytes())
+        self._mesh = mesh
+        self._has_normals = mesh.normals is not None
+        if self._lighting is not None:
+            self._build_shadows()
+
+    def _vao(self, kind: str):
+        if kind not in self._vaos:
+            prog = {"flat": self._prog_flat, "shaded": self._prog_shaded, "shadow": self._prog_shadow}[kind]
+            fmt, names = [], []
+            for name, n in _ATTRIBUTES:  # attributes the compiler removed become padding
+                if name in prog:
+                    fmt.append(f"{n}f")
+                    names.append(name)
+                else:
+                    fmt.append(f"{4 * n}x")
+            fmt = " ".join(fmt)
+            self._vaos[kind] = self.ctx.vertex_array(prog, [(self._vbo, fmt, *names)], index_buffer=self._ibo,
+                                                     index_element_size=4)
+        return self._vaos[kind]
+
+    # ------------------------------------------------------------------ lighting
+    def set_lighting(self, lighting: Lighting | None) -> None:
+        """Switch to shaded mode with ``lighting`` (None = flat per-vertex colour)."""
+        self._lighting = lighting
+        self._free_shadows()
+        if lighting is None:
+            return
+        if self._prog_shaded is None:
+            self._prog_shaded = self._program(self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl",
+                                              defines={"MAX_LIGHTS": MAX_LIGHTS})
+            self._prog_shadow = self._program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl")
+        if self._mesh is not None:
+            self._build_shadows()
+
+    def _build_shadows(self) -> None:
+        """One orthographic depth map per light covering the mesh's bounding sphere."""
+        self._free_shadows()
+        lt = self._lighting
+        if lt is None or not lt.shadows:
+            return
+        b = self._mesh.bounds
+        centre = 0.5 * (b[0] + b[1])
+        radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
+        ctx = self.ctx
+        vao = self._vao("shadow")
+        for d in lt.light_dirs.astype(np.float64):
+            up = (0.0, 0.0, 1.0) if abs(d[2]) < 0.95 else (1.0, 0.0, 0.0)
+            cam = Camera(np.eye(3), look_at(centre + 2 * radius * d, centre, up), 1, 1)
+            vp = _ortho(radius, radius, 3 * radius) @ cam.gl_view()
+            tex = ctx.depth_texture((SHADOW_MAP_SIZE, SHADOW_MAP_SIZE))
+            tex.compare_func = "<="
+            tex.repeat_x = tex.repeat_y = False
+            fbo = ctx.framebuffer(depth_attachment=tex)
+            fbo.use()
+            fbo.clear(depth=1.0)
+            ctx.enable(ctx.DEPTH_TEST)
+            ctx.disable(ctx.CULL_FACE)
+            self._prog_shadow["u_mvp"].write(_gl(vp))
+            vao.render()
+            self._shadow.append((tex, fbo, vp))
+        self._shadow_texel = 2 * radius / SHADOW_MAP_SIZE
+
+    # ------------------------------------------------------------------ render
+    def _fbo(self, w: int, h: int):
+        key = (w, h)
+        if key not in self._fbos:
+            ctx = self.ctx
+            tex_c = ctx.texture((w, h), 4, dtype="f4")
+            tex_d = ctx.texture((w, h), 1, dtype="f4")
+            tex_n = ctx.texture((w, h), 4, dtype="f4")
+            rb = ctx.depth_renderbuffer((w, h))
+            fbo = ctx.framebuffer(color_attachments=[tex_c, tex_d, tex_n], depth_attachment=rb)
+            self._fbos[key] = (tex_c, tex_d, tex_n, rb, fbo)
+        return self._fbos[key]
+
+    def _pass(self, camera: Camera, near: float, far: float, shaded: bool):
+        ctx = self.ctx
+        tex_c, tex_d, tex_n, _, fbo = self._fbo(camera.width, camera.height)
+        fbo.use()
+        fbo.viewport = (0, 0, camera.width, camera.height)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE | ctx.BLEND)
+        prog = self._prog_shaded if shaded else self._prog_flat
+        prog["u_view"].write(_gl(camera.gl_view()))
+        prog["u_proj"].write(_gl(camera.gl_projection(near, far)))
+        prog["u_eye"].value = tuple(float(x) for x in camera.center)
+        prog["u_has_normals"].value = int(self._has_normals)
+        if shaded:
+            self._set_shading_uniforms(prog)
+        self._vao("shaded" if shaded else "flat").render()
+        w, h = camera.width, camera.height
+        col = np.frombuffer(tex_c.read(), np.float32).reshape(h, w, 4)
+        dep = np.frombuffer(tex_d.read(), np.float32).reshape(h, w)
+        nor = np.frombuffer(tex_n.read(), np.float32).reshape(h, w, 4)[..., :3]
+        return gl_rows_to_image(col), gl_rows_to_image(dep), gl_rows_to_image(nor)
+
+    def _set_shading_uniforms(self, prog) -> None:
+        lt = self._lighting
+        prog["u_sh9"].write(np.ascontiguousarray(lt.sh9, dtype=np.float32).tobytes())
+        k = len(lt.light_dirs)
+        dirs = np.zeros((MAX_LIGHTS, 3), np.float32)
+        cols = np.zeros((MAX_LIGHTS, 3), np.float32)
+        dirs[:k] = lt.light_dirs
+        cols[:k] = lt.light_colors
+        prog["u_light_dir"].write(dirs.tobytes())
+        prog["u_light_col"].write(cols.tobytes())
+        prog["u_nlights"].value = k
+        prog["u_exposure"].value = float(lt.exposure)
+        prog["u_shininess"].value = float(lt.shininess)
+        prog["u_hair_shininess"].value = float(lt.hair_shininess)
+        use_shadow = bool(self._shadow)
+        prog["u_use_shadow"].value = int(use_shadow)
+        mats = np.zeros((MAX_LIGHTS, 4, 4), np.float32)
+        for i in range(MAX_LIGHTS):
+            if use_shadow and i < len(self._shadow):
+                tex, _, vp = self._shadow[i]
+                tex.use(location=i)
+                mats[i] = vp
+            prog[f"u_shadow{i}"].value = i
+        if use_shadow:
+            prog["u_shadow_bias"].value = float(SHADOW_BIAS_TEXELS * self._shadow_texel)
+            prog["u_shadow_texel"].value = 1.0 / SHADOW_MAP_SIZE
+        prog["u_light_vp"].write(np.ascontiguousarray(mats.transpose(0, 2, 1)).tobytes())
+
+    def render(self, camera: Camera, near: float | None = None, far: float | None = None) -> RasterResult:
+        """Render the current mesh for ``camera``; see :class:`RasterResult`.
+
+        ``near`` / ``far`` default to the eye-depth range of the mesh bounds.
+        """
+        self._check()
+        if near is None or far is None:
+            n0, f0 = depth_range(camera, self._mesh.bounds)
+            near = n0 if near is None else near
+            far = f0 if far is None else far
+        shaded = self._lighting is not None
+        s = self.supersample
+        col, dep, nor = self._pass(camera, near, far, shaded)
+        if s > 1:
+            col_ss, _, _ = self._pass(camera.scaled(s), near, far, shaded)
+            color = _box_down(col_ss[..., :3], s)
+            alpha = _box_down(col_ss[..., 3], s)
+        else:
+            color = col[..., :3].copy()
+            alpha = col[..., 3].copy()
+        mask = dep > 0
+        return RasterResult(color=np.ascontiguousarray(color, np.float32), depth=np.where(mask, dep, 0).astype(np.float32),
+                            normal=np.where(mask[..., None], nor, 0).astype(np.float32), mask=mask,
+                            alpha=np.clip(alpha, 0, 1).astype(np.float32))
+
+
+# ---------------------------------------------------------------------------------- reference
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F, 3) float64 unit normals of the triangles (right-hand rule); zero for degenerate ones."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces)
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(ln > 0, n / np.maximum(ln, 1e-300), 0.0)
+
+
+def rasterize_reference(mesh: RasterMesh, camera: Camera, near: float = MIN_NEAR) -> RasterResult:
+    """Slow numpy reference (small scenes only): per triangle, per pixel centre barycentric test
+    in image space (OpenCV centres, ``camera.project``), perspective-correct interpolation
+    (depth = 1 / sum(b_i / z_i)), nearest depth wins.  Triangles with a vertex nearer than
+    ``near`` are skipped (no clipping).  Colour is unshaded per-vertex colour, sampled at the
+    pixel centre (no supersampling), ``alpha == mask``.
+    """
+    H, W = camera.height, camera.width
+    depth = np.full((H, W), np.inf)
+    color = np.zeros((H, W, 3))
+    normal = np.zeros((H, W, 3))
+    v = mesh.vertices.astype(np.float64)
+    uv, z = camera.project(v)
+    fn = face_normals(v, mesh.faces)
+    eye = camera.center
+    for fi, (a, b, c) in enumerate(mesh.faces):
+        if min(z[a], z[b], z[c]) <= near:
+            continue
+        p = uv[[a, b, c]]
+        area = (p[1, 0] - p[0, 0]) * (p[2, 1] - p[0, 1]) - (p[2, 0] - p[0, 0]) * (p[1, 1] - p[0, 1])
+        if abs(area) < 1e-12:
+            continue
+        i0, i1 = max(int(np.ceil(p[:, 0].min())), 0), min(int(np.floor(p[:, 0].max())), W - 1)
+        j0, j1 = max(int(np.ceil(p[:, 1].min())), 0), min(int(np.floor(p[:, 1].max())), H - 1)
+        if i0 > i1 or j0 > j1:
+            continue
+        jj, ii = np.mgrid[j0 : j1 + 1, i0 : i1 + 1].astype(np.float64)
+        # edge functions -> screen-space barycentrics
+        w0 = ((p[2, 0] - p[1, 0]) * (jj - p[1, 1]) - (p[2, 1] - p[1, 1]) * (ii - p[1, 0])) / area
+        w1 = ((p[0, 0] - p[2, 0]) * (jj - p[2, 1]) - (p[0, 1] - p[2, 1]) * (ii - p[2, 0])) / area
+        w2 = 1.0 - w0 - w1
+        inside = (w0 >= 0) & (w1 >= 0) & (w2 >= 0)
+        if not inside.any():
+            continue
+        zs = z[[a, b, c]]
+        q = np.stack([w0 / zs[0], w1 / zs[1], w2 / zs[2]], -1)  # perspective-correct weights
+        zpix = 1.0 / q.sum(-1)
+        bary = q * zpix[..., None]
+        sub = depth[j0 : j1 + 1, i0 : i1 + 1]
+        win = inside & (zpix < sub)
+        if not win.any():
+            continue
+        sub[win] = zpix[win]
+        color[j0 : j1 + 1, i0 : i1 + 1][win] = bary[win] @ mesh.colors[[a, b, c]].astype(np.float64)
+        if mesh.normals is not None:
+            n = bary[win] @ mesh.normals[[a, b, c]].astype(np.float64)
+            n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+        else:
+            n = np.broadcast_to(fn[fi], (int(win.sum()), 3)).copy()
+        # face the camera: flip where the normal points away from the eye
+        pts = camera.unproject(np.stack([ii[win], jj[win]], -1), zpix[win])
+        flip = np.einsum("ij,ij->i", n, eye - pts) < 0
+        n[flip] *= -1
+        normal[j0 : j1 + 1, i0 : i1 + 1][win] = n
+    mask = np.isfinite(depth)
+    depth = np.where(mask, depth, 0.0)
+    return RasterResult(color=color.astype(np.float32), depth=depth.astype(np.float32), normal=normal.astype(np.float32),
+                        mask=mask, alpha=mask.astype(np.float32))

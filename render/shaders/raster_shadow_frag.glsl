@@ -1,0 +1,3 @@
+#version 430
+// Depth only.
+void main() {}
