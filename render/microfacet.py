@@ -1,0 +1,270 @@
+"""View-dependent microfacet billboards on the GPU (METHODS §1.2-§1.7).
+
+All surface voxel centres of every pyramid level, the input cameras and the RGBz texture
+array are uploaded once; per frame only uniforms change.  Two interchangeable paths:
+
+* ``"instanced"`` (default): a compute pass selects the cameras per voxel and appends one
+  record per slice (atomic counter -> indirect draw command); an instanced 4-vertex strip
+  draws one square per record.  The record count is the facet count.
+* ``"geometry"``: one point per voxel; a geometry shader selects the cameras and emits the
+  slices (counted with a primitives-generated query).
+
+The fragment shader projects each fragment into the candidate cameras, applies Eq. 2 with
+the RGBz array, blends with unstructured-lumigraph weights and falls back per fragment to the
+next camera that passes; alpha is binary (discard) and the depth buffer resolves visibility,
+so nothing is sorted.  The numpy twin of every step is ``render/microfacet_geometry.py``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from capture.camera import Camera, gl_rows_to_image
+from render import microfacet_geometry as mg
+from render.gl import program
+
+#: Compute work-group size of microfacet_select.glsl.
+LOCAL_SIZE = 64
+#: Bytes of one slice record (4 x vec4, microfacet_slice.glsl).
+SLICE_BYTES = 64
+MODES = ("instanced", "geometry")
+
+
+def shader_defines() -> dict:
+    """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
+    return {
+        "K_BLEND": mg.K_BLEND,
+        "K_CAND": mg.K_CAND,
+        "MAX_SLICES": mg.MAX_SLICES,
+        "MAX_VERTS": 4 * mg.MAX_SLICES,
+        "PHI_EPS": f"{mg.PHI_EPS:.9e}",
+        "WEIGHT_EPS": f"{mg.WEIGHT_EPS:.9e}",
+        "ULR_THRESHOLD_FACTOR": f"{mg.ULR_THRESHOLD_FACTOR:.6f}",
+        "SLICE_SIDE": f"{mg.SLICE_SIDE_FACTOR:.9f}",
+    }
+
+
+def camera_block(cameras) -> bytes:
+    """std430 array of ``Cam`` structs (microfacet_common.glsl) for the input cameras."""
+    out = np.zeros((max(len(cameras), 1), 28), np.float32)
+    for i, c in enumerate(cameras):
+        out[i, :16] = c.cam_from_world.T.reshape(-1)  # column-major mat4
+        out[i, 16:20] = [c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2]]
+        out[i, 20:24] = [c.width, c.height, c.K[0, 1], 0.0]
+        out[i, 24:27] = c.center
+    return out.tobytes()
+
+
+def rgbz_array(rgb: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """(N, H, W, 4) float32 RGBz texels: linear rgb + z-depth in metres (0 = none)."""
+    return np.concatenate([np.asarray(rgb, np.float32), np.asarray(depth, np.float32)[..., None]], axis=-1)
+
+
+def _mat(m: np.ndarray) -> bytes:
+    return np.asarray(m, dtype=np.float32).T.tobytes()
+
+
+@dataclass
+class Frame:
+    """One rendered frame.
+
+    Attributes:
+        rgb: (H, W, 3) float32 linear colour, black where nothing was drawn.
+        alpha: (H, W) bool foreground.
+        level: pyramid level index used (-1: nothing to draw).
+        resolution: that level's L.
+        spacing: slice spacing l (m).
+        facets: number of slices drawn.
+        ms: GPU frame time in milliseconds (selection + draw, synchronised; no read-back).
+        lod: the level-of-detail choice.
+    """
+
+    rgb: np.ndarray
+    alpha: np.ndarray
+    level: int
+    resolution: int
+    spacing: float
+    facets: int
+    ms: float
+    lod: mg.Lod | None = field(default=None, repr=False)
+
+
+class MicrofacetRenderer:
+    """Owns the GPU buffers and programs of the microfacet renderer for one model.
+
+    Args:
+        ctx: a moderngl context (render.gl.create_context()).
+        levels: the pyramid levels (volume.model.SdfLevel, coarse -> fine).
+        rgb, depth, cameras: the RGBz images (volume.model.RgbzImages fields).
+        bounds: (2, 3) object box (near/far planes, LOD centre).
+        mode: "instanced" or "geometry".
+    """
+
+    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced"):
+        if mode not in MODES:
+            raise ValueError(f"unknown microfacet mode {mode!r}; use one of {MODES}")
+        self.ctx = ctx
+        self.mode = mode
+        self.levels = tuple(levels)
+        self.cameras = tuple(cameras)
+        self.bounds = np.asarray(bounds, dtype=np.float64)
+        self.voxel_sizes = [lv.voxel_size for lv in self.levels]
+        self.counts = [len(lv.surface) for lv in self.levels]
+        if len(self.cameras) == 0:
+            raise ValueError("microfacet renderer: the model has no input camera")
+        d = shader_defines()
+        self.voxel_bufs = []
+        for lv in self.levels:
+            c = np.zeros((max(len(lv.surface), 1), 4), np.float32)
+            c[: len(lv.surface), :3] = lv.centers()
+            self.voxel_bufs.append(ctx.buffer(c.tobytes()))
+        self.cam_buf = ctx.buffer(camera_block(self.cameras))
+        texels = rgbz_array(rgb, depth)
+        n, H, W = texels.shape[:3]
+        self.tex = ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4")
+        self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.tex.repeat_x = self.tex.repeat_y = False
+        self.max_records = max(max(self.counts), 1) * mg.MAX_SLICES
+        self.slice_buf = ctx.buffer(reserve=self.max_records * SLICE_BYTES)
+        self.indirect = ctx.buffer(reserve=16)
+        self.select = ctx.compute_shader(_src("microfacet_select.glsl", d))
+        self.draw_prog = program(ctx, "microfacet_vert.glsl", "microfacet_frag.glsl", defines=d)
+        self.fill_prog = program(ctx, "microfacet_vert.glsl", "microfacet_quad_frag.glsl", defines=d)
+        self.geom_prog = program(ctx, "microfacet_points_vert.glsl", "microfacet_frag.glsl",
+                                 geometry="microfacet_geom.glsl", defines=d)
+        self.vao_inst = ctx.vertex_array(self.draw_prog, [])
+        self.vao_fill = ctx.vertex_array(self.fill_prog, [])
+        self.vao_geom = ctx.vertex_array(self.geom_prog, [])
+        self.query = ctx.query(primitives=True)
+        self._fbo = None
+        self._fbo_size = None
+
+    @classmethod
+    def from_model(cls, ctx, model, mode: str = "instanced") -> "MicrofacetRenderer":
+        """Renderer for a volume.model.Model."""
+        return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
+                   model.bounds, mode)
+
+    def release(self) -> None:
+        for o in [*self.voxel_bufs, self.cam_buf, self.tex, self.slice_buf, self.indirect, self.select,
+                  self.draw_prog, self.fill_prog, self.geom_prog, self.vao_inst, self.vao_fill, self.vao_geom]:
+            o.release()
+        if self._fbo is not None:
+            for o in self._fbo:
+                o.release()
+
+    # ------------------------------------------------------------------ frame
+    def _target(self, W: int, H: int):
+        if self._fbo_size != (W, H):
+            if self._fbo is not None:
+                for o in self._fbo:
+                    o.release()
+            col = self.ctx.renderbuffer((W, H), 4, dtype="f4")
+            dep = self.ctx.depth_renderbuffer((W, H))
+            self._fbo = (self.ctx.framebuffer([col], dep), col, dep)
+            self._fbo_size = (W, H)
+        return self._fbo[0]
+
+    def choose_lod(self, eye: Camera, tolerance_px: float) -> mg.Lod:
+        """Level and spacing for this eye (Eq. 10-11, microfacet_geometry.choose_lod)."""
+        center = self.bounds.mean(axis=0)
+        return mg.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
+
+    def _uniforms(self, prog, eye: Camera, level: int, spacing: float, near: float, view_proj: np.ndarray):
+        right, up = mg.eye_axes(eye)
+        w = self.voxel_sizes[level]
+        vals = {"n_cams": len(self.cameras), "eye_pos": tuple(eye.center), "eye_right": tuple(right),
+                "eye_up": tuple(up), "spacing": spacing, "voxel_size": w, "near_plane": near,
+                "half_side": 0.5 * mg.SLICE_SIDE_FACTOR * w}
+        for k, v in vals.items():
+            if k in prog:
+                prog[k].value = v
+        if "view_proj" in prog:
+            prog["view_proj"].write(_mat(view_proj))
+        if "rgbz" in prog:
+            prog["rgbz"].value = 0
+
+    def render(self, eye: Camera, tolerance_px: float = mg.DEFAULT_TOLERANCE_PX, level: int | None = None,
+               spacing: float | None = None, fill_only: bool = False, read: bool = True) -> Frame:
+        """Render one frame from ``eye``.
+
+        Args:
+            eye: the viewing camera (its size is the image size).
+            tolerance_px: E in pixels for the automatic level/spacing (Eq. 10-11).
+            level: force this pyramid level index (spacing then from Eq. 10 on it).
+            spacing: force the slice spacing l (m).
+            fill_only: draw the same squares untextured (the bare fill-cost reference;
+                instanced mode only).
+            read: read the image back (False for timing only).
+        """
+        ctx = self.ctx
+        lod = self.choose_lod(eye, tolerance_px)
+        lev = lod.level if level is None else int(level)
+        w = self.voxel_sizes[lev]
+        if spacing is None:
+            spacing = lod.spacing if level is None else max(mg.eq10_spacing(lod.e_world, lod.phi, w), mg.min_spacing(w))
+        spacing = max(float(spacing), mg.min_spacing(w))
+        near, far = mg.near_far(eye, self.bounds)
+        view_proj = eye.gl_projection(near, far) @ eye.gl_view()
+        W, H = eye.width, eye.height
+        fbo = self._target(W, H)
+        fbo.use()
+        ctx.viewport = (0, 0, W, H)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "<"
+        n_vox = self.counts[lev]
+        facets = 0
+        ctx.finish()
+        t0 = time.perf_counter()
+        if n_vox > 0:
+            self.cam_buf.bind_to_storage_buffer(0)
+            self.voxel_bufs[lev].bind_to_storage_buffer(1)
+            self.tex.use(0)
+            if self.mode == "instanced" or fill_only:
+                self.indirect.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
+                self.slice_buf.bind_to_storage_buffer(2)
+                self.indirect.bind_to_storage_buffer(3)
+                self._uniforms(self.select, eye, lev, spacing, near, view_proj)
+                self.select["n_voxels"].value = n_vox
+                self.select["max_records"].value = self.max_records
+                self.select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
+                ctx.memory_barrier()
+                prog, vao = (self.fill_prog, self.vao_fill) if fill_only else (self.draw_prog, self.vao_inst)
+                self._uniforms(prog, eye, lev, spacing, near, view_proj)
+                vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
+                ctx.finish()
+                facets = int(np.frombuffer(self.indirect.read(), np.uint32)[1])
+            else:
+                self._uniforms(self.geom_prog, eye, lev, spacing, near, view_proj)
+                with self.query:
+                    self.vao_geom.render(mode=ctx.POINTS, vertices=n_vox)
+                ctx.finish()
+                facets = int(self.query.primitives) // 2  # two triangles per square
+        ms = (time.perf_counter() - t0) * 1e3
+        rgb = np.zeros((H, W, 3), np.float32)
+        alpha = np.zeros((H, W), bool)
+        if read:
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)
+            img = gl_rows_to_image(raw)
+            rgb, alpha = np.ascontiguousarray(img[..., :3]), img[..., 3] > 0.5
+        return Frame(rgb, alpha, lev if n_vox > 0 else -1, self.levels[lev].resolution, float(spacing), facets,
+                     ms, lod)
+
+    def read_slices(self, count: int) -> dict:
+        """The slice records of the last instanced frame (for tests): centres, s, weights,
+        candidates, voxel index, slice number."""
+        raw = np.frombuffer(self.slice_buf.read(size=count * SLICE_BYTES), np.float32).reshape(count, 16)
+        ints = raw.view(np.int32)
+        return {"center": raw[:, 0:3].astype(np.float64), "s": raw[:, 3].astype(np.float64),
+                "weights": raw[:, 4:7].astype(np.float64), "cand": np.concatenate([ints[:, 8:12], ints[:, 12:14]], 1),
+                "voxel": ints[:, 14].copy(), "n": ints[:, 15].copy()}
+
+
+def _src(name: str, defines: dict) -> str:
+    from render.gl import load_shader
+
+    return load_shader(name, defines)

@@ -1,0 +1,414 @@
+"""Numpy twin of the microfacet renderer's geometry (METHODS §1.2-§1.7).
+
+Everything the shaders compute is written here once more in plain float64 numpy, so that
+tests can compare the GPU output with an obviously-correct reference:
+
+* :func:`eq10_spacing` / :func:`eq11_level` / :func:`choose_lod`: slice spacing l and pyramid
+  level from the screen-space tolerance E (Eq. 8-11).  These run on the CPU once per frame
+  and reach the GPU as uniforms.
+* :func:`slice_distances`: slices perpendicular to the ray eye -> voxel centre, at distances
+  n*l from the eye, only where they intersect the voxel, at least one (METHODS §1.2).
+* :func:`select_cameras`: per voxel, input cameras in increasing angle phi whose image holds
+  the voxel's footprint; the nearest ``K_BLEND`` are blended with unstructured-lumigraph
+  weights (Buehler et al. 2001), the next ones are per-fragment fallbacks (METHODS §1.3).
+* :func:`eq2_pass`: the RGBz depth clip |d - D| < l/2 (Eq. 2, METHODS §1.4).
+* :func:`reference_render`: a brute-force ray caster of the slices (slow; small scenes only)
+  that reproduces the whole GPU frame.
+
+The GLSL counterparts are ``render/shaders/microfacet_common.glsl`` and friends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from capture.camera import Camera
+
+#: A slice is a square of side sqrt(3) w, so it covers its voxel from every direction (§1.2).
+SLICE_SIDE_FACTOR = float(np.sqrt(3.0))
+#: Paper default screen-space tolerance E in pixels (§1.7).
+DEFAULT_TOLERANCE_PX = 8.0
+#: Cameras blended per voxel (the nearest by phi).
+K_BLEND = 3
+#: Candidate cameras per voxel: K_BLEND blended + (K_CAND - K_BLEND) per-fragment fallbacks.
+K_CAND = 6
+#: Most slices one voxel may get (geometry-shader output bound); l is clamped so that
+#: sqrt(3) w / l + 1 <= MAX_SLICES.
+MAX_SLICES = 8
+#: Smallest angle used in the weights and in Eq. 10 (radians): avoids 1/0 when the eye
+#: sits exactly on an input camera (that camera then takes all the weight).
+PHI_EPS = 1e-6
+#: Below this total weight the blend is considered empty and the first passing candidate is used.
+WEIGHT_EPS = 1e-8
+#: When fewer than K_BLEND + 1 cameras are valid, the ULR threshold is this factor times
+#: the largest valid phi (so the last valid camera keeps a non-zero weight).
+ULR_THRESHOLD_FACTOR = 2.0
+#: Near plane when the eye is inside the object's bounds, as a fraction of the bounds diagonal.
+NEAR_FRACTION_INSIDE = 1e-3
+
+
+# ------------------------------------------------------------------ Eq. 10 / Eq. 11
+def eq10_spacing(e_world: float, phi: float, w: float) -> float:
+    """Largest slice spacing l (metres) for tolerance ``e_world`` (metres at the voxel) and
+    angle ``phi`` (radians) on a level of voxel size ``w``: l = min(E / tan phi, w cos phi)
+    (Eq. 10).  phi -> 0 gives w; phi is clamped to [0, pi/2]."""
+    phi = float(np.clip(phi, 0.0, np.pi / 2))
+    geo = w * np.cos(phi)
+    t = np.tan(phi)
+    if t <= np.tan(PHI_EPS):
+        return float(geo)
+    return float(min(e_world / t, geo))
+
+
+def eq11_level(l_desired: float, phi: float, voxel_sizes) -> int:
+    """Index of the pyramid level for a desired spacing (Eq. 11): the level i with
+    w_i cos(phi) / 2 < l <= w_i cos(phi).  Coarser than every level -> the coarsest (index 0,
+    voxel_sizes coarse -> fine, i.e. decreasing); finer than every level -> the finest."""
+    ws = np.asarray(voxel_sizes, dtype=np.float64)
+    if ws.size == 0:
+        raise ValueError("eq11_level: no levels")
+    c = max(np.cos(float(np.clip(phi, 0.0, np.pi / 2))), 1e-12)
+    for i, w in enumerate(ws):
+        if w * c / 2 < l_desired <= w * c:
+            return i
+    if l_desired > ws[0] * c:
+        return 0
+    return len(ws) - 1
+
+
+def min_spacing(w: float) -> float:
+    """Smallest l allowed on a level of voxel size w (keeps slices per voxel <= MAX_SLICES)."""
+    return SLICE_SIDE_FACTOR * w / (MAX_SLICES - 1)
+
+
+@dataclass(frozen=True)
+class Lod:
+    """The per-frame level-of-detail choice (METHODS §1.7).
+
+    Attributes:
+        level: index into the pyramid levels (coarse -> fine).
+        spacing: slice spacing l in metres (Eq. 10 on that level, clamped by :func:`min_spacing`).
+        phi: representative angle (radians) between the view ray and the blended cameras.
+        e_world: the tolerance E expressed in metres at the object's centre.
+    """
+
+    level: int
+    spacing: float
+    phi: float
+    e_world: float
+
+
+def choose_lod(eye: Camera, center: np.ndarray, cameras, voxel_sizes, counts, tolerance_px: float,
+               footprint_radius: float = 0.0) -> Lod:
+    """Pick the level and slice spacing for one frame.
+
+    E (pixels) becomes E_world = E * z / f at the object's centre (z its depth in the eye,
+    f the eye's mean focal length).  phi is the weighted mean angle of the cameras blended
+    at the centre (:func:`select_cameras`).  l_E = E_world / tan(phi); the level follows Eq. 11;
+    then l = Eq. 10 on that level.  Levels with no surface voxel are skipped (nearest
+    non-empty level, finer first).
+
+    Args:
+        eye: the rendering camera.
+        center: (3,) world point standing for the object (bounds centre).
+        cameras: input cameras.
+        voxel_sizes: w per level, coarse -> fine.
+        counts: surface voxels per level (0 = empty level).
+        tolerance_px: E in pixels (> 0).
+        footprint_radius: radius (m) of the footprint used in the camera selection at the centre.
+    """
+    if not tolerance_px > 0:
+        raise ValueError(f"tolerance must be > 0 pixels, got {tolerance_px}")
+    center = np.asarray(center, dtype=np.float64)
+    f = 0.5 * (eye.K[0, 0] + eye.K[1, 1])
+    z = float(eye.world_to_cam(center)[2])
+    dist = float(np.linalg.norm(center - eye.center))
+    z = z if z > 1e-9 else max(dist, 1e-9)
+    e_world = tolerance_px * z / f
+    idx, wts = select_cameras(center[None], footprint_radius, eye.center, cameras)
+    valid = idx[0, :K_BLEND] >= 0
+    if valid.any():
+        phis = camera_angles(center[None], eye.center, cameras)[0][idx[0, :K_BLEND][valid]]
+        phi = float(np.sum(wts[0, :K_BLEND][valid] * phis) / max(np.sum(wts[0, :K_BLEND][valid]), WEIGHT_EPS))
+    else:
+        phi = 0.0
+    ws = np.asarray(voxel_sizes, dtype=np.float64)
+    counts = np.asarray(counts)
+    t = np.tan(max(phi, PHI_EPS))
+    l_e = e_world / t
+    lev = eq11_level(l_e, phi, ws)
+    if counts[lev] == 0:
+        nonempty = np.flatnonzero(counts > 0)
+        if nonempty.size == 0:
+            return Lod(lev, float(eq10_spacing(e_world, phi, ws[lev])), phi, e_world)
+        # nearest non-empty level, the finer one on ties
+        lev = int(min(nonempty, key=lambda i: (abs(int(i) - lev), -int(i))))
+    spacing = max(eq10_spacing(e_world, phi, ws[lev]), min_spacing(ws[lev]))
+    return Lod(int(lev), float(spacing), float(phi), float(e_world))
+
+
+# ------------------------------------------------------------------ slices (§1.2)
+def slice_distances(centers: np.ndarray, w: float, eye_pos: np.ndarray, spacing: float,
+                    near: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Slices of each voxel: distances s = n*l from the eye along its ray that cut the voxel.
+
+    The plane {x : (x - eye) . v = s} (v = unit ray eye -> centre) meets the axis-aligned cube
+    of side w iff |s - s_c| <= h with s_c = |centre - eye| and h = w/2 (|v_x| + |v_y| + |v_z|).
+    Every voxel gets at least one slice (n = round(s_c / l) when no multiple falls inside);
+    slices closer than ``near`` are dropped; at most MAX_SLICES, nearest to the centre kept.
+
+    Returns:
+        voxel: (M,) int64 voxel index of every slice.
+        n: (M,) int64 slice number (its distance is n * spacing).
+    """
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    d = c - np.asarray(eye_pos, dtype=np.float64)
+    sc = np.linalg.norm(d, axis=1)
+    v = d / np.maximum(sc, 1e-12)[:, None]
+    h = 0.5 * w * np.abs(v).sum(axis=1)
+    lo = np.ceil((sc - h) / spacing).astype(np.int64)
+    hi = np.floor((sc + h) / spacing).astype(np.int64)
+    none = hi < lo
+    lo[none] = hi[none] = np.round(sc[none] / spacing).astype(np.int64)
+    # cap at MAX_SLICES (only reachable through rounding; l >= min_spacing)
+    over = hi - lo + 1 > MAX_SLICES
+    lo[over] = np.round(sc[over] / spacing).astype(np.int64) - (MAX_SLICES - 1) // 2
+    hi[over] = lo[over] + MAX_SLICES - 1
+    near_n = np.ceil(near / spacing - 1e-12).astype(np.int64) if near > 0 else None
+    if near_n is not None:
+        lo = np.maximum(lo, near_n)
+    count = np.maximum(hi - lo + 1, 0)
+    voxel = np.repeat(np.arange(len(c)), count)
+    start = np.repeat(lo, count)
+    off = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return voxel, start + off
+
+
+def slice_frame(centers: np.ndarray, eye_pos: np.ndarray, eye_right: np.ndarray, eye_up: np.ndarray):
+    """Unit view direction v and in-plane axes (a, b) of each voxel's slices.
+
+    a = the eye's right vector made perpendicular to v (the eye's up vector when they are
+    parallel), b = v x a.  Returns three (N, 3) arrays.
+    """
+    d = np.asarray(centers, dtype=np.float64).reshape(-1, 3) - eye_pos
+    v = d / np.maximum(np.linalg.norm(d, axis=1), 1e-12)[:, None]
+    a = eye_right - (v @ eye_right)[:, None] * v
+    na = np.linalg.norm(a, axis=1)
+    bad = na < 1e-6
+    if bad.any():
+        a2 = eye_up - (v[bad] @ eye_up)[:, None] * v[bad]
+        a[bad] = a2
+        na[bad] = np.linalg.norm(a2, axis=1)
+    a = a / na[:, None]
+    b = np.cross(v, a)
+    return v, a, b
+
+
+# ------------------------------------------------------------------ cameras (§1.3)
+def camera_angles(points: np.ndarray, eye_pos: np.ndarray, cameras) -> np.ndarray:
+    """(N, C) angle phi (radians) between the view ray eye -> point and each camera's ray
+    camera -> point."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    v = p - eye_pos
+    v /= np.maximum(np.linalg.norm(v, axis=1), 1e-12)[:, None]
+    out = np.empty((len(p), len(cameras)))
+    for i, cam in enumerate(cameras):
+        u = p - cam.center
+        u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
+        out[:, i] = np.arccos(np.clip((v * u).sum(axis=1), -1.0, 1.0))
+    return out
+
+
+def footprint_inside(points: np.ndarray, radius: float, cameras) -> np.ndarray:
+    """(N, C) bool: the sphere of ``radius`` around each point lies in front of the camera and
+    its projection (centre +- f r / z) lies inside the image [-0.5, W - 0.5] x [-0.5, H - 0.5]."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros((len(p), len(cameras)), dtype=bool)
+    for i, cam in enumerate(cameras):
+        uv, z = cam.project(p)
+        ok = z - radius > 0
+        zs = np.where(ok, z, 1.0)
+        ru = cam.K[0, 0] * radius / zs
+        rv = cam.K[1, 1] * radius / zs
+        with np.errstate(invalid="ignore"):
+            ok &= (uv[:, 0] - ru >= -0.5) & (uv[:, 0] + ru <= cam.width - 0.5)
+            ok &= (uv[:, 1] - rv >= -0.5) & (uv[:, 1] + rv <= cam.height - 0.5)
+        out[:, i] = ok
+    return out
+
+
+def ulr_weights(phi_sorted: np.ndarray, n_valid: np.ndarray) -> np.ndarray:
+    """Unstructured-lumigraph blend weights of the first K_BLEND of each row of ascending
+    angles (Buehler et al. 2001): w_i = (1 - phi_i / t) / phi_i with t the (K_BLEND+1)-th
+    angle (or ULR_THRESHOLD_FACTOR times the largest valid angle), normalised to sum 1.
+
+    Args:
+        phi_sorted: (N, >= K_BLEND + 1) ascending angles; entries past n_valid are ignored.
+        n_valid: (N,) number of valid cameras per row.
+    Returns:
+        (N, K_BLEND) weights (0 for invalid slots).
+    """
+    N = len(phi_sorted)
+    k = np.arange(K_BLEND)
+    p = np.maximum(phi_sorted[:, :K_BLEND], PHI_EPS)
+    last = np.take_along_axis(phi_sorted, np.clip(n_valid - 1, 0, None)[:, None], axis=1)[:, 0]
+    t_next = phi_sorted[:, K_BLEND] if phi_sorted.shape[1] > K_BLEND else np.full(N, np.inf)
+    t = np.where(n_valid > K_BLEND, t_next, ULR_THRESHOLD_FACTOR * np.maximum(last, PHI_EPS))
+    w = np.maximum(1.0 - p / t[:, None], 0.0) / p
+    w[k[None, :] >= n_valid[:, None]] = 0.0
+    s = w.sum(axis=1, keepdims=True)
+    return np.where(s > 0, w / np.where(s > 0, s, 1.0), 0.0)
+
+
+def select_cameras(centers: np.ndarray, footprint_radius: float, eye_pos: np.ndarray, cameras):
+    """Per voxel: candidate cameras by increasing phi among those whose image holds the
+    footprint, and the blend weights of the first K_BLEND (METHODS §1.3).
+
+    Returns:
+        idx: (N, K_CAND) int64 camera indices in increasing phi, -1 past the valid ones.
+        weights: (N, K_BLEND) float64 ULR weights (sum 1 where any camera is valid).
+    """
+    p = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    C = len(cameras)
+    if C == 0 or len(p) == 0:
+        return np.full((len(p), K_CAND), -1, np.int64), np.zeros((len(p), K_BLEND))
+    phi = camera_angles(p, eye_pos, cameras)
+    ok = footprint_inside(p, footprint_radius, cameras)
+    phi_m = np.where(ok, phi, np.inf)
+    order = np.argsort(phi_m, axis=1, kind="stable")
+    ncol = min(C, K_CAND + 1)
+    order = order[:, :ncol]
+    ps = np.take_along_axis(phi_m, order, axis=1)
+    n_valid = np.isfinite(ps).sum(axis=1)
+    if ncol < K_BLEND + 1:
+        ps = np.concatenate([ps, np.full((len(p), K_BLEND + 1 - ncol), np.inf)], axis=1)
+    weights = ulr_weights(ps, n_valid)
+    idx = np.full((len(p), K_CAND), -1, np.int64)
+    m = min(ncol, K_CAND)
+    idx[:, :m] = np.where(np.isfinite(ps[:, :m]), order[:, :m], -1)
+    return idx, weights
+
+
+# ------------------------------------------------------------------ Eq. 2 (§1.4)
+def eq2_pass(d: np.ndarray, D: np.ndarray, spacing: float) -> np.ndarray:
+    """RGBz clip (Eq. 2): keep where the camera saw geometry (d > 0) and |d - D| < l / 2."""
+    d = np.asarray(d)
+    return (d > 0) & (np.abs(d - np.asarray(D)) < 0.5 * spacing)
+
+
+def sample_rgbz(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndarray):
+    """Nearest-texel RGBz lookup of world points in one camera.
+
+    Returns (colour (N, 3), d (N,) stored depth, D (N,) the points' own z-depth); d = 0 where
+    the point projects outside the image or behind the camera.
+    """
+    uv, D = cam.project(points)
+    with np.errstate(invalid="ignore"):
+        ix = np.floor(uv[:, 0] + 0.5)
+        iy = np.floor(uv[:, 1] + 0.5)
+        inside = (D > 0) & (ix >= 0) & (ix < cam.width) & (iy >= 0) & (iy < cam.height)
+    ixi = np.where(inside, ix, 0).astype(np.int64)
+    iyi = np.where(inside, iy, 0).astype(np.int64)
+    d = np.where(inside, depth[iyi, ixi], 0.0)
+    col = np.where(inside[:, None], rgb[iyi, ixi], 0.0)
+    return col, d, D
+
+
+def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, spacing: float,
+                    cameras, rgb: np.ndarray, depth: np.ndarray):
+    """Colour of slice fragments (the fragment shader's twin).
+
+    Blend the passing (Eq. 2) cameras among the first K_BLEND with their weights; when their
+    total weight is <= WEIGHT_EPS, take the first passing candidate in phi order (per-fragment
+    fallback).  Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.
+    """
+    N = len(points)
+    acc = np.zeros((N, 3))
+    wsum = np.zeros(N)
+    first = np.full((N, 3), np.nan)
+    for k in range(K_CAND):
+        ci = cand[:, k]
+        for c in np.unique(ci[ci >= 0]):
+            m = ci == c
+            col, d, D = sample_rgbz(cameras[c], rgb[c], depth[c], points[m])
+            ok = eq2_pass(d, D, spacing)
+            if k < K_BLEND:
+                acc[m] += (weights[m, k] * ok)[:, None] * col
+                wsum[m] += weights[m, k] * ok
+            sel = np.flatnonzero(m)[ok]
+            fresh = np.isnan(first[sel, 0])
+            first[sel[fresh]] = col[ok][fresh]
+    blended = wsum > WEIGHT_EPS
+    out = np.where(blended[:, None], acc / np.where(blended, wsum, 1.0)[:, None], first)
+    alive = blended | ~np.isnan(first[:, 0])
+    return np.where(alive[:, None], out, 0.0), alive
+
+
+# ------------------------------------------------------------------ whole frame
+def near_far(eye: Camera, bounds: np.ndarray) -> tuple[float, float]:
+    """Near/far planes (m) that hold the bounds box; near is tiny when the eye is inside."""
+    b = np.asarray(bounds, dtype=np.float64)
+    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    z = eye.world_to_cam(corners)[:, 2]
+    diag = float(np.linalg.norm(b[1] - b[0]))
+    far = max(float(z.max()), 0.0) + 0.05 * diag + 1e-6
+    inside = np.all(eye.center >= b[0]) and np.all(eye.center <= b[1])
+    near = float(z.min()) - 0.05 * diag
+    if inside or near <= NEAR_FRACTION_INSIDE * diag:
+        near = NEAR_FRACTION_INSIDE * diag
+    far = max(far, 2 * near)
+    return near, far
+
+
+def eye_axes(eye: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """World right (+x) and up (-y) vectors of an OpenCV camera."""
+    R = eye.cam_from_world[:3, :3]
+    return R[0].copy(), -R[1].copy()
+
+
+def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float, cameras,
+                     rgb: np.ndarray, depth: np.ndarray, bounds: np.ndarray):
+    """Brute-force ray caster of the microfacet slices (slow, float64): the GPU frame's twin.
+
+    For every pixel centre of ``eye``, intersect the ray with every slice quad, shade each hit
+    (:func:`shade_fragments`) and keep the nearest surviving one.
+
+    Returns (image (H, W, 3) linear, alive (H, W) bool, slices (voxel, n)).
+    """
+    near, _ = near_far(eye, bounds)
+    eye_pos = eye.center
+    right, up = eye_axes(eye)
+    vox, n = slice_distances(centers, w, eye_pos, spacing, near)
+    v, a, b = slice_frame(centers, eye_pos, right, up)
+    idx, wts = select_cameras(centers, 0.5 * SLICE_SIDE_FACTOR * w, eye_pos, cameras)
+    H, W = eye.height, eye.width
+    rays = eye.pixel_rays(eye.pixel_grid().reshape(-1, 2))
+    rays = rays @ eye.world_from_cam[:3, :3].T  # world directions with eye-z = 1
+    half = 0.5 * SLICE_SIDE_FACTOR * w
+    best_z = np.full(H * W, np.inf)
+    img = np.zeros((H * W, 3))
+    for j, nn in zip(vox, n):
+        s = nn * spacing
+        denom = rays @ v[j]
+        t = np.where(denom > 1e-12, s / np.where(denom > 1e-12, denom, 1.0), -1.0)
+        hit = (t > 0) & (t < best_z)
+        if not hit.any():
+            continue
+        pix = np.flatnonzero(hit)
+        x = eye_pos + t[pix, None] * rays[pix]
+        q = eye_pos + s * v[j]
+        ca = (x - q) @ a[j]
+        cb = (x - q) @ b[j]
+        inq = (np.abs(ca) <= half) & (np.abs(cb) <= half) & (t[pix] >= near)
+        pix, x = pix[inq], x[inq]
+        if not len(pix):
+            continue
+        col, alive = shade_fragments(x, np.repeat(idx[j:j + 1], len(pix), 0),
+                                     np.repeat(wts[j:j + 1], len(pix), 0), spacing, cameras, rgb, depth)
+        pix = pix[alive]
+        best_z[pix] = t[pix]
+        img[pix] = col[alive]
+    alive = np.isfinite(best_z)
+    return img.reshape(H, W, 3), alive.reshape(H, W), (vox, n)
