@@ -1,0 +1,290 @@
+"""Environment maps: linear HDR radiance on an equirectangular grid, and THE one
+direction <-> pixel mapping of the whole project (DESIGN.md "EnvMap"; METHODS §2, §3).
+
+Convention (world +z up, same as Blender's world equirect, so the bundled studio lights look
+the way Blender shows them and the image is not mirrored when seen from inside the sphere):
+
+* ``u in [0, 1)`` is azimuth, ``v in [0, 1]`` is the polar angle from +z:
+  ``theta = pi * v`` (``v = 0``: straight up, +z; ``v = 1``: straight down, -z),
+  ``phi = pi * (1 - 2 u)`` = the azimuth atan2(y, x) around +z, so ``u = 0.5`` looks along +x,
+  ``u = 0.25`` along +y, ``u = 0.75`` along -y and ``u = 0 / 1`` along -x (u increases when turning
+  clockwise seen from above, i.e. to the right for a viewer standing inside).
+* ``dir = (sin theta cos phi, sin theta sin phi, cos theta)``.
+* Pixel (row i, column j) of an ``(H, W=2H)`` map covers ``u in [j/W, (j+1)/W)``,
+  ``v in [i/H, (i+1)/H)``; its centre is ``((j + 0.5)/W, (i + 0.5)/H)``. Row 0 is the top (+z).
+  Continuous pixel coordinates are ``x = u W - 0.5``, ``y = v H - 0.5``.
+
+Radiance is linear float32 RGB (W m^-2 sr^-1 up to an arbitrary scale). Tiny negative values that
+lossy EXR compression (DWAB) leaves are clamped to 0 on load.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Folder of the bundled CC0 environment maps (package data of datasets_synthetic, found by path
+#: so that render/ does not import datasets_synthetic).
+BUNDLED_DIR = Path(__file__).resolve().parents[2] / "datasets_synthetic" / "envmaps"
+#: Names of the bundled maps (Blender studio lights, CC0, 1024x512 EXR).
+BUNDLED_NAMES = ("courtyard", "forest", "studio", "sunset")
+
+
+@dataclass(frozen=True)
+class EnvMap:
+    """Linear HDR environment radiance.
+
+    data: (H, 2H, 3) float32, finite, >= 0, equirectangular in the convention of this module.
+    name: a label (file stem, "procedural", ...).
+    """
+
+    data: np.ndarray
+    name: str = "env"
+
+    def __post_init__(self):
+        d = np.asarray(self.data)
+        if d.ndim != 3 or d.shape[2] != 3 or d.shape[1] != 2 * d.shape[0] or d.shape[0] < 1:
+            raise ValueError(f"EnvMap {self.name!r}: data must be (H, 2H, 3), got {d.shape}")
+        if d.dtype != np.float32:
+            d = d.astype(np.float32)
+        if not np.all(np.isfinite(d)):
+            raise ValueError(f"EnvMap {self.name!r}: data has NaN or inf")
+        if np.any(d < 0):
+            raise ValueError(f"EnvMap {self.name!r}: negative radiance (min {float(d.min())})")
+        d = np.ascontiguousarray(d)
+        d.setflags(write=False)
+        object.__setattr__(self, "data", d)
+
+    @property
+    def height(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.data.shape[1])
+
+    # -- geometry -----------------------------------------------------------------------------
+    def pixel_directions(self) -> np.ndarray:
+        """(H, W, 3) float64 unit directions of the pixel centres."""
+        h, w = self.height, self.width
+        u = (np.arange(w) + 0.5) / w
+        v = (np.arange(h) + 0.5) / h
+        uu, vv = np.meshgrid(u, v)
+        return uv_to_dir(np.stack([uu, vv], -1))
+
+    def pixel_solid_angles(self) -> np.ndarray:
+        """(H, W) float64 exact solid angle of each pixel (sr); sums to 4 pi."""
+        return pixel_solid_angles(self.height)
+
+    def sample(self, dirs) -> np.ndarray:
+        """Bilinear radiance lookup (wrap in u, clamp in v). dirs (..., 3) -> (..., 3) float64."""
+        return sample_equirect(self.data, dir_to_uv(dirs))
+
+    def rotated(self, angle_z: float) -> "EnvMap":
+        """The environment turned by ``angle_z`` radians about +z (right-handed):
+        ``rotated(a).sample(Rz(a) @ d) == sample(d)``. Exact for multiples of 2 pi / W, linear
+        interpolation between columns otherwise."""
+        w = self.width
+        # phi -> phi + a  <=>  u -> u - a / (2 pi); new[:, j] = old at column j + a W / (2 pi)
+        shift = float(angle_z) * w / (2 * np.pi)
+        x = np.arange(w) + shift
+        x0 = np.floor(x).astype(np.int64)
+        f = (x - x0)[None, :, None]
+        d = self.data.astype(np.float64)
+        out = d[:, x0 % w] * (1 - f) + d[:, (x0 + 1) % w] * f
+        return EnvMap(out.astype(np.float32), self.name)
+
+    def resized(self, h: int) -> "EnvMap":
+        """Area-correct resampling to (h, 2h): each new pixel is the solid-angle-weighted mean of
+        the old radiance it overlaps, so the total power (sum of L * Omega) is preserved."""
+        h = int(h)
+        if h < 1:
+            raise ValueError(f"resized: height must be >= 1, got {h}")
+        if h == self.height:
+            return self
+        H, W = self.height, self.width
+        # rows: overlap measured in cos(theta) (solid angle per unit azimuth)
+        R = _overlap_matrix(np.cos(np.pi * np.arange(H + 1) / H), np.cos(np.pi * np.arange(h + 1) / h))
+        C = _overlap_matrix(np.arange(W + 1) / W, np.arange(2 * h + 1) / (2 * h))
+        d = self.data.astype(np.float64)
+        out = np.einsum("ai,ijc,bj->abc", R, d, C, optimize=True)
+        return EnvMap(np.maximum(out, 0).astype(np.float32), self.name)
+
+    def total_power(self) -> np.ndarray:
+        """(3,) float64: integral of radiance over the sphere, sum L * Omega."""
+        return np.einsum("hwc,hw->c", self.data.astype(np.float64), self.pixel_solid_angles())
+
+
+def _overlap_matrix(old_edges: np.ndarray, new_edges: np.ndarray) -> np.ndarray:
+    """M[a, i] = |new cell a ∩ old cell i| / |new cell a| for monotone edge arrays (either
+    direction)."""
+    s = 1.0 if old_edges[-1] > old_edges[0] else -1.0
+    o = s * np.asarray(old_edges, np.float64)
+    n = s * np.asarray(new_edges, np.float64)
+    lo = np.maximum(n[:-1, None], o[None, :-1])
+    hi = np.minimum(n[1:, None], o[None, 1:])
+    ov = np.clip(hi - lo, 0, None)
+    return ov / (n[1:] - n[:-1])[:, None]
+
+
+def pixel_solid_angles(h: int) -> np.ndarray:
+    """(h, 2h) float64 exact solid angles of the pixels of an equirect map of height h."""
+    w = 2 * h
+    c = np.cos(np.pi * np.arange(h + 1) / h)
+    row = (c[:-1] - c[1:]) * (2 * np.pi / w)
+    return np.repeat(row[:, None], w, axis=1)
+
+
+def dir_to_uv(dirs) -> np.ndarray:
+    """(..., 3) directions (need not be unit, must be non-zero) -> (..., 2) float64 (u, v),
+    u in [0, 1), v in [0, 1]. See the module docstring for the convention."""
+    d = np.asarray(dirs, np.float64)
+    if d.shape[-1] != 3:
+        raise ValueError(f"dir_to_uv: expected (..., 3), got {d.shape}")
+    r = np.linalg.norm(d, axis=-1)
+    if np.any(r == 0):
+        raise ValueError("dir_to_uv: zero-length direction")
+    phi = np.arctan2(d[..., 1], d[..., 0])
+    theta = np.arccos(np.clip(d[..., 2] / r, -1.0, 1.0))
+    u = np.mod(0.5 - phi / (2 * np.pi), 1.0)
+    u = np.where(u >= 1.0, 0.0, u)  # mod can round up to exactly 1.0
+    return np.stack([u, theta / np.pi], -1)
+
+
+def uv_to_dir(uv) -> np.ndarray:
+    """(..., 2) (u, v) -> (..., 3) float64 unit directions (inverse of :func:`dir_to_uv`)."""
+    uv = np.asarray(uv, np.float64)
+    if uv.shape[-1] != 2:
+        raise ValueError(f"uv_to_dir: expected (..., 2), got {uv.shape}")
+    phi = np.pi * (1.0 - 2.0 * uv[..., 0])
+    theta = np.pi * uv[..., 1]
+    st = np.sin(theta)
+    return np.stack([st * np.cos(phi), st * np.sin(phi), np.cos(theta)], -1)
+
+
+def sample_equirect(data: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of an (H, W, C) equirect array at (..., 2) uv: wrap in u, clamp in v."""
+    data = np.asarray(data)
+    H, W = data.shape[:2]
+    x = uv[..., 0] * W - 0.5
+    y = np.clip(uv[..., 1] * H - 0.5, 0.0, H - 1.0)
+    x0 = np.floor(x).astype(np.int64)
+    y0 = np.floor(y).astype(np.int64)
+    fx = (x - x0)[..., None]
+    fy = (y - y0)[..., None]
+    y1 = np.minimum(y0 + 1, H - 1)
+    xa, xb = x0 % W, (x0 + 1) % W
+    d = data.astype(np.float64) if data.dtype != np.float64 else data
+    top = d[y0, xa] * (1 - fx) + d[y0, xb] * fx
+    bot = d[y1, xa] * (1 - fx) + d[y1, xb] * fx
+    return top * (1 - fy) + bot * fy
+
+
+# -- procedural fallback ----------------------------------------------------------------------
+#: Procedural sky: direction of the sun (unit, elevation ~35 degrees, azimuth 40 degrees).
+SUN_DIR = np.array([np.cos(np.radians(35)) * np.cos(np.radians(40)),
+                    np.cos(np.radians(35)) * np.sin(np.radians(40)), np.sin(np.radians(35))])
+#: Procedural sky: angular radius of the sun disc (radians) and its radiance (linear RGB).
+SUN_RADIUS = np.radians(3.0)
+SUN_RADIANCE = np.array([400.0, 360.0, 300.0])
+
+
+def procedural_sky(h: int = 64) -> EnvMap:
+    """A tiny deterministic fallback environment: blue sky gradient above, brownish ground below,
+    a bright sun disc of radius :data:`SUN_RADIUS` at :data:`SUN_DIR` (supersampled 4x4)."""
+    h = int(h)
+    ss = 4
+    w = 2 * h
+    u = (np.arange(w * ss) + 0.5) / (w * ss)
+    v = (np.arange(h * ss) + 0.5) / (h * ss)
+    d = uv_to_dir(np.stack(np.meshgrid(u, v), -1))
+    z = d[..., 2:3]
+    zenith = np.array([0.25, 0.45, 0.9])
+    horizon = np.array([0.9, 0.95, 1.0])
+    ground = np.array([0.25, 0.2, 0.15])
+    t = np.clip(z, 0, 1) ** 0.5
+    sky = horizon * (1 - t) + zenith * t
+    img = np.where(z >= 0, sky, ground * (1 + 0.5 * np.clip(-z, 0, 1)))
+    sun = (d @ SUN_DIR) >= np.cos(SUN_RADIUS)
+    img = np.where(sun[..., None], SUN_RADIANCE, img)
+    img = img.reshape(h, ss, w, ss, 3).mean(axis=(1, 3))
+    return EnvMap(img.astype(np.float32), "procedural")
+
+
+# -- I/O ----------------------------------------------------------------------------------------
+def bundled_envmap(name: str) -> EnvMap:
+    """One of the bundled CC0 maps (:data:`BUNDLED_NAMES`), full resolution (512x1024)."""
+    path = BUNDLED_DIR / f"{name}.exr"
+    if not path.is_file():
+        raise FileNotFoundError(f"bundled environment map {path} not found "
+                                f"(bundled: {', '.join(BUNDLED_NAMES)})")
+    return load_envmap(path)
+
+
+def load_envmap(path) -> EnvMap:
+    """Read an equirect HDR map (.exr via OpenEXR, .hdr/.pic Radiance RGBE). The image must be
+    2:1; errors name the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"environment map {path} not found")
+    ext = path.suffix.lower()
+    try:
+        if ext == ".exr":
+            data = _read_exr(path)
+        elif ext in (".hdr", ".pic", ".rgbe"):
+            from render.shading.rgbe import read_rgbe
+            data = read_rgbe(path)
+        else:
+            raise ValueError(f"unsupported extension {ext!r} (use .exr or .hdr)")
+    except (ValueError, OSError, KeyError, RuntimeError) as e:  # OpenEXR raises RuntimeError
+        raise ValueError(f"cannot read environment map {path}: {e}") from e
+    if data.ndim != 3 or data.shape[1] != 2 * data.shape[0]:
+        raise ValueError(f"environment map {path}: expected a 2:1 equirect image, got "
+                         f"{data.shape[1]}x{data.shape[0]}")
+    if not np.all(np.isfinite(data)):
+        raise ValueError(f"environment map {path}: contains NaN or inf")
+    return EnvMap(np.maximum(data, 0).astype(np.float32), path.stem)
+
+
+def _read_exr(path: Path) -> np.ndarray:
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        ch = f.channels()
+        if "RGB" in ch:
+            px = np.asarray(ch["RGB"].pixels)
+        elif "RGBA" in ch:
+            px = np.asarray(ch["RGBA"].pixels)[..., :3]
+        elif all(c in ch for c in "RGB"):
+            px = np.stack([np.asarray(ch[c].pixels) for c in "RGB"], -1)
+        elif "Y" in ch:
+            px = np.repeat(np.asarray(ch["Y"].pixels)[..., None], 3, -1)
+        else:
+            raise ValueError(f"no R,G,B or Y channels (found {sorted(ch)})")
+    return px.astype(np.float32)
+
+
+def save_envmap(env: EnvMap, path) -> Path:
+    """Write ``env`` as a float32 RGB EXR (ZIP compression, lossless), atomically (temp file in
+    the same folder + rename)."""
+    import OpenEXR
+
+    path = Path(path)
+    if path.suffix.lower() != ".exr":
+        raise ValueError(f"save_envmap: {path}: only .exr is written")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.exr", dir=path.parent)
+    os.close(fd)
+    try:
+        with OpenEXR.File(header, {"RGB": np.ascontiguousarray(env.data, np.float32)}) as f:
+            f.write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
