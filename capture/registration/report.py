@@ -1,0 +1,158 @@
+"""Failure detection thresholds, pose error metrics and the ``registration.json`` report.
+
+Every threshold that decides whether a registration is accepted is a named constant here,
+documented with its unit.  A pair registration is *accepted* only if it passes all of them;
+a scan is *flagged* (reported by name with its figures and left out of the output) when no
+accepted, pose-graph-consistent pair connects it to the gauge scan.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from capture.camera import invert_rigid
+
+#: Minimum fitness (fraction of the source's range pixels that land, under the estimated
+#: pose, on a target range pixel within the finest depth gate with a compatible normal) for
+#: an accepted pair.  Turntable neighbours 30 degrees apart overlap by 0.6-0.8, 60 degrees
+#: apart by about 0.35; a different object or a diverged ICP lands well below.
+MIN_FITNESS = 0.25
+#: Maximum point-to-plane inlier RMSE of an accepted pair, as a fraction of object size
+#: (0.2 % = 0.6 mm on a 0.3 m object: several times the depth noise of a structured-light scanner).
+MAX_RMSE_FRAC = 0.002
+#: ICP from an initial guess may move the relative pose by at most this much (degrees) ...
+MAX_CORRECTION_DEG = 30.0
+#: ... and this fraction of the object size (bounds diagonal) at the object centre;
+#: a larger jump is a diverged ICP and is never accepted.
+MAX_CORRECTION_FRAC = 0.3
+#: After the pose-graph optimisation an edge whose measured relative pose disagrees with the
+#: optimised poses by more than this (degrees) ...
+MAX_EDGE_RESIDUAL_DEG = 1.0
+#: ... or this fraction of object size at the object centre is inconsistent and is removed.
+MAX_EDGE_RESIDUAL_FRAC = 0.01
+
+
+def rotation_angle_deg(R: np.ndarray) -> float:
+    """Angle (degrees) of a (3, 3) rotation matrix."""
+    c = (np.trace(np.asarray(R)[:3, :3]) - 1.0) / 2.0
+    return math.degrees(math.acos(float(np.clip(c, -1.0, 1.0))))
+
+
+def transform_delta(a: np.ndarray, b: np.ndarray, center: np.ndarray) -> tuple[float, float]:
+    """Difference of two (4, 4) rigid maps of the same frames: (rotation degrees,
+    displacement in metres of ``center`` (in the maps' source frame))."""
+    d = a @ invert_rigid(b)
+    c = np.asarray(center, dtype=np.float64)
+    disp = np.linalg.norm((a[:3, :3] @ c + a[:3, 3]) - (b[:3, :3] @ c + b[:3, 3]))
+    return rotation_angle_deg(d[:3, :3]), float(disp)
+
+
+def align_gauge(est: list[np.ndarray], gt: list[np.ndarray], gauge: int = 0) -> list[np.ndarray]:
+    """Re-express estimated ``cam_from_world`` poses so that scan ``gauge`` equals its ground truth.
+
+    est_k @ inv(est_g) @ gt_g: the rigid (gauge) freedom of the reconstruction is fixed by one scan.
+    """
+    g = invert_rigid(est[gauge]) @ gt[gauge]
+    return [e @ g for e in est]
+
+
+def pose_errors(est: list[np.ndarray], gt: list[np.ndarray], center: np.ndarray, gauge: int = 0) -> dict:
+    """Rotation (degrees) and translation (metres) errors of ``cam_from_world`` poses after aligning
+    the gauge scan.  Translation error = how far the object centre lands from where ground truth puts
+    it in camera coordinates (independent of the camera distance, unlike camera-centre error)."""
+    al = align_gauge(est, gt, gauge)
+    rot, trans = [], []
+    for i, (e, t) in enumerate(zip(al, gt)):
+        if i == gauge:
+            continue
+        r, d = transform_delta(e, t, center)
+        rot.append(r)
+        trans.append(d)
+    rot_a, tr_a = np.array(rot or [0.0]), np.array(trans or [0.0])
+    return {
+        "rot_median_deg": float(np.median(rot_a)),
+        "rot_max_deg": float(rot_a.max()),
+        "trans_median_m": float(np.median(tr_a)),
+        "trans_max_m": float(tr_a.max()),
+        "rot_deg": [float(x) for x in rot],
+        "trans_m": [float(x) for x in trans],
+    }
+
+
+@dataclass
+class PairRecord:
+    """One pair registration, as reported."""
+
+    source: str
+    target: str
+    method: str
+    status: str  # "ok", "low_fitness", "high_rmse", "diverged", "inconsistent", "no_result"
+    fitness: float = 0.0
+    inlier_rmse_m: float = float("nan")
+    correction_deg: float = float("nan")
+    residual_deg: float = float("nan")
+    residual_m: float = float("nan")
+
+
+@dataclass
+class ScanRecord:
+    """One scan, as reported."""
+
+    name: str
+    registered: bool
+    reason: str = ""
+    best_fitness: float = 0.0
+    best_inlier_rmse_m: float = float("nan")
+    max_residual_deg: float = float("nan")
+    max_residual_m: float = float("nan")
+    pairs_ok: int = 0
+
+
+@dataclass
+class RegistrationReport:
+    """The content of ``registration.json``."""
+
+    method: str
+    init: str
+    gauge: str
+    object_size_m: float
+    thresholds: dict
+    scans: list[ScanRecord] = field(default_factory=list)
+    pairs: list[PairRecord] = field(default_factory=list)
+    seconds: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def flagged(self) -> list[str]:
+        return [s.name for s in self.scans if not s.registered]
+
+    def to_json(self) -> dict:
+        def clean(v):
+            if isinstance(v, float) and not math.isfinite(v):
+                return None
+            if isinstance(v, dict):
+                return {k: clean(x) for k, x in v.items()}
+            if isinstance(v, list):
+                return [clean(x) for x in v]
+            return v
+
+        d = asdict(self)
+        d["flagged"] = self.flagged
+        d["n_scans"] = len(self.scans)
+        d["n_registered"] = sum(s.registered for s in self.scans)
+        return clean(d)
+
+
+def thresholds() -> dict:
+    """The named thresholds in force, for the report."""
+    return {
+        "MIN_FITNESS": MIN_FITNESS,
+        "MAX_RMSE_FRAC": MAX_RMSE_FRAC,
+        "MAX_CORRECTION_DEG": MAX_CORRECTION_DEG,
+        "MAX_CORRECTION_FRAC": MAX_CORRECTION_FRAC,
+        "MAX_EDGE_RESIDUAL_DEG": MAX_EDGE_RESIDUAL_DEG,
+        "MAX_EDGE_RESIDUAL_FRAC": MAX_EDGE_RESIDUAL_FRAC,
+    }

@@ -1,0 +1,89 @@
+"""Small analytic scenes for registration tests and benchmarks (ray-cast, exact depth).
+
+Used until / besides ``datasets_synthetic``: an asymmetric "control" object (tilted torus +
+sphere + box, no rotational symmetry), a turntable ring of ``look_at`` cameras, and a
+different object (a cone) to mix in as an impostor scan.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from capture.camera import Camera, look_at, make_K
+from capture.registration.perturb import rotation
+from capture.registration.raycast import raycast_scan
+from capture.scan import ScanSet, bounds_from_points
+
+
+def _o3d_mesh_arrays(m) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(m.vertices).copy(), np.asarray(m.triangles).copy()
+
+
+def control_object() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices (V,3) m, faces (F,3), vertex colours (V,3) linear): ~0.25 m across, centred at 0."""
+    import open3d as o3d
+
+    parts = []
+    t = o3d.geometry.TriangleMesh.create_torus(torus_radius=0.08, tube_radius=0.03, radial_resolution=60,
+                                               tubular_resolution=30)
+    t.rotate(rotation([1, 0.3, 0], np.radians(35)), center=(0, 0, 0))
+    parts.append(t)
+    s = o3d.geometry.TriangleMesh.create_sphere(radius=0.045, resolution=30)
+    s.translate((0.06, -0.05, 0.07))
+    parts.append(s)
+    b = o3d.geometry.TriangleMesh.create_box(0.05, 0.09, 0.04)
+    b.translate((-0.11, 0.0, -0.07))
+    parts.append(b)
+    V, F, off = [], [], 0
+    for m in parts:
+        m = m.subdivide_midpoint(1) if len(m.vertices) < 500 else m
+        v, f = _o3d_mesh_arrays(m)
+        V.append(v)
+        F.append(f + off)
+        off += len(v)
+    v = np.concatenate(V)
+    f = np.concatenate(F)
+    return v, f, texture(v)
+
+
+def impostor_object() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A different object of similar size: an upright cone."""
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_cone(radius=0.09, height=0.2, resolution=60, split=4)
+    m.translate((0, 0, -0.1))
+    v, f = _o3d_mesh_arrays(m)
+    return v, f, texture(v)
+
+
+def texture(v: np.ndarray) -> np.ndarray:
+    """A smooth procedural colour pattern (linear RGB in [0.05, 0.95]) over world positions."""
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    c = np.stack([0.5 + 0.45 * np.sin(60 * x + 20 * z), 0.5 + 0.45 * np.sin(50 * y - 30 * x),
+                  0.5 + 0.45 * np.cos(70 * z + 10 * y)], axis=1)
+    return c.astype(np.float32)
+
+
+def ring_cameras(n: int, radius: float = 0.5, elevation_deg: float = 20.0, width: int = 160, height: int = 120,
+                 fov_deg: float = 45.0, start_deg: float = 0.0) -> list[Camera]:
+    """``n`` turntable cameras evenly spaced in azimuth around +z, looking at the origin."""
+    f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
+    K = make_K(f, f, (width - 1) / 2, (height - 1) / 2)
+    el = np.radians(elevation_deg)
+    cams = []
+    for k in range(n):
+        az = np.radians(start_deg + 360.0 * k / n)
+        eye = radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        cams.append(Camera(K, look_at(eye, (0, 0, 0)), width, height, f"view{k:03d}"))
+    return cams
+
+
+def render_set(mesh, cameras: list[Camera], impostor_at: int | None = None) -> ScanSet:
+    """Ray-cast ``mesh`` (v, f, colours) into every camera; scan ``impostor_at`` sees the impostor instead."""
+    v, f, c = mesh
+    scans = []
+    imp = impostor_object() if impostor_at is not None else None
+    for k, cam in enumerate(cameras):
+        vv, ff, cc = imp if k == impostor_at else (v, f, c)
+        scans.append(raycast_scan(vv, ff, cam, cc, name=cam.name))
+    return ScanSet(tuple(scans), bounds_from_points(v, margin=0.02), {"generator": "capture.registration.scenes"})
