@@ -1,14 +1,13 @@
 // The one direction <-> equirect mapping (twin of render/shading/envmap.py; world +z up):
-// u = fract(0.5 - atan(y, x) / (2 pi)), v = acos(z) / pi (v = 0 is +z, the top row).
+// u = fract(0.5 - atan(y, x) / (2 pi)), v = theta / pi = acos(z) / pi (v = 0 is +z, the top row).
 // Textures holding equirect maps: LINEAR filter, repeat_x = true, repeat_y = false.
 #ifndef FURROW_SHADING_ENVMAP_GLSL
 #define FURROW_SHADING_ENVMAP_GLSL
 const float FURROW_PI = 3.14159265358979323846;
 
 vec2 env_dir_to_uv(vec3 d) {
-    d = normalize(d);
     float u = fract(0.5 - atan(d.y, d.x) / (2.0 * FURROW_PI));
-    float v = acos(clamp(d.z, -1.0, 1.0)) / FURROW_PI;
+    float v = atan(length(d.xy), d.z) / FURROW_PI;  // accurate near the poles, unlike acos
     return vec2(u, v);
 }
 

@@ -145,11 +145,11 @@ def dir_to_uv(dirs) -> np.ndarray:
     d = np.asarray(dirs, np.float64)
     if d.shape[-1] != 3:
         raise ValueError(f"dir_to_uv: expected (..., 3), got {d.shape}")
-    r = np.linalg.norm(d, axis=-1)
-    if np.any(r == 0):
+    rxy = np.hypot(d[..., 0], d[..., 1])
+    if np.any((rxy == 0) & (d[..., 2] == 0)):
         raise ValueError("dir_to_uv: zero-length direction")
     phi = np.arctan2(d[..., 1], d[..., 0])
-    theta = np.arccos(np.clip(d[..., 2] / r, -1.0, 1.0))
+    theta = np.arctan2(rxy, d[..., 2])  # accurate everywhere, unlike arccos near the poles
     u = np.mod(0.5 - phi / (2 * np.pi), 1.0)
     u = np.where(u >= 1.0, 0.0, u)  # mod can round up to exactly 1.0
     return np.stack([u, theta / np.pi], -1)
