@@ -33,9 +33,13 @@ SLICE_BYTES = 64
 MODES = ("instanced", "geometry")
 
 
-def shader_defines() -> dict:
+def shader_defines(rule: str = "vote") -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
+    if rule not in mg.FALLBACK_RULES:
+        raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
     return {
+        "FALLBACK_RULE": mg.FALLBACK_RULES.index(rule),
+        "ALPHA_VOTE": f"{mg.ALPHA_VOTE:.6f}",
         "K_BLEND": mg.K_BLEND,
         "K_CAND": mg.K_CAND,
         "MAX_SLICES": mg.MAX_SLICES,
@@ -44,6 +48,10 @@ def shader_defines() -> dict:
         "WEIGHT_EPS": f"{mg.WEIGHT_EPS:.9e}",
         "ULR_THRESHOLD_FACTOR": f"{mg.ULR_THRESHOLD_FACTOR:.6f}",
         "SLICE_SIDE": f"{mg.SLICE_SIDE_FACTOR:.9f}",
+        "FOOTPRINT_SCALE": f"{mg.FOOTPRINT_SCALE:.6f}",
+        "SLAB_COVER": f"{mg.SLAB_COVER:.6f}",
+        "FREE_FACTOR": f"{mg.FREE_FACTOR:.6f}",
+        "UNSURE_WEIGHT": f"{mg.UNSURE_WEIGHT:.6f}",
     }
 
 
@@ -101,9 +109,10 @@ class MicrofacetRenderer:
         rgb, depth, cameras: the RGBz images (volume.model.RgbzImages fields).
         bounds: (2, 3) object box (near/far planes, LOD centre).
         mode: "instanced" or "geometry".
+        rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
     """
 
-    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced"):
+    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced", rule: str = "vote"):
         if mode not in MODES:
             raise ValueError(f"unknown microfacet mode {mode!r}; use one of {MODES}")
         self.ctx = ctx
@@ -115,7 +124,8 @@ class MicrofacetRenderer:
         self.counts = [len(lv.surface) for lv in self.levels]
         if len(self.cameras) == 0:
             raise ValueError("microfacet renderer: the model has no input camera")
-        d = shader_defines()
+        d = shader_defines(rule)
+        self.rule = rule
         self.voxel_bufs = []
         for lv in self.levels:
             c = np.zeros((max(len(lv.surface), 1), 4), np.float32)
@@ -143,10 +153,10 @@ class MicrofacetRenderer:
         self._fbo_size = None
 
     @classmethod
-    def from_model(cls, ctx, model, mode: str = "instanced") -> "MicrofacetRenderer":
+    def from_model(cls, ctx, model, mode: str = "instanced", rule: str = "vote") -> "MicrofacetRenderer":
         """Renderer for a volume.model.Model."""
         return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                   model.bounds, mode)
+                   model.bounds, mode, rule)
 
     def release(self) -> None:
         for o in [*self.voxel_bufs, self.cam_buf, self.tex, self.slice_buf, self.indirect, self.select,

@@ -35,8 +35,19 @@ K_BLEND = 3
 #: Candidate cameras per voxel: K_BLEND blended + (K_CAND - K_BLEND) per-fragment fallbacks.
 K_CAND = 6
 #: Most slices one voxel may get (geometry-shader output bound); l is clamped so that
-#: sqrt(3) w / l + 1 <= MAX_SLICES.
+#: sqrt(3) w / l + 1 + 2 SLAB_COVER <= MAX_SLICES.
 MAX_SLICES = 8
+#: Footprint tested for "the camera's image contains the slice" (§1.3), as a fraction of the
+#: voxel's bounding radius sqrt(3) w / 2.  The paper asks for full containment (1.0); we use 0
+#: (the voxel centre must project inside the image) because fragments that fall outside a
+#: camera are handled per fragment (NO_VIEW -> next camera), and full containment drops the
+#: nearest camera for every coarse voxel near the image border.
+FOOTPRINT_SCALE = 0.0
+#: Slices are generated where their clip slab [n l - c l, n l + c l] meets the voxel, c = this.
+#: 0 is the paper's "where the slice plane intersects the voxel"; but Eq. 2 keeps only texels
+#: within l/2 of a slice, so with 0 the ends of the voxel (up to l/2 deep) belong to no slice
+#: and show as rings of holes.  0.5 makes the slabs of a voxel cover all of it.
+SLAB_COVER = 0.5
 #: Smallest angle used in the weights and in Eq. 10 (radians): avoids 1/0 when the eye
 #: sits exactly on an input camera (that camera then takes all the weight).
 PHI_EPS = 1e-6
@@ -78,9 +89,14 @@ def eq11_level(l_desired: float, phi: float, voxel_sizes) -> int:
     return len(ws) - 1
 
 
+def footprint_radius(w: float) -> float:
+    """Radius (m) of the footprint tested in the camera selection for voxel size w."""
+    return FOOTPRINT_SCALE * 0.5 * SLICE_SIDE_FACTOR * w
+
+
 def min_spacing(w: float) -> float:
     """Smallest l allowed on a level of voxel size w (keeps slices per voxel <= MAX_SLICES)."""
-    return SLICE_SIDE_FACTOR * w / (MAX_SLICES - 1)
+    return SLICE_SIDE_FACTOR * w / (MAX_SLICES - 1 - 2 * SLAB_COVER)
 
 
 @dataclass(frozen=True)
@@ -168,8 +184,8 @@ def slice_distances(centers: np.ndarray, w: float, eye_pos: np.ndarray, spacing:
     sc = np.linalg.norm(d, axis=1)
     v = d / np.maximum(sc, 1e-12)[:, None]
     h = 0.5 * w * np.abs(v).sum(axis=1)
-    lo = np.ceil((sc - h) / spacing).astype(np.int64)
-    hi = np.floor((sc + h) / spacing).astype(np.int64)
+    lo = np.ceil((sc - h) / spacing - SLAB_COVER).astype(np.int64)
+    hi = np.floor((sc + h) / spacing + SLAB_COVER).astype(np.int64)
     none = hi < lo
     lo[none] = hi[none] = np.round(sc[none] / spacing).astype(np.int64)
     # cap at MAX_SLICES (only reachable through rounding; l >= min_spacing)
@@ -256,7 +272,9 @@ def ulr_weights(phi_sorted: np.ndarray, n_valid: np.ndarray) -> np.ndarray:
     last = np.take_along_axis(phi_sorted, np.clip(n_valid - 1, 0, None)[:, None], axis=1)[:, 0]
     t_next = phi_sorted[:, K_BLEND] if phi_sorted.shape[1] > K_BLEND else np.full(N, np.inf)
     t = np.where(n_valid > K_BLEND, t_next, ULR_THRESHOLD_FACTOR * np.maximum(last, PHI_EPS))
-    w = np.maximum(1.0 - p / t[:, None], 0.0) / p
+    with np.errstate(invalid="ignore"):
+        w = np.maximum(1.0 - p / t[:, None], 0.0) / p
+    w = np.nan_to_num(w, nan=0.0, posinf=0.0)
     w[k[None, :] >= n_valid[:, None]] = 0.0
     s = w.sum(axis=1, keepdims=True)
     return np.where(s > 0, w / np.where(s > 0, s, 1.0), 0.0)
@@ -298,11 +316,32 @@ def eq2_pass(d: np.ndarray, D: np.ndarray, spacing: float) -> np.ndarray:
     return (d > 0) & (np.abs(d - np.asarray(D)) < 0.5 * spacing)
 
 
+#: classify() outcomes: the camera does not see the point (outside, behind, occluded) ...
+NO_VIEW = 0
+#: ... Eq. 2 passes ...
+PASS = 1
+#: ... or the camera saw through the point (d == 0 or d >= D + l/2): free space.
+FREE = 2
+#: Between l/2 and FREE_FACTOR * l/2 from the surface (either side) a camera is UNSURE: it
+#: neither passes nor frees the point, but its weight counts against drawing it.  Beyond that
+#: in front of the point (d <= D - FREE_FACTOR l/2) the camera is occluded (NO_VIEW, no vote);
+#: behind it (d >= D + FREE_FACTOR l/2, or d == 0) the camera saw through it (FREE).
+FREE_FACTOR = 2.0
+#: classify() outcome: within (l/2, FREE_FACTOR l/2) of the camera's surface.
+UNSURE = 3
+#: An UNSURE camera's weight counts this much against drawing (a FREE camera counts 1).
+UNSURE_WEIGHT = 0.5
+#: Fallback rules: "vote" (default) and "any" (see shade_fragments).
+FALLBACK_RULES = ("vote", "any")
+#: "vote" rule: a fragment is drawn when the passing share of the seeing blend weight >= this.
+ALPHA_VOTE = 0.5
+
+
 def sample_rgbz(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndarray):
     """Nearest-texel RGBz lookup of world points in one camera.
 
-    Returns (colour (N, 3), d (N,) stored depth, D (N,) the points' own z-depth); d = 0 where
-    the point projects outside the image or behind the camera.
+    Returns (colour (N, 3), d (N,) stored depth, D (N,) the points' own z-depth, inside (N,)
+    bool: in front of the camera and inside the image).
     """
     uv, D = cam.project(points)
     with np.errstate(invalid="ignore"):
@@ -313,36 +352,69 @@ def sample_rgbz(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndar
     iyi = np.where(inside, iy, 0).astype(np.int64)
     d = np.where(inside, depth[iyi, ixi], 0.0)
     col = np.where(inside[:, None], rgb[iyi, ixi], 0.0)
-    return col, d, D
+    return col, d, D, inside
+
+
+def classify(d: np.ndarray, D: np.ndarray, inside: np.ndarray, spacing: float) -> np.ndarray:
+    """NO_VIEW / PASS / FREE / UNSURE per point: Eq. 2 with tolerance l/2 is PASS; FREE when the
+    camera saw nothing there or a surface at least FREE_FACTOR * l/2 behind the point;
+    NO_VIEW when outside / behind / occluded by at least FREE_FACTOR * l/2; else UNSURE."""
+    tol = 0.5 * spacing
+    e = d - D
+    far = np.where(e > 0, FREE, NO_VIEW)
+    out = np.where(d > 0, np.where(np.abs(e) < tol, PASS, np.where(np.abs(e) < FREE_FACTOR * tol, UNSURE, far)), FREE)
+    return np.where(inside, out, NO_VIEW)
 
 
 def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, spacing: float,
-                    cameras, rgb: np.ndarray, depth: np.ndarray):
-    """Colour of slice fragments (the fragment shader's twin).
+                    cameras, rgb: np.ndarray, depth: np.ndarray, rule: str = "vote"):
+    """Colour of slice fragments (the fragment shader's twin, microfacet_rgbz.glsl).
 
-    Blend the passing (Eq. 2) cameras among the first K_BLEND with their weights; when their
-    total weight is <= WEIGHT_EPS, take the first passing candidate in phi order (per-fragment
-    fallback).  Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.
+    "vote": the blend cameras that see the point (PASS, FREE or UNSURE) vote with their
+    weights; the fragment is drawn when the passing share >= ALPHA_VOTE, coloured by the
+    weighted mean of the passing cameras.  If no blend camera sees it, the first candidate
+    (phi order) that passes or frees it decides: the per-fragment fallback.
+    "any": blend the passing blend cameras; if none passes, the first passing candidate.
+    Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.
     """
+    if rule not in FALLBACK_RULES:
+        raise ValueError(f"unknown fallback rule {rule!r}; use one of {FALLBACK_RULES}")
     N = len(points)
-    acc = np.zeros((N, 3))
-    wsum = np.zeros(N)
-    first = np.full((N, 3), np.nan)
+    status = np.zeros((N, K_CAND), np.int64)
+    cols = np.zeros((N, K_CAND, 3))
     for k in range(K_CAND):
         ci = cand[:, k]
         for c in np.unique(ci[ci >= 0]):
             m = ci == c
-            col, d, D = sample_rgbz(cameras[c], rgb[c], depth[c], points[m])
-            ok = eq2_pass(d, D, spacing)
-            if k < K_BLEND:
-                acc[m] += (weights[m, k] * ok)[:, None] * col
-                wsum[m] += weights[m, k] * ok
-            sel = np.flatnonzero(m)[ok]
-            fresh = np.isnan(first[sel, 0])
-            first[sel[fresh]] = col[ok][fresh]
-    blended = wsum > WEIGHT_EPS
-    out = np.where(blended[:, None], acc / np.where(blended, wsum, 1.0)[:, None], first)
-    alive = blended | ~np.isnan(first[:, 0])
+            col, d, D, inside = sample_rgbz(cameras[c], rgb[c], depth[c], points[m])
+            status[m, k] = classify(d, D, inside, spacing)
+            cols[m, k] = col
+    wb = np.where(cand[:, :K_BLEND] >= 0, weights, 0.0)
+    passing = status[:, :K_BLEND] == PASS
+    wpass = (wb * passing).sum(1)
+    acc = ((wb * passing)[:, :, None] * cols[:, :K_BLEND]).sum(1)
+    st_b = status[:, :K_BLEND]
+    seen = (wb * (((st_b == PASS) | (st_b == FREE)) + UNSURE_WEIGHT * (st_b == UNSURE))).sum(1)
+    blend_col = acc / np.where(wpass > 0, wpass, 1.0)[:, None]
+    valid = cand >= 0
+    if rule == "vote":
+        use_blend = seen > WEIGHT_EPS
+        alive_b = (wpass >= ALPHA_VOTE * seen) & (wpass > WEIGHT_EPS)
+        sees = valid & ((status == PASS) | (status == FREE))
+        has = sees.any(1)
+        first = np.argmax(sees, axis=1)
+        fstat = status[np.arange(N), first]
+        fcol = cols[np.arange(N), first]
+        alive = np.where(use_blend, alive_b, has & (fstat == PASS))
+        out = np.where(use_blend[:, None], blend_col, fcol)
+    else:
+        use_blend = wpass > WEIGHT_EPS
+        ok = valid & (status == PASS)
+        has = ok.any(1)
+        first = np.argmax(ok, axis=1)
+        fcol = cols[np.arange(N), first]
+        alive = use_blend | has
+        out = np.where(use_blend[:, None], blend_col, fcol)
     return np.where(alive[:, None], out, 0.0), alive
 
 
@@ -369,7 +441,7 @@ def eye_axes(eye: Camera) -> tuple[np.ndarray, np.ndarray]:
 
 
 def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float, cameras,
-                     rgb: np.ndarray, depth: np.ndarray, bounds: np.ndarray):
+                     rgb: np.ndarray, depth: np.ndarray, bounds: np.ndarray, rule: str = "vote"):
     """Brute-force ray caster of the microfacet slices (slow, float64): the GPU frame's twin.
 
     For every pixel centre of ``eye``, intersect the ray with every slice quad, shade each hit
@@ -382,7 +454,7 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
     right, up = eye_axes(eye)
     vox, n = slice_distances(centers, w, eye_pos, spacing, near)
     v, a, b = slice_frame(centers, eye_pos, right, up)
-    idx, wts = select_cameras(centers, 0.5 * SLICE_SIDE_FACTOR * w, eye_pos, cameras)
+    idx, wts = select_cameras(centers, footprint_radius(w), eye_pos, cameras)
     H, W = eye.height, eye.width
     rays = eye.pixel_rays(eye.pixel_grid().reshape(-1, 2))
     rays = rays @ eye.world_from_cam[:3, :3].T  # world directions with eye-z = 1
@@ -406,7 +478,7 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
         if not len(pix):
             continue
         col, alive = shade_fragments(x, np.repeat(idx[j:j + 1], len(pix), 0),
-                                     np.repeat(wts[j:j + 1], len(pix), 0), spacing, cameras, rgb, depth)
+                                     np.repeat(wts[j:j + 1], len(pix), 0), spacing, cameras, rgb, depth, rule)
         pix = pix[alive]
         best_z[pix] = t[pix]
         img[pix] = col[alive]

@@ -72,8 +72,8 @@ void slice_range(vec3 c, out int lo, out int hi) {
     float sc = length(d);
     vec3 v = d / max(sc, 1e-12);
     float h = 0.5 * voxel_size * (abs(v.x) + abs(v.y) + abs(v.z));
-    lo = int(ceil((sc - h) / spacing));
-    hi = int(floor((sc + h) / spacing));
+    lo = int(ceil((sc - h) / spacing - SLAB_COVER));
+    hi = int(floor((sc + h) / spacing + SLAB_COVER));
     if (hi < lo) { lo = int(round(sc / spacing)); hi = lo; }
     if (hi - lo + 1 > MAX_SLICES) { lo = int(round(sc / spacing)) - (MAX_SLICES - 1) / 2; hi = lo + MAX_SLICES - 1; }
     if (near_plane > 0.0) lo = max(lo, int(ceil(near_plane / spacing - 1e-7)));

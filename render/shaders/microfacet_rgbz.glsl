@@ -1,35 +1,72 @@
-// RGBz lookup and Eq. 2 (METHODS §1.4).  Twin: microfacet_geometry.sample_rgbz / eq2_pass.
+// RGBz lookup, Eq. 2 and the blend (METHODS §1.3-1.4).
+// Twin: microfacet_geometry.sample_rgbz / classify / shade_fragments.
 uniform sampler2DArray rgbz;   // layer i: rgb linear + z-depth (m, 0 = none) of camera i
 
-// Colour of world point p in camera i, or false when Eq. 2 rejects it (|d - D| >= tol).
-bool rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
+const int NO_VIEW = 0;   // outside the image, behind the camera, or occluded (d <= D - FREE_FACTOR tol)
+const int PASS = 1;      // Eq. 2: |d - D| < tol
+const int FREE = 2;      // the camera saw through this point (d == 0 or d >= D + FREE_FACTOR * tol)
+const int UNSURE = 3;    // tol <= |d - D| < FREE_FACTOR * tol
+
+// Classify world point p in camera i against its RGBz image; col = its texel colour.
+int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
     vec3 uvz = cam_project(i, p);
     col = vec3(0.0);
-    if (uvz.z <= 0.0) return false;
+    if (uvz.z <= 0.0) return NO_VIEW;
     ivec2 ij = ivec2(floor(uvz.xy + 0.5));
-    if (ij.x < 0 || ij.y < 0 || ij.x >= int(cams[i].size.x) || ij.y >= int(cams[i].size.y)) return false;
+    if (ij.x < 0 || ij.y < 0 || ij.x >= int(cams[i].size.x) || ij.y >= int(cams[i].size.y)) return NO_VIEW;
     vec4 t = texelFetch(rgbz, ivec3(ij, i), 0);
-    if (!(t.a > 0.0) || abs(t.a - uvz.z) >= tol) return false;
     col = t.rgb;
-    return true;
+    if (!(t.a > 0.0)) return FREE;
+    float e = t.a - uvz.z;
+    if (abs(e) < tol) return PASS;
+    if (abs(e) < FREE_FACTOR * tol) return UNSURE;
+    return e > 0.0 ? FREE : NO_VIEW;
 }
 
-// Blend the passing blend cameras by weight; else the first passing candidate (fallback).
+// Colour of a slice fragment, or false to discard it.
+// FALLBACK_RULE 0 ("vote"): the blend cameras that see the point (PASS, FREE, UNSURE) vote with
+//   their weights; it is drawn when the passing share >= ALPHA_VOTE, coloured by the passing
+//   cameras' weighted mean.  When no blend camera sees it, the first candidate that passes
+//   or frees it decides (per-fragment fallback).
+// FALLBACK_RULE 1 ("any"): blend the passing blend cameras; if none passes, the first passing
+//   candidate of all (the issue's literal fallback; fattens silhouettes).
 bool shade(vec3 p, int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 colour) {
     vec3 acc = vec3(0.0);
-    float wsum = 0.0;
-    bool have_first = false;
-    vec3 first = vec3(0.0);
+    float wpass = 0.0, wseen = 0.0;
+    colour = vec3(0.0);
+    for (int k = 0; k < K_BLEND; ++k) {
+        int ci = cand[k];
+        if (ci < 0) break;
+        vec3 c;
+        int st = rgbz_lookup(ci, p, tol, c);
+        if (st == PASS) { acc += wts[k] * c; wpass += wts[k]; }
+        if (st == PASS || st == FREE) wseen += wts[k];
+        if (st == UNSURE) wseen += UNSURE_WEIGHT * wts[k];
+    }
+#if FALLBACK_RULE == 0
+    if (wseen > WEIGHT_EPS) {
+        if (wpass < ALPHA_VOTE * wseen || !(wpass > WEIGHT_EPS)) return false;
+        colour = acc / wpass;
+        return true;
+    }
     for (int k = 0; k < K_CAND; ++k) {
         int ci = cand[k];
         if (ci < 0) break;
-        if (k >= K_BLEND && (wsum > WEIGHT_EPS || have_first)) break;
         vec3 c;
-        if (rgbz_lookup(ci, p, tol, c)) {
-            if (k < K_BLEND) { acc += wts[k] * c; wsum += wts[k]; }
-            if (!have_first) { first = c; have_first = true; }
-        }
+        int st = rgbz_lookup(ci, p, tol, c);
+        if (st != PASS && st != FREE) continue;
+        colour = c;
+        return st == PASS;
     }
-    colour = wsum > WEIGHT_EPS ? acc / wsum : first;
-    return wsum > WEIGHT_EPS || have_first;
+    return false;
+#else
+    if (wpass > WEIGHT_EPS) { colour = acc / wpass; return true; }
+    for (int k = 0; k < K_CAND; ++k) {
+        int ci = cand[k];
+        if (ci < 0) break;
+        vec3 c;
+        if (rgbz_lookup(ci, p, tol, c) == PASS) { colour = c; return true; }
+    }
+    return false;
+#endif
 }

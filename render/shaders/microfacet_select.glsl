@@ -18,7 +18,7 @@ void main() {
     if (hi < lo) return;
     int cand[K_CAND];
     float w[K_BLEND];
-    select_cameras(c, 0.5 * SLICE_SIDE * voxel_size, cand, w);
+    select_cameras(c, FOOTPRINT_SCALE * 0.5 * SLICE_SIDE * voxel_size, cand, w);
     uint cnt = uint(hi - lo + 1);
     uint base = atomicAdd(icount, cnt);
     for (uint k = 0u; k < cnt; ++k) {

@@ -1,0 +1,230 @@
+"""Microfacet renderer: Eq. 10/11 and slice placement by hand, GPU vs numpy twin, input-pose
+reproduction and the hard cases of issue 5 (METHODS §1.2-§1.7)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture.camera import Camera, look_at
+from capture.scan import to_uint8_srgb
+from render import microfacet_geometry as mg
+from render.microfacet import MicrofacetRenderer
+from tests.conftest import assert_images_close, image_diff_stats
+from tests.render import microfacet_scene as scene
+
+#: GPU (float32) vs twin (float64): colour difference allowed per value, and the share of
+#: pixels allowed to differ (texel-boundary / slice-edge ties).
+TWIN_MEAN_TOL = 1e-3
+TWIN_MAX_TOL = 1e-3
+TWIN_OUTLIER_FRAC = 0.005
+#: ULR weights: float32 acos on the GPU vs float64.
+WEIGHT_TOL = 5e-4
+
+
+@pytest.fixture(scope="module")
+def model():
+    return scene.build_model(scene.ring_cameras(12))
+
+
+@pytest.fixture(scope="module")
+def renderer(gl_ctx, model):
+    r = MicrofacetRenderer.from_model(gl_ctx, model)
+    yield r
+    r.release()
+
+
+# ------------------------------------------------------------------ equations by hand
+def test_eq10_spacing_by_hand():
+    w = 0.004
+    assert mg.eq10_spacing(0.001, 0.0, w) == pytest.approx(w)  # phi -> 0: l = w cos 0
+    phi = np.radians(30)
+    assert mg.eq10_spacing(0.001, phi, w) == pytest.approx(0.001 / np.tan(phi))  # 1.732 mm < 3.46 mm
+    assert mg.eq10_spacing(0.1, phi, w) == pytest.approx(w * np.cos(phi))  # geometric bound wins
+    # grazing: both bounds shrink towards 0 as phi -> 90 degrees
+    assert mg.eq10_spacing(0.001, np.radians(89.9), w) < 0.0001
+    assert mg.eq10_spacing(0.001, np.pi / 2, w) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_eq11_level_by_hand():
+    ws = [0.064, 0.032, 0.016, 0.008]
+    assert mg.eq11_level(0.02, 0.0, ws) == 1  # 0.016 < 0.02 <= 0.032
+    assert mg.eq11_level(0.032, 0.0, ws) == 1  # upper bound inclusive
+    assert mg.eq11_level(0.016, 0.0, ws) == 2
+    assert mg.eq11_level(0.1, 0.0, ws) == 0  # coarser than every level
+    assert mg.eq11_level(0.001, 0.0, ws) == 3  # finer than every level
+    c = np.cos(np.radians(60))  # 0.5: intervals halve
+    assert mg.eq11_level(0.01, np.radians(60), ws) == 1  # 0.008 < 0.01 <= 0.016
+
+
+def test_slice_distances_by_hand():
+    # voxel 1 m in front of the eye along +x, w = 0.1: it spans eye distances [0.95, 1.05];
+    # l = 0.03: slabs [n l - l/2, n l + l/2] meeting it are n = 32..35 (31.17 <= n <= 35.5).
+    vox, n = mg.slice_distances(np.array([[1.0, 0.0, 0.0]]), 0.1, np.zeros(3), 0.03)
+    assert vox.tolist() == [0, 0, 0, 0] and n.tolist() == [32, 33, 34, 35]
+    # a near plane at 1.0 drops the slices in front of it
+    vox, n = mg.slice_distances(np.array([[1.0, 0.0, 0.0]]), 0.1, np.zeros(3), 0.03, near=1.0)
+    assert n.tolist() == [34, 35]
+    # diagonal view: h = w/2 * (|vx|+|vy|+|vz|) = 0.05 * sqrt(3)
+    c = np.array([[1.0, 1.0, 1.0]]) / np.sqrt(3)
+    vox, n = mg.slice_distances(c, 0.1, np.zeros(3), 0.05)
+    lo, hi = 1.0 - 0.05 * np.sqrt(3), 1.0 + 0.05 * np.sqrt(3)
+    expect = [k for k in range(100) if k * 0.05 + 0.025 >= lo and k * 0.05 - 0.025 <= hi]
+    assert n.tolist() == expect
+
+
+def test_ulr_weights_by_hand():
+    # phis 5, 15, 25 degrees and threshold 35: w_i = (1 - p_i/35)/p_i
+    p = np.radians([[5.0, 15.0, 25.0, 35.0]])
+    w = mg.ulr_weights(p, np.array([4]))
+    raw = np.array([(1 - a / 35) / a for a in (5.0, 15.0, 25.0)])
+    np.testing.assert_allclose(w[0], raw / raw.sum(), rtol=1e-9)
+    # one valid camera takes all the weight; none: zeros
+    np.testing.assert_allclose(mg.ulr_weights(np.radians([[3.0, np.inf, np.inf, np.inf]]), np.array([1]))[0], [1, 0, 0])
+    assert mg.ulr_weights(np.full((1, 4), np.inf), np.array([0])).sum() == 0
+
+
+def test_eq2_by_hand():
+    d = np.array([1.0, 1.0, 1.0, 0.0, 1.0])
+    D = np.array([1.0, 1.0049, 1.0051, 1.0, 0.9951])
+    assert mg.eq2_pass(d, D, 0.01).tolist() == [True, True, False, False, True]
+
+
+# ------------------------------------------------------------------ GPU vs twin
+def _twin(model, eye, level, spacing, rule="vote"):
+    lv = model.pyramid.levels[level]
+    return mg.reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, model.rgbz.rgb,
+                               model.rgbz.depth, model.bounds, rule)
+
+
+@pytest.mark.parametrize("mode", ["instanced", "geometry"])
+def test_gpu_matches_numpy_twin(gl_ctx, model, mode):
+    """Slices, camera selection, Eq. 2 and the blend on the GPU equal the float64 twin."""
+    r = MicrofacetRenderer.from_model(gl_ctx, model, mode=mode)
+    try:
+        eye = scene.ring_cameras(12, phase_deg=7, elevation_deg=22)[0]
+        fr = r.render(eye, 2.0, level=2)
+        img, alive, (vox, n) = _twin(model, eye, 2, fr.spacing)
+        assert fr.facets == len(vox)
+        if mode == "instanced":
+            rec = r.read_slices(fr.facets)
+            assert set(zip(rec["voxel"].tolist(), rec["n"].tolist())) == set(zip(vox.tolist(), n.tolist()))
+            lv = model.pyramid.levels[2]
+            idx, w = mg.select_cameras(lv.centers(), mg.footprint_radius(lv.voxel_size), eye.center,
+                                       model.rgbz.cameras)
+            np.testing.assert_array_equal(rec["cand"], idx[rec["voxel"]])
+            np.testing.assert_allclose(rec["weights"], w[rec["voxel"]], atol=WEIGHT_TOL)
+            np.testing.assert_allclose(rec["s"], rec["n"] * fr.spacing, rtol=1e-6)
+        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+        assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
+                            outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} vs twin")
+    finally:
+        r.release()
+
+
+def test_geometry_shader_equals_instanced(gl_ctx, model, renderer):
+    g = MicrofacetRenderer.from_model(gl_ctx, model, mode="geometry")
+    try:
+        eye = scene.ring_cameras(12, phase_deg=11)[4]
+        a = renderer.render(eye, 4.0)
+        b = g.render(eye, 4.0)
+        assert (a.level, a.facets) == (b.level, b.facets)
+        assert np.mean(a.alpha != b.alpha) <= TWIN_OUTLIER_FRAC
+        assert_images_close(a.rgb, b.rgb, mean_tol=1e-4, max_tol=1e-3, outlier_frac=TWIN_OUTLIER_FRAC)
+    finally:
+        g.release()
+
+
+# ------------------------------------------------------------------ quality
+#: Rendered at an input camera's pose the image must reproduce that input (masked PSNR, dB).
+INPUT_POSE_MIN_PSNR = 45.0
+
+
+@pytest.mark.parametrize("tolerance", [2.0, 8.0])
+def test_input_pose_reproduces_input(renderer, model, tolerance):
+    for i in (0, 5):
+        cam = model.rgbz.cameras[i]
+        fr = renderer.render(cam, tolerance)
+        ref = to_uint8_srgb(model.rgbz.rgb[i])
+        mask = (model.rgbz.depth[i] > 0) | fr.alpha
+        st = image_diff_stats(to_uint8_srgb(fr.rgb), ref, mask)
+        assert st["psnr"] > INPUT_POSE_MIN_PSNR, st
+        for lev in range(len(model.pyramid.levels)):  # every level, not only the automatic one
+            fl = renderer.render(cam, tolerance, level=lev)
+            st = image_diff_stats(to_uint8_srgb(fl.rgb), ref, (model.rgbz.depth[i] > 0) | fl.alpha)
+            assert st["psnr"] > INPUT_POSE_MIN_PSNR, (lev, st)
+
+
+# ------------------------------------------------------------------ hard cases
+def test_one_camera_only(gl_ctx):
+    cams = scene.ring_cameras(12)[:1]
+    m = scene.build_model(cams)
+    r = MicrofacetRenderer.from_model(gl_ctx, m)
+    try:
+        fr = r.render(cams[0], 8.0)
+        st = image_diff_stats(to_uint8_srgb(fr.rgb), to_uint8_srgb(m.rgbz.rgb[0]), (m.rgbz.depth[0] > 0) | fr.alpha)
+        assert st["psnr"] > INPUT_POSE_MIN_PSNR
+        eye = scene.ring_cameras(12, phase_deg=10)[0]
+        fr = r.render(eye, 8.0)
+        assert np.all(np.isfinite(fr.rgb)) and fr.alpha.any()
+        img, alive, _ = _twin(m, eye, fr.level, fr.spacing)
+        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+    finally:
+        r.release()
+
+
+def test_eye_inside_bounds(renderer, model):
+    """Eye inside the volume's box (outside the spheres): tiny near plane, slices behind the
+    eye dropped; still equal to the twin."""
+    K = model.rgbz.cameras[0].K
+    eye = Camera(K, look_at([0.11, -0.09, 0.1], [0.0, 0.0, 0.0]), 96, 72)
+    assert np.all(eye.center > model.bounds[0]) and np.all(eye.center < model.bounds[1])
+    fr = renderer.render(eye, 4.0, level=2)
+    assert np.all(np.isfinite(fr.rgb)) and fr.alpha.any()
+    img, alive, _ = _twin(model, eye, 2, fr.spacing)
+    assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+    assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
+                        outlier_frac=TWIN_OUTLIER_FRAC)
+
+
+def test_eye_exactly_on_input_camera(model):
+    """phi = 0 exactly: no division by zero, that camera takes (almost) all the weight, and
+    Eq. 10 gives l = w (the coarsest level)."""
+    cam = model.rgbz.cameras[3]
+    lv = model.pyramid.levels[-1]
+    idx, w = mg.select_cameras(lv.centers(), 0.0, cam.center, model.rgbz.cameras)
+    assert np.all(np.isfinite(w))
+    assert np.all(idx[:, 0] == 3) and np.all(w[:, 0] > 0.999)
+    lod = mg.choose_lod(cam, model.bounds.mean(0), model.rgbz.cameras, [x.voxel_size for x in model.pyramid.levels],
+                        [len(x.surface) for x in model.pyramid.levels], 8.0)
+    assert lod.level == 0 and lod.spacing == pytest.approx(model.pyramid.levels[0].voxel_size, rel=1e-6)
+
+
+def test_grazing_view(renderer, model):
+    """Eye straight above a ring of cameras at 15 degrees elevation: phi ~ 75 degrees.
+    Eq. 10 gives a tiny l, clamped so no voxel exceeds MAX_SLICES; the frame equals the twin."""
+    K = model.rgbz.cameras[0].K
+    eye = Camera(K, look_at([0.0, 0.001, 0.45], [0.0, 0.0, 0.0]), 96, 72)
+    lod = renderer.choose_lod(eye, 2.0)
+    assert np.degrees(lod.phi) > 60
+    fr = renderer.render(eye, 2.0)
+    w = model.pyramid.levels[fr.level].voxel_size
+    assert fr.spacing >= mg.min_spacing(w) * (1 - 1e-9)
+    assert fr.facets <= mg.MAX_SLICES * len(model.pyramid.levels[fr.level].surface)
+    img, alive, _ = _twin(model, eye, fr.level, fr.spacing)
+    assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+    assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
+                        outlier_frac=TWIN_OUTLIER_FRAC)
+
+
+def test_empty_level(gl_ctx):
+    cams = scene.ring_cameras(12)
+    m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8))
+    r = MicrofacetRenderer.from_model(gl_ctx, m)
+    try:
+        fr = r.render(cams[2], 8.0)  # eye on a camera -> Eq. 11 wants the coarsest, which is empty
+        assert fr.level == 2 and fr.facets > 0  # nearest non-empty level
+        forced = r.render(cams[2], 8.0, level=0)
+        assert forced.level == -1 and forced.facets == 0 and not forced.alpha.any() and not forced.rgb.any()
+    finally:
+        r.release()
