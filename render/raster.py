@@ -11,10 +11,11 @@ Conventions: cameras are :class:`capture.camera.Camera` (OpenCV); the GL matrice
 written to a float32 target, 0 = background.  Colour is linear float32.  Supersampling:
 colour (and the coverage ``alpha``) come from a pass at ``supersample`` x the resolution with
 the camera scaled exactly (``Camera.scaled``), averaged over s x s blocks; depth, normals and
-the mask come from a single-sample pass at the native resolution (no mixed depths at edges).
+the mask are single samples at the pixel centres (no mixed depths at edges): for odd ``s`` the
+centre sub-sample of each block (exactly the pixel centre), for even ``s`` a native pass.
 
 Shaded mode (``lighting=``): SH9 irradiance (``render/shaders/sh9.glsl``) x per-vertex ambient
-occlusion, plus K directional lights with shadow maps, Lambert diffuse and an energy-preserving
+occlusion, plus K directional lights with shadow-map visibility baked per vertex, Lambert diffuse and an energy-preserving
 Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, METHODS §4 Eq. 4); strands (vertices
 with a tangent) use Kajiya-Kay: the lobe is evaluated on sin(T, H) and diffuse on sin(T, L).
 """
@@ -35,7 +36,7 @@ DEPTH_RANGE_MARGIN = 0.05
 SHADOW_MAP_SIZE = 2048
 SHADOW_BOX_MARGIN = 0.02
 #: Shadow bias along the light direction, in shadow-map texels (thin strands need it small).
-SHADOW_BIAS_TEXELS = 2.0
+SHADOW_BIAS_TEXELS = 3.0
 #: Most directional lights the shaded program supports.
 MAX_LIGHTS = 4
 
@@ -205,23 +206,26 @@ class MeshRasterizer:
             res = r.render(camera)
     """
 
-    def __init__(self, ctx, supersample: int = 1) -> None:
+    def __init__(self, ctx, supersample: int = 1, depth_prepass: bool = False) -> None:
         if int(supersample) < 1:
             raise RasterError(f"supersample must be >= 1, got {supersample}")
         from render.gl import program
 
         self.ctx = ctx
         self.supersample = int(supersample)
+        self.depth_prepass = bool(depth_prepass)
         self._program = program
         self._prog_flat = program(ctx, "raster_mesh_vert.glsl", "raster_mesh_frag.glsl")
         self._prog_shaded = None
         self._prog_shadow = None
+        self._prog_depth = None
         self._fbos: dict[tuple[int, int], tuple] = {}
         self._vbo = self._ibo = None
         self._vaos: dict[str, object] = {}
         self._mesh: RasterMesh | None = None
         self._lighting: Lighting | None = None
-        self._shadow: list[tuple] = []  # (texture, fbo, light view-projection)
+        self._vis_vbo = None
+        self.shadow_info: dict = {}
         self._released = False
 
     # ------------------------------------------------------------------ resources
@@ -237,12 +241,11 @@ class MeshRasterizer:
             return
         self._released = True
         self._free_mesh()
-        self._free_shadows()
         for tex_c, tex_d, tex_n, rb, fbo in self._fbos.values():
             for o in (fbo, tex_c, tex_d, tex_n, rb):
                 o.release()
         self._fbos.clear()
-        for p in (self._prog_flat, self._prog_shaded, self._prog_shadow):
+        for p in (self._prog_flat, self._prog_shaded, self._prog_shadow, self._prog_depth):
             if p is not None:
                 p.release()
 
@@ -250,16 +253,10 @@ class MeshRasterizer:
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
-        for b in (self._vbo, self._ibo):
+        for b in (self._vbo, self._ibo, self._vis_vbo):
             if b is not None:
                 b.release()
-        self._vbo = self._ibo = None
-
-    def _free_shadows(self) -> None:
-        for tex, fbo, _ in self._shadow:
-            fbo.release()
-            tex.release()
-        self._shadow = []
+        self._vbo = self._ibo = self._vis_vbo = None
 
     def _check(self) -> None:
         if self._released:
@@ -273,7 +270,6 @@ class MeshRasterizer:
         if self._released:
             raise RasterError("MeshRasterizer used after release()")
         self._free_mesh()
-        self._free_shadows()
         V = len(mesh.vertices)
         normals = mesh.normals if mesh.normals is not None else np.zeros((V, 3), np.float32)
         tangents = mesh.tangents if mesh.tangents is not None else np.zeros((V, 3), np.float32)
@@ -282,6 +278,7 @@ class MeshRasterizer:
         data = np.concatenate([mesh.vertices, mesh.colors, normals, tangents, occl[:, None], spec[:, None]], axis=1)
         self._vbo = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
         self._ibo = self.ctx.buffer(mesh.faces.tobytes())
+        self._vis_vbo = self.ctx.buffer(np.ones((V, MAX_LIGHTS), np.float32).tobytes())
         self._mesh = mesh
         self._has_normals = mesh.normals is not None
         if self._lighting is not None:
@@ -289,7 +286,8 @@ class MeshRasterizer:
 
     def _vao(self, kind: str):
         if kind not in self._vaos:
-            prog = {"flat": self._prog_flat, "shaded": self._prog_shaded, "shadow": self._prog_shadow}[kind]
+            prog = {"flat": self._prog_flat, "shaded": self._prog_shaded, "shadow": self._prog_shadow,
+                    "depth": self._prog_depth}[kind]
             fmt, names = [], []
             for name, n in _ATTRIBUTES:  # attributes the compiler removed become padding
                 if name in prog:
@@ -297,52 +295,61 @@ class MeshRasterizer:
                     names.append(name)
                 else:
                     fmt.append(f"{4 * n}x")
-            fmt = " ".join(fmt)
-            self._vaos[kind] = self.ctx.vertex_array(prog, [(self._vbo, fmt, *names)], index_buffer=self._ibo,
-                                                     index_element_size=4)
+            content = [(self._vbo, " ".join(fmt), *names)]
+            if "in_vis" in prog:
+                content.append((self._vis_vbo, "4f", "in_vis"))
+            self._vaos[kind] = self.ctx.vertex_array(prog, content, index_buffer=self._ibo, index_element_size=4)
         return self._vaos[kind]
 
     # ------------------------------------------------------------------ lighting
     def set_lighting(self, lighting: Lighting | None) -> None:
         """Switch to shaded mode with ``lighting`` (None = flat per-vertex colour)."""
         self._lighting = lighting
-        self._free_shadows()
         if lighting is None:
             return
         if self._prog_shaded is None:
             self._prog_shaded = self._program(self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl",
                                               defines={"MAX_LIGHTS": MAX_LIGHTS})
             self._prog_shadow = self._program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl")
+            self._prog_depth = self._program(self.ctx, "raster_mesh_vert.glsl", "raster_shadow_frag.glsl")
         if self._mesh is not None:
             self._build_shadows()
 
     def _build_shadows(self) -> None:
-        """One orthographic depth map per light covering the mesh's bounding sphere."""
-        self._free_shadows()
+        """Per-vertex light visibility: one orthographic depth map per light covering the mesh's
+        bounding sphere, rendered here, read back and looked up for every vertex
+        (:func:`shadow_map_visibility`).  The lights are fixed in the world, so this is done once
+        per mesh and lighting, not per view."""
         lt = self._lighting
-        if lt is None or not lt.shadows:
-            return
-        b = self._mesh.bounds
-        centre = 0.5 * (b[0] + b[1])
-        radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
-        ctx = self.ctx
-        vao = self._vao("shadow")
-        for d in lt.light_dirs.astype(np.float64):
-            up = (0.0, 0.0, 1.0) if abs(d[2]) < 0.95 else (1.0, 0.0, 0.0)
-            cam = Camera(np.eye(3), look_at(centre + 2 * radius * d, centre, up), 1, 1)
-            vp = _ortho(radius, radius, 3 * radius) @ cam.gl_view()
+        V = len(self._mesh.vertices)
+        vis = np.ones((V, MAX_LIGHTS), np.float32)
+        self.shadow_info = {}
+        if lt is not None and lt.shadows and len(lt.light_dirs):
+            b = self._mesh.bounds
+            centre = 0.5 * (b[0] + b[1])
+            radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
+            ctx = self.ctx
+            vao = self._vao("shadow")
             tex = ctx.depth_texture((SHADOW_MAP_SIZE, SHADOW_MAP_SIZE))
-            tex.compare_func = "<="
-            tex.repeat_x = tex.repeat_y = False
             fbo = ctx.framebuffer(depth_attachment=tex)
-            fbo.use()
-            fbo.clear(depth=1.0)
-            ctx.enable(ctx.DEPTH_TEST)
-            ctx.disable(ctx.CULL_FACE)
-            self._prog_shadow["u_mvp"].write(_gl(vp))
-            vao.render()
-            self._shadow.append((tex, fbo, vp))
-        self._shadow_texel = 2 * radius / SHADOW_MAP_SIZE
+            try:
+                for i, d in enumerate(lt.light_dirs.astype(np.float64)):
+                    vp = light_view_projection(d, centre, radius)
+                    fbo.use()
+                    fbo.clear(depth=1.0)
+                    ctx.enable(ctx.DEPTH_TEST)
+                    ctx.disable(ctx.CULL_FACE)
+                    self._prog_shadow["u_mvp"].write(_gl(vp))
+                    vao.render()
+                    depth = np.frombuffer(tex.read(), np.float32).reshape(SHADOW_MAP_SIZE, SHADOW_MAP_SIZE)
+                    vis[:, i] = shadow_map_visibility(self._mesh.vertices, depth, vp, d,
+                                                      SHADOW_BIAS_TEXELS * 2 * radius / SHADOW_MAP_SIZE)
+            finally:
+                fbo.release()
+                tex.release()
+            self.shadow_info = {"map_size": SHADOW_MAP_SIZE, "texel_m": 2 * radius / SHADOW_MAP_SIZE,
+                                "mean_visibility": vis[:, : len(lt.light_dirs)].mean(0).tolist()}
+        self._vis_vbo.write(vis.tobytes())
 
     # ------------------------------------------------------------------ render
     def _fbo(self, w: int, h: int):
@@ -357,7 +364,7 @@ class MeshRasterizer:
             self._fbos[key] = (tex_c, tex_d, tex_n, rb, fbo)
         return self._fbos[key]
 
-    def _pass(self, camera: Camera, near: float, far: float, shaded: bool):
+    def _pass(self, camera: Camera, near: float, far: float, shaded: bool, colour_only: bool = False):
         ctx = self.ctx
         tex_c, tex_d, tex_n, _, fbo = self._fbo(camera.width, camera.height)
         fbo.use()
@@ -365,16 +372,30 @@ class MeshRasterizer:
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE | ctx.BLEND)
+        view, proj = _gl(camera.gl_view()), _gl(camera.gl_projection(near, far))
+        if shaded and self.depth_prepass:
+            # depth pre-pass with the same vertex shader (invariant gl_Position): the expensive
+            # shading then runs about once per pixel instead of once per overlapping strand
+            pre = self._prog_depth
+            pre["u_view"].write(view)
+            pre["u_proj"].write(proj)
+            fbo.color_mask = ((False,) * 4,) * 3
+            self._vao("depth").render()
+            fbo.color_mask = ((True,) * 4,) * 3
+            ctx.depth_func = "<="
         prog = self._prog_shaded if shaded else self._prog_flat
-        prog["u_view"].write(_gl(camera.gl_view()))
-        prog["u_proj"].write(_gl(camera.gl_projection(near, far)))
+        prog["u_view"].write(view)
+        prog["u_proj"].write(proj)
         prog["u_eye"].value = tuple(float(x) for x in camera.center)
         prog["u_has_normals"].value = int(self._has_normals)
         if shaded:
             self._set_shading_uniforms(prog)
         self._vao("shaded" if shaded else "flat").render()
+        ctx.depth_func = "<"
         w, h = camera.width, camera.height
         col = np.frombuffer(tex_c.read(), np.float32).reshape(h, w, 4)
+        if colour_only:
+            return gl_rows_to_image(col), None, None
         dep = np.frombuffer(tex_d.read(), np.float32).reshape(h, w)
         nor = np.frombuffer(tex_n.read(), np.float32).reshape(h, w, 4)[..., :3]
         return gl_rows_to_image(col), gl_rows_to_image(dep), gl_rows_to_image(nor)
@@ -389,23 +410,10 @@ class MeshRasterizer:
         cols[:k] = lt.light_colors
         prog["u_light_dir"].write(dirs.tobytes())
         prog["u_light_col"].write(cols.tobytes())
-        prog["u_nlights"].value = k
         prog["u_exposure"].value = float(lt.exposure)
         prog["u_shininess"].value = float(lt.shininess)
         prog["u_hair_shininess"].value = float(lt.hair_shininess)
-        use_shadow = bool(self._shadow)
-        prog["u_use_shadow"].value = int(use_shadow)
-        mats = np.zeros((MAX_LIGHTS, 4, 4), np.float32)
-        for i in range(MAX_LIGHTS):
-            if use_shadow and i < len(self._shadow):
-                tex, _, vp = self._shadow[i]
-                tex.use(location=i)
-                mats[i] = vp
-            prog[f"u_shadow{i}"].value = i
-        if use_shadow:
-            prog["u_shadow_bias"].value = float(SHADOW_BIAS_TEXELS * self._shadow_texel)
-            prog["u_shadow_texel"].value = 1.0 / SHADOW_MAP_SIZE
-        prog["u_light_vp"].write(np.ascontiguousarray(mats.transpose(0, 2, 1)).tobytes())
+        prog["u_nlights"].value = k
 
     def render(self, camera: Camera, near: float | None = None, far: float | None = None) -> RasterResult:
         """Render the current mesh for ``camera``; see :class:`RasterResult`.
@@ -419,18 +427,64 @@ class MeshRasterizer:
             far = f0 if far is None else far
         shaded = self._lighting is not None
         s = self.supersample
-        col, dep, nor = self._pass(camera, near, far, shaded)
-        if s > 1:
-            col_ss, _, _ = self._pass(camera.scaled(s), near, far, shaded)
-            color = _box_down(col_ss[..., :3], s)
-            alpha = _box_down(col_ss[..., 3], s)
+        if s % 2 == 1:
+            # odd factor: the centre sub-sample of each s x s block sits exactly on the pixel centre
+            # (Camera.scaled keeps centres exact), so one pass gives the single-sample depth too
+            col, dep, nor = self._pass(camera.scaled(s) if s > 1 else camera, near, far, shaded)
+            c = s // 2
+            dep, nor = dep[c::s, c::s], nor[c::s, c::s]
+            color, alpha = _box_down(col[..., :3], s), _box_down(col[..., 3], s)
         else:
-            color = col[..., :3].copy()
-            alpha = col[..., 3].copy()
+            col, dep, nor = self._pass(camera, near, far, shaded)
+            col_ss, _, _ = self._pass(camera.scaled(s), near, far, shaded, colour_only=True)
+            color, alpha = _box_down(col_ss[..., :3], s), _box_down(col_ss[..., 3], s)
         mask = dep > 0
         return RasterResult(color=np.ascontiguousarray(color, np.float32), depth=np.where(mask, dep, 0).astype(np.float32),
                             normal=np.where(mask[..., None], nor, 0).astype(np.float32), mask=mask,
                             alpha=np.clip(alpha, 0, 1).astype(np.float32))
+
+
+def light_view_projection(direction, centre, radius: float) -> np.ndarray:
+    """(4, 4) world -> clip matrix of an orthographic light looking along ``-direction``
+    (``direction`` points towards the light) at a sphere (``centre``, ``radius``)."""
+    d = np.asarray(direction, np.float64)
+    up = (0.0, 0.0, 1.0) if abs(d[2]) < 0.95 else (1.0, 0.0, 0.0)
+    cam = Camera(np.eye(3), look_at(np.asarray(centre) + 2 * radius * d, centre, up), 1, 1)
+    return _ortho(radius, radius, 3 * radius) @ cam.gl_view()
+
+
+def shadow_map_visibility(points: np.ndarray, depth: np.ndarray, light_vp: np.ndarray, direction,
+                          bias_m: float) -> np.ndarray:
+    """(N,) float32 fraction of a directional light reaching ``points`` (N, 3) world.
+
+    ``depth``: (S, S) window depth [0, 1] of the light's depth map as read back from GL (row 0
+    = bottom, indexed with GL texture coordinates, so no row flip); ``light_vp`` its world ->
+    clip matrix.  Each point is moved ``bias_m`` towards the light, then compared with the map by
+    four bilinear taps half a texel apart (a smooth 3 x 3-texel percentage-closer filter).
+    Points outside the map are lit.
+    """
+    S = depth.shape[0]
+    p = np.asarray(points, np.float64) + bias_m * np.asarray(direction, np.float64)
+    q = p @ light_vp[:3, :3].T + light_vp[:3, 3]
+    w = p @ light_vp[3, :3] + light_vp[3, 3]
+    ndc = q / w[:, None]
+    ref = ndc[:, 2] * 0.5 + 0.5
+    x = (ndc[:, 0] * 0.5 + 0.5) * S - 0.5
+    y = (ndc[:, 1] * 0.5 + 0.5) * S - 0.5
+    inside = (np.abs(ndc) <= 1).all(axis=1)
+    vis = np.zeros(len(p))
+    taps = (-0.5, 0.5)
+    for dy in taps:
+        for dx in taps:
+            xs, ys = x + dx, y + dy
+            x0, y0 = np.floor(xs).astype(np.int64), np.floor(ys).astype(np.int64)
+            fx, fy = xs - x0, ys - y0
+            for ox, oy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+                xi = np.clip(x0 + ox, 0, S - 1)
+                yi = np.clip(y0 + oy, 0, S - 1)
+                vis += wgt * (ref <= depth[yi, xi])
+    vis /= len(taps) ** 2
+    return np.where(inside, vis, 1.0).astype(np.float32)
 
 
 # ---------------------------------------------------------------------------------- reference

@@ -9,6 +9,7 @@ in vec3 in_normal;
 in vec3 in_tangent;
 in float in_occl;
 in float in_spec;
+in vec4 in_vis;      // per-vertex visibility of the (up to 4) shadowing lights
 
 out vec3 v_world;
 out vec3 v_color;
@@ -16,6 +17,7 @@ out vec3 v_normal;
 out vec3 v_tangent;
 out float v_occl;
 out float v_spec;
+out vec4 v_vis;
 out float v_eyez;
 invariant gl_Position;  // the depth pre-pass and the shading pass must agree bit for bit
 
@@ -28,5 +30,6 @@ void main() {
     v_tangent = in_tangent;
     v_occl = in_occl;
     v_spec = in_spec;
+    v_vis = in_vis;
     gl_Position = u_proj * e;
 }

@@ -1,0 +1,96 @@
+"""Environment lighting of the synthetic captures, through ``render.shading`` (never a copy).
+
+The environment is split (``render.shading.lights``) into its K dominant lights, which cast
+shadow maps in the rasteriser, and the remainder, whose diffuse irradiance is its SH9
+projection (``render.shading.sh``, evaluated in ``render/shaders/sh9.glsl``) attenuated by the
+per-vertex ambient occlusion.  The two add back to the environment's full power.  The lights
+are fixed in the world (the object stands still, the cameras circle it), so every view sees
+the same lighting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from capture.camera import Camera
+from render.raster import Lighting, MAX_LIGHTS
+from render.shading.envmap import BUNDLED_NAMES, EnvMap, bundled_envmap, load_envmap, procedural_sky
+from render.shading.lights import LUMA, dominant_lights, env_minus_lights
+from render.shading.sh import sh9_glsl_uniform, sh9_irradiance, sh9_project
+
+#: Rows of the environment copy used to find lights and project SH (area-correct resample).
+ENV_WORK_HEIGHT = 256
+#: Number of random normals used to find the largest irradiance for the exposure.
+EXPOSURE_PROBES = 2048
+
+
+@dataclass(frozen=True)
+class LightingConfig:
+    """Environment lighting of a synthetic capture."""
+
+    env: str = "studio"
+    """Bundled map name (studio, courtyard, forest, sunset), 'procedural', or a .exr/.hdr path."""
+    lights: int = 3
+    """Dominant lights that cast shadows (<= MAX_LIGHTS)."""
+    rotation_deg: float = 0.0
+    """Rotation of the environment about +z (degrees)."""
+    key: float = 1.1
+    """Exposure: radiance of a white Lambertian surface under the largest irradiance."""
+    shininess: float = 40.0
+    """Blinn-Phong exponent of surfaces."""
+    hair_shininess: float = 60.0
+    """Kajiya-Kay exponent of strands."""
+    shadows: bool = True
+    """Shadow maps for the dominant lights."""
+
+
+def resolve_env(name_or_path: str) -> EnvMap:
+    """A bundled map by name, 'procedural', or a file path; clear error otherwise."""
+    if name_or_path == "procedural":
+        return procedural_sky(128)
+    if name_or_path in BUNDLED_NAMES:
+        return bundled_envmap(name_or_path)
+    p = Path(name_or_path)
+    if p.suffix.lower() in (".exr", ".hdr", ".pic", ".rgbe") or p.exists():
+        return load_envmap(p)
+    raise ValueError(f"unknown environment {name_or_path!r}: use one of {', '.join(BUNDLED_NAMES)}, "
+                     "'procedural', or a path to a .exr / .hdr file")
+
+
+def scene_lighting(env: EnvMap, cfg: LightingConfig) -> tuple[Lighting, dict]:
+    """Lighting (SH9 of the environment minus its lights + the lights) and a JSON-able summary."""
+    if not 0 <= cfg.lights <= MAX_LIGHTS:
+        raise ValueError(f"lighting: lights must be in [0, {MAX_LIGHTS}], got {cfg.lights}")
+    if cfg.rotation_deg:
+        env = env.rotated(np.radians(cfg.rotation_deg))
+    work = env.resized(min(ENV_WORK_HEIGHT, env.height))
+    lights = dominant_lights(work, cfg.lights)
+    rest = env_minus_lights(work, cfg.lights) if len(lights.dirs) else work
+    sh = sh9_project(rest)
+    # exposure: largest irradiance over many normals, ambient + unshadowed lights
+    rng = np.random.default_rng(0)
+    n = rng.normal(size=(EXPOSURE_PROBES, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    E = sh9_irradiance(sh, n) + np.maximum(n @ lights.dirs.T, 0) @ lights.power
+    e_max = float((E @ LUMA).max())
+    exposure = cfg.key * np.pi / max(e_max, 1e-12)
+    lt = Lighting(sh9=sh9_glsl_uniform(sh), light_dirs=lights.dirs, light_colors=lights.power,
+                  exposure=exposure, shininess=cfg.shininess, hair_shininess=cfg.hair_shininess,
+                  shadows=cfg.shadows)
+    info = {"env": env.name, "rotation_deg": cfg.rotation_deg, "exposure": exposure,
+            "light_dirs": lights.dirs.tolist(), "light_power": lights.power.tolist(),
+            "sh9_radiance": sh.tolist(), "shadows": cfg.shadows}
+    return lt, info
+
+
+def background(env: EnvMap, camera: Camera, exposure: float, rotation_deg: float = 0.0) -> np.ndarray:
+    """(H, W, 3) float32 linear environment radiance seen through every pixel, times exposure."""
+    rays = camera.pixel_rays(camera.pixel_grid())
+    d = rays @ camera.world_from_cam[:3, :3].T
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    if rotation_deg:
+        env = env.rotated(np.radians(rotation_deg))
+    return (env.sample(d) * exposure).astype(np.float32)

@@ -1,0 +1,166 @@
+"""Synthetic turntable captures: render a scene from a rig, add noise, write the scan set + gt/.
+
+On disk (DESIGN.md "Scan format on disk", written by ``capture.io.write_transforms``):
+``transforms.json``, ``images/``, ``depth/`` and ``gt/`` with ``gt/mesh.ply`` (exact geometry,
+world metres, +z up), ``gt/scene.json`` (name, seed, bounds, parameters, counts, rig, lighting,
+noise) and, when the poses were perturbed, ``gt/cameras_true.json`` (the unperturbed poses in
+the nerfstudio frame format).  Colour images are rendered with the *true* poses; only the
+recorded poses carry the pose noise.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from capture.camera import Camera
+from capture.io import write_transforms
+from capture.scan import Scan, ScanSet
+from datasets_synthetic.geometry import ply_bytes
+from datasets_synthetic.lighting import LightingConfig, background, resolve_env, scene_lighting
+from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes)
+from datasets_synthetic.rig import TurntableRig
+from datasets_synthetic.scenes import Scene, build_scene
+from render.raster import MeshRasterizer
+
+#: Margin added around the scene's tight bounds for the ScanSet bounds (fraction of the diagonal).
+BOUNDS_MARGIN = 0.05
+#: Reference image width for the hole radii of NoiseConfig (radii scale with width / this).
+HOLE_RADIUS_REF_WIDTH = 640
+#: The CI-sized capture of ``--small``.
+SMALL_RIG = TurntableRig(views_per_ring=12, width=160, height=120)
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """Everything that defines a synthetic capture (with the scene name and seed)."""
+
+    scene: str = "furball"
+    """Scene name (``furball``, ``plant``, ``torus``)."""
+    seed: int = 0
+    """Seed of the scene geometry and of the noise."""
+    rig: TurntableRig = field(default_factory=TurntableRig)
+    """Camera rig."""
+    lighting: LightingConfig = field(default_factory=LightingConfig)
+    """Environment lighting."""
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    """Noise models (default: none)."""
+    supersample: int = 3
+    """Colour supersampling factor (per axis); thin strands alias badly without it."""
+    background: str = "env"
+    """Colour behind the object: 'env' (the environment map) or 'black'."""
+
+    def __post_init__(self) -> None:
+        if self.background not in ("env", "black"):
+            raise ValueError(f"background must be 'env' or 'black', got {self.background!r}")
+        if self.supersample < 1:
+            raise ValueError(f"supersample must be >= 1, got {self.supersample}")
+
+
+@dataclass(frozen=True)
+class Capture:
+    """A synthetic capture in memory.
+
+    Attributes:
+        scanset: the scans as written (noisy depth / poses when noise is on).
+        scene: the scene (exact mesh).
+        true_cameras: the cameras the images were rendered with.
+        clean_depth: (N, H, W) float32 exact z-depth (before noise).
+        normals: (N, H, W, 3) float32 world normals (single-sample pass).
+        info: JSON-able description written to gt/scene.json.
+    """
+
+    scanset: ScanSet
+    scene: Scene
+    true_cameras: tuple[Camera, ...]
+    clean_depth: np.ndarray
+    normals: np.ndarray
+    info: dict
+
+
+def _view_rng(seed: int, view: int, stream: int) -> np.random.Generator:
+    return np.random.default_rng([int(seed), int(view), int(stream)])
+
+
+def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
+               progress: Callable | None = None) -> Capture:
+    """Render ``cfg`` (GL context ``ctx``, or a temporary one).  ``progress(iterable, label)``
+    wraps the per-view loop (e.g. ``furrow.console.track``)."""
+    from render.gl import gl_context
+
+    if ctx is None:
+        with gl_context() as own:
+            return synthesize(cfg, own, scene, progress)
+    scene = scene if scene is not None else build_scene(cfg.scene, cfg.seed)
+    env = resolve_env(cfg.lighting.env)
+    lighting, light_info = scene_lighting(env, cfg.lighting)
+    tight = scene.bounds
+    diag = float(np.linalg.norm(tight[1] - tight[0]))
+    bounds = np.stack([tight[0] - BOUNDS_MARGIN * diag, tight[1] + BOUNDS_MARGIN * diag])
+    cams = cfg.rig.cameras(float(np.linalg.norm(scene.mesh.vertices, axis=1).max()))
+    nz = cfg.noise
+    radius = tuple(r * cfg.rig.width / HOLE_RADIUS_REF_WIDTH for r in nz.hole_radius_px)
+    scans, clean, normals, recorded = [], [], [], []
+    views = list(enumerate(cams))
+    with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
+        rast.set_mesh(scene.mesh)
+        rast.set_lighting(lighting)
+        for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
+            res = rast.render(cam)
+            if cfg.background == "env":
+                bg = background(env, cam, lighting.exposure, cfg.lighting.rotation_deg)
+                rgb = res.color + (1.0 - res.alpha[..., None]) * bg
+            else:
+                rgb = res.color
+            depth = res.depth
+            if nz.grazing_deg > 0:
+                depth = grazing_dropout(cam, depth, res.normal, nz.grazing_deg)
+            if nz.holes_fraction > 0:
+                depth = random_holes(depth, _view_rng(cfg.seed, i, 1), nz.holes_fraction, radius)
+            if nz.depth_sigma_at_1m > 0:
+                depth = depth_noise(depth, _view_rng(cfg.seed, i, 2), nz.depth_sigma_at_1m)
+            rec = cam
+            if nz.any_pose:
+                rec = perturb_pose(cam, _view_rng(cfg.seed, i, 3), nz.pose_rot_deg, nz.pose_trans_frac * diag)
+            recorded.append(rec)
+            scans.append(Scan(np.clip(rgb, 0, None).astype(np.float32), depth, rec, name=f"{cam.name}.png"))
+            clean.append(res.depth)
+            normals.append(res.normal)
+    info = {
+        "name": scene.name, "seed": scene.seed, "generator": "furrow datasets_synthetic",
+        "units": "metres, world +z up", "bounds": tight.tolist(), "scanset_bounds": bounds.tolist(),
+        "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
+        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "supersample": cfg.supersample,
+        "background": cfg.background, "poses_perturbed": nz.any_pose,
+    }
+    meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz)}
+    return Capture(ScanSet(tuple(scans), bounds, meta), scene, tuple(cams), np.stack(clean), np.stack(normals), info)
+
+
+def _cameras_json(cams) -> bytes:
+    frames = [{"name": c.name, **c.to_nerfstudio()} for c in cams]
+    return json.dumps({"convention": "nerfstudio transform_matrix (camera-to-world, OpenGL axes), "
+                       "cx/cy with pixel centres at i + 0.5", "frames": frames}, indent=1).encode()
+
+
+def gt_files(cap: Capture) -> dict[str, bytes]:
+    """The ``gt/`` files of a capture: relative path -> bytes."""
+    files = {"gt/mesh.ply": ply_bytes(cap.scene.mesh),
+             "gt/scene.json": json.dumps(cap.info, indent=1, default=float).encode()}
+    if cap.info.get("poses_perturbed"):
+        files["gt/cameras_true.json"] = _cameras_json(cap.true_cameras)
+    return files
+
+
+def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: bool = False,
+                  extra_files: dict[str, bytes] | None = None, progress: Callable | None = None) -> Path:
+    """Write the scan set (transforms.json, images/, depth/) and gt/ atomically; returns
+    the transforms.json path."""
+    files = gt_files(cap)
+    files.update(extra_files or {})
+    return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,
+                            extra_files=files, progress=progress)
