@@ -105,7 +105,7 @@ def icp_refine(src_levels, tgt_levels, init: np.ndarray, voxels, cfg: IcpConfig,
     n = len(voxels)
     for k in range(start, n):
         v = voxels[k]
-        dist = (cfg.first_corr_voxels if k == start and start == 0 else cfg.corr_voxels) * v
+        dist = (cfg.first_corr_voxels if k == start else cfg.corr_voxels) * v
         crit = reg.ICPConvergenceCriteria(relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=_iters(cfg, k))
         s, t = src_levels[k], tgt_levels[k]
         if cfg.colored and k == n - 1 and s.has_colors() and t.has_colors():
@@ -115,7 +115,7 @@ def icp_refine(src_levels, tgt_levels, init: np.ndarray, voxels, cfg: IcpConfig,
                 continue
             except RuntimeError:  # too few correspondences for the colour term: fall back to geometry
                 pass
-        if cfg.point_to_point_first and k == 0:
+        if cfg.point_to_point_first and k == start:
             est = reg.TransformationEstimationPointToPoint()
         elif cfg.robust:
             est = reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=dist))
@@ -195,14 +195,30 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
     dist = cfg.corr_voxels * voxels[-1]
     tried = []
     if init is not None:
-        T = icp_refine(dj.pyramid, di.pyramid, init, voxels, cfg)
-        T, fit, rmse = fine_align(di.frame, dj.frame, T, cfg, size)
-        corr = R.transform_delta(T, init, center_j)
-        st = classify(fit, rmse, corr, size)
-        tried.append(PairResult(i, j, T, fit, rmse, None, "icp", st, corr[0]))
-        if st == "ok":
-            tried[-1].information = information(dj.pyramid[-1], di.pyramid[-1], T, dist)
-            return tried[-1]
+        # multi-start: the coarse levels widen the basin but can slide a good start away on
+        # partial overlap; each start level is tried and the best accepted result is kept.
+        # Candidates are ranked by projective fitness at the widest gate (cheap: no iterations)
+        # and fine-aligned in that order until one is accepted.
+        gate0 = (cfg.projective_gates or (1 / 150,))[0] * size
+        cands = []
+        for start in range(len(voxels)):
+            T = icp_refine(dj.pyramid, di.pyramid, init, voxels, cfg, start=start)
+            cands.append((PR.projective_icp(dj.frame, di.frame, T, gate0, 0).fitness, start, T))
+        cands.sort(key=lambda c: -c[0])
+        best = None
+        for _, start, T in cands:
+            T, fit, rmse = fine_align(di.frame, dj.frame, T, cfg, size)
+            corr = R.transform_delta(T, init, center_j)
+            r = PairResult(i, j, T, fit, rmse, None, "icp", classify(fit, rmse, corr, size), corr[0])
+            if best is None or r.fitness > best.fitness:
+                best = r
+            if r.status == "ok":
+                best = r
+                break
+        tried.append(best)
+        if best.status == "ok":
+            best.information = information(dj.pyramid[-1], di.pyramid[-1], best.T, dist)
+            return best
     if cfg.global_fallback or init is None:
         gv = cfg.global_voxel_frac * size
         T0 = global_init(P.downsample(dj.pyramid[0], gv), P.downsample(di.pyramid[0], gv), gv, cfg.seed)

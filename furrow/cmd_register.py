@@ -1,0 +1,80 @@
+"""``furrow register SCANS -o OUT``: refine the poses of a scan set (issue 4)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+HELP = "register scans into one frame (Open3D ICP + pose graph, pycolmap SfM, ChArUco board)"
+DESCRIPTION = """Read a scan set, estimate refined camera poses and write a NEW scan set with the
+refined transform_matrix and a registration.json report (per-scan fitness, inlier RMSE,
+pose-graph consistency, flagged scans by name).  The input is never written over.
+Scans that cannot be registered are flagged and left out of the output (--keep-flagged
+keeps them with their input poses).  Exit status 0 = all registered, 3 = some flagged,
+1 = error.
+
+methods: icp   Open3D coarse ICP + projective point-to-plane ICP + pose graph (loop closure),
+               FPFH+RANSAC fallback
+         colmap  pycolmap SfM on the colour images, Umeyama into the depth frame, then ICP
+         board   ChArUco PnP (opencv-contrib) for the initial poses, then ICP
+         auto    board if seen in most images, else icp (SfM if global registration fails)"""
+
+#: Exit status when the output was written but some scans were flagged.
+EXIT_FLAGGED = 3
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scans", type=Path, help="input scan set (transforms.json, its folder, or a plain folder)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="output folder (must not exist, must not be the input)")
+    p.add_argument("--method", choices=["auto", "icp", "colmap", "board"], default="auto")
+    p.add_argument("--init", choices=["nominal", "none"], default="nominal",
+                   help="start from the input poses (nominal) or from nothing (global registration)")
+    p.add_argument("--colored", action="store_true", help="coloured ICP at the finest Open3D level")
+    p.add_argument("--keep-flagged", action="store_true", help="keep flagged scans (input poses) in the output")
+    p.add_argument("--depth-format", choices=["png", "exr"], default="png")
+    p.add_argument("--frames", default=None, help="frame selection, python slices: '0::2', '1,4,7'")
+    p.add_argument("--json", action="store_true", help="print the registration report as JSON on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks")
+
+
+def _same_or_inside(a: Path, b: Path) -> bool:
+    a, b = a.resolve(), b.resolve()
+    return a == b or b in a.parents or a in b.parents
+
+
+def run(args, console) -> int:
+    from capture import io as cio
+    from capture.registration import icp as ICP
+    from capture.registration import pipeline
+    from furrow.console import StageTimer, fail, track
+
+    src = args.scans if args.scans.is_dir() else args.scans.parent
+    if _same_or_inside(args.out, src):
+        fail(f"{args.out}: output must be a new folder outside the input {src} (the input is never written over)")
+        return 1
+    if args.out.exists():
+        fail(f"{args.out}: already exists; choose a new output folder")
+        return 1
+    timer = StageTimer()
+    with timer.stage("read"):
+        ss = cio.read_scanset(args.scans, frames=args.frames, progress=track)
+    with timer.stage(f"register ({args.method}, init {args.init})"):
+        cfg = ICP.IcpConfig(colored=args.colored)
+        out, rep, _ = pipeline.register(ss, args.method, args.init, cfg, keep_flagged=args.keep_flagged)
+    report = rep.to_json()
+    report["input"] = str(args.scans)
+    with timer.stage("write"):
+        path = cio.write_transforms(out, args.out, depth_format=args.depth_format,
+                                    extra_files={"registration.json": json.dumps(report, indent=1).encode()},
+                                    progress=track)
+    console.print(timer.table())
+    n, k = report["n_scans"], report["n_registered"]
+    console.print(f"registered {k}/{n} scans with {rep.method}; wrote {path}", highlight=False)
+    for s in rep.scans:
+        if not s.registered:
+            console.print(f"[yellow]flagged[/] {s.name}: fitness {s.best_fitness:.3f}, {s.reason}", highlight=False)
+    if args.json:
+        sys.stdout.write(json.dumps(report, indent=1) + "\n")
+    return 0 if k == n else EXIT_FLAGGED
