@@ -345,12 +345,19 @@ def build_torus(seed: int = 0, p: TorusParams = TorusParams()) -> Scene:
     return Scene("torus", seed, m, asdict(p), {"vertices": len(m.vertices), "triangles": len(m.faces)})
 
 
-#: Scene name -> builder(seed) (default parameters).
-SCENES = {"furball": build_furball, "plant": build_plant, "torus": build_torus}
+#: Scene name -> (builder(seed, params), parameter dataclass).
+SCENES = {"furball": (build_furball, FurballParams), "plant": (build_plant, PlantParams),
+          "torus": (build_torus, TorusParams)}
 
 
-def build_scene(name: str, seed: int = 0) -> Scene:
-    """Build a named scene; unknown names raise ValueError listing the known ones."""
+def build_scene(name: str, seed: int = 0, **overrides) -> Scene:
+    """Build a named scene; ``overrides`` replace fields of its parameter dataclass (e.g.
+    ``strands=5000`` for the furball).  Unknown names / fields raise ValueError."""
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}: choose one of {', '.join(SCENES)}")
-    return SCENES[name](int(seed))
+    builder, params = SCENES[name]
+    fields = set(params.__dataclass_fields__)
+    bad = sorted(set(overrides) - fields)
+    if bad:
+        raise ValueError(f"scene {name!r} has no parameter {', '.join(bad)} (parameters: {', '.join(sorted(fields))})")
+    return builder(int(seed), params(**overrides))

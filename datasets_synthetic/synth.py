@@ -53,6 +53,10 @@ class SynthConfig:
     """Colour supersampling factor (per axis); thin strands alias badly without it."""
     background: str = "env"
     """Colour behind the object: 'env' (the environment map) or 'black'."""
+    scene_params: dict = field(default_factory=dict)
+    """Overrides of the scene's parameter dataclass (e.g. ``{"strands": 5000}``)."""
+    views: tuple[int, ...] | None = None
+    """Render only these indices of the rig's views (None = all); noise seeds follow the index."""
 
     def __post_init__(self) -> None:
         if self.background not in ("env", "black"):
@@ -95,7 +99,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
     if ctx is None:
         with gl_context() as own:
             return synthesize(cfg, own, scene, progress)
-    scene = scene if scene is not None else build_scene(cfg.scene, cfg.seed)
+    scene = scene if scene is not None else build_scene(cfg.scene, cfg.seed, **cfg.scene_params)
     env = resolve_env(cfg.lighting.env)
     lighting, light_info = scene_lighting(env, cfg.lighting)
     tight = scene.bounds
@@ -106,6 +110,11 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
     radius = tuple(r * cfg.rig.width / HOLE_RADIUS_REF_WIDTH for r in nz.hole_radius_px)
     scans, clean, normals, recorded = [], [], [], []
     views = list(enumerate(cams))
+    if cfg.views is not None:
+        bad = [i for i in cfg.views if not 0 <= i < len(cams)]
+        if bad:
+            raise ValueError(f"views {bad} out of range for a rig of {len(cams)} views")
+        views = [views[i] for i in cfg.views]
     with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
         rast.set_mesh(scene.mesh)
         rast.set_lighting(lighting)
@@ -138,7 +147,8 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "background": cfg.background, "poses_perturbed": nz.any_pose,
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz)}
-    return Capture(ScanSet(tuple(scans), bounds, meta), scene, tuple(cams), np.stack(clean), np.stack(normals), info)
+    true_cams = tuple(c for _, c in views)
+    return Capture(ScanSet(tuple(scans), bounds, meta), scene, true_cams, np.stack(clean), np.stack(normals), info)
 
 
 def _cameras_json(cams) -> bytes:
