@@ -82,13 +82,18 @@ def read_depth_raw(path: Path) -> np.ndarray:
     return d
 
 
+class _Chan:
+    def __init__(self, pixels: np.ndarray):
+        self.pixels = pixels
+
+
 def read_exr(path: Path) -> np.ndarray:
     """EXR -> float32 (H, W) or (H, W, C) with channels in RGB(A) / Y / Z order."""
     import OpenEXR
 
     try:
         with OpenEXR.File(str(path)) as f:
-            chans = f.channels()
+            chans = {k: _Chan(np.array(v.pixels)) for k, v in f.channels().items()}
     except Exception as e:
         raise ScanIOError(f"{path}: not a readable EXR file ({e})") from None
     if "RGB" in chans:
