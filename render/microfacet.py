@@ -134,6 +134,7 @@ class MicrofacetRenderer:
         self.cam_buf = ctx.buffer(camera_block(self.cameras))
         texels = rgbz_array(rgb, depth)
         n, H, W = texels.shape[:3]
+        self.tex_size = (W, H)
         self.tex = ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4")
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.tex.repeat_x = self.tex.repeat_y = False
@@ -196,6 +197,8 @@ class MicrofacetRenderer:
             prog["view_proj"].write(_mat(view_proj))
         if "rgbz" in prog:
             prog["rgbz"].value = 0
+        if "tex_size" in prog:
+            prog["tex_size"].value = self.tex_size
 
     def render(self, eye: Camera, tolerance_px: float = mg.DEFAULT_TOLERANCE_PX, level: int | None = None,
                spacing: float | None = None, fill_only: bool = False, read: bool = True) -> Frame:

@@ -68,6 +68,7 @@ class VdtmRenderer:
         self.cam_buf = ctx.buffer(camera_block(self.cameras))
         texels = rgbz_array(rgb, depth)
         n, H, W = texels.shape[:3]
+        self.tex_size = (W, H)
         self.tex = ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4")
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self._fbo = None
@@ -111,6 +112,8 @@ class VdtmRenderer:
                 p[k].value = val
         if "rgbz" in p:
             p["rgbz"].value = 0
+        if "tex_size" in p:
+            p["tex_size"].value = self.tex_size
         self.cam_buf.bind_to_storage_buffer(0)
         self.tex.use(0)
         ctx.finish()

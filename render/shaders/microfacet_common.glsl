@@ -18,6 +18,14 @@ uniform float spacing;      // slice spacing l (m)
 uniform float voxel_size;   // w of the current level (m)
 uniform float near_plane;   // slices closer than this along their ray are dropped
 
+// Homogeneous projection of a world point into camera i: (u z, v z, z), affine in p, so it
+// interpolates exactly across a slice; u, v OpenCV pixels, z = z-depth D.
+vec3 cam_project_h(int i, vec3 p) {
+    vec4 pc = cams[i].cfw * vec4(p, 1.0);
+    return vec3(cams[i].intr.x * pc.x + cams[i].size.z * pc.y + cams[i].intr.z * pc.z,
+                cams[i].intr.y * pc.y + cams[i].intr.w * pc.z, pc.z);
+}
+
 // Projection of a world point into camera i: (u, v) OpenCV pixels and z-depth D.
 vec3 cam_project(int i, vec3 p) {
     vec4 pc = cams[i].cfw * vec4(p, 1.0);
@@ -29,7 +37,7 @@ vec3 cam_project(int i, vec3 p) {
 
 bool footprint_inside(int i, vec3 p, float r) {
     vec3 uvz = cam_project(i, p);
-    if (uvz.z - r <= 0.0) return false;
+    if (uvz.z - max(r, 0.0) <= 0.0) return false;
     float ru = cams[i].intr.x * r / uvz.z;
     float rv = cams[i].intr.y * r / uvz.z;
     return uvz.x - ru >= -0.5 && uvz.x + ru <= cams[i].size.x - 0.5 &&

@@ -6,6 +6,7 @@ in vec3 v_world;
 flat in ivec4 v_c03;
 flat in ivec2 v_c45;
 flat in vec3 v_w;
+in vec3 v_proj[K_CAND];
 out vec4 frag;
 
 void main() {
@@ -15,6 +16,8 @@ void main() {
     float w[K_BLEND];
     w[0] = v_w.x; w[1] = v_w.y; w[2] = v_w.z;
     vec3 col;
-    if (!shade(v_world, cand, w, 0.5 * spacing, col)) discard;
+    vec3 proj[K_CAND];
+    for (int k = 0; k < K_CAND; ++k) proj[k] = v_proj[k];
+    if (!shade(proj, cand, w, 0.5 * spacing, col)) discard;
     frag = vec4(col, 1.0);
 }

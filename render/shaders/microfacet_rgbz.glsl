@@ -7,13 +7,16 @@ const int PASS = 1;      // Eq. 2: |d - D| < tol
 const int FREE = 2;      // the camera saw through this point (d == 0 or d >= D + FREE_FACTOR * tol)
 const int UNSURE = 3;    // tol <= |d - D| < FREE_FACTOR * tol
 
-// Classify world point p in camera i against its RGBz image; col = its texel colour.
-int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
-    vec3 uvz = cam_project(i, p);
+uniform ivec2 tex_size;        // W, H of every RGBz layer
+
+// Classify a point against layer i given its homogeneous projection pr = (u z, v z, z) in
+// that camera (cam_project_h); col = its texel colour.
+int rgbz_classify(int i, vec3 pr, float tol, out vec3 col) {
     col = vec3(0.0);
-    if (uvz.z <= 0.0) return NO_VIEW;
+    if (pr.z <= 0.0) return NO_VIEW;
+    vec3 uvz = vec3(pr.xy / pr.z, pr.z);
     ivec2 ij = ivec2(floor(uvz.xy + 0.5));
-    if (ij.x < 0 || ij.y < 0 || ij.x >= int(cams[i].size.x) || ij.y >= int(cams[i].size.y)) return NO_VIEW;
+    if (ij.x < 0 || ij.y < 0 || ij.x >= tex_size.x || ij.y >= tex_size.y) return NO_VIEW;
     vec4 t = texelFetch(rgbz, ivec3(ij, i), 0);
     col = t.rgb;
     if (!(t.a > 0.0)) return FREE;
@@ -23,6 +26,11 @@ int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
     return e > 0.0 ? FREE : NO_VIEW;
 }
 
+// Classify world point p in camera i (projects it here; used per fragment by the VDTM baseline).
+int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
+    return rgbz_classify(i, cam_project_h(i, p), tol, col);
+}
+
 // Colour of a slice fragment, or false to discard it.
 // FALLBACK_RULE 0 ("vote"): the blend cameras that see the point (PASS, FREE, UNSURE) vote with
 //   their weights; it is drawn when the passing share >= ALPHA_VOTE, coloured by the passing
@@ -30,7 +38,7 @@ int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
 //   or frees it decides (per-fragment fallback).
 // FALLBACK_RULE 1 ("any"): blend the passing blend cameras; if none passes, the first passing
 //   candidate of all (the issue's literal fallback; fattens silhouettes).
-bool shade(vec3 p, int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 colour) {
+bool shade(vec3 proj[K_CAND], int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 colour) {
     vec3 acc = vec3(0.0);
     float wpass = 0.0, wseen = 0.0;
     colour = vec3(0.0);
@@ -38,7 +46,7 @@ bool shade(vec3 p, int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 col
         int ci = cand[k];
         if (ci < 0) break;
         vec3 c;
-        int st = rgbz_lookup(ci, p, tol, c);
+        int st = rgbz_classify(ci, proj[k], tol, c);
         if (st == PASS) { acc += wts[k] * c; wpass += wts[k]; }
         if (st == PASS || st == FREE) wseen += wts[k];
         if (st == UNSURE) wseen += UNSURE_WEIGHT * wts[k];
@@ -53,7 +61,7 @@ bool shade(vec3 p, int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 col
         int ci = cand[k];
         if (ci < 0) break;
         vec3 c;
-        int st = rgbz_lookup(ci, p, tol, c);
+        int st = rgbz_classify(ci, proj[k], tol, c);
         if (st != PASS && st != FREE) continue;
         colour = c;
         return st == PASS;
@@ -65,7 +73,7 @@ bool shade(vec3 p, int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 col
         int ci = cand[k];
         if (ci < 0) break;
         vec3 c;
-        if (rgbz_lookup(ci, p, tol, c) == PASS) { colour = c; return true; }
+        if (rgbz_classify(ci, proj[k], tol, c) == PASS) { colour = c; return true; }
     }
     return false;
 #endif
