@@ -18,7 +18,7 @@ WIDTH = 256
 
 
 def eval_glsl(ctx, includes: list[str], expr: str, inputs: np.ndarray, uniforms: dict | None = None,
-              textures: dict | None = None, prelude: str = "") -> np.ndarray:
+              textures: dict | None = None, prelude: str = "", defines: dict | None = None) -> np.ndarray:
     """(N, 4) float32 results of ``expr`` (a vec4 GLSL expression of ``vec4 x``, the input row)
     for (N, k<=4) float inputs. ``includes``: shader files from render/shaders; ``uniforms``:
     name -> value; ``textures``: uniform sampler name -> moderngl texture."""
@@ -29,7 +29,7 @@ def eval_glsl(ctx, includes: list[str], expr: str, inputs: np.ndarray, uniforms:
     h = -(-n // w)
     pad = np.zeros((w * h, 4), np.float32)
     pad[:n] = x
-    src = "#version 430\n" + "".join(load_shader(i) for i in includes) + prelude + f"""
+    src = "#version 430\n" + "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items()) + "".join(load_shader(i) for i in includes) + prelude + f"""
 uniform sampler2D u_in;
 out vec4 o_val;
 void main() {{
