@@ -53,6 +53,9 @@ class IcpConfig:
     """Depth gates (fractions of object size) of the successive projective ICP stages; () = off."""
     projective_iterations: int = 30
     """Gauss-Newton iterations per projective stage."""
+    color_scale_frac: float = 0.0
+    """Photometric term of the projective stage: metres per unit luminance difference, as a
+    fraction of object size (0 = geometry only).  Needed on symmetric shapes (the torus)."""
     robust: bool = True
     point_to_point_first: bool = True
     """Point-to-point ICP at the coarsest level (wider basin of convergence than point-to-plane)."""
@@ -143,13 +146,6 @@ def global_init(src, tgt, voxel: float, seed: int = 0) -> np.ndarray:
     return np.asarray(res.transformation)
 
 
-def information(src, tgt, T: np.ndarray, dist: float) -> np.ndarray:
-    """6x6 information matrix of a pair (Open3D, from the finest clouds) for the pose graph."""
-    import open3d as o3d
-
-    return np.asarray(o3d.pipelines.registration.get_information_matrix_from_point_clouds(src, tgt, dist, T))
-
-
 def classify(fitness: float, rmse: float, correction: tuple[float, float] | None, size: float) -> str:
     """Status of a pair result against the thresholds of ``report.py``."""
     if correction is not None and (correction[0] > R.MAX_CORRECTION_DEG or correction[1] > R.MAX_CORRECTION_FRAC * size):
@@ -162,16 +158,18 @@ def classify(fitness: float, rmse: float, correction: tuple[float, float] | None
 
 
 def fine_align(frame_i: PR.DepthFrame, frame_j: PR.DepthFrame, T: np.ndarray, cfg: IcpConfig,
-               size: float) -> tuple[np.ndarray, float, float]:
-    """Projective ICP stages (gates from ``cfg.projective_gates``): (T, fitness, rmse) at the last gate."""
+               size: float) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """Projective ICP stages (gates from ``cfg.projective_gates``):
+    (T, fitness, rmse, 6x6 information) at the last gate."""
     gates = cfg.projective_gates or (1 / 150,)
     res = None
     for g in cfg.projective_gates:
-        res = PR.projective_icp(frame_j, frame_i, T, g * size, cfg.projective_iterations)
+        res = PR.projective_icp(frame_j, frame_i, T, g * size, cfg.projective_iterations,
+                                color_scale=cfg.color_scale_frac * size)
         T = res.T
     if res is None:  # evaluation only
-        res = PR.projective_icp(frame_j, frame_i, T, gates[-1] * size, 0)
-    return T, res.fitness, res.rmse
+        res = PR.projective_icp(frame_j, frame_i, T, gates[-1] * size, 0, color_scale=cfg.color_scale_frac * size)
+    return T, res.fitness, res.rmse, res.information
 
 
 @dataclass
@@ -207,9 +205,9 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
         cands.sort(key=lambda c: -c[0])
         best = None
         for _, start, T in cands:
-            T, fit, rmse = fine_align(di.frame, dj.frame, T, cfg, size)
+            T, fit, rmse, info = fine_align(di.frame, dj.frame, T, cfg, size)
             corr = R.transform_delta(T, init, center_j)
-            r = PairResult(i, j, T, fit, rmse, None, "icp", classify(fit, rmse, corr, size), corr[0])
+            r = PairResult(i, j, T, fit, rmse, info, "icp", classify(fit, rmse, corr, size), corr[0])
             if best is None or r.fitness > best.fitness:
                 best = r
             if r.status == "ok":
@@ -217,17 +215,15 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
                 break
         tried.append(best)
         if best.status == "ok":
-            best.information = information(dj.pyramid[-1], di.pyramid[-1], best.T, dist)
             return best
     if cfg.global_fallback or init is None:
         gv = cfg.global_voxel_frac * size
         T0 = global_init(P.downsample(dj.pyramid[0], gv), P.downsample(di.pyramid[0], gv), gv, cfg.seed)
         T = icp_refine(dj.pyramid, di.pyramid, T0, voxels, cfg)
-        T, fit, rmse = fine_align(di.frame, dj.frame, T, cfg, size)
+        T, fit, rmse, info = fine_align(di.frame, dj.frame, T, cfg, size)
         st = classify(fit, rmse, None, size)
-        tried.append(PairResult(i, j, T, fit, rmse, None, "fpfh+icp", st))
+        tried.append(PairResult(i, j, T, fit, rmse, info, "fpfh+icp", st))
         if st == "ok":
-            tried[-1].information = information(dj.pyramid[-1], di.pyramid[-1], T, dist)
             return tried[-1]
     # none accepted: report the best attempt with its failure status
     return max(tried, key=lambda r: r.fitness)
@@ -393,11 +389,10 @@ def register_icp(scanset: ScanSet, cfg: IcpConfig = IcpConfig(), use_init: bool 
             # refine: fine ICP from optimised relative poses
             for e in edges:
                 init = invert_rigid(nodes[e.i]) @ nodes[e.j]
-                T, fit, rmse = fine_align(data[e.i].frame, data[e.j].frame, init, cfg, size)
+                T, fit, rmse, info = fine_align(data[e.i].frame, data[e.j].frame, init, cfg, size)
                 corr = R.transform_delta(T, init, centers[e.j])
                 if classify(fit, rmse, corr, size) == "ok" and corr[0] < R.MAX_EDGE_RESIDUAL_DEG * 2:
-                    e.T, e.fitness, e.rmse = T, fit, rmse
-                    e.information = information(data[e.j].pyramid[-1], data[e.i].pyramid[-1], T, dist)
+                    e.T, e.fitness, e.rmse, e.information = T, fit, rmse, info
     secs["pose_graph"] = time.perf_counter() - t2
 
     registered = [k in main for k in range(n)]
