@@ -19,7 +19,7 @@ from capture.camera import Camera
 from render.raster import Lighting, MAX_LIGHTS
 from render.shading.envmap import BUNDLED_NAMES, EnvMap, bundled_envmap, load_envmap, procedural_sky
 from render.shading.lights import LUMA, dominant_lights, env_minus_lights
-from render.shading.sh import sh9_glsl_uniform, sh9_irradiance, sh9_project
+from render.shading.sh import sh9_irradiance, sh9_project
 
 #: Rows of the environment copy used to find lights and project SH (area-correct resample).
 ENV_WORK_HEIGHT = 256
@@ -77,7 +77,7 @@ def scene_lighting(env: EnvMap, cfg: LightingConfig) -> tuple[Lighting, dict]:
     E = sh9_irradiance(sh, n) + np.maximum(n @ lights.dirs.T, 0) @ lights.power
     e_max = float((E @ LUMA).max())
     exposure = cfg.key * np.pi / max(e_max, 1e-12)
-    lt = Lighting(sh9=sh9_glsl_uniform(sh), light_dirs=lights.dirs, light_colors=lights.power,
+    lt = Lighting(sh9=sh, light_dirs=lights.dirs, light_colors=lights.power,
                   exposure=exposure, shininess=cfg.shininess, hair_shininess=cfg.hair_shininess,
                   shadows=cfg.shadows)
     info = {"env": env.name, "rotation_deg": cfg.rotation_deg, "exposure": exposure,

@@ -2,8 +2,8 @@
 
 Used by ``datasets_synthetic`` to render exact ground truth and later as the fixed-mesh
 baseline renderer (DESIGN.md "render/").  The GL path (:class:`MeshRasterizer`) has a slow,
-obviously-correct numpy twin (:func:`rasterize_reference`, per-pixel barycentric) and a test
-comparing them (tests/render/test_raster.py).
+obviously-correct numpy twin (``render.raster_reference``: per-pixel barycentric rasterisation
+and the same shading in numpy through ``render.shading``) and tests comparing them (tests/render/test_raster.py).
 
 Conventions: cameras are :class:`capture.camera.Camera` (OpenCV); the GL matrices come from
 ``camera.gl_view()`` / ``camera.gl_projection()`` and read-back rows are flipped by
@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image, look_at
+from render.shading.sh import sh9_glsl_uniform
 
 #: Near plane never closer than this (metres).
 MIN_NEAR = 1e-3
@@ -128,8 +129,9 @@ class Lighting:
     """Environment lighting for the shaded mode (world frame).
 
     Attributes:
-        sh9: (9, 3) float32 SH coefficients accepted by ``sh9_irradiance`` in sh9.glsl
-            (the ambient part, usually the environment minus the directional lights).
+        sh9: (9, 3) radiance SH coefficients (``render.shading.sh.sh9_project``) of the ambient
+            part, usually the environment minus the directional lights; irradiance from them is
+            ``sh9_irradiance`` (numpy) / sh9.glsl (GLSL, via ``sh9_glsl_uniform``).
         light_dirs: (K, 3) unit directions *towards* the lights, K <= MAX_LIGHTS.
         light_colors: (K, 3) irradiance of each light on a surface facing it.
         exposure: scale applied to the final radiance.
@@ -226,6 +228,8 @@ class MeshRasterizer:
         self._lighting: Lighting | None = None
         self._vis_vbo = None
         self.shadow_info: dict = {}
+        #: (V, K) float32 per-vertex visibility of the K lights from the last shadow build.
+        self.vertex_visibility = np.zeros((0, 0), np.float32)
         self._released = False
 
     # ------------------------------------------------------------------ resources
@@ -350,6 +354,7 @@ class MeshRasterizer:
             self.shadow_info = {"map_size": SHADOW_MAP_SIZE, "texel_m": 2 * radius / SHADOW_MAP_SIZE,
                                 "mean_visibility": vis[:, : len(lt.light_dirs)].mean(0).tolist()}
         self._vis_vbo.write(vis.tobytes())
+        self.vertex_visibility = vis[:, : len(lt.light_dirs)].copy() if lt is not None else vis[:, :0].copy()
 
     # ------------------------------------------------------------------ render
     def _fbo(self, w: int, h: int):
@@ -402,7 +407,7 @@ class MeshRasterizer:
 
     def _set_shading_uniforms(self, prog) -> None:
         lt = self._lighting
-        prog["u_sh9"].write(np.ascontiguousarray(lt.sh9, dtype=np.float32).tobytes())
+        prog["u_sh9"].write(np.ascontiguousarray(sh9_glsl_uniform(lt.sh9), dtype=np.float32).tobytes())
         k = len(lt.light_dirs)
         dirs = np.zeros((MAX_LIGHTS, 3), np.float32)
         cols = np.zeros((MAX_LIGHTS, 3), np.float32)
@@ -495,63 +500,3 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     ln = np.linalg.norm(n, axis=1, keepdims=True)
     return np.where(ln > 0, n / np.maximum(ln, 1e-300), 0.0)
-
-
-def rasterize_reference(mesh: RasterMesh, camera: Camera, near: float = MIN_NEAR) -> RasterResult:
-    """Slow numpy reference (small scenes only): per triangle, per pixel centre barycentric test
-    in image space (OpenCV centres, ``camera.project``), perspective-correct interpolation
-    (depth = 1 / sum(b_i / z_i)), nearest depth wins.  Triangles with a vertex nearer than
-    ``near`` are skipped (no clipping).  Colour is unshaded per-vertex colour, sampled at the
-    pixel centre (no supersampling), ``alpha == mask``.
-    """
-    H, W = camera.height, camera.width
-    depth = np.full((H, W), np.inf)
-    color = np.zeros((H, W, 3))
-    normal = np.zeros((H, W, 3))
-    v = mesh.vertices.astype(np.float64)
-    uv, z = camera.project(v)
-    fn = face_normals(v, mesh.faces)
-    eye = camera.center
-    for fi, (a, b, c) in enumerate(mesh.faces):
-        if min(z[a], z[b], z[c]) <= near:
-            continue
-        p = uv[[a, b, c]]
-        area = (p[1, 0] - p[0, 0]) * (p[2, 1] - p[0, 1]) - (p[2, 0] - p[0, 0]) * (p[1, 1] - p[0, 1])
-        if abs(area) < 1e-12:
-            continue
-        i0, i1 = max(int(np.ceil(p[:, 0].min())), 0), min(int(np.floor(p[:, 0].max())), W - 1)
-        j0, j1 = max(int(np.ceil(p[:, 1].min())), 0), min(int(np.floor(p[:, 1].max())), H - 1)
-        if i0 > i1 or j0 > j1:
-            continue
-        jj, ii = np.mgrid[j0 : j1 + 1, i0 : i1 + 1].astype(np.float64)
-        # edge functions -> screen-space barycentrics
-        w0 = ((p[2, 0] - p[1, 0]) * (jj - p[1, 1]) - (p[2, 1] - p[1, 1]) * (ii - p[1, 0])) / area
-        w1 = ((p[0, 0] - p[2, 0]) * (jj - p[2, 1]) - (p[0, 1] - p[2, 1]) * (ii - p[2, 0])) / area
-        w2 = 1.0 - w0 - w1
-        inside = (w0 >= 0) & (w1 >= 0) & (w2 >= 0)
-        if not inside.any():
-            continue
-        zs = z[[a, b, c]]
-        q = np.stack([w0 / zs[0], w1 / zs[1], w2 / zs[2]], -1)  # perspective-correct weights
-        zpix = 1.0 / q.sum(-1)
-        bary = q * zpix[..., None]
-        sub = depth[j0 : j1 + 1, i0 : i1 + 1]
-        win = inside & (zpix < sub)
-        if not win.any():
-            continue
-        sub[win] = zpix[win]
-        color[j0 : j1 + 1, i0 : i1 + 1][win] = bary[win] @ mesh.colors[[a, b, c]].astype(np.float64)
-        if mesh.normals is not None:
-            n = bary[win] @ mesh.normals[[a, b, c]].astype(np.float64)
-            n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
-        else:
-            n = np.broadcast_to(fn[fi], (int(win.sum()), 3)).copy()
-        # face the camera: flip where the normal points away from the eye
-        pts = camera.unproject(np.stack([ii[win], jj[win]], -1), zpix[win])
-        flip = np.einsum("ij,ij->i", n, eye - pts) < 0
-        n[flip] *= -1
-        normal[j0 : j1 + 1, i0 : i1 + 1][win] = n
-    mask = np.isfinite(depth)
-    depth = np.where(mask, depth, 0.0)
-    return RasterResult(color=color.astype(np.float32), depth=depth.astype(np.float32), normal=normal.astype(np.float32),
-                        mask=mask, alpha=mask.astype(np.float32))

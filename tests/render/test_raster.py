@@ -7,7 +7,8 @@ import pytest
 from scipy import ndimage
 
 from capture.camera import Camera, look_at, make_K
-from render.raster import MeshRasterizer, RasterError, RasterMesh, rasterize_reference
+from render.raster import MeshRasterizer, RasterError, RasterMesh
+from render.raster_reference import rasterize_reference
 from tests.conftest import assert_images_close
 
 #: Interior depth agreement GL vs numpy (metres): float32 eye-z interpolation error only.
@@ -144,3 +145,97 @@ def test_release_and_errors(gl_ctx):
         r.set_mesh(_scene())
     with pytest.raises(RasterError, match="out of range"):
         RasterMesh(np.zeros((3, 3)), np.array([[0, 1, 3]]), np.zeros((3, 3)))
+
+
+# ------------------------------------------------------------------------------ shaded mode
+def _lighting(exposure=0.6):
+    from render.raster import Lighting
+    from render.shading.envmap import procedural_sky
+    from render.shading.lights import dominant_lights, env_minus_lights
+    from render.shading.sh import sh9_project
+
+    env = procedural_sky(32)
+    lights = dominant_lights(env, 1)
+    return Lighting(sh9=sh9_project(env_minus_lights(env, 1)), light_dirs=lights.dirs, light_colors=lights.power,
+                    exposure=exposure / float(lights.power.max()), shininess=30.0, hair_shininess=50.0)
+
+
+def _shaded_scene() -> RasterMesh:
+    """A smooth sphere with specular, plus three thick strands (tubes with tangents)."""
+    from datasets_synthetic.geometry import merge, tube_sweep
+
+    sph = _smooth_sphere()
+    sph = RasterMesh(sph.vertices * 0.8, sph.faces, sph.colors, sph.normals, occlusion=np.full(len(sph.vertices), 0.7),
+                     specular=np.full(len(sph.vertices), 0.3))
+    s = np.linspace(0, 1, 7)[:, None]
+    paths = np.stack([np.array([x, -0.02, -0.07]) + s * np.array([0.0, 0.12, 0.14]) + s**2 * np.array([0.03, 0, 0])
+                      for x in (-0.03, 0.0, 0.03)])
+    hair = tube_sweep(paths, np.full((3, 7), 0.006), 6, np.array([[0.7, 0.4, 0.2], [0.3, 0.3, 0.3], [0.8, 0.7, 0.5]]),
+                      np.linspace(0.3, 1, 7)[None].repeat(3, 0), 0.5)
+    return merge([sph, hair])
+
+
+def test_shaded_gl_matches_numpy_shading(gl_ctx):
+    from render.raster_reference import shade_reference
+
+    mesh, lt = _shaded_scene(), _lighting()
+    cam = _camera(W=160, H=120, az=40, el=20)
+    with MeshRasterizer(gl_ctx) as r:
+        r.set_mesh(mesh)
+        r.set_lighting(lt)
+        gl = r.render(cam)
+        vis = r.vertex_visibility
+    assert vis.shape == (len(mesh.vertices), 1) and 0.05 < vis.mean() < 0.95  # the strands shadow the sphere
+    ref = shade_reference(mesh, cam, lt, vis)
+    refm = rasterize_reference(mesh, cam)
+    inner = _interior(gl.mask, refm.mask)
+    jump = ndimage.maximum_filter(refm.depth, 3) - ndimage.minimum_filter(refm.depth, 3) > 5e-3
+    ok = inner & ~jump
+    assert ok.sum() > 2000 and ref[ok].max() > 0.3
+    assert_images_close(gl.color, ref.astype(np.float32), mean_tol=COLOR_MEAN_TOL, max_tol=COLOR_MAX_TOL,
+                        mask=ok, what="shaded GL vs numpy")
+
+
+def test_shadow_map_visibility_matches_raycasting(gl_ctx):
+    """Per-vertex shadow-map visibility against open3d ray casting towards the light."""
+    import open3d as o3d
+
+    from datasets_synthetic.geometry import merge, tube_sweep
+    from render.raster import SHADOW_BIAS_TEXELS, SHADOW_MAP_SIZE
+
+    g = np.linspace(-0.1, 0.1, 121)
+    xx, yy = np.meshgrid(g, g)
+    plane_v = np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, -0.08)], 1)
+    idx = np.arange(121 * 121).reshape(121, 121)
+    pf = np.concatenate([np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:]], -1).reshape(-1, 3),
+                         np.stack([idx[:-1, :-1], idx[1:, 1:], idx[1:, :-1]], -1).reshape(-1, 3)])
+    plane = RasterMesh(plane_v, pf, np.full((len(plane_v), 3), 0.5), np.tile([0, 0, 1.0], (len(plane_v), 1)))
+    sph = _smooth_sphere()
+    sph = RasterMesh(sph.vertices * 0.5, sph.faces, sph.colors, sph.normals)
+    rng = np.random.default_rng(0)
+    s = np.linspace(0, 1, 5)[:, None]
+    starts = rng.uniform(-0.08, 0.08, (40, 3)) * [1, 1, 0] + [0, 0, -0.02]
+    paths = starts[:, None] + s[None] * np.array([0.0, 0.03, 0.04])
+    hair = tube_sweep(paths, np.full((40, 5), 0.0004), 3, np.full((40, 3), 0.5))
+    mesh = merge([plane, sph, hair])
+    lt = _lighting()
+    with MeshRasterizer(gl_ctx) as r:
+        r.set_mesh(mesh)
+        r.set_lighting(lt)
+        vis = r.vertex_visibility[:, 0]
+    b = mesh.bounds
+    texel = float(np.linalg.norm(b[1] - b[0])) * 1.02 / SHADOW_MAP_SIZE
+    L = lt.light_dirs[0].astype(np.float64)
+    rc = o3d.t.geometry.RaycastingScene()
+    rc.add_triangles(o3d.core.Tensor(mesh.vertices), o3d.core.Tensor(mesh.faces.astype(np.uint32)))
+    origin = mesh.vertices + SHADOW_BIAS_TEXELS * texel * L
+    rays = np.concatenate([origin, np.broadcast_to(L, origin.shape)], 1).astype(np.float32)
+    lit = ~np.isfinite(rc.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy())
+    on_plane = np.arange(len(mesh.vertices)) < len(plane_v)
+    # plane vertices away from shadow edges (all 4-neighbours agree in the ray-cast answer)
+    lg = lit[on_plane].reshape(121, 121)
+    stable = ndimage.binary_erosion(lg, border_value=1) | ndimage.binary_erosion(~lg, border_value=1)
+    agree = (vis[on_plane].reshape(121, 121) > 0.5) == lg
+    assert (~lg).sum() > 500 and (~lg & ~ndimage.binary_erosion(~lg)).sum() > 50  # sphere + strand shadows
+    assert agree[stable].mean() > 0.995, agree[stable].mean()
+    assert agree.mean() > 0.97, agree.mean()
