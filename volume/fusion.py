@@ -1,0 +1,354 @@
+"""Signed distance volumes from posed range scans (METHODS §1.1 step 1).
+
+Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised over voxels:
+
+1. **Per scan** (:func:`scan_maps`): normals from depth gradients (one-sided differences,
+   the side with the smaller depth step, so strand edges keep a normal), oriented towards the
+   camera; pixels seen at more than ``max_grazing_deg`` are not used as surface samples.
+2. **Pass 1, every voxel x, every scan** (streamed, O(voxels) memory): project x to its
+   nearest pixel; with measured depth D and the voxel's z-depth z, count
+   ``free`` (D - z > agree: the scan saw through x), ``nodata`` (x projects onto a pixel with
+   no return, and none within SILHOUETTE_PX), ``occluded`` (z - D > trunc) and ``near`` (a valid surface sample within trunc:
+   point-to-plane distance d = n . (x - p) of the pixel's point p and normal n).
+3. **Pass 2, voxels with a near sample** (the band, chunked): every scan's sample
+   (d_i, n_i) is compared with every other's; samples i, j *agree* when their normals are
+   within ``agree_normal_deg`` and the nearest points on their tangent planes,
+   x - d_i n_i and x - d_j n_j, lie within ``agree`` metres.  A sample has *consensus* when at
+   least ``quorum`` samples (itself included) agree with it (the quorum drops to the number of
+   scans whose image contains x, so a lone scan still counts).  The consensus sample nearest the
+   surface (smallest |d|) is chosen and the voxel's distance is the view-cosine weighted mean
+   of the samples agreeing with it.  More scans seeing through x than supporting it cancel it.
+4. **Sign elsewhere** (space carving with votes, :func:`carve_sign`): x is outside when
+   free >= min(carve_quorum, #scans that see x), or free + nodata also reaches
+   carve_ratio * occluded; voxels no scan sees are outside; the rest (hidden behind the
+   surface in every view) are inside.
+5. **Completion** (:func:`complete_sdf`): outside the consensus band the distance is the
+   Euclidean distance transform of the sign field, so it is finite everywhere.
+
+The Open3D TSDF peer (:mod:`volume.tsdf`) uses steps 2, 4, 5 too, with its own band.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from capture.scan import Scan, ScanSet
+from volume.grid import voxel_centers
+
+#: Voxels per chunk in pass 1 (memory ~ 40 bytes per voxel per array).
+PASS1_CHUNK = 1 << 19
+#: Band voxels per chunk in pass 2 (memory ~ 5 * scans^2 bytes per voxel).
+PASS2_CHUNK = 4096
+#: A near sample must also lie within this many truncation distances along the ray.
+PROJ_FACTOR = 3.0
+#: A no-return pixel votes "empty" only when no pixel within this radius has depth: a voxel
+#: projecting next to a silhouette is ambiguous at pixel resolution.
+SILHOUETTE_PX = 1
+#: Pixel diameter and spatial sigma of the bilateral depth filter (see FusionConfig.smooth_sigma_z).
+BILATERAL_DIAMETER = 5
+BILATERAL_SIGMA_PX = 1.5
+#: Largest distance (metres) stored for a voxel with nothing to measure from (empty volumes).
+FAR = 1.0
+
+
+@dataclass(frozen=True)
+class FusionConfig:
+    """Parameters of the consensus fusion (METHODS §1.1; Wheeler-Sato-Ikeuchi 1998)."""
+
+    trunc_voxels: float = 3.0
+    """Half-width of the band of measured distances, in voxels."""
+    min_trunc: float = 0.0
+    """Lower bound (metres) on the band half-width, e.g. 3x the depth noise."""
+    agree_voxels: float = 1.5
+    """Two samples agree in position when their nearest points are within this many voxels..."""
+    min_agree: float = 0.0015
+    """...or within this many metres, whichever is larger (about 2-3x the depth noise)."""
+    agree_normal_deg: float = 45.0
+    """Two samples agree in normal when their normals are within this angle (degrees)."""
+    quorum: int = 3
+    """Samples (itself included) that must agree for a sample to count (capped by #views)."""
+    carve_quorum: int = 2
+    """Free/no-return votes needed to carve a voxel (capped by the views that see it)."""
+    carve_ratio: float = 0.25
+    """...and at least this fraction of the views that see the voxel occluded."""
+    max_grazing_deg: float = 78.0
+    """Pixels whose normal is further than this from the view ray give no surface sample."""
+    smooth_sigma_z: float = 0.003
+    """Range sigma (metres) of the bilateral filter applied to depth before normals and planes
+    are computed (depth edges larger than this are kept); 0 disables."""
+
+    def __post_init__(self) -> None:
+        if self.trunc_voxels <= 0 or self.agree_voxels <= 0 or self.quorum < 1 or self.carve_quorum < 1:
+            raise ValueError(f"invalid FusionConfig {self}")
+        if not 0 < self.agree_normal_deg <= 180 or not 0 < self.max_grazing_deg < 90:
+            raise ValueError(f"invalid angles in FusionConfig {self}")
+
+    def trunc(self, w: float) -> float:
+        return max(self.trunc_voxels * w, self.min_trunc)
+
+    def agree(self, w: float) -> float:
+        return max(self.agree_voxels * w, self.min_agree)
+
+
+@dataclass(frozen=True)
+class ScanMaps:
+    """Per-scan arrays for fusion (world frame).
+
+    Attributes:
+        depth: (H*W,) float32 z-depth in metres, 0 = none.
+        normal: (H*W, 3) float32 unit world normal towards the camera (0 where invalid).
+        offset: (H*W,) float32 n . p for the pixel's world point p (metres).
+        cosine: (H*W,) float32 |n . view ray|, 0 where the pixel gives no surface sample.
+        void: (H*W,) bool, no depth within ``SILHOUETTE_PX`` pixels (a clear no-return).
+        P: (3, 4) float64 projection K [R | t]; W, H: image size.
+    """
+
+    depth: np.ndarray
+    normal: np.ndarray
+    offset: np.ndarray
+    cosine: np.ndarray
+    void: np.ndarray
+    P: np.ndarray
+    W: int
+    H: int
+
+
+def _one_sided(p: np.ndarray, valid: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """Difference along ``axis`` taken on the side with the smaller depth step."""
+    fwd = np.zeros_like(p)
+    bwd = np.zeros_like(p)
+    vf = np.zeros(valid.shape, bool)
+    vb = np.zeros(valid.shape, bool)
+    sl_hi = [slice(None)] * 2
+    sl_lo = [slice(None)] * 2
+    sl_hi[axis] = slice(1, None)
+    sl_lo[axis] = slice(None, -1)
+    d = p[tuple(sl_hi)] - p[tuple(sl_lo)]
+    vd = valid[tuple(sl_hi)] & valid[tuple(sl_lo)]
+    fwd[tuple(sl_lo)] = d
+    vf[tuple(sl_lo)] = vd
+    bwd[tuple(sl_hi)] = d
+    vb[tuple(sl_hi)] = vd
+    use_f = vf & (~vb | (np.abs(fwd[..., 2]) <= np.abs(bwd[..., 2])))
+    return np.where(use_f[..., None], fwd, bwd), vf | vb
+
+
+def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -> ScanMaps:
+    """Normals from depth gradients and the plane offsets of every pixel of ``scan``."""
+    cam = scan.camera
+    depth = np.asarray(scan.depth, np.float32)
+    valid = depth > 0
+    if smooth_sigma_z > 0 and valid.any():
+        import cv2
+
+        sm = cv2.bilateralFilter(depth, BILATERAL_DIAMETER, float(smooth_sigma_z), BILATERAL_SIGMA_PX)
+        depth = np.where(valid, sm, 0).astype(np.float32)
+    rays = cam.pixel_rays(cam.pixel_grid())  # (H, W, 3), z = 1
+    pc = rays * depth[..., None].astype(np.float64)
+    gx, vx = _one_sided(pc, valid, 1)
+    gy, vy = _one_sided(pc, valid, 0)
+    n = np.cross(gy, gx)
+    norm = np.linalg.norm(n, axis=-1)
+    ok = valid & vx & vy & (norm > 0)
+    n = np.where(ok[..., None], n / np.where(norm > 0, norm, 1.0)[..., None], 0.0)
+    ray_u = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    cosang = np.sum(n * ray_u, axis=-1)
+    n = np.where((cosang > 0)[..., None], -n, n)  # face the camera
+    cosine = np.abs(cosang)
+    ok &= cosine >= np.cos(np.radians(max_grazing_deg))
+    R = cam.cam_from_world[:3, :3]
+    nw = n @ R  # camera -> world for row vectors: n_w = R^T n_c
+    pw = cam.unproject(cam.pixel_grid(), depth)
+    off = np.sum(nw * pw, axis=-1)
+    nw[~ok] = 0.0
+    off[~ok] = 0.0
+    P = cam.K @ cam.cam_from_world[:3, :]
+    void = ~ndimage.binary_dilation(valid, np.ones((3, 3), bool), iterations=SILHOUETTE_PX)
+    return ScanMaps(depth.reshape(-1), nw.reshape(-1, 3).astype(np.float32), off.reshape(-1).astype(np.float32),
+                    np.where(ok, cosine, 0.0).reshape(-1).astype(np.float32), void.reshape(-1), P,
+                    cam.width, cam.height)
+
+
+def _lookup(m: ScanMaps, x: np.ndarray):
+    """Nearest-pixel lookup of voxel centres x (M, 3) float32: (pixel flat index, in-image, z)."""
+    P = m.P.astype(np.float32)
+    h = x @ P[:, :3].T + P[:, 3]
+    z = h[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.floor(h[:, 0] / z + 0.5)
+        v = np.floor(h[:, 1] / z + 0.5)
+    inb = (z > 0) & (u >= 0) & (u < m.W) & (v >= 0) & (v < m.H)
+    idx = np.where(inb, v * m.W + u, 0).astype(np.int64)
+    return idx, inb, z
+
+
+def _samples(m: ScanMaps, x: np.ndarray, trunc: float, refine: bool = False):
+    idx, inb, z = _lookup(m, x)
+    D = np.where(inb, m.depth[idx], 0.0)
+    has = D > 0
+    proj = D - z
+    cos = np.where(has, m.cosine[idx], 0.0)
+    n = m.normal[idx]
+    d = np.einsum("ij,ij->i", n, x) - m.offset[idx]
+    if refine:
+        # one closest-point step: re-sample the plane at the pixel of the foot point x - d n,
+        # which removes most of the tangent-plane error on curved surfaces
+        idx2, inb2, _ = _lookup(m, (x - d[:, None] * n).astype(np.float32))
+        ok2 = inb2 & (m.cosine[idx2] > 0) & (cos > 0)
+        n2 = m.normal[idx2]
+        d2 = np.einsum("ij,ij->i", n2, x) - m.offset[idx2]
+        ok2 &= np.abs(d2 - d) < trunc
+        d = np.where(ok2, d2, d)
+        n = np.where(ok2[:, None], n2, n)
+        cos = np.where(ok2, m.cosine[idx2], cos)
+    near = has & (cos > 0) & (np.abs(d) < trunc) & (np.abs(proj) < PROJ_FACTOR * trunc)
+    return inb, has, proj, near, d, n, cos, inb & m.void[idx]
+
+
+@dataclass(frozen=True)
+class FusedSdf:
+    """A fused signed distance volume of one resolution.
+
+    Attributes:
+        values: (L, L, L) float32 signed distance (metres, positive outside) at voxel centres.
+        band: (L, L, L) bool, voxels whose value comes from the fused measurements.
+        support: (L, L, L) uint8, scans that support the band value (0 outside the band).
+        seen: (L, L, L) uint8, scans in whose image the voxel projects.
+        origin, voxel_size, resolution: the grid (see volume.grid).
+    """
+
+    values: np.ndarray
+    band: np.ndarray
+    support: np.ndarray
+    seen: np.ndarray
+    origin: np.ndarray
+    voxel_size: float
+    resolution: int
+
+
+def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, free_margin: float, progress=None):
+    """Pass 1 over every voxel: counts (free, nodata, occluded, seen, near) as (L^3,) uint8."""
+    n = L ** 3
+    free = np.zeros(n, np.uint8)
+    nodata = np.zeros(n, np.uint8)
+    occ = np.zeros(n, np.uint8)
+    seen = np.zeros(n, np.uint8)
+    near = np.zeros(n, np.uint8)
+    chunks = range(0, n, PASS1_CHUNK)
+    for s in (progress(chunks) if progress else chunks):
+        x = voxel_centers(origin, w, L, s, min(n, s + PASS1_CHUNK), np.float32)
+        sl = slice(s, s + len(x))
+        for m in maps:
+            inb, has, proj, nr, _, _, _, void = _samples(m, x, trunc)
+            seen[sl] += inb
+            free[sl] += has & (proj > free_margin)
+            nodata[sl] += void
+            occ[sl] += has & (proj < -trunc)
+            near[sl] += nr
+    return free, nodata, occ, seen, near
+
+
+def carve_sign(free, nodata, occ, seen, cfg: FusionConfig) -> np.ndarray:
+    """True where the votes say outside (METHODS §1.1; step 4 of the module docstring).
+
+    Measured free space is strong evidence: ``carve_quorum`` views (capped by the views that
+    contain x) carve.  No-return pixels are weak (they include holes): they count with the
+    free votes only when they also reach ``carve_ratio`` of the views that saw x occluded.
+    Voxels no view contains are outside.
+    """
+    q = np.minimum(cfg.carve_quorum, seen.astype(np.int32))
+    empty = free.astype(np.int32) + nodata
+    strong = (free >= q) & (free > 0)
+    weak = (empty >= np.maximum(q, cfg.carve_ratio * occ)) & (empty > 0)
+    return strong | weak | (seen == 0)
+
+
+def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: FusionConfig, w: float,
+                   n_see: np.ndarray):
+    """Pass 2 for band voxels x (M, 3): (has consensus, value, support) per voxel."""
+    M, S = len(x), len(maps)
+    d = np.zeros((M, S), np.float32)
+    nrm = np.zeros((M, S, 3), np.float32)
+    cw = np.zeros((M, S), np.float32)
+    ok = np.zeros((M, S), bool)
+    fr = np.zeros(M, np.int32)
+    for k, m in enumerate(maps):
+        _, has, proj, nr, dk, nk, ck, _ = _samples(m, x, trunc, refine=True)
+        d[:, k], nrm[:, k], cw[:, k], ok[:, k] = dk, nk, ck, nr
+        fr += has & (proj > trunc)
+    agree_d = cfg.agree(w)
+    nn = np.einsum("mid,mjd->mij", nrm, nrm)
+    pos2 = d[:, :, None] ** 2 + d[:, None, :] ** 2 - 2 * d[:, :, None] * d[:, None, :] * nn
+    agree = (nn > np.cos(np.radians(cfg.agree_normal_deg))) & (pos2 < agree_d ** 2)
+    agree &= ok[:, :, None] & ok[:, None, :]
+    count = agree.sum(2)
+    quorum = np.clip(np.minimum(cfg.quorum, n_see), 1, None)
+    cand = ok & (count >= quorum[:, None])
+    key = np.where(cand, np.abs(d), np.inf)
+    c = np.argmin(key, axis=1)
+    has_c = np.isfinite(key[np.arange(M), c])
+    members = agree[np.arange(M), c, :] & has_c[:, None]
+    wsum = (members * cw).sum(1)
+    value = np.where(wsum > 0, (members * cw * d).sum(1) / np.where(wsum > 0, wsum, 1), 0.0)
+    support = members.sum(1)
+    has_c &= fr <= support  # more scans see through x than support it: not a surface
+    return has_c, value.astype(np.float32), support
+
+
+def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray, w: float) -> np.ndarray:
+    """Fill a full signed distance volume (L, L, L) float32 from band values and a sign field.
+
+    Band voxels keep their fused value and sign; every other voxel gets its sign from
+    ``outside`` and the magnitude (EDT distance to the nearest voxel of the other sign - w/2),
+    an exact Euclidean distance transform of the binary sign field (scipy), so the filled
+    part is 1-Lipschitz and cannot create Eq. 1 discontinuities by itself.
+    """
+    L = band.shape[0]
+    sign_out = np.where(band, band_values > 0, outside)
+    vals = np.empty(band.shape, np.float32)
+    far = np.float32(max(FAR, 2 * L * w))
+    for side in (True, False):
+        region = sign_out == side
+        if not region.any():
+            continue
+        if (~region).any():
+            mag = (ndimage.distance_transform_edt(region).astype(np.float32) - np.float32(0.5)) * np.float32(w)
+        else:
+            mag = np.full(band.shape, far, np.float32)
+        vals[region] = (mag if side else -mag)[region]
+    vals[band] = band_values[band]
+    return vals
+
+
+def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
+                   maps: list[ScanMaps] | None = None, progress=None) -> FusedSdf:
+    """Consensus signed distance volume of ``scanset`` on the given grid (module docstring)."""
+    cfg = cfg or FusionConfig()
+    L, w = int(resolution), float(voxel_size)
+    origin = np.asarray(origin, np.float64)
+    trunc = cfg.trunc(w)
+    maps = maps if maps is not None else [scan_maps(s, cfg.max_grazing_deg, cfg.smooth_sigma_z) for s in scanset.scans]
+    free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), progress)
+    outside = carve_sign(free, nodata, occ, seen, cfg)
+    cand = np.nonzero(near)[0]
+    band = np.zeros(L ** 3, bool)
+    bvals = np.zeros(L ** 3, np.float32)
+    support = np.zeros(L ** 3, np.uint8)
+    i, rem = np.divmod(cand, L * L)
+    j, k = np.divmod(rem, L)
+    xc = (origin + (np.stack([i, j, k], 1) + 0.5) * w).astype(np.float32)
+    # the quorum drops only to the number of scans whose image contains x (a lone scan counts)
+    n_obs = seen[cand].astype(np.int32)
+    for s in range(0, len(cand), PASS2_CHUNK):
+        sl = slice(s, s + PASS2_CHUNK)
+        has, val, sup = consensus_band(maps, xc[sl], trunc, cfg, w, n_obs[sl])
+        idx = cand[sl][has]
+        band[idx] = True
+        bvals[idx] = np.clip(val[has], -trunc, trunc)
+        support[idx] = sup[has]
+    shape = (L, L, L)
+    values = complete_sdf(bvals.reshape(shape), band.reshape(shape), outside.reshape(shape), w)
+    return FusedSdf(values, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L)

@@ -1,0 +1,107 @@
+"""The resolution choice L_opt (METHODS §1.1, Eq. 1) and the LOD pyramid (METHODS §1.7).
+
+Eq. 1: with N_i = number of voxels whose signed distance differs from a face neighbour's by
+more than alpha * w, stop at the first resolution L (from L_max halving down) with
+N_i / L^3 <= t.  A true distance field is 1-Lipschitz (neighbours differ by at most w), so
+flagged voxels are where the fused distances cannot be trusted at that scale.
+
+Surface voxels (METHODS §1.1 step 2): |signed distance| <= half a voxel diagonal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from volume.model import SdfLevel, SdfPyramid
+
+#: Surface-voxel threshold as a fraction of the voxel diagonal (METHODS §1.1: "about half").
+SURFACE_DIAGONAL_FRACTION = 0.5
+#: Coarsest level kept in the pyramid (and the lowest resolution Eq. 1 can fall back to).
+MIN_RESOLUTION = 8
+
+
+@dataclass(frozen=True)
+class LoptConfig:
+    """Parameters of the L_opt search (METHODS §1.1, paper values as defaults)."""
+
+    max_res: int = 256
+    """L_max: the resolution the search starts from (a power of two)."""
+    alpha: float = 1.5
+    """Tolerance: neighbours differing by more than alpha * w are flagged (alpha >= 1)."""
+    t: float = 0.01
+    """Largest accepted fraction N_i / L^3 of flagged voxels (Eq. 1)."""
+    min_res: int = MIN_RESOLUTION
+    """Coarsest resolution searched and kept (a power of two)."""
+
+    def __post_init__(self) -> None:
+        for name in ("max_res", "min_res"):
+            v = getattr(self, name)
+            if v < 1 or v & (v - 1):
+                raise ValueError(f"--{name.replace('_', '-')} must be a power of two, got {v}")
+        if self.min_res > self.max_res:
+            raise ValueError(f"min_res {self.min_res} > max_res {self.max_res}")
+        if self.alpha < 1:
+            raise ValueError(f"--alpha must be >= 1 (METHODS §1.1), got {self.alpha}")
+        if not 0 <= self.t <= 1:
+            raise ValueError(f"--t must be in [0, 1], got {self.t}")
+
+    @property
+    def resolutions(self) -> list[int]:
+        """Every power of two from min_res to max_res, coarse -> fine."""
+        out, L = [], self.min_res
+        while L <= self.max_res:
+            out.append(L)
+            L *= 2
+        return out
+
+
+def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float) -> np.ndarray:
+    """(L, L, L) bool: voxels whose value differs from a face neighbour's by > alpha * w."""
+    v = np.asarray(values, np.float32)
+    flag = np.zeros(v.shape, bool)
+    lim = np.float32(alpha * voxel_size)
+    for ax in range(v.ndim):
+        jump = np.abs(np.diff(v, axis=ax)) > lim
+        lo = [slice(None)] * v.ndim
+        hi = [slice(None)] * v.ndim
+        lo[ax] = slice(None, -1)
+        hi[ax] = slice(1, None)
+        flag[tuple(lo)] |= jump
+        flag[tuple(hi)] |= jump
+    return flag
+
+
+def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float) -> float:
+    """N_i / L^3 of Eq. 1 (METHODS §1.1 step iii)."""
+    v = np.asarray(values)
+    return float(discontinuity_mask(v, voxel_size, alpha).sum()) / v.size
+
+
+def choose_l_opt(fractions: dict[int, float], t: float) -> int:
+    """Eq. 1: from the finest resolution down, the first whose fraction is <= t; else the coarsest."""
+    res = sorted(fractions, reverse=True)
+    for L in res:
+        if fractions[L] <= t:
+            return L
+    return res[-1]
+
+
+def surface_voxels(values: np.ndarray, voxel_size: float) -> np.ndarray:
+    """(N, 3) int32 indices (i, j, k) with |d| <= half the voxel diagonal (METHODS §1.1 step 2)."""
+    thr = SURFACE_DIAGONAL_FRACTION * np.sqrt(3.0) * voxel_size
+    return np.argwhere(np.abs(values) <= thr).astype(np.int32)
+
+
+def build_pyramid(volumes: dict[int, np.ndarray], origin, extent: float, l_opt: int,
+                  keep_values: bool = True) -> SdfPyramid:
+    """SdfPyramid of every level <= l_opt from the full volumes {L: (L,L,L) float32}."""
+    levels = []
+    for L in sorted(volumes):
+        if L > l_opt:
+            continue
+        w = extent / L
+        v = np.asarray(volumes[L], np.float32)
+        levels.append(SdfLevel(L, np.asarray(origin, np.float64), w, surface_voxels(v, w), v if keep_values else None))
+    return SdfPyramid(tuple(levels), l_opt)
