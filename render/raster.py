@@ -398,12 +398,13 @@ class MeshRasterizer:
         self._vao("shaded" if shaded else "flat").render()
         ctx.depth_func = "<"
         w, h = camera.width, camera.height
+        # framebuffer row order (bottom first): render() reduces, then flips with gl_rows_to_image
         col = np.frombuffer(tex_c.read(), np.float32).reshape(h, w, 4)
         if colour_only:
-            return gl_rows_to_image(col), None, None
+            return col, None, None
         dep = np.frombuffer(tex_d.read(), np.float32).reshape(h, w)
         nor = np.frombuffer(tex_n.read(), np.float32).reshape(h, w, 4)[..., :3]
-        return gl_rows_to_image(col), gl_rows_to_image(dep), gl_rows_to_image(nor)
+        return col, dep, nor
 
     def _set_shading_uniforms(self, prog) -> None:
         lt = self._lighting
@@ -435,14 +436,17 @@ class MeshRasterizer:
         if s % 2 == 1:
             # odd factor: the centre sub-sample of each s x s block sits exactly on the pixel centre
             # (Camera.scaled keeps centres exact), so one pass gives the single-sample depth too
+            # (in bottom-first rows the centre sub-samples are rows c + s m as well, since the
+            # block height s is odd and the image height is H s)
             col, dep, nor = self._pass(camera.scaled(s) if s > 1 else camera, near, far, shaded)
             c = s // 2
             dep, nor = dep[c::s, c::s], nor[c::s, c::s]
-            color, alpha = _box_down(col[..., :3], s), _box_down(col[..., 3], s)
         else:
-            col, dep, nor = self._pass(camera, near, far, shaded)
-            col_ss, _, _ = self._pass(camera.scaled(s), near, far, shaded, colour_only=True)
-            color, alpha = _box_down(col_ss[..., :3], s), _box_down(col_ss[..., 3], s)
+            _, dep, nor = self._pass(camera, near, far, shaded)
+            col, _, _ = self._pass(camera.scaled(s), near, far, shaded, colour_only=True)
+        block = _box_down(col, s)  # s x s blocks are the same set of samples in either row order
+        color, alpha = gl_rows_to_image(block[..., :3]), gl_rows_to_image(block[..., 3])
+        dep, nor = gl_rows_to_image(dep), gl_rows_to_image(nor)
         mask = dep > 0
         return RasterResult(color=np.ascontiguousarray(color, np.float32), depth=np.where(mask, dep, 0).astype(np.float32),
                             normal=np.where(mask[..., None], nor, 0).astype(np.float32), mask=mask,

@@ -102,11 +102,12 @@ def test_gl_matches_numpy_reference(rast, az):
     assert np.all(gl.depth[~gl.mask] == 0) and np.all(gl.color[~gl.mask] == 0)
 
 
-def test_smooth_normals_and_supersampling(gl_ctx):
+@pytest.mark.parametrize("ss", [2, 3])
+def test_smooth_normals_and_supersampling(gl_ctx, ss):
     mesh = _smooth_sphere()
     cam = _camera(W=80, H=60, az=10)
     ref = rasterize_reference(mesh, cam)
-    with MeshRasterizer(gl_ctx, supersample=3) as r:
+    with MeshRasterizer(gl_ctx, supersample=ss) as r:
         r.set_mesh(mesh)
         gl = r.render(cam)
     inner = _interior(gl.mask, ref.mask)
