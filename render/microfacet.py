@@ -33,12 +33,18 @@ SLICE_BYTES = 64
 MODES = ("instanced", "geometry")
 
 
-def shader_defines(rule: str = "vote") -> dict:
+#: Storage of the RGBz texture array: half floats (8 bytes per texel; the fetches are the
+#: fragment cost on llvmpipe).  Depth in half float: 0.24 mm steps at 0.5 m.
+RGBZ_DTYPE = np.float16
+
+
+def shader_defines(rule: str = "vote", n_fallback: int | None = None) -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
     if rule not in mg.FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
     return {
         "FALLBACK_RULE": mg.FALLBACK_RULES.index(rule),
+        "N_FALLBACK": mg.N_FALLBACK if n_fallback is None else int(n_fallback),
         "ALPHA_VOTE": f"{mg.ALPHA_VOTE:.6f}",
         "K_BLEND": mg.K_BLEND,
         "K_CAND": mg.K_CAND,
@@ -50,6 +56,8 @@ def shader_defines(rule: str = "vote") -> dict:
         "SLICE_SIDE": f"{mg.SLICE_SIDE_FACTOR:.9f}",
         "FOOTPRINT_SCALE": f"{mg.FOOTPRINT_SCALE:.6f}",
         "SLAB_COVER": f"{mg.SLAB_COVER:.6f}",
+        "TIGHT_RECT": int(mg.TIGHT_RECT),
+        "RECT_CLAMP": f"{mg.RECT_CLAMP:.6f}",
         "FREE_FACTOR": f"{mg.FREE_FACTOR:.6f}",
         "UNSURE_WEIGHT": f"{mg.UNSURE_WEIGHT:.6f}",
     }
@@ -110,9 +118,11 @@ class MicrofacetRenderer:
         bounds: (2, 3) object box (near/far planes, LOD centre).
         mode: "instanced" or "geometry".
         rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
+        n_fallback: fallback candidates tried after the blend cameras (default N_FALLBACK).
     """
 
-    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced", rule: str = "vote"):
+    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced", rule: str = "vote",
+                 n_fallback: int | None = None):
         if mode not in MODES:
             raise ValueError(f"unknown microfacet mode {mode!r}; use one of {MODES}")
         self.ctx = ctx
@@ -124,7 +134,8 @@ class MicrofacetRenderer:
         self.counts = [len(lv.surface) for lv in self.levels]
         if len(self.cameras) == 0:
             raise ValueError("microfacet renderer: the model has no input camera")
-        d = shader_defines(rule)
+        d = shader_defines(rule, n_fallback)
+        self.n_fallback = mg.N_FALLBACK if n_fallback is None else int(n_fallback)
         self.rule = rule
         self.voxel_bufs = []
         for lv in self.levels:
@@ -135,7 +146,7 @@ class MicrofacetRenderer:
         texels = rgbz_array(rgb, depth)
         n, H, W = texels.shape[:3]
         self.tex_size = (W, H)
-        self.tex = ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4")
+        self.tex = ctx.texture_array((W, H, n), 4, texels.astype(RGBZ_DTYPE).tobytes(), dtype="f2")
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.tex.repeat_x = self.tex.repeat_y = False
         self.max_records = max(max(self.counts), 1) * mg.MAX_SLICES
@@ -154,10 +165,11 @@ class MicrofacetRenderer:
         self._fbo_size = None
 
     @classmethod
-    def from_model(cls, ctx, model, mode: str = "instanced", rule: str = "vote") -> "MicrofacetRenderer":
+    def from_model(cls, ctx, model, mode: str = "instanced", rule: str = "vote",
+                   n_fallback: int | None = None) -> "MicrofacetRenderer":
         """Renderer for a volume.model.Model."""
         return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                   model.bounds, mode, rule)
+                   model.bounds, mode, rule, n_fallback)
 
     def release(self) -> None:
         for o in [*self.voxel_bufs, self.cam_buf, self.tex, self.slice_buf, self.indirect, self.select,
@@ -188,8 +200,7 @@ class MicrofacetRenderer:
         right, up = mg.eye_axes(eye)
         w = self.voxel_sizes[level]
         vals = {"n_cams": len(self.cameras), "eye_pos": tuple(eye.center), "eye_right": tuple(right),
-                "eye_up": tuple(up), "spacing": spacing, "voxel_size": w, "near_plane": near,
-                "half_side": 0.5 * mg.SLICE_SIDE_FACTOR * w}
+                "eye_up": tuple(up), "spacing": spacing, "voxel_size": w, "near_plane": near}
         for k, v in vals.items():
             if k in prog:
                 prog[k].value = v

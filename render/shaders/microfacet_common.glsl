@@ -95,3 +95,23 @@ void slice_frame(vec3 c, out vec3 v, out vec3 a, out vec3 b) {
     a = normalize(a);
     b = cross(v, a);
 }
+
+// Half sizes of the slice quad at distance s (twin: microfacet_geometry.slice_half_extents).
+vec2 slice_half_extents(vec3 c, vec3 v, vec3 a, vec3 b, float s) {
+    float half_sq = 0.5 * SLICE_SIDE * voxel_size;
+#if TIGHT_RECT
+    float lim = RECT_CLAMP * half_sq;
+    vec2 hab = vec2(0.0);
+    for (int k = 0; k < 8; ++k) {
+        vec3 X = c + 0.5 * voxel_size * vec3((k & 4) != 0 ? 1.0 : -1.0, (k & 2) != 0 ? 1.0 : -1.0,
+                                             (k & 1) != 0 ? 1.0 : -1.0) - eye_pos;
+        float dep = dot(X, v);
+        if (dep <= 1e-9) return vec2(lim);
+        vec3 Xp = X * (s / dep) - s * v;
+        hab = max(hab, abs(vec2(dot(Xp, a), dot(Xp, b))));
+    }
+    return min(hab, vec2(lim));
+#else
+    return vec2(half_sq);
+#endif
+}

@@ -10,14 +10,8 @@ in vec3 v_proj[K_CAND];
 out vec4 frag;
 
 void main() {
-    int cand[K_CAND];
-    cand[0] = v_c03.x; cand[1] = v_c03.y; cand[2] = v_c03.z; cand[3] = v_c03.w;
-    cand[4] = v_c45.x; cand[5] = v_c45.y;
-    float w[K_BLEND];
-    w[0] = v_w.x; w[1] = v_w.y; w[2] = v_w.z;
     vec3 col;
-    vec3 proj[K_CAND];
-    for (int k = 0; k < K_CAND; ++k) proj[k] = v_proj[k];
-    if (!shade(proj, cand, w, 0.5 * spacing, col)) discard;
+    if (!shade(v_proj[0], v_proj[1], v_proj[2], v_proj[3], v_proj[4], v_proj[5], v_c03, v_c45, v_w, 0.5 * spacing, col))
+        discard;
     frag = vec4(col, 1.0);
 }

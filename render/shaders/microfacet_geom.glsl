@@ -5,7 +5,6 @@ layout(triangle_strip, max_vertices = MAX_VERTS) out;
 #include "microfacet_common.glsl"
 in vec3 g_center[];
 uniform mat4 view_proj;
-uniform float half_side;
 out vec3 v_world;
 flat out ivec4 v_c03;
 flat out ivec2 v_c45;
@@ -24,9 +23,10 @@ void main() {
     slice_frame(c, v, a, b);
     for (int n = lo; n <= hi; ++n) {
         vec3 q = eye_pos + v * (float(n) * spacing);
+        vec2 hab = slice_half_extents(c, v, a, b, float(n) * spacing);
         for (int k = 0; k < 4; ++k) {
             vec2 corner = vec2((k & 1) == 0 ? -1.0 : 1.0, (k & 2) == 0 ? -1.0 : 1.0);
-            vec3 p = q + half_side * (corner.x * a + corner.y * b);
+            vec3 p = q + corner.x * hab.x * a + corner.y * hab.y * b;
             v_world = p;
             v_c03 = ivec4(cand[0], cand[1], cand[2], cand[3]);
             v_c45 = ivec2(cand[4], cand[5]);

@@ -31,50 +31,64 @@ int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
     return rgbz_classify(i, cam_project_h(i, p), tol, col);
 }
 
-// Colour of a slice fragment, or false to discard it.
+// Colour of a slice fragment, or false to discard it.  Unrolled over the K_BLEND = 3 blend
+// cameras and K_CAND = 6 candidates (llvmpipe spills dynamically indexed local arrays).
 // FALLBACK_RULE 0 ("vote"): the blend cameras that see the point (PASS, FREE, UNSURE) vote with
 //   their weights; it is drawn when the passing share >= ALPHA_VOTE, coloured by the passing
-//   cameras' weighted mean.  When no blend camera sees it, the first candidate that passes
-//   or frees it decides (per-fragment fallback).
+//   cameras' weighted mean.  When no blend camera sees it, the first of the remaining
+//   candidates (after the blend cameras) that passes or frees it decides (per-fragment fallback).
 // FALLBACK_RULE 1 ("any"): blend the passing blend cameras; if none passes, the first passing
-//   candidate of all (the issue's literal fallback; fattens silhouettes).
-bool shade(vec3 proj[K_CAND], int cand[K_CAND], float wts[K_BLEND], float tol, out vec3 colour) {
+//   remaining candidate (the issue's literal fallback; fattens silhouettes).
+#if K_BLEND != 3 || K_CAND != 6
+#error "shade() is unrolled for K_BLEND = 3, K_CAND = 6"
+#endif
+void vote(int ci, vec3 pr, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen) {
+    if (ci < 0) return;
+    vec3 c;
+    int st = rgbz_classify(ci, pr, tol, c);
+    if (st == PASS) { acc += w * c; wpass += w; wseen += w; }
+    else if (st == FREE) wseen += w;
+    else if (st == UNSURE) wseen += UNSURE_WEIGHT * w;
+}
+
+// Fallback step: the first candidate that decides (PASS or FREE under "vote"; PASS under "any").
+void fallback(int ci, vec3 pr, float tol, inout int decided, inout vec3 colour) {
+    if (decided != 0 || ci < 0) return;
+    vec3 c;
+    int st = rgbz_classify(ci, pr, tol, c);
+#if FALLBACK_RULE == 0
+    if (st == PASS || st == FREE) { decided = st; colour = c; }
+#else
+    if (st == PASS) { decided = st; colour = c; }
+#endif
+}
+
+bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, ivec4 c03, ivec2 c45, vec3 w, float tol,
+           out vec3 colour) {
     vec3 acc = vec3(0.0);
     float wpass = 0.0, wseen = 0.0;
     colour = vec3(0.0);
-    for (int k = 0; k < K_BLEND; ++k) {
-        int ci = cand[k];
-        if (ci < 0) break;
-        vec3 c;
-        int st = rgbz_classify(ci, proj[k], tol, c);
-        if (st == PASS) { acc += wts[k] * c; wpass += wts[k]; }
-        if (st == PASS || st == FREE) wseen += wts[k];
-        if (st == UNSURE) wseen += UNSURE_WEIGHT * wts[k];
-    }
+    vote(c03.x, p0, w.x, tol, acc, wpass, wseen);
+    vote(c03.y, p1, w.y, tol, acc, wpass, wseen);
+    vote(c03.z, p2, w.z, tol, acc, wpass, wseen);
 #if FALLBACK_RULE == 0
     if (wseen > WEIGHT_EPS) {
         if (wpass < ALPHA_VOTE * wseen || !(wpass > WEIGHT_EPS)) return false;
         colour = acc / wpass;
         return true;
     }
-    for (int k = 0; k < K_CAND; ++k) {
-        int ci = cand[k];
-        if (ci < 0) break;
-        vec3 c;
-        int st = rgbz_classify(ci, proj[k], tol, c);
-        if (st != PASS && st != FREE) continue;
-        colour = c;
-        return st == PASS;
-    }
-    return false;
 #else
     if (wpass > WEIGHT_EPS) { colour = acc / wpass; return true; }
-    for (int k = 0; k < K_CAND; ++k) {
-        int ci = cand[k];
-        if (ci < 0) break;
-        vec3 c;
-        if (rgbz_classify(ci, proj[k], tol, c) == PASS) { colour = c; return true; }
-    }
-    return false;
 #endif
+    int decided = 0;   // the blend cameras did not decide: try the next N_FALLBACK candidates
+#if N_FALLBACK > 0
+    fallback(c03.w, p3, tol, decided, colour);
+#endif
+#if N_FALLBACK > 1
+    fallback(c45.x, p4, tol, decided, colour);
+#endif
+#if N_FALLBACK > 2
+    fallback(c45.y, p5, tol, decided, colour);
+#endif
+    return decided == PASS;
 }

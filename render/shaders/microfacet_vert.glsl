@@ -4,7 +4,6 @@
 #include "microfacet_slice.glsl"
 layout(std430, binding = 2) readonly buffer Slices { Slice slices[]; };
 uniform mat4 view_proj;
-uniform float half_side;
 out vec3 v_world;
 flat out ivec4 v_c03;
 flat out ivec2 v_c45;
@@ -16,7 +15,8 @@ void main() {
     vec2 corner = vec2((gl_VertexID & 1) == 0 ? -1.0 : 1.0, (gl_VertexID & 2) == 0 ? -1.0 : 1.0);
     vec3 v, a, b;
     slice_frame(s.pos_s.xyz, v, a, b);
-    vec3 p = eye_pos + v * s.pos_s.w + half_side * (corner.x * a + corner.y * b);
+    vec2 hab = slice_half_extents(s.pos_s.xyz, v, a, b, s.pos_s.w);
+    vec3 p = eye_pos + v * s.pos_s.w + corner.x * hab.x * a + corner.y * hab.y * b;
     v_world = p;
     v_c03 = s.c03;
     v_c45 = s.c45.xy;

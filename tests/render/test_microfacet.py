@@ -9,7 +9,7 @@ import pytest
 from capture.camera import Camera, look_at
 from capture.scan import to_uint8_srgb
 from render import microfacet_geometry as mg
-from render.microfacet import MicrofacetRenderer
+from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer
 from tests.conftest import assert_images_close, image_diff_stats
 from tests.render import microfacet_scene as scene
 
@@ -92,9 +92,12 @@ def test_eq2_by_hand():
 
 # ------------------------------------------------------------------ GPU vs twin
 def _twin(model, eye, level, spacing, rule="vote"):
+    """The twin on the texels as the GPU stores them (RGBZ_DTYPE)."""
     lv = model.pyramid.levels[level]
-    return mg.reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, model.rgbz.rgb,
-                               model.rgbz.depth, model.bounds, rule)
+    rgb = model.rgbz.rgb.astype(RGBZ_DTYPE).astype(np.float64)
+    depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
+    return mg.reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, rgb, depth,
+                               model.bounds, rule)
 
 
 @pytest.mark.parametrize("mode", ["instanced", "geometry"])
