@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from capture.scan import to_uint8_srgb
-from render.raster import RasterMesh, rasterize_reference
+from render.raster import RasterMesh
+from render.raster_reference import rasterize_reference
 from render.vdtm import VdtmRenderer, render_vertex_colour, vdtm_reference
 from tests.conftest import assert_images_close, image_diff_stats
 from tests.render import microfacet_scene as scene
