@@ -46,6 +46,12 @@ class LightingConfig:
     shadows: bool = True
     """Shadow maps for the dominant lights."""
 
+    def __post_init__(self) -> None:
+        if not 0 <= self.lights <= MAX_LIGHTS:
+            raise ValueError(f"lighting: lights must be in [0, {MAX_LIGHTS}], got {self.lights}")
+        if self.key <= 0:
+            raise ValueError(f"lighting: key must be > 0, got {self.key}")
+
 
 def resolve_env(name_or_path: str) -> EnvMap:
     """A bundled map by name, 'procedural', or a file path; clear error otherwise."""

@@ -106,7 +106,7 @@ def test_shaded_fur_has_self_shadowing():
     m = lit.scanset.scans[0].depth > 0
     a = lit.scanset.scans[0].rgb[m].mean()
     b = flat.scanset.scans[0].rgb[m].mean()
-    assert a < 0.9 * b, (a, b)
+    assert a < 0.7 * b, (a, b)  # measured 0.47 (studio, 3 lights)
 
 
 def test_cli_synth_small(tmp_path, capsys):
