@@ -122,3 +122,32 @@ def test_cli_synth_small(tmp_path, capsys):
     assert main(["synth", "torus", "-o", str(tmp_path / "y"), "--views", "7", "--elevations", "10,40"]) != 0
     err = capsys.readouterr().err
     assert "already exists" in err and "unknown scene" in err and "multiple" in err
+
+
+def test_fur_shadow_visibility_matches_raycasting():
+    """Per-vertex shadow-map visibility of thin strands against open3d ray casting towards each
+    dominant light (measured: 97% binary agreement, mean visibility within 0.006)."""
+    import open3d as o3d
+
+    from datasets_synthetic.lighting import LightingConfig, resolve_env, scene_lighting
+    from render.gl import gl_context
+    from render.raster import SHADOW_BIAS_TEXELS, SHADOW_BOX_MARGIN, SHADOW_MAP_SIZE, MeshRasterizer
+
+    mesh = build_scene("furball", 0, strands=1500).mesh
+    lt, _ = scene_lighting(resolve_env("studio"), LightingConfig())
+    with gl_context() as ctx, MeshRasterizer(ctx) as r:
+        r.set_mesh(mesh)
+        r.set_lighting(lt)
+        vis = r.vertex_visibility
+    b = mesh.bounds
+    texel = float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN) / SHADOW_MAP_SIZE
+    rc = o3d.t.geometry.RaycastingScene()
+    rc.add_triangles(o3d.core.Tensor(mesh.vertices), o3d.core.Tensor(mesh.faces.astype(np.uint32)))
+    assert vis.shape[1] == 3
+    for i, L in enumerate(lt.light_dirs.astype(np.float64)):
+        o = mesh.vertices + SHADOW_BIAS_TEXELS * texel * L
+        rays = np.concatenate([o, np.broadcast_to(L, o.shape)], 1).astype(np.float32)
+        lit = ~np.isfinite(rc.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy())
+        assert 0.1 < lit.mean() < 0.9  # the fur really shadows itself
+        assert ((vis[:, i] > 0.5) == lit).mean() > 0.95
+        assert abs(vis[:, i].mean() - lit.mean()) < 0.02

@@ -202,7 +202,7 @@ def test_shadow_map_visibility_matches_raycasting(gl_ctx):
     import open3d as o3d
 
     from datasets_synthetic.geometry import merge, tube_sweep
-    from render.raster import SHADOW_BIAS_TEXELS, SHADOW_MAP_SIZE
+    from render.raster import SHADOW_BIAS_TEXELS, SHADOW_BOX_MARGIN, SHADOW_MAP_SIZE
 
     g = np.linspace(-0.1, 0.1, 121)
     xx, yy = np.meshgrid(g, g)
@@ -225,7 +225,7 @@ def test_shadow_map_visibility_matches_raycasting(gl_ctx):
         r.set_lighting(lt)
         vis = r.vertex_visibility[:, 0]
     b = mesh.bounds
-    texel = float(np.linalg.norm(b[1] - b[0])) * 1.02 / SHADOW_MAP_SIZE
+    texel = float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN) / SHADOW_MAP_SIZE
     L = lt.light_dirs[0].astype(np.float64)
     rc = o3d.t.geometry.RaycastingScene()
     rc.add_triangles(o3d.core.Tensor(mesh.vertices), o3d.core.Tensor(mesh.faces.astype(np.uint32)))
