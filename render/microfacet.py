@@ -96,6 +96,8 @@ class Frame:
         facets: number of slices drawn.
         ms: GPU frame time in milliseconds (selection + draw, synchronised; no read-back).
         lod: the level-of-detail choice.
+        cpu_ms: process CPU time over the same interval (llvmpipe threads included): the cost
+            independent of other load on the machine.
     """
 
     rgb: np.ndarray
@@ -106,6 +108,7 @@ class Frame:
     facets: int
     ms: float
     lod: mg.Lod | None = field(default=None, repr=False)
+    cpu_ms: float = 0.0
 
 
 class MicrofacetRenderer:
@@ -244,6 +247,7 @@ class MicrofacetRenderer:
         facets = 0
         ctx.finish()
         t0 = time.perf_counter()
+        c0 = time.process_time()
         if n_vox > 0:
             self.cam_buf.bind_to_storage_buffer(0)
             self.voxel_bufs[lev].bind_to_storage_buffer(1)
@@ -269,6 +273,7 @@ class MicrofacetRenderer:
                 ctx.finish()
                 facets = int(self.query.primitives) // 2  # two triangles per square
         ms = (time.perf_counter() - t0) * 1e3
+        cpu_ms = (time.process_time() - c0) * 1e3
         rgb = np.zeros((H, W, 3), np.float32)
         alpha = np.zeros((H, W), bool)
         if read:
@@ -276,7 +281,7 @@ class MicrofacetRenderer:
             img = gl_rows_to_image(raw)
             rgb, alpha = np.ascontiguousarray(img[..., :3]), img[..., 3] > 0.5
         return Frame(rgb, alpha, lev if n_vox > 0 else -1, self.levels[lev].resolution, float(spacing), facets,
-                     ms, lod)
+                     ms, lod, cpu_ms)
 
     def read_slices(self, count: int) -> dict:
         """The slice records of the last instanced frame (for tests): centres, s, weights,

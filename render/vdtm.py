@@ -29,12 +29,14 @@ VIS_TOL_VOXELS = 1.0
 
 @dataclass
 class MeshFrame:
-    """One baseline frame: linear rgb (H, W, 3), alpha (H, W) bool, ms (draw, synchronised), facets (triangles)."""
+    """One baseline frame: linear rgb (H, W, 3), alpha (H, W) bool, ms (draw, synchronised), facets
+    (triangles), cpu_ms (process CPU time of the draw, llvmpipe threads included)."""
 
     rgb: np.ndarray
     alpha: np.ndarray
     ms: float
     facets: int
+    cpu_ms: float = 0.0
 
 
 def _mat(m) -> bytes:
@@ -118,16 +120,18 @@ class VdtmRenderer:
         self.tex.use(0)
         ctx.finish()
         t0 = time.perf_counter()
+        c0 = time.process_time()
         if self.n_faces:
             self.vao.render(ctx.TRIANGLES)
         ctx.finish()
         ms = (time.perf_counter() - t0) * 1e3
+        cpu_ms = (time.process_time() - c0) * 1e3
         rgb = np.zeros((H, W, 3), np.float32)
         alpha = np.zeros((H, W), bool)
         if read:
             img = gl_rows_to_image(np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4))
             rgb, alpha = np.ascontiguousarray(img[..., :3]), img[..., 3] > 0.5
-        return MeshFrame(rgb, alpha, ms, self.n_faces)
+        return MeshFrame(rgb, alpha, ms, self.n_faces, cpu_ms)
 
 
 def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, cameras, rgb: np.ndarray,
