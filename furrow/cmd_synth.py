@@ -8,7 +8,7 @@ from pathlib import Path
 HELP = "synthesise a turntable capture of a procedural scene (furball, plant, torus) with exact ground truth"
 DESCRIPTION = """Render a seeded procedural scene from a turntable rig (world +z up, cameras ringing the z axis,
 looking at the origin) under an environment map, and write a scan set: transforms.json,
-images/ (8-bit sRGB), depth/ (z-depth: 16-bit PNG in mm or float EXR in metres) and gt/
+images/ (8-bit sRGB), depth/ (z-depth: 16-bit PNG in 0.1 mm units, or float EXR in metres) and gt/
 (gt/mesh.ply exact geometry in metres, gt/scene.json parameters, gt/cameras_true.json when the
 recorded poses are perturbed).
 
@@ -73,7 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pose-noise-frac", type=float, default=0.0, metavar="F",
                    help="RMS translation error of the recorded poses, fraction of the object size")
     p.add_argument("--depth-format", choices=["png", "exr"], default="png",
-                   help="depth files: 16-bit PNG in millimetres (default) or float EXR in metres")
+                   help="depth files: 16-bit PNG (default) or float EXR in metres")
+    p.add_argument("--png-depth-unit", type=float, default=None, metavar="M",
+                   help="metres per 16-bit PNG depth unit (default 0.0001 = 0.1 mm; 0.001 = millimetres)")
     p.add_argument("--preview", action="store_true", help="also write DIR/preview.png (colour + depth contact sheet)")
     p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -115,10 +117,12 @@ def build_config(args):
 def run(args, console) -> int:
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.preview import contact_sheet_png_bytes
-    from datasets_synthetic.synth import synthesize, write_capture
+    from datasets_synthetic.synth import PNG_DEPTH_UNIT, synthesize, write_capture
     from furrow.console import StageTimer, fail, track
 
     try:
+        if args.png_depth_unit is not None and not 0 < args.png_depth_unit <= 0.01:
+            raise ValueError(f"--png-depth-unit {args.png_depth_unit} out of range (0, 0.01] metres")
         cfg = build_config(args)
         resolve_env(cfg.lighting.env)  # fail early on a bad --env
     except (ValueError, FileNotFoundError) as e:
@@ -135,8 +139,9 @@ def run(args, console) -> int:
         with timer.stage("contact sheet"):
             extra["preview.png"] = contact_sheet_png_bytes(cap.scanset)
     with timer.stage("write"):
+        unit = args.png_depth_unit if args.png_depth_unit is not None else PNG_DEPTH_UNIT
         path = write_capture(cap, args.out, depth_format=args.depth_format, overwrite=args.overwrite,
-                             extra_files=extra)
+                             extra_files=extra, png_depth_unit=unit)
     st = cap.scene.stats
     console.print(f"wrote {path} ({len(cap.scanset)} views, {st['triangles']:,} triangles"
                   + (f", {st['strands']:,} strands" if "strands" in st else "")
