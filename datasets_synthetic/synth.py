@@ -122,6 +122,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
     with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
         rast.set_mesh(scene.mesh)
         rast.set_lighting(lighting)
+        shadow_info = dict(rast.shadow_info)
         for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
             res = rast.render(cam)
             if cfg.background == "env":
@@ -148,7 +149,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "units": "metres, world +z up", "bounds": tight.tolist(), "scanset_bounds": bounds.tolist(),
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
         "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "supersample": cfg.supersample,
-        "background": cfg.background, "poses_perturbed": nz.any_pose,
+        "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz)}
     true_cams = tuple(c for _, c in views)
