@@ -208,19 +208,17 @@ class MeshRasterizer:
             res = r.render(camera)
     """
 
-    def __init__(self, ctx, supersample: int = 1, depth_prepass: bool = False) -> None:
+    def __init__(self, ctx, supersample: int = 1) -> None:
         if int(supersample) < 1:
             raise RasterError(f"supersample must be >= 1, got {supersample}")
         from render.gl import program
 
         self.ctx = ctx
         self.supersample = int(supersample)
-        self.depth_prepass = bool(depth_prepass)
         self._program = program
         self._prog_flat = program(ctx, "raster_mesh_vert.glsl", "raster_mesh_frag.glsl")
         self._prog_shaded = None
         self._prog_shadow = None
-        self._prog_depth = None
         self._fbos: dict[tuple[int, int], tuple] = {}
         self._vbo = self._ibo = None
         self._vaos: dict[str, object] = {}
@@ -249,7 +247,7 @@ class MeshRasterizer:
             for o in (fbo, tex_c, tex_d, tex_n, rb):
                 o.release()
         self._fbos.clear()
-        for p in (self._prog_flat, self._prog_shaded, self._prog_shadow, self._prog_depth):
+        for p in (self._prog_flat, self._prog_shaded, self._prog_shadow):
             if p is not None:
                 p.release()
 
@@ -290,8 +288,7 @@ class MeshRasterizer:
 
     def _vao(self, kind: str):
         if kind not in self._vaos:
-            prog = {"flat": self._prog_flat, "shaded": self._prog_shaded, "shadow": self._prog_shadow,
-                    "depth": self._prog_depth}[kind]
+            prog = {"flat": self._prog_flat, "shaded": self._prog_shaded, "shadow": self._prog_shadow}[kind]
             fmt, names = [], []
             for name, n in _ATTRIBUTES:  # attributes the compiler removed become padding
                 if name in prog:
@@ -315,7 +312,6 @@ class MeshRasterizer:
             self._prog_shaded = self._program(self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl",
                                               defines={"MAX_LIGHTS": MAX_LIGHTS})
             self._prog_shadow = self._program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl")
-            self._prog_depth = self._program(self.ctx, "raster_mesh_vert.glsl", "raster_shadow_frag.glsl")
         if self._mesh is not None:
             self._build_shadows()
 
@@ -378,16 +374,6 @@ class MeshRasterizer:
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE | ctx.BLEND)
         view, proj = _gl(camera.gl_view()), _gl(camera.gl_projection(near, far))
-        if shaded and self.depth_prepass:
-            # depth pre-pass with the same vertex shader (invariant gl_Position): the expensive
-            # shading then runs about once per pixel instead of once per overlapping strand
-            pre = self._prog_depth
-            pre["u_view"].write(view)
-            pre["u_proj"].write(proj)
-            fbo.color_mask = ((False,) * 4,) * 3
-            self._vao("depth").render()
-            fbo.color_mask = ((True,) * 4,) * 3
-            ctx.depth_func = "<="
         prog = self._prog_shaded if shaded else self._prog_flat
         prog["u_view"].write(view)
         prog["u_proj"].write(proj)
@@ -396,7 +382,6 @@ class MeshRasterizer:
         if shaded:
             self._set_shading_uniforms(prog)
         self._vao("shaded" if shaded else "flat").render()
-        ctx.depth_func = "<"
         w, h = camera.width, camera.height
         # framebuffer row order (bottom first): render() reduces, then flips with gl_rows_to_image
         col = np.frombuffer(tex_c.read(), np.float32).reshape(h, w, 4)

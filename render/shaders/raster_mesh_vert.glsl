@@ -19,7 +19,6 @@ out float v_occl;
 out float v_spec;
 out vec4 v_vis;
 out float v_eyez;
-invariant gl_Position;  // the depth pre-pass and the shading pass must agree bit for bit
 
 void main() {
     vec4 e = u_view * vec4(in_pos, 1.0);
