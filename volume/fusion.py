@@ -42,6 +42,8 @@ from volume.grid import voxel_centers
 PASS1_CHUNK = 1 << 19
 #: Band voxels per chunk in pass 2 (memory ~ 5 * scans^2 bytes per voxel).
 PASS2_CHUNK = 4096
+#: Pass 1 keeps a voxel for pass 2 when |D - z| cos < NEAR_SLACK * trunc (slack for curvature).
+NEAR_SLACK = 1.5
 #: A near sample must also lie within this many truncation distances along the ray.
 PROJ_FACTOR = 3.0
 #: A no-return pixel votes "empty" only when no pixel within this radius has depth: a voxel
@@ -175,14 +177,19 @@ def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -
 def _lookup(m: ScanMaps, x: np.ndarray):
     """Nearest-pixel lookup of voxel centres x (M, 3) float32: (pixel flat index, in-image, z)."""
     P = m.P.astype(np.float32)
-    h = x @ P[:, :3].T + P[:, 3]
+    h = x @ P[:, :3].T
+    h += P[:, 3]
     z = h[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = np.floor(h[:, 0] / z + 0.5)
-        v = np.floor(h[:, 1] / z + 0.5)
-    inb = (z > 0) & (u >= 0) & (u < m.W) & (v >= 0) & (v < m.H)
-    idx = np.where(inb, v * m.W + u, 0).astype(np.int64)
-    return idx, inb, z
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = np.reciprocal(z)
+        u = h[:, 0] * inv
+        v = h[:, 1] * inv
+        u += np.float32(0.5)
+        v += np.float32(0.5)
+        inb = (z > 0) & (u >= 0) & (u < m.W) & (v >= 0) & (v < m.H)
+    ui = np.where(inb, u, 0).astype(np.int32)  # u >= 0 here: truncation is floor
+    vi = np.where(inb, v, 0).astype(np.int32)
+    return vi * np.int32(m.W) + ui, inb, z
 
 
 def _samples(m: ScanMaps, x: np.ndarray, trunc: float, refine: bool = False):
@@ -218,6 +225,7 @@ class FusedSdf:
         support: (L, L, L) uint8, scans that support the band value (0 outside the band).
         seen: (L, L, L) uint8, scans in whose image the voxel projects.
         origin, voxel_size, resolution: the grid (see volume.grid).
+        near_mask: (L, L, L) bool, voxels with at least one near sample (pass 1).
     """
 
     values: np.ndarray
@@ -227,11 +235,27 @@ class FusedSdf:
     origin: np.ndarray
     voxel_size: float
     resolution: int
+    near_mask: np.ndarray
 
 
-def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, free_margin: float, progress=None):
-    """Pass 1 over every voxel: counts (free, nodata, occluded, seen, near) as (L^3,) uint8."""
-    n = L ** 3
+def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
+    """Pass-1 votes of one scan for voxel centres x: (seen, free, nodata, occluded, near) bool."""
+    idx, inb, z = _lookup(m, x)
+    D = np.where(inb, m.depth[idx], np.float32(0))
+    has = D > 0
+    proj = D - z
+    cos = m.cosine[idx]
+    aproj = np.abs(proj)
+    # a superset of pass 2's test (plane distance ~ |proj| cos for a locally planar surface)
+    near = has & (cos > 0) & (aproj < PROJ_FACTOR * trunc) & (aproj * cos < np.float32(NEAR_SLACK * trunc))
+    return inb, has & (proj > free_margin), inb & m.void[idx], has & (proj < -trunc), near
+
+
+def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, free_margin: float,
+                voxels: np.ndarray | None = None, progress=None):
+    """Pass 1: counts (free, nodata, occluded, seen, near), uint8 arrays over ``voxels``
+    (flat indices into the L^3 grid, C order; None = every voxel)."""
+    n = L ** 3 if voxels is None else len(voxels)
     free = np.zeros(n, np.uint8)
     nodata = np.zeros(n, np.uint8)
     occ = np.zeros(n, np.uint8)
@@ -239,16 +263,61 @@ def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, fr
     near = np.zeros(n, np.uint8)
     chunks = range(0, n, PASS1_CHUNK)
     for s in (progress(chunks) if progress else chunks):
-        x = voxel_centers(origin, w, L, s, min(n, s + PASS1_CHUNK), np.float32)
-        sl = slice(s, s + len(x))
+        e = min(n, s + PASS1_CHUNK)
+        if voxels is None:
+            x = voxel_centers(origin, w, L, s, e, np.float32)
+        else:
+            x = _centers_of(voxels[s:e], origin, w, L)
+        sl = slice(s, e)
         for m in maps:
-            inb, has, proj, nr, _, _, _, void = _samples(m, x, trunc)
+            inb, fr, nd, oc, nr = _votes(m, x, trunc, free_margin)
             seen[sl] += inb
-            free[sl] += has & (proj > free_margin)
-            nodata[sl] += void
-            occ[sl] += has & (proj < -trunc)
+            free[sl] += fr
+            nodata[sl] += nd
+            occ[sl] += oc
             near[sl] += nr
     return free, nodata, occ, seen, near
+
+
+def _centers_of(flat: np.ndarray, origin, w: float, L: int) -> np.ndarray:
+    i, rem = np.divmod(flat, L * L)
+    j, k = np.divmod(rem, L)
+    return (np.asarray(origin) + (np.stack([i, j, k], 1) + 0.5) * w).astype(np.float32)
+
+
+def upsample2(a: np.ndarray) -> np.ndarray:
+    """(L, L, L) -> (2L, 2L, 2L): every voxel becomes its 8 children."""
+    return a.repeat(2, 0).repeat(2, 1).repeat(2, 2)
+
+
+#: Coarse-to-fine: fine voxels are evaluated where the coarse |d| is within this many coarse
+#: voxels (plus the fine truncation), or next to a coarse voxel with a near sample.
+COARSE_MARGIN_VOXELS = 1.5
+
+
+def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfig, coarse=None, progress=None):
+    """Sign field (outside (L^3,) bool), seen (L^3,) uint8 and near (L^3,) uint8 of pass 1.
+
+    With ``coarse`` (the FusedSdf of resolution L/2 on the same cube) only the fine voxels near
+    the coarse surface or coarse near samples are evaluated; the rest inherit the coarse sign
+    (their value is then filled by the distance transform anyway).
+    """
+    trunc = cfg.trunc(w)
+    n = L ** 3
+    if coarse is None or coarse.resolution * 2 != L:
+        free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), None, progress)
+        return carve_sign(free, nodata, occ, seen, cfg), seen, near
+    wc = coarse.voxel_size
+    keep = (np.abs(coarse.values) <= COARSE_MARGIN_VOXELS * wc + trunc) | coarse.near_mask
+    cand = np.nonzero(upsample2(keep).reshape(-1))[0]
+    outside = upsample2(coarse.values > 0).reshape(-1)
+    seen = upsample2(coarse.seen).reshape(-1).copy()
+    near = np.zeros(n, np.uint8)
+    free, nodata, occ, sn, nr = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), cand, progress)
+    outside[cand] = carve_sign(free, nodata, occ, sn, cfg)
+    seen[cand] = sn
+    near[cand] = nr
+    return outside, seen, near
 
 
 def carve_sign(free, nodata, occ, seen, cfg: FusionConfig) -> np.ndarray:
@@ -324,22 +393,23 @@ def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray,
 
 
 def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
-                   maps: list[ScanMaps] | None = None, progress=None) -> FusedSdf:
-    """Consensus signed distance volume of ``scanset`` on the given grid (module docstring)."""
+                   maps: list[ScanMaps] | None = None, coarse: FusedSdf | None = None, progress=None) -> FusedSdf:
+    """Consensus signed distance volume of ``scanset`` on the given grid (module docstring).
+
+    ``coarse``: the volume of resolution L/2 on the same cube, to evaluate pass 1 only near
+    its surface (coarse-to-fine; see :func:`carve_field`).
+    """
     cfg = cfg or FusionConfig()
     L, w = int(resolution), float(voxel_size)
     origin = np.asarray(origin, np.float64)
     trunc = cfg.trunc(w)
     maps = maps if maps is not None else [scan_maps(s, cfg.max_grazing_deg, cfg.smooth_sigma_z) for s in scanset.scans]
-    free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), progress)
-    outside = carve_sign(free, nodata, occ, seen, cfg)
+    outside, seen, near = carve_field(maps, origin, w, L, cfg, coarse, progress)
     cand = np.nonzero(near)[0]
     band = np.zeros(L ** 3, bool)
     bvals = np.zeros(L ** 3, np.float32)
     support = np.zeros(L ** 3, np.uint8)
-    i, rem = np.divmod(cand, L * L)
-    j, k = np.divmod(rem, L)
-    xc = (origin + (np.stack([i, j, k], 1) + 0.5) * w).astype(np.float32)
+    xc = _centers_of(cand, origin, w, L)
     # the quorum drops only to the number of scans whose image contains x (a lone scan counts)
     n_obs = seen[cand].astype(np.int32)
     for s in range(0, len(cand), PASS2_CHUNK):
@@ -351,4 +421,5 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
         support[idx] = sup[has]
     shape = (L, L, L)
     values = complete_sdf(bvals.reshape(shape), band.reshape(shape), outside.reshape(shape), w)
-    return FusedSdf(values, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L)
+    return FusedSdf(values, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
+                    (near > 0).reshape(shape))

@@ -57,8 +57,11 @@ class LoptConfig:
         return out
 
 
-def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float) -> np.ndarray:
-    """(L, L, L) bool: voxels whose value differs from a face neighbour's by > alpha * w."""
+def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float, valid: np.ndarray | None = None) -> np.ndarray:
+    """(L, L, L) bool: voxels whose value differs from a face neighbour's by > alpha * w.
+
+    With ``valid`` (L, L, L) bool, only pairs of two valid voxels are compared.
+    """
     v = np.asarray(values, np.float32)
     flag = np.zeros(v.shape, bool)
     lim = np.float32(alpha * voxel_size)
@@ -68,15 +71,17 @@ def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float) -> n
         hi = [slice(None)] * v.ndim
         lo[ax] = slice(None, -1)
         hi[ax] = slice(1, None)
+        if valid is not None:
+            jump &= valid[tuple(lo)] & valid[tuple(hi)]
         flag[tuple(lo)] |= jump
         flag[tuple(hi)] |= jump
     return flag
 
 
-def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float) -> float:
-    """N_i / L^3 of Eq. 1 (METHODS §1.1 step iii)."""
+def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float, valid: np.ndarray | None = None) -> float:
+    """N_i / L^3 of Eq. 1 (METHODS §1.1 step iii); ``valid`` as in :func:`discontinuity_mask`."""
     v = np.asarray(values)
-    return float(discontinuity_mask(v, voxel_size, alpha).sum()) / v.size
+    return float(discontinuity_mask(v, voxel_size, alpha, valid).sum()) / v.size
 
 
 def choose_l_opt(fractions: dict[int, float], t: float) -> int:

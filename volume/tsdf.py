@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.scan import ScanSet
-from volume.fusion import FusedSdf, FusionConfig, carve_sign, carve_votes, complete_sdf, scan_maps
+from volume.fusion import FusedSdf, FusionConfig, carve_field, complete_sdf, scan_maps
 
 #: Depth beyond which Open3D ignores a pixel (metres); far larger than any turntable scene.
 DEPTH_TRUNC = 1000.0
@@ -46,7 +46,7 @@ def tsdf_volume(scanset: ScanSet, origin, voxel_size: float, resolution: int, tr
 
 
 def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
-              maps=None, progress=None) -> FusedSdf:
+              maps=None, coarse: FusedSdf | None = None, progress=None) -> FusedSdf:
     """Open3D TSDF band + shared carving sign + distance-transform completion (module docstring)."""
     cfg = cfg or FusionConfig()
     L, w = int(resolution), float(voxel_size)
@@ -54,10 +54,10 @@ def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg:
     trunc = cfg.trunc(w)
     tsdf, weight = tsdf_volume(scanset, origin, w, L, trunc)
     maps = maps if maps is not None else [scan_maps(s, cfg.max_grazing_deg, cfg.smooth_sigma_z) for s in scanset.scans]
-    free, nodata, occ, seen, _ = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), progress)
+    outside, seen, near = carve_field(maps, origin, w, L, cfg, coarse, progress)
     shape = (L, L, L)
-    outside = carve_sign(free, nodata, occ, seen, cfg).reshape(shape)
+    outside = outside.reshape(shape)
     band = (weight > 0) & (np.abs(tsdf) < np.float32(trunc) * np.float32(0.999))
     values = complete_sdf(np.where(band, tsdf, 0).astype(np.float32), band, outside, w)
     support = np.minimum(weight, 255).astype(np.uint8) * band
-    return FusedSdf(values, band, support, seen.reshape(shape), origin, w, L)
+    return FusedSdf(values, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band)
