@@ -55,7 +55,7 @@ class SynthConfig:
     """Noise models (default: none)."""
     supersample: int = 3
     """Colour supersampling factor (per axis); thin strands alias badly without it."""
-    background: str = "env"
+    background: str = "black"
     """Colour behind the object: 'env' (the environment map) or 'black'."""
     scene_params: dict = field(default_factory=dict)
     """Overrides of the scene's parameter dataclass (e.g. ``{"strands": 5000}``)."""

@@ -62,7 +62,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env-rotation", type=float, default=0.0, help="rotate the environment about +z (degrees)")
     p.add_argument("--lights", type=int, default=3, help="dominant lights casting shadows (0-4, default 3)")
     p.add_argument("--supersample", type=int, default=3, help="colour supersampling per axis (default 3)")
-    p.add_argument("--background", choices=["env", "black"], default="env", help="what is seen behind the object")
+    p.add_argument("--background", choices=["env", "black"], default="black",
+                   help="what is seen behind the object: black (default, like a masked scan and like furrow render's output) or the environment map")
     p.add_argument("--depth-noise", type=float, default=0.0, metavar="K",
                    help="depth noise sigma = K z^2 (metres of sigma at 1 m; e.g. 0.002)")
     p.add_argument("--holes", type=float, default=0.0, metavar="FRAC",
