@@ -1,0 +1,137 @@
+"""Scan set -> Model: fusion of every pyramid level, L_opt, spheres, mesh, RGBz (METHODS §1.1, §1.4, §3).
+
+Levels are fused coarse to fine (each level's pass 1 only near the coarser level's surface,
+see volume.fusion.carve_field) for every power of two from ``min_res`` to ``max_res``; Eq. 1
+is then evaluated from ``max_res`` down exactly as the paper's loop does, and the pyramid keeps
+the levels up to L_opt.  Each level's volume is computed the same way whatever the order, so
+the result equals the paper's top-down loop.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from capture.scan import ScanSet
+from volume.fusion import FusionConfig, fuse_consensus, scan_maps
+from volume.grid import cube_for_bounds
+from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
+from volume.model import Model, SdfPyramid
+from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
+from volume.rgbz import RgbzConfig, build_rgbz
+from volume.spheres import fit_spheres
+from volume.tsdf import fuse_tsdf
+
+#: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
+#: of the occluder (METHODS §3: tens to hundreds of spheres).
+SPHERE_LEVEL = 64
+METHODS = ("consensus", "tsdf")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Everything ``furrow model`` can set."""
+
+    sdf: str = "consensus"
+    """Fusion method: 'consensus' (Wheeler-Sato-Ikeuchi style) or 'tsdf' (Open3D peer)."""
+    lopt: LoptConfig = field(default_factory=LoptConfig)
+    """L_opt search (max_res, alpha, t; METHODS §1.1 Eq. 1)."""
+    fusion: FusionConfig = field(default_factory=FusionConfig)
+    """Fusion parameters."""
+    sphere_error: float = 0.2
+    """Target 1 - volume IoU of the occluder sphere set (METHODS §3)."""
+    mesh: MeshConfig = field(default_factory=MeshConfig)
+    """Mesh extraction."""
+    rgbz: RgbzConfig = field(default_factory=RgbzConfig)
+    """RGBz preparation (METHODS §1.4)."""
+    keep_values: bool = True
+    """Store every level's signed distance values in the model (not only surface voxels)."""
+
+    def __post_init__(self) -> None:
+        if self.sdf not in METHODS:
+            raise ValueError(f"--sdf must be one of {METHODS}, got {self.sdf!r}")
+
+
+def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None):
+    """Fuse every level min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction})."""
+    stage = stage or (lambda name: contextlib.nullcontext())
+    origin, extent = cube_for_bounds(scanset.bounds)
+    fuse = fuse_consensus if cfg.sdf == "consensus" else fuse_tsdf
+    with stage("depth normals"):
+        it = scanset.scans
+        maps = [scan_maps(s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
+                for s in (progress(it, "normals") if progress else it)]
+    fused, frac = {}, {}
+    coarse = None
+    for L in cfg.lopt.resolutions:
+        with stage(f"fuse {cfg.sdf} {L}^3"):
+            f = fuse(scanset, origin, extent / L, L, cfg.fusion, maps, coarse=coarse)
+            frac[L] = discontinuity_fraction(f.values, f.voxel_size, cfg.lopt.alpha)
+        fused[L] = coarse = f
+    return origin, extent, fused, frac
+
+
+def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, progress=None,
+                provenance: dict | None = None) -> tuple[Model, dict]:
+    """Build the Model; returns (model, summary) with the summary keys of ``furrow model --json``.
+
+    ``stage(name)`` is a context-manager factory used to time stages (furrow.console.StageTimer);
+    ``progress(iterable, description)`` wraps loops in a progress bar.
+    """
+    cfg = cfg or ModelConfig()
+    stage = stage or (lambda name: contextlib.nullcontext())
+    origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress)
+    l_opt = choose_l_opt(frac, cfg.lopt.t)
+    with stage("pyramid"):
+        pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items()}, origin, extent, l_opt,
+                                            keep_values=True)
+    finest = pyramid.levels[-1]
+    with stage("spheres"):
+        sl = pyramid.level(min(l_opt, SPHERE_LEVEL))
+        spheres, sphere_err = fit_spheres(sl, cfg.sphere_error)
+    with stage("mesh"):
+        verts, faces = marching_cubes(finest)
+        verts, faces = clean_and_decimate(verts, faces, cfg.mesh)
+    with stage("rgbz"):
+        rgbz, holes = build_rgbz(scanset, verts, faces, finest, cfg.rgbz,
+                                 (lambda it: progress(it, "rgbz")) if progress else None)
+    with stage("mesh colour"):
+        colors = vertex_colors(verts, faces, rgbz.cameras, rgbz.rgb, rgbz.depth, finest.voxel_size) \
+            if len(verts) else None
+    if not cfg.keep_values:
+        pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
+                                keep_values=False)
+    params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
+              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "sphere_level": sl.resolution,
+              "eq1_fraction": {str(L): v for L, v in frac.items()}}
+    prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
+            "scanset_metadata": _jsonable(scanset.metadata), **(provenance or {})}
+    bounds = np.asarray(scanset.bounds, np.float64)
+    model = Model(pyramid, rgbz, spheres, verts, faces, colors, bounds, params, prov)
+    summary = {
+        "l_opt": l_opt,
+        "levels": pyramid.resolutions,
+        "surface_voxels": {str(lv.resolution): int(len(lv.surface)) for lv in pyramid.levels},
+        "eq1_fraction": {str(L): round(v, 6) for L, v in frac.items()},
+        "spheres": len(spheres),
+        "sphere_error": round(sphere_err, 5),
+        "mesh": {"vertices": int(len(verts)), "faces": int(len(faces))},
+        "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
+    }
+    return model, summary
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    return str(x)

@@ -1,0 +1,127 @@
+"""Mesh for the fixed-mesh baseline renderer: marching cubes, pymeshlab cleanup, vertex colour.
+
+Marching cubes (scikit-image) on the finest level's signed distance, cleaned (duplicates,
+unreferenced vertices, tiny components) and decimated with pymeshlab's quadric edge collapse.
+pymeshlab's OpenMP threads collapse on a busy 2-core machine (PITFALLS), so the wait policy is
+set to passive before it is imported.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from volume.model import SdfLevel
+
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
+#: Components whose bounding-box diagonal is below this fraction of the object's are dropped.
+MIN_COMPONENT_FRACTION = 0.02
+#: A vertex takes colour from a camera only when its z-depth there is within this many voxels
+#: of the geometry depth (visibility) ...
+COLOR_DEPTH_TOL_VOXELS = 1.5
+#: ... and the camera sees its normal within this angle (degrees).
+COLOR_MAX_ANGLE_DEG = 80.0
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    """Mesh extraction parameters."""
+
+    target_faces: int = 60000
+    """Decimate to at most this many triangles (0 = no decimation)."""
+    clean: bool = True
+    """Remove duplicate / unreferenced vertices and small components with pymeshlab."""
+
+
+def marching_cubes(level: SdfLevel) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V,3) float32 world metres, faces (F,3) int32) of the zero level set, with faces
+    counter-clockwise seen from outside (normals towards positive distance)."""
+    from skimage.measure import marching_cubes as mc
+
+    v = level.values
+    if v is None:
+        raise ValueError(f"level {level.resolution} has no signed distance values")
+    if not (v.min() < 0 < v.max()):
+        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
+    w = level.voxel_size
+    verts, faces, _, _ = mc(np.array(v, np.float32), level=0.0, spacing=(w, w, w), gradient_direction="ascent")
+    verts = verts + level.origin + 0.5 * w
+    return verts.astype(np.float32), faces.astype(np.int32)
+
+
+def clean_and_decimate(verts: np.ndarray, faces: np.ndarray, cfg: MeshConfig) -> tuple[np.ndarray, np.ndarray]:
+    """pymeshlab cleanup and quadric decimation (threads kept passive, see module docstring)."""
+    if len(faces) == 0 or (not cfg.clean and not cfg.target_faces):
+        return verts, faces
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=verts.astype(np.float64), face_matrix=faces.astype(np.int32)))
+    if cfg.clean:
+        ms.meshing_remove_duplicate_vertices()
+        ms.meshing_remove_duplicate_faces()
+        ms.meshing_remove_null_faces()
+        diag = float(np.linalg.norm(verts.max(0) - verts.min(0)))
+        ms.meshing_remove_connected_component_by_diameter(
+            mincomponentdiag=pymeshlab.PureValue(MIN_COMPONENT_FRACTION * diag))
+        ms.meshing_remove_unreferenced_vertices()
+    if cfg.target_faces and ms.current_mesh().face_number() > cfg.target_faces:
+        ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(cfg.target_faces), preservenormal=True,
+                                                    preservetopology=False, qualitythr=0.3)
+        ms.meshing_remove_unreferenced_vertices()
+    m = ms.current_mesh()
+    return m.vertex_matrix().astype(np.float32), m.face_matrix().astype(np.int32)
+
+
+def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(V, 3) area-weighted unit vertex normals."""
+    v = verts.astype(np.float64)
+    fn = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, faces[:, k], fn)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(norm > 0, norm, 1.0)
+
+
+def vertex_colors(verts: np.ndarray, faces: np.ndarray, cameras, images, geom_depth: np.ndarray,
+                  voxel_size: float) -> np.ndarray:
+    """(V, 3) float32 linear colour per vertex: the mean over the cameras that see it.
+
+    A camera sees a vertex when the vertex projects into the image, its z-depth there matches
+    the geometry depth (N, H, W) within COLOR_DEPTH_TOL_VOXELS voxels, and it faces the camera
+    within COLOR_MAX_ANGLE_DEG; samples are weighted by the cosine.  Unseen vertices get the
+    mean colour of the seen ones (grey if none).
+    """
+    V = len(verts)
+    acc = np.zeros((V, 3))
+    wsum = np.zeros(V)
+    if V == 0:
+        return np.zeros((0, 3), np.float32)
+    nrm = vertex_normals(verts, faces)
+    tol = COLOR_DEPTH_TOL_VOXELS * voxel_size
+    cmin = np.cos(np.radians(COLOR_MAX_ANGLE_DEG))
+    for cam, img, gd in zip(cameras, images, geom_depth):
+        uv, z = cam.project(verts.astype(np.float64))
+        with np.errstate(invalid="ignore"):
+            u = np.floor(uv[:, 0] + 0.5)
+            v = np.floor(uv[:, 1] + 0.5)
+            inb = np.isfinite(u) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height) & (z > 0)
+        ui = np.where(inb, u, 0).astype(np.int64)
+        vi = np.where(inb, v, 0).astype(np.int64)
+        g = gd[vi, ui]
+        view = cam.center - verts
+        view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-12)
+        cos = np.sum(nrm * view, axis=1)
+        ok = inb & (g > 0) & (np.abs(z - g) < tol) & (cos > cmin)
+        wgt = np.where(ok, cos, 0.0)
+        acc += wgt[:, None] * img[vi, ui]
+        wsum += wgt
+    seen = wsum > 0
+    out = np.empty((V, 3), np.float32)
+    out[seen] = acc[seen] / wsum[seen, None]
+    out[~seen] = out[seen].mean(0) if seen.any() else 0.5
+    return out
