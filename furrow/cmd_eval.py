@@ -18,7 +18,7 @@ sRGB, scikit-image) over the full image and inside the union of the reference an
 foregrounds, the hole fraction inside the object, ms per frame and facet count.
 Writes DIR/side_by_side/*.png (reference | microfacet | baseline | 4 x |microfacet - reference|)
 and, with --json, the numbers (keys `microfacet` and `mesh_vdtm`, each with psnr, ssim,
-psnr_masked, ms_per_frame, ...).
+psnr_masked, ms_per_frame, ...; `mesh_colour` is the per-vertex colour floor).
 
 --geometry: `model` builds the model with the volume stage (volume.build.build_model);
 `gt` takes the voxels from the synthetic set's exact gt/mesh.ply (render.gt_model; the
@@ -98,11 +98,11 @@ def evaluate(ctx, model, held, tolerance: float, mode: str = "instanced", out_di
     from capture.scan import to_uint8_srgb
     from render import metrics
     from render.microfacet import MicrofacetRenderer
-    from render.vdtm import VdtmRenderer
+    from render.vdtm import VdtmRenderer, render_vertex_colour
 
     mf = MicrofacetRenderer.from_model(ctx, model, mode=mode)
     vd = VdtmRenderer.from_model(ctx, model)
-    res = {"microfacet": [], "mesh_vdtm": []}
+    res = {"microfacet": [], "mesh_vdtm": [], "mesh_colour": []}
     try:
         mf.render(held[0].camera, tolerance, read=False)  # warm-up: shader compilation is not frame time
         vd.render(held[0].camera, read=False)
@@ -112,8 +112,9 @@ def evaluate(ctx, model, held, tolerance: float, mode: str = "instanced", out_di
             fg = reference_foreground(scan)
             a = mf.render(scan.camera, tolerance)
             b = vd.render(scan.camera)
+            c = render_vertex_colour(ctx, model, scan.camera)
             name = Path(scan.name).name
-            for key, fr in (("microfacet", a), ("mesh_vdtm", b)):
+            for key, fr in (("microfacet", a), ("mesh_vdtm", b), ("mesh_colour", c)):
                 m = metrics.compare(ref, fr.rgb, fg, fr.alpha)
                 m.update({"view": name, "ms": fr.ms, "facets": fr.facets})
                 if key == "microfacet":
@@ -161,7 +162,7 @@ def run(args, console) -> int:
     t = Table(title=f"held-out evaluation ({len(held_idx)} views, geometry: {used})")
     for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "holes %", "largest hole px", "ms/frame", "facets"):
         t.add_column(c, justify="right")
-    for k in ("microfacet", "mesh_vdtm"):
+    for k in ("microfacet", "mesh_vdtm", "mesh_colour"):
         r = res[k]
         t.add_row(k, f"{r['psnr']:.2f}", f"{r['ssim']:.3f}", f"{r['psnr_masked']:.2f}", f"{r['ssim_masked']:.3f}",
                   f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}", f"{r['ms_per_frame']:.1f}",
