@@ -42,13 +42,14 @@ int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
 #if K_BLEND != 3 || K_CAND != 6
 #error "shade() is unrolled for K_BLEND = 3, K_CAND = 6"
 #endif
-void vote(int ci, vec3 pr, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen) {
-    if (ci < 0) return;
+int vote(int ci, vec3 pr, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen) {
+    if (ci < 0) return NO_VIEW;
     vec3 c;
     int st = rgbz_classify(ci, pr, tol, c);
     if (st == PASS) { acc += w * c; wpass += w; wseen += w; }
     else if (st == FREE) wseen += w;
     else if (st == UNSURE) wseen += UNSURE_WEIGHT * w;
+    return st;
 }
 
 // Fallback step: the first candidate that decides (PASS or FREE under "vote"; PASS under "any").
@@ -68,7 +69,12 @@ bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, ivec4 c03, ivec
     vec3 acc = vec3(0.0);
     float wpass = 0.0, wseen = 0.0;
     colour = vec3(0.0);
-    vote(c03.x, p0, w.x, tol, acc, wpass, wseen);
+    int st0 = vote(c03.x, p0, w.x, tol, acc, wpass, wseen);
+#if FALLBACK_RULE == 0
+    // Early out (exact): weights sum to 1, so when the best camera frees the point with
+    // weight w0, at most 1 - w0 can pass; drawing needs wpass >= ALPHA_VOTE (w0 + wpass).
+    if (st0 == FREE && (1.0 - w.x) * (1.0 - ALPHA_VOTE) < ALPHA_VOTE * w.x) return false;
+#endif
     vote(c03.y, p1, w.y, tol, acc, wpass, wseen);
     vote(c03.z, p2, w.z, tol, acc, wpass, wseen);
 #if FALLBACK_RULE == 0

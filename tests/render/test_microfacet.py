@@ -91,13 +91,27 @@ def test_eq2_by_hand():
 
 
 # ------------------------------------------------------------------ GPU vs twin
-def _twin(model, eye, level, spacing, rule="vote"):
+def _twin(model, eye, level, spacing, rule="vote", n_fallback=None):
     """The twin on the texels as the GPU stores them (RGBZ_DTYPE)."""
     lv = model.pyramid.levels[level]
     rgb = model.rgbz.rgb.astype(RGBZ_DTYPE).astype(np.float64)
     depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
     return mg.reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, rgb, depth,
-                               model.bounds, rule)
+                               model.bounds, rule, n_fallback)
+
+
+@pytest.mark.parametrize("rule,n_fallback", [("vote", 0), ("vote", 3), ("any", 1), ("any", 3)])
+def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
+    r = MicrofacetRenderer.from_model(gl_ctx, model, rule=rule, n_fallback=n_fallback)
+    try:
+        eye = scene.ring_cameras(12, phase_deg=19, elevation_deg=8)[3]
+        fr = r.render(eye, 4.0, level=2)
+        img, alive, _ = _twin(model, eye, 2, fr.spacing, rule, n_fallback)
+        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+        assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
+                            outlier_frac=TWIN_OUTLIER_FRAC, what=f"{rule}/{n_fallback} vs twin")
+    finally:
+        r.release()
 
 
 @pytest.mark.parametrize("mode", ["instanced", "geometry"])
