@@ -1,0 +1,38 @@
+#version 430
+// Composite of a captured object (RGB + z-depth) over the environment seen by the camera, with the
+// object's shadow ratio on the ground plane (METHODS §3, seed 004 Eq. 16-17), times the exposure.
+// Twin of render.composite.composite_reference. Image pixel (u, v) (OpenCV centres) of framebuffer
+// fragment: u = gl_FragCoord.x - 0.5, v = H - 0.5 - gl_FragCoord.y (read back with gl_rows_to_image).
+#include "shading_envmap.glsl"
+uniform sampler2D u_env;       // equirect, LINEAR, repeat_x
+uniform sampler2D u_rgb;       // object colour, row 0 = image row 0 (texelFetch)
+uniform sampler2D u_depth;     // object z-depth (R32F), 0 = empty
+uniform sampler2D u_ratio;     // shadow-ratio grid (LINEAR, clamp); see composite_shadow_frag.glsl
+uniform mat3 u_ray;            // world direction of pixel (u, v, 1): R^T K^-1
+uniform vec3 u_eye;            // camera centre (world)
+uniform int u_height;
+uniform int u_ground;          // 1: multiply the shadow ratio where the ray meets the ground
+uniform float u_plane_z;
+uniform vec2 u_grid_origin;
+uniform vec2 u_grid_size;      // world extent of the grid
+uniform float u_exposure;
+out vec4 o_col;
+
+void main() {
+    ivec2 px = ivec2(int(gl_FragCoord.x), u_height - 1 - int(gl_FragCoord.y));
+    float z = texelFetch(u_depth, px, 0).r;
+    vec3 col;
+    if (z > 0.0) {
+        col = texelFetch(u_rgb, px, 0).rgb;
+    } else {
+        vec3 d = u_ray * vec3(float(px.x), float(px.y), 1.0);
+        col = env_radiance(u_env, d);
+        if (u_ground == 1 && d.z < 0.0 && u_eye.z > u_plane_z) {
+            float t = (u_plane_z - u_eye.z) / d.z;
+            vec2 g = (u_eye.xy + t * d.xy - u_grid_origin) / u_grid_size;
+            if (all(greaterThanEqual(g, vec2(0.0))) && all(lessThanEqual(g, vec2(1.0))))
+                col *= texture(u_ratio, g).rgb;
+        }
+    }
+    o_col = vec4(u_exposure * col, 1.0);
+}
