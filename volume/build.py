@@ -4,7 +4,9 @@ Levels are fused coarse to fine (each level's pass 1 only near the coarser level
 see volume.fusion.carve_field) for every power of two from ``min_res`` to ``max_res``; Eq. 1
 is then evaluated from ``max_res`` down exactly as the paper's loop does, and the pyramid keeps
 the levels up to L_opt.  Each level's volume is computed the same way whatever the order, so
-the result equals the paper's top-down loop.
+the result equals the paper's top-down loop.  Spheres (level min(max_res, 64)), the mesh and
+the RGBz geometry depth (level max_res) use the finest fused volume: they describe the solid,
+while L_opt limits only the billboard levels.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from capture.scan import ScanSet
 from volume.fusion import FusionConfig, fuse_consensus, scan_maps
 from volume.grid import cube_for_bounds
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
-from volume.model import Model, SdfPyramid
+from volume.model import Model, SdfLevel, SdfPyramid
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
 from volume.spheres import fit_spheres
@@ -68,7 +70,7 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None):
     for L in cfg.lopt.resolutions:
         with stage(f"fuse {cfg.sdf} {L}^3"):
             f = fuse(scanset, origin, extent / L, L, cfg.fusion, maps, coarse=coarse)
-            frac[L] = discontinuity_fraction(f.values, f.voxel_size, cfg.lopt.alpha)
+            frac[L] = discontinuity_fraction(f.measured, f.voxel_size, cfg.lopt.alpha, f.measured_mask)
         fused[L] = coarse = f
     return origin, extent, fused, frac
 
@@ -87,9 +89,13 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     with stage("pyramid"):
         pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items()}, origin, extent, l_opt,
                                             keep_values=True)
-    finest = pyramid.levels[-1]
+    # spheres, mesh and RGBz depth describe the solid, not the billboard LOD: they use the
+    # finest fused level (<= SPHERE_LEVEL for spheres) even when Eq. 1 keeps coarser levels only
+    top = fused[max(fused)]
+    finest = SdfLevel(top.resolution, origin, top.voxel_size, np.zeros((0, 3), np.int32), top.values)
     with stage("spheres"):
-        sl = pyramid.level(min(l_opt, SPHERE_LEVEL))
+        fs = fused[min(max(fused), SPHERE_LEVEL)]
+        sl = SdfLevel(fs.resolution, origin, fs.voxel_size, np.zeros((0, 3), np.int32), fs.values)
         spheres, sphere_err = fit_spheres(sl, cfg.sphere_error)
     with stage("mesh"):
         verts, faces = marching_cubes(finest)
@@ -105,6 +111,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
                                 keep_values=False)
     params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
               "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "sphere_level": sl.resolution,
+              "mesh_level": finest.resolution,
               "eq1_fraction": {str(L): v for L, v in frac.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
             "scanset_metadata": _jsonable(scanset.metadata), **(provenance or {})}

@@ -226,6 +226,9 @@ class FusedSdf:
         seen: (L, L, L) uint8, scans in whose image the voxel projects.
         origin, voxel_size, resolution: the grid (see volume.grid).
         near_mask: (L, L, L) bool, voxels with at least one near sample (pass 1).
+        measured, measured_mask: the *measured* field Eq. 1 checks (volume.pyramid): at voxels
+            with a surface sample, the distance of the nearest-surface cluster of samples chosen
+            as in pass 2 but without the quorum (confirmed or not); elsewhere undefined.
     """
 
     values: np.ndarray
@@ -236,6 +239,8 @@ class FusedSdf:
     voxel_size: float
     resolution: int
     near_mask: np.ndarray
+    measured: np.ndarray | None = None
+    measured_mask: np.ndarray | None = None
 
 
 def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
@@ -364,7 +369,14 @@ def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: Fusio
     value = np.where(wsum > 0, (members * cw * d).sum(1) / np.where(wsum > 0, wsum, 1), 0.0)
     support = members.sum(1)
     has_c &= fr <= support  # more scans see through x than support it: not a surface
-    return has_c, value.astype(np.float32), support
+    # the same choice without the quorum: the unconfirmed measurement Eq. 1 looks at
+    key1 = np.where(ok, np.abs(d), np.inf)
+    c1 = np.argmin(key1, axis=1)
+    has1 = np.isfinite(key1[np.arange(M), c1])
+    mem1 = agree[np.arange(M), c1, :] & has1[:, None]
+    w1 = (mem1 * cw).sum(1)
+    value1 = np.where(w1 > 0, (mem1 * cw * d).sum(1) / np.where(w1 > 0, w1, 1), 0.0)
+    return has_c, value.astype(np.float32), support, has1, value1.astype(np.float32)
 
 
 def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray, w: float) -> np.ndarray:
@@ -409,12 +421,17 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     band = np.zeros(L ** 3, bool)
     bvals = np.zeros(L ** 3, np.float32)
     support = np.zeros(L ** 3, np.uint8)
+    meas = np.zeros(L ** 3, np.float32)
+    mmask = np.zeros(L ** 3, bool)
     xc = _centers_of(cand, origin, w, L)
     # the quorum drops only to the number of scans whose image contains x (a lone scan counts)
     n_obs = seen[cand].astype(np.int32)
     for s in range(0, len(cand), PASS2_CHUNK):
         sl = slice(s, s + PASS2_CHUNK)
-        has, val, sup = consensus_band(maps, xc[sl], trunc, cfg, w, n_obs[sl])
+        has, val, sup, has1, val1 = consensus_band(maps, xc[sl], trunc, cfg, w, n_obs[sl])
+        i1 = cand[sl][has1]
+        meas[i1] = val1[has1]
+        mmask[i1] = True
         idx = cand[sl][has]
         band[idx] = True
         bvals[idx] = np.clip(val[has], -trunc, trunc)
@@ -422,4 +439,4 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     shape = (L, L, L)
     values = complete_sdf(bvals.reshape(shape), band.reshape(shape), outside.reshape(shape), w)
     return FusedSdf(values, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
-                    (near > 0).reshape(shape))
+                    (near > 0).reshape(shape), meas.reshape(shape), mmask.reshape(shape))

@@ -5,6 +5,15 @@ more than alpha * w, stop at the first resolution L (from L_max halving down) wi
 N_i / L^3 <= t.  A true distance field is 1-Lipschitz (neighbours differ by at most w), so
 flagged voxels are where the fused distances cannot be trusted at that scale.
 
+Which volume Eq. 1 looks at.  The consensus fusion rejects samples the scans do not agree on
+and fills the gaps with an exact distance transform, so its output is smooth by construction
+and would hide exactly the inconsistency Eq. 1 is meant to detect (fur: every view sees the
+strands at a different depth).  Eq. 1 is therefore evaluated on the *measured* field
+(``FusedSdf.measured``: at every voxel with a surface sample, the nearest-surface cluster of
+samples, confirmed by a quorum or not), comparing only pairs of voxels that both have a
+measurement, and dividing by L^3 as the paper does.  For the TSDF peer the measured field is
+its own band.  The pyramid stores the consensus field.
+
 Surface voxels (METHODS §1.1 step 2): |signed distance| <= half a voxel diagonal.
 """
 

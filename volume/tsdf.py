@@ -60,4 +60,5 @@ def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg:
     band = (weight > 0) & (np.abs(tsdf) < np.float32(trunc) * np.float32(0.999))
     values = complete_sdf(np.where(band, tsdf, 0).astype(np.float32), band, outside, w)
     support = np.minimum(weight, 255).astype(np.uint8) * band
-    return FusedSdf(values, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band)
+    return FusedSdf(values, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band,
+                    np.where(band, tsdf, 0).astype(np.float32), band)
