@@ -53,7 +53,9 @@ class IcpConfig:
     """Depth gates (fractions of object size) of the successive projective ICP stages; () = off."""
     projective_iterations: int = 30
     """Gauss-Newton iterations per projective stage."""
-    color_scale_frac: float = 0.0
+    fine_candidates: int = 2
+    """How many of the ranked coarse results are fine-aligned per pair."""
+    color_scale_frac: float = 0.003
     """Photometric term of the projective stage: metres per unit luminance difference, as a
     fraction of object size (0 = geometry only).  Needed on symmetric shapes (the torus)."""
     robust: bool = True
@@ -89,6 +91,7 @@ class PairResult:
     method: str
     status: str
     correction_deg: float = float("nan")
+    color_rmse: float = float("nan")
 
 
 def _levels(cfg: IcpConfig, size: float) -> tuple[float, ...]:
@@ -146,21 +149,25 @@ def global_init(src, tgt, voxel: float, seed: int = 0) -> np.ndarray:
     return np.asarray(res.transformation)
 
 
-def classify(fitness: float, rmse: float, correction: tuple[float, float] | None, size: float) -> str:
-    """Status of a pair result against the thresholds of ``report.py``."""
+def classify(fitness: float, rmse: float, correction: tuple[float, float] | None, size: float,
+             color_rmse: float = float("nan")) -> str:
+    """Status of a pair result against the thresholds of ``report.py`` (``color_rmse`` is
+    checked when finite, i.e. when the colour term is on)."""
     if correction is not None and (correction[0] > R.MAX_CORRECTION_DEG or correction[1] > R.MAX_CORRECTION_FRAC * size):
         return "diverged"
     if fitness < R.MIN_FITNESS:
         return "low_fitness"
     if not math.isfinite(rmse) or rmse > R.MAX_RMSE_FRAC * size:
         return "high_rmse"
+    if math.isfinite(color_rmse) and color_rmse > R.MAX_COLOR_RMSE:
+        return "color_mismatch"
     return "ok"
 
 
 def fine_align(frame_i: PR.DepthFrame, frame_j: PR.DepthFrame, T: np.ndarray, cfg: IcpConfig,
-               size: float) -> tuple[np.ndarray, float, float, np.ndarray]:
+               size: float) -> tuple[np.ndarray, float, float, np.ndarray, float]:
     """Projective ICP stages (gates from ``cfg.projective_gates``):
-    (T, fitness, rmse, 6x6 information) at the last gate."""
+    (T, fitness, rmse, 6x6 information, colour RMSE) at the last gate."""
     gates = cfg.projective_gates or (1 / 150,)
     res = None
     for g in cfg.projective_gates:
@@ -169,7 +176,8 @@ def fine_align(frame_i: PR.DepthFrame, frame_j: PR.DepthFrame, T: np.ndarray, cf
         T = res.T
     if res is None:  # evaluation only
         res = PR.projective_icp(frame_j, frame_i, T, gates[-1] * size, 0, color_scale=cfg.color_scale_frac * size)
-    return T, res.fitness, res.rmse, res.information
+    crmse = res.color_rmse if cfg.color_scale_frac > 0 else float("nan")
+    return T, res.fitness, res.rmse, res.information, crmse
 
 
 @dataclass
@@ -195,24 +203,29 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
     if init is not None:
         # multi-start: the coarse levels widen the basin but can slide a good start away on
         # partial overlap; each start level is tried and the best accepted result is kept.
-        # Candidates are ranked by projective fitness at the widest gate (cheap: no iterations)
-        # and fine-aligned in that order until one is accepted.
+        # Starts (each coarse level, and the initial pose itself) are ranked by projective
+        # fitness at the widest gate (no iterations: cheap); the best ``fine_candidates`` are
+        # fine-aligned.  Among accepted results the lowest colour residual wins when the colour
+        # term is on (on a symmetric shape slid solutions fit the geometry equally well), else
+        # the highest fitness.
         gate0 = (cfg.projective_gates or (1 / 150,))[0] * size
         cands = []
-        for start in range(len(voxels)):
-            T = icp_refine(dj.pyramid, di.pyramid, init, voxels, cfg, start=start)
+        for start in range(len(voxels) + 1):
+            T = init if start == len(voxels) else icp_refine(dj.pyramid, di.pyramid, init, voxels, cfg, start=start)
             cands.append((PR.projective_icp(dj.frame, di.frame, T, gate0, 0).fitness, start, T))
         cands.sort(key=lambda c: -c[0])
-        best = None
-        for _, start, T in cands:
-            T, fit, rmse, info = fine_align(di.frame, dj.frame, T, cfg, size)
+        results = []
+        for _, start, T in cands[: cfg.fine_candidates]:
+            T, fit, rmse, info, crmse = fine_align(di.frame, dj.frame, T, cfg, size)
             corr = R.transform_delta(T, init, center_j)
-            r = PairResult(i, j, T, fit, rmse, info, "icp", classify(fit, rmse, corr, size), corr[0])
-            if best is None or r.fitness > best.fitness:
-                best = r
-            if r.status == "ok":
-                best = r
-                break
+            r = PairResult(i, j, T, fit, rmse, info, "icp", classify(fit, rmse, corr, size, crmse), corr[0])
+            r.color_rmse = crmse
+            results.append(r)
+        ok = [r for r in results if r.status == "ok"]
+        if ok and cfg.color_scale_frac > 0 and all(math.isfinite(r.color_rmse) for r in ok):
+            best = min(ok, key=lambda r: r.color_rmse)
+        else:
+            best = max(ok or results, key=lambda r: r.fitness)
         tried.append(best)
         if best.status == "ok":
             return best
@@ -220,9 +233,12 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
         gv = cfg.global_voxel_frac * size
         T0 = global_init(P.downsample(dj.pyramid[0], gv), P.downsample(di.pyramid[0], gv), gv, cfg.seed)
         T = icp_refine(dj.pyramid, di.pyramid, T0, voxels, cfg)
-        T, fit, rmse, info = fine_align(di.frame, dj.frame, T, cfg, size)
-        st = classify(fit, rmse, None, size)
-        tried.append(PairResult(i, j, T, fit, rmse, info, "fpfh+icp", st))
+        T, fit, rmse, info, crmse = fine_align(di.frame, dj.frame, T, cfg, size)
+        # with an initial guess, the global result must still agree with it within the
+        # correction limits (a symmetric object offers many perfect-fitting global solutions)
+        corr = R.transform_delta(T, init, center_j) if init is not None else None
+        st = classify(fit, rmse, corr, size, crmse)
+        tried.append(PairResult(i, j, T, fit, rmse, info, "fpfh+icp", st, corr[0] if corr else float("nan"), crmse))
         if st == "ok":
             return tried[-1]
     # none accepted: report the best attempt with its failure status
@@ -282,6 +298,42 @@ def edge_residual(e: PairResult, nodes: list[np.ndarray], center_j: np.ndarray) 
     """Disagreement of a measured pair transform with the optimised poses (degrees, metres)."""
     pred = invert_rigid(nodes[e.i]) @ nodes[e.j]
     return R.transform_delta(e.T, pred, center_j)
+
+
+def triangle_check(edges: list[PairResult], centers: list[np.ndarray], size: float) -> list[PairResult]:
+    """Loop-consistency over triangles before the pose graph: an accepted edge (i, j) whose
+    transform disagrees with a two-edge path i -> m -> j made of *better* edges (higher
+    fitness), and agrees with none, is returned as inconsistent.  On a symmetric object the
+    wide-baseline pairs slide along the symmetry with a perfect geometric fit; the short
+    pairs around them expose it."""
+    by = {}
+    for e in edges:
+        by[(e.i, e.j)] = e
+    def get(a, b):
+        if (a, b) in by:
+            return by[(a, b)].T, by[(a, b)].fitness
+        if (b, a) in by:
+            return invert_rigid(by[(b, a)].T), by[(b, a)].fitness
+        return None, 0.0
+    nodes = sorted({e.i for e in edges} | {e.j for e in edges})
+    bad = []
+    for e in edges:
+        agree = disagree = 0
+        for m in nodes:
+            if m in (e.i, e.j):
+                continue
+            T1, f1 = get(e.i, m)
+            T2, f2 = get(m, e.j)
+            if T1 is None or T2 is None:
+                continue
+            rot, disp = R.transform_delta(e.T, T1 @ T2, centers[e.j])
+            if rot <= R.MAX_TRIANGLE_DEG and disp <= R.MAX_TRIANGLE_FRAC * size:
+                agree += 1
+            elif min(f1, f2) > e.fitness:
+                disagree += 1
+        if disagree and not agree:
+            bad.append(e)
+    return bad
 
 
 def _components(n: int, edges: list[PairResult]) -> list[set[int]]:
@@ -348,6 +400,9 @@ def register_icp(scanset: ScanSet, cfg: IcpConfig = IcpConfig(), use_init: bool 
 
     t2 = time.perf_counter()
     accepted = [r for r in results if r.status == "ok"]
+    for e in triangle_check(accepted, centers, size):
+        e.status = "inconsistent"
+    accepted = [r for r in results if r.status == "ok"]
     # initial node poses: nominal, or chained along accepted odometry edges
     if use_init:
         nodes = [invert_rigid(p) for p in poses_in]
@@ -389,9 +444,9 @@ def register_icp(scanset: ScanSet, cfg: IcpConfig = IcpConfig(), use_init: bool 
             # refine: fine ICP from optimised relative poses
             for e in edges:
                 init = invert_rigid(nodes[e.i]) @ nodes[e.j]
-                T, fit, rmse, info = fine_align(data[e.i].frame, data[e.j].frame, init, cfg, size)
+                T, fit, rmse, info, crmse = fine_align(data[e.i].frame, data[e.j].frame, init, cfg, size)
                 corr = R.transform_delta(T, init, centers[e.j])
-                if classify(fit, rmse, corr, size) == "ok" and corr[0] < R.MAX_EDGE_RESIDUAL_DEG * 2:
+                if classify(fit, rmse, corr, size, crmse) == "ok" and corr[0] < R.MAX_EDGE_RESIDUAL_DEG * 2:
                     e.T, e.fitness, e.rmse, e.information = T, fit, rmse, info
     secs["pose_graph"] = time.perf_counter() - t2
 

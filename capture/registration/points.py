@@ -35,6 +35,8 @@ class CloudConfig:
     """Use every ``stride``-th pixel in x and y (1 = all)."""
     edge_frac: float = EDGE_FRAC
     """Drop pixels whose depth jumps by more than this fraction of depth to a 4-neighbour (<= 0: keep all)."""
+    keep_silhouettes: bool = True
+    """Keep pixels next to "no data" (thin needles / strands); False drops them (smooth objects)."""
     min_points: int = 30
     """Fewer valid points than this is an error naming the scan."""
 
@@ -47,8 +49,11 @@ class CloudError(ValueError):
     """A scan cannot be turned into a usable point cloud; the message names it."""
 
 
-def edge_mask(depth: np.ndarray, edge_frac: float) -> np.ndarray:
-    """(H, W) bool: valid pixels whose 4-neighbours are all valid and within ``edge_frac * depth``."""
+def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True) -> np.ndarray:
+    """(H, W) bool: valid pixels with no *valid* 4-neighbour more than ``edge_frac * depth`` away
+    in depth (mixed pixels at depth discontinuities).  With ``keep_silhouettes`` pixels next to
+    "no data" are kept, so one-pixel needles and strands in front of empty space survive;
+    without, they are dropped too (grazing silhouette pixels of smooth objects)."""
     d = np.asarray(depth, dtype=np.float64)
     valid = np.isfinite(d) & (d > 0)
     if edge_frac <= 0:
@@ -64,8 +69,10 @@ def edge_mask(depth: np.ndarray, edge_frac: float) -> np.ndarray:
             else:
                 nb[:, 0 if shift == 1 else -1] = np.nan
             with np.errstate(invalid="ignore"):
-                good = np.abs(nb - dz) <= edge_frac * dz
-            ok &= good
+                jump = np.abs(nb - dz) > edge_frac * dz
+            ok &= ~jump
+            if not keep_silhouettes:
+                ok &= np.isfinite(nb)
     return ok
 
 
@@ -82,7 +89,7 @@ def scan_points(scan: Scan, config: CloudConfig = CloudConfig()) -> tuple[np.nda
         colors: (N, 3) float64 linear RGB in [0, 1] (clipped).
     """
     depth = np.array(scan.depth, dtype=np.float32)
-    keep = edge_mask(depth, config.edge_frac)
+    keep = edge_mask(depth, config.edge_frac, config.keep_silhouettes)
     if config.stride > 1:
         sub = np.zeros_like(keep)
         sub[:: config.stride, :: config.stride] = True

@@ -32,6 +32,10 @@ from capture.scan import Scan
 NORMAL_COS_MIN = 0.5
 #: Huber threshold of the point-to-plane residual, as a fraction of the depth gate.
 HUBER_FRAC = 0.3
+#: A neighbour further than this many ``edge_frac * depth`` in depth is not used for a normal.
+NORMAL_JUMP_FACTOR = 1.0
+#: The colour term uses pixels this many pixels inside the measured region.
+COLOR_ERODE_PX = 2
 #: Huber threshold of the colour residual (chromaticity units).
 COLOR_HUBER = 0.05
 #: Regulariser of the chromaticity denominator (linear colour units): dark pixels carry no hue.
@@ -54,6 +58,8 @@ class DepthFrame:
         camera: intrinsics (pose unused).
         intensity: (H, W) float64 red-blue chromaticity of the colour image (:func:`chroma`).
         grad: (H, W, 2) float64 d intensity / d (u, v) (central differences).
+        color_valid: (H, W) bool pixels whose 3x3 neighbourhood is all measured: colour there is
+            not blended with the background (anti-aliased silhouettes) and its gradient is clean.
     """
 
     points: np.ndarray
@@ -62,25 +68,43 @@ class DepthFrame:
     camera: Camera
     intensity: np.ndarray
     grad: np.ndarray
+    color_valid: np.ndarray
 
 
 def depth_frame(scan: Scan, cfg: P.CloudConfig = P.CloudConfig()) -> DepthFrame:
     """Points and central-difference normals of a scan's depth map (edges removed)."""
     cam = P.camera_frame(scan.camera)
     d = np.asarray(scan.depth, dtype=np.float64)
-    ok = P.edge_mask(d, cfg.edge_frac)
+    ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes)
     rays = cam.pixel_rays(cam.pixel_grid())
     pts = rays * np.where(ok, d, 0.0)[..., None]
-    # central differences need both neighbours valid in each direction
-    du = np.zeros_like(pts)
-    dv = np.zeros_like(pts)
-    du[:, 1:-1] = pts[:, 2:] - pts[:, :-2]
-    dv[1:-1] = pts[2:] - pts[:-2]
-    okn = ok.copy()
-    okn[:, 1:-1] &= ok[:, 2:] & ok[:, :-2]
-    okn[1:-1] &= ok[2:] & ok[:-2]
-    okn[:, [0, -1]] = False
-    okn[[0, -1], :] = False
+    # per axis: central difference where both neighbours are usable, else the one-sided
+    # difference to the usable neighbour (1-2 pixel wide needles and strands keep a normal)
+    def diff(axis: int) -> tuple[np.ndarray, np.ndarray]:
+        fwd = np.zeros_like(pts)
+        bwd = np.zeros_like(pts)
+        okf = np.zeros_like(ok)
+        okb = np.zeros_like(ok)
+        if axis == 1:
+            fwd[:, :-1] = pts[:, 1:] - pts[:, :-1]
+            okf[:, :-1] = ok[:, 1:] & ok[:, :-1]
+            bwd[:, 1:] = pts[:, 1:] - pts[:, :-1]
+            okb[:, 1:] = ok[:, 1:] & ok[:, :-1]
+        else:
+            fwd[:-1] = pts[1:] - pts[:-1]
+            okf[:-1] = ok[1:] & ok[:-1]
+            bwd[1:] = pts[1:] - pts[:-1]
+            okb[1:] = ok[1:] & ok[:-1]
+        if cfg.edge_frac > 0:  # a jump across a depth edge is not a tangent
+            lim = (NORMAL_JUMP_FACTOR * cfg.edge_frac * d)
+            okf &= np.abs(fwd[..., 2]) <= lim
+            okb &= np.abs(bwd[..., 2]) <= lim
+        out = np.where((okf & okb)[..., None], 0.5 * (fwd + bwd), np.where(okf[..., None], fwd, bwd))
+        return out, okf | okb
+
+    du, oku = diff(1)
+    dv, okv = diff(0)
+    okn = ok & oku & okv
     n = np.cross(du, dv)
     norm = np.linalg.norm(n, axis=-1)
     okn &= norm > 0
@@ -89,7 +113,11 @@ def depth_frame(scan: Scan, cfg: P.CloudConfig = P.CloudConfig()) -> DepthFrame:
     n[flip] *= -1
     lum = chroma(scan.linear_rgb)
     gv, gu = np.gradient(lum)
-    return DepthFrame(pts, n, okn, cam, lum, np.stack([gu, gv], axis=-1))
+    from scipy.ndimage import binary_erosion
+
+    meas = d > 0
+    cval = binary_erosion(meas, structure=np.ones((3, 3), bool), iterations=COLOR_ERODE_PX, border_value=0)
+    return DepthFrame(pts, n, okn, cam, lum, np.stack([gu, gv], axis=-1), cval)
 
 
 def chroma(rgb: np.ndarray) -> np.ndarray:
@@ -130,6 +158,7 @@ class ProjectiveResult:
     inliers: int
     iterations: int
     information: np.ndarray  # (6, 6) J^T W J of the last iteration (rotation, translation; target frame)
+    color_rmse: float = float("nan")  # RMS chromaticity difference over colour-valid correspondences
 
 
 def associate(src_pts: np.ndarray, src_nrm: np.ndarray, tgt: DepthFrame, T: np.ndarray, gate: float):
@@ -177,6 +206,7 @@ def projective_icp(src: DepthFrame, tgt: DepthFrame, T0: np.ndarray, gate: float
     sp = src.points[::stride, ::stride][m]
     sn = src.normals[::stride, ::stride][m]
     si = src.intensity[::stride, ::stride][m]
+    sc = src.color_valid[::stride, ::stride][m]
     K = tgt.camera.K
     T = np.asarray(T0, dtype=np.float64).copy()
     huber = HUBER_FRAC * gate
@@ -187,20 +217,25 @@ def projective_icp(src: DepthFrame, tgt: DepthFrame, T0: np.ndarray, gate: float
         if good.sum() < 6:
             break
         q, t, n, uv = q[good], t[good], n[good], uv[good]
+        H, W = tgt.color_valid.shape
+        cu = np.clip(np.rint(uv[:, 0]).astype(np.int64), 0, W - 1)
+        cv = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, H - 1)
+        cok = sc[good] & tgt.color_valid[cv, cu]
         r = np.sum(n * (q - t), axis=1)
         w = np.where(np.abs(r) <= huber, 1.0, huber / np.maximum(np.abs(r), 1e-300))
         # left perturbation: q' = q + w x q + dt  ->  d r = (q x n) . w + n . dt
         J = np.concatenate([np.cross(q, n), n], axis=1)
         A = (J * w[:, None]).T @ J
         b = -(J * w[:, None]).T @ r
-        if color_scale > 0:
-            rc = _bilinear(tgt.intensity, uv[:, 0], uv[:, 1]) - si[good]
-            g = _bilinear(tgt.grad, uv[:, 0], uv[:, 1])
-            z = q[:, 2]
+        if color_scale > 0 and cok.sum() >= 6:
+            qc, uvc = q[cok], uv[cok]
+            rc = _bilinear(tgt.intensity, uvc[:, 0], uvc[:, 1]) - si[good][cok]
+            g = _bilinear(tgt.grad, uvc[:, 0], uvc[:, 1])
+            z = qc[:, 2]
             # a = dI/dq = g^T d(pi)/dq  (skew term of K ignored in the Jacobian)
             a = np.stack([g[:, 0] * K[0, 0] / z, g[:, 1] * K[1, 1] / z,
-                          -(g[:, 0] * K[0, 0] * q[:, 0] + g[:, 1] * K[1, 1] * q[:, 1]) / z**2], axis=1)
-            Jc = np.concatenate([np.cross(q, a), a], axis=1) * color_scale
+                          -(g[:, 0] * K[0, 0] * qc[:, 0] + g[:, 1] * K[1, 1] * qc[:, 1]) / z**2], axis=1)
+            Jc = np.concatenate([np.cross(qc, a), a], axis=1) * color_scale
             rc = rc * color_scale
             hc = COLOR_HUBER * color_scale
             wc = np.where(np.abs(rc) <= hc, 1.0, hc / np.maximum(np.abs(rc), 1e-300))
@@ -222,7 +257,16 @@ def projective_icp(src: DepthFrame, tgt: DepthFrame, T0: np.ndarray, gate: float
         T = D @ T
         if ang < CONVERGED_ROT and np.linalg.norm(x[3:]) < CONVERGED_TRANS:
             break
-    good, q, t, n, _ = associate(sp, sn, tgt, T, gate)
+    good, q, t, n, uv = associate(sp, sn, tgt, T, gate)
     r = np.sum(n[good] * (q[good] - t[good]), axis=1)
     rmse = float(np.sqrt(np.mean(r**2))) if len(r) else float("inf")
-    return ProjectiveResult(T, float(good.sum()) / max(len(sp), 1), rmse, int(good.sum()), it, info)
+    H, W = tgt.color_valid.shape
+    uvg = uv[good]
+    cu = np.clip(np.rint(uvg[:, 0]).astype(np.int64), 0, W - 1)
+    cv = np.clip(np.rint(uvg[:, 1]).astype(np.int64), 0, H - 1)
+    cok = sc[good] & tgt.color_valid[cv, cu]
+    crmse = float("nan")
+    if cok.sum() > 0:
+        rc = _bilinear(tgt.intensity, uvg[cok, 0], uvg[cok, 1]) - si[good][cok]
+        crmse = float(np.sqrt(np.mean(np.minimum(np.abs(rc), 3 * COLOR_HUBER) ** 2)))
+    return ProjectiveResult(T, float(good.sum()) / max(len(sp), 1), rmse, int(good.sum()), it, info, crmse)

@@ -34,6 +34,17 @@ MAX_EDGE_RESIDUAL_DEG = 1.0
 #: ... or this fraction of object size at the object centre is inconsistent and is removed.
 MAX_EDGE_RESIDUAL_FRAC = 0.01
 
+#: Maximum RMS chromaticity difference (projective/chroma in ``projective.py``) of an accepted
+#: pair when the colour term is on.  Measured on the glossy synthetic torus: correct pairs
+#: 0.03-0.06, pairs slid along its symmetry 0.10-0.13.
+MAX_COLOR_RMSE = 0.08
+#: Before the pose graph, an edge that disagrees by more than this (degrees) ...
+MAX_TRIANGLE_DEG = 3.0
+#: ... or this fraction of object size with every two-edge path through better-fitting edges
+#: (and agrees with none) is inconsistent.  Looser than the edge residual: two measured
+#: edges add their errors.
+MAX_TRIANGLE_FRAC = 0.02
+
 
 def rotation_angle_deg(R: np.ndarray) -> float:
     """Angle (degrees) of a (3, 3) rotation matrix."""
@@ -89,7 +100,7 @@ class PairRecord:
     source: str
     target: str
     method: str
-    status: str  # "ok", "low_fitness", "high_rmse", "diverged", "inconsistent", "no_result"
+    status: str  # "ok", "low_fitness", "high_rmse", "color_mismatch", "diverged", "inconsistent"
     fitness: float = 0.0
     inlier_rmse_m: float = float("nan")
     correction_deg: float = float("nan")
@@ -155,4 +166,7 @@ def thresholds() -> dict:
         "MAX_CORRECTION_FRAC": MAX_CORRECTION_FRAC,
         "MAX_EDGE_RESIDUAL_DEG": MAX_EDGE_RESIDUAL_DEG,
         "MAX_EDGE_RESIDUAL_FRAC": MAX_EDGE_RESIDUAL_FRAC,
+        "MAX_TRIANGLE_DEG": MAX_TRIANGLE_DEG,
+        "MAX_COLOR_RMSE": MAX_COLOR_RMSE,
+        "MAX_TRIANGLE_FRAC": MAX_TRIANGLE_FRAC,
     }

@@ -29,7 +29,7 @@ def test_edge_mask_drops_depth_steps():
     m = P.edge_mask(d, 0.02)
     assert not m[:, 3].any() and not m[:, 4].any()
     assert m[2, 1] and m[2, 6]
-    assert not m[0, 0] and not m[0, 1] and not m[1, 0]  # the hole and its neighbours
+    assert not m[0, 0] and m[0, 1] and m[1, 0]  # the hole is invalid, its neighbours are kept
 
 
 def test_perturbation_has_exact_magnitude():
