@@ -5,7 +5,9 @@
 - irradiance: exact irradiance table (<= 1% diffuse; GLSL twin env_irradiance in shading_envmap.glsl)
 - lights: dominant light regions (directional sources) and the map without them
 - brdf: energy-preserving Blinn-Phong (GLSL twin shading_brdf.glsl)
-- sg, sg_fit: spherical Gaussians, f_h, BRDF lobes, environment fit (GLSL twin shading_sg.glsl)
+- sg, sg_fit, sg_env: spherical Gaussians, f_h, BRDF lobes, environment fit, prefiltered
+  Gamma(p, lambda) pyramid (GLSL twin shading_sg.glsl)
+- projections: geodesic domes, cube maps, fisheye, mirror ball
 - msem: multi-scale environment map (GLSL twin shading_msem.glsl)
 - ssdf: SSDF visibility from spheres + ground plane, ray-cast reference (GLSL twin shading_ssdf.glsl)
 - glare: energy-preserving glare streaks (shading_glare_*.glsl)

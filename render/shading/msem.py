@@ -103,20 +103,30 @@ def _shell_height(lam: float, src_h: int) -> int:
 def convolve_phong(src: EnvMap, lam: float, th: float = 0.0) -> np.ndarray:
     """(h, 2h, 3) the normalised cos^lam convolution of ``src`` at its own pixel centres, weights
     below ``th`` of the peak dropped (FFT over azimuth, band of source rows)."""
+    # angular reach of the lobe: cos^lam(alpha) = th; the hemisphere gate caps it at pi/2
+    if th > 0 and lam > 0:
+        alpha = min(float(np.arccos(np.clip(th ** (1.0 / lam), -1.0, 1.0))), np.pi / 2)
+        cos_min = np.cos(alpha)
+    else:
+        alpha, cos_min = np.pi / 2, 0.0
+
+    def kernel(c):
+        k = _phong_weights(c, lam)
+        return np.where(c >= cos_min, k, 0.0) if cos_min > 0 else k
+
+    return convolve_zonal(src, kernel, alpha, normalise=True)
+
+
+def convolve_zonal(src: EnvMap, kernel, reach: float, normalise: bool) -> np.ndarray:
+    """(H, W, 3) sum_w L(w) kernel(x.w) Omega(w) at every pixel centre x of ``src`` (divided by
+    sum_w kernel Omega when ``normalise``). ``kernel`` maps cosines to weights and must vanish
+    beyond the angle ``reach``. Rotation about +z is a column shift, so each output row is a sum
+    over a band of source rows of circular cross-correlations (real FFTs)."""
     H, W = src.height, src.width
     th_c = np.pi * (np.arange(H) + 0.5) / H
     om = pixel_solid_angles(H)[:, 0]
-    # angular reach of the lobe: cos^lam(alpha) = th; the hemisphere gate caps it at pi/2
-    if th > 0 and lam > 0:
-        alpha = float(np.arccos(np.clip(th ** (1.0 / lam), -1.0, 1.0)))
-    else:
-        alpha = np.pi / 2
-    alpha = min(alpha, np.pi / 2)
-    band = int(min(H - 1, np.ceil(alpha / (np.pi / H)) + 1))
-    cos_min = np.cos(alpha) if th > 0 and lam > 0 else 0.0
-    # azimuth offsets: only |dphi| <= reach are non-zero for rows away from the poles
-    dphi = np.arange(W) * (2 * np.pi / W)
-    cos_d = np.cos(dphi)
+    band = int(min(H - 1, np.ceil(min(reach, np.pi) / (np.pi / H)) + 1))
+    cos_d = np.cos(np.arange(W) * (2 * np.pi / W))
     FL = np.fft.rfft(src.data.astype(np.float64), axis=1)  # (H, W/2+1, 3)
     out = np.empty((H, W, 3))
     offs = np.arange(-band, band + 1)
@@ -127,15 +137,13 @@ def convolve_phong(src: EnvMap, lam: float, th: float = 0.0) -> np.ndarray:
         sr = np.clip(srows, 0, H - 1)
         a = np.cos(th_c[rows])[:, None] * np.cos(th_c[sr])
         b = np.sin(th_c[rows])[:, None] * np.sin(th_c[sr])
-        c = a[..., None] + b[..., None] * cos_d  # (R, B, W)
-        k = _phong_weights(c, lam)
-        if cos_min > 0:
-            k = np.where(c >= cos_min, k, 0.0)
-        k *= (om[sr] * valid)[..., None]
+        k = kernel(a[..., None] + b[..., None] * cos_d)  # (R, B, W)
+        k = k * (om[sr] * valid)[..., None]
         FK = np.fft.rfft(k, axis=-1)  # (R, B, W/2+1)
-        num = np.einsum("rbf,rbfc->rfc", np.conj(FK), FL[sr])
-        norm = FK[..., 0].real.sum(1)  # sum of weights per output row
-        out[rows] = np.fft.irfft(num, n=W, axis=1) / norm[:, None, None]
+        num = np.fft.irfft(np.einsum("rbf,rbfc->rfc", np.conj(FK), FL[sr]), n=W, axis=1)
+        if normalise:
+            num /= FK[..., 0].real.sum(1)[:, None, None]  # sum of weights per output row
+        out[rows] = num
     return out
 
 
