@@ -170,6 +170,8 @@ def render_vertex_colour(ctx, model, eye: Camera) -> MeshFrame:
     with MeshRasterizer(ctx) as r:
         r.set_mesh(RasterMesh(model.mesh_vertices, model.mesh_faces, cols))
         t0 = time.perf_counter()
+        c0 = time.process_time()
         res = r.render(eye)
         ms = (time.perf_counter() - t0) * 1e3
-    return MeshFrame(res.color, res.mask, ms, int(len(model.mesh_faces)))
+        cpu_ms = (time.process_time() - c0) * 1e3
+    return MeshFrame(res.color, res.mask, ms, int(len(model.mesh_faces)), cpu_ms)
