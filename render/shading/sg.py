@@ -284,6 +284,14 @@ def cook_torrance_ndf_sg(normal, m):
     return _unit(normal), 2.0 / m**2, np.ones_like(m)
 
 
+def ward_ndf_sg(normal, alpha):
+    """Isotropic Ward D(h) = exp(-tan^2(theta_h) / alpha^2) / (pi alpha^2 cos^3(theta_h)) as one
+    SG in the half vector: tan^2 = (1 - c^2) / c^2 ~ 2 (1 - c) near c = 1, so lambda = 2 / alpha^2,
+    mu = 1 / (pi alpha^2) (the peak). Good for small alpha (tested), crude beyond ~0.3."""
+    a = np.asarray(alpha, np.float64)
+    return _unit(normal), 2.0 / a**2, 1.0 / (np.pi * a**2)
+
+
 def warp_ndf_sg(axis_d, lam_d, mu_d, out_dir):
     """Warp an NDF SG from the half-vector domain to the incident domain for view ``out_dir``
     (004 Eq. 36-38): p_W = 2 (o.p_D) p_D - o, lam_W = lam_D / (4 |p_D.o|), mu_W = mu_D."""

@@ -139,6 +139,24 @@ def test_sg_irradiance_of_one_lobe_vs_numeric():
     assert np.all(np.isfinite(got))
 
 
+def test_ward_and_cook_torrance_lobes():
+    from render.shading.sg import cook_torrance_ndf_sg, ward_ndf_sg
+
+    n = np.array([0, 0, 1.0])
+    th = np.linspace(0, 0.25, 50)
+    h = np.stack([np.sin(th), 0 * th, np.cos(th)], 1)
+    for a in (0.05, 0.1, 0.2):
+        c = np.cos(th)
+        ward = np.exp(-np.tan(th) ** 2 / a**2) / (np.pi * a**2 * c**3)
+        ax, lam, mu = ward_ndf_sg(n, a)
+        approx = sg_eval(h, ax, lam, mu)
+        # relative to the peak, within the lobe (ward > 1% of peak)
+        k = ward > 0.01 * ward[0]
+        assert np.abs(approx[k] - ward[k]).max() < 0.1 * ward[0]
+        ax, lam, mu = cook_torrance_ndf_sg(n, a)
+        np.testing.assert_allclose(lam, 2 / a**2)
+
+
 def test_warp_ndf():
     n = np.array([0, 0, 1.0])
     o = np.array([np.sin(0.4), 0, np.cos(0.4)])
