@@ -7,11 +7,14 @@ tests can compare the GPU output with an obviously-correct reference:
   level from the screen-space tolerance E (Eq. 8-11).  These run on the CPU once per frame
   and reach the GPU as uniforms.
 * :func:`slice_distances`: slices perpendicular to the ray eye -> voxel centre, at distances
-  n*l from the eye, only where they intersect the voxel, at least one (METHODS §1.2).
+  n*l from the eye, only where their clip slab meets the voxel, at least one (METHODS §1.2);
+  :func:`slice_half_extents`: the quad that covers the voxel seen from the eye.
 * :func:`select_cameras`: per voxel, input cameras in increasing angle phi whose image holds
   the voxel's footprint; the nearest ``K_BLEND`` are blended with unstructured-lumigraph
   weights (Buehler et al. 2001), the next ones are per-fragment fallbacks (METHODS §1.3).
-* :func:`eq2_pass`: the RGBz depth clip |d - D| < l/2 (Eq. 2, METHODS §1.4).
+* :func:`eq2_pass`: the RGBz depth clip |d - D| < l/2 (Eq. 2, METHODS §1.4);
+  :func:`classify` / :func:`shade_fragments`: why a camera rejects (occluded, saw through,
+  unsure), the weighted vote of the blend cameras and the per-fragment fallback.
 * :func:`reference_render`: a brute-force ray caster of the slices (slow; small scenes only)
   that reproduces the whole GPU frame.
 
