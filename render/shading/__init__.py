@@ -8,7 +8,8 @@
 - sg, sg_fit, sg_env: spherical Gaussians, f_h, BRDF lobes, environment fit, prefiltered
   Gamma(p, lambda) pyramid (GLSL twin shading_sg.glsl)
 - projections: geodesic domes, cube maps, fisheye, mirror ball
-- msem: multi-scale environment map (GLSL twin shading_msem.glsl)
+- msem, msem_video: multi-scale environment map (GLSL twin shading_msem.glsl), per-frame
+  build + streaming into one 3-D texture
 - ssdf: SSDF visibility from spheres + ground plane, ray-cast reference (GLSL twin shading_ssdf.glsl)
 - glare: energy-preserving glare streaks (shading_glare_*.glsl)
 """
