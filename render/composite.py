@@ -458,30 +458,30 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
     return tonemap(hdr, 1.0, tone, white).astype(np.float32)
 
 
-def apply_glare_gl(ctx, hdr, display_max: float, spec=None, config=None, mask=None, stats: dict | None = None):
+def apply_glare_gl(ctx, hdr, display_max: float, spec=None, config=None, mask=None, stats: dict | None = None,
+                   supersample: int | None = None):
     """Energy-preserving glare on an exposed HDR image (H, W, 3): the excess of the pixels above
-    ``display_max`` is removed and redrawn as streaks by render.shading.glare's GlareRenderer
-    (n per pixel from ``spec`` (H, W, 2) or the default). Returns float64 (H, W, 3)."""
+    ``display_max`` (render.shading.glare_maps.glare_sources) is removed and redrawn as streak pairs
+    (make_streaks) by render.glare.GlareLayer; n per pixel from ``spec`` (H, W, 2) or
+    GLARE_DEFAULT_N. config: render.shading.glare.GlareConfig. Returns float64 (H, W, 3)."""
     import time
 
-    from render.shading.glare import GlareConfig, GlareRenderer, streak_triangles
-    from render.shading.glare_maps import glare_sources, remove_excess
+    from render.glare import GLARE_SUPERSAMPLE, GlareLayer
+    from render.shading.glare import GlareConfig
+    from render.shading.glare_maps import glare_sources, make_streaks, remove_excess
 
     cfg = config if config is not None else GlareConfig(display_max=display_max)
     H, W = hdr.shape[:2]
     t0 = time.perf_counter()
     src = glare_sources(hdr, display_max, mask=mask, spec=spec, default_n=GLARE_DEFAULT_N)
-    pos, col = streak_triangles(src.centres, src.excess, src.intensity, src.n, cfg)
-    r = GlareRenderer(ctx, W, H)
-    try:
-        streaks = r.render(pos, col)
-    finally:
-        r.release()
+    streaks = make_streaks(src, cfg)
+    with GlareLayer(ctx, W, H, GLARE_SUPERSAMPLE if supersample is None else supersample) as layer:
+        light = layer.render(streaks)
     if stats is not None:
         stats.update(glare_ms=1e3 * (time.perf_counter() - t0), bright_pixels=len(src.centres),
-                     streak_pairs=len(pos) // 12, glare_excess=src.excess.sum(0).tolist(),
-                     glare_drawn=streaks.sum((0, 1)).astype(float).tolist())
-    return remove_excess(hdr, src) + streaks
+                     streak_pairs=len(streaks), glare_excess=src.excess.sum(0).tolist(),
+                     glare_drawn=light.sum((0, 1)).astype(float).tolist())
+    return remove_excess(hdr, src) + light
 
 
 #: Blinn-Phong exponent for the streak shape where no specular-parameter map is given.

@@ -13,10 +13,18 @@ This module adds what compositing needs:
 * *light-reflection map* (:func:`light_reflection_map`): the sources mirrored by the surface with
   the energy-preserving lobe of Eq. 4, ``sum_j k_s E_j (n + 2) / (8 pi) cos^n(N.H_j)`` for
   N.L_j > 0 (render.shading.brdf).
-* :func:`glare_sources`: bright pixels of a display-scaled image -> (centres, excess, intensity,
-  n) in the pixel convention of ``render.shading.glare`` (pixel centres at +0.5, y down).
-* :func:`rasterize_triangles_reference`: per-pixel numpy twin of the GL streak pass (triangles
-  with linearly interpolated vertex colours sampled at pixel centres, summed = additive blend).
+* :func:`glare_sources`: bright pixels of a display-scaled image (OpenCV pixel centres).
+* :func:`make_streaks`: the streak pairs of the bright pixels as parameters (centre, axis,
+  half-length L, width W, centre colour c) for the instanced GL fans of ``render/glare.py``;
+  shape from render.shading.glare (``streak_shape`` Eq. 7-12, ``streak_directions``,
+  ``eyelash_factor``). A pair is a rhombus with half-diagonals L (along) and W / 2 (across),
+  value ``c max(0, 1 - |s| / L - 2 |t| / W)`` (the fan of 4 triangles, centre c, rim 0), holding
+  c L W / 3; c = 3 e / (L W) for its share e of the pixel's excess.
+  Widths below MIN_STREAK_WIDTH are raised to it (energy kept through c): sampled at pixel
+  centres, sub-pixel fans put the whole peak c on the centre pixel (measured 4x too much light
+  for W ~ 0.2 px), so the GL pass also supersamples (render/glare.py).
+* :func:`rasterize_streaks_reference`: numpy twin of the GL pass (tent at the sub-sample
+  centres, box average), and :func:`streak_energy_on_screen` (analytic light inside the window).
 """
 
 from __future__ import annotations
@@ -35,6 +43,8 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])
 LIGHT_SOURCE_THRESHOLD = 40.0
 #: Height of the resampled map the sources are listed from (power preserving).
 LIGHT_SOURCE_HEIGHT = 128
+#: Narrowest streak pair drawn (pixels); see the module doc.
+MIN_STREAK_WIDTH = 1.0
 #: Most sources kept (brightest first, by irradiance).
 MAX_LIGHT_SOURCES = 256
 
@@ -109,9 +119,9 @@ def light_reflection_map(normals, view_dirs, spec, sources: LightSources) -> np.
 
 
 class GlareSources(NamedTuple):
-    """Bright pixels in the convention of render.shading.glare: centres (N, 2) (x + 0.5, y + 0.5)
-    pixels, y down; excess (N, 3) light moved into the streaks; intensity (N,) peak luminance
-    (display units); n (N,) Blinn-Phong exponents."""
+    """Bright pixels: centres (N, 2) OpenCV pixel centres (u = column, v = row, integers);
+    excess (N, 3) light moved into the streaks; intensity (N,) peak luminance (display units);
+    n (N,) Blinn-Phong exponents."""
 
     centres: np.ndarray
     excess: np.ndarray
@@ -129,42 +139,104 @@ def glare_sources(image, display_max: float = 1.0, mask=None, spec=None, default
     if mask is not None:
         img = np.where(np.asarray(mask, bool)[..., None], img, 0.0)
     c, e, inten = bright_pixels(img, display_max)
-    ij = (c - 0.5).astype(np.int64)
+    ij = np.rint(c - 0.5).astype(np.int64)  # bright_pixels puts centres at +0.5
     n = np.full(len(c), float(default_n)) if spec is None else np.asarray(spec, np.float64)[ij[:, 1], ij[:, 0], 1]
-    return GlareSources(c, e, inten * display_max, n)
+    return GlareSources(ij.astype(np.float64), e, inten * display_max, n)
 
 
 def remove_excess(image, src: GlareSources) -> np.ndarray:
     """float64 copy of ``image`` with each source pixel's excess taken out."""
     out = np.array(image, np.float64)
-    ij = (src.centres - 0.5).astype(np.int64)
+    ij = np.rint(src.centres).astype(np.int64)
     out[ij[:, 1], ij[:, 0]] -= src.excess
     return out
 
 
-def rasterize_triangles_reference(pos, col, width: int, height: int) -> np.ndarray:
-    """(H, W, 3) float64: every triangle of (T*3, 2) positions (pixels, y down, pixel (x, y)
-    sampled at (x + 0.5, y + 0.5)) with (T*3, 3) vertex colours, linearly interpolated at the
-    pixel centres it covers, summed -- the numpy twin of additive GL drawing (edge pixels exactly
-    on a shared edge may differ: the value there is ~0 on the streaks' rims)."""
-    p = np.asarray(pos, np.float64).reshape(-1, 3, 2)
-    c = np.asarray(col, np.float64).reshape(-1, 3, 3)
-    out = np.zeros((height, width, 3))
-    for a, ca in zip(p, c):
-        lo = np.maximum(np.floor(a.min(0) - 0.5).astype(int), 0)
-        hi = np.minimum(np.ceil(a.max(0) - 0.5).astype(int), [width - 1, height - 1])
+class Streaks(NamedTuple):
+    """M streak pairs in OpenCV pixels: centre (M, 2) (u, v); axis (M, 2) unit (image axes, v
+    down); length (M,) half-diagonal along the axis; width (M,) full width across; colour (M, 3)
+    value at the centre; energy (M, 3) = colour * length * width / 3 (the pair's light)."""
+
+    centre: np.ndarray
+    axis: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+    colour: np.ndarray
+    energy: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.length)
+
+
+def make_streaks(src: GlareSources, cfg=None, min_width: float = MIN_STREAK_WIDTH) -> Streaks:
+    """The streak pairs of ``src`` (module doc). cfg: render.shading.glare.GlareConfig."""
+    from render.shading.glare import GlareConfig, eyelash_factor, streak_directions, streak_shape
+
+    cfg = GlareConfig() if cfg is None else cfg
+    c = np.asarray(src.centres, np.float64).reshape(-1, 2)
+    N, D = len(c), int(cfg.n_dirs)
+    ks_il = np.asarray(src.intensity, np.float64) * 8 * np.pi / (np.asarray(src.n, np.float64) + 2)  # peak -> k_s I_l
+    L_s, W_s = streak_shape(ks_il, src.n, cfg.k_length, cfg.k_size)
+    ang = streak_directions(c[:, 0], cfg)  # (N, D) degrees from horizontal
+    L = np.clip(L_s[:, None] * eyelash_factor(ang), 0.5, cfg.max_length)
+    W = np.maximum(np.broadcast_to(W_s[:, None], L.shape), min_width)
+    rad = np.radians(ang)
+    axis = np.stack([np.cos(rad), -np.sin(rad)], -1)  # measured upwards on screen (v down)
+    energy = np.broadcast_to(np.asarray(src.excess, np.float64)[:, None, :] / D, (N, D, 3))
+    colour = 3.0 * energy / (L * W)[..., None]
+    centre = np.broadcast_to(c[:, None, :], (N, D, 2))
+    return Streaks(centre.reshape(-1, 2).copy(), axis.reshape(-1, 2).copy(), L.reshape(-1), W.reshape(-1),
+                   colour.reshape(-1, 3), energy.reshape(-1, 3).copy())
+
+
+def _tent(streaks: Streaks, m: int, uu, vv):
+    c, a = streaks.centre[m], streaks.axis[m]
+    du, dv = uu - c[0], vv - c[1]
+    s = du * a[0] + dv * a[1]
+    t = -du * a[1] + dv * a[0]
+    return np.maximum(0.0, 1 - np.abs(s) / streaks.length[m] - 2 * np.abs(t) / streaks.width[m])
+
+
+def _extent(streaks: Streaks, m: int):
+    a = np.abs(streaks.axis[m])
+    return a * streaks.length[m] + a[::-1] * streaks.width[m] / 2
+
+
+def rasterize_streaks_reference(streaks: Streaks, width: int, height: int, supersample: int = 1) -> np.ndarray:
+    """(H, W, 3) float64 numpy twin of render.glare.GlareLayer: every pair's tent evaluated at the
+    s x s sub-sample centres of each pixel (u + (k + 0.5) / s - 0.5), summed, box-averaged."""
+    s = int(supersample)
+    Ws, Hs = width * s, height * s
+    out = np.zeros((Hs, Ws, 3))
+    for m in range(len(streaks)):
+        c, ext = streaks.centre[m], _extent(streaks, m)
+        # sub-sample (i, j) sits at u = (i + 0.5) / s - 0.5
+        lo = np.maximum(np.floor((c - ext + 0.5) * s - 0.5).astype(int), 0)
+        hi = np.minimum(np.ceil((c + ext + 0.5) * s - 0.5).astype(int), [Ws - 1, Hs - 1])
         if np.any(hi < lo):
             continue
-        yy, xx = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
-        px, py = xx + 0.5, yy + 0.5
-        (x0, y0), (x1, y1), (x2, y2) = a
-        det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
-        if det == 0:
+        jj, ii = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+        w = _tent(streaks, m, (ii + 0.5) / s - 0.5, (jj + 0.5) / s - 0.5)
+        out[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1] += w[..., None] * streaks.colour[m]
+    return out.reshape(height, s, width, s, 3).mean(axis=(1, 3))
+
+
+def streak_energy_on_screen(streaks: Streaks, width: int, height: int) -> np.ndarray:
+    """(3,) analytic streak light inside the window [-0.5, W - 0.5] x [-0.5, H - 0.5]: the full
+    energy of pairs lying inside, a fine quadrature (8 x 8 per pixel) of those crossing the edge."""
+    tot = np.zeros(3)
+    lim = np.array([width - 0.5, height - 0.5])
+    for m in range(len(streaks)):
+        c, ext = streaks.centre[m], _extent(streaks, m)
+        if np.all(c - ext >= -0.5) and np.all(c + ext <= lim):
+            tot += streaks.energy[m]
             continue
-        l1 = ((px - x0) * (y2 - y0) - (x2 - x0) * (py - y0)) / det
-        l2 = ((x1 - x0) * (py - y0) - (px - x0) * (y1 - y0)) / det
-        l0 = 1 - l1 - l2
-        inside = (l0 >= 0) & (l1 >= 0) & (l2 >= 0)
-        val = l0[..., None] * ca[0] + l1[..., None] * ca[1] + l2[..., None] * ca[2]
-        out[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1] += np.where(inside[..., None], val, 0.0)
-    return out
+        lo, hi = np.maximum(c - ext, -0.5), np.minimum(c + ext, lim)
+        if np.any(hi <= lo):
+            continue
+        n = np.maximum(np.ceil((hi - lo) * 8).astype(int), 1)
+        us = lo[0] + (np.arange(n[0]) + 0.5) * (hi[0] - lo[0]) / n[0]
+        vs = lo[1] + (np.arange(n[1]) + 0.5) * (hi[1] - lo[1]) / n[1]
+        uu, vv = np.meshgrid(us, vs)
+        tot += _tent(streaks, m, uu, vv).sum() * np.prod((hi - lo) / n) * streaks.colour[m]
+    return tot
