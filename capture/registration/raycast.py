@@ -13,11 +13,13 @@ from capture.scan import Scan
 
 
 def raycast_scan(vertices: np.ndarray, faces: np.ndarray, camera: Camera, vertex_colors: np.ndarray | None = None,
-                 name: str = "") -> Scan:
+                 name: str = "", texture_fn=None) -> Scan:
     """Ray-cast a mesh into ``camera``.
 
     Args:
         vertices: (V, 3) world metres. faces: (F, 3) int. vertex_colors: (V, 3) linear [0, 1] or None (grey).
+        texture_fn: optional ``f(points (N, 3) world) -> (N, 3)`` linear colour at the hit points
+            (a solid texture; overrides ``vertex_colors``).
     Returns:
         a :class:`Scan` with z-depth (0 = miss) and float32 linear colour (barycentric interpolation).
     """
@@ -46,5 +48,9 @@ def raycast_scan(vertices: np.ndarray, faces: np.ndarray, camera: Camera, vertex
         c = np.asarray(vertex_colors, dtype=np.float64)
         w0 = 1.0 - bu[ok, 0] - bu[ok, 1]
         rgb[ok] = (c[tri[:, 0]] * w0[:, None] + c[tri[:, 1]] * bu[ok, 0:1] + c[tri[:, 2]] * bu[ok, 1:2])
+    if texture_fn is not None:
+        ok = ~miss
+        hits = o_w[ok] + d_w[ok] * t[ok, None]
+        rgb[ok] = np.asarray(texture_fn(hits), dtype=np.float32)
     rgb[miss] = 0.0
     return Scan(rgb.reshape(camera.height, camera.width, 3), depth, camera, name)

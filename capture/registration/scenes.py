@@ -64,6 +64,21 @@ def texture(v: np.ndarray) -> np.ndarray:
     return c.astype(np.float32)
 
 
+def noise_texture(p: np.ndarray, seed: int = 0, n: int = 24) -> np.ndarray:
+    """A feature-rich solid texture (sum of random plane waves, 1.5-10 cm wavelengths), linear RGB
+    in [0.03, 0.97]: gives SIFT something to match (the SfM tests)."""
+    rng = np.random.default_rng(seed)
+    p = np.asarray(p, dtype=np.float64)
+    out = np.zeros((len(p), 3))
+    for _ in range(n):
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        k = 2 * np.pi / rng.uniform(0.015, 0.1)
+        out += rng.normal(size=3) * np.sin(k * (p @ d) + rng.uniform(0, 2 * np.pi))[:, None]
+    out /= np.sqrt(n / 2)
+    return (0.5 + 0.47 * np.tanh(2 * out)).astype(np.float32)
+
+
 def ring_cameras(n: int, radius: float = 0.5, elevation_deg: float = 20.0, width: int = 160, height: int = 120,
                  fov_deg: float = 45.0, start_deg: float = 0.0) -> list[Camera]:
     """``n`` turntable cameras evenly spaced in azimuth around +z, looking at the origin."""
@@ -78,12 +93,14 @@ def ring_cameras(n: int, radius: float = 0.5, elevation_deg: float = 20.0, width
     return cams
 
 
-def render_set(mesh, cameras: list[Camera], impostor_at: int | None = None) -> ScanSet:
-    """Ray-cast ``mesh`` (v, f, colours) into every camera; scan ``impostor_at`` sees the impostor instead."""
+def render_set(mesh, cameras: list[Camera], impostor_at: int | None = None, rich_texture: bool = False) -> ScanSet:
+    """Ray-cast ``mesh`` (v, f, colours) into every camera; scan ``impostor_at`` sees the impostor
+    instead; ``rich_texture`` paints :func:`noise_texture` instead of the vertex colours."""
     v, f, c = mesh
     scans = []
     imp = impostor_object() if impostor_at is not None else None
+    tex = noise_texture if rich_texture else None
     for k, cam in enumerate(cameras):
         vv, ff, cc = imp if k == impostor_at else (v, f, c)
-        scans.append(raycast_scan(vv, ff, cam, cc, name=cam.name))
+        scans.append(raycast_scan(vv, ff, cam, cc, name=cam.name, texture_fn=tex))
     return ScanSet(tuple(scans), bounds_from_points(v, margin=0.02), {"generator": "capture.registration.scenes"})
