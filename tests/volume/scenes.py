@@ -82,12 +82,24 @@ def capsules_sdf(a, b, r):
     return f
 
 
-def ray_capsules(o, d, a, b, r, chunk=32):
-    """Closed-form ray/capsule intersection (Quilez), min over capsules; d unit."""
+def ray_capsules(o, d, a, b, r, chunk=64):
+    """Closed-form ray/capsule intersection (Quilez), min over capsules; d unit.
+
+    Pairs are culled first with each capsule's bounding sphere (exact: a ray that misses the
+    bounding sphere misses the capsule)."""
     t_best = np.full(len(o), np.inf)
+    centre = 0.5 * (a + b)
+    rb = 0.5 * np.linalg.norm(b - a, axis=1) + r
     for s in range(0, len(a), chunk):
-        A, B = a[s:s + chunk][None], b[s:s + chunk][None]
-        ro, rd = o[:, None], d[:, None]
+        oc = centre[s:s + chunk][None] - o[:, None]
+        tc = np.einsum("psk,pk->ps", oc, d)
+        d2 = np.einsum("psk,psk->ps", oc, oc) - tc * tc
+        pi, si = np.nonzero(d2 <= rb[s:s + chunk][None] ** 2)
+        if len(pi) == 0:
+            continue
+        si = si + s
+        ro, rd = o[pi], d[pi]
+        A, B = a[si], b[si]
         ba = B - A
         oa = ro - A
         baba = np.sum(ba * ba, -1)
@@ -103,16 +115,14 @@ def ray_capsules(o, d, a, b, r, chunk=32):
             t = (-qb - np.sqrt(np.maximum(h, 0))) / qa
         y = baoa + t * bard
         body = (h >= 0) & (y > 0) & (y < baba) & (t > 0)
-        # caps: sphere at the end nearest the hit
-        oc = np.where((y <= 0)[..., None], oa, ro - B)
-        cb = np.sum(rd * oc, -1)
-        cc = np.sum(oc * oc, -1) - r * r
+        oc2 = np.where((y <= 0)[..., None], oa, ro - B)
+        cb = np.sum(rd * oc2, -1)
+        cc = np.sum(oc2 * oc2, -1) - r * r
         ch = cb * cb - cc
-        tc = -cb - np.sqrt(np.maximum(ch, 0))
-        cap = (h >= 0) & ~body & (ch > 0) & (tc > 0)
-        tt = np.where(body, t, np.where(cap, tc, np.inf))
-        # the other cap can be hit first when the body test failed for rays along the axis
-        t_best = np.minimum(t_best, tt.min(1))
+        tcap = -cb - np.sqrt(np.maximum(ch, 0))
+        cap = (h >= 0) & ~body & (ch > 0) & (tcap > 0)
+        tt = np.where(body, t, np.where(cap, tcap, np.inf))
+        np.minimum.at(t_best, pi, tt)
     return t_best
 
 

@@ -1,0 +1,89 @@
+"""Eq. 1 (L_opt), surface voxels and the pyramid (METHODS §1.1, §1.7)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.volume.scenes import furball_scene, make_scanset, ring_cameras, sphere_scene
+from volume.build import ModelConfig, fuse_levels
+from volume.grid import cube_for_bounds, voxel_centers
+from volume.pyramid import (LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction, discontinuity_mask,
+                            surface_voxels)
+
+
+def _sphere_sdf(L, r=0.3):
+    x = voxel_centers(np.zeros(3) - 0.5, 1.0 / L, L).reshape(L, L, L, 3)
+    return (np.linalg.norm(x, axis=-1) - r).astype(np.float32), 1.0 / L
+
+
+def test_exact_sdf_has_no_discontinuity():
+    for L in (8, 16, 32):
+        v, w = _sphere_sdf(L)
+        assert discontinuity_fraction(v, w, 1.5) == 0.0
+        # alpha = 1 still passes: an exact distance is 1-Lipschitz (neighbours differ by <= w)
+        assert discontinuity_fraction(v, w, 1.0 + 1e-4) == 0.0
+
+
+def test_step_is_counted_exactly():
+    L, w = 16, 0.1
+    v = np.zeros((L, L, L), np.float32)
+    v[5:] = 2 * w  # a jump of 2w between i = 4 and i = 5
+    m = discontinuity_mask(v, w, 1.5)
+    assert m.sum() == 2 * L * L and m[4].all() and m[5].all()
+    assert discontinuity_fraction(v, w, 1.5) == pytest.approx(2 / L)
+    assert discontinuity_fraction(v, w, 2.5) == 0.0
+    valid = np.ones_like(m)
+    valid[5] = False
+    assert discontinuity_mask(v, w, 1.5, valid).sum() == 0
+
+
+def test_empty_and_single_voxel_volumes():
+    assert discontinuity_fraction(np.full((8, 8, 8), 0.5, np.float32), 0.1, 1.5) == 0.0
+    assert discontinuity_fraction(np.zeros((1, 1, 1), np.float32), 0.1, 1.5) == 0.0
+    assert len(surface_voxels(np.full((4, 4, 4), 1.0, np.float32), 0.1)) == 0
+
+
+def test_surface_through_voxel_centres():
+    L, w = 16, 0.1
+    i = np.arange(L)[:, None, None] * np.ones((1, L, L))
+    v = ((i - 7) * w).astype(np.float32)  # plane through the centres of layer i = 7
+    s = surface_voxels(v, w)
+    assert len(s) == L * L and np.all(s[:, 0] == 7)  # neighbours at +-w > half diagonal (0.866 w)
+    assert discontinuity_fraction(v, w, 1.5) == 0.0
+
+
+def test_choose_l_opt_follows_the_paper_loop():
+    assert choose_l_opt({8: 0.0, 16: 0.02, 32: 0.005}, 0.01) == 32
+    assert choose_l_opt({8: 0.0, 16: 0.005, 32: 0.02}, 0.01) == 16
+    assert choose_l_opt({8: 0.5, 16: 0.2, 32: 0.02}, 0.01) == 8  # nothing passes: the coarsest
+    with pytest.raises(ValueError, match="power of two"):
+        LoptConfig(max_res=100)
+    with pytest.raises(ValueError, match="alpha"):
+        LoptConfig(alpha=0.5)
+    assert LoptConfig(max_res=64).resolutions == [8, 16, 32, 64]
+
+
+def test_build_pyramid_levels():
+    vols = {L: _sphere_sdf(L)[0] for L in (8, 16, 32)}
+    p = build_pyramid(vols, np.zeros(3) - 0.5, 1.0, 16)
+    assert p.resolutions == [8, 16] and p.l_opt == 16
+    # the sphere's surface voxels scale with L^2
+    n8, n16 = (len(lv.surface) for lv in p.levels)
+    assert 3.0 < n16 / n8 < 5.0
+    assert np.all(np.abs(np.linalg.norm(p.levels[1].centers(), axis=1) - 0.3) <= np.sqrt(3) / 2 / 16 + 1e-9)
+
+
+@pytest.mark.parametrize("scene_fn, keeps", [(sphere_scene, True), (furball_scene, False)], ids=["smooth", "fur"])
+def test_eq1_smooth_keeps_fur_drops(scene_fn, keeps):
+    """Paper values (alpha 1.5, t 0.01), max_res 64, noisy holed scans: the smooth sphere keeps
+    64^3, the fur ball (strands 1.6 mm thick, 2-4 cm long) drops."""
+    ss = make_scanset(scene_fn(), ring_cameras(16, 96, 72), noise=0.001, holes=0.03, outliers=0.002)
+    cfg = ModelConfig(lopt=LoptConfig(max_res=64))
+    _, _, fused, frac = fuse_levels(ss, cfg)
+    l_opt = choose_l_opt(frac, cfg.lopt.t)
+    if keeps:
+        assert l_opt == 64, frac
+    else:
+        assert l_opt < 64, frac
+        assert frac[64] > 3 * cfg.lopt.t, frac
