@@ -12,4 +12,5 @@
   build + streaming into one 3-D texture
 - ssdf: SSDF visibility from spheres + ground plane, ray-cast reference (GLSL twin shading_ssdf.glsl)
 - glare: energy-preserving glare streaks (shading_glare_*.glsl)
+- composite: background through a camera, tone mapping, ground shadow ratio (004 Eq. 16-17)
 """
