@@ -14,9 +14,15 @@ Sections (each a table; plots under -o):
               radiance error, diffuse irradiance error, time, K in {4, 10, 32, 128}.
   ssdf        SSDF from 8 / 64 / 512 spheres (a torus' medial circle) vs ray-cast visibility:
               error of the visibility-weighted SG integral and time.
+  prefilter   the prefiltered SG pyramid Gamma(p, lambda) (half-octave levels) vs the brute-force
+              sum: relative error at and between levels, build time.
+  shadow      ground shadow ratio (seed 004 Eq. 16-17) from K SG lights + SSDF of one sphere vs
+              ray-cast irradiance with the real map.
   glare       frame cost against the number of bright pixels; streak energy vs highlight energy.
 
     furrow bench shading [--quick] [--map courtyard] [--sections msem,sg,...] [-o DIR] [--json]
+
+The msem and sphere sections take a few minutes (brute-force references); --quick: ~1 minute.
 """
 
 from __future__ import annotations
@@ -33,7 +39,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-SECTIONS = ("irradiance", "msem", "sphere", "sg", "ssdf", "glare")
+SECTIONS = ("irradiance", "msem", "sphere", "sg", "prefilter", "ssdf", "shadow", "glare")
 #: The thesis' Table 3 (mean error, 256 levels, vs unaccelerated) and Table 4 (time).
 PAPER_TABLE3 = {0.001: "0.1-1.0", 0.005: "2.0", 0.01: "3.6-4.0", 0.05: "17-19", 0.1: "35-38"}
 PAPER_TABLE4 = "unaccelerated 73 h 52 min; accelerated 21 h 24 min table + 7-9 s filtering (128^3, 512x256)"
@@ -166,6 +172,50 @@ def bench_sg(quick: bool, map_name: str) -> dict:
         fits.append({"K": k, "radiance_rel_l2": f.rel_error, "seconds": f.seconds,
                      "irradiance_mean_rel": float(e.mean()), "irradiance_max_rel": float(e.max())})
     return {"fh": fh, "cosine_lobe_fit": {"lambda": cl[0], "mu": cl[1], "published": [2.133, 1.170]}, "env_fit": fits}
+
+
+def bench_prefilter(quick: bool, map_name: str) -> list[dict]:
+    from render.shading.envmap import bundled_envmap
+    from render.shading.sg_env import sg_env_integral, sg_env_integral_brute, sg_prefilter
+
+    env = bundled_envmap(map_name).resized(64 if quick else 128)
+    t = time.perf_counter(); pre = sg_prefilter(env); tb = time.perf_counter() - t
+    p = _dirs(200, 5)
+    rows = []
+    for lam in (1.0, 8.0, 10.0, 30.0, 64.0, 100.0, 300.0, 1000.0):
+        ref = sg_env_integral_brute(env, p, lam)
+        rel = np.abs(sg_env_integral(pre, p, np.full(len(p), lam)) - ref) / ref
+        rows.append({"lambda": lam, "map_rows": env.height, "build_s": tb, "median_rel": float(np.median(rel)),
+                     "p95_rel": float(np.percentile(rel, 95)), "max_rel": float(rel.max())})
+    return rows
+
+
+def bench_shadow(quick: bool, map_name: str) -> list[dict]:
+    import open3d as o3d
+
+    from render.shading.composite import ground_shadow_ratio, ground_shadow_ratio_raycast
+    from render.shading.envmap import bundled_envmap
+    from render.shading.sg_fit import fit_env_sg
+
+    env = bundled_envmap(map_name).resized(64)
+    c, r = np.array([0.0, 0.0, 0.15]), 0.1
+    m = o3d.geometry.TriangleMesh.create_sphere(radius=r, resolution=60)
+    V, F = np.asarray(m.vertices) + c, np.asarray(m.triangles)
+    g = np.linspace(-0.4, 0.4, 15 if quick else 31)
+    X, Y = np.meshgrid(g, g)
+    P = np.stack([X.ravel(), Y.ravel(), np.full(X.size, 1e-4)], 1)
+    t = time.perf_counter(); ref = ground_shadow_ratio_raycast(env, P, V, F); tr = time.perf_counter() - t
+    from render.shading.sg import fh_table
+    fh_table()  # build the cached f_h table outside the timings
+    rows = []
+    for k in (4, 10, 32):
+        f = fit_env_sg(env, k)
+        t = time.perf_counter(); got = ground_shadow_ratio(P, f.axes, f.lams, f.mus, c[None], [r])
+        ts = time.perf_counter() - t
+        e = np.abs(got - ref)
+        rows.append({"K": k, "points": len(P), "mean_abs_err": float(e.mean()), "max_abs_err": float(e.max()),
+                     "sg_ssdf_ms": 1e3 * ts, "raycast_ms": 1e3 * tr})
+    return rows
 
 
 def bench_ssdf(quick: bool) -> list[dict]:
@@ -314,6 +364,12 @@ def _print_tables(res: dict) -> None:
                       f"mu {sg['cosine_lobe_fit']['mu']:.4f} (published 2.133, 1.170)")
         table("Environment fitted by K SGs (L-BFGS-B)", sg["env_fit"],
               ["K", "radiance_rel_l2", "irradiance_mean_rel", "irradiance_max_rel", "seconds"])
+    if res.get("prefilter"):
+        table("Prefiltered SG pyramid Gamma(p, lambda) vs brute force (relative error)", res["prefilter"],
+              ["lambda", "map_rows", "median_rel", "p95_rel", "max_rel", "build_s"])
+    if res.get("shadow"):
+        table("Ground shadow ratio (Eq. 16-17): K SGs + SSDF vs ray-cast irradiance", res["shadow"],
+              ["K", "points", "mean_abs_err", "max_abs_err", "sg_ssdf_ms", "raycast_ms"])
     if res.get("ssdf"):
         table("SSDF from spheres vs ray casting (|error of integral G V| / f_h(pi/2))", res["ssdf"],
               ["spheres", "err_mean_l1", "err_mean_l10", "err_max_l10", "err_mean_l100", "err_max_l100", "ssdf_s",
@@ -340,6 +396,7 @@ def main(argv: list[str]) -> int:
     res: dict = {"map": a.map, "quick": a.quick}
     runners = {"irradiance": lambda: bench_irradiance(a.quick), "msem": lambda: bench_msem(a.quick, a.map, a.samples),
                "sphere": lambda: bench_sphere(a.quick, a.map), "sg": lambda: bench_sg(a.quick, a.map),
+               "prefilter": lambda: bench_prefilter(a.quick, a.map), "shadow": lambda: bench_shadow(a.quick, a.map),
                "ssdf": lambda: bench_ssdf(a.quick), "glare": lambda: bench_glare(a.quick)}
     for s in secs:
         t = time.perf_counter()
