@@ -20,7 +20,8 @@ Writes DIR/side_by_side/*.png (reference | microfacet | baseline | 4 x |microfac
 and, with --json, the numbers (keys `microfacet` and `mesh_vdtm`, each with psnr, ssim,
 psnr_masked, ms_per_frame, ...; `mesh_colour` is the per-vertex colour floor).
 
---geometry: `model` builds the model with the volume stage (volume.build.build_model);
+--geometry: `model` builds the model with the volume stage (volume.build.build_model, the
+same as `furrow model`);
 `gt` takes the voxels from the synthetic set's exact gt/mesh.ply (render.gt_model; the
 baseline mesh is then a TSDF fusion of the kept scans); `auto` (default) uses `model` when
 the volume stage provides it, else `gt`.
@@ -66,7 +67,8 @@ def build_eval_model(kept, scans_path: Path, geometry: str, l_max: int):
     if geometry == "model" and builder is None:
         raise RuntimeError("--geometry model: the volume stage has no volume.build.build_model yet; use --geometry gt")
     if builder is not None:
-        return builder(kept), "model"
+        out = builder(kept, provenance={"scans": str(scans_path), "frames": "i % holdout == 0"})
+        return (out[0] if isinstance(out, tuple) else out), "model"
     from render.gt_model import model_from_geometry, read_ply_mesh
 
     base = scans_path if scans_path.is_dir() else resolve_transforms(scans_path).parent
