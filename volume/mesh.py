@@ -49,7 +49,9 @@ def marching_cubes(level: SdfLevel) -> tuple[np.ndarray, np.ndarray]:
     w = level.voxel_size
     verts, faces, _, _ = mc(np.array(v, np.float32), level=0.0, spacing=(w, w, w), gradient_direction="ascent")
     verts = verts + level.origin + 0.5 * w
-    return verts.astype(np.float32), faces.astype(np.int32)
+    # skimage's winding with "ascent" is clockwise seen from outside: flip to counter-clockwise
+    # (checked by the signed volume in tests/volume/test_parts.py)
+    return verts.astype(np.float32), np.ascontiguousarray(faces[:, [0, 2, 1]]).astype(np.int32)
 
 
 def clean_and_decimate(verts: np.ndarray, faces: np.ndarray, cfg: MeshConfig) -> tuple[np.ndarray, np.ndarray]:

@@ -20,6 +20,8 @@ MAX_SPHERES = 4096
 #: fits around the voxel by up to half a voxel diagonal (0.87); 0.5 keeps the union close to the
 #: solid (the IoU check counts any overshoot).
 RADIUS_PAD_VOXELS = 0.5
+#: Pads tried in turn (see fit_spheres).
+RADIUS_PADS = (RADIUS_PAD_VOXELS, 0.0)
 
 
 def union_mask(centers: np.ndarray, radii: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -57,6 +59,23 @@ def volume_iou(spheres: SphereSet, level: SdfLevel) -> float:
 def fit_spheres(level: SdfLevel, error: float, max_spheres: int = MAX_SPHERES) -> tuple[SphereSet, float]:
     """Greedy cover (module docstring) until 1 - IoU <= error; returns (spheres, 1 - IoU).
 
+    When the padded spheres overshoot the solid so much that the target cannot be reached,
+    the cover is redone without the pad (spheres strictly inside); the best result is returned
+    (its error can exceed the target when even that fails: the caller reports it).
+    """
+    best = None
+    for pad in RADIUS_PADS:
+        sph, err = _greedy_cover(level, error, max_spheres, pad)
+        if best is None or err < best[1]:
+            best = (sph, err)
+        if err <= error:
+            return sph, err
+    return best
+
+
+def _greedy_cover(level: SdfLevel, error: float, max_spheres: int, pad_voxels: float) -> tuple[SphereSet, float]:
+    """One greedy cover with radii -d + pad_voxels * w.
+
     The IoU is tracked exactly and incrementally over all voxel centres (a KD-tree of them
     answers which centres each new sphere covers); :func:`volume_iou` is the brute-force
     reference it is tested against.
@@ -82,7 +101,7 @@ def fit_spheres(level: SdfLevel, error: float, max_spheres: int = MAX_SPHERES) -
     tree = cKDTree(pts[sub])
     sub_solid = solid[sub]
     order = np.nonzero(sub_solid)[0]
-    rad_all = -flat[sub].astype(np.float64) + RADIUS_PAD_VOXELS * w
+    rad_all = -flat[sub].astype(np.float64) + pad_voxels * w
     order = order[np.argsort(-rad_all[order], kind="stable")]
     covered = np.zeros(len(sub), bool)
     inter = 0  # covered solid voxels
