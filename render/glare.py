@@ -79,17 +79,42 @@ class GlareLayer:
             self._inst.write(data.tobytes())
         return m
 
+    def _box(self, streaks):
+        """Framebuffer pixel box (x, y, w, h) at 1x covering every pair (+1 px), or None."""
+        if len(streaks) == 0:
+            return None
+        a = np.abs(streaks.axis)
+        ext = a * streaks.length[:, None] + a[:, ::-1] * streaks.width[:, None] / 2
+        lo = (streaks.centre - ext).min(0)
+        hi = (streaks.centre + ext).max(0)
+        w, h = self.size
+        u0, u1 = max(int(np.floor(lo[0])) - 1, 0), min(int(np.ceil(hi[0])) + 2, w)
+        # image row v -> framebuffer row h - 1 - v
+        y0, y1 = max(h - 2 - int(np.ceil(hi[1])), 0), min(h + 1 - int(np.floor(lo[1])), h)
+        if u1 <= u0 or y1 <= y0:
+            return None
+        return (u0, y0, u1 - u0, y1 - y0)
+
     def render(self, streaks) -> np.ndarray:
+        """Draw the pairs; only the box around them is cleared, drawn and averaged (scissor)."""
         import moderngl
 
         ctx = self.ctx
         t0 = time.perf_counter()
         w, h = self.size
+        s = self.s
         m = self._upload(streaks)
-        self._fbo_hi.use()
-        self._fbo_hi.viewport = (0, 0, w * self.s, h * self.s)
-        self._fbo_hi.clear(0.0, 0.0, 0.0, 0.0)
-        if m:
+        box = self._box(streaks)
+        self._fbo_lo.use()
+        self._fbo_lo.viewport = (0, 0, w, h)
+        self._fbo_lo.scissor = None
+        self._fbo_lo.clear(0.0, 0.0, 0.0, 0.0)
+        if box is not None:
+            hbox = tuple(v * s for v in box)
+            self._fbo_hi.use()
+            self._fbo_hi.viewport = (0, 0, w * s, h * s)
+            self._fbo_hi.scissor = hbox
+            self._fbo_hi.clear(0.0, 0.0, 0.0, 0.0, viewport=hbox)
             self._prog["u_size"].value = (float(w), float(h))
             ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
             ctx.enable(moderngl.BLEND)
@@ -97,11 +122,13 @@ class GlareLayer:
             ctx.blend_equation = moderngl.FUNC_ADD
             self._vao.render(moderngl.TRIANGLE_FAN, vertices=6, instances=m)
             ctx.disable(moderngl.BLEND)
-        self._fbo_lo.use()
-        self._fbo_lo.viewport = (0, 0, w, h)
-        self._hi.use(0)
-        self._down["u_hi"].value = 0
-        self._vao_down.render(moderngl.TRIANGLES, vertices=3)
+            self._fbo_hi.scissor = None
+            self._fbo_lo.use()
+            self._fbo_lo.scissor = box
+            self._hi.use(0)
+            self._down["u_hi"].value = 0
+            self._vao_down.render(moderngl.TRIANGLES, vertices=3)
+            self._fbo_lo.scissor = None
         img = np.frombuffer(self._fbo_lo.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[..., :3]
         self.last_ms = 1e3 * (time.perf_counter() - t0)
         return gl_rows_to_image(img).copy()

@@ -1,0 +1,252 @@
+"""``furrow bench glare``: glare cost and energy (METHODS §4) and the composite into an environment.
+
+1. Frame cost against the number of bright pixels (the paper: "glare cost is proportional to the
+   number of bright pixels"): N random highlights in a W x H frame, for the streak layer's
+   supersampling s in {1, 2, 4}: CPU streak setup (ms), GL draw + average + read back (ms).
+2. Streak energy: summed GL streak light / highlight excess - 1 for each N and s, and for thin
+   (n = 1000, 1 px) pairs.
+3. Composite frame cost at W x H (ground-shadow grid, composite pass, glare, tone map) and a
+   picture: a glossy sphere composited into a bundled environment with its ground shadow and
+   glare, saved as PNG.
+
+    furrow bench glare [--size 640x480] [--counts 10,100,1000,3000,10000] [--env studio]
+                       [-o out/bench/glare] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+SUPERSAMPLES = (1, 2, 4)
+REPEATS = 3
+#: Picture: camera azimuth from the brightest light source (degrees), and the glare settings
+#: (k_length / k_size are the paper's free global settings; larger than the defaults to show).
+CAMERA_AZIMUTH_FROM_SUN_DEG = 110.0
+CAMERA_HEIGHT = 0.6
+PICTURE_GLARE_SETTINGS = dict(k_length=3.0, k_size=6.0, n_dirs=6)
+
+
+def _sources(n, W, H, n_exp, seed=0):
+    from render.shading.glare_maps import glare_sources
+
+    rng = np.random.default_rng(seed)
+    img = np.full((H, W, 3), 0.1)
+    idx = rng.choice(W * H, size=min(n, W * H), replace=False)
+    img.reshape(-1, 3)[idx] = rng.uniform(1.5, 40.0, (len(idx), 3))
+    return glare_sources(img, 1.0, default_n=n_exp)
+
+
+def bench_cost(ctx, W, H, counts, n_exp=100.0):
+    from render.glare import GlareLayer
+    from render.shading.glare import GlareConfig
+    from render.shading.glare_maps import make_streaks
+
+    rows = []
+    layers = {s: GlareLayer(ctx, W, H, s) for s in SUPERSAMPLES}
+    try:
+        for n in counts:
+            src = _sources(n, W, H, n_exp)
+            t0 = time.perf_counter()
+            st = make_streaks(src, GlareConfig())
+            cpu = 1e3 * (time.perf_counter() - t0)
+            exc = src.excess.sum(0)
+            for s, layer in layers.items():
+                ms = []
+                for _ in range(REPEATS):
+                    light = layer.render(st)
+                    ms.append(layer.last_ms)
+                # light that leaves the frame is not counted in the excess: compare on-screen pairs only
+                err = float(np.max(np.abs(light.sum((0, 1)) / exc - 1)))
+                rows.append({"bright_pixels": int(n), "pairs": len(st), "supersample": s, "setup_ms": cpu,
+                             "gl_ms": float(np.median(ms)), "energy_rel_err": err})
+    finally:
+        for layer in layers.values():
+            layer.release()
+    return rows
+
+
+def bench_energy_thin(ctx, W, H):
+    """Energy error of pairs away from the border, for exponents giving wide .. 1 px pairs."""
+    from render.glare import GlareLayer
+    from render.shading.glare import GlareConfig
+    from render.shading.glare_maps import glare_sources, make_streaks
+
+    out = []
+    rng = np.random.default_rng(5)
+    img = np.full((H, W, 3), 0.1)
+    m = 80
+    img[rng.integers(m, H - m, 200), rng.integers(m, W - m, 200)] = rng.uniform(1.5, 40.0, (200, 3))
+    for n_exp in (10.0, 100.0, 1000.0):
+        src = glare_sources(img, 1.0, default_n=n_exp)
+        st = make_streaks(src, GlareConfig())
+        for s in SUPERSAMPLES:
+            with GlareLayer(ctx, W, H, s) as layer:
+                light = layer.render(st)
+            out.append({"n": n_exp, "supersample": s, "width_px": float(np.median(st.width)),
+                        "energy_rel_err": float(np.max(np.abs(light.sum((0, 1)) / src.excess.sum(0) - 1)))})
+    return out
+
+
+def sphere_scene(camera, centre, radius, albedo):
+    """Analytic sphere: depth, normals and a Lambert colour under the irradiance table."""
+    from render.composite import pixel_world_dirs
+
+    d = pixel_world_dirs(camera)
+    dn = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    o = camera.center - centre
+    b = dn @ o
+    disc = b**2 - (o @ o - radius**2)
+    hit = disc > 0
+    t = np.where(hit, -b - np.sqrt(np.maximum(disc, 0)), 0)
+    P = camera.center + t[..., None] * dn
+    z = np.where(hit, (P - camera.center) @ camera.forward, 0.0)
+    n = np.where(hit[..., None], (P - centre) / radius, 0.0)
+    return z, n
+
+
+def bench_composite(ctx, W, H, env_name, out_dir: Path):
+    from capture.camera import Camera, look_at, make_K
+    from capture.scan import to_uint8_srgb
+    from render.composite import composite_frame
+    from render.shading.envmap import bundled_envmap
+    from render.shading.irradiance import irradiance_lookup, irradiance_table
+    from render.shading.sg_fit import fit_env_sg
+    from volume.model import SphereSet
+
+    from render.composite import TONE_WHITE
+    from render.shading.glare import GlareConfig
+
+    PICTURE_GLARE = GlareConfig(display_max=TONE_WHITE, **PICTURE_GLARE_SETTINGS)
+    env = bundled_envmap(env_name)
+    fit = fit_env_sg(env, 10)
+    centre, radius = np.array([0.0, 0.0, 0.1]), 0.1
+    from render.shading.glare_maps import light_source_map, light_sources
+
+    # camera 100 degrees of azimuth away from the brightest source: the shadow is seen from the side
+    src = light_sources(light_source_map(env))
+    sun = src.dirs[np.argmax(src.irradiance.sum(1))] if len(src.dirs) else np.array([1.0, 0.0, 0.5])
+    az = np.arctan2(sun[1], sun[0]) + np.radians(CAMERA_AZIMUTH_FROM_SUN_DEG)
+    eye = np.array([0.8 * np.cos(az), 0.8 * np.sin(az), CAMERA_HEIGHT])
+    f = 1.1 * W
+    cam = Camera(make_K(f, f, (W - 1) / 2, (H - 1) / 2), look_at(eye, [0.0, 0.0, 0.05]), W, H)
+    z, n = sphere_scene(cam, centre, radius, None)
+    obj = z > 0
+    albedo = np.array([0.55, 0.12, 0.08])
+    irr = irradiance_lookup(irradiance_table(env), n[obj].reshape(-1, 3))
+    rgb = np.zeros((H, W, 3))
+    rgb[obj] = albedo * irr / np.pi
+    spec = np.zeros((H, W, 2))
+    spec[obj] = (0.6, 800.0)
+    spheres = SphereSet(centre[None], np.array([radius]))
+    results = {}
+    for glare in (False, True):
+        st = {}
+        img = composite_frame(ctx, rgb, z, cam, env, spheres=spheres, exposure=1.0, glare=glare, specular=spec,
+                              normals=n, sg_fit=fit, stats=st, glare_config=PICTURE_GLARE)
+        # second call: timings without first-use compilation
+        st = {}
+        img = composite_frame(ctx, rgb, z, cam, env, spheres=spheres, exposure=1.0, glare=glare, specular=spec,
+                              normals=n, sg_fit=fit, stats=st, glare_config=PICTURE_GLARE)
+        results["glare" if glare else "no_glare"] = {k: v for k, v in st.items() if not isinstance(v, list)}
+        out_dir.mkdir(parents=True, exist_ok=True)
+        path = out_dir / f"composite_{env_name}_{'glare' if glare else 'plain'}.png"
+        import imageio.v3 as iio
+        iio.imwrite(path, to_uint8_srgb(img))
+        results["glare" if glare else "no_glare"]["png"] = str(path)
+    results["sg_fit_s"] = fit.seconds
+    return results
+
+
+def _plot(rows, out_dir: Path) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    for s in SUPERSAMPLES:
+        r = [x for x in rows if x["supersample"] == s]
+        n = [x["bright_pixels"] for x in r]
+        ax[0].loglog(n, [x["gl_ms"] for x in r], "o-", label=f"GL, s={s}")
+        ax[1].semilogx(n, [100 * x["energy_rel_err"] for x in r], "o-", label=f"s={s}")
+    r = [x for x in rows if x["supersample"] == SUPERSAMPLES[0]]
+    ax[0].loglog([x["bright_pixels"] for x in r], [x["setup_ms"] for x in r], "k--", label="CPU streak setup")
+    ax[0].set_xlabel("bright pixels")
+    ax[0].set_ylabel("ms per frame")
+    ax[0].legend()
+    ax[0].set_title("glare cost vs bright pixels")
+    ax[1].set_xlabel("bright pixels")
+    ax[1].set_ylabel("|streak light / excess - 1| (%)")
+    ax[1].set_title("energy (incl. light leaving the frame)")
+    ax[1].legend()
+    fig.tight_layout()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    p = out_dir / "glare_cost.png"
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    return p
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="furrow bench glare", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", default="640x480")
+    ap.add_argument("--counts", default="10,100,1000,3000,10000")
+    ap.add_argument("--env", default="studio")
+    ap.add_argument("-o", "--out", default=str(REPO / "out" / "bench" / "glare"))
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args(argv)
+    W, H = (int(v) for v in a.size.lower().split("x"))
+    counts = [int(c) for c in a.counts.split(",")]
+    out_dir = Path(a.out)
+    from render.gl import gl_context
+
+    with gl_context() as ctx:
+        rows = bench_cost(ctx, W, H, counts)
+        thin = bench_energy_thin(ctx, W, H)
+        comp = bench_composite(ctx, W, H, a.env, out_dir)
+    plot = _plot(rows, out_dir)
+    res = {"size": [W, H], "cost": rows, "energy": thin, "composite": comp, "plot": str(plot)}
+    if a.json:
+        print(json.dumps(res, indent=1))
+        return 0
+    from rich.table import Table
+
+    from furrow.console import console
+
+    t = Table(title=f"glare cost vs bright pixels ({W}x{H}, llvmpipe)")
+    for c in ("bright px", "pairs", "s", "setup ms", "GL ms", "energy err %"):
+        t.add_column(c, justify="right")
+    for r in rows:
+        t.add_row(str(r["bright_pixels"]), str(r["pairs"]), str(r["supersample"]), f"{r['setup_ms']:.1f}",
+                  f"{r['gl_ms']:.1f}", f"{100 * r['energy_rel_err']:.3f}")
+    console.print(t)
+    t = Table(title="streak energy, all pairs on screen (200 highlights)")
+    for c in ("n", "median width px", "s", "energy err %"):
+        t.add_column(c, justify="right")
+    for r in thin:
+        t.add_row(f"{r['n']:.0f}", f"{r['width_px']:.2f}", str(r["supersample"]), f"{100 * r['energy_rel_err']:.3f}")
+    console.print(t)
+    t = Table(title=f"composite frame {W}x{H} ({a.env}; SG fit {comp['sg_fit_s']:.2f} s once per map)")
+    for c in ("", "shadow grid ms", "composite ms", "glare ms", "bright px", "total ms", "picture"):
+        t.add_column(c)
+    for k in ("no_glare", "glare"):
+        r = comp[k]
+        t.add_row(k, f"{r.get('shadow_ms', 0):.1f}", f"{r['composite_ms']:.1f}", f"{r.get('glare_ms', 0):.1f}",
+                  str(r.get("bright_pixels", "-")), f"{r['total_ms']:.1f}", r["png"])
+    console.print(t)
+    console.print(f"plot: {plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
