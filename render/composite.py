@@ -257,6 +257,7 @@ class Compositor:
         self._env = None
         self._env_key = None
         self._ratio = None
+        self._grid_key = self._grid = None
         self._dummy_ratio = ctx.texture((2, 2), 4, np.ones((2, 2, 4), np.float32).tobytes(), dtype="f4")
 
     def __enter__(self):
@@ -289,9 +290,13 @@ class Compositor:
 
     def shadow_grid(self, spheres, fit, ground: GroundPlane) -> np.ndarray:
         """Compute the (G, G, 3) shadow-ratio grid on the GPU (twin: :func:`shadow_ratio` at
-        ``ground.grid_points()``), keep it as the ratio texture and return it."""
+        ``ground.grid_points()``), keep it as the ratio texture and return it. Cached: the same
+        spheres and fit objects and an equal ground reuse the last grid."""
         import moderngl
 
+        key = self._grid_key
+        if key is not None and key[0] is spheres and key[1] is fit and key[2] == ground:
+            return self._grid
         ctx = self.ctx
         k = len(fit.lams)
         if k > MAX_SG:
@@ -333,6 +338,7 @@ class Compositor:
         if self._ratio is not None:
             self._ratio.release()
         self._ratio = tex
+        self._grid_key, self._grid = (spheres, fit, ground), grid
         return grid
 
     def composite(self, rgb, depth, camera: Camera, env: EnvMap, exposure: float = 1.0,
@@ -383,7 +389,7 @@ class Compositor:
 def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres=None, ground=None,
                     exposure: float = 1.0, glare: bool = True, specular=None, normals=None,
                     tone: str = "reinhard", white: float = TONE_WHITE, output: str = "display",
-                    sg_fit=None, glare_config=None, stats: dict | None = None) -> np.ndarray:
+                    sg_fit=None, glare_config=None, stats: dict | None = None, compositor=None) -> np.ndarray:
     """Composite a captured object into an environment (see the module doc).
 
     rgb_linear (H, W, 3) linear object colour; depth (H, W) z-depth in metres, 0 = empty;
@@ -400,6 +406,8 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
         [0, 1]) or "linear" (exposed HDR with glare, before tone mapping).
     sg_fit: the environment's SG fit (render.shading.sg_fit.SGFit); fitted with SHADOW_SG_K lobes
         when needed and None. stats: filled with timings / counts when given.
+    compositor: a :class:`Compositor` to reuse across frames (programs compiled once, the
+        environment uploaded once); by default one is made and released per call.
     Returns (H, W, 3) float32.
     """
     import time
@@ -426,8 +434,10 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
         v = camera.center - P
         v /= np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
         spec = np.where((obj & (np.linalg.norm(nrm, axis=-1) > 0))[..., None], spec, 0.0)
+        t1 = time.perf_counter()
         lrm = light_reflection_map(nrm, v, spec, light_sources(light_source_map(env)))
         rgb = rgb + lrm
+        st["lrm_ms"] = 1e3 * (time.perf_counter() - t1)
         st["lrm_max"] = float(lrm.max()) if lrm.size else 0.0
     gp = None
     if ground is not False and (spheres is not None and len(spheres)):
@@ -435,7 +445,7 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
             gp = ground
         else:
             gp = ground_from_spheres(spheres, None if ground is None else float(ground))
-    comp = Compositor(ctx)
+    comp = Compositor(ctx) if compositor is None else compositor
     try:
         if gp is not None:
             if sg_fit is None:
@@ -449,7 +459,8 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
         hdr = comp.composite(rgb, dep, camera, env, exposure, gp).astype(np.float64)
         st["composite_ms"] = 1e3 * (time.perf_counter() - t1)
     finally:
-        comp.release()
+        if compositor is None:
+            comp.release()
     if glare:
         hdr = apply_glare_gl(ctx, hdr, display_white(tone, white), spec=specular, config=glare_config, stats=st)
     st["total_ms"] = 1e3 * (time.perf_counter() - t0)

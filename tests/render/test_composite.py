@@ -252,3 +252,18 @@ def test_composite_frame_end_to_end(gl_ctx):
     np.testing.assert_allclose(hdr.sum((0, 1)), no_glare.sum((0, 1)), rtol=0.01)
     with pytest.raises(ValueError):
         composite_frame(gl_ctx, rgb[:10], z, cam, env)
+
+
+@pytest.mark.gl
+def test_compositor_reuse_gives_the_same_frame(gl_ctx):
+    env, fit = _fit("sunset", 10)
+    cam = _camera(96, 72)
+    z, _ = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
+    rgb = np.where((z > 0)[..., None], np.array([0.2, 0.4, 0.6]), 0.0)
+    one = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, sg_fit=fit, glare=False)
+    with Compositor(gl_ctx) as c:
+        a = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, sg_fit=fit, glare=False, compositor=c)
+        b = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, sg_fit=fit, glare=False, compositor=c)
+        assert c._grid_key is not None and c._grid_key[0] is SPHERES  # grid cached, not recomputed
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(a, one)

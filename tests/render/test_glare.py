@@ -181,3 +181,21 @@ def test_apply_glare_keeps_frame_energy_and_centres_streaks(gl_ctx):
     c = (g * np.arange(160)[None]).sum() / g.sum()
     assert abs(r - 40) < 1.0 and abs(c - 100) < 1.0  # the streaks are centred on the highlight
     assert g.max() > 0 and (g > 1e-3).sum() > 20  # and spread over many pixels
+
+
+@pytest.mark.gl
+def test_gl_layer_twin_at_the_border(gl_ctx):
+    """Pairs leaving the frame at every edge (the layer's scissor box is clipped to the frame)."""
+    from render.glare import GlareLayer
+
+    img = np.full((60, 80, 3), 0.1)
+    for r, c in ((0, 0), (0, 79), (59, 0), (59, 79), (30, 1)):
+        img[r, c] = [30.0, 20.0, 25.0]
+    st = make_streaks(glare_sources(img, 1.0), GlareConfig())
+    with GlareLayer(gl_ctx, 80, 60, 2) as layer:
+        got = layer.render(st)
+    ref = rasterize_streaks_reference(st, 80, 60, 2)
+    assert np.abs(got - ref).max() < TWIN_REL_TOL * ref.max()
+    e = streak_energy_on_screen(st, 80, 60)
+    assert np.all(e < 0.9 * st.energy.sum(0))  # a good part left the frame
+    np.testing.assert_allclose(got.sum((0, 1)), e, rtol=0.02)
