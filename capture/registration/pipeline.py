@@ -64,6 +64,24 @@ def _report_from_icp(scanset: ScanSet, out: ICP.IcpOutcome, method: str, init: s
     return rep
 
 
+def _fit_gauge(poses: list[np.ndarray], ref: list, mask: list[bool]) -> list[np.ndarray]:
+    """Right-multiply ``poses`` (cam_from_world) by the rigid G that best maps them onto the
+    reference poses where both exist (chordal mean of the rotations, mean of the translations)."""
+    from capture.camera import invert_rigid
+
+    Gs = [invert_rigid(p) @ r for p, r, m in zip(poses, ref, mask) if m and r is not None]
+    if not Gs:
+        return poses
+    M = sum(G[:3, :3] for G in Gs)
+    U, _, Vt = np.linalg.svd(M)
+    Rm = U @ np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    G = np.eye(4)
+    G[:3, :3] = Rm
+    # translation: least squares over cameras of |R_k (R t_G) ... | -> mean of the G translations
+    G[:3, 3] = np.mean([g[:3, 3] for g in Gs], axis=0)
+    return [p @ G for p in poses]
+
+
 def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", config: ICP.IcpConfig | None = None,
              keep_flagged: bool = False, board=None) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
     """Register ``scanset``.
@@ -83,6 +101,7 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
     t0 = time.perf_counter()
     notes: list[str] = []
     init_poses = None
+    board_init = None
     use_init = init == "nominal"
     used = method
     if method in ("board", "auto"):
@@ -94,6 +113,7 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
             if frac == 0:
                 raise RuntimeError("method 'board': no ChArUco board detected in any image")
             init_poses = [p if p is not None else s.camera.cam_from_world for p, s in zip(bres.poses, scanset.scans)]
+            board_init = bres.poses
             use_init = True
             used = "board"
             notes.append(f"board detected in {sum(p is not None for p in bres.poses)}/{len(scanset.scans)} images; "
@@ -118,6 +138,11 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
         init_poses = [p if p is not None else s.camera.cam_from_world for p, s in zip(sfm.poses, scanset.scans)]
         out = ICP.register_icp(scanset, cfg, use_init=True, init_poses=init_poses)
         used = "colmap"
+    if used == "board" and board_init is not None:
+        # the board fixes the gauge: move the ICP solution (anchored on one scan) onto the
+        # board frame by the rigid transform that best agrees with all board poses
+        out.cam_from_world = _fit_gauge(out.cam_from_world, board_init, out.registered)
+        notes.append("gauge: least-squares fit to all board poses")
     rep = _report_from_icp(scanset, out, used, init)
     rep.notes.extend(notes)
     rep.seconds["total"] = time.perf_counter() - t0

@@ -80,16 +80,16 @@ def noise_texture(p: np.ndarray, seed: int = 0, n: int = 24) -> np.ndarray:
 
 
 def ring_cameras(n: int, radius: float = 0.5, elevation_deg: float = 20.0, width: int = 160, height: int = 120,
-                 fov_deg: float = 45.0, start_deg: float = 0.0) -> list[Camera]:
-    """``n`` turntable cameras evenly spaced in azimuth around +z, looking at the origin."""
+                 fov_deg: float = 45.0, start_deg: float = 0.0, target=(0.0, 0.0, 0.0)) -> list[Camera]:
+    """``n`` turntable cameras evenly spaced in azimuth around +z, looking at ``target``."""
     f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
     K = make_K(f, f, (width - 1) / 2, (height - 1) / 2)
     el = np.radians(elevation_deg)
     cams = []
     for k in range(n):
         az = np.radians(start_deg + 360.0 * k / n)
-        eye = radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-        cams.append(Camera(K, look_at(eye, (0, 0, 0)), width, height, f"view{k:03d}"))
+        eye = np.asarray(target) + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        cams.append(Camera(K, look_at(eye, target), width, height, f"view{k:03d}"))
     return cams
 
 
@@ -104,3 +104,38 @@ def render_set(mesh, cameras: list[Camera], impostor_at: int | None = None, rich
         vv, ff, cc = imp if k == impostor_at else (v, f, c)
         scans.append(raycast_scan(vv, ff, cam, cc, name=cam.name, texture_fn=tex))
     return ScanSet(tuple(scans), bounds_from_points(v, margin=0.02), {"generator": "capture.registration.scenes"})
+
+
+#: White margin of the synthetic board's paper around the printed pattern (metres).
+BOARD_MARGIN_M = 0.04
+
+
+def board_set(cameras: list[Camera], spec=None, with_object: bool = True) -> ScanSet:
+    """The control object standing on a ChArUco board (``board.BoardSpec``), ray-cast."""
+    from capture.registration.board import BoardSpec, board_texture_fn
+
+    spec = spec or BoardSpec()
+    w, h = spec.size_m
+    z = spec.z_m
+    m = BOARD_MARGIN_M  # white paper around the printed board
+    pv = np.array([[-w / 2 - m, -h / 2 - m, z], [w / 2 + m, -h / 2 - m, z], [w / 2 + m, h / 2 + m, z], [-w / 2 - m, h / 2 + m, z]])
+    pf = np.array([[0, 1, 2], [0, 2, 3]])
+    parts_v, parts_f = [pv], [pf]
+    if with_object:
+        v, f, _ = control_object()
+        v = v + [0, 0, z - v[:, 2].min()]  # rest the object on the board
+        parts_v.append(v)
+        parts_f.append(f + 4)
+    V = np.concatenate(parts_v)
+    F = np.concatenate(parts_f)
+    board_tex = board_texture_fn(spec)
+
+    def tex(p):
+        on_board = np.abs(p[:, 2] - z) < 1e-5
+        out = texture(p)
+        if on_board.any():
+            out[on_board] = board_tex(p[on_board])
+        return out
+
+    scans = [raycast_scan(V, F, cam, None, name=cam.name, texture_fn=tex) for cam in cameras]
+    return ScanSet(tuple(scans), bounds_from_points(V[4:] if with_object else V, margin=0.02), {"board": str(spec)})
