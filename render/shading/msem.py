@@ -169,9 +169,9 @@ def _reach(lam, th) -> np.ndarray:
 
 def msem_direct(env: EnvMap, dirs, lam, th: float) -> np.ndarray:
     """F at unit ``dirs`` (N,3) with exponents ``lam`` (N,), summing only the source pixels within
-    the reach of weight ``th`` (a window of rows and columns around each direction); directions
-    whose window would wrap over a pole fall back to the full sum. (N, 3) float64. Exactly the
-    brute-force quadrature with weights below th dropped (the paper's Eq. 14)."""
+    the reach of weight ``th`` (a window of rows and columns around each direction; whole rows
+    when the window reaches a pole). (N, 3) float64. Exactly the brute-force quadrature with
+    weights below th dropped (the paper's Eq. 14)."""
     dirs = np.asarray(dirs, np.float64)
     lam = np.asarray(lam, np.float64)
     H, W = env.height, env.width
@@ -192,32 +192,39 @@ def msem_direct(env: EnvMap, dirs, lam, th: float) -> np.ndarray:
     C = np.ceil(np.arcsin(np.minimum(1.0, np.sin(alpha) / smin)) / dph).astype(np.int64) + 1
     polar |= 2 * C + 1 >= W
     out = np.empty((len(dirs), 3))
-    if polar.any():  # full sum (few directions)
-        idx = np.nonzero(polar)[0]
-        d = PD.reshape(-1, 3)
-        om = np.repeat(OM, W)
-        Lf = L.reshape(-1, 3)
-        for a in range(0, len(idx), 64):
-            sel = idx[a:a + 64]
-            c = dirs[sel] @ d.T
-            w = _phong_weights(c, lam[sel, None]) * (c >= cos_a[sel, None]) * om
-            out[sel] = (w @ Lf) / w.sum(1, keepdims=True)
-    rest = np.nonzero(~polar)[0]
-    if rest.size:
-        key = R[rest] * 100000 + C[rest]
-        for k in np.unique(key):
-            grp = rest[key == k]
-            r_, c_ = int(R[grp[0]]), int(C[grp[0]])
-            dr, dc = np.meshgrid(np.arange(-r_, r_ + 1), np.arange(-c_, c_ + 1), indexing="ij")
-            dr, dc = dr.ravel(), dc.ravel()
-            step = max(1, 2_000_000 // dr.size)
-            for a in range(0, grp.size, step):
-                g = grp[a:a + step]
-                rows = i0[g, None] + dr[None]
-                cols = (j0[g, None] + dc[None]) % W
-                c = np.einsum("ntk,nk->nt", PD[rows, cols], dirs[g])
-                w = _phong_weights(c, lam[g, None]) * (c >= cos_a[g, None]) * OM[rows]
-                out[g] = np.einsum("nt,ntc->nc", w, L[rows, cols]) / w.sum(1)[:, None]
+    # 1 - t.w = 2 sin^2(dtheta / 2) + sin(theta_t) sin(theta_s) 2 sin^2(dphi / 2): separable in
+    # the window's rows and columns, and free of the cancellation of 1 - dot near the peak
+    th_t = np.arctan2(np.hypot(dirs[:, 0], dirs[:, 1]), dirs[:, 2])
+    ph_t = np.arctan2(dirs[:, 1], dirs[:, 0])
+    th_s = np.pi * (np.arange(H) + 0.5) / H
+    ph_s = np.pi * (1.0 - 2.0 * (np.arange(W) + 0.5) / W)
+    Lf = L.reshape(-1, 3)
+    # windows near a pole: the band of rows (clipped) times every column
+    C = np.where(polar, -1, C)
+    key = R * 100000 + C
+    for k in np.unique(key):
+        grp = np.nonzero(key == k)[0]
+        r_, c_ = int(R[grp[0]]), int(C[grp[0]])
+        dr = np.arange(-r_, r_ + 1)
+        full = c_ < 0
+        dc = np.arange(W) if full else np.arange(-c_, c_ + 1)
+        step = max(1, 2_000_000 // (dr.size * dc.size))
+        for a in range(0, grp.size, step):
+            g = grp[a:a + step]
+            rows = i0[g, None] + dr[None]  # (n, R')
+            valid = (rows >= 0) & (rows < H)
+            rows = np.clip(rows, 0, H - 1)
+            cols = np.broadcast_to(dc[None], (len(g), dc.size)) if full else (j0[g, None] + dc[None]) % W
+            A = 2 * np.sin((th_t[g, None] - th_s[rows]) / 2) ** 2
+            B = np.sin(th_t[g, None]) * np.sin(th_s[rows])
+            E = 2 * np.sin((ph_t[g, None] - ph_s[cols]) / 2) ** 2
+            x = A[:, :, None] + B[:, :, None] * E[:, None, :]  # 1 - cos, (n, R', C')
+            keep = (x <= (1 - cos_a[g])[:, None, None]) & (x < 1) & valid[:, :, None]
+            with np.errstate(divide="ignore", invalid="ignore", under="ignore"):
+                w = np.where(keep, np.exp(lam[g, None, None] * np.log1p(-np.minimum(x, 1.0))), 0.0)
+            w *= OM[rows][:, :, None]
+            Lg = Lf[rows[:, :, None] * W + cols[:, None, :]]  # (n, R', C', 3)
+            out[g] = np.einsum("nrc,nrcj->nj", w, Lg) / w.sum((1, 2))[:, None]
     return out
 
 
