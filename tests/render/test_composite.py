@@ -35,8 +35,10 @@ SHADOW_MEAN_TOL_ANY = 0.06
 SHADOW_MAX_TOL_ANY = 0.2
 #: ... and under the environment itself (adds the 10-lobe fit's error): measured mean / max
 #: sunset 0.019 / 0.054, courtyard 0.021 / 0.074, forest 0.021 / 0.094, studio 0.049 / 0.170.
-SHADOW_ENV_MEAN_TOL = 0.06
-SHADOW_ENV_MAX_TOL = 0.25
+SHADOW_ENV_MEAN_TOL = 0.04
+SHADOW_ENV_MAX_TOL = 0.12
+SHADOW_ENV_MEAN_TOL_ANY = 0.06
+SHADOW_ENV_MAX_TOL_ANY = 0.25
 
 SPHERES = SphereSet(np.array([[0.0, 0.0, 0.1], [0.03, 0.02, 0.22]]), np.array([0.1, 0.05]))
 
@@ -175,7 +177,7 @@ def test_shadow_ratio_vs_raycast_sunset():
 def test_shadow_ratio_vs_raycast_other_maps(name):
     e = _shadow_errors(name)
     assert e["sg"][0] < SHADOW_MEAN_TOL_ANY and e["sg"][1] < SHADOW_MAX_TOL_ANY, e
-    assert e["env"][0] < SHADOW_ENV_MEAN_TOL and e["env"][1] < SHADOW_ENV_MAX_TOL, e
+    assert e["env"][0] < SHADOW_ENV_MEAN_TOL_ANY and e["env"][1] < SHADOW_ENV_MAX_TOL_ANY, e
 
 
 # -- GL vs numpy -------------------------------------------------------------------------------
