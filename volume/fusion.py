@@ -19,8 +19,8 @@ Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised ove
    surface (smallest |d|) is chosen and the voxel's distance is the view-cosine weighted mean
    of the samples agreeing with it.  More scans seeing through x than supporting it cancel it.
 4. **Sign elsewhere** (space carving with votes, :func:`carve_sign`): x is outside when
-   free >= min(carve_quorum, #scans that see x), or free + nodata also reaches
-   carve_ratio * occluded; voxels no scan sees are outside; the rest (hidden behind the
+   free >= min(carve_quorum, #scans that see x), or free + nodata >= carve_ratio * occluded; voxels fewer than min(carve_quorum, #scans) scans contain are
+   outside; the rest (hidden behind the
    surface in every view) are inside.
 5. **Completion** (:func:`complete_sdf`): outside the consensus band the distance is the
    Euclidean distance transform of the sign field, so it is finite everywhere.
@@ -311,7 +311,7 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
     n = L ** 3
     if coarse is None or coarse.resolution * 2 != L:
         free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), None, progress)
-        return carve_sign(free, nodata, occ, seen, cfg), seen, near
+        return carve_sign(free, nodata, occ, seen, cfg, len(maps)), seen, near
     wc = coarse.voxel_size
     keep = (np.abs(coarse.values) <= COARSE_MARGIN_VOXELS * wc + trunc) | coarse.near_mask
     cand = np.nonzero(upsample2(keep).reshape(-1))[0]
@@ -319,25 +319,29 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
     seen = upsample2(coarse.seen).reshape(-1).copy()
     near = np.zeros(n, np.uint8)
     free, nodata, occ, sn, nr = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), cand, progress)
-    outside[cand] = carve_sign(free, nodata, occ, sn, cfg)
+    outside[cand] = carve_sign(free, nodata, occ, sn, cfg, len(maps))
     seen[cand] = sn
     near[cand] = nr
     return outside, seen, near
 
 
-def carve_sign(free, nodata, occ, seen, cfg: FusionConfig) -> np.ndarray:
+def carve_sign(free, nodata, occ, seen, cfg: FusionConfig, n_scans: int) -> np.ndarray:
     """True where the votes say outside (METHODS §1.1; step 4 of the module docstring).
 
     Measured free space is strong evidence: ``carve_quorum`` views (capped by the views that
     contain x) carve.  No-return pixels are weak (they include holes): they count with the
     free votes only when they also reach ``carve_ratio`` of the views that saw x occluded.
-    Voxels no view contains are outside.
+    Voxels that fewer than min(carve_quorum, n_scans) views contain are outside: nothing can
+    be said about them, and calling them inside would grow walls where the frusta end.
     """
     q = np.minimum(cfg.carve_quorum, seen.astype(np.int32))
     empty = free.astype(np.int32) + nodata
     strong = (free >= q) & (free > 0)
-    weak = (empty >= np.maximum(q, cfg.carve_ratio * occ)) & (empty > 0)
-    return strong | weak | (seen == 0)
+    # weak votes: no quorum beyond carve_ratio * occluded, which keeps voxels hidden in most
+    # views (the interior) from being carved by holes; at the periphery of the frusta a
+    # single clear no-return view is all the evidence there is
+    weak = (empty >= cfg.carve_ratio * occ) & (empty > 0)
+    return strong | weak | (seen < min(cfg.carve_quorum, n_scans))
 
 
 def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: FusionConfig, w: float,

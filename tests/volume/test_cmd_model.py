@@ -1,0 +1,117 @@
+"""`furrow model` end to end on a small analytic scan set, and bad input (clear errors, no partial model)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from capture.io import write_transforms
+from furrow.cli import main
+from tests.volume.scenes import make_scanset, ring_cameras, sphere_scene
+from volume.model import load_model
+
+
+@pytest.fixture(scope="module")
+def scan_dir(tmp_path_factory):
+    ss = make_scanset(sphere_scene(), ring_cameras(8, 64, 48), noise=0.0005)
+    out = tmp_path_factory.mktemp("scans") / "sphere"
+    write_transforms(ss, out)
+    return out
+
+
+def _run(argv, capsys):
+    rc = main(argv)
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+def test_model_end_to_end(scan_dir, tmp_path, capsys):
+    out = tmp_path / "model"
+    rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "32", "--json"], capsys)
+    assert rc == 0, stderr
+    s = json.loads(stdout)
+    for key in ("l_opt", "levels", "surface_voxels", "spheres", "seconds"):
+        assert key in s
+    assert s["l_opt"] == 32 and s["levels"] == [8, 16, 32]
+    assert set(s["surface_voxels"]) == {"8", "16", "32"} and s["surface_voxels"]["32"] > 500
+    assert "fuse consensus 32^3" in s["seconds"] and "rgbz" in s["seconds"]
+    assert "stage timings" in stderr
+    m = load_model(out)
+    assert m.pyramid.resolutions == [8, 16, 32] and len(m.rgbz) == 8 and len(m.spheres) == s["spheres"]
+    assert m.mesh_colors is not None and len(m.mesh_faces) > 100
+    assert m.params["lopt"]["max_res"] == 32 and m.provenance["scans"] == 8
+    # surface voxels of the finest level lie on the 7 cm sphere (8 views: the poles, seen only
+    # at grazing angles, bulge by up to 2 voxels as in a visual hull)
+    lv = m.pyramid.levels[-1]
+    e = np.abs(np.linalg.norm(lv.centers(), axis=1) - 0.07)
+    assert np.mean(e < np.sqrt(3) * lv.voxel_size) > 0.95 and e.max() < 3 * lv.voxel_size
+
+
+def test_model_frames_and_tsdf(scan_dir, tmp_path, capsys):
+    out = tmp_path / "m2"
+    rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16", "--frames", "0::2",
+                               "--sdf", "tsdf", "--json"], capsys)
+    assert rc == 0, stderr
+    m = load_model(out)
+    assert len(m.rgbz) == 4 and m.params["sdf"] == "tsdf" and m.provenance["frames"] == "0::2"
+
+
+def _copy(src, dst):
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _assert_failed_cleanly(rc, stderr, out, needle):
+    assert rc == 1
+    assert needle in stderr.replace("\n", ""), stderr
+    assert not out.exists()
+    assert not [p for p in out.parent.iterdir() if p.name.startswith(f".{out.name}")]  # no temp folder left
+
+
+def test_corrupt_png(scan_dir, tmp_path, capsys):
+    d = _copy(scan_dir, tmp_path / "bad")
+    frames = json.loads((d / "transforms.json").read_text())["frames"]
+    img = d / frames[3]["file_path"]
+    img.write_bytes(b"\x89PNG\r\n\x1a\n not really a png")
+    out = tmp_path / "out" / "model"
+    out.parent.mkdir()
+    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
+    _assert_failed_cleanly(rc, err, out, img.name)
+
+
+def test_missing_depth_file(scan_dir, tmp_path, capsys):
+    d = _copy(scan_dir, tmp_path / "bad")
+    frames = json.loads((d / "transforms.json").read_text())["frames"]
+    dep = d / frames[5]["depth_file_path"]
+    dep.unlink()
+    out = tmp_path / "out" / "model"
+    out.parent.mkdir()
+    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
+    _assert_failed_cleanly(rc, err, out, dep.name)
+
+
+def test_non_rigid_pose(scan_dir, tmp_path, capsys):
+    d = _copy(scan_dir, tmp_path / "bad")
+    tj = d / "transforms.json"
+    meta = json.loads(tj.read_text())
+    m = np.array(meta["frames"][2]["transform_matrix"])
+    m[:3, :3] *= 1.1  # a scale: not a rigid pose
+    meta["frames"][2]["transform_matrix"] = m.tolist()
+    tj.write_text(json.dumps(meta))
+    out = tmp_path / "out" / "model"
+    out.parent.mkdir()
+    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
+    _assert_failed_cleanly(rc, err, out, "transforms.json")
+    assert "rigid" in err
+
+
+def test_refuses_to_replace_a_non_model_folder(scan_dir, tmp_path, capsys):
+    out = tmp_path / "precious"
+    out.mkdir()
+    (out / "thesis.txt").write_text("keep me")
+    rc, _, err = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16"], capsys)
+    assert rc == 1 and "not a furrow model" in err and (out / "thesis.txt").exists()
