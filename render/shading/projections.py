@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from render.shading.envmap import EnvMap, sample_equirect, dir_to_uv
+from render.shading.envmap import EnvMap
 
 #: METHODS §2 Table 2: equirect width -> geodesic dome vertices (frequency nu = 9 W / 64).
 DOME_TABLE2 = {512: 51842, 256: 12962, 128: 3242, 64: 812}
@@ -223,5 +223,4 @@ def equirect_from_mirror_ball(img, h: int, cam_to_world=np.eye(3), name: str = "
 
 __all__ = ["DOME_TABLE2", "geodesic_dome", "dome_frequency_for_width", "dome_solid_angles", "dome_from_equirect",
            "spherical_triangle_areas", "cubemap_from_equirect", "equirect_from_cubemap", "sample_cubemap", "fisheye_from_equirect",
-           "equirect_from_fisheye", "mirror_ball_from_equirect", "equirect_from_mirror_ball", "dir_to_uv",
-           "sample_equirect"]
+           "equirect_from_fisheye", "mirror_ball_from_equirect", "equirect_from_mirror_ball"]

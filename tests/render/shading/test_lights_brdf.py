@@ -7,7 +7,7 @@ import pytest
 
 from render.shading.brdf import (blinn_phong_energy, blinn_phong_normalized, blinn_phong_raw_energy,
                                  half_vector)
-from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky, uv_to_dir
+from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky
 from render.shading.lights import (LIGHT_MAX_RADIUS, _extract, dominant_lights, env_minus_lights,
                                    lights_irradiance)
 from render.shading.sh import irradiance_brute
