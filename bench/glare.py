@@ -10,7 +10,7 @@
    glare, saved as PNG.
 
     furrow bench glare [--size 640x480] [--counts 10,100,1000,3000,10000] [--env studio]
-                       [-o out/bench/glare] [--json]
+                       [-o out/bench/glare] [--json] [--model DIR --scans DIR [--view I]]
 """
 
 from __future__ import annotations
@@ -167,6 +167,36 @@ def bench_composite(ctx, W, H, env_name, out_dir: Path):
     return results
 
 
+def composite_captured(ctx, model_dir: Path, scans: Path, view: int, env_name: str, out_dir: Path) -> dict:
+    """A captured view (its colour + depth) composited into the map with the model's sphere-set
+    shadow (ground at the spheres' lowest point) and glare; PNG + shadow-ratio PNG written."""
+    import imageio.v3 as iio
+
+    from capture.io import read_scanset
+    from capture.scan import to_uint8_srgb
+    from render.composite import composite_frame
+    from render.shading.envmap import bundled_envmap
+    from volume.model import load_model
+
+    ss = read_scanset(scans)
+    m = load_model(model_dir)
+    sc = ss.scans[view]
+    env = bundled_envmap(env_name)
+    st = {}
+    img = composite_frame(ctx, sc.linear_rgb, sc.depth, sc.camera, env, spheres=m.spheres, glare=True, stats=st)
+    a = composite_frame(ctx, sc.linear_rgb, sc.depth, sc.camera, env, spheres=m.spheres, glare=False, output="linear")
+    b = composite_frame(ctx, sc.linear_rgb, sc.depth, sc.camera, env, spheres=m.spheres, ground=False, glare=False,
+                        output="linear")
+    ratio = np.clip((a.sum(-1) + 1e-9) / (b.sum(-1) + 1e-9), 0, 1)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    p = out_dir / f"composite_{Path(scans).name}_{env_name}.png"
+    iio.imwrite(p, to_uint8_srgb(img))
+    pr = out_dir / f"composite_{Path(scans).name}_{env_name}_shadow_ratio.png"
+    iio.imwrite(pr, np.round(ratio * 255).astype(np.uint8))
+    return {"png": str(p), "ratio_png": str(pr), "spheres": len(m.spheres), "min_ratio": float(ratio.min()),
+            **{k: v for k, v in st.items() if not isinstance(v, list)}}
+
+
 def _plot(rows, out_dir: Path) -> Path:
     import matplotlib
     matplotlib.use("Agg")
@@ -204,6 +234,9 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--env", default="studio")
     ap.add_argument("-o", "--out", default=str(REPO / "out" / "bench" / "glare"))
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--model", help="a furrow model folder: also composite a captured view with its sphere shadow")
+    ap.add_argument("--scans", help="the scan set of --model")
+    ap.add_argument("--view", type=int, default=4, help="index of the captured view for --model")
     a = ap.parse_args(argv)
     W, H = (int(v) for v in a.size.lower().split("x"))
     counts = [int(c) for c in a.counts.split(",")]
@@ -214,8 +247,10 @@ def main(argv: list[str]) -> int:
         rows = bench_cost(ctx, W, H, counts)
         thin = bench_energy_thin(ctx, W, H)
         comp = bench_composite(ctx, W, H, a.env, out_dir)
+        captured = (composite_captured(ctx, Path(a.model), Path(a.scans), a.view, a.env, out_dir)
+                    if a.model and a.scans else None)
     plot = _plot(rows, out_dir)
-    res = {"size": [W, H], "cost": rows, "energy": thin, "composite": comp, "plot": str(plot)}
+    res = {"size": [W, H], "cost": rows, "energy": thin, "composite": comp, "captured": captured, "plot": str(plot)}
     if a.json:
         print(json.dumps(res, indent=1))
         return 0
@@ -237,13 +272,17 @@ def main(argv: list[str]) -> int:
         t.add_row(f"{r['n']:.0f}", f"{r['width_px']:.2f}", str(r["supersample"]), f"{100 * r['energy_rel_err']:.3f}")
     console.print(t)
     t = Table(title=f"composite frame {W}x{H} ({a.env}; SG fit {comp['sg_fit_s']:.2f} s once per map)")
-    for c in ("", "shadow grid ms", "composite ms", "glare ms", "bright px", "total ms", "picture"):
+    for c in ("", "shadow ms", "comp ms", "glare ms", "bright px", "total ms", "picture"):
         t.add_column(c)
     for k in ("no_glare", "glare"):
         r = comp[k]
         t.add_row(k, f"{r.get('shadow_ms', 0):.1f}", f"{r['composite_ms']:.1f}", f"{r.get('glare_ms', 0):.1f}",
-                  str(r.get("bright_pixels", "-")), f"{r['total_ms']:.1f}", r["png"])
+                  str(r.get("bright_pixels", "-")), f"{r['total_ms']:.1f}", Path(r["png"]).name)
     console.print(t)
+    if captured:
+        console.print(f"captured view ({captured['spheres']} spheres): shadow {captured.get('shadow_ms', 0):.0f} ms, "
+                      f"composite {captured['composite_ms']:.0f} ms, glare {captured.get('glare_ms', 0):.0f} ms, "
+                      f"min shadow ratio {captured['min_ratio']:.2f} -> {captured['png']}")
     console.print(f"plot: {plot}")
     return 0
 
