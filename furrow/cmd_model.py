@@ -41,6 +41,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sphere-error", type=float, default=0.2, metavar="E",
                    help="target 1 - volume IoU of the occluder sphere set (default 0.2)")
     p.add_argument("--mesh-faces", type=int, default=60000, help="decimate the mesh to this many triangles (default 60000)")
+    p.add_argument("--overwrite", action="store_true", help="replace MODEL if it exists (only a furrow model folder)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary on stdout")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
@@ -57,8 +58,10 @@ def run(args, console) -> int:
                                                     min_res=min(8, args.max_res)),
                       sphere_error=args.sphere_error, mesh=MeshConfig(target_faces=args.mesh_faces))
     out = Path(args.out)
-    if out.exists() and not (out / "model.json").is_file() and any(out.iterdir()):
+    if out.exists() and not (out / "model.json").is_file() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"{out}: exists and is not a furrow model folder; choose another output")
+    if out.exists() and (out / "model.json").is_file() and not args.overwrite:
+        raise ValueError(f"{out}: model already exists (use --overwrite to replace it)")
     timer = StageTimer()
 
     def progress(it, desc="working"):

@@ -115,3 +115,15 @@ def test_refuses_to_replace_a_non_model_folder(scan_dir, tmp_path, capsys):
     (out / "thesis.txt").write_text("keep me")
     rc, _, err = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16"], capsys)
     assert rc == 1 and "not a furrow model" in err and (out / "thesis.txt").exists()
+    rc, _, err = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16", "--overwrite"], capsys)
+    assert rc == 1 and (out / "thesis.txt").exists()
+
+
+def test_existing_model_needs_overwrite(scan_dir, tmp_path, capsys):
+    out = tmp_path / "m"
+    assert _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16"], capsys)[0] == 0
+    rc, _, err = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16"], capsys)
+    assert rc == 1 and "--overwrite" in err
+    rc, _, err = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "32", "--overwrite"], capsys)
+    assert rc == 0 and load_model(out).pyramid.l_opt == 32
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m"]
