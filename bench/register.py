@@ -9,6 +9,8 @@ direction, seeded):
   160x120, rendered with the true poses);
 * ``face``: the REAL structured-light range map shipped in pymeshlab's wheel (GPL-3.0 sample
   data), cut into 2x3 overlapping windows;
+* ``furball-board`` / ``plant-board`` / ``torus-board``: the same scenes standing on a ChArUco
+  board (``datasets_synthetic.board``), 480x360 views from 50 degrees elevation;
 * ``sfm``: the analytic object with a feature-rich solid texture, 36 views at 320x240 (SfM needs
   a short baseline; used for the ``colmap`` method).
 
@@ -34,8 +36,8 @@ if str(ROOT) not in sys.path:
 
 import numpy as np  # noqa: E402
 
-SCENES = ("control", "torus", "plant", "furball", "face", "sfm")
-METHODS = ("icp", "icp-geom", "colmap")
+SCENES = ("control", "torus", "plant", "furball", "face", "sfm", "furball-board", "plant-board", "torus-board")
+METHODS = ("icp", "icp-geom", "colmap", "board")
 
 
 def load_scene(name: str, views: int, width: int):
@@ -57,15 +59,33 @@ def load_scene(name: str, views: int, width: int):
 
         from datasets_synthetic.synth import SMALL_RIG, SynthConfig, synthesize
 
+        scene = spec = None
         rig = dataclasses.replace(SMALL_RIG, views_per_ring=views, width=width, height=width * 3 // 4)
-        cap = synthesize(SynthConfig(scene=name, rig=rig, supersample=2))
+        if name.endswith("-board"):
+            from datasets_synthetic.board import add_board
+            from datasets_synthetic.scenes import build_scene
+
+            name = name[: -len("-board")]
+            scene, spec = add_board(build_scene(name))
+            # the board needs pixels: 480x360, looking down 50 degrees from 0.65 m
+            rig = dataclasses.replace(SMALL_RIG, views_per_ring=views, width=480, height=360,
+                                      elevations_deg=(50.0,), distance=0.65, fov_y_deg=40.0)
+        cap = synthesize(SynthConfig(scene=name, rig=rig, supersample=2), scene=scene)
         from capture.camera import Camera
         from capture.scan import Scan, ScanSet
 
         scans = tuple(Scan(s.rgb, s.depth, Camera(s.camera.K, c.cam_from_world, s.camera.width, s.camera.height,
                                                   s.camera.name), s.name)
                       for s, c in zip(cap.scanset.scans, cap.true_cameras))
-        ss = ScanSet(scans, cap.scanset.bounds, cap.scanset.metadata)
+        meta = dict(cap.scanset.metadata)
+        bounds = cap.scanset.bounds
+        if spec is not None:
+            meta["board_spec"] = spec
+            # object bounds (without the board): the size that errors are quoted against
+            from capture.scan import bounds_from_points
+
+            bounds = bounds_from_points(build_scene(name).mesh.vertices, margin=0.05)
+        ss = ScanSet(scans, bounds, meta)
     return ss, [s.camera.cam_from_world for s in ss.scans]
 
 
@@ -92,6 +112,8 @@ def run_one(ss, gt, method: str, deg: float, seed: int) -> dict:
             _, rep, poses = pipeline.register(inp, "icp", "nominal", icp.IcpConfig(color_scale_frac=0.0))
         elif method == "colmap":
             _, rep, poses = pipeline.register(inp, "colmap", "nominal")
+        elif method == "board":
+            _, rep, poses = pipeline.register(inp, "board", "nominal", board=ss.metadata.get("board_spec"))
         else:
             raise ValueError(method)
     except Exception as e:  # a method that cannot run on a scene is reported, not hidden

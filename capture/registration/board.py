@@ -30,15 +30,15 @@ MAX_REPROJ_PX = 2.0
 class BoardSpec:
     """A ChArUco board."""
 
-    squares_x: int = 10
+    squares_x: int = 7
     """Squares along the board's x."""
-    squares_y: int = 10
+    squares_y: int = 7
     """Squares along the board's y."""
-    square_m: float = 0.035
+    square_m: float = 0.05
     """Side of a chessboard square (metres)."""
-    marker_m: float = 0.026
+    marker_m: float = 0.037
     """Side of an ArUco marker (metres)."""
-    dictionary: str = "DICT_5X5_100"
+    dictionary: str = "DICT_4X4_50"
     """Predefined ArUco dictionary name (``cv2.aruco.<name>``)."""
     z_m: float = -0.13
     """Height of the board plane in the world (metres; below the object)."""

@@ -143,6 +143,15 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
         # board frame by the rigid transform that best agrees with all board poses
         out.cam_from_world = _fit_gauge(out.cam_from_world, board_init, out.registered)
         notes.append("gauge: least-squares fit to all board poses")
+        # scans ICP could not connect keep their board pose (PnP on the board is independent of
+        # the object's surface: this is what makes fur registrable)
+        by_board = [k for k, (r, b) in enumerate(zip(out.registered, board_init)) if not r and b is not None]
+        for k in by_board:
+            out.cam_from_world[k] = board_init[k]
+            out.registered[k] = True
+        if by_board:
+            names = [scanset.scans[k].name for k in by_board]
+            notes.append(f"{len(by_board)} scans posed by the board alone (ICP could not connect them): {names}")
     rep = _report_from_icp(scanset, out, used, init)
     rep.notes.extend(notes)
     rep.seconds["total"] = time.perf_counter() - t0

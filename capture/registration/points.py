@@ -35,6 +35,9 @@ class CloudConfig:
     """Use every ``stride``-th pixel in x and y (1 = all)."""
     edge_frac: float = EDGE_FRAC
     """Drop pixels whose depth jumps by more than this fraction of depth to a 4-neighbour (<= 0: keep all)."""
+    median_px: int = 0
+    """Median-filter the depth map over this window (pixels, odd; 0 = off) before anything else:
+    on fur the strand tips scatter the depth, the median keeps the coat's envelope."""
     keep_silhouettes: bool = True
     """Keep pixels next to "no data" (thin needles / strands); False drops them (smooth objects)."""
     min_points: int = 30
@@ -76,6 +79,20 @@ def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True
     return ok
 
 
+def smooth_depth(depth: np.ndarray, median_px: int) -> np.ndarray:
+    """Median filter of a depth map (0 = no data) that does not pull depths towards 0: empty
+    pixels count as far; pixels empty before, or whose median is empty, stay empty."""
+    d = np.asarray(depth, dtype=np.float64)
+    if median_px <= 1:
+        return d
+    from scipy.ndimage import median_filter
+
+    valid = np.isfinite(d) & (d > 0)
+    far = 2.0 * (d[valid].max() if valid.any() else 1.0)
+    m = median_filter(np.where(valid, d, far), size=int(median_px), mode="nearest")
+    return np.where(valid & (m < far), m, 0.0)
+
+
 def camera_frame(camera: Camera) -> Camera:
     """The same intrinsics with an identity pose: back-projection then yields camera-frame points."""
     return Camera(camera.K, np.eye(4), camera.width, camera.height, camera.name)
@@ -88,7 +105,7 @@ def scan_points(scan: Scan, config: CloudConfig = CloudConfig()) -> tuple[np.nda
         points: (N, 3) float64 metres, OpenCV camera axes of ``scan.camera``.
         colors: (N, 3) float64 linear RGB in [0, 1] (clipped).
     """
-    depth = np.array(scan.depth, dtype=np.float32)
+    depth = smooth_depth(scan.depth, config.median_px).astype(np.float32)
     keep = edge_mask(depth, config.edge_frac, config.keep_silhouettes)
     if config.stride > 1:
         sub = np.zeros_like(keep)

@@ -74,7 +74,7 @@ class DepthFrame:
 def depth_frame(scan: Scan, cfg: P.CloudConfig = P.CloudConfig()) -> DepthFrame:
     """Points and central-difference normals of a scan's depth map (edges removed)."""
     cam = P.camera_frame(scan.camera)
-    d = np.asarray(scan.depth, dtype=np.float64)
+    d = P.smooth_depth(scan.depth, cfg.median_px)
     ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes)
     rays = cam.pixel_rays(cam.pixel_grid())
     pts = rays * np.where(ok, d, 0.0)[..., None]
