@@ -16,9 +16,8 @@ Sections (each a table; plots under -o):
               error of the visibility-weighted SG integral and time.
   prefilter   the prefiltered SG pyramid Gamma(p, lambda) (half-octave levels) vs the brute-force
               sum: relative error at and between levels, build time.
-  shadow      ground shadow ratio (seed 004 Eq. 16-17) from K SG lights + SSDF of one sphere vs
-              ray-cast irradiance with the real map.
-  glare       frame cost against the number of bright pixels; streak energy vs highlight energy.
+Glare cost / energy and the compositing shadow ratio are measured by ``furrow bench glare``
+(render/glare.py, render/composite.py).
 
     furrow bench shading [--quick] [--map courtyard] [--sections msem,sg,...] [-o DIR] [--json]
 
@@ -39,7 +38,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-SECTIONS = ("irradiance", "msem", "sphere", "sg", "prefilter", "ssdf", "shadow", "glare")
+SECTIONS = ("irradiance", "msem", "sphere", "sg", "prefilter", "ssdf")
 #: The thesis' Table 3 (mean error, 256 levels, vs unaccelerated) and Table 4 (time).
 PAPER_TABLE3 = {0.001: "0.1-1.0", 0.005: "2.0", 0.01: "3.6-4.0", 0.05: "17-19", 0.1: "35-38"}
 PAPER_TABLE4 = "unaccelerated 73 h 52 min; accelerated 21 h 24 min table + 7-9 s filtering (128^3, 512x256)"
@@ -190,34 +189,6 @@ def bench_prefilter(quick: bool, map_name: str) -> list[dict]:
     return rows
 
 
-def bench_shadow(quick: bool, map_name: str) -> list[dict]:
-    import open3d as o3d
-
-    from render.shading.composite import ground_shadow_ratio, ground_shadow_ratio_raycast
-    from render.shading.envmap import bundled_envmap
-    from render.shading.sg_fit import fit_env_sg
-
-    env = bundled_envmap(map_name).resized(64)
-    c, r = np.array([0.0, 0.0, 0.15]), 0.1
-    m = o3d.geometry.TriangleMesh.create_sphere(radius=r, resolution=60)
-    V, F = np.asarray(m.vertices) + c, np.asarray(m.triangles)
-    g = np.linspace(-0.4, 0.4, 15 if quick else 31)
-    X, Y = np.meshgrid(g, g)
-    P = np.stack([X.ravel(), Y.ravel(), np.full(X.size, 1e-4)], 1)
-    t = time.perf_counter(); ref = ground_shadow_ratio_raycast(env, P, V, F); tr = time.perf_counter() - t
-    from render.shading.sg import fh_table
-    fh_table()  # build the cached f_h table outside the timings
-    rows = []
-    for k in (4, 10, 32):
-        f = fit_env_sg(env, k)
-        t = time.perf_counter(); got = ground_shadow_ratio(P, f.axes, f.lams, f.mus, c[None], [r])
-        ts = time.perf_counter() - t
-        e = np.abs(got - ref)
-        rows.append({"K": k, "points": len(P), "mean_abs_err": float(e.mean()), "max_abs_err": float(e.max()),
-                     "sg_ssdf_ms": 1e3 * ts, "raycast_ms": 1e3 * tr})
-    return rows
-
-
 def bench_ssdf(quick: bool) -> list[dict]:
     import open3d as o3d
 
@@ -258,39 +229,6 @@ def bench_ssdf(quick: bool) -> list[dict]:
     return rows
 
 
-def bench_glare(quick: bool) -> list[dict]:
-    from render.gl import create_context
-    from render.shading.glare import GlareConfig, GlareRenderer, bright_pixels, streak_energy, streak_triangles
-
-    ctx = create_context()
-    W, H = 640, 480
-    gr = GlareRenderer(ctx, W, H)
-    rows = []
-    cfg = GlareConfig()
-    try:
-        for nb in (10, 100, 1000) if quick else (10, 100, 1000, 10000):
-            rng = np.random.default_rng(nb)
-            img = np.full((H, W, 3), 0.2, np.float32)
-            ys = rng.integers(40, H - 40, nb)
-            xs = rng.integers(40, W - 40, nb)
-            img[ys, xs] = rng.uniform(2, 30, (nb, 1)).astype(np.float32)
-            c, e, i = bright_pixels(img, cfg.display_max)
-            times = []
-            for _ in range(3):
-                t = time.perf_counter()
-                pos, col = streak_triangles(c, e, i, 100.0, cfg)
-                g = gr.render(pos, col)
-                times.append(time.perf_counter() - t)
-            rows.append({"bright_pixels": int(len(c)), "triangles": int(len(pos) // 3),
-                         "frame_ms": 1e3 * float(np.median(times)),
-                         "streak_light_over_excess": float(g.sum() / e.sum()),
-                         "analytic_over_excess": float(streak_energy(pos, col).sum() / e.sum())})
-    finally:
-        gr.release()
-        ctx.release()
-    return rows
-
-
 def _plots(res: dict, out: Path) -> list[str]:
     import matplotlib
     matplotlib.use("Agg")
@@ -322,11 +260,6 @@ def _plots(res: dict, out: Path) -> list[str]:
                         label=f"lambda {lam}")
         ax.set_xlabel("spheres"); ax.set_ylabel("mean |error| / f_h(pi/2)"); ax.legend(); fig.tight_layout()
         p = out / "ssdf_error_vs_spheres.png"; fig.savefig(p, dpi=100); plt.close(fig); saved.append(str(p))
-    if res.get("glare"):
-        fig, ax = plt.subplots(figsize=(5, 3.5))
-        ax.loglog([r["bright_pixels"] for r in res["glare"]], [r["frame_ms"] for r in res["glare"]], "o-")
-        ax.set_xlabel("bright pixels"); ax.set_ylabel("glare ms / frame (640x480)"); fig.tight_layout()
-        p = out / "glare_cost.png"; fig.savefig(p, dpi=100); plt.close(fig); saved.append(str(p))
     return saved
 
 
@@ -367,16 +300,10 @@ def _print_tables(res: dict) -> None:
     if res.get("prefilter"):
         table("Prefiltered SG pyramid Gamma(p, lambda) vs brute force (relative error)", res["prefilter"],
               ["lambda", "map_rows", "median_rel", "p95_rel", "max_rel", "build_s"])
-    if res.get("shadow"):
-        table("Ground shadow ratio (Eq. 16-17): K SGs + SSDF vs ray-cast irradiance", res["shadow"],
-              ["K", "points", "mean_abs_err", "max_abs_err", "sg_ssdf_ms", "raycast_ms"])
     if res.get("ssdf"):
         table("SSDF from spheres vs ray casting (|error of integral G V| / f_h(pi/2))", res["ssdf"],
               ["spheres", "err_mean_l1", "err_mean_l10", "err_max_l10", "err_mean_l100", "err_max_l100", "ssdf_s",
                "raycast_s"])
-    if res.get("glare"):
-        table("Glare at 640x480", res["glare"],
-              ["bright_pixels", "triangles", "frame_ms", "streak_light_over_excess", "analytic_over_excess"])
 
 
 def main(argv: list[str]) -> int:
@@ -396,8 +323,8 @@ def main(argv: list[str]) -> int:
     res: dict = {"map": a.map, "quick": a.quick}
     runners = {"irradiance": lambda: bench_irradiance(a.quick), "msem": lambda: bench_msem(a.quick, a.map, a.samples),
                "sphere": lambda: bench_sphere(a.quick, a.map), "sg": lambda: bench_sg(a.quick, a.map),
-               "prefilter": lambda: bench_prefilter(a.quick, a.map), "shadow": lambda: bench_shadow(a.quick, a.map),
-               "ssdf": lambda: bench_ssdf(a.quick), "glare": lambda: bench_glare(a.quick)}
+               "prefilter": lambda: bench_prefilter(a.quick, a.map),
+               "ssdf": lambda: bench_ssdf(a.quick)}
     for s in secs:
         t = time.perf_counter()
         print(f"[shading bench] {s} ...", file=sys.stderr)

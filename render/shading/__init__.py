@@ -11,6 +11,5 @@
 - msem, msem_video: multi-scale environment map (GLSL twin shading_msem.glsl), per-frame
   build + streaming into one 3-D texture
 - ssdf: SSDF visibility from spheres + ground plane, ray-cast reference (GLSL twin shading_ssdf.glsl)
-- glare: energy-preserving glare streaks (shading_glare_*.glsl)
-- composite: background through a camera, tone mapping, ground shadow ratio (004 Eq. 16-17)
+- glare: glare streak shape and energy (Eq. 6-12; drawn by render/glare.py)
 """

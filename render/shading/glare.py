@@ -2,11 +2,15 @@
 
 Each bright pixel spawns ``n_dirs`` pairs of opposite streaks. A pair is a thin rhombus with
 half-length L_s along the streak direction and width W_s across (area L_s W_s: two streaks of
-S = L_s W_s / 2 each, Eq. 6), drawn as a fan of 4 triangles with the centre colour c and a
-black rim, interpolated and blended additively (moderngl). The light of a pair is the integral
-of that tent, c * L_s W_s / 3; c is chosen so that the pairs of a pixel carry exactly the
-pixel's excess energy (its radiance above the display maximum times the pixel area), which is
-removed from the pixel: the frame's total light is unchanged (energy-preserving glare).
+S = L_s W_s / 2 each, Eq. 6), a fan of 4 triangles with the centre colour c and a black rim,
+interpolated. The light of a pair is the integral of that tent, c * L_s W_s / 3; c is chosen so
+that the pairs of a pixel carry exactly the pixel's excess energy (its radiance above the display
+maximum times the pixel area): the frame's total light is unchanged (energy-preserving glare).
+
+This module is the shape and energy (numpy). Drawing (instanced additive fans in moderngl, with
+supersampling for sub-pixel widths), the light-source / light-reflection / specular-parameter
+maps and the compositing live in render/glare.py, render/shading/glare_maps.py and
+render/composite.py (the compositing helper's), which call these functions.
 
 Shape (Eq. 7-12), with I = k_s I_l the highlight intensity and n the Blinn exponent:
     L_s = k_length * I (n + 2) / (8 pi)   (Eq. 7, proportional to the normalised peak, Eq. 4)
@@ -128,58 +132,3 @@ def bright_pixels(img, display_max: float):
     val = img[ys, xs]
     clipped = val * (display_max / lum[ys, xs])[:, None]
     return np.stack([xs + 0.5, ys + 0.5], 1), val - clipped, lum[ys, xs] / display_max
-
-
-class GlareRenderer:
-    """Draws streak fans additively into an RGBA32F framebuffer (owns the GL objects)."""
-
-    def __init__(self, ctx, width: int, height: int):
-        from render.gl import program
-
-        self.ctx, self.size = ctx, (int(width), int(height))
-        self.prog = program(ctx, "shading_glare_vert.glsl", "shading_glare_frag.glsl")
-        self.tex = ctx.texture(self.size, 4, dtype="f4")
-        self.fbo = ctx.framebuffer(color_attachments=[self.tex])
-
-    def render(self, pos, col) -> np.ndarray:
-        """(H, W, 3) float32 glare image, rows top-down (y down like the input pixel coords)."""
-        import moderngl
-
-        ctx = self.ctx
-        self.fbo.use()
-        self.fbo.viewport = (0, 0) + self.size
-        self.fbo.clear(0, 0, 0, 0)
-        if len(pos):
-            vbo = ctx.buffer(np.concatenate([pos, col], 1).astype(np.float32).tobytes())
-            vao = ctx.vertex_array(self.prog, [(vbo, "2f 3f", "in_pos", "in_col")])
-            self.prog["u_size"].value = tuple(float(v) for v in self.size)
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = moderngl.ONE, moderngl.ONE
-            ctx.blend_equation = moderngl.FUNC_ADD
-            vao.render(moderngl.TRIANGLES)
-            ctx.disable(moderngl.BLEND)
-            vao.release()
-            vbo.release()
-        w, h = self.size
-        img = np.frombuffer(self.fbo.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)
-        return img[..., :3].copy()  # the vertex shader flips y: row 0 is the top
-
-    def release(self) -> None:
-        for o in (self.fbo, self.tex, self.prog):
-            o.release()
-
-
-def apply_glare(renderer: GlareRenderer, img, n_exp=100.0, cfg: GlareConfig = GlareConfig()):
-    """Energy-preserving glare on an HDR image (H, W, 3): bright pixels are clipped to
-    display_max (luminance) and their excess is redrawn as streaks. Returns (out, stats)."""
-    img = np.asarray(img, np.float32)
-    centres, excess, inten = bright_pixels(img, cfg.display_max)
-    pos, col = streak_triangles(centres, excess, inten * cfg.display_max, n_exp, cfg)
-    glare = renderer.render(pos, col)
-    base = img.astype(np.float64).copy()
-    ys = (centres[:, 1] - 0.5).astype(int)
-    xs = (centres[:, 0] - 0.5).astype(int)
-    base[ys, xs] -= excess
-    return (base + glare).astype(np.float32), {"bright_pixels": int(len(centres)),
-                                               "triangles": int(len(pos) // 3),
-                                               "excess": excess.sum(0)}

@@ -1,4 +1,4 @@
-"""Smoke test of ``furrow bench shading`` (fast sections only): it runs, writes JSON and plots."""
+"""Smoke test of ``furrow bench shading`` (a fast section): it runs, writes JSON and a plot."""
 
 from __future__ import annotations
 
@@ -8,15 +8,15 @@ import json
 from tests.conftest import REPO_DIR
 
 
-def test_bench_shading_glare_section(tmp_path, capsys):
+def test_bench_shading_ssdf_section(tmp_path, capsys):
     spec = importlib.util.spec_from_file_location("bench_shading", REPO_DIR / "bench" / "shading.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    rc = mod.main(["--quick", "--sections", "glare", "-o", str(tmp_path), "--json"])
+    rc = mod.main(["--quick", "--sections", "ssdf", "-o", str(tmp_path), "--json"])
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
-    rows = res["glare"]
-    assert [r["bright_pixels"] for r in rows] == [10, 100, 1000]
+    rows = res["ssdf"]
+    assert [r["spheres"] for r in rows] == [8, 64, 512]
     for r in rows:
-        assert abs(r["streak_light_over_excess"] - 1) < 0.02
-    assert (tmp_path / "glare_cost.png").is_file()
+        assert 0 <= r["err_mean_l10"] < 0.2
+    assert (tmp_path / "ssdf_error_vs_spheres.png").is_file()

@@ -5,12 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from render.shading.glare import (GlareConfig, GlareRenderer, apply_glare, bright_pixels, eyelash_factor,
-                                  n_g, streak_energy, streak_shape, streak_triangles)
-
-#: GL rasterisation of the streak tents vs their analytic integral (thin tips lose coverage):
-#: measured 0.25% for streaks of 10-100 px.
-GLARE_ENERGY_TOL = 0.01
+from render.shading.glare import (GlareConfig, bright_pixels, eyelash_factor, n_g, streak_energy, streak_shape,
+                                  streak_triangles)
 
 
 def test_shape_rules():
@@ -44,34 +40,11 @@ def test_streak_light_equals_excess_analytically():
     np.testing.assert_allclose(streak_energy(pos, col), e.sum(0), rtol=1e-6)  # float32 vertices
 
 
-@pytest.mark.gl
-def test_glare_energy_conserved_through_gl(gl_ctx):
-    img = np.full((240, 320, 3), 0.2, np.float32)
-    img[100, 150] = [50, 40, 30]
-    img[60, 60] = [8, 8, 8]
-    img[200, 250] = [3, 2, 1]
-    img[30, 160] = [20, 20, 20]
-    r = GlareRenderer(gl_ctx, 320, 240)
-    try:
-        out, st = apply_glare(r, img, 100.0, GlareConfig())
-        c, e, i = bright_pixels(img, 1.0)
-        glare = r.render(*streak_triangles(c, e, i, 100.0, GlareConfig()))
-    finally:
-        r.release()
-    assert st["bright_pixels"] == 4
-    np.testing.assert_allclose(glare.sum((0, 1)), e.sum(0), rtol=GLARE_ENERGY_TOL)
-    np.testing.assert_allclose(out.sum((0, 1)), img.astype(np.float64).sum((0, 1)), rtol=GLARE_ENERGY_TOL * 0.1)
-    # the highlight pixels themselves now hold display_max plus the streak centres
-    np.testing.assert_allclose((out - glare) @ np.array([0.2126, 0.7152, 0.0722]), np.where(
-        (img @ np.array([0.2126, 0.7152, 0.0722])) > 1.0, 1.0, img @ np.array([0.2126, 0.7152, 0.0722])), rtol=1e-5)
-    # orientation: the streaks of the single top highlight are centred on its row
-    only = np.zeros_like(img)
-    only[30, 160] = [20, 20, 20]
-    r = GlareRenderer(gl_ctx, 320, 240)
-    try:
-        g = r.render(*streak_triangles(*bright_pixels(only, 1.0), 100.0, GlareConfig())).sum(-1)
-    finally:
-        r.release()
-    rows = (g * np.arange(240)[:, None]).sum() / g.sum()
-    cols = (g * np.arange(320)[None]).sum() / g.sum()
-    assert abs(rows - 30) < 1.0 and abs(cols - 160) < 1.0
+def test_bright_pixels_excess():
+    img = np.full((20, 30, 3), 0.2, np.float32)
+    img[5, 7] = [4.0, 2.0, 1.0]
+    c, e, i = bright_pixels(img, 1.0)
+    np.testing.assert_allclose(c, [[7.5, 5.5]])
+    lum = 0.2126 * 4 + 0.7152 * 2 + 0.0722
+    np.testing.assert_allclose(i, [lum])
+    np.testing.assert_allclose(e[0], np.array([4.0, 2.0, 1.0]) * (1 - 1 / lum), rtol=1e-6)
