@@ -195,10 +195,18 @@ def pixel_world_dirs(camera: Camera) -> np.ndarray:
 
 
 def composite_reference(rgb, depth, camera: Camera, env: EnvMap, exposure: float = 1.0,
-                        ground: GroundPlane | None = None, ratio_grid=None) -> np.ndarray:
+                        ground: GroundPlane | None = None, ratio_grid=None, normals=None, spec=None,
+                        sources=None) -> np.ndarray:
     """(H, W, 3) float64 numpy twin of composite_frag.glsl: exposure x (object where depth > 0,
-    else the environment in the pixel's direction, times the ground shadow ratio)."""
+    plus its light-reflection map when normals / spec / sources are given; else the environment
+    in the pixel's direction, times the ground shadow ratio)."""
     d = pixel_world_dirs(camera)
+    rgb = np.asarray(rgb, np.float64)
+    if spec is not None and sources is not None:
+        from render.shading.glare_maps import light_reflection_map
+
+        view = -d / np.linalg.norm(d, axis=-1, keepdims=True)
+        rgb = rgb + light_reflection_map(normals, view, np.where((np.asarray(depth) > 0)[..., None], spec, 0.0), sources)
     col = env.sample(d)
     if ground is not None and ratio_grid is not None:
         eye = camera.center
@@ -342,9 +350,11 @@ class Compositor:
         return grid
 
     def composite(self, rgb, depth, camera: Camera, env: EnvMap, exposure: float = 1.0,
-                  ground: GroundPlane | None = None) -> np.ndarray:
+                  ground: GroundPlane | None = None, normals=None, spec=None, sources=None) -> np.ndarray:
         """(H, W, 3) float32 HDR composite, exposure applied (twin: :func:`composite_reference`).
-        The ground shadow uses the last :meth:`shadow_grid` (none if ``ground`` is None)."""
+        The ground shadow uses the last :meth:`shadow_grid` (none if ``ground`` is None). With
+        ``normals`` (H, W, 3) world, ``spec`` (H, W, 2) and light ``sources``
+        (render.shading.glare_maps.LightSources) the light-reflection map is added to the object."""
         import moderngl
 
         ctx = self.ctx
@@ -356,7 +366,25 @@ class Compositor:
         t_dep = ctx.texture((W, H), 1, dep.tobytes(), dtype="f4")
         out = ctx.texture((W, H), 4, dtype="f4")
         fbo = ctx.framebuffer(color_attachments=[out])
+        lrm = spec is not None and sources is not None and len(sources.dirs) > 0
+        if lrm:
+            nrm = np.ascontiguousarray(np.asarray(normals, np.float32).reshape(H, W, 3))
+            sp = np.ascontiguousarray(np.asarray(spec, np.float32).reshape(H, W, 2))
+            src = np.zeros((len(sources.dirs), 2, 4), np.float32)
+            src[:, 0, :3] = sources.dirs
+            src[:, 1, :3] = sources.irradiance
+        else:
+            nrm, sp, src = np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 2), np.float32), np.zeros((1, 2, 4), np.float32)
+        t_nrm = ctx.texture(nrm.shape[1::-1], 3, nrm.tobytes(), dtype="f4")
+        t_sp = ctx.texture(sp.shape[1::-1], 2, sp.tobytes(), dtype="f4")
+        t_src = ctx.buffer(src.tobytes())
         try:
+            t_src.bind_to_storage_buffer(6)
+            t_nrm.use(4)
+            t_sp.use(5)
+            _set(self._comp, "u_normal", 4)
+            _set(self._comp, "u_spec", 5)
+            _set(self._comp, "u_lrm_count", len(sources.dirs) if lrm else 0)
             p = self._comp
             self._env.use(0)
             t_rgb.use(1)
@@ -381,7 +409,7 @@ class Compositor:
             self._vao_c.render(moderngl.TRIANGLES, vertices=3)
             img = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)[..., :3]
         finally:
-            for o in (fbo, out, t_rgb, t_dep):
+            for o in (fbo, out, t_rgb, t_dep, t_nrm, t_sp, t_src):
                 o.release()
         return gl_rows_to_image(img).copy()
 
@@ -423,22 +451,19 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
     st = stats if stats is not None else {}
     t0 = time.perf_counter()
     obj = dep > 0
+    nrm = spec = sources = None
     if specular is not None:
-        from render.shading.glare_maps import light_reflection_map, light_source_map, light_sources
+        from render.shading.glare_maps import light_source_map, light_sources
 
         spec = np.asarray(specular, np.float64)
         if spec.shape != (H, W, 2):
             raise ValueError(f"composite_frame: specular must be ({H}, {W}, 2), got {spec.shape}")
         nrm = normals_from_depth(dep, camera) if normals is None else np.asarray(normals, np.float64)
-        P = camera.unproject(camera.pixel_grid(), dep)
-        v = camera.center - P
-        v /= np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+        if nrm.shape != (H, W, 3):
+            raise ValueError(f"composite_frame: normals must be ({H}, {W}, 3), got {nrm.shape}")
         spec = np.where((obj & (np.linalg.norm(nrm, axis=-1) > 0))[..., None], spec, 0.0)
-        t1 = time.perf_counter()
-        lrm = light_reflection_map(nrm, v, spec, light_sources(light_source_map(env)))
-        rgb = rgb + lrm
-        st["lrm_ms"] = 1e3 * (time.perf_counter() - t1)
-        st["lrm_max"] = float(lrm.max()) if lrm.size else 0.0
+        sources = light_sources(light_source_map(env))
+        st["light_sources"] = len(sources.dirs)
     gp = None
     if ground is not False and (spheres is not None and len(spheres)):
         if isinstance(ground, GroundPlane):
@@ -456,7 +481,7 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
             comp.shadow_grid(spheres, sg_fit, gp)
             st["shadow_ms"] = 1e3 * (time.perf_counter() - t1)
         t1 = time.perf_counter()
-        hdr = comp.composite(rgb, dep, camera, env, exposure, gp).astype(np.float64)
+        hdr = comp.composite(rgb, dep, camera, env, exposure, gp, nrm, spec, sources).astype(np.float64)
         st["composite_ms"] = 1e3 * (time.perf_counter() - t1)
     finally:
         if compositor is None:
