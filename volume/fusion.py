@@ -344,9 +344,9 @@ def carve_sign(free, nodata, occ, seen, cfg: FusionConfig, n_scans: int) -> np.n
     return strong | weak | (seen < min(cfg.carve_quorum, n_scans))
 
 
-def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: FusionConfig, w: float,
-                   n_see: np.ndarray):
-    """Pass 2 for band voxels x (M, 3): (has consensus, value, support) per voxel."""
+def gather_samples(maps: list[ScanMaps], x: np.ndarray, trunc: float):
+    """Every scan's sample for band voxels x (M, 3) float32: d (M,S) plane distance, nrm (M,S,3),
+    cw (M,S) view cosine, ok (M,S) usable near sample, fr (M,) scans that see through x."""
     M, S = len(x), len(maps)
     d = np.zeros((M, S), np.float32)
     nrm = np.zeros((M, S, 3), np.float32)
@@ -357,6 +357,16 @@ def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: Fusio
         _, has, proj, nr, dk, nk, ck, _ = _samples(m, x, trunc, refine=True)
         d[:, k], nrm[:, k], cw[:, k], ok[:, k] = dk, nk, ck, nr
         fr += has & (proj > trunc)
+    return d, nrm, cw, ok, fr
+
+
+def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):
+    """Step 3 of the module docstring, vectorised over voxels and sample pairs.
+
+    Returns (has consensus, value, support, has a nearest cluster, its value without quorum);
+    :func:`consensus_reference` is the per-voxel loop it is tested against.
+    """
+    M = len(d)
     agree_d = cfg.agree(w)
     nn = np.einsum("mid,mjd->mij", nrm, nrm)
     pos2 = d[:, :, None] ** 2 + d[:, None, :] ** 2 - 2 * d[:, :, None] * d[:, None, :] * nn
@@ -381,6 +391,51 @@ def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: Fusio
     w1 = (mem1 * cw).sum(1)
     value1 = np.where(w1 > 0, (mem1 * cw * d).sum(1) / np.where(w1 > 0, w1, 1), 0.0)
     return has_c, value.astype(np.float32), support, has1, value1.astype(np.float32)
+
+
+def consensus_reference(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):
+    """Slow, obviously-correct per-voxel version of :func:`consensus_from_samples` (float64)."""
+    M, S = d.shape
+    cos_n = np.cos(np.radians(cfg.agree_normal_deg))
+    out = (np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64), np.zeros(M, bool),
+           np.zeros(M, np.float32))
+    for m in range(M):
+        def agrees(i, j):
+            if not (ok[m, i] and ok[m, j]):
+                return False
+            pi = -float(d[m, i]) * nrm[m, i].astype(np.float64)  # nearest points relative to x
+            pj = -float(d[m, j]) * nrm[m, j].astype(np.float64)
+            return float(np.dot(nrm[m, i], nrm[m, j])) > cos_n and float(np.sum((pi - pj) ** 2)) < cfg.agree(w) ** 2
+        q = max(1, min(cfg.quorum, int(n_see[m])))
+        best = best1 = None
+        for i in range(S):
+            if not ok[m, i]:
+                continue
+            n_agree = sum(agrees(i, j) for j in range(S))
+            if n_agree >= q and (best is None or abs(d[m, i]) < abs(d[m, best])):
+                best = i
+            if best1 is None or abs(d[m, i]) < abs(d[m, best1]):
+                best1 = i
+        for k, choice in ((0, best), (3, best1)):
+            if choice is None:
+                continue
+            mem = [j for j in range(S) if agrees(choice, j)]
+            ws = sum(float(cw[m, j]) for j in mem)
+            val = sum(float(cw[m, j]) * float(d[m, j]) for j in mem) / ws if ws > 0 else 0.0
+            if k == 0:
+                out[0][m] = fr[m] <= len(mem)
+                out[1][m] = val
+                out[2][m] = len(mem)
+            else:
+                out[3][m] = True
+                out[4][m] = val
+    return out
+
+
+def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: FusionConfig, w: float,
+                   n_see: np.ndarray):
+    """Pass 2 for band voxels x (M, 3): see :func:`consensus_from_samples`."""
+    return consensus_from_samples(*gather_samples(maps, x, trunc), n_see, cfg, w)
 
 
 def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray, w: float) -> np.ndarray:
