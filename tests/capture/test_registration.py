@@ -111,3 +111,19 @@ def test_impostor_scan_is_flagged_not_merged(control):
     assert e["rot_median_deg"] < 0.1
     js = rep.to_json()
     assert js["flagged"] == ["view003"] and js["n_registered"] == N_VIEWS - 1
+
+
+def test_init_none_global_registration_from_nothing(control):
+    """--init none: every input pose is the same (useless); FPFH + RANSAC between ring
+    neighbours, then ICP and the pose graph recover the ring."""
+    from capture.camera import Camera
+    from capture.scan import Scan, ScanSet
+
+    mesh, cams, ss = control
+    gt = [c.cam_from_world for c in cams]
+    same = ScanSet(tuple(Scan(s.rgb, s.depth, Camera(s.camera.K, gt[0], s.camera.width, s.camera.height, s.name),
+                              s.name) for s in ss.scans), ss.bounds)
+    _, rep, poses = pipeline.register(same, "icp", "none")
+    assert not rep.flagged
+    e = R.pose_errors(poses, gt, ss.bounds.mean(0))
+    assert e["rot_median_deg"] < 0.1 and e["rot_max_deg"] < 0.5
