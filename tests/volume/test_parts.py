@@ -132,3 +132,17 @@ def test_build_rgbz_fills_holes_and_keeps_agreeing_depth():
         e = np.abs(d[filled] - ref[filled])  # holes filled by the geometry (grazing edge pixels: larger)
         assert np.median(e) < 0.15 * lv.voxel_size and np.mean(e < 0.3 * lv.voxel_size) >= 0.9
         assert st["holes_after"] <= st["holes_before"]
+
+
+def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):
+    from volume.build import ModelConfig, build_model
+    from volume.model import load_model, save_model
+    from volume.pyramid import LoptConfig
+
+    ss = make_scanset(sphere_scene(), ring_cameras(4, 48, 36), depth_hook=lambda i, z: np.zeros_like(z))
+    model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=16)))
+    assert summary["spheres"] == 0 and summary["mesh"]["faces"] == 0
+    assert all(n == 0 for n in summary["surface_voxels"].values())
+    assert model.mesh_colors is None and np.all(model.rgbz.depth == 0)
+    m = load_model(save_model(model, tmp_path / "m"))
+    assert m.pyramid.l_opt == summary["l_opt"]
