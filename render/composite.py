@@ -266,6 +266,8 @@ class Compositor:
         self._env_key = None
         self._ratio = None
         self._grid_key = self._grid = None
+        self._src_key = self._src = None
+        self._glare = None
         self._dummy_ratio = ctx.texture((2, 2), 4, np.ones((2, 2, 4), np.float32).tobytes(), dtype="f4")
 
     def __enter__(self):
@@ -276,10 +278,10 @@ class Compositor:
 
     def release(self) -> None:
         for o in (self._vao_s, self._vao_c, self._shadow, self._comp, self._fh, self._env, self._ratio,
-                  self._dummy_ratio):
+                  self._dummy_ratio, self._glare):
             if o is not None:
                 o.release()
-        self._env = self._ratio = None
+        self._env = self._ratio = self._glare = None
 
     # -- inputs ---------------------------------------------------------------------------------
     def set_env(self, env: EnvMap) -> None:
@@ -295,6 +297,27 @@ class Compositor:
         self._env.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._env.repeat_x, self._env.repeat_y = True, False
         self._env_key = env
+
+    def glare_layer(self, width: int, height: int, supersample: int | None = None):
+        """A render.glare.GlareLayer for this size, kept and reused (re-made when the size changes)."""
+        from render.glare import GLARE_SUPERSAMPLE, GlareLayer
+
+        s = GLARE_SUPERSAMPLE if supersample is None else int(supersample)
+        g = self._glare
+        if g is None or g.size != (int(width), int(height)) or g.s != s:
+            if g is not None:
+                g.release()
+            self._glare = GlareLayer(self.ctx, width, height, s)
+        return self._glare
+
+    def light_sources(self, env: EnvMap):
+        """The environment's light sources for the light-reflection map
+        (render.shading.glare_maps.light_sources of its light_source_map), cached by identity."""
+        from render.shading.glare_maps import light_source_map, light_sources
+
+        if self._src_key is not env:
+            self._src, self._src_key = light_sources(light_source_map(env)), env
+        return self._src
 
     def shadow_grid(self, spheres, fit, ground: GroundPlane) -> np.ndarray:
         """Compute the (G, G, 3) shadow-ratio grid on the GPU (twin: :func:`shadow_ratio` at
@@ -451,10 +474,8 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
     st = stats if stats is not None else {}
     t0 = time.perf_counter()
     obj = dep > 0
-    nrm = spec = sources = None
+    nrm = spec = None
     if specular is not None:
-        from render.shading.glare_maps import light_source_map, light_sources
-
         spec = np.asarray(specular, np.float64)
         if spec.shape != (H, W, 2):
             raise ValueError(f"composite_frame: specular must be ({H}, {W}, 2), got {spec.shape}")
@@ -462,8 +483,6 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
         if nrm.shape != (H, W, 3):
             raise ValueError(f"composite_frame: normals must be ({H}, {W}, 3), got {nrm.shape}")
         spec = np.where((obj & (np.linalg.norm(nrm, axis=-1) > 0))[..., None], spec, 0.0)
-        sources = light_sources(light_source_map(env))
-        st["light_sources"] = len(sources.dirs)
     gp = None
     if ground is not False and (spheres is not None and len(spheres)):
         if isinstance(ground, GroundPlane):
@@ -472,6 +491,9 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
             gp = ground_from_spheres(spheres, None if ground is None else float(ground))
     comp = Compositor(ctx) if compositor is None else compositor
     try:
+        sources = comp.light_sources(env) if spec is not None else None
+        if sources is not None:
+            st["light_sources"] = len(sources.dirs)
         if gp is not None:
             if sg_fit is None:
                 from render.shading.sg_fit import fit_env_sg
@@ -483,11 +505,12 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
         t1 = time.perf_counter()
         hdr = comp.composite(rgb, dep, camera, env, exposure, gp, nrm, spec, sources).astype(np.float64)
         st["composite_ms"] = 1e3 * (time.perf_counter() - t1)
+        if glare:
+            hdr = apply_glare_gl(ctx, hdr, display_white(tone, white), spec=specular, config=glare_config, stats=st,
+                                 layer=comp.glare_layer(W, H))
     finally:
         if compositor is None:
             comp.release()
-    if glare:
-        hdr = apply_glare_gl(ctx, hdr, display_white(tone, white), spec=specular, config=glare_config, stats=st)
     st["total_ms"] = 1e3 * (time.perf_counter() - t0)
     if output == "linear":
         return hdr.astype(np.float32)
@@ -495,11 +518,12 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
 
 
 def apply_glare_gl(ctx, hdr, display_max: float, spec=None, config=None, mask=None, stats: dict | None = None,
-                   supersample: int | None = None):
+                   supersample: int | None = None, layer=None):
     """Energy-preserving glare on an exposed HDR image (H, W, 3): the excess of the pixels above
     ``display_max`` (render.shading.glare_maps.glare_sources) is removed and redrawn as streak pairs
     (make_streaks) by render.glare.GlareLayer; n per pixel from ``spec`` (H, W, 2) or
-    GLARE_DEFAULT_N. config: render.shading.glare.GlareConfig. Returns float64 (H, W, 3)."""
+    GLARE_DEFAULT_N. config: render.shading.glare.GlareConfig. layer: a GlareLayer of this size to
+    reuse (else one is made for the call). Returns float64 (H, W, 3)."""
     import time
 
     from render.glare import GLARE_SUPERSAMPLE, GlareLayer
@@ -511,8 +535,11 @@ def apply_glare_gl(ctx, hdr, display_max: float, spec=None, config=None, mask=No
     t0 = time.perf_counter()
     src = glare_sources(hdr, display_max, mask=mask, spec=spec, default_n=GLARE_DEFAULT_N)
     streaks = make_streaks(src, cfg)
-    with GlareLayer(ctx, W, H, GLARE_SUPERSAMPLE if supersample is None else supersample) as layer:
+    if layer is not None:
         light = layer.render(streaks)
+    else:
+        with GlareLayer(ctx, W, H, GLARE_SUPERSAMPLE if supersample is None else supersample) as own:
+            light = own.render(streaks)
     if stats is not None:
         stats.update(glare_ms=1e3 * (time.perf_counter() - t0), bright_pixels=len(src.centres),
                      streak_pairs=len(streaks), glare_excess=src.excess.sum(0).tolist(),
