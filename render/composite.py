@@ -437,17 +437,36 @@ class Compositor:
         return gl_rows_to_image(img).copy()
 
 
+def rotation_to_z(up) -> np.ndarray:
+    """(3, 3) rotation taking the unit vector ``up`` to +z (the smallest one; a half turn about x
+    for up = -z)."""
+    u = np.asarray(up, np.float64)
+    if u.shape != (3,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
+        raise ValueError(f"rotation_to_z: up must be a non-zero 3-vector, got {up!r}")
+    u = u / np.linalg.norm(u)
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(u @ z)
+    if c < -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    v = np.cross(u, z)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c)
+
+
 def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres=None, ground=None,
-                    exposure: float = 1.0, glare: bool = True, specular=None, normals=None,
+                    exposure: float = 1.0, glare: bool = True, specular=None, normals=None, up=(0.0, 0.0, 1.0),
                     tone: str = "reinhard", white: float = TONE_WHITE, output: str = "display",
                     sg_fit=None, glare_config=None, stats: dict | None = None, compositor=None) -> np.ndarray:
     """Composite a captured object into an environment (see the module doc).
 
     rgb_linear (H, W, 3) linear object colour; depth (H, W) z-depth in metres, 0 = empty;
-    camera: the view (its size must match); env: the environment (+z up).
+    camera: the view (its size must match); env: the environment (its +z is up).
+    up: the capture world's up direction: the world is turned so that ``up`` is the environment's
+        +z (cameras, spheres, normals rotated by :func:`rotation_to_z`); the ground plane is
+        perpendicular to it and its height is measured along it.
     spheres: the object's ``volume.model.SphereSet`` (shadow caster) or None (no shadow).
-    ground: None = under the spheres (lowest sphere point along +z); a float = the plane height
-        (m); a :class:`GroundPlane`; False = no ground shadow.
+    ground: None = under the spheres (lowest sphere point along ``up``); a float = the plane height
+        along ``up`` (m); a :class:`GroundPlane` (in the turned frame: +z = up); False = no shadow.
     exposure: linear factor applied to everything before glare / tone mapping.
     glare: draw streaks for pixels brighter than the display white (energy moved, not added).
     specular: (H, W, 2) specular-parameter map (k_s, n) -> the light-reflection map of the
@@ -471,6 +490,15 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
     if rgb.shape != (H, W, 3) or dep.shape != (H, W):
         raise ValueError(f"composite_frame: rgb {rgb.shape} / depth {dep.shape} do not match the camera {H}x{W}")
     dep = np.where(np.isfinite(dep), dep, 0.0)
+    R = rotation_to_z(up)
+    if not np.allclose(R, np.eye(3)):
+        T = np.eye(4)
+        T[:3, :3] = R.T
+        camera = Camera(camera.K, camera.cam_from_world @ T, camera.width, camera.height, camera.name)
+        if spheres is not None:
+            spheres = type(spheres)(np.asarray(spheres.centers) @ R.T, spheres.radii)
+        if normals is not None:
+            normals = np.asarray(normals, np.float64) @ R.T
     st = stats if stats is not None else {}
     t0 = time.perf_counter()
     obj = dep > 0

@@ -285,6 +285,29 @@ def test_composite_frame_end_to_end(gl_ctx):
 
 
 @pytest.mark.gl
+def test_other_up_axis_gives_the_same_frame(gl_ctx):
+    """A capture whose world is turned (up = Q z) composites exactly like the +z-up one."""
+    from render.composite import rotation_to_z
+
+    env, fit = _fit("sunset", 10)
+    cam = _camera(96, 72)
+    z, n = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
+    rgb = np.where((z > 0)[..., None], np.array([0.2, 0.4, 0.6]), 0.0)
+    spec = np.where((z > 0)[..., None], np.array([0.5, 200.0]), 0.0)
+    kw = dict(sg_fit=fit, glare=False, specular=spec, output="linear")
+    ref = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, normals=n, **kw)
+    for up in ([0.0, 1.0, 0.0], [0.3, -0.5, 0.8], [0.0, 0.0, -1.0]):
+        Q = rotation_to_z(up).T  # takes +z to up
+        np.testing.assert_allclose(Q @ [0, 0, 1.0], np.asarray(up) / np.linalg.norm(up), atol=1e-12)
+        T = np.eye(4)
+        T[:3, :3] = Q.T
+        cam_q = Camera(cam.K, cam.cam_from_world @ T, cam.width, cam.height)
+        sph_q = SphereSet(SPHERES.centers @ Q.T, SPHERES.radii)
+        got = composite_frame(gl_ctx, rgb, z, cam_q, env, spheres=sph_q, normals=n @ Q.T, up=up, **kw)
+        np.testing.assert_allclose(got, ref, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.gl
 def test_compositor_reuse_gives_the_same_frame(gl_ctx):
     env, fit = _fit("sunset", 10)
     cam = _camera(96, 72)
