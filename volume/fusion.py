@@ -18,6 +18,8 @@ Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised ove
    scans whose image contains x, so a lone scan still counts).  The consensus sample nearest the
    surface (smallest |d|) is chosen and the voxel's distance is the view-cosine weighted mean
    of the samples agreeing with it.  More scans seeing through x than supporting it cancel it.
+   A voxel with samples but no consensus whose nearest (unconfirmed) cluster of samples puts
+   it in front of the surface is outside; unconfirmed samples never make a voxel inside.
 4. **Sign elsewhere** (space carving with votes, :func:`carve_sign`): x is outside when
    free >= min(carve_quorum, #scans that see x), or free + nodata >= carve_ratio * occluded; voxels fewer than min(carve_quorum, #scans) scans contain are
    outside; the rest (hidden behind the
@@ -488,6 +490,8 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     for s in range(0, len(cand), PASS2_CHUNK):
         sl = slice(s, s + PASS2_CHUNK)
         has, val, sup, has1, val1 = consensus_band(maps, xc[sl], trunc, cfg, w, n_obs[sl])
+        # unconfirmed samples may say "in front of a surface" (outside), never "inside"
+        outside[cand[sl][~has & has1 & (val1 > 0)]] = True
         i1 = cand[sl][has1]
         meas[i1] = val1[has1]
         mmask[i1] = True
