@@ -80,9 +80,11 @@ def run(args, console) -> int:
     console.print(timer.table("furrow model: stage timings"))
     h = summary["holes"]
     if h:
-        hb = sum(x["holes_before"] for x in h) / len(h)
-        ha = sum(x["holes_after"] for x in h) / len(h)
-        console.print(f"RGBz hole fraction (mean over {len(h)} views): before {hb:.4f}, after closing {ha:.4f}")
+        hb = [x["holes_before"] for x in h]
+        ha = [x["holes_after"] for x in h]
+        console.print(f"RGBz hole fraction per view (min / mean / max over {len(h)} views): before "
+                      f"{min(hb):.4f} / {sum(hb) / len(hb):.4f} / {max(hb):.4f}, after closing "
+                      f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
     if args.json:
