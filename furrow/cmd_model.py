@@ -32,7 +32,7 @@ def _pow2(text: str) -> int:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scans", type=Path, help="scan set: transforms.json, a folder holding one, or a plain folder")
-    p.add_argument("-o", "--out", type=Path, required=True, help="model folder to write (replaced if it is a model)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="model folder to write (an existing model is replaced only with --overwrite)")
     p.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, python-slice style: 0::2, 3, 1,4,7")
     p.add_argument("--max-res", type=_pow2, default=256, help="L_max: finest resolution tried (default 256)")
     p.add_argument("--alpha", type=float, default=1.5, help="Eq. 1 tolerance alpha >= 1 (default 1.5)")
