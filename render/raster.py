@@ -14,8 +14,10 @@ the camera scaled exactly (``Camera.scaled``), averaged over s x s blocks; depth
 the mask are single samples at the pixel centres (no mixed depths at edges): for odd ``s`` the
 centre sub-sample of each block (exactly the pixel centre), for even ``s`` a native pass.
 
-Shaded mode (``lighting=``): SH9 irradiance (``render/shaders/sh9.glsl``) x per-vertex ambient
-occlusion, plus K directional lights with shadow-map visibility baked per vertex, Lambert diffuse and an energy-preserving
+Shaded mode (``lighting=``): ambient irradiance of the environment minus its dominant lights x
+per-vertex ambient occlusion -- from the exact irradiance table (``render.shading.irradiance``,
+``env_irradiance`` of ``render/shaders/shading_envmap.glsl``, within ~1% of the brute-force integral)
+or, when the Lighting has only SH9 coefficients, from SH9 (``render/shaders/sh9.glsl``) -- plus K directional lights with shadow-map visibility baked per vertex, Lambert diffuse and an energy-preserving
 Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, METHODS §4 Eq. 4); strands (vertices
 with a tangent) use Kajiya-Kay: the lobe is evaluated on sin(T, H) and diffuse on sin(T, L).
 """
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image, look_at
+from render.shading.irradiance import irradiance_texture
 from render.shading.sh import sh9_glsl_uniform
 
 #: Near plane never closer than this (metres).
@@ -40,6 +43,8 @@ SHADOW_BOX_MARGIN = 0.02
 SHADOW_BIAS_TEXELS = 3.0
 #: Most directional lights the shaded program supports.
 MAX_LIGHTS = 4
+#: Texture unit of the ambient irradiance table in the shaded program.
+IRRADIANCE_TEXTURE_UNIT = 0
 
 
 #: Interleaved vertex layout: (attribute name, float count).
@@ -128,38 +133,59 @@ class RasterResult:
 class Lighting:
     """Environment lighting for the shaded mode (world frame).
 
+    The ambient part (usually the environment minus the directional lights) is given either as an
+    exact irradiance table (``irradiance``, preferred) or as SH9 coefficients (``sh9``); when both
+    are given the table is used.
+
     Attributes:
         sh9: (9, 3) radiance SH coefficients (``render.shading.sh.sh9_project``) of the ambient
-            part, usually the environment minus the directional lights; irradiance from them is
-            ``sh9_irradiance`` (numpy) / sh9.glsl (GLSL, via ``sh9_glsl_uniform``).
+            part, or None; irradiance from them is ``sh9_irradiance`` (numpy) / sh9.glsl (GLSL,
+            via ``sh9_glsl_uniform``).  Up to ~44% off on real HDR maps: prefer ``irradiance``.
         light_dirs: (K, 3) unit directions *towards* the lights, K <= MAX_LIGHTS.
         light_colors: (K, 3) irradiance of each light on a surface facing it.
         exposure: scale applied to the final radiance.
         shininess: Blinn-Phong exponent of surfaces.
         hair_shininess: exponent of the Kajiya-Kay lobe of strands.
         shadows: whether the lights cast shadow maps.
+        irradiance: (h, 2h, 3) irradiance table E(n) of the ambient part
+            (``render.shading.irradiance.irradiance_table``: equirect grid of normals, world +z
+            up), looked up bilinearly (``irradiance_lookup`` / ``env_irradiance``), or None.
     """
 
-    sh9: np.ndarray
+    sh9: np.ndarray | None
     light_dirs: np.ndarray
     light_colors: np.ndarray
     exposure: float = 1.0
     shininess: float = 40.0
     hair_shininess: float = 80.0
     shadows: bool = True
+    irradiance: np.ndarray | None = None
+
+    @property
+    def ambient(self) -> str:
+        """'table' (irradiance table) or 'sh9': the ambient term the shaded mode evaluates."""
+        return "table" if self.irradiance is not None else "sh9"
 
     def __post_init__(self) -> None:
-        sh = np.asarray(self.sh9, dtype=np.float32)
         d = np.asarray(self.light_dirs, dtype=np.float64).reshape(-1, 3)
         c = np.asarray(self.light_colors, dtype=np.float32).reshape(-1, 3)
-        if sh.shape != (9, 3) or not np.all(np.isfinite(sh)):
-            raise RasterError(f"lighting sh9 must be finite (9, 3), got {sh.shape}")
+        if self.sh9 is None and self.irradiance is None:
+            raise RasterError("lighting needs an ambient term: sh9 or an irradiance table")
+        if self.sh9 is not None:
+            sh = np.asarray(self.sh9, dtype=np.float32)
+            if sh.shape != (9, 3) or not np.all(np.isfinite(sh)):
+                raise RasterError(f"lighting sh9 must be finite (9, 3), got {sh.shape}")
+            object.__setattr__(self, "sh9", sh)
+        if self.irradiance is not None:
+            t = np.ascontiguousarray(self.irradiance, dtype=np.float32)
+            if t.ndim != 3 or t.shape[2] != 3 or t.shape[1] != 2 * t.shape[0] or not np.all(np.isfinite(t)):
+                raise RasterError(f"lighting irradiance table must be finite (h, 2h, 3), got {t.shape}")
+            object.__setattr__(self, "irradiance", t)
         if len(d) != len(c) or len(d) > MAX_LIGHTS:
             raise RasterError(f"lighting needs as many light colours as directions, at most {MAX_LIGHTS}")
         n = np.linalg.norm(d, axis=1, keepdims=True)
         if np.any(n < 1e-9):
             raise RasterError("lighting: zero light direction")
-        object.__setattr__(self, "sh9", sh)
         object.__setattr__(self, "light_dirs", (d / n).astype(np.float32))
         object.__setattr__(self, "light_colors", c)
 
@@ -217,8 +243,10 @@ class MeshRasterizer:
         self.supersample = int(supersample)
         self._program = program
         self._prog_flat = program(ctx, "raster_mesh_vert.glsl", "raster_mesh_frag.glsl")
+        self._prog_shaded_by_mode: dict[str, object] = {}
         self._prog_shaded = None
         self._prog_shadow = None
+        self._irr_tex = None
         self._fbos: dict[tuple[int, int], tuple] = {}
         self._vbo = self._ibo = None
         self._vaos: dict[str, object] = {}
@@ -247,7 +275,10 @@ class MeshRasterizer:
             for o in (fbo, tex_c, tex_d, tex_n, rb):
                 o.release()
         self._fbos.clear()
-        for p in (self._prog_flat, self._prog_shaded, self._prog_shadow):
+        if self._irr_tex is not None:
+            self._irr_tex.release()
+            self._irr_tex = None
+        for p in (self._prog_flat, self._prog_shadow, *self._prog_shaded_by_mode.values()):
             if p is not None:
                 p.release()
 
@@ -288,7 +319,9 @@ class MeshRasterizer:
 
     def _vao(self, kind: str):
         if kind not in self._vaos:
-            prog = {"flat": self._prog_flat, "shaded": self._prog_shaded, "shadow": self._prog_shadow}[kind]
+            progs = {"flat": self._prog_flat, "shadow": self._prog_shadow}
+            progs.update({f"shaded_{m}": p for m, p in self._prog_shaded_by_mode.items()})
+            prog = progs[kind]
             fmt, names = [], []
             for name, n in _ATTRIBUTES:  # attributes the compiler removed become padding
                 if name in prog:
@@ -305,12 +338,23 @@ class MeshRasterizer:
     # ------------------------------------------------------------------ lighting
     def set_lighting(self, lighting: Lighting | None) -> None:
         """Switch to shaded mode with ``lighting`` (None = flat per-vertex colour)."""
+        if self._released:
+            raise RasterError("MeshRasterizer used after release()")
         self._lighting = lighting
+        if self._irr_tex is not None:
+            self._irr_tex.release()
+            self._irr_tex = None
         if lighting is None:
             return
-        if self._prog_shaded is None:
-            self._prog_shaded = self._program(self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl",
-                                              defines={"MAX_LIGHTS": MAX_LIGHTS})
+        mode = lighting.ambient
+        if mode not in self._prog_shaded_by_mode:
+            self._prog_shaded_by_mode[mode] = self._program(
+                self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl",
+                defines={"MAX_LIGHTS": MAX_LIGHTS, "AMBIENT_TABLE": int(mode == "table")})
+        self._prog_shaded = self._prog_shaded_by_mode[mode]
+        if mode == "table":
+            self._irr_tex = irradiance_texture(self.ctx, lighting.irradiance)
+        if self._prog_shadow is None:
             self._prog_shadow = self._program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl")
         if self._mesh is not None:
             self._build_shadows()
@@ -381,7 +425,7 @@ class MeshRasterizer:
         prog["u_has_normals"].value = int(self._has_normals)
         if shaded:
             self._set_shading_uniforms(prog)
-        self._vao("shaded" if shaded else "flat").render()
+        self._vao(f"shaded_{self._lighting.ambient}" if shaded else "flat").render()
         w, h = camera.width, camera.height
         # framebuffer row order (bottom first): render() reduces, then flips with gl_rows_to_image
         col = np.frombuffer(tex_c.read(), np.float32).reshape(h, w, 4)
@@ -393,7 +437,11 @@ class MeshRasterizer:
 
     def _set_shading_uniforms(self, prog) -> None:
         lt = self._lighting
-        prog["u_sh9"].write(np.ascontiguousarray(sh9_glsl_uniform(lt.sh9), dtype=np.float32).tobytes())
+        if lt.ambient == "table":
+            self._irr_tex.use(location=IRRADIANCE_TEXTURE_UNIT)
+            prog["u_irradiance"].value = IRRADIANCE_TEXTURE_UNIT
+        else:
+            prog["u_sh9"].write(np.ascontiguousarray(sh9_glsl_uniform(lt.sh9), dtype=np.float32).tobytes())
         k = len(lt.light_dirs)
         dirs = np.zeros((MAX_LIGHTS, 3), np.float32)
         cols = np.zeros((MAX_LIGHTS, 3), np.float32)

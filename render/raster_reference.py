@@ -4,7 +4,8 @@
 convention, ``camera.project``) with screen-space barycentrics, interpolates perspective-
 correctly (depth = 1 / sum(b_i / z_i)) and keeps the nearest.  :func:`shade_reference` applies
 the shaded mode of ``raster_shaded_frag.glsl`` to the interpolated attributes with the numpy
-twins of the shading module (``render.shading.sh.sh9_irradiance``,
+twins of the shading module (ambient: ``render.shading.irradiance.irradiance_lookup`` of the
+irradiance table, or ``render.shading.sh.sh9_irradiance``; lobes:
 ``render.shading.brdf.blinn_phong_normalized``).  For small scenes only (tests).
 """
 
@@ -15,6 +16,7 @@ import numpy as np
 from capture.camera import Camera
 from render.raster import MIN_NEAR, Lighting, RasterMesh, RasterResult, face_normals
 from render.shading.brdf import blinn_phong_normalized
+from render.shading.irradiance import irradiance_lookup
 from render.shading.sh import sh9_irradiance
 
 #: Strands are the pixels whose interpolated tangent has squared length above this (as in GLSL).
@@ -118,7 +120,10 @@ def shade_reference(mesh: RasterMesh, camera: Camera, lighting: Lighting, visibi
     N = _facing_normals(mesh, camera, face[mask], nrm, pts)
     hair = np.sum(tan * tan, -1) > HAIR_TANGENT_SQ
     T = tan / np.maximum(np.linalg.norm(tan, axis=-1, keepdims=True), 1e-300)
-    irr = np.maximum(sh9_irradiance(lighting.sh9, N), 0) * occ[:, None]
+    if lighting.ambient == "table":
+        irr = irradiance_lookup(lighting.irradiance, N) * occ[:, None]
+    else:
+        irr = np.maximum(sh9_irradiance(lighting.sh9, N), 0) * occ[:, None]
     specular = np.zeros_like(irr)
     for i in range(K):
         L = lighting.light_dirs[i].astype(np.float64)

@@ -1,11 +1,17 @@
 #version 430
-// Shaded mesh rasteriser (render/raster.py, Lighting): ambient SH9 irradiance of the environment
-// (minus its dominant lights) x per-vertex occlusion, plus MAX_LIGHTS directional lights whose
+// Shaded mesh rasteriser (render/raster.py, Lighting): ambient irradiance of the environment
+// (minus its dominant lights) x per-vertex occlusion -- the exact irradiance table
+// (env_irradiance, shading_envmap.glsl) when AMBIENT_TABLE is 1, else SH9 (sh9.glsl) -- plus MAX_LIGHTS directional lights whose
 // shadow-map visibility is baked per vertex (render/raster.py shadow_map_visibility); Lambert diffuse and the energy-preserving Blinn-Phong lobe (METHODS §4 Eq. 4)
 // from shading_brdf.glsl.  Strands (non-zero tangent) use Kajiya-Kay: diffuse sin(T, L) and the
 // lobe evaluated on sin(T, H).
 #include "raster_common.glsl"
+#if AMBIENT_TABLE
+#include "shading_envmap.glsl"
+uniform sampler2D u_irradiance;         // render.shading.irradiance.irradiance_texture
+#else
 #include "sh9.glsl"
+#endif
 #include "shading_brdf.glsl"
 
 uniform vec3 u_light_dir[MAX_LIGHTS];   // unit, towards the light
@@ -23,7 +29,11 @@ void main() {
     vec3 N = raster_normal(V);
     bool hair = dot(v_tangent, v_tangent) > 0.25;
     vec3 T = hair ? normalize(v_tangent) : vec3(0.0);
+#if AMBIENT_TABLE
+    vec3 irradiance = env_irradiance(u_irradiance, N) * v_occl;
+#else
     vec3 irradiance = sh9_irradiance(N) * v_occl;
+#endif
     vec3 specular = vec3(0.0);
     for (int i = 0; i < u_nlights; ++i) {
         vec3 L = u_light_dir[i];

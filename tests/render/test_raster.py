@@ -149,16 +149,24 @@ def test_release_and_errors(gl_ctx):
 
 
 # ------------------------------------------------------------------------------ shaded mode
-def _lighting(exposure=0.6):
+def _lighting(exposure=0.6, ambient="sh9"):
     from render.raster import Lighting
-    from render.shading.envmap import procedural_sky
+    from render.shading.envmap import bundled_envmap, procedural_sky
+    from render.shading.irradiance import irradiance_table
     from render.shading.lights import dominant_lights, env_minus_lights
     from render.shading.sh import sh9_project
 
-    env = procedural_sky(32)
+    # the table test uses a real map, whose residual SH9 cannot follow (the twin test must tell them apart)
+    env = procedural_sky(32) if ambient == "sh9" else bundled_envmap("studio").resized(64)
     lights = dominant_lights(env, 1)
-    return Lighting(sh9=sh9_project(env_minus_lights(env, 1)), light_dirs=lights.dirs, light_colors=lights.power,
-                    exposure=exposure / float(lights.power.max()), shininess=30.0, hair_shininess=50.0)
+    rest = env_minus_lights(env, 1)
+    if ambient == "sh9":
+        amb, scale = {"sh9": sh9_project(rest)}, float(lights.power.max())
+    else:  # exposure from the ambient so that it dominates the image
+        table = irradiance_table(rest, 16)
+        amb, scale = {"sh9": None, "irradiance": table}, float(table.max())
+    return Lighting(**amb, light_dirs=lights.dirs, light_colors=lights.power,
+                    exposure=exposure / scale, shininess=30.0, hair_shininess=50.0)
 
 
 def _shaded_scene() -> RasterMesh:
@@ -176,10 +184,12 @@ def _shaded_scene() -> RasterMesh:
     return merge([sph, hair])
 
 
-def test_shaded_gl_matches_numpy_shading(gl_ctx):
+@pytest.mark.parametrize("ambient", ["sh9", "table"])
+def test_shaded_gl_matches_numpy_shading(gl_ctx, ambient):
     from render.raster_reference import shade_reference
 
-    mesh, lt = _shaded_scene(), _lighting()
+    mesh, lt = _shaded_scene(), _lighting(exposure=0.6 if ambient == "sh9" else 2.0, ambient=ambient)
+    assert lt.ambient == ambient
     cam = _camera(W=160, H=120, az=40, el=20)
     with MeshRasterizer(gl_ctx) as r:
         r.set_mesh(mesh)
@@ -195,6 +205,16 @@ def test_shaded_gl_matches_numpy_shading(gl_ctx):
     assert ok.sum() > 2000 and ref[ok].max() > 0.3
     assert_images_close(gl.color, ref.astype(np.float32), mean_tol=COLOR_MEAN_TOL, max_tol=COLOR_MAX_TOL,
                         mask=ok, what="shaded GL vs numpy")
+    if ambient == "table":  # the comparison can tell the table from SH9 of the same residual map
+        from dataclasses import replace
+
+        from render.shading.envmap import bundled_envmap
+        from render.shading.lights import env_minus_lights
+        from render.shading.sh import sh9_project
+
+        sh = sh9_project(env_minus_lights(bundled_envmap("studio").resized(64), 1))
+        ref_sh = shade_reference(mesh, cam, replace(lt, sh9=sh, irradiance=None), vis)
+        assert np.abs(ref_sh - ref)[ok].mean() > 1.5 * COLOR_MEAN_TOL  # measured 1.9x
 
 
 def test_shadow_map_visibility_matches_raycasting(gl_ctx):
