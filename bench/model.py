@@ -151,6 +151,31 @@ def run_target(scans: Path) -> dict:
             "met": total < 60.0}
 
 
+def run_spheres(name: str, scans: Path, targets: list[float], res: int = 64) -> list[dict]:
+    """Sphere count and achieved 1 - IoU for a sweep of error targets (METHODS §3)."""
+    from capture.io import read_scanset
+    from volume.build import ModelConfig, fuse_levels
+    from volume.model import SdfLevel
+    from volume.pyramid import LoptConfig
+    from volume.spheres import fit_spheres, volume_iou
+
+    ss = read_scanset(scans)
+    origin, _, fused, _ = fuse_levels(ss, ModelConfig(lopt=LoptConfig(max_res=res)))
+    f = fused[res]
+    lv = SdfLevel(res, origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
+    rows = []
+    for e in targets:
+        t = time.perf_counter()
+        sph, err = fit_spheres(lv, e)
+        dt = time.perf_counter() - t
+        rows.append({"scene": name, "resolution": res, "target": e, "spheres": len(sph), "error": round(err, 5),
+                     "error_bruteforce": round(1 - volume_iou(sph, lv), 5), "seconds": round(dt, 3)})
+        r = rows[-1]
+        print(f"spheres {name:14s} {res}^3 target {e:.2f}: {r['spheres']:5d} spheres, 1 - IoU {r['error']:.4f} "
+              f"(brute force {r['error_bruteforce']:.4f}), {dt:.2f}s", flush=True)
+    return rows
+
+
 def _fmt(r: dict) -> str:
     return (f"{r['scene']:14s} {r['method']:9s} {r['resolution']:4d}^3  {r['seconds_cumulative']:7.2f}s  "
             f"P {r['precision']:.3f} R {r['recall']:.3f} F1 {r['f1']:.3f}  sign {r['sign_accuracy']:.4f}  "
@@ -197,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--target", action="store_true",
                     help="also time the full pipeline on the 36-view 640x480 fur ball to 128^3 (target < 60 s)")
     ap.add_argument("--no-sweep", action="store_true", help="skip the resolution/method sweep")
+    ap.add_argument("--spheres", default="", help="also sweep sphere-set error targets, e.g. 0.4,0.3,0.2,0.1,0.05")
     ap.add_argument("-o", "--out", type=Path, default=ROOT / "out" / "bench" / "model")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     args = ap.parse_args(argv)
@@ -211,13 +237,19 @@ def main(argv: list[str] | None = None) -> int:
                 raise SystemExit(f"unknown scene {scene!r}; choose from {sorted(SCENES)}")
             rows += run_scene(scene, capture(scene, data, args.small), res,
                               [m for m in args.methods.split(",") if m], args.frames)
+    sphere_rows = []
+    if args.spheres:
+        targets = [float(e) for e in args.spheres.split(",") if e]
+        for scene in [s for s in args.scenes.split(",") if s]:
+            sphere_rows += run_spheres(scene, capture(scene, data, args.small), targets)
     if args.target:
         target = run_target(capture("furball-clean", data, False))
         print(f"target: {target['views']} views {target['image']} -> 128^3 pyramid in {target['seconds_total']} s "
               f"(target < 60 s: {'met' if target['met'] else 'NOT met'}); stages {target['seconds']}", flush=True)
-    result = {"rows": rows, "target": target}
+    result = {"rows": rows, "target": target, "spheres": sphere_rows}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "model_bench.json").write_text(json.dumps(result, indent=1))
+    name = "model_bench.json" if rows else ("model_bench_spheres.json" if sphere_rows else "model_bench_target.json")
+    (args.out / name).write_text(json.dumps(result, indent=1))
     if rows:
         p = plot(rows, args.out)
         print(f"plot: {p}")
