@@ -33,6 +33,10 @@ SLICE_BYTES = 64
 MODES = ("instanced", "geometry")
 
 
+#: Draw, on every coarse level, the ancestors of the finest level's surface voxels too
+#: (covering_surfaces): the plant's top vanished from a fused 8^3 level (volume.build), whose
+#: surface voxels ended 7.6 cm below the plant's tip.
+COARSE_COVERS_FINE = True
 #: Storage of the RGBz texture array: half floats (8 bytes per texel; the fetches are the
 #: fragment cost on llvmpipe).  Depth in half float: 0.24 mm steps at 0.5 m.
 RGBZ_DTYPE = np.float16
@@ -131,10 +135,11 @@ class MicrofacetRenderer:
         self.ctx = ctx
         self.mode = mode
         self.levels = tuple(levels)
+        self.surfaces = covering_surfaces(self.levels)
         self.cameras = tuple(cameras)
         self.bounds = np.asarray(bounds, dtype=np.float64)
         self.voxel_sizes = [lv.voxel_size for lv in self.levels]
-        self.counts = [len(lv.surface) for lv in self.levels]
+        self.counts = [len(x) for x in self.surfaces]
         if len(self.cameras) == 0:
             raise ValueError("microfacet renderer: the model has no input camera")
         d = shader_defines(rule, n_fallback)
@@ -145,8 +150,8 @@ class MicrofacetRenderer:
         # test rejects more fragments before shading (measured ~20-25 % per frame vs back to front).
         self.voxel_bufs = []
         self.orders = []
-        for lv in self.levels:
-            cen = lv.centers()
+        for lv, surf in zip(self.levels, self.surfaces):
+            cen = lv.origin + (surf.astype(np.float64) + 0.5) * lv.voxel_size
             bufs, ords = [], []
             for axis in range(6):
                 direction = np.zeros(3)
@@ -180,6 +185,11 @@ class MicrofacetRenderer:
         self.query = ctx.query(primitives=True)
         self._fbo = None
         self._fbo_size = None
+
+    def level_centers(self, level: int) -> np.ndarray:
+        """(N, 3) world centres of the voxels drawn on ``level`` (see covering_surfaces)."""
+        lv = self.levels[level]
+        return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
     @classmethod
     def from_model(cls, ctx, model, mode: str = "instanced", rule: str = "vote",
@@ -307,6 +317,27 @@ class MicrofacetRenderer:
         return {"center": raw[:, 0:3].astype(np.float64), "s": raw[:, 3].astype(np.float64),
                 "weights": raw[:, 4:7].astype(np.float64), "cand": np.concatenate([ints[:, 8:12], ints[:, 12:14]], 1),
                 "voxel": self._last_order[ints[:, 14]], "n": ints[:, 15].copy()}
+
+
+def covering_surfaces(levels) -> list[np.ndarray]:
+    """Surface voxel indices drawn per level: the level's own surface voxels plus the ancestors
+    of the finest level's surface voxels (COARSE_COVERS_FINE).
+
+    A fused pyramid's coarse levels can lose thin parts (plant tips, needles) that its finest
+    level keeps; the slices are carved by Eq. 2 anyway, so a coarse voxel that contains finer
+    surface must be drawn.  With an exact distance field the union adds nothing (a parent of a
+    surface voxel is a surface voxel when |d| <= half the diagonal)."""
+    out = [np.asarray(lv.surface, np.int64) for lv in levels]
+    if not COARSE_COVERS_FINE or not levels:
+        return [o.astype(np.int32) for o in out]
+    fine = levels[-1]
+    for i, lv in enumerate(levels[:-1]):
+        ratio = fine.resolution // lv.resolution
+        if ratio < 1 or fine.resolution % lv.resolution or len(fine.surface) == 0:
+            continue
+        anc = np.asarray(fine.surface, np.int64) // ratio
+        out[i] = np.unique(np.concatenate([out[i], anc]), axis=0) if len(out[i]) else np.unique(anc, axis=0)
+    return [o.astype(np.int32) for o in out]
 
 
 def view_axis(eye: Camera) -> int:

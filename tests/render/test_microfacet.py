@@ -9,7 +9,7 @@ import pytest
 from capture.camera import Camera, look_at
 from capture.scan import to_uint8_srgb
 from render import microfacet_geometry as mg
-from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer
+from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
 from tests.conftest import assert_images_close, image_diff_stats
 from tests.render import microfacet_scene as scene
 
@@ -92,8 +92,10 @@ def test_eq2_by_hand():
 
 # ------------------------------------------------------------------ GPU vs twin
 def _twin(model, eye, level, spacing, rule="vote", n_fallback=None):
-    """The twin on the texels as the GPU stores them (RGBZ_DTYPE)."""
+    """The twin on the texels as the GPU stores them (RGBZ_DTYPE), same voxels."""
     lv = model.pyramid.levels[level]
+    assert np.array_equal(np.unique(covering_surfaces(model.pyramid.levels)[level], axis=0),
+                          np.unique(lv.surface, axis=0))  # exact distances: the union adds nothing
     rgb = model.rgbz.rgb.astype(RGBZ_DTYPE).astype(np.float64)
     depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
     return mg.reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, rgb, depth,
@@ -234,14 +236,43 @@ def test_grazing_view(renderer, model):
                         outlier_frac=TWIN_OUTLIER_FRAC)
 
 
+def test_coarse_levels_cover_the_finest():
+    """A coarse level that lost a thin part still draws the voxels holding the finest surface."""
+    from volume.model import SdfLevel
+
+    o = np.zeros(3)
+    coarse = SdfLevel(4, o, 0.25, np.array([[0, 0, 0]], np.int32))
+    fine = SdfLevel(16, o, 0.0625, np.array([[0, 0, 1], [15, 15, 15], [13, 2, 0]], np.int32))
+    surf = covering_surfaces([coarse, fine])
+    assert sorted(map(tuple, surf[0].tolist())) == [(0, 0, 0), (3, 0, 0), (3, 3, 3)]
+    assert np.array_equal(surf[1], fine.surface)
+
+
 def test_empty_level(gl_ctx):
     cams = scene.ring_cameras(12)
+    # Eq. 11 on an empty level: the nearest non-empty level, the finer one on ties
+    ws = [0.064, 0.032, 0.016, 0.008]
+    lod = mg.choose_lod(cams[2], np.zeros(3), cams, ws, [0, 0, 850, 4000], 8.0)  # eye on a camera: wants 0
+    assert lod.level == 2
+    off = scene.ring_cameras(12, phase_deg=15)[2]  # between two cameras, tiny E: wants the finest
+    lod = mg.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 0, 4000], 1e-4)
+    lod2 = mg.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 50, 0], 1e-4)
+    assert lod.level == 3 and lod2.level == 2
+    # empty coarse levels of a model are filled by the ancestors of the finest level
     m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8))
     r = MicrofacetRenderer.from_model(gl_ctx, m)
     try:
-        fr = r.render(cams[2], 8.0)  # eye on a camera -> Eq. 11 wants the coarsest, which is empty
-        assert fr.level == 2 and fr.facets > 0  # nearest non-empty level
-        forced = r.render(cams[2], 8.0, level=0)
-        assert forced.level == -1 and forced.facets == 0 and not forced.alpha.any() and not forced.rgb.any()
+        assert r.counts[0] > 0 and r.counts[1] > 0
+        fr = r.render(cams[2], 8.0)
+        assert fr.level == 0 and fr.facets > 0
+    finally:
+        r.release()
+    # every level empty: a black frame, no facet, level -1
+    m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8, 16, 32))
+    r = MicrofacetRenderer.from_model(gl_ctx, m)
+    try:
+        for level in (None, 0, 3):
+            fr = r.render(cams[2], 8.0, level=level)
+            assert fr.level == -1 and fr.facets == 0 and not fr.alpha.any() and not fr.rgb.any()
     finally:
         r.release()
