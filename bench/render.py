@@ -78,7 +78,11 @@ def main(argv: list[str]) -> int:
     p.add_argument("--sizes", default="640x480,1280x720")
     p.add_argument("-o", "--out", type=Path, default=REPO / "out" / "bench" / "render")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
+    p.add_argument("--replot", action="store_true", help="only redraw render.png from OUT/render.json")
     args = p.parse_args(argv)
+    if args.replot:
+        _plot(json.loads((args.out / "render.json").read_text()), args.out / "render.png")
+        return 0
 
     from rich.console import Console
     from rich.table import Table
@@ -180,6 +184,7 @@ def _plot(results: dict, path: Path) -> None:
     for key, res in results["sizes"].items():
         L = [r["L"] for r in res["levels"]]
         ax[0].plot(L, [r["ms"] for r in res["levels"]], "o-", label=f"{key} microfacet")
+        ax[0].plot(L, [r["cpu_ms"] for r in res["levels"]], "^:", label=f"{key} microfacet, CPU ms")
         ax[0].plot(L, [r["fill_ms"] for r in res["levels"]], "x--", label=f"{key} bare fill")
         ax[1].plot([r["ms"] for r in res["levels"]], [r["psnr_masked"] for r in res["levels"]], "o-",
                    label=f"{key} levels (E=8)")
@@ -192,7 +197,7 @@ def _plot(results: dict, path: Path) -> None:
     ax[0].set_xscale("log", base=2)
     ax[0].set_yscale("log")
     ax[0].set_xlabel("volume resolution L")
-    ax[0].set_ylabel("ms / frame (llvmpipe)")
+    ax[0].set_ylabel("ms / frame (llvmpipe, wall and process CPU)")
     ax[0].axhline(100, color="r", lw=0.8, ls=":")
     ax[0].legend(fontsize=7)
     ax[1].set_xscale("log")
