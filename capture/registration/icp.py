@@ -35,6 +35,10 @@ from capture.registration import report as R
 from capture.scan import ScanSet
 
 
+#: Auto projective stride: source images are sampled about this many pixels across.
+AUTO_STRIDE_WIDTH = 200
+
+
 @dataclass(frozen=True)
 class IcpConfig:
     """Knobs of the geometric registration."""
@@ -53,6 +57,8 @@ class IcpConfig:
     """Depth gates (fractions of object size) of the successive projective ICP stages; () = off."""
     projective_iterations: int = 30
     """Gauss-Newton iterations per projective stage."""
+    projective_stride: int = 0
+    """Source pixel stride of the projective stages (0 = auto: about 200 samples across the width)."""
     fine_candidates: int = 2
     """How many of the ranked coarse results are fine-aligned per pair."""
     color_scale_frac: float = 0.003
@@ -169,13 +175,15 @@ def fine_align(frame_i: PR.DepthFrame, frame_j: PR.DepthFrame, T: np.ndarray, cf
     """Projective ICP stages (gates from ``cfg.projective_gates``):
     (T, fitness, rmse, 6x6 information, colour RMSE) at the last gate."""
     gates = cfg.projective_gates or (1 / 150,)
+    stride = cfg.projective_stride or max(1, frame_j.valid.shape[1] // AUTO_STRIDE_WIDTH)
     res = None
     for g in cfg.projective_gates:
-        res = PR.projective_icp(frame_j, frame_i, T, g * size, cfg.projective_iterations,
+        res = PR.projective_icp(frame_j, frame_i, T, g * size, cfg.projective_iterations, stride=stride,
                                 color_scale=cfg.color_scale_frac * size)
         T = res.T
     if res is None:  # evaluation only
-        res = PR.projective_icp(frame_j, frame_i, T, gates[-1] * size, 0, color_scale=cfg.color_scale_frac * size)
+        res = PR.projective_icp(frame_j, frame_i, T, gates[-1] * size, 0, stride=stride,
+                                color_scale=cfg.color_scale_frac * size)
     crmse = res.color_rmse if cfg.color_scale_frac > 0 else float("nan")
     return T, res.fitness, res.rmse, res.information, crmse
 
