@@ -103,6 +103,11 @@ def run(args, console) -> int:
             r = VdtmRenderer.from_model(ctx, model)
         else:
             r = None
+        if r is not None and views:  # warm-up: llvmpipe compiles shaders on the first draw
+            if args.method == "microfacet":
+                r.render(views[0][0], args.tolerance, level=level, read=False)
+            else:
+                r.render(views[0][0], read=False)
         with timer.stage(f"render {len(views)} frames ({args.method})"):
             for cam, name in track(views, "rendering", total=len(views)):
                 if args.method == "microfacet":
