@@ -1,7 +1,8 @@
 """View-dependent microfacet billboards on the GPU (METHODS §1.2-§1.7).
 
-All surface voxel centres of every pyramid level, the input cameras and the RGBz texture
-array are uploaded once; per frame only uniforms change.  Two interchangeable paths:
+All surface voxel centres of every pyramid level (each in 6 axis-sorted orders), the input
+cameras and the RGBz texture array are uploaded once; per frame only uniforms change (plus
+the 16-byte reset of the indirect draw command).  Two interchangeable paths:
 
 * ``"instanced"`` (default): a compute pass selects the cameras per voxel and appends one
   record per slice (atomic counter -> indirect draw command); an instanced 4-vertex strip
@@ -9,10 +10,13 @@ array are uploaded once; per frame only uniforms change.  Two interchangeable pa
 * ``"geometry"``: one point per voxel; a geometry shader selects the cameras and emits the
   slices (counted with a primitives-generated query).
 
-The fragment shader projects each fragment into the candidate cameras, applies Eq. 2 with
-the RGBz array, blends with unstructured-lumigraph weights and falls back per fragment to the
-next camera that passes; alpha is binary (discard) and the depth buffer resolves visibility,
-so nothing is sorted.  The numpy twin of every step is ``render/microfacet_geometry.py``.
+The vertex stage projects each slice corner into the candidate cameras (homogeneous, so the
+fragment gets exact projections by interpolation); the fragment shader applies Eq. 2 with the
+RGBz array, lets the blend cameras vote with unstructured-lumigraph weights and falls back per
+fragment to the next camera (microfacet_geometry.shade_fragments); alpha is binary (discard)
+and the depth buffer resolves visibility, so nothing is sorted for correctness (the voxel
+order along the view's dominant axis only helps llvmpipe's early depth test).  The numpy twin
+of every step is ``render/microfacet_geometry.py``.
 """
 
 from __future__ import annotations
