@@ -88,15 +88,16 @@ def test_tsdf_matches_independent_numpy_reference():
 def test_consensus_beats_tsdf_on_noisy_holed_scans(scene_fn):
     """Noise 1 mm (0.15-0.2 voxel), 5% holes, 0.5% outliers: consensus is more accurate.
 
-    Measured (96x72, 16 views, 32^3): sphere F1 0.91 vs 0.60, distance error 0.12 vs 0.54 voxel;
-    torus F1 0.81 vs 0.61, 0.23 vs 0.58 voxel; sign accuracy within 3 voxels tied (within 0.5 point).
+    Measured (96x72, 16 views, 32^3): sphere F1 0.92 vs 0.60, distance error 0.11 vs 0.54 voxel,
+    sign accuracy within 3 voxels 0.990 vs 0.985; torus F1 0.83 vs 0.61, 0.20 vs 0.58 voxel,
+    sign 0.956 vs 0.954.  The sign margin is small, so it is asserted with 0.002 slack.
     """
     ss, o, w, gt = _setup(scene_fn(), **NOISY)
     c = sdf_scores(fuse_consensus(ss, o, w, L).values, gt, w)
     t = sdf_scores(fuse_tsdf(ss, o, w, L).values, gt, w)
     assert c["f1"] >= t["f1"] + 0.15, (c, t)
     assert c["dist_error_voxels"] <= 0.5 * t["dist_error_voxels"], (c, t)
-    assert c["sign_accuracy"] >= t["sign_accuracy"] - 0.01, (c, t)
+    assert c["sign_accuracy"] >= t["sign_accuracy"] - 0.002, (c, t)
 
 
 def test_coarse_to_fine_equals_full(sphere_exact):
