@@ -28,6 +28,8 @@ from render.shading.msem import msem_lambda, msem_lookup
 
 #: Pixels per chunk of the brute-force sum (memory: chunk x env pixels float64).
 PHONG_CHUNK = 48
+#: Relative weight below which environment pixels are skipped in the brute-force sum.
+PHONG_PRUNE = 1e-15
 
 
 def sample_smoothness_map(m: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -76,32 +78,63 @@ def glossy_msem_reference(volume: np.ndarray, px: dict, kr=1.0) -> np.ndarray:
     return out
 
 
-def phong_reference(env, r: np.ndarray, n: np.ndarray, smoothness: np.ndarray, s: int,
-                    gate: bool = True) -> np.ndarray:
-    """(N, 3) float64 brute-force normalised Phong integral (module doc) over every pixel of
-    ``env`` for reflection vectors ``r`` (N, 3), normals ``n`` (N, 3) and smoothness (N,), with
-    Lambda = msem_lambda(smoothness, s) for an s^3 MSEM.  Weights are computed in log space with
-    the per-pixel maximum removed (no underflow for Lambda in the tens of thousands)."""
+def phong_reference_pair(env, r: np.ndarray, n: np.ndarray, smoothness: np.ndarray, s: int,
+                         prune: float = PHONG_PRUNE):
+    """(ungated, gated) (N, 3) float64 brute-force normalised Phong integrals (module doc) over
+    every pixel of ``env`` for reflection vectors ``r`` (N, 3), normals ``n`` (N, 3) and
+    smoothness (N,), with Lambda = msem_lambda(smoothness, s) for an s^3 MSEM, in one pass.
+    Weights are computed in log space with the per-pixel maximum removed (no underflow for
+    Lambda in the tens of thousands).  Pixels whose weight is below ``prune`` times the peak for
+    every pixel of a chunk are skipped (their total share is below prune x the pixel count,
+    ~1e-10 at the default; ``prune=0`` sums every pixel)."""
     d = env.pixel_directions().reshape(-1, 3)
     om = env.pixel_solid_angles().reshape(-1)
     L = env.data.reshape(-1, 3).astype(np.float64)
     lam = msem_lambda(np.asarray(smoothness, np.float64), s)
+    r, n = np.asarray(r, np.float64), np.asarray(n, np.float64)
     out = np.empty((len(r), 3))
+    out_g = np.empty((len(r), 3))
+    order = np.argsort(lam)  # chunks of similar Lambda share a small set of contributing pixels
     with np.errstate(divide="ignore", invalid="ignore", under="ignore"):
         for a in range(0, len(r), PHONG_CHUNK):
-            sl = slice(a, a + PHONG_CHUNK)
+            sl = order[a:a + PHONG_CHUNK]
             c = r[sl] @ d.T
+            cols = slice(None)
+            if prune > 0:
+                # pixels whose weight is below prune x the pixel's peak weight for every pixel of
+                # the chunk are skipped: (c / c_max)^Lambda < prune <=> c < c_max prune^(1/Lambda)
+                cmax = c.max(1)
+                cut = np.where(lam[sl] > 0, cmax * prune ** (1.0 / np.maximum(lam[sl], 1e-300)), 0.0)
+                keep = (c > cut[:, None]).any(0)
+                cols = np.nonzero(keep)[0]
+                c = c[:, cols]
             lg = np.where(c > 0, np.log(np.where(c > 0, c, 1.0)), -np.inf) * lam[sl, None]
             lg = np.where(c > 0, lg, -np.inf)  # Lambda = 0: the hemisphere around r
             lg -= lg.max(1, keepdims=True)
-            w = np.exp(lg) * om
-            wg = w * ((n[sl] @ d.T) >= 0) if gate else w
-            out[sl] = (wg @ L) / w.sum(1, keepdims=True)
-    return out
+            w = np.exp(lg) * om[cols]
+            norm = w.sum(1, keepdims=True)
+            out[sl] = (w @ L[cols]) / norm
+            out_g[sl] = ((w * ((n[sl] @ d[cols].T) >= 0)) @ L[cols]) / norm
+    return out, out_g
+
+
+def phong_reference(env, r: np.ndarray, n: np.ndarray, smoothness: np.ndarray, s: int,
+                    gate: bool = True) -> np.ndarray:
+    """(N, 3) float64 one of :func:`phong_reference_pair`: gated (the Phong model) or not."""
+    return phong_reference_pair(env, r, n, smoothness, s)[1 if gate else 0]
 
 
 def glossy_phong_reference(env, px: dict, s: int, kr=1.0, gate: bool = True) -> np.ndarray:
     """(H, W, 3) :func:`phong_reference` at every covered pixel of :func:`glossy_pixels`."""
-    out = np.zeros(px["mask"].shape + (3,))
-    out[px["mask"]] = np.asarray(kr, float) * phong_reference(env, px["r"], px["n"], px["smoothness"], s, gate)
-    return out
+    return glossy_phong_reference_pair(env, px, s, kr)[1 if gate else 0]
+
+
+def glossy_phong_reference_pair(env, px: dict, s: int, kr=1.0):
+    """(ungated, gated) (H, W, 3) images of :func:`phong_reference_pair` at the covered pixels."""
+    u, g = phong_reference_pair(env, px["r"], px["n"], px["smoothness"], s)
+    out = []
+    for x in (u, g):
+        img = np.zeros(px["mask"].shape + (3,))
+        img[px["mask"]] = np.asarray(kr, float) * x
+        out.append(img)
+    return tuple(out)

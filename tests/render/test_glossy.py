@@ -137,6 +137,19 @@ def test_msem_render_vs_phong_reference(gl_ctx):
     assert np.abs(bad - ref).mean(-1)[ok].mean() / wl * 256 > 3 * e.mean()
 
 
+def test_phong_pruning_changes_nothing():
+    from render.glossy_reference import phong_reference_pair
+
+    env = bundled_envmap("sunset").resized(48)
+    rng = np.random.default_rng(5)
+    r = rng.normal(size=(150, 3))
+    r /= np.linalg.norm(r, axis=1, keepdims=True)
+    n = r + 0.6 * rng.normal(size=(150, 3))
+    sm = rng.uniform(0, 1, 150)
+    for a, b in zip(phong_reference_pair(env, r, n, sm, 64), phong_reference_pair(env, r, n, sm, 64, prune=0.0)):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(b).max())
+
+
 def test_smoothness_map_sampler_and_errors():
     m = np.arange(12, dtype=float).reshape(3, 4)
     uv = np.array([[0.125, 0.5], [0.0, 1.0 / 6], [0.999, 0.0]])
