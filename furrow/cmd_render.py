@@ -37,31 +37,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=["instanced", "geometry"], default="instanced",
                    help="microfacet slice generation: compute + instancing (default) or geometry shader")
     p.add_argument("--orbit", type=int, default=None, metavar="N",
-                   help="instead of the given frames: a turntable of N frames around +z at the cameras' mean "
-                        "distance and elevation, with the first camera's intrinsics")
+                   help="instead of the given frames: a turntable of N frames around the rig's up axis (estimated "
+                        "from the cameras) at their mean distance and height, with the first camera's intrinsics")
+    g = p.add_argument_group("environment compositing (METHODS §3-§4)")
+    g.add_argument("--env", default=None, metavar="MAP",
+                   help="composite the object into an HDR environment: a .exr/.hdr equirect map or a bundled name "
+                        "(studio, courtyard, forest, sunset); background from the map, tone mapped")
+    g.add_argument("--ground", action="store_true",
+                   help="with --env: the object's shadow on a ground plane under it, from its sphere set (SSDF)")
+    g.add_argument("--exposure", type=float, default=1.0, help="with --env: linear exposure factor (default 1)")
+    g.add_argument("--no-glare", action="store_true", help="with --env: no glare streaks on over-bright pixels")
+    g.add_argument("--env-rotation", type=float, default=0.0, help="with --env: rotate the map about its up axis (deg)")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
-
-
-def orbit_cameras(cams, n: int):
-    """n cameras on a circle around +z through the mean camera distance / height, looking at the
-    mean look-at point of the input cameras (their closest approach to the z axis is not needed:
-    turntable rigs look at the origin)."""
-    from capture.camera import Camera, look_at
-
-    if n < 1:
-        raise ValueError(f"--orbit needs at least one frame, got {n}")
-    centres = np.array([c.center for c in cams])
-    r = float(np.mean(np.linalg.norm(centres[:, :2], axis=1)))
-    z = float(np.mean(centres[:, 2]))
-    az0 = float(np.arctan2(centres[0, 1], centres[0, 0]))
-    c0 = cams[0]
-    out = []
-    for i in range(n):
-        a = az0 + 2 * np.pi * i / n
-        eye = np.array([r * np.cos(a), r * np.sin(a), z])
-        out.append((Camera(c0.K, look_at(eye, [0.0, 0.0, 0.0]), c0.width, c0.height, name=f"orbit_{i:04d}.png"),
-                    f"orbit_{i:04d}.png"))
-    return out
 
 
 def run(args, console) -> int:
@@ -72,12 +59,17 @@ def run(args, console) -> int:
     from render.gl import gl_context
     from volume.model import load_model
 
+    if (args.ground or args.exposure != 1.0 or args.no_glare) and not args.env:
+        raise ValueError("--ground, --exposure and --no-glare need --env MAP")
     timer = StageTimer()
     with timer.stage("load model"):
         model = load_model(args.model)
     frames = read_cameras(args.cameras)
     if args.orbit is not None:
-        views = orbit_cameras([f.camera for f in frames], args.orbit)
+        from capture.orbit import orbit_cameras
+
+        views = [(c, c.name) for c in orbit_cameras([f.camera for f in frames], args.orbit,
+                                                     center=np.asarray(model.bounds).mean(axis=0))]
     else:
         idx = select_indices(args.frames, len(frames))
         views = [(frames[i].camera, Path(frames[i].file_path).name) for i in idx]
@@ -90,9 +82,26 @@ def run(args, console) -> int:
         if args.level not in res:
             raise ValueError(f"--level {args.level}: the model has levels {res}")
         level = res.index(args.level)
+    env = None
+    if args.env:
+        if args.method != "microfacet":
+            raise ValueError("--env compositing needs --method microfacet (it uses the rendered depth)")
+        from capture.orbit import estimate_up
+        from render.shading.envmap import bundled_envmap, load_envmap
+
+        p = Path(args.env)
+        env = load_envmap(p) if p.suffix.lower() in (".exr", ".hdr") else bundled_envmap(args.env)
+        if args.env_rotation:
+            env = env.rotated(np.radians(args.env_rotation))
+        up = estimate_up([f.camera for f in frames])
     args.out.mkdir(parents=True, exist_ok=True)
     stats = []
     with gl_context() as ctx:
+        compositor = None
+        if env is not None:
+            from render.composite import Compositor
+
+            compositor = Compositor(ctx)
         if args.method == "microfacet":
             from render.microfacet import MicrofacetRenderer
 
@@ -123,10 +132,20 @@ def run(args, console) -> int:
                     fr = render_vertex_colour(ctx, model, cam)
                     st = {"file": name, "ms": fr.ms, "facets": fr.facets}
                 out_name = name if name.lower().endswith(".png") else Path(name).stem + ".png"
-                write_png(args.out / out_name, to_uint8_srgb(fr.rgb))
+                img = fr.rgb
+                if compositor is not None:
+                    from render.composite import composite_frame
+
+                    img = composite_frame(ctx, fr.rgb, fr.depth, cam, env,
+                                          spheres=model.spheres if args.ground else None,
+                                          ground=None if args.ground else False, exposure=args.exposure,
+                                          glare=not args.no_glare, up=up, compositor=compositor)
+                write_png(args.out / out_name, to_uint8_srgb(img))
                 stats.append(st)
         if r is not None:
             r.release()
+        if compositor is not None:
+            compositor.release()
     (args.out / "render_stats.json").write_text(json.dumps({"method": args.method, "tolerance_px": args.tolerance,
                                                             "frames": stats}, indent=1))
     ms = [s["ms"] for s in stats]

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from capture.camera import Camera, gl_rows_to_image
+from capture.camera import Camera, gl_ndc_depth_to_z, gl_rows_to_image
 from render import microfacet_geometry as mg
 from render.gl import program
 
@@ -106,6 +106,7 @@ class Frame:
         lod: the level-of-detail choice.
         cpu_ms: process CPU time over the same interval (llvmpipe threads included): the cost
             independent of other load on the machine.
+        depth: (H, W) float32 z-depth (metres) of the drawn slices, 0 where nothing was drawn.
     """
 
     rgb: np.ndarray
@@ -117,6 +118,7 @@ class Frame:
     ms: float
     lod: mg.Lod | None = field(default=None, repr=False)
     cpu_ms: float = 0.0
+    depth: np.ndarray | None = field(default=None, repr=False)
 
 
 class MicrofacetRenderer:
@@ -310,8 +312,13 @@ class MicrofacetRenderer:
             raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)
             img = gl_rows_to_image(raw)
             rgb, alpha = np.ascontiguousarray(img[..., :3]), img[..., 3] > 0.5
+            d01 = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(H, W)
+            depth = gl_ndc_depth_to_z(gl_rows_to_image(d01), near, far).astype(np.float32)
+            depth[~alpha] = 0.0
+        else:
+            depth = None
         return Frame(rgb, alpha, lev if n_vox > 0 else -1, self.levels[lev].resolution, float(spacing), facets,
-                     ms, lod, cpu_ms)
+                     ms, lod, cpu_ms, depth)
 
     def read_slices(self, count: int) -> dict:
         """The slice records of the last instanced frame (for tests): centres, s, weights,

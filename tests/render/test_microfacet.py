@@ -276,3 +276,17 @@ def test_empty_level(gl_ctx):
             assert fr.level == -1 and fr.facets == 0 and not fr.alpha.any() and not fr.rgb.any()
     finally:
         r.release()
+
+
+def test_frame_depth_is_within_half_a_slice_of_the_surface(renderer, model):
+    """Frame.depth (read back from the depth buffer): Eq. 2 keeps a texel only on slices within
+    l/2 of its RGBz depth, so the drawn depth lies within l/2 of the true surface (plus the
+    depth of the texel's footprint on the sphere; 95% of pixels)."""
+    cam = model.rgbz.cameras[3]
+    fr = renderer.render(cam, 8.0)
+    true = model.rgbz.depth[3]
+    both = (fr.depth > 0) & (true > 0)
+    assert both.sum() > 0.8 * (true > 0).sum()
+    err = np.abs(fr.depth[both] - true[both])
+    assert np.quantile(err, 0.95) <= 0.5 * fr.spacing + 1e-6, (np.quantile(err, 0.95), fr.spacing)
+    assert np.all(fr.depth[~fr.alpha] == 0)
