@@ -81,17 +81,18 @@ def _tonemap(img, wl):
     return to_uint8_srgb(np.clip(np.asarray(img) / wl * 0.8, 0, 1))
 
 
-def _frame_times(g, cam) -> dict:
+def _frame_times(g, cam, repeats: int) -> dict:
     g.draw(cam)
     g.ctx.finish()
     td, tr = [], []
-    for _ in range(FRAME_REPEATS):
+    for _ in range(max(1, repeats)):
         t = time.perf_counter(); g.draw(cam); g.ctx.finish(); td.append(time.perf_counter() - t)
         t = time.perf_counter(); g.render(cam); tr.append(time.perf_counter() - t)
     return {"draw_ms": 1e3 * float(np.median(td)), "draw_readback_ms": 1e3 * float(np.median(tr))}
 
 
-def run(quick: bool, map_name: str, s: int, ref_height: int, W: int, H: int, out: Path) -> dict:
+def run(quick: bool, map_name: str, s: int, ref_height: int, W: int, H: int, out: Path,
+        repeats: int = FRAME_REPEATS) -> dict:
     import imageio.v3 as iio
 
     from render.gl import create_context
@@ -139,7 +140,7 @@ def run(quick: bool, map_name: str, s: int, ref_height: int, W: int, H: int, out
                                     "pixels": int(ok.sum()), "mean_err_gated_256": float(e_g[ok].mean()),
                                     "mean_err_ungated_256": float(e_u[ok].mean()),
                                     "median_err_gated_256": float(np.median(e_g[ok]))})
-                fr = _frame_times(g, _camera(FRAME_W, FRAME_H, which))
+                fr = _frame_times(g, _camera(FRAME_W, FRAME_H, which), repeats)
                 fr.update({"reference_s": t_ref, "reference_pixels": int(px["mask"].sum()),
                            "triangles": int(len(mesh.faces))})
                 res["frames"][f"{which}/{mode}"] = fr
@@ -213,13 +214,14 @@ def main(argv: list[str]) -> int:
     p.add_argument("--ref-height", type=int, default=None,
                    help="rows of the map the MSEM and the reference use (default 256; 128 with --quick)")
     p.add_argument("--width", type=int, default=None, help="error-image width (default 160; 96 with --quick)")
+    p.add_argument("--repeats", type=int, default=FRAME_REPEATS, help="frames timed per object and mode")
     p.add_argument("-o", "--out", type=Path, default=REPO / "out" / "bench" / "glossy")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     a = p.parse_args(argv)
     s = a.s or (64 if a.quick else 128)
     rh = a.ref_height or (128 if a.quick else 256)
     W = a.width or (96 if a.quick else 160)
-    res = run(a.quick, a.map, s, rh, W, W * 3 // 4, a.out)
+    res = run(a.quick, a.map, s, rh, W, W * 3 // 4, a.out, a.repeats)
     if a.json:
         print(json.dumps(res, indent=1, default=float))
     else:
