@@ -127,3 +127,21 @@ def test_existing_model_needs_overwrite(scan_dir, tmp_path, capsys):
     rc, _, err = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "32", "--overwrite"], capsys)
     assert rc == 0 and load_model(out).pyramid.l_opt == 32
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m"]
+
+
+@pytest.mark.slow
+def test_synthetic_captures_eq1_fur_drops_torus_keeps(tmp_path, capsys):
+    """On the synth helper's captures (--small: 12 views 160x120, noisy, holed), Eq. 1 with the
+    paper's values keeps 64^3 for the smooth torus and drops for the fur ball."""
+    noise = ["--depth-noise", "0.002", "--holes", "0.02"]
+    res = {}
+    for name in ("torus", "furball"):
+        scans = tmp_path / name
+        assert main(["synth", name, "-o", str(scans), "--small", *noise]) == 0
+        capsys.readouterr()
+        rc, out, err = _run(["model", str(scans), "-o", str(tmp_path / f"{name}_model"), "--max-res", "64", "--json"],
+                            capsys)
+        assert rc == 0, err
+        res[name] = json.loads(out)
+    assert res["torus"]["l_opt"] == 64, res["torus"]["eq1_fraction"]
+    assert res["furball"]["l_opt"] < 64, res["furball"]["eq1_fraction"]
