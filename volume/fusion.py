@@ -370,7 +370,7 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     """
     M = len(d)
     agree_d = cfg.agree(w)
-    nn = np.einsum("mid,mjd->mij", nrm, nrm)
+    nn = np.matmul(nrm, nrm.transpose(0, 2, 1))  # (M, S, S) normal dot products
     pos2 = d[:, :, None] ** 2 + d[:, None, :] ** 2 - 2 * d[:, :, None] * d[:, None, :] * nn
     agree = (nn > np.cos(np.radians(cfg.agree_normal_deg))) & (pos2 < agree_d ** 2)
     agree &= ok[:, :, None] & ok[:, None, :]
