@@ -84,6 +84,12 @@ def _split(env: EnvMap, cfg: LightingConfig):
     return lights, rest
 
 
+def ambient_residual(env: EnvMap, cfg: LightingConfig) -> EnvMap:
+    """The map whose irradiance is the ambient term: ``env`` (rotated) at ENV_WORK_HEIGHT rows
+    minus its ``cfg.lights`` dominant lights."""
+    return _split(env, cfg)[1]
+
+
 def _ambient_table(rest: EnvMap) -> np.ndarray:
     h = min(AMBIENT_TABLE_H, rest.height)
     return irradiance_table(rest, h, src_factor=max(1, rest.height // h))
