@@ -17,8 +17,9 @@ centre sub-sample of each block (exactly the pixel centre), for even ``s`` a nat
 Shaded mode (``lighting=``): ambient irradiance of the environment minus its dominant lights x
 per-vertex ambient occlusion -- from the exact irradiance table (``render.shading.irradiance``,
 ``env_irradiance`` of ``render/shaders/shading_envmap.glsl``, within ~1% of the brute-force integral)
-or, when the Lighting has only SH9 coefficients, from SH9 (``render/shaders/sh9.glsl``) -- plus K directional lights with shadow-map visibility baked per vertex, Lambert diffuse and an energy-preserving
-Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, METHODS §4 Eq. 4); strands (vertices
+or, when the Lighting has only SH9 coefficients, from SH9 (``render/shaders/sh9.glsl``) -- plus K
+directional lights with shadow-map visibility baked per vertex, Lambert diffuse and an
+energy-preserving Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, METHODS §4 Eq. 4); strands (vertices
 with a tangent) use Kajiya-Kay: the lobe is evaluated on sin(T, H) and diffuse on sin(T, L).
 """
 
