@@ -46,14 +46,18 @@ def raycast_depth(verts: np.ndarray, faces: np.ndarray, cameras) -> np.ndarray:
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(np.ascontiguousarray(verts, np.float32)),
                         o3d.core.Tensor(np.ascontiguousarray(faces, np.uint32)))
+    dirs_cache: dict = {}
     for n, cam in enumerate(cameras):
-        rays_c = cam.pixel_rays(cam.pixel_grid()).reshape(-1, 3)
-        dirs_c = rays_c / np.linalg.norm(rays_c, axis=1, keepdims=True)
-        d = dirs_c @ cam.world_from_cam[:3, :3].T
-        o = np.broadcast_to(cam.center, d.shape)
-        rays = o3d.core.Tensor(np.concatenate([o, d], 1).astype(np.float32))
-        t = scene.cast_rays(rays)["t_hit"].numpy()
-        z = np.where(np.isfinite(t), t * dirs_c[:, 2], 0.0)
+        key = cam.K.tobytes()
+        if key not in dirs_cache:  # unit camera-frame ray per pixel, shared by equal intrinsics
+            rays_c = cam.pixel_rays(cam.pixel_grid()).reshape(-1, 3)
+            dirs_cache[key] = (rays_c / np.linalg.norm(rays_c, axis=1, keepdims=True)).astype(np.float32)
+        dirs_c = dirs_cache[key]
+        rays = np.empty((len(dirs_c), 6), np.float32)
+        rays[:, :3] = cam.center
+        rays[:, 3:] = dirs_c @ cam.cam_from_world[:3, :3].astype(np.float32)  # R^T applied to row vectors
+        t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        z = np.where(np.isfinite(t), t * dirs_c[:, 2], np.float32(0))
         out[n] = z.reshape(H, W)
     return out
 
