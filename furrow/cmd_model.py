@@ -40,6 +40,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sdf", choices=["consensus", "tsdf"], default="consensus", help="fusion method (default consensus)")
     p.add_argument("--sphere-error", type=float, default=0.2, metavar="E",
                    help="target 1 - volume IoU of the occluder sphere set (default 0.2)")
+    p.add_argument("--quorum", type=int, default=3,
+                   help="consensus: scans that must agree for a depth sample to count (default 3; use 1-2 "
+                        "when each surface point is seen by fewer views)")
     p.add_argument("--mesh-faces", type=int, default=60000, help="decimate the mesh to this many triangles (default 60000)")
     p.add_argument("--overwrite", action="store_true", help="replace MODEL if it exists (only a furrow model folder)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary on stdout")
@@ -50,12 +53,14 @@ def run(args, console) -> int:
     from capture.io import read_scanset
     from furrow.console import StageTimer, track
     from volume.build import ModelConfig, build_model
+    from volume.fusion import FusionConfig
     from volume.mesh import MeshConfig
     from volume.model import save_model
     from volume.pyramid import LoptConfig
 
     cfg = ModelConfig(sdf=args.sdf, lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t,
                                                     min_res=min(8, args.max_res)),
+                      fusion=FusionConfig(quorum=args.quorum),
                       sphere_error=args.sphere_error, mesh=MeshConfig(target_faces=args.mesh_faces))
     out = Path(args.out)
     if out.exists() and not (out / "model.json").is_file() and (not out.is_dir() or any(out.iterdir())):

@@ -52,10 +52,11 @@ def test_model_end_to_end(scan_dir, tmp_path, capsys):
 def test_model_frames_and_tsdf(scan_dir, tmp_path, capsys):
     out = tmp_path / "m2"
     rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16", "--frames", "0::2",
-                               "--sdf", "tsdf", "--json"], capsys)
+                               "--sdf", "tsdf", "--quorum", "2", "--json"], capsys)
     assert rc == 0, stderr
     m = load_model(out)
     assert len(m.rgbz) == 4 and m.params["sdf"] == "tsdf" and m.provenance["frames"] == "0::2"
+    assert m.params["fusion"]["quorum"] == 2
 
 
 def _copy(src, dst):
