@@ -10,7 +10,11 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-console = Console(stderr=True)
+import sys
+
+#: Width used when stderr is not a terminal (logs, CI): wide enough for the result tables.
+LOG_WIDTH = 140
+console = Console(stderr=True, width=None if sys.stderr.isatty() else LOG_WIDTH)
 T = TypeVar("T")
 
 
