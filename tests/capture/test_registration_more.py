@@ -50,18 +50,19 @@ def test_board_pnp_pose_from_a_raycast_board():
 
 @pytest.mark.slow
 def test_board_pnp_then_icp_fixes_the_gauge_on_the_board():
-    cams = scenes.ring_cameras(6, radius=0.7, elevation_deg=50, width=400, height=300, fov_deg=45,
+    spec = B.BoardSpec(squares_x=9, squares_y=9)  # 0.45 m: the 0.37 m object hides less of it
+    cams = scenes.ring_cameras(6, radius=0.8, elevation_deg=60, width=400, height=300, fov_deg=45,
                                target=(0, 0, -0.06))
-    ss = scenes.board_set(cams)
+    ss = scenes.board_set(cams, spec)
     gt = [c.cam_from_world for c in cams]
-    bres = B.board_poses(ss)
+    bres = B.board_poses(ss, spec)
     assert all(p is not None for p in bres.poses), bres.corners
     assert bres.median_reprojection_px < 0.6
     board_err = [R.transform_delta(p, g, np.zeros(3))[0] for p, g in zip(bres.poses, gt)]
     assert np.median(board_err) < 1.0
     # the input poses are useless (30 degrees off): the board gives the start and the gauge
     bad = perturb.perturb_poses(gt, 30.0, 0.1, np.zeros(3), seed=4, keep=())
-    out, rep, poses = pipeline.register(_with_poses(ss, bad), "board", "nominal")
+    out, rep, poses = pipeline.register(_with_poses(ss, bad), "board", "nominal", board=spec)
     assert rep.method == "board" and not rep.flagged
     # no gauge alignment: the board defines the world frame
     err = [R.transform_delta(p, g, np.zeros(3)) for p, g in zip(poses, gt)]
