@@ -32,11 +32,34 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--init", choices=["nominal", "none"], default="nominal",
                    help="start from the input poses (nominal) or from nothing (global registration)")
     p.add_argument("--colored", action="store_true", help="coloured ICP at the finest Open3D level")
+    p.add_argument("--board", default=None, metavar="NXxNY:SQUARE_M:MARKER_M[:DICT]",
+                   help="ChArUco board for --method board/auto, e.g. 7x7:0.05:0.037:DICT_4X4_50 "
+                        "(default: that board, lying at z = -0.13 m; use --board-z)")
+    p.add_argument("--board-z", type=float, default=None, help="height of the board plane in the world (m)")
     p.add_argument("--keep-flagged", action="store_true", help="keep flagged scans (input poses) in the output")
     p.add_argument("--depth-format", choices=["png", "exr"], default="png")
     p.add_argument("--frames", default=None, help="frame selection, python slices: '0::2', '1,4,7'")
     p.add_argument("--json", action="store_true", help="print the registration report as JSON on stdout")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
+
+
+def parse_board(text: str | None, z: float | None):
+    """``NXxNY:SQUARE_M:MARKER_M[:DICT]`` -> BoardSpec (None -> default / None)."""
+    from dataclasses import replace
+
+    from capture.registration.board import BoardSpec
+
+    if text is None and z is None:
+        return None
+    spec = BoardSpec()
+    if text:
+        try:
+            parts = text.split(":")
+            nx, ny = (int(v) for v in parts[0].lower().split("x"))
+            spec = BoardSpec(nx, ny, float(parts[1]), float(parts[2]), parts[3] if len(parts) > 3 else spec.dictionary)
+        except (ValueError, IndexError):
+            raise ValueError(f"--board {text!r}: expected NXxNY:SQUARE_M:MARKER_M[:DICT], e.g. 7x7:0.05:0.037") from None
+    return replace(spec, z_m=z) if z is not None else spec
 
 
 def _same_or_inside(a: Path, b: Path) -> bool:
@@ -62,7 +85,8 @@ def run(args, console) -> int:
         ss = cio.read_scanset(args.scans, frames=args.frames, progress=track)
     with timer.stage(f"register ({args.method}, init {args.init})"):
         cfg = ICP.IcpConfig(colored=args.colored)
-        out, rep, _ = pipeline.register(ss, args.method, args.init, cfg, keep_flagged=args.keep_flagged)
+        out, rep, _ = pipeline.register(ss, args.method, args.init, cfg, keep_flagged=args.keep_flagged,
+                                        board=parse_board(args.board, args.board_z))
     report = rep.to_json()
     report["input"] = str(args.scans)
     with timer.stage("write"):

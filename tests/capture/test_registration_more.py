@@ -140,3 +140,16 @@ def test_sfm_poses_on_a_textured_ring():
     idx = [k for k, p in enumerate(r.poses) if p is not None]
     e = R.pose_errors([r.poses[k] for k in idx], [gt[k] for k in idx], c)
     assert e["rot_median_deg"] < 1.5  # SfM alone (measured 0.66); ICP refines it
+
+
+def test_cli_board_option_parses_and_rejects():
+    from furrow.cmd_register import parse_board
+
+    spec = parse_board("9x7:0.04:0.03:DICT_5X5_100", -0.2)
+    assert (spec.squares_x, spec.squares_y, spec.square_m, spec.marker_m, spec.dictionary, spec.z_m) == \
+        (9, 7, 0.04, 0.03, "DICT_5X5_100", -0.2)
+    assert parse_board(None, None) is None
+    with pytest.raises(ValueError, match="--board"):
+        parse_board("7:0.05", None)
+    with pytest.raises(ValueError, match="marker_m"):
+        parse_board("7x7:0.03:0.05", None)
