@@ -57,8 +57,9 @@ def parse_board(text: str | None, z: float | None):
             parts = text.split(":")
             nx, ny = (int(v) for v in parts[0].lower().split("x"))
             spec = BoardSpec(nx, ny, float(parts[1]), float(parts[2]), parts[3] if len(parts) > 3 else spec.dictionary)
-        except (ValueError, IndexError):
-            raise ValueError(f"--board {text!r}: expected NXxNY:SQUARE_M:MARKER_M[:DICT], e.g. 7x7:0.05:0.037") from None
+        except (ValueError, IndexError) as e:
+            raise ValueError(f"--board {text!r}: {e}; expected NXxNY:SQUARE_M:MARKER_M[:DICT], "
+                             "e.g. 7x7:0.05:0.037") from None
     return replace(spec, z_m=z) if z is not None else spec
 
 
