@@ -61,7 +61,7 @@ class IcpConfig:
     """Source pixel stride of the projective stages (0 = auto: about 200 samples across the width)."""
     fine_candidates: int = 2
     """How many of the ranked coarse results are fine-aligned per pair."""
-    color_scale_frac: float = 0.003
+    color_scale_frac: float = 0.006
     """Photometric term of the projective stage: metres per unit luminance difference, as a
     fraction of object size (0 = geometry only).  Needed on symmetric shapes (the torus)."""
     robust: bool = True
