@@ -48,6 +48,8 @@ class ModelConfig:
     """Mesh extraction."""
     rgbz: RgbzConfig = field(default_factory=RgbzConfig)
     """RGBz preparation (METHODS §1.4)."""
+    measured_voxels: bool = True
+    """Voxels holding measured depth points of >= 2 scans are surface voxels too (volume.pyramid)."""
     keep_values: bool = True
     """Store every level's signed distance values in the model (not only surface voxels)."""
 
@@ -86,9 +88,10 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     stage = stage or (lambda name: contextlib.nullcontext())
     origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
+    points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
     with stage("pyramid"):
         pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items()}, origin, extent, l_opt,
-                                            keep_values=True)
+                                            keep_values=True, points=points)
     # spheres, mesh and RGBz depth describe the solid, not the billboard LOD: they use the
     # finest fused level (<= SPHERE_LEVEL for spheres) even when Eq. 1 keeps coarser levels only
     top = fused[max(fused)]
@@ -108,9 +111,9 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
             if len(verts) else None
     if not cfg.keep_values:
         pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
-                                keep_values=False)
+                                keep_values=False, points=points)
     params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
-              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "sphere_level": sl.resolution,
+              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels, "sphere_level": sl.resolution,
               "mesh_level": finest.resolution,
               "eq1_fraction": {str(L): v for L, v in frac.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],

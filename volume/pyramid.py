@@ -14,7 +14,12 @@ samples, confirmed by a quorum or not), comparing only pairs of voxels that both
 measurement, and dividing by L^3 as the paper does.  For the TSDF peer the measured field is
 its own band.  The pyramid stores the consensus field.
 
-Surface voxels (METHODS §1.1 step 2): |signed distance| <= half a voxel diagonal.
+Surface voxels (METHODS §1.1 step 2): |signed distance| <= half a voxel diagonal, plus
+(with measured points) every voxel that contains measured depth points of at least
+MEASURED_MIN_VIEWS scans.  Slices are only generated in surface voxels (METHODS §1.2) and the
+RGBz depth keeps every measured sample (volume.rgbz), so without these voxels the measured
+fuzz outside the consensus surface (fur fringe, needles) would have depth but no slice to
+land on.  Requiring two scans keeps isolated flyers out.
 """
 
 from __future__ import annotations
@@ -27,6 +32,8 @@ from volume.model import SdfLevel, SdfPyramid
 
 #: Surface-voxel threshold as a fraction of the voxel diagonal (METHODS §1.1: "about half").
 SURFACE_DIAGONAL_FRACTION = 0.5
+#: A voxel holding measured depth points of at least this many scans is a surface voxel too.
+MEASURED_MIN_VIEWS = 2
 #: Coarsest level kept in the pyramid (and the lowest resolution Eq. 1 can fall back to).
 MIN_RESOLUTION = 8
 
@@ -108,14 +115,46 @@ def surface_voxels(values: np.ndarray, voxel_size: float) -> np.ndarray:
     return np.argwhere(np.abs(values) <= thr).astype(np.int32)
 
 
+def measured_voxels(points, origin, voxel_size: float, L: int, min_views: int = MEASURED_MIN_VIEWS) -> np.ndarray:
+    """(N, 3) int32 indices of the voxels of an L^3 grid holding points of >= ``min_views`` views.
+
+    ``points``: one (M_v, 3) array of world points (metres) per view; points outside the cube are
+    ignored.  Sorted by linear index (i major).
+    """
+    keys = []
+    for p in points:
+        g = np.floor((np.asarray(p, np.float64).reshape(-1, 3) - np.asarray(origin, np.float64)) / voxel_size)
+        g = g[np.all((g >= 0) & (g < L), axis=1)].astype(np.int64)
+        keys.append(np.unique((g[:, 0] * L + g[:, 1]) * L + g[:, 2]))
+    if not keys:
+        return np.zeros((0, 3), np.int32)
+    k, n = np.unique(np.concatenate(keys), return_counts=True)
+    k = k[n >= max(int(min_views), 1)]
+    return np.stack([k // (L * L), (k // L) % L, k % L], axis=1).astype(np.int32)
+
+
+def union_voxels(a: np.ndarray, b: np.ndarray, L: int) -> np.ndarray:
+    """(N, 3) int32 union of two index sets of an L^3 grid, sorted by linear index."""
+    c = np.concatenate([np.asarray(a, np.int64).reshape(-1, 3), np.asarray(b, np.int64).reshape(-1, 3)])
+    k = np.unique((c[:, 0] * L + c[:, 1]) * L + c[:, 2])
+    return np.stack([k // (L * L), (k // L) % L, k % L], axis=1).astype(np.int32)
+
+
 def build_pyramid(volumes: dict[int, np.ndarray], origin, extent: float, l_opt: int,
-                  keep_values: bool = True) -> SdfPyramid:
-    """SdfPyramid of every level <= l_opt from the full volumes {L: (L,L,L) float32}."""
+                  keep_values: bool = True, points=None, min_views: int = MEASURED_MIN_VIEWS) -> SdfPyramid:
+    """SdfPyramid of every level <= l_opt from the full volumes {L: (L,L,L) float32}.
+
+    ``points`` (one (M_v, 3) world array per scan, or None): voxels holding measured points of
+    at least ``min_views`` scans join each level's surface voxels (module docstring).
+    """
     levels = []
     for L in sorted(volumes):
         if L > l_opt:
             continue
         w = extent / L
         v = np.asarray(volumes[L], np.float32)
-        levels.append(SdfLevel(L, np.asarray(origin, np.float64), w, surface_voxels(v, w), v if keep_values else None))
+        surf = surface_voxels(v, w)
+        if points is not None:
+            surf = union_voxels(surf, measured_voxels(points, origin, w, L, min_views), L)
+        levels.append(SdfLevel(L, np.asarray(origin, np.float64), w, surf, v if keep_values else None))
     return SdfPyramid(tuple(levels), l_opt)

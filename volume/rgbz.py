@@ -3,10 +3,16 @@
 For each input camera:
 1. **geometry depth**: the model's mesh ray cast into the camera (Open3D RaycastingScene,
    exact triangle intersection; z-depth = t * cos of the ray with the optical axis);
-2. **combine with the measured depth**: a measured pixel is kept where it agrees with the
-   geometry (|measured - geometry| < ``agree_voxels`` voxels) or, where the geometry has no
-   hit, where the measured point lies within ``agree_voxels`` voxels of the surface (the signed
-   distance volume says so); otherwise the geometry depth is used;
+2. **combine with the measured depth** (``keep_measured``, default): every measured depth
+   sample is kept and the geometry depth fills only the pixels nothing was measured at.  In
+   the paper the RGBz depth *is* the range image taken with the colour image (METHODS §1.4,
+   §1.1 "Input"); on fur and plants the fused surface lies inside the fuzz, so replacing the
+   measured fringe by it (or dropping fringe pixels with no geometry hit) makes Eq. 2 discard
+   exactly the texels the method is for (measured on the demo fur ball: holes and an eroded
+   silhouette).  With ``keep_measured=False`` (the former rule) a measured pixel is kept only
+   where it agrees with the geometry (|measured - geometry| < ``agree_voxels`` voxels) or,
+   where the geometry has no hit, where the measured point lies within ``agree_voxels``
+   voxels of the surface; otherwise the geometry depth is used;
 3. **morphological closing** (OpenCV, elliptical kernel of ``closing_px``) fills small holes;
    only empty pixels are written.
 The hole fraction before and after step 3 is reported per view: empty pixels inside the
@@ -30,6 +36,9 @@ class RgbzConfig:
 
     agree_voxels: float = 2.0
     """Measured and geometry depth agree within this many finest-level voxels."""
+    keep_measured: bool = True
+    """Keep every measured depth sample (geometry fills the rest); False: only those agreeing
+    with the geometry (``agree_voxels``)."""
     closing_px: int = 5
     """Diameter (pixels) of the elliptical closing kernel; 0 disables the closing."""
 
@@ -91,10 +100,13 @@ def close_holes(depth: np.ndarray, closing_px: int) -> np.ndarray:
     return np.where(depth > 0, depth, closed).astype(np.float32)
 
 
-def combine_depth(measured: np.ndarray, geometry: np.ndarray, cam, level: SdfLevel, tol: float) -> np.ndarray:
+def combine_depth(measured: np.ndarray, geometry: np.ndarray, cam, level: SdfLevel, tol: float,
+                  keep_measured: bool = False) -> np.ndarray:
     """Step 2 of the module docstring for one camera."""
     m = np.asarray(measured, np.float32)
     g = np.asarray(geometry, np.float32)
+    if keep_measured:
+        return np.where(m > 0, m, g).astype(np.float32)
     out = g.copy()
     agree = (m > 0) & (g > 0) & (np.abs(m - g) < tol)
     out[agree] = m[agree]
@@ -122,7 +134,7 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
     stats = []
     it = range(len(cams))
     for n in (progress(it) if progress else it):
-        comb = combine_depth(scanset.scans[n].depth, geo[n], cams[n], level, tol)
+        comb = combine_depth(scanset.scans[n].depth, geo[n], cams[n], level, tol, cfg.keep_measured)
         before = hole_fraction(comb)
         depth[n] = close_holes(comb, cfg.closing_px)
         stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(depth[n])})

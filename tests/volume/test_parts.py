@@ -146,3 +146,39 @@ def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):
     assert model.mesh_colors is None and np.all(model.rgbz.depth == 0)
     m = load_model(save_model(model, tmp_path / "m"))
     assert m.pyramid.l_opt == summary["l_opt"]
+
+
+def test_rgbz_keeps_measured_fringe_and_geometry_fills_the_rest():
+    """METHODS §1.4: the RGBz depth is the measured range image; the geometry depth only fills
+    unmeasured pixels.  A fringe measured ~2-3 cm outside the sphere (no geometry hit there, far
+    from the surface) is kept by default and dropped by the former agreement rule."""
+    scene = sphere_scene()
+    lv = _level(scene)
+    v, f = marching_cubes(lv)
+    cams = ring_cameras(3, 80, 60)
+    geo = raycast_depth(v, f, cams)
+
+    def hook(i, z):
+        z = z.copy()
+        ring = (z <= 0) & (geo[i] <= 0)
+        rows, cols = np.nonzero(geo[i] > 0)
+        ring[:, : cols.min() - 10] = False  # a 4-pixel column band 6-10 px left of the silhouette
+        ring[:, cols.min() - 6:] = False
+        ring[: rows.min()] = False
+        ring[rows.max() + 1:] = False
+        z[ring] = float(np.median(geo[i][geo[i] > 0]))
+        z[30, 40] = 0.0  # one unmeasured pixel inside: geometry fills it
+        return z
+
+    ss = make_scanset(scene, cams, depth_hook=hook)
+    new, _ = build_rgbz(ss, v, f, lv, RgbzConfig(closing_px=0))
+    old, _ = build_rgbz(ss, v, f, lv, RgbzConfig(closing_px=0, keep_measured=False))
+    for i, s in enumerate(ss.scans):
+        m = s.depth > 0
+        fringe = m & (geo[i] <= 0)
+        pts = s.camera.unproject(s.camera.pixel_grid()[fringe], s.depth[fringe])
+        far = np.abs(scene.sdf(pts)) > 3 * lv.voxel_size  # beyond the former rule's 2 voxels
+        assert far.sum() > 20
+        np.testing.assert_array_equal(new.depth[i][m], s.depth[m])
+        assert np.all(old.depth[i][fringe][far] == 0)  # dropped by the former rule
+        assert new.depth[i][30, 40] == pytest.approx(geo[i][30, 40]) and geo[i][30, 40] > 0

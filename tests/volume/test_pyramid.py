@@ -87,3 +87,23 @@ def test_eq1_smooth_keeps_fur_drops(scene_fn, keeps):
     else:
         assert l_opt < 64, frac
         assert frac[64] > 3 * cfg.lopt.t, frac
+
+
+def test_measured_voxels_need_two_views_and_join_the_surface():
+    from volume.pyramid import measured_voxels
+
+    o, w, L = np.zeros(3), 0.1, 8
+    a = np.array([[0.05, 0.05, 0.05], [0.35, 0.15, 0.75], [0.55, 0.55, 0.55], [-0.1, 0.2, 0.2], [0.9, 0.1, 0.1]])
+    b = np.array([[0.09, 0.01, 0.02], [0.55, 0.55, 0.55], [0.3501, 0.1501, 0.7501], [-0.1, 0.2, 0.2]])
+    got = measured_voxels([a, b], o, w, L, 2)
+    # voxel (0,0,0) and (5,5,5) in both views, (3,1,7) in both; outside points ignored; (9,..) out of range
+    np.testing.assert_array_equal(got, [[0, 0, 0], [3, 1, 7], [5, 5, 5]])
+    assert len(measured_voxels([a], o, w, L, 2)) == 0
+    assert len(measured_voxels([a], o, w, L, 1)) == 3  # (0,0,0), (3,1,7), (5,5,5); the rest is outside
+    vols = {L: _sphere_sdf(L)[0] for L in (8, 16)}
+    pts = [np.array([[0.45, 0.45, 0.45]])] * 2  # a corner of the cube, far outside the 0.3 m sphere
+    p0 = build_pyramid(vols, np.zeros(3) - 0.5, 1.0, 16)
+    p1 = build_pyramid(vols, np.zeros(3) - 0.5, 1.0, 16, points=pts)
+    for lv0, lv1 in zip(p0.levels, p1.levels):
+        assert len(lv1.surface) == len(lv0.surface) + 1
+        assert (lv1.surface == lv1.resolution - 1).all(axis=1).any()
