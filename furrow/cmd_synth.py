@@ -77,6 +77,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="depth files: 16-bit PNG (default) or float EXR in metres")
     p.add_argument("--png-depth-unit", type=float, default=None, metavar="M",
                    help="metres per 16-bit PNG depth unit (default 0.0001 = 0.1 mm; 0.001 = millimetres)")
+    p.add_argument("--board", action="store_true",
+                   help="stand the object on a ChArUco board (for `furrow register --method board`); the board "
+                        "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, e.g. "
+                        "--elevations 50 --size 480x360")
     p.add_argument("--preview", action="store_true", help="also write DIR/preview.png (colour + depth contact sheet)")
     p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -133,8 +137,18 @@ def run(args, console) -> int:
         fail(f"{args.out}: already exists (use --overwrite to replace it)")
         return 1
     timer = StageTimer()
+    scene = None
+    if args.board:
+        from datasets_synthetic.board import add_board
+        from datasets_synthetic.scenes import build_scene
+
+        scene, spec = add_board(build_scene(cfg.scene, cfg.seed, **cfg.scene_params))
+        console.print(f"ChArUco board under the object: {spec.squares_x}x{spec.squares_y} squares of "
+                      f"{spec.square_m} m, markers {spec.marker_m} m, {spec.dictionary}, at z = {spec.z_m:.4f} m "
+                      f"(furrow register --board {spec.squares_x}x{spec.squares_y}:{spec.square_m}:{spec.marker_m}"
+                      f" --board-z {spec.z_m:.5f})", highlight=False)
     with timer.stage(f"render {cfg.scene} ({cfg.rig.n_views} views, {cfg.rig.width}x{cfg.rig.height})"):
-        cap = synthesize(cfg, progress=lambda it, label: track(it, label, total=len(it)))
+        cap = synthesize(cfg, scene=scene, progress=lambda it, label: track(it, label, total=len(it)))
     extra = {}
     if args.preview:
         with timer.stage("contact sheet"):

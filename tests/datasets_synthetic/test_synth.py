@@ -151,3 +151,15 @@ def test_fur_shadow_visibility_matches_raycasting():
         assert 0.1 < lit.mean() < 0.9  # the fur really shadows itself
         assert ((vis[:, i] > 0.5) == lit).mean() > 0.95
         assert abs(vis[:, i].mean() - lit.mean()) < 0.02
+
+
+def test_cli_synth_board_is_in_the_ground_truth(tmp_path):
+    import json
+
+    from furrow.cli import main
+
+    out = tmp_path / "b"
+    assert main(["synth", "torus", "-o", str(out), "--small", "--views", "2", "--board"]) == 0
+    scene = json.loads((out / "gt" / "scene.json").read_text())
+    board = scene["params"]["board"] if "params" in scene else scene["board"]
+    assert board["squares"] == [7, 7] and board["z_m"] < 0
