@@ -88,6 +88,9 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     stage = stage or (lambda name: contextlib.nullcontext())
     origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
+    # N_i over the measured voxels (reported only; Eq. 1 divides by L^3, see volume.pyramid)
+    per_measured = {L: (frac[L] * L ** 3 / n if (n := int(np.count_nonzero(f.measured_mask))) else 0.0)
+                    for L, f in fused.items() if f.measured_mask is not None}
     points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
     with stage("pyramid"):
         pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items()}, origin, extent, l_opt,
@@ -115,7 +118,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
               "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels, "sphere_level": sl.resolution,
               "mesh_level": finest.resolution,
-              "eq1_fraction": {str(L): v for L, v in frac.items()}}
+              "eq1_fraction": {str(L): v for L, v in frac.items()},
+              "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
             "scanset_metadata": _jsonable(scanset.metadata), **(provenance or {})}
     bounds = np.asarray(scanset.bounds, np.float64)
@@ -125,6 +129,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "levels": pyramid.resolutions,
         "surface_voxels": {str(lv.resolution): int(len(lv.surface)) for lv in pyramid.levels},
         "eq1_fraction": {str(L): round(v, 6) for L, v in frac.items()},
+        "eq1_flagged_per_measured": {str(L): round(v, 6) for L, v in per_measured.items()},
         "spheres": len(spheres),
         "sphere_error": round(sphere_err, 5),
         "mesh": {"vertices": int(len(verts)), "faces": int(len(faces))},

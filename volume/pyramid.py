@@ -14,6 +14,20 @@ samples, confirmed by a quorum or not), comparing only pairs of voxels that both
 measurement, and dividing by L^3 as the paper does.  For the TSDF peer the measured field is
 its own band.  The pyramid stores the consensus field.
 
+Reading of the loop (METHODS §1.1, kept as the paper states it, measured 2026-11-22).  Flagged
+voxels lie on the surface, so N_i grows like L^2 and N_i / L^3 falls roughly like 1/L: the
+fraction is higher at every coarser level and the loop either keeps L_max or runs to the
+coarsest level.  Demo fur ball (18 of 36 views, 320x240): N_i/L^3 = 0.24, 0.16, 0.088, 0.050,
+0.030, 0.019 at 8..256 -> L_opt = 8; plant 0.31 .. 0.0076 (128) -> L_max; smooth torus 0.0002
+at 128 -> L_max.  Normalising by the measured voxels instead (N_i / #measured, reported as
+``eq1_flagged_per_measured``) is flat on fur (0.33-0.42 at every level), so no threshold
+separates the levels either.  Held-out PSNR (furrow eval --holdout 2, level forced by a cap
+with E = 1 px) favours the coarse levels on fur and plant at 320x240 (fur 21.36 / 20.86 /
+20.64 dB at 8 / 16 / 32; plant 29.91 / 29.80 / 29.76) and differs by 0.3 dB at 640x480 (fur
+19.90 / 20.13 / 20.20 / 20.10 at 8..64); at the default E = 8 px the renderer's Eq. 11
+picks 8^3 on both sizes whatever L_opt is.  So L_opt = 8 on fur is what Eq. 1 says and costs
+no measured PSNR at the default tolerance; it only caps the finest level a small E could use.
+
 Surface voxels (METHODS §1.1 step 2): |signed distance| <= half a voxel diagonal, plus
 (with measured points) every voxel that contains measured depth points of at least
 MEASURED_MIN_VIEWS scans.  Slices are only generated in surface voxels (METHODS §1.2) and the
@@ -101,7 +115,9 @@ def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float, 
 
 
 def choose_l_opt(fractions: dict[int, float], t: float) -> int:
-    """Eq. 1: from the finest resolution down, the first whose fraction is <= t; else the coarsest."""
+    """Eq. 1: from the finest resolution down, the first whose fraction is <= t; else the coarsest.
+
+    The paper's loop as METHODS §1.1 states it (see the module docstring for what it does on fur)."""
     res = sorted(fractions, reverse=True)
     for L in res:
         if fractions[L] <= t:
