@@ -13,8 +13,13 @@ $F synth plant -o "$OUT/plant_scan" --views 36 --size 320x240 --seed 1 --preview
 if has model; then
   $F model "$OUT/furball_scan" -o "$OUT/furball_model" --frames 0::2 --max-res 128 --overwrite --json > "$OUT/furball_model.json"
 fi
+if has render && [ -d "$OUT/furball_model" ]; then
+  $F render "$OUT/furball_model" --cameras "$OUT/furball_scan" --orbit 8 -o "$OUT/furball_orbit"
+  $F render "$OUT/furball_model" --cameras "$OUT/furball_scan" --orbit 8 -o "$OUT/furball_orbit_sunset" --env sunset --ground
+fi
 if has eval; then
   $F eval "$OUT/furball_scan" --holdout 2 --json "$OUT/furball_eval.json" -o "$OUT/furball_eval"
+  $F eval "$OUT/plant_scan" --holdout 2 --json "$OUT/plant_eval.json" -o "$OUT/plant_eval"
 fi
 echo "demo outputs in $OUT:"
-find "$OUT" -maxdepth 2 -name '*.png' -o -maxdepth 2 -name '*.json' | sort | head -40
+find "$OUT" -maxdepth 2 \( -name '*.png' -o -name '*.json' \) | sort | head -60
