@@ -98,20 +98,10 @@ def bench_energy_thin(ctx, W, H):
 
 
 def sphere_scene(camera, centre, radius, albedo):
-    """Analytic sphere: depth, normals and a Lambert colour under the irradiance table."""
-    from render.composite import pixel_world_dirs
+    """Analytic sphere: depth and normals (render.composite.raycast_sphere)."""
+    from render.composite import raycast_sphere
 
-    d = pixel_world_dirs(camera)
-    dn = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    o = camera.center - centre
-    b = dn @ o
-    disc = b**2 - (o @ o - radius**2)
-    hit = disc > 0
-    t = np.where(hit, -b - np.sqrt(np.maximum(disc, 0)), 0)
-    P = camera.center + t[..., None] * dn
-    z = np.where(hit, (P - camera.center) @ camera.forward, 0.0)
-    n = np.where(hit[..., None], (P - centre) / radius, 0.0)
-    return z, n
+    return raycast_sphere(camera, centre, radius)
 
 
 def bench_composite(ctx, W, H, env_name, out_dir: Path):

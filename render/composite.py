@@ -194,6 +194,23 @@ def pixel_world_dirs(camera: Camera) -> np.ndarray:
     return camera.pixel_rays(camera.pixel_grid()) @ camera.cam_from_world[:3, :3]
 
 
+def raycast_sphere(camera: Camera, centre, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Analytic ray-sphere hit per pixel: z-depth (H, W) in metres and world normals (H, W, 3),
+    0 off the sphere (the exact scene the compositing tests and ``furrow bench glare`` use)."""
+    centre = np.asarray(centre, np.float64)
+    d = pixel_world_dirs(camera)
+    dn = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    o = camera.center - centre
+    b = dn @ o
+    disc = b**2 - (o @ o - radius**2)
+    hit = disc > 0
+    t = np.where(hit, -b - np.sqrt(np.maximum(disc, 0)), 0)
+    P = camera.center + t[..., None] * dn
+    z = np.where(hit, (P - camera.center) @ camera.forward, 0.0)
+    n = np.where(hit[..., None], (P - centre) / radius, 0.0)
+    return z, n
+
+
 def composite_reference(rgb, depth, camera: Camera, env: EnvMap, exposure: float = 1.0,
                         ground: GroundPlane | None = None, ratio_grid=None, normals=None, spec=None,
                         sources=None) -> np.ndarray:

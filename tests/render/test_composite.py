@@ -11,7 +11,7 @@ import pytest
 from capture.camera import Camera, look_at, make_K
 from render.composite import (TONE_WHITE, Compositor, GroundPlane, composite_frame, composite_reference,
                               display_white, ground_from_spheres, normals_from_depth, pixel_world_dirs,
-                              ratio_lookup, shadow_ratio, shadow_ratio_raycast, spheres_mesh, tonemap)
+                              ratio_lookup, raycast_sphere, shadow_ratio, shadow_ratio_raycast, spheres_mesh, tonemap)
 from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky, SUN_DIR
 from render.shading.sg import sg_mixture_eval
 from tests.conftest import assert_images_close
@@ -57,17 +57,7 @@ def _camera(w=160, h=120, eye=(0.8, -0.6, 0.35), target=(0.0, 0.0, 0.1), f=150.0
 
 def _sphere_render(camera, centre, radius):
     """Analytic ray-sphere: z-depth (H, W) and world normals (H, W, 3) (0 off the sphere)."""
-    d = pixel_world_dirs(camera)
-    dn = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    o = camera.center - centre
-    b = dn @ o
-    disc = b**2 - (o @ o - radius**2)
-    hit = disc > 0
-    t = np.where(hit, -b - np.sqrt(np.maximum(disc, 0)), 0)
-    P = camera.center + t[..., None] * dn
-    z = np.where(hit, (P - camera.center) @ camera.forward, 0.0)
-    n = np.where(hit[..., None], (P - centre) / radius, 0.0)
-    return z, n
+    return raycast_sphere(camera, centre, radius)
 
 
 # -- tone mapping ------------------------------------------------------------------------------
