@@ -35,6 +35,8 @@ LOCAL_SIZE = 64
 #: Bytes of one slice record (4 x vec4, microfacet_slice.glsl).
 SLICE_BYTES = 64
 MODES = ("instanced", "geometry")
+#: Most parallax-correction steps accepted (render quality saturates after 2: bench/render.py).
+MAX_REFINE = 4
 
 
 #: Draw, on every coarse level, the ancestors of the finest level's surface voxels too
@@ -46,7 +48,7 @@ COARSE_COVERS_FINE = True
 RGBZ_DTYPE = np.float16
 
 
-def shader_defines(rule: str = "vote", n_fallback: int | None = None) -> dict:
+def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None) -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
     if rule not in mg.FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
@@ -68,6 +70,9 @@ def shader_defines(rule: str = "vote", n_fallback: int | None = None) -> dict:
         "RECT_CLAMP": f"{mg.RECT_CLAMP:.6f}",
         "FREE_FACTOR": f"{mg.FREE_FACTOR:.6f}",
         "UNSURE_WEIGHT": f"{mg.UNSURE_WEIGHT:.6f}",
+        "DEPTH_REFINE": mg.DEPTH_REFINE if refine is None else int(refine),
+        "REFINE_RANGE": f"{mg.REFINE_RANGE:.6f}",
+        "REFINE_ACCEPT": f"{mg.REFINE_ACCEPT:.6f}",
     }
 
 
@@ -132,10 +137,12 @@ class MicrofacetRenderer:
         mode: "instanced" or "geometry".
         rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
         n_fallback: fallback candidates tried after the blend cameras (default N_FALLBACK).
+        refine: parallax-correction steps of passing colours (default DEPTH_REFINE; 0 = the
+            paper's colour at the slice point; microfacet_geometry.refine_colours).
     """
 
     def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced", rule: str = "vote",
-                 n_fallback: int | None = None):
+                 n_fallback: int | None = None, refine: int | None = None):
         if mode not in MODES:
             raise ValueError(f"unknown microfacet mode {mode!r}; use one of {MODES}")
         self.ctx = ctx
@@ -148,7 +155,10 @@ class MicrofacetRenderer:
         self.counts = [len(x) for x in self.surfaces]
         if len(self.cameras) == 0:
             raise ValueError("microfacet renderer: the model has no input camera")
-        d = shader_defines(rule, n_fallback)
+        if refine is not None and not 0 <= int(refine) <= MAX_REFINE:
+            raise ValueError(f"refine must be 0..{MAX_REFINE} steps, got {refine}")
+        d = shader_defines(rule, n_fallback, refine)
+        self.refine = mg.DEPTH_REFINE if refine is None else int(refine)
         self.n_fallback = mg.N_FALLBACK if n_fallback is None else int(n_fallback)
         self.rule = rule
         # Per level, the voxel centres in 6 orders (front to back along +-x, +-y, +-z): the
@@ -199,10 +209,10 @@ class MicrofacetRenderer:
 
     @classmethod
     def from_model(cls, ctx, model, mode: str = "instanced", rule: str = "vote",
-                   n_fallback: int | None = None) -> "MicrofacetRenderer":
+                   n_fallback: int | None = None, refine: int | None = None) -> "MicrofacetRenderer":
         """Renderer for a volume.model.Model."""
         return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                   model.bounds, mode, rule, n_fallback)
+                   model.bounds, mode, rule, n_fallback, refine)
 
     def release(self) -> None:
         for o in [*(b for bufs in self.voxel_bufs for b in bufs), self.cam_buf, self.tex, self.slice_buf, self.indirect, self.select,

@@ -348,6 +348,13 @@ FREE_FACTOR = 2.0
 UNSURE = 3
 #: An UNSURE camera's weight counts this much against drawing (a FREE camera counts 1).
 UNSURE_WEIGHT = 0.5
+#: Parallax correction of passing fragments' colours: fixed-point steps along the eye ray to
+#: the camera's depth map (0 = the paper's colour at the slice point).
+DEPTH_REFINE = 2
+#: ... the corrected point must stay within REFINE_RANGE * l/2 (camera depth) of the slice point ...
+REFINE_RANGE = 2.0
+#: ... and lie on the camera's surface within REFINE_ACCEPT * l/2, else the slice point's colour is kept.
+REFINE_ACCEPT = 1.0
 #: Fallback rules: "vote" (default) and "any" (see shade_fragments).
 FALLBACK_RULES = ("vote", "any")
 #: "vote" rule: a fragment is drawn when the passing share of the seeing blend weight >= this.
@@ -383,9 +390,59 @@ def classify(d: np.ndarray, D: np.ndarray, inside: np.ndarray, spacing: float) -
     return np.where(inside, out, NO_VIEW)
 
 
+def project_h(cam: Camera, points: np.ndarray) -> np.ndarray:
+    """(N, 3) homogeneous projection (u z, v z, z) of world points (the shader's cam_project_h)."""
+    pc = cam.world_to_cam(np.asarray(points, np.float64).reshape(-1, 3))
+    return pc @ cam.K.T
+
+
+def refine_colours(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndarray, eye_pos: np.ndarray,
+                   d0: np.ndarray, tol: float, col: np.ndarray, iterations: int = None) -> np.ndarray:
+    """Parallax-corrected colours of passing fragments (the shader's refine_colour).
+
+    The eye ray through each fragment, projected into the camera, is pe + s (pr - pe) (pr, pe:
+    homogeneous projections of the fragment and of the eye).  Starting from the depth d0 seen
+    at the fragment's texel, each step moves to the ray point whose camera depth equals the
+    depth seen so far (s = (d - pe_z) / dir_z) and reads the texel there.  A step that leaves
+    REFINE_RANGE * tol of the fragment's own depth, the image, or the measured pixels keeps the
+    original colour; after ``iterations`` steps the new texel's colour is used when its depth
+    agrees with the ray point within REFINE_ACCEPT * tol.
+    """
+    iterations = DEPTH_REFINE if iterations is None else int(iterations)
+    col = np.array(col, np.float64, copy=True)
+    if iterations <= 0 or len(points) == 0:
+        return col
+    pr = project_h(cam, points)
+    pe = project_h(cam, np.asarray(eye_pos, np.float64)[None])[0]
+    dirv = pr - pe
+    ok = np.abs(dirv[:, 2]) > 1e-12
+    d = np.asarray(d0, np.float64).copy()
+    q = pr.copy()
+    tcol = np.zeros_like(col)
+    H, W = depth.shape
+    for _ in range(iterations):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_ = (d - pe[2]) / np.where(ok, dirv[:, 2], 1.0)
+            q2 = pe + s_[:, None] * dirv
+            ok &= (q2[:, 2] > 0) & (np.abs(q2[:, 2] - pr[:, 2]) <= REFINE_RANGE * tol)
+            zz = np.where(ok, q2[:, 2], 1.0)
+            ix = np.floor(q2[:, 0] / zz + 0.5)
+            iy = np.floor(q2[:, 1] / zz + 0.5)
+        ok &= (ix >= 0) & (iy >= 0) & (ix < W) & (iy < H)
+        ixi = np.where(ok, ix, 0).astype(np.int64)
+        iyi = np.where(ok, iy, 0).astype(np.int64)
+        dn = depth[iyi, ixi]
+        ok &= dn > 0
+        tcol = np.where(ok[:, None], rgb[iyi, ixi], tcol)
+        q = np.where(ok[:, None], q2, q)
+        d = np.where(ok, dn, d)
+    ok &= np.abs(d - q[:, 2]) < REFINE_ACCEPT * tol
+    return np.where(ok[:, None], tcol, col)
+
+
 def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, spacing: float,
                     cameras, rgb: np.ndarray, depth: np.ndarray, rule: str = "vote",
-                    n_fallback: int = None):
+                    n_fallback: int = None, eye_pos: np.ndarray | None = None, refine: int | None = None):
     """Colour of slice fragments (the fragment shader's twin, microfacet_rgbz.glsl).
 
     "vote": the blend cameras that see the point (PASS, FREE or UNSURE) vote with their
@@ -394,6 +451,8 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
     remaining candidates (phi order, after the K_BLEND blend cameras) that passes or frees it
     decides: the per-fragment fallback.
     "any": blend the passing blend cameras; if none passes, the first passing remaining candidate.
+    With ``eye_pos`` given, passing colours are parallax-corrected (:func:`refine_colours`,
+    ``refine`` steps, default DEPTH_REFINE).
     Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.
     """
     if rule not in FALLBACK_RULES:
@@ -406,7 +465,12 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
         for c in np.unique(ci[ci >= 0]):
             m = ci == c
             col, d, D, inside = sample_rgbz(cameras[c], rgb[c], depth[c], points[m])
-            status[m, k] = classify(d, D, inside, spacing)
+            st = classify(d, D, inside, spacing)
+            if eye_pos is not None and (DEPTH_REFINE if refine is None else refine) > 0 and np.any(st == PASS):
+                ps = st == PASS
+                col[ps] = refine_colours(cameras[c], rgb[c], depth[c], points[m][ps], eye_pos, d[ps], 0.5 * spacing,
+                                         col[ps], refine)
+            status[m, k] = st
             cols[m, k] = col
     wb = np.where(cand[:, :K_BLEND] >= 0, weights, 0.0)
     passing = status[:, :K_BLEND] == PASS
@@ -492,7 +556,7 @@ def slice_half_extents(centers: np.ndarray, w: float, eye_pos: np.ndarray, v: np
 
 def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float, cameras,
                      rgb: np.ndarray, depth: np.ndarray, bounds: np.ndarray, rule: str = "vote",
-                     n_fallback: int | None = None):
+                     n_fallback: int | None = None, refine: int | None = None):
     """Brute-force ray caster of the microfacet slices (slow, float64): the GPU frame's twin.
 
     For every pixel centre of ``eye``, intersect the ray with every slice quad, shade each hit
@@ -530,7 +594,7 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
             continue
         col, alive = shade_fragments(x, np.repeat(idx[j:j + 1], len(pix), 0),
                                      np.repeat(wts[j:j + 1], len(pix), 0), spacing, cameras, rgb, depth, rule,
-                                     n_fallback)
+                                     n_fallback, eye_pos, refine)
         pix = pix[alive]
         best_z[pix] = t[pix]
         img[pix] = col[alive]

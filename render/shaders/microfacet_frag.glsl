@@ -7,11 +7,12 @@ flat in ivec4 v_c03;
 flat in ivec2 v_c45;
 flat in vec3 v_w;
 in vec3 v_proj[K_CAND];
+flat in vec3 v_eye_proj[K_CAND];
 out vec4 frag;
 
 void main() {
     vec3 col;
-    if (!shade(v_proj[0], v_proj[1], v_proj[2], v_proj[3], v_proj[4], v_proj[5], v_c03, v_c45, v_w, 0.5 * spacing, col))
+    if (!shade(v_proj[0], v_proj[1], v_proj[2], v_proj[3], v_proj[4], v_proj[5], v_eye_proj, v_c03, v_c45, v_w, 0.5 * spacing, col))
         discard;
     frag = vec4(col, 1.0);
 }

@@ -10,6 +10,7 @@ flat out ivec4 v_c03;
 flat out ivec2 v_c45;
 flat out vec3 v_w;
 out vec3 v_proj[K_CAND];   // homogeneous projection into each candidate camera
+flat out vec3 v_eye_proj[K_CAND];   // the eye's projection into each candidate (refine_colour)
 
 void main() {
     vec3 c = g_center[0];
@@ -31,7 +32,10 @@ void main() {
             v_c03 = ivec4(cand[0], cand[1], cand[2], cand[3]);
             v_c45 = ivec2(cand[4], cand[5]);
             v_w = vec3(w[0], w[1], w[2]);
-            for (int j = 0; j < K_CAND; ++j) v_proj[j] = cand[j] >= 0 ? cam_project_h(cand[j], p) : vec3(0.0);
+            for (int j = 0; j < K_CAND; ++j) {
+                v_proj[j] = cand[j] >= 0 ? cam_project_h(cand[j], p) : vec3(0.0);
+                v_eye_proj[j] = cand[j] >= 0 ? cam_project_h(cand[j], eye_pos) : vec3(0.0);
+            }
             gl_Position = view_proj * vec4(p, 1.0);
             EmitVertex();
         }

@@ -11,14 +11,16 @@ uniform ivec2 tex_size;        // W, H of every RGBz layer
 
 // Classify a point against layer i given its homogeneous projection pr = (u z, v z, z) in
 // that camera (cam_project_h); col = its texel colour.
-int rgbz_classify(int i, vec3 pr, float tol, out vec3 col) {
+int rgbz_classify(int i, vec3 pr, float tol, out vec3 col, out float d) {
     col = vec3(0.0);
+    d = 0.0;
     if (pr.z <= 0.0) return NO_VIEW;
     vec3 uvz = vec3(pr.xy / pr.z, pr.z);
     ivec2 ij = ivec2(floor(uvz.xy + 0.5));
     if (ij.x < 0 || ij.y < 0 || ij.x >= tex_size.x || ij.y >= tex_size.y) return NO_VIEW;
     vec4 t = texelFetch(rgbz, ivec3(ij, i), 0);
     col = t.rgb;
+    d = t.a;
     if (!(t.a > 0.0)) return FREE;
     float e = t.a - uvz.z;
     if (abs(e) < tol) return PASS;
@@ -28,7 +30,8 @@ int rgbz_classify(int i, vec3 pr, float tol, out vec3 col) {
 
 // Classify world point p in camera i (projects it here; used per fragment by the VDTM baseline).
 int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
-    return rgbz_classify(i, cam_project_h(i, p), tol, col);
+    float d;
+    return rgbz_classify(i, cam_project_h(i, p), tol, col, d);
 }
 
 // Colour of a slice fragment, or false to discard it.  Unrolled over the K_BLEND = 3 blend
@@ -42,10 +45,38 @@ int rgbz_lookup(int i, vec3 p, float tol, out vec3 col) {
 #if K_BLEND != 3 || K_CAND != 6
 #error "shade() is unrolled for K_BLEND = 3, K_CAND = 6"
 #endif
-int vote(int ci, vec3 pr, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen) {
+// Parallax correction of a passing fragment's colour (DEPTH_REFINE > 0): march along the eye
+// ray to where it meets camera i's depth map (fixed-point steps on z), and take the colour there
+// when the ray point lies on that surface within REFINE_ACCEPT * tol.  Twin: refine_colours.
+// pe = cam_project_h(i, eye_pos) (a flat varying: constant per camera and frame).
+vec3 refine_colour(int i, vec3 pr, vec3 pe, float d, float tol, vec3 col) {
+#if DEPTH_REFINE > 0
+    vec3 dir = pr - pe;                  // the eye ray through the fragment, projected: pe + s dir
+    if (!(abs(dir.z) > 1e-12)) return col;
+    vec3 q = pr;
+    vec4 t = vec4(0.0);
+    for (int it = 0; it < DEPTH_REFINE; ++it) {
+        float s = (d - pe.z) / dir.z;
+        vec3 q2 = pe + s * dir;
+        if (!(q2.z > 0.0) || abs(q2.z - pr.z) > REFINE_RANGE * tol) return col;
+        ivec2 ij = ivec2(floor(q2.xy / q2.z + 0.5));
+        if (ij.x < 0 || ij.y < 0 || ij.x >= tex_size.x || ij.y >= tex_size.y) return col;
+        t = texelFetch(rgbz, ivec3(ij, i), 0);
+        if (!(t.a > 0.0)) return col;
+        q = q2;
+        d = t.a;
+    }
+    if (abs(d - q.z) < REFINE_ACCEPT * tol) return t.rgb;
+#endif
+    return col;
+}
+
+int vote(int ci, vec3 pr, vec3 pe, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen) {
     if (ci < 0) return NO_VIEW;
     vec3 c;
-    int st = rgbz_classify(ci, pr, tol, c);
+    float d;
+    int st = rgbz_classify(ci, pr, tol, c, d);
+    if (st == PASS) c = refine_colour(ci, pr, pe, d, tol, c);
     if (st == PASS) { acc += w * c; wpass += w; wseen += w; }
     else if (st == FREE) wseen += w;
     else if (st == UNSURE) wseen += UNSURE_WEIGHT * w;
@@ -53,10 +84,12 @@ int vote(int ci, vec3 pr, float w, float tol, inout vec3 acc, inout float wpass,
 }
 
 // Fallback step: the first candidate that decides (PASS or FREE under "vote"; PASS under "any").
-void fallback(int ci, vec3 pr, float tol, inout int decided, inout vec3 colour) {
+void fallback(int ci, vec3 pr, vec3 pe, float tol, inout int decided, inout vec3 colour) {
     if (decided != 0 || ci < 0) return;
     vec3 c;
-    int st = rgbz_classify(ci, pr, tol, c);
+    float d;
+    int st = rgbz_classify(ci, pr, tol, c, d);
+    if (st == PASS) c = refine_colour(ci, pr, pe, d, tol, c);
 #if FALLBACK_RULE == 0
     if (st == PASS || st == FREE) { decided = st; colour = c; }
 #else
@@ -64,19 +97,21 @@ void fallback(int ci, vec3 pr, float tol, inout int decided, inout vec3 colour) 
 #endif
 }
 
-bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, ivec4 c03, ivec2 c45, vec3 w, float tol,
-           out vec3 colour) {
+// p0..p5: homogeneous projections of the fragment into the candidates (cam_project_h);
+// e[k]: the eye's projection into candidate k (refine_colour).
+bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, vec3 e[K_CAND], ivec4 c03, ivec2 c45, vec3 w,
+           float tol, out vec3 colour) {
     vec3 acc = vec3(0.0);
     float wpass = 0.0, wseen = 0.0;
     colour = vec3(0.0);
-    int st0 = vote(c03.x, p0, w.x, tol, acc, wpass, wseen);
+    int st0 = vote(c03.x, p0, e[0], w.x, tol, acc, wpass, wseen);
 #if FALLBACK_RULE == 0
     // Early out (exact): weights sum to 1, so when the best camera frees the point with
     // weight w0, at most 1 - w0 can pass; drawing needs wpass >= ALPHA_VOTE (w0 + wpass).
     if (st0 == FREE && (1.0 - w.x) * (1.0 - ALPHA_VOTE) < ALPHA_VOTE * w.x) return false;
 #endif
-    vote(c03.y, p1, w.y, tol, acc, wpass, wseen);
-    vote(c03.z, p2, w.z, tol, acc, wpass, wseen);
+    vote(c03.y, p1, e[1], w.y, tol, acc, wpass, wseen);
+    vote(c03.z, p2, e[2], w.z, tol, acc, wpass, wseen);
 #if FALLBACK_RULE == 0
     if (wseen > WEIGHT_EPS) {
         if (wpass < ALPHA_VOTE * wseen || !(wpass > WEIGHT_EPS)) return false;
@@ -88,13 +123,13 @@ bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, ivec4 c03, ivec
 #endif
     int decided = 0;   // the blend cameras did not decide: try the next N_FALLBACK candidates
 #if N_FALLBACK > 0
-    fallback(c03.w, p3, tol, decided, colour);
+    fallback(c03.w, p3, e[3], tol, decided, colour);
 #endif
 #if N_FALLBACK > 1
-    fallback(c45.x, p4, tol, decided, colour);
+    fallback(c45.x, p4, e[4], tol, decided, colour);
 #endif
 #if N_FALLBACK > 2
-    fallback(c45.y, p5, tol, decided, colour);
+    fallback(c45.y, p5, e[5], tol, decided, colour);
 #endif
     return decided == PASS;
 }

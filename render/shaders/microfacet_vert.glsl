@@ -9,6 +9,7 @@ flat out ivec4 v_c03;
 flat out ivec2 v_c45;
 flat out vec3 v_w;
 out vec3 v_proj[K_CAND];   // homogeneous projection into each candidate camera
+flat out vec3 v_eye_proj[K_CAND];   // the eye's projection into each candidate (refine_colour)
 
 void main() {
     Slice s = slices[gl_InstanceID];
@@ -22,6 +23,9 @@ void main() {
     v_c45 = s.c45.xy;
     v_w = s.weights.xyz;
     int cand[K_CAND] = int[K_CAND](s.c03.x, s.c03.y, s.c03.z, s.c03.w, s.c45.x, s.c45.y);
-    for (int k = 0; k < K_CAND; ++k) v_proj[k] = cand[k] >= 0 ? cam_project_h(cand[k], p) : vec3(0.0);
+    for (int k = 0; k < K_CAND; ++k) {
+        v_proj[k] = cand[k] >= 0 ? cam_project_h(cand[k], p) : vec3(0.0);
+        v_eye_proj[k] = cand[k] >= 0 ? cam_project_h(cand[k], eye_pos) : vec3(0.0);
+    }
     gl_Position = view_proj * vec4(p, 1.0);
 }
