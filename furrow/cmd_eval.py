@@ -16,6 +16,9 @@ microfacet renderer and with the fixed-mesh VDTM baseline (same cameras, same se
 blending: they differ only in geometry), and report per view and mean PSNR and SSIM (8-bit
 sRGB, scikit-image) over the full image and inside the union of the reference and rendered
 foregrounds, the hole fraction inside the object, ms per frame and facet count.
+Every method is drawn with the same --supersample S x S samples per pixel (default 2: the
+references are area-sampled photographs or path-traced images); the microfacets
+parallax-correct their colours along the eye ray (--refine, default 2 steps; 0 = the paper).
 Writes DIR/side_by_side/*.png (reference | microfacet | baseline | 4 x |microfacet - reference|)
 and, with --json, the numbers (keys `microfacet` and `mesh_vdtm`, each with psnr, ssim,
 psnr_masked, ms_per_frame, ...; `mesh_colour` is the per-vertex colour floor).
@@ -32,6 +35,8 @@ example:
 #: Amplification of the error panel of the side-by-side images.
 ERROR_GAIN = 4.0
 GEOMETRIES = ("auto", "model", "gt")
+#: Samples per pixel and axis, the same for every method (render.antialias).
+DEFAULT_SUPERSAMPLE = 2
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,6 +49,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--geometry", choices=GEOMETRIES, default="auto", help="where the model's geometry comes from")
     p.add_argument("--l-max", type=int, default=128, help="finest level for --geometry gt (default 128)")
     p.add_argument("--mode", choices=["instanced", "geometry"], default="instanced", help="microfacet slice generation")
+    p.add_argument("--supersample", type=int, default=DEFAULT_SUPERSAMPLE, metavar="S",
+                   help=f"S x S samples per pixel for every method (default {DEFAULT_SUPERSAMPLE}; 1 = off)")
+    p.add_argument("--refine", type=int, default=None, metavar="N",
+                   help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
     p.add_argument("--max-views", type=int, default=None, help="evaluate at most this many held-out views (evenly spaced)")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
@@ -95,27 +104,28 @@ def summarise(views: list[dict]) -> dict:
 
 
 def evaluate(ctx, model, held, tolerance: float, mode: str = "instanced", out_dir: Path | None = None,
-             progress=None) -> dict:
-    """Render every held-out scan with both methods; metrics per view and means."""
+             progress=None, supersample: int = DEFAULT_SUPERSAMPLE, refine: int | None = None) -> dict:
+    """Render every held-out scan with both methods (and the vertex-colour floor), all with the
+    same ``supersample``; metrics per view and means."""
     from capture.imageio import write_png
     from capture.scan import to_uint8_srgb
     from render import metrics
     from render.microfacet import MicrofacetRenderer
     from render.vdtm import VdtmRenderer, render_vertex_colour
 
-    mf = MicrofacetRenderer.from_model(ctx, model, mode=mode)
+    mf = MicrofacetRenderer.from_model(ctx, model, mode=mode, refine=refine)
     vd = VdtmRenderer.from_model(ctx, model)
     res = {"microfacet": [], "mesh_vdtm": [], "mesh_colour": []}
     try:
-        mf.render(held[0].camera, tolerance, read=False)  # warm-up: shader compilation is not frame time
-        vd.render(held[0].camera, read=False)
+        mf.render(held[0].camera, tolerance, read=False, supersample=supersample)  # warm-up: shader compilation
+        vd.render(held[0].camera, read=False, supersample=supersample)
         items = progress(held, "evaluating") if progress else held
         for scan in items:
             ref = scan.srgb8
             fg = reference_foreground(scan)
-            a = mf.render(scan.camera, tolerance)
-            b = vd.render(scan.camera)
-            c = render_vertex_colour(ctx, model, scan.camera)
+            a = mf.render(scan.camera, tolerance, supersample=supersample)
+            b = vd.render(scan.camera, supersample=supersample)
+            c = render_vertex_colour(ctx, model, scan.camera, supersample=supersample)
             name = Path(scan.name).name
             for key, fr in (("microfacet", a), ("mesh_vdtm", b), ("mesh_colour", c)):
                 m = metrics.compare(ref, fr.rgb, fg, fr.alpha)
@@ -133,6 +143,12 @@ def evaluate(ctx, model, held, tolerance: float, mode: str = "instanced", out_di
     return {k: summarise(v) for k, v in res.items()}
 
 
+def mg_default_refine() -> int:
+    from render.microfacet_geometry import DEPTH_REFINE
+
+    return DEPTH_REFINE
+
+
 def run(args, console) -> int:
     from rich.table import Table
 
@@ -141,8 +157,15 @@ def run(args, console) -> int:
     from furrow.console import StageTimer, track
     from render.gl import gl_context
 
+    from render.antialias import check_factor
+
     if args.holdout < 2:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
+    check_factor(args.supersample)
+    from render.microfacet import MAX_REFINE
+
+    if args.refine is not None and not 0 <= args.refine <= MAX_REFINE:
+        raise ValueError(f"--refine must be 0..{MAX_REFINE} steps, got {args.refine}")
     timer = StageTimer()
     with timer.stage("read scans"):
         ss = read_scanset(args.scans)
@@ -158,11 +181,14 @@ def run(args, console) -> int:
         model, used = build_eval_model(kept, args.scans, args.geometry, args.l_max)
     out_dir = args.out or Path("out") / "eval" / Path(args.scans).resolve().name
     with gl_context() as ctx, timer.stage(f"render {len(held_idx)} held-out views x 2 methods"):
-        res = evaluate(ctx, model, [ss.scans[i] for i in held_idx], args.tolerance, args.mode, out_dir, track)
+        res = evaluate(ctx, model, [ss.scans[i] for i in held_idx], args.tolerance, args.mode, out_dir, track,
+                       args.supersample, args.refine)
     res.update({"scans": str(args.scans), "holdout": args.holdout, "kept": kept_idx, "held": held_idx,
-                "geometry": used, "tolerance_px": args.tolerance, "levels": model.pyramid.resolutions,
+                "geometry": used, "tolerance_px": args.tolerance, "supersample": args.supersample,
+                "refine": args.refine if args.refine is not None else mg_default_refine(), "levels": model.pyramid.resolutions,
                 "surface_voxels": [len(lv.surface) for lv in model.pyramid.levels]})
-    t = Table(title=f"held-out evaluation ({len(held_idx)} views, geometry: {used}, E = {args.tolerance:g} px)")
+    t = Table(title=f"held-out evaluation ({len(held_idx)} views, geometry: {used}, E = {args.tolerance:g} px, "
+                    f"{args.supersample}x{args.supersample} samples/pixel)")
     for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "holes %", "largest hole px", "ms/frame",
               "CPU ms", "facets"):
         t.add_column(c, justify="right")

@@ -25,6 +25,10 @@ METHODS = ("microfacet", "mesh-vdtm", "mesh-colour")
 ORBIT_FRAMES_DEFAULT = 36
 
 
+#: Default samples per pixel and axis (render.antialias; README "Where the design moved").
+DEFAULT_SUPERSAMPLE = 2
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", type=Path, help="model folder written by `furrow model`")
     p.add_argument("--cameras", type=Path, required=True, help="transforms.json (or a folder holding one) with the cameras")
@@ -34,6 +38,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="microfacet (default), mesh-vdtm (fixed-mesh baseline) or mesh-colour (per-vertex colour floor)")
     p.add_argument("--tolerance", type=float, default=8.0, help="screen-space tolerance E in pixels (default 8)")
     p.add_argument("--level", type=int, default=None, help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
+    p.add_argument("--supersample", type=int, default=DEFAULT_SUPERSAMPLE, metavar="S",
+                   help=f"anti-aliasing: S x S samples per pixel, box-resolved (default {DEFAULT_SUPERSAMPLE}; 1 = off, "
+                        "about S^2 x the fill cost)")
+    p.add_argument("--refine", type=int, default=None, metavar="N",
+                   help="microfacet parallax correction: steps along the eye ray to each camera's depth "
+                        "(default 2; 0 = the paper's colour at the slice point)")
     p.add_argument("--mode", choices=["instanced", "geometry"], default="instanced",
                    help="microfacet slice generation: compute + instancing (default) or geometry shader")
     p.add_argument("--orbit", type=int, default=None, metavar="N",
@@ -59,6 +69,15 @@ def run(args, console) -> int:
     from render.gl import gl_context
     from volume.model import load_model
 
+    from render.antialias import check_factor
+
+    check_factor(args.supersample)
+    if args.refine is not None and args.method != "microfacet":
+        raise ValueError("--refine applies to --method microfacet only")
+    from render.microfacet import MAX_REFINE
+
+    if args.refine is not None and not 0 <= args.refine <= MAX_REFINE:
+        raise ValueError(f"--refine must be 0..{MAX_REFINE} steps, got {args.refine}")
     if (args.ground or args.exposure != 1.0 or args.no_glare) and not args.env:
         raise ValueError("--ground, --exposure and --no-glare need --env MAP")
     timer = StageTimer()
@@ -105,7 +124,7 @@ def run(args, console) -> int:
         if args.method == "microfacet":
             from render.microfacet import MicrofacetRenderer
 
-            r = MicrofacetRenderer.from_model(ctx, model, mode=args.mode)
+            r = MicrofacetRenderer.from_model(ctx, model, mode=args.mode, refine=args.refine)
         elif args.method == "mesh-vdtm":
             from render.vdtm import VdtmRenderer
 
@@ -114,17 +133,17 @@ def run(args, console) -> int:
             r = None
         if r is not None and views:  # warm-up: llvmpipe compiles shaders on the first draw
             if args.method == "microfacet":
-                r.render(views[0][0], args.tolerance, level=level, read=False)
+                r.render(views[0][0], args.tolerance, level=level, read=False, supersample=args.supersample)
             else:
-                r.render(views[0][0], read=False)
+                r.render(views[0][0], read=False, supersample=args.supersample)
         with timer.stage(f"render {len(views)} frames ({args.method})"):
             for cam, name in track(views, "rendering", total=len(views)):
                 if args.method == "microfacet":
-                    fr = r.render(cam, args.tolerance, level=level)
+                    fr = r.render(cam, args.tolerance, level=level, supersample=args.supersample)
                     st = {"file": name, "ms": fr.ms, "facets": fr.facets, "level": fr.resolution,
                           "spacing_m": fr.spacing}
                 elif args.method == "mesh-vdtm":
-                    fr = r.render(cam)
+                    fr = r.render(cam, supersample=args.supersample)
                     st = {"file": name, "ms": fr.ms, "facets": fr.facets}
                 else:
                     from render.vdtm import render_vertex_colour
@@ -136,7 +155,11 @@ def run(args, console) -> int:
                 if compositor is not None:
                     from render.composite import composite_frame
 
-                    img = composite_frame(ctx, fr.rgb, fr.depth, cam, env,
+                    # the compositor takes a binary object mask (depth > 0): un-premultiply the
+                    # supersampled edge pixels (their samples were averaged with black)
+                    cov = fr.coverage if fr.coverage is not None else fr.alpha.astype(np.float32)
+                    obj = np.where(cov[..., None] > 0, fr.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
+                    img = composite_frame(ctx, obj.astype(np.float32), fr.depth, cam, env,
                                           spheres=model.spheres if args.ground else None,
                                           ground=None if args.ground else False, exposure=args.exposure,
                                           glare=not args.no_glare, up=up, compositor=compositor)
@@ -147,7 +170,7 @@ def run(args, console) -> int:
         if compositor is not None:
             compositor.release()
     (args.out / "render_stats.json").write_text(json.dumps({"method": args.method, "tolerance_px": args.tolerance,
-                                                            "frames": stats}, indent=1))
+                                                            "supersample": args.supersample, "frames": stats}, indent=1))
     ms = [s["ms"] for s in stats]
     console.print(f"[green]wrote[/] {len(stats)} images to {args.out}  (mean {np.mean(ms):.1f} ms/frame, "
                   f"mean facets {np.mean([s['facets'] for s in stats]):.0f})")

@@ -28,6 +28,7 @@ import numpy as np
 
 from capture.camera import Camera, gl_ndc_depth_to_z, gl_rows_to_image
 from render import microfacet_geometry as mg
+from render.antialias import Supersampler, check_factor
 from render.gl import program
 
 #: Compute work-group size of microfacet_select.glsl.
@@ -111,7 +112,10 @@ class Frame:
         lod: the level-of-detail choice.
         cpu_ms: process CPU time over the same interval (llvmpipe threads included): the cost
             independent of other load on the machine.
-        depth: (H, W) float32 z-depth (metres) of the drawn slices, 0 where nothing was drawn.
+        depth: (H, W) float32 z-depth (metres) of the drawn slices (the nearest sample when
+            supersampled), 0 where nothing was drawn.
+        coverage: (H, W) float32 share of the pixel's samples drawn (1 or 0 without supersampling).
+        supersample: samples per pixel and axis the frame was drawn with.
     """
 
     rgb: np.ndarray
@@ -124,6 +128,8 @@ class Frame:
     lod: mg.Lod | None = field(default=None, repr=False)
     cpu_ms: float = 0.0
     depth: np.ndarray | None = field(default=None, repr=False)
+    coverage: np.ndarray | None = field(default=None, repr=False)
+    supersample: int = 1
 
 
 class MicrofacetRenderer:
@@ -201,6 +207,7 @@ class MicrofacetRenderer:
         self.query = ctx.query(primitives=True)
         self._fbo = None
         self._fbo_size = None
+        self._ss = None
 
     def level_centers(self, level: int) -> np.ndarray:
         """(N, 3) world centres of the voxels drawn on ``level`` (see covering_surfaces)."""
@@ -221,6 +228,8 @@ class MicrofacetRenderer:
         if self._fbo is not None:
             for o in self._fbo:
                 o.release()
+        if self._ss is not None:
+            self._ss.release()
 
     # ------------------------------------------------------------------ frame
     def _target(self, W: int, H: int):
@@ -255,7 +264,8 @@ class MicrofacetRenderer:
             prog["tex_size"].value = self.tex_size
 
     def render(self, eye: Camera, tolerance_px: float = mg.DEFAULT_TOLERANCE_PX, level: int | None = None,
-               spacing: float | None = None, fill_only: bool = False, read: bool = True) -> Frame:
+               spacing: float | None = None, fill_only: bool = False, read: bool = True,
+               supersample: int = 1) -> Frame:
         """Render one frame from ``eye``.
 
         Args:
@@ -266,6 +276,10 @@ class MicrofacetRenderer:
             fill_only: draw the same squares untextured (the bare fill-cost reference;
                 instanced mode only).
             read: read the image back (False for timing only).
+            supersample: samples per pixel and axis (render.antialias): the frame is drawn at
+                that multiple of the eye's size (E stays in output pixels) and box-resolved on
+                the GPU; rgb is then the mean over the samples (over black) and ``coverage``
+                the drawn share.
         """
         ctx = self.ctx
         lod = self.choose_lod(eye, tolerance_px)
@@ -275,11 +289,18 @@ class MicrofacetRenderer:
             spacing = lod.spacing if level is None else max(mg.eq10_spacing(lod.e_world, lod.phi, w), mg.min_spacing(w))
         spacing = max(float(spacing), mg.min_spacing(w))
         near, far = mg.near_far(eye, self.bounds)
-        view_proj = eye.gl_projection(near, far) @ eye.gl_view()
+        f = check_factor(supersample)
+        draw_eye = eye if f == 1 else eye.scaled(f)
+        view_proj = draw_eye.gl_projection(near, far) @ draw_eye.gl_view()
         W, H = eye.width, eye.height
-        fbo = self._target(W, H)
+        if f == 1:
+            fbo = self._target(W, H)
+        else:
+            if self._ss is None:
+                self._ss = Supersampler(ctx)
+            fbo = self._ss.target(W, H, f)
         fbo.use()
-        ctx.viewport = (0, 0, W, H)
+        ctx.viewport = (0, 0, W * f, H * f)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
@@ -314,21 +335,27 @@ class MicrofacetRenderer:
                     self.vao_geom.render(mode=ctx.POINTS, vertices=n_vox)
                 ctx.finish()
                 facets = int(self.query.primitives) // 2  # two triangles per square
+        if f > 1:
+            self._ss.resolve()
+            ctx.finish()
         ms = (time.perf_counter() - t0) * 1e3
         cpu_ms = (time.process_time() - c0) * 1e3
         rgb = np.zeros((H, W, 3), np.float32)
         alpha = np.zeros((H, W), bool)
+        depth = coverage = None
         if read:
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)
+            if f == 1:
+                raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)
+                d01 = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(H, W)
+            else:
+                raw, d01 = self._ss.read()
             img = gl_rows_to_image(raw)
-            rgb, alpha = np.ascontiguousarray(img[..., :3]), img[..., 3] > 0.5
-            d01 = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(H, W)
+            coverage = np.ascontiguousarray(img[..., 3])
+            rgb, alpha = np.ascontiguousarray(img[..., :3]), coverage > (0.5 if f == 1 else 0.0)
             depth = gl_ndc_depth_to_z(gl_rows_to_image(d01), near, far).astype(np.float32)
             depth[~alpha] = 0.0
-        else:
-            depth = None
         return Frame(rgb, alpha, lev if n_vox > 0 else -1, self.levels[lev].resolution, float(spacing), facets,
-                     ms, lod, cpu_ms, depth)
+                     ms, lod, cpu_ms, depth, coverage, f)
 
     def read_slices(self, count: int) -> dict:
         """The slice records of the last instanced frame (for tests): centres, s, weights,

@@ -20,6 +20,7 @@ import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
 from render import microfacet_geometry as mg
+from render.antialias import Supersampler, check_factor
 from render.gl import program
 from render.microfacet import camera_block, rgbz_array, shader_defines
 
@@ -30,13 +31,15 @@ VIS_TOL_VOXELS = 1.0
 @dataclass
 class MeshFrame:
     """One baseline frame: linear rgb (H, W, 3), alpha (H, W) bool, ms (draw, synchronised), facets
-    (triangles), cpu_ms (process CPU time of the draw, llvmpipe threads included)."""
+    (triangles), cpu_ms (process CPU time of the draw, llvmpipe threads included), coverage (H, W)
+    share of drawn samples (supersampled frames; render.antialias)."""
 
     rgb: np.ndarray
     alpha: np.ndarray
     ms: float
     facets: int
     cpu_ms: float = 0.0
+    coverage: np.ndarray | None = None
 
 
 def _mat(m) -> bytes:
@@ -76,6 +79,7 @@ class VdtmRenderer:
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self._fbo = None
         self._size = None
+        self._ss = None
 
     @classmethod
     def from_model(cls, ctx, model) -> "VdtmRenderer":
@@ -96,11 +100,19 @@ class VdtmRenderer:
         if self._fbo is not None:
             for o in self._fbo:
                 o.release()
+        if self._ss is not None:
+            self._ss.release()
 
-    def render(self, eye: Camera, read: bool = True) -> MeshFrame:
+    def render(self, eye: Camera, read: bool = True, supersample: int = 1) -> MeshFrame:
+        """Render one frame; ``supersample`` samples per pixel and axis as MicrofacetRenderer.render."""
         ctx = self.ctx
         W, H = eye.width, eye.height
-        if self._size != (W, H):
+        f = check_factor(supersample)
+        if f > 1:
+            if self._ss is None:
+                self._ss = Supersampler(ctx)
+            fbo = self._ss.target(W, H, f)
+        elif self._size != (W, H):
             if self._fbo is not None:
                 for o in self._fbo:
                     o.release()
@@ -108,15 +120,17 @@ class VdtmRenderer:
             d = ctx.depth_renderbuffer((W, H))
             self._fbo = (ctx.framebuffer([c], d), c, d)
             self._size = (W, H)
-        fbo = self._fbo[0]
+        if f == 1:
+            fbo = self._fbo[0]
         fbo.use()
-        ctx.viewport = (0, 0, W, H)
+        ctx.viewport = (0, 0, W * f, H * f)
+        draw_eye = eye if f == 1 else eye.scaled(f)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable_only(ctx.DEPTH_TEST)
         near, far = mg.near_far(eye, self.bounds)
         p = self.prog
         right, up = mg.eye_axes(eye)
-        p["view_proj"].write(_mat(eye.gl_projection(near, far) @ eye.gl_view()))
+        p["view_proj"].write(_mat(draw_eye.gl_projection(near, far) @ draw_eye.gl_view()))
         for k, val in {"n_cams": len(self.cameras), "eye_pos": tuple(eye.center), "vis_tol": self.vis_tol}.items():
             if k in p:
                 p[k].value = val
@@ -131,15 +145,20 @@ class VdtmRenderer:
         c0 = time.process_time()
         if self.n_faces:
             self.vao.render(ctx.TRIANGLES)
+        if f > 1:
+            self._ss.resolve()
         ctx.finish()
         ms = (time.perf_counter() - t0) * 1e3
         cpu_ms = (time.process_time() - c0) * 1e3
         rgb = np.zeros((H, W, 3), np.float32)
         alpha = np.zeros((H, W), bool)
+        coverage = None
         if read:
-            img = gl_rows_to_image(np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4))
-            rgb, alpha = np.ascontiguousarray(img[..., :3]), img[..., 3] > 0.5
-        return MeshFrame(rgb, alpha, ms, self.n_faces, cpu_ms)
+            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32) if f == 1 else self._ss.read()[0]
+            img = gl_rows_to_image(raw.reshape(H, W, 4))
+            coverage = np.ascontiguousarray(img[..., 3])
+            rgb, alpha = np.ascontiguousarray(img[..., :3]), coverage > (0.5 if f == 1 else 0.0)
+        return MeshFrame(rgb, alpha, ms, self.n_faces, cpu_ms, coverage)
 
 
 def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, cameras, rgb: np.ndarray,
@@ -170,16 +189,16 @@ def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, ca
     return img
 
 
-def render_vertex_colour(ctx, model, eye: Camera) -> MeshFrame:
+def render_vertex_colour(ctx, model, eye: Camera, supersample: int = 1) -> MeshFrame:
     """The floor: the mesh with its per-vertex colour (black when the model has none)."""
     from render.raster import MeshRasterizer, RasterMesh
 
     cols = model.mesh_colors if model.mesh_colors is not None else np.zeros_like(model.mesh_vertices)
-    with MeshRasterizer(ctx) as r:
+    with MeshRasterizer(ctx, supersample=check_factor(supersample)) as r:
         r.set_mesh(RasterMesh(model.mesh_vertices, model.mesh_faces, cols))
         t0 = time.perf_counter()
         c0 = time.process_time()
         res = r.render(eye)
         ms = (time.perf_counter() - t0) * 1e3
         cpu_ms = (time.process_time() - c0) * 1e3
-    return MeshFrame(res.color, res.mask, ms, int(len(model.mesh_faces)), cpu_ms)
+    return MeshFrame(res.color, res.alpha > 0, ms, int(len(model.mesh_faces)), cpu_ms, res.alpha)

@@ -48,6 +48,15 @@ def test_render_cli_writes_one_png_per_frame(tmp_path):
 
 def test_render_cli_errors(tmp_path):
     assert main(["render", str(tmp_path / "nope"), "--cameras", str(tmp_path / "t.json"), "-o", str(tmp_path)]) == 1
+    cams = scene.ring_cameras(4)
+    save_model(scene.build_model(cams), tmp_path / "model")
+    tj = _transforms(cams, tmp_path / "transforms.json")
+    base = ["render", str(tmp_path / "model"), "--cameras", str(tj), "-o", str(tmp_path / "r")]
+    assert main(base + ["--supersample", "0"]) == 1
+    assert main(base + ["--supersample", "9"]) == 1
+    assert main(base + ["--refine", "-1"]) == 1
+    assert main(base + ["--method", "mesh-vdtm", "--refine", "1"]) == 1
+    assert not (tmp_path / "r").exists()  # nothing written on bad arguments
 
 
 def test_eval_summary_means():
@@ -89,6 +98,7 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
             assert np.isfinite(res[key][k]), (key, k)
         assert len(res[key]["views"]) == 6
     assert res["held"] == [1, 3, 5, 7, 9, 11] and res["geometry"] == "gt"
+    assert res["supersample"] == 2 and res["refine"] == 2  # the defaults, recorded
     assert len(list((tmp_path / "ev" / "side_by_side").glob("*.png"))) == 6
     # kept views are 60 degrees apart here: only check the renders are far better than nothing
     from render import metrics
