@@ -45,14 +45,14 @@ def _ensure_capture(path: Path, size: tuple[int, int]) -> None:
     write_capture(cap, path, depth_format="exr")
 
 
-def _measure(ctx, renderer, views, tolerance, level=None) -> dict:
+def _measure(ctx, renderer, views, tolerance, level=None, supersample: int = 1) -> dict:
     """Mean metrics over the views; frame time = median (ms); fill = same squares untextured."""
     from render import metrics
 
     rows = []
     for s in views:
-        fr = renderer.render(s.camera, tolerance, level=level)
-        fill = renderer.render(s.camera, tolerance, level=level, fill_only=True, read=False)
+        fr = renderer.render(s.camera, tolerance, level=level, supersample=supersample)
+        fill = renderer.render(s.camera, tolerance, level=level, fill_only=True, read=False, supersample=supersample)
         fg = (s.depth > 0) | (s.srgb8.max(axis=-1) > 0)
         m = metrics.compare(s.srgb8, fr.rgb, fg, fr.alpha)
         rows.append({**m, "ms": fr.ms, "fill_ms": fill.ms, "cpu_ms": fr.cpu_ms, "fill_cpu_ms": fill.cpu_ms,
@@ -77,6 +77,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--l-max", type=int, default=128)
     p.add_argument("--sizes", default="640x480,1280x720")
     p.add_argument("-o", "--out", type=Path, default=REPO / "out" / "bench" / "render")
+    p.add_argument("--supersample", type=int, default=1, help="samples per pixel and axis of the level / E sweeps")
+    p.add_argument("--refine", type=int, default=None, help="parallax-correction steps of the sweeps (default 2)")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     p.add_argument("--replot", action="store_true", help="only redraw render.png from OUT/render.json")
     args = p.parse_args(argv)
@@ -115,10 +117,12 @@ def main(argv: list[str]) -> int:
         s2 = read_scanset(path)
         refs[size] = [s2.scans[i] for i in held]
     results = {"scans": str(args.scans), "held_views": held, "levels": model.pyramid.resolutions,
+               "supersample": args.supersample, "refine": args.refine,
                "surface_voxels": [len(lv.surface) for lv in model.pyramid.levels], "sizes": {}}
     with gl_context() as ctx:
-        r = MicrofacetRenderer.from_model(ctx, model)
-        g = MicrofacetRenderer.from_model(ctx, model, mode="geometry")
+        r = MicrofacetRenderer.from_model(ctx, model, refine=args.refine)
+        g = MicrofacetRenderer.from_model(ctx, model, mode="geometry", refine=args.refine)
+        r0 = MicrofacetRenderer.from_model(ctx, model, refine=0)
         vd = VdtmRenderer.from_model(ctx, model)
         for size, views in refs.items():
             key = f"{size[0]}x{size[1]}"
@@ -127,24 +131,40 @@ def main(argv: list[str]) -> int:
             res = {"levels": [], "tolerances": []}
             for li, L in enumerate(model.pyramid.resolutions):
                 con.print(f"{key}: level {L}^3 ...")
-                res["levels"].append({"L": L, **_measure(ctx, r, views, LEVEL_SWEEP_TOLERANCE, level=li)})
+                res["levels"].append({"L": L, **_measure(ctx, r, views, LEVEL_SWEEP_TOLERANCE, level=li,
+                                                          supersample=args.supersample)})
             for E in TOLERANCES:
                 con.print(f"{key}: E = {E:g} px ...")
-                row = {"E": E, **_measure(ctx, r, views, E)}
-                row["geometry_shader_ms"] = float(np.median([g.render(s.camera, E, read=False).ms for s in views]))
+                row = {"E": E, **_measure(ctx, r, views, E, supersample=args.supersample)}
+                row["geometry_shader_ms"] = float(np.median([g.render(s.camera, E, read=False,
+                                                                        supersample=args.supersample).ms
+                                                               for s in views]))
                 res["tolerances"].append(row)
+            # the two quality options beyond the paper, at the paper's E = 8 px
+            res["options"] = []
+            for rr, refine in ((r0, 0), (r, r.refine)):
+                for ssf in (1, 2):
+                    con.print(f"{key}: E = 8, refine {refine}, {ssf}x{ssf} samples ...")
+                    res["options"].append({"refine": refine, "supersample": ssf,
+                                           **_measure(ctx, rr, views, 8.0, supersample=ssf)})
             from render import metrics
 
             base = []
             for s in views:
-                b = vd.render(s.camera)
+                b = vd.render(s.camera, supersample=args.supersample)
                 fg = (s.depth > 0) | (s.srgb8.max(axis=-1) > 0)
                 base.append({**metrics.compare(s.srgb8, b.rgb, fg, b.alpha), "ms": b.ms, "cpu_ms": b.cpu_ms,
                              "facets": b.facets})
             res["mesh_vdtm"] = {k: float(np.mean([x[k] for x in base])) for k in ("psnr", "psnr_masked", "ssim", "ms",
                                                                                   "cpu_ms", "facets")}
+            b2 = []
+            for s in views:
+                b = vd.render(s.camera, supersample=2)
+                fg = (s.depth > 0) | (s.srgb8.max(axis=-1) > 0)
+                b2.append({**metrics.compare(s.srgb8, b.rgb, fg, b.alpha), "ms": b.ms})
+            res["mesh_vdtm_ss2"] = {k: float(np.mean([x[k] for x in b2])) for k in ("psnr", "psnr_masked", "ms")}
             results["sizes"][key] = res
-        for o in (r, g, vd):
+        for o in (r, g, r0, vd):
             o.release()
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "render.json").write_text(json.dumps(results, indent=1))
@@ -166,6 +186,17 @@ def main(argv: list[str]) -> int:
         t.add_row("mesh VDTM", "", "", f"{b['facets']:.0f}", f"{b['ms']:.1f}", f"{b['cpu_ms']:.1f}", "", "", "",
                   f"{b['psnr']:.2f}",
                   f"{b['psnr_masked']:.2f}", "")
+        con.print(t)
+        t = Table(title=f"quality options at E = 8 px, {key}: parallax correction (refine) and supersampling")
+        for c in ("refine", "samples", "ms/frame", "x fill", "PSNR", "PSNR mask", "holes %"):
+            t.add_column(c, justify="right")
+        for row in res.get("options", []):
+            t.add_row(str(row["refine"]), f"{row['supersample']}x{row['supersample']}", f"{row['ms']:.1f}",
+                      f"{row['ratio_to_fill']:.1f}", f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}",
+                      f"{100 * row['hole_fraction']:.1f}")
+        b2 = res.get("mesh_vdtm_ss2")
+        if b2:
+            t.add_row("mesh VDTM", "2x2", f"{b2['ms']:.1f}", "", f"{b2['psnr']:.2f}", f"{b2['psnr_masked']:.2f}", "")
         con.print(t)
     _plot(results, args.out / "render.png")
     con.print(f"wrote {args.out / 'render.json'} and {args.out / 'render.png'}")
