@@ -39,6 +39,13 @@ def box_resolve(rgba: np.ndarray, depth01: np.ndarray, factor: int):
     return c, d
 
 
+def split_rgba(img: np.ndarray, factor: int):
+    """(H, W, 4) resolved colour (image rows) -> rgb (H, W, 3), coverage (H, W) and the
+    foreground alpha (H, W) bool: any drawn sample when supersampled, else the drawn pixels."""
+    coverage = np.ascontiguousarray(img[..., 3])
+    return np.ascontiguousarray(img[..., :3]), coverage, coverage > (0.5 if factor == 1 else 0.0)
+
+
 class Supersampler:
     """Owns the large render target and the resolve program of one renderer.
 

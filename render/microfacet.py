@@ -28,7 +28,7 @@ import numpy as np
 
 from capture.camera import Camera, gl_ndc_depth_to_z, gl_rows_to_image
 from render import microfacet_geometry as mg
-from render.antialias import Supersampler, check_factor
+from render.antialias import Supersampler, check_factor, split_rgba
 from render.gl import program
 
 #: Compute work-group size of microfacet_select.glsl.
@@ -349,9 +349,7 @@ class MicrofacetRenderer:
                 d01 = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(H, W)
             else:
                 raw, d01 = self._ss.read()
-            img = gl_rows_to_image(raw)
-            coverage = np.ascontiguousarray(img[..., 3])
-            rgb, alpha = np.ascontiguousarray(img[..., :3]), coverage > (0.5 if f == 1 else 0.0)
+            rgb, coverage, alpha = split_rgba(gl_rows_to_image(raw), f)
             depth = gl_ndc_depth_to_z(gl_rows_to_image(d01), near, far).astype(np.float32)
             depth[~alpha] = 0.0
         return Frame(rgb, alpha, lev if n_vox > 0 else -1, self.levels[lev].resolution, float(spacing), facets,

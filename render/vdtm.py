@@ -20,7 +20,7 @@ import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
 from render import microfacet_geometry as mg
-from render.antialias import Supersampler, check_factor
+from render.antialias import Supersampler, check_factor, split_rgba
 from render.gl import program
 from render.microfacet import camera_block, rgbz_array, shader_defines
 
@@ -155,9 +155,7 @@ class VdtmRenderer:
         coverage = None
         if read:
             raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32) if f == 1 else self._ss.read()[0]
-            img = gl_rows_to_image(raw.reshape(H, W, 4))
-            coverage = np.ascontiguousarray(img[..., 3])
-            rgb, alpha = np.ascontiguousarray(img[..., :3]), coverage > (0.5 if f == 1 else 0.0)
+            rgb, coverage, alpha = split_rgba(gl_rows_to_image(raw.reshape(H, W, 4)), f)
         return MeshFrame(rgb, alpha, ms, self.n_faces, cpu_ms, coverage)
 
 

@@ -10,6 +10,7 @@ from capture.camera import Camera, look_at
 from capture.scan import to_uint8_srgb
 from render import microfacet_geometry as mg
 from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
+from render.microfacet_reference import reference_render
 from tests.conftest import assert_images_close, image_diff_stats
 from tests.render import microfacet_scene as scene
 
@@ -98,7 +99,7 @@ def _twin(model, eye, level, spacing, rule="vote", n_fallback=None, refine=None)
                           np.unique(lv.surface, axis=0))  # exact distances: the union adds nothing
     rgb = model.rgbz.rgb.astype(RGBZ_DTYPE).astype(np.float64)
     depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
-    return mg.reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, rgb, depth,
+    return reference_render(eye, lv.centers(), lv.voxel_size, spacing, model.rgbz.cameras, rgb, depth,
                                model.bounds, rule, n_fallback, refine)
 
 
