@@ -21,10 +21,6 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
 
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="furrow bench ambient", description=__doc__,
