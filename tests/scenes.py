@@ -16,9 +16,9 @@ on turntable rings around +z (world +z up, metres).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
 
 import numpy as np
 

@@ -9,8 +9,8 @@ import numpy as np
 from capture.imageio import read_color
 from capture.scan import to_uint8_srgb
 from furrow.cli import main
-from tests.conftest import image_diff_stats
 from tests import scenes as scene
+from tests.conftest import image_diff_stats
 from volume.model import save_model
 
 

@@ -9,8 +9,8 @@ from capture.scan import to_uint8_srgb
 from furrow.cli import main
 from render.composite import tonemap
 from render.shading.envmap import bundled_envmap
-from tests.conftest import image_diff_stats
 from tests import scenes as scene
+from tests.conftest import image_diff_stats
 from tests.furrow.test_cmd_render import _transforms
 from volume.model import save_model
 
