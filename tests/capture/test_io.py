@@ -17,9 +17,11 @@ from tests.scenes import render_depth, ring_cameras, sphere_scene
 def sphere_scanset(n=3, w=40, h=30, radius=0.1, seed=0) -> ScanSet:
     """Analytic sphere seen from a ring of cameras (0.5 m out, 0.1 m up): exact z-depth, random colour."""
     rng = np.random.default_rng(seed)
-    cams = ring_cameras(n, w, h, radius=float(np.hypot(0.5, 0.1)), elevations=(float(np.degrees(np.arctan2(0.1, 0.5))),),
-                        focal=50.0, name="images/f{:03d}.png")
-    scans = [Scan(rng.integers(0, 256, (h, w, 3), dtype=np.uint8), render_depth(sphere_scene(radius), cam), cam, cam.name)
+    elevation = float(np.degrees(np.arctan2(0.1, 0.5)))
+    cams = ring_cameras(n, w, h, radius=float(np.hypot(0.5, 0.1)), elevations=(elevation,), focal=50.0,
+                        name="images/f{:03d}.png")
+    scene = sphere_scene(radius)
+    scans = [Scan(rng.integers(0, 256, (h, w, 3), dtype=np.uint8), render_depth(scene, cam), cam, cam.name)
              for cam in cams]
     return ScanSet(tuple(scans), np.array([[-0.2] * 3, [0.2] * 3]), {"scene": "sphere"})
 

@@ -1,4 +1,5 @@
-"""Registration: ChArUco board PnP, SfM + Umeyama and the real pymeshlab range map (CLI: tests/furrow/test_cmd_register.py)."""
+"""Registration: ChArUco board PnP, SfM + Umeyama and the real pymeshlab range map
+(the CLI: tests/furrow/test_cmd_register.py)."""
 
 from __future__ import annotations
 
