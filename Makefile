@@ -1,6 +1,6 @@
 # furrow: two commands on a fresh Debian machine.
 #   make demo   set up, then synthesise a scene, build its model, render it, write pictures + metrics
-#   make test   set up, then run the default test suite
+#   make test   set up, lint (ruff check .), then run the default test suite
 # Both are idempotent: set-up steps are skipped when already done.
 
 SHELL := /bin/bash
@@ -13,7 +13,7 @@ DEB_PKGS := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libusb-1.0-0
 DEMO := out/demo
 export OMP_WAIT_POLICY := passive
 
-.PHONY: setup sysdeps test test-slow demo bench clean
+.PHONY: setup sysdeps lint test test-slow demo bench clean
 
 sysdeps:
 	@missing=$$(for p in $(DEB_PKGS); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; done); \
@@ -35,7 +35,11 @@ $(STAMP): pyproject.toml
 
 setup: sysdeps $(STAMP)
 
-test: setup
+# ruff: lint + import order, rules in pyproject.toml [tool.ruff]; `$(BIN)/ruff check --fix .` repairs most.
+lint: setup
+	$(BIN)/ruff check .
+
+test: lint
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 test-slow: setup

@@ -1,21 +1,21 @@
-"""``furrow bench NAME [args]``: speed-against-error benchmarks from ``bench/NAME.py``."""
+"""``furrow bench NAME [args]``: speed-against-error benchmarks from ``furrow.bench.NAME``."""
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
-from pathlib import Path
+import importlib
+import pkgutil
+
+import furrow.bench
 
 HELP = "speed-against-error benchmarks (model, register, render, shading, or all)"
-DESCRIPTION = """Run a benchmark from the repository's bench/ folder. Each prints its table,
+DESCRIPTION = """Run a benchmark of the furrow.bench package. Each prints its table,
 saves plots under out/bench/NAME/ (or -o DIR) and accepts --json. Arguments after NAME go to
 the benchmark itself: `furrow bench render --help`."""
 
-BENCH_DIR = Path(__file__).resolve().parent.parent / "bench"
-
 
 def available() -> list[str]:
-    return sorted(p.stem for p in BENCH_DIR.glob("*.py") if not p.stem.startswith("_"))
+    return sorted(m.name for m in pkgutil.iter_modules(furrow.bench.__path__) if not m.name.startswith("_"))
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -24,13 +24,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _load(name: str):
-    path = BENCH_DIR / f"{name}.py"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such benchmark (available: {', '.join(available()) or 'none'})")
-    spec = importlib.util.spec_from_file_location(f"furrow_bench_{name}", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    if name not in available():
+        raise ValueError(f"unknown benchmark {name!r} (available: {', '.join(available()) or 'none'})")
+    return importlib.import_module(f"furrow.bench.{name}")
 
 
 def run(args, console) -> int:

@@ -9,30 +9,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from capture.camera import Camera, look_at, make_K
 from capture.io import ScanIOError, read_cameras, read_scanset, write_plain_folder, write_transforms
 from capture.scan import Scan, ScanSet
+from tests.scenes import render_depth, ring_cameras, sphere_scene
 
 
 def sphere_scanset(n=3, w=40, h=30, radius=0.1, seed=0) -> ScanSet:
-    """Analytic sphere seen from a ring of cameras: exact z-depth per pixel."""
+    """Analytic sphere seen from a ring of cameras (0.5 m out, 0.1 m up): exact z-depth, random colour."""
     rng = np.random.default_rng(seed)
-    scans = []
-    for i in range(n):
-        a = 2 * np.pi * i / n
-        cam = Camera(make_K(50.0, 50.0, (w - 1) / 2, (h - 1) / 2), look_at([0.5 * np.cos(a), 0.5 * np.sin(a), 0.1], [0, 0, 0]), w, h,
-                     name=f"images/f{i:03d}.png")
-        rays = cam.pixel_rays(cam.pixel_grid())                 # camera frame, z = 1
-        rw = rays @ cam.world_from_cam[:3, :3].T
-        o = cam.center
-        b = rw @ o
-        c = o @ o - radius**2
-        a2 = np.sum(rw * rw, -1)
-        disc = b * b - a2 * c
-        t = np.where(disc > 0, (-b - np.sqrt(np.maximum(disc, 0))) / a2, 0.0)
-        depth = t.astype(np.float32)    # ray has z = 1 in camera frame -> t is z-depth
-        rgb = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-        scans.append(Scan(rgb, depth, cam, cam.name))
+    elevation = float(np.degrees(np.arctan2(0.1, 0.5)))
+    cams = ring_cameras(n, w, h, radius=float(np.hypot(0.5, 0.1)), elevations=(elevation,), focal=50.0,
+                        name="images/f{:03d}.png")
+    scene = sphere_scene(radius)
+    scans = [Scan(rng.integers(0, 256, (h, w, 3), dtype=np.uint8), render_depth(scene, cam), cam, cam.name)
+             for cam in cams]
     return ScanSet(tuple(scans), np.array([[-0.2] * 3, [0.2] * 3]), {"scene": "sphere"})
 
 

@@ -1,4 +1,4 @@
-"""Scenes, rig, determinism, gt/ files and the ``furrow synth`` command."""
+"""Scenes, rig, determinism and gt/ files (the ``furrow synth`` command: tests/furrow/test_cmd_synth.py)."""
 
 from __future__ import annotations
 
@@ -109,21 +109,6 @@ def test_shaded_fur_has_self_shadowing():
     assert a < 0.7 * b, (a, b)  # measured 0.47 (studio, 3 lights)
 
 
-def test_cli_synth_small(tmp_path, capsys):
-    from furrow.cli import main
-
-    out = tmp_path / "torus"
-    assert main(["synth", "torus", "-o", str(out), "--small", "--preview"]) == 0
-    ss = read_scanset(out)
-    assert len(ss) == 12 and ss.scans[0].rgb.shape == (120, 160, 3)
-    assert (out / "preview.png").is_file() and (out / "gt" / "mesh.ply").is_file()
-    assert main(["synth", "torus", "-o", str(out), "--small"]) != 0  # exists, no --overwrite
-    assert main(["synth", "teapot", "-o", str(tmp_path / "x")]) != 0
-    assert main(["synth", "torus", "-o", str(tmp_path / "y"), "--views", "7", "--elevations", "10,40"]) != 0
-    err = capsys.readouterr().err
-    assert "already exists" in err and "unknown scene" in err and "multiple" in err
-
-
 def test_fur_shadow_visibility_matches_raycasting():
     """Per-vertex shadow-map visibility of thin strands against open3d ray casting towards each
     dominant light (measured: 97% binary agreement, mean visibility within 0.006)."""
@@ -151,15 +136,3 @@ def test_fur_shadow_visibility_matches_raycasting():
         assert 0.1 < lit.mean() < 0.9  # the fur really shadows itself
         assert ((vis[:, i] > 0.5) == lit).mean() > 0.95
         assert abs(vis[:, i].mean() - lit.mean()) < 0.02
-
-
-def test_cli_synth_board_is_in_the_ground_truth(tmp_path):
-    import json
-
-    from furrow.cli import main
-
-    out = tmp_path / "b"
-    assert main(["synth", "torus", "-o", str(out), "--small", "--views", "2", "--board"]) == 0
-    scene = json.loads((out / "gt" / "scene.json").read_text())
-    board = scene["params"]["board"] if "params" in scene else scene["board"]
-    assert board["squares"] == [7, 7] and board["z_m"] < 0

@@ -9,9 +9,9 @@ from capture.scan import to_uint8_srgb
 from furrow.cli import main
 from render.composite import tonemap
 from render.shading.envmap import bundled_envmap
+from tests import scenes as scene
 from tests.conftest import image_diff_stats
-from tests.render import microfacet_scene as scene
-from tests.render.test_microfacet_cli import _transforms
+from tests.furrow.test_cmd_render import _transforms
 from volume.model import save_model
 
 

@@ -12,7 +12,7 @@ from render.antialias import box_resolve, check_factor
 from render.microfacet import MicrofacetRenderer
 from render.vdtm import VdtmRenderer
 from tests.conftest import assert_images_close
-from tests.render import microfacet_scene as scene
+from tests import scenes as scene
 
 
 #: Mean colour error on the silhouette pixels with 2x2 samples must be below this share of the
@@ -29,7 +29,7 @@ def model():
 def test_gpu_resolve_matches_twin(gl_ctx, model, factor):
     r = MicrofacetRenderer.from_model(gl_ctx, model)
     try:
-        eye = scene.ring_cameras(12, phase_deg=13, elevation_deg=10)[1]
+        eye = scene.ring_cameras(12, phase_deg=13, elevations=(10,))[1]
         fr = r.render(eye, 4.0, supersample=factor)
         big_c, big_d = r._ss.read_big()
         assert big_c.shape[:2] == (eye.height * factor, eye.width * factor)
@@ -52,7 +52,7 @@ def test_supersampled_frame_is_box_average_of_large_frame(gl_ctx, model):
     level and spacing: E is given in output pixels) and averaging in numpy."""
     r = MicrofacetRenderer.from_model(gl_ctx, model)
     try:
-        eye = scene.ring_cameras(12, phase_deg=21, elevation_deg=12)[5]
+        eye = scene.ring_cameras(12, phase_deg=21, elevations=(12,))[5]
         a = r.render(eye, 8.0, supersample=2)
         big = r.render(eye.scaled(2), 16.0)
         assert (a.level, a.spacing) == (big.level, big.spacing)
@@ -68,8 +68,8 @@ def test_supersampling_reduces_edge_error(gl_ctx, model):
     r = MicrofacetRenderer.from_model(gl_ctx, model)
     v = VdtmRenderer.from_model(gl_ctx, model)
     try:
-        eye = scene.ring_cameras(12, phase_deg=15, elevation_deg=5)[2]
-        big_rgb, big_depth = scene.raycast(eye.scaled(4))
+        eye = scene.ring_cameras(12, phase_deg=15, elevations=(5,))[2]
+        big_rgb, big_depth = scene.render_rgbz(eye.scaled(4))
         H, W = eye.height, eye.width
         exact = big_rgb.reshape(H, 4, W, 4, 3).mean(axis=(1, 3))
         cover = (big_depth > 0).reshape(H, 4, W, 4).mean(axis=(1, 3))

@@ -181,16 +181,12 @@ def test_teapot_data():
 
 def test_bench_glossy_smoke(tmp_path, capsys):
     """``furrow bench glossy`` at toy size: runs, prints JSON with every object / mode, writes images."""
-    import importlib.util
     import json
 
-    from tests.conftest import REPO_DIR
+    from furrow.bench import glossy as bench_glossy
 
-    spec = importlib.util.spec_from_file_location("bench_glossy", REPO_DIR / "bench" / "glossy.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    rc = mod.main(["--quick", "--s", "16", "--ref-height", "32", "--width", "40", "--repeats", "1",
-                   "-o", str(tmp_path), "--json"])
+    rc = bench_glossy.main(["--quick", "--s", "16", "--ref-height", "32", "--width", "40", "--repeats", "1",
+                            "-o", str(tmp_path), "--json"])
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     alls = [r for r in res["bins"] if r["smoothness"] == "all"]

@@ -12,7 +12,7 @@ from render import microfacet_geometry as mg
 from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
 from render.microfacet_reference import reference_render
 from tests.conftest import assert_images_close, image_diff_stats
-from tests.render import microfacet_scene as scene
+from tests import scenes as scene
 
 #: GPU (float32) vs twin (float64): colour difference allowed per value, and the share of
 #: pixels allowed to differ (texel-boundary / slice-edge ties).
@@ -107,7 +107,7 @@ def _twin(model, eye, level, spacing, rule="vote", n_fallback=None, refine=None)
 def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
     r = MicrofacetRenderer.from_model(gl_ctx, model, rule=rule, n_fallback=n_fallback)
     try:
-        eye = scene.ring_cameras(12, phase_deg=19, elevation_deg=8)[3]
+        eye = scene.ring_cameras(12, phase_deg=19, elevations=(8,))[3]
         fr = r.render(eye, 4.0, level=2)
         img, alive, _ = _twin(model, eye, 2, fr.spacing, rule, n_fallback)
         assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
@@ -122,7 +122,7 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, mode):
     """Slices, camera selection, Eq. 2 and the blend on the GPU equal the float64 twin."""
     r = MicrofacetRenderer.from_model(gl_ctx, model, mode=mode)
     try:
-        eye = scene.ring_cameras(12, phase_deg=7, elevation_deg=22)[0]
+        eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
         fr = r.render(eye, 2.0, level=2)
         img, alive, (vox, n) = _twin(model, eye, 2, fr.spacing)
         assert fr.facets == len(vox)
@@ -302,8 +302,8 @@ REFINE_MIN_GAIN_DB = 1.0
 def test_refinement_matches_twin_and_reduces_parallax(gl_ctx, model):
     """Colours parallax-corrected along the eye ray (refine_colours) equal the twin on the GPU
     and are closer to the exact image of an unseen view than the slice-point colours."""
-    eye = scene.ring_cameras(12, phase_deg=15, elevation_deg=5)[2]  # half-way between inputs
-    exact, exact_depth = scene.raycast(eye)
+    eye = scene.ring_cameras(12, phase_deg=15, elevations=(5,))[2]  # half-way between inputs
+    exact, exact_depth = scene.render_rgbz(eye)
     psnr = {}
     for refine in (0, 2):
         r = MicrofacetRenderer.from_model(gl_ctx, model, refine=refine)

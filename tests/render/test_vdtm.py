@@ -10,7 +10,7 @@ from render.raster import RasterMesh
 from render.raster_reference import rasterize_reference
 from render.vdtm import VdtmRenderer, render_vertex_colour, vdtm_reference
 from tests.conftest import assert_images_close, image_diff_stats
-from tests.render import microfacet_scene as scene
+from tests import scenes as scene
 
 #: Share of pixels allowed to differ between the GL rasteriser and the numpy one (edges,
 #: texel-boundary ties) and the colour tolerance per value.
@@ -26,7 +26,7 @@ def model():
 def test_vdtm_matches_numpy_twin(gl_ctx, model):
     r = VdtmRenderer.from_model(gl_ctx, model)
     try:
-        eye = scene.ring_cameras(12, phase_deg=13, elevation_deg=20)[2]
+        eye = scene.ring_cameras(12, phase_deg=13, elevations=(20,))[2]
         fr = r.render(eye)
         ras = rasterize_reference(RasterMesh(model.mesh_vertices, model.mesh_faces, model.mesh_colors), eye)
         ref = vdtm_reference(eye, ras.depth, ras.color, model.rgbz.cameras, model.rgbz.rgb, r.vis_depth,

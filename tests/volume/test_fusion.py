@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.volume.scenes import (furball_scene, make_scanset, ring_cameras, sphere_scene, torus_scene)
+from tests.scenes import (furball_scene, make_scanset, scan_ring, sphere_scene, torus_scene)
 from volume.fusion import FusionConfig, fuse_consensus, scan_maps
 from volume.grid import cube_for_bounds, voxel_centers
 from volume.metrics import sdf_scores
@@ -16,7 +16,7 @@ NOISY = dict(noise=0.001, holes=0.05, outliers=0.005)
 
 
 def _setup(scene, n=16, w=96, h=72, res=L, **noise):
-    ss = make_scanset(scene, ring_cameras(n, w, h), **noise)
+    ss = make_scanset(scene, scan_ring(n, w, h), **noise)
     origin, ext = cube_for_bounds(ss.bounds)
     vs = ext / res
     gt = scene.sdf(voxel_centers(origin, vs, res)).reshape(res, res, res)
@@ -26,7 +26,7 @@ def _setup(scene, n=16, w=96, h=72, res=L, **noise):
 def test_scene_raycast_matches_sdf():
     """The test scenes' depth maps are exact: back-projected points lie on the SDF's zero set."""
     for scene in (sphere_scene(), torus_scene(), furball_scene(n=60)):
-        ss = make_scanset(scene, ring_cameras(2, 64, 48))
+        ss = make_scanset(scene, scan_ring(2, 64, 48))
         pts = np.concatenate([s.points() for s in ss.scans])
         assert len(pts) > 100
         assert np.abs(scene.sdf(pts)).max() < 2e-6, scene.name
@@ -136,7 +136,7 @@ def test_single_scan_visible_side():
 
 def test_all_scans_from_one_side():
     scene = torus_scene()
-    cams = ring_cameras(6, 96, 72, azimuths=np.linspace(-30, 30, 6))
+    cams = scan_ring(6, 96, 72, azimuths=np.linspace(-30, 30, 6))
     ss = make_scanset(scene, cams)
     o, ext = cube_for_bounds(ss.bounds)
     w = ext / L
@@ -178,7 +178,7 @@ def test_object_partly_outside_the_frame():
     1-2 views.  The default quorum (3) then confirms nothing there (stated limitation: consensus
     needs overlapping views) but stays finite; with quorum=1 the seen band is recovered."""
     scene = sphere_scene()
-    cams = ring_cameras(12, 96, 72, dist=0.16)
+    cams = scan_ring(12, 96, 72, radius=0.16)
     ss = make_scanset(scene, cams)
     assert all((s.depth > 0).mean() > 0.95 for s in ss.scans)
     o, ext = cube_for_bounds(ss.bounds)
@@ -196,7 +196,7 @@ def test_object_partly_outside_the_frame():
 
 def test_surface_exactly_through_voxel_centres():
     """An axis-aligned box whose faces pass exactly through voxel centres."""
-    from tests.volume.scenes import Scene
+    from tests.scenes import Scene
 
     bounds = np.array([[-0.08] * 3, [0.08] * 3])
     o, ext = cube_for_bounds(bounds)
@@ -219,7 +219,7 @@ def test_surface_exactly_through_voxel_centres():
         return np.where((tn <= tf) & (tf > 0), tn, np.inf)
 
     scene = Scene("box", sdf, ray, bounds)
-    ss = make_scanset(scene, ring_cameras(16, 96, 72, elevations=(35.0, -35.0)))
+    ss = make_scanset(scene, scan_ring(16, 96, 72, elevations=(35.0, -35.0)))
     gt = scene.sdf(voxel_centers(o, w, L)).reshape(L, L, L)
     assert (gt == 0).sum() > 500  # the faces really pass through centres
     f = fuse_consensus(ss, o, w, L)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.volume.scenes import make_scanset, render_depth, ring_cameras, sphere_scene, torus_scene
+from tests.scenes import make_scanset, render_depth, scan_ring, sphere_scene, torus_scene
 from volume.grid import cube_for_bounds, voxel_centers
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
 from volume.model import SdfLevel
@@ -77,7 +77,7 @@ def test_vertex_colors_from_constant_images():
     scene = sphere_scene()
     lv = _level(scene)
     v, f = marching_cubes(lv)
-    cams = ring_cameras(6, 64, 48)
+    cams = scan_ring(6, 64, 48)
     depth = raycast_depth(v, f, cams)
     col = np.array([0.2, 0.4, 0.6], np.float32)
     imgs = np.broadcast_to(col, (6, 48, 64, 3))
@@ -90,7 +90,7 @@ def test_raycast_depth_matches_exact_depth():
     scene = sphere_scene()
     lv = _level(scene)
     v, f = marching_cubes(lv)
-    cams = ring_cameras(3, 80, 60)
+    cams = scan_ring(3, 80, 60)
     geo = raycast_depth(v, f, cams)
     for cam, g in zip(cams, geo):
         ref = render_depth(scene, cam)
@@ -118,7 +118,7 @@ def test_build_rgbz_fills_holes_and_keeps_agreeing_depth():
     scene = sphere_scene()
     lv = _level(scene)
     v, f = marching_cubes(lv)
-    ss = make_scanset(scene, ring_cameras(4, 80, 60), holes=0.03, seed=3)
+    ss = make_scanset(scene, scan_ring(4, 80, 60), holes=0.03, seed=3)
     rgbz, stats = build_rgbz(ss, v, f, lv, RgbzConfig())
     assert rgbz.depth.shape == (4, 60, 80) and rgbz.rgb.shape == (4, 60, 80, 3)
     for s, d, st in zip(ss.scans, rgbz.depth, stats):
@@ -139,7 +139,7 @@ def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):
     from volume.model import load_model, save_model
     from volume.pyramid import LoptConfig
 
-    ss = make_scanset(sphere_scene(), ring_cameras(4, 48, 36), depth_hook=lambda i, z: np.zeros_like(z))
+    ss = make_scanset(sphere_scene(), scan_ring(4, 48, 36), depth_hook=lambda i, z: np.zeros_like(z))
     model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=16)))
     assert summary["spheres"] == 0 and summary["mesh"]["faces"] == 0
     assert all(n == 0 for n in summary["surface_voxels"].values())
@@ -155,7 +155,7 @@ def test_rgbz_keeps_measured_fringe_and_geometry_fills_the_rest():
     scene = sphere_scene()
     lv = _level(scene)
     v, f = marching_cubes(lv)
-    cams = ring_cameras(3, 80, 60)
+    cams = scan_ring(3, 80, 60)
     geo = raycast_depth(v, f, cams)
 
     def hook(i, z):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.volume.scenes import furball_scene, make_scanset, ring_cameras, sphere_scene
+from tests.scenes import furball_scene, make_scanset, scan_ring, sphere_scene
 from volume.build import ModelConfig, fuse_levels
 from volume.grid import cube_for_bounds, voxel_centers
 from volume.pyramid import (LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction, discontinuity_mask,
@@ -78,7 +78,7 @@ def test_build_pyramid_levels():
 def test_eq1_smooth_keeps_fur_drops(scene_fn, keeps):
     """Paper values (alpha 1.5, t 0.01), max_res 64, noisy holed scans: the smooth sphere keeps
     64^3, the fur ball (strands 1.6 mm thick, 2-4 cm long) drops."""
-    ss = make_scanset(scene_fn(), ring_cameras(16, 96, 72), noise=0.001, holes=0.03, outliers=0.002)
+    ss = make_scanset(scene_fn(), scan_ring(16, 96, 72), noise=0.001, holes=0.03, outliers=0.002)
     cfg = ModelConfig(lopt=LoptConfig(max_res=64))
     _, _, fused, frac = fuse_levels(ss, cfg)
     l_opt = choose_l_opt(frac, cfg.lopt.t)

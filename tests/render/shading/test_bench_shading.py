@@ -2,17 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 
-from tests.conftest import REPO_DIR
+from furrow.bench import shading as bench_shading
 
 
 def test_bench_shading_ssdf_section(tmp_path, capsys):
-    spec = importlib.util.spec_from_file_location("bench_shading", REPO_DIR / "bench" / "shading.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    rc = mod.main(["--quick", "--sections", "ssdf", "-o", str(tmp_path), "--json"])
+    rc = bench_shading.main(["--quick", "--sections", "ssdf", "-o", str(tmp_path), "--json"])
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     rows = res["ssdf"]

@@ -28,11 +28,10 @@ import sys
 import time
 from pathlib import Path
 
+from furrow.bench import OUT_ROOT
+
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
@@ -163,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sfm", action="store_true", help="also run SfM alone on every scene (5 degrees)")
-    ap.add_argument("-o", "--out", type=Path, default=ROOT / "out" / "bench" / "register")
+    ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "register")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     rows = []

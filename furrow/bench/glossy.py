@@ -34,9 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from furrow.bench import OUT_ROOT
+
 
 #: Smoothness bins (lambda) of the error table.
 BINS = ((0.0, 0.2), (0.2, 0.4), (0.4, 0.6), (0.6, 0.8), (0.8, 1.0001))
@@ -215,7 +214,7 @@ def main(argv: list[str]) -> int:
                    help="rows of the map the MSEM and the reference use (default 256; 128 with --quick)")
     p.add_argument("--width", type=int, default=None, help="error-image width (default 160; 96 with --quick)")
     p.add_argument("--repeats", type=int, default=FRAME_REPEATS, help="frames timed per object and mode")
-    p.add_argument("-o", "--out", type=Path, default=REPO / "out" / "bench" / "glossy")
+    p.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "glossy")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     a = p.parse_args(argv)
     s = a.s or (64 if a.quick else 128)

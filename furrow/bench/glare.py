@@ -24,9 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from furrow.bench import OUT_ROOT
+
 
 SUPERSAMPLES = (1, 2, 4)
 REPEATS = 5
@@ -229,7 +228,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--size", default="640x480")
     ap.add_argument("--counts", default="10,100,1000,3000,10000")
     ap.add_argument("--env", default="studio")
-    ap.add_argument("-o", "--out", default=str(REPO / "out" / "bench" / "glare"))
+    ap.add_argument("-o", "--out", default=str(OUT_ROOT / "bench" / "glare"))
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--model", help="a furrow model folder: also composite a captured view with its sphere shadow")
     ap.add_argument("--scans", help="the scan set of --model")

@@ -34,9 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from furrow.bench import OUT_ROOT
+
 
 SECTIONS = ("irradiance", "msem", "sphere", "sg", "prefilter", "ssdf")
 #: The thesis' Table 3 (mean error, 256 levels, vs unaccelerated) and Table 4 (time).
@@ -313,7 +312,7 @@ def main(argv: list[str]) -> int:
     p.add_argument("--map", default="courtyard", help="bundled map for msem / sphere / sg")
     p.add_argument("--sections", default=",".join(SECTIONS), help=f"comma list of {', '.join(SECTIONS)}")
     p.add_argument("--samples", type=int, default=300, help="voxels compared with the MSEM brute force")
-    p.add_argument("-o", "--out", type=Path, default=REPO / "out" / "bench" / "shading")
+    p.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "shading")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     a = p.parse_args(argv)
     secs = [s.strip() for s in a.sections.split(",") if s.strip()]

@@ -1,19 +1,30 @@
-"""Analytic test scenes: exact depth maps by ray casting primitives in numpy, exact SDFs.
+"""Analytic test scenes shared by the capture, volume and render tests (exact SDFs, exact depth).
 
 Independent of the code under test: ray-sphere and ray-capsule intersections in closed form,
 the torus by sphere tracing its exact SDF to 1e-7 m.  Cameras come from capture.camera.look_at
-on a turntable ring around +z (world +z up, metres).
+on turntable rings around +z (world +z up, metres).
+
+* :class:`Scene` and the scenes: :func:`sphere_scene`, :func:`torus_scene`,
+  :func:`furball_scene` (a sphere with capsule strands) and :func:`spheres_scene` (three
+  textured spheres, the renderer tests' object).
+* :func:`ring_cameras` (one turntable ring; :data:`scan_ring` is the volume tests' preset).
+* :func:`render_depth` / :func:`render_rgbz`: exact z-depth and colour per pixel;
+  :func:`make_scanset`: scans with optional noise, holes and outliers.
+* :func:`surface_pyramid`, :func:`mesh`, :func:`build_model`: an exact :class:`volume.model.Model`
+  of the spheres scene, so renderer tests do not depend on the volume stage.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
+from functools import partial
 
 import numpy as np
 
 from capture.camera import Camera, look_at, make_K
 from capture.scan import Scan, ScanSet
+from volume.model import Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet
 
 
 @dataclass(frozen=True)
@@ -34,6 +45,7 @@ def sphere_sdf(c, r):
 
 
 def ray_sphere(o, d, c, r):
+    """Nearest hit t > 0 of unit rays (o, d) with the sphere (c, r); inf where they miss."""
     oc = o - np.asarray(c, float)
     b = np.sum(oc * d, axis=-1)
     cc = np.sum(oc * oc, axis=-1) - r * r
@@ -160,31 +172,89 @@ def furball_scene(core=0.05, n=400, length=(0.02, 0.04), radius=0.0008, seed=0) 
     return Scene("furball", sdf, rc, np.array([[-ext] * 3, [ext] * 3]))
 
 
+#: The renderer tests' object: three overlapping spheres (x, y, z, radius) in a cube of side 0.256 m.
+SPHERES = np.array([[0.0, 0.0, 0.0, 0.07], [0.055, 0.03, 0.045, 0.04], [-0.05, -0.04, -0.03, 0.045]])
+BOUNDS = np.array([[-0.128, -0.128, -0.128], [0.128, 0.128, 0.128]])
+
+
+def colour_at(p: np.ndarray) -> np.ndarray:
+    """(N, 3) linear colour of world points (smooth stripes, different per channel)."""
+    p = np.asarray(p, dtype=np.float64)
+    r = 0.15 + 0.7 * (0.5 + 0.5 * np.sin(70 * p[:, 0] + 20 * p[:, 2]))
+    g = 0.1 + 0.6 * (0.5 + 0.5 * np.sin(55 * p[:, 1] - 30 * p[:, 0]))
+    b = 0.1 + 0.5 * (0.5 + 0.5 * np.cos(90 * p[:, 2]))
+    return np.stack([r, g, b], axis=1)
+
+
+def spheres_scene() -> Scene:
+    """The union of :data:`SPHERES`, coloured by :func:`colour_at`, in the cube :data:`BOUNDS`."""
+    def sdf(p):
+        p = np.asarray(p, dtype=np.float64).reshape(-1, 3)
+        return (np.linalg.norm(p[:, None, :] - SPHERES[None, :, :3], axis=2) - SPHERES[None, :, 3]).min(axis=1)
+
+    def rc(o, d):
+        return np.min([ray_sphere(o, d, s[:3], s[3]) for s in SPHERES], axis=0)
+
+    return Scene("spheres", sdf, rc, BOUNDS, colour_at)
+
+
 # ------------------------------------------------------------------ capture
-def ring_cameras(n=24, w=80, h=60, dist=0.45, elevations=(15.0, -10.0), fov_deg=32.0, azimuths=None):
-    """Turntable ring(s) around +z looking at the origin; alternating elevations."""
-    f = 0.5 * w / np.tan(np.radians(fov_deg) / 2)
-    K = make_K(f, f, (w - 1) / 2, (h - 1) / 2)
-    az = np.linspace(0, 2 * np.pi, n, endpoint=False) if azimuths is None else np.radians(azimuths)
+def ring_cameras(n: int, width: int = 96, height: int = 72, *, radius: float = 0.45,
+                 elevations: tuple[float, ...] = (15.0,), focal: float | None = None, fov_deg: float | None = None,
+                 phase_deg: float = 0.0, azimuths=None, name: str = "cam_{:03d}.png") -> list[Camera]:
+    """n cameras on a turntable ring around +z looking at the origin.
+
+    Camera i sits at azimuth ``phase_deg + 360 i / n`` (or ``azimuths[i]``, degrees) and elevation
+    ``elevations[i % len(elevations)]`` (degrees), ``radius`` metres from the origin.  Focal length:
+    ``focal`` pixels, else from the horizontal field of view ``fov_deg``, else 1.1 * width.
+    OpenCV principal point at the image centre ((w - 1) / 2, (h - 1) / 2); names ``name.format(i)``.
+    """
+    if focal is not None:
+        f = float(focal)
+    elif fov_deg is not None:
+        f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
+    else:
+        f = 1.1 * width
+    K = make_K(f, f, (width - 1) / 2, (height - 1) / 2)
+    az = np.radians(phase_deg) + 2 * np.pi * np.arange(n) / n if azimuths is None else np.radians(azimuths)
     cams = []
     for i, a in enumerate(az):
         el = np.radians(elevations[i % len(elevations)])
-        eye = dist * np.array([np.cos(a) * np.cos(el), np.sin(a) * np.cos(el), np.sin(el)])
-        cams.append(Camera(K, look_at(eye, [0, 0, 0]), w, h, f"cam{i:03d}"))
+        eye = radius * np.array([np.cos(a) * np.cos(el), np.sin(a) * np.cos(el), np.sin(el)])
+        cams.append(Camera(K, look_at(eye, [0, 0, 0]), width, height, name.format(i)))
     return cams
+
+
+#: The volume tests' capture ring: alternating elevations (above / below) and a 32 degree field of view.
+scan_ring = partial(ring_cameras, elevations=(15.0, -10.0), fov_deg=32.0)
+
+
+def _hits(scene: Scene, cam: Camera):
+    """World hit points (P, 3), z-depth (P,) (0 = miss) and hit mask of every pixel's ray."""
+    rays_c = cam.pixel_rays(cam.pixel_grid().reshape(-1, 2))
+    dirs_c = rays_c / np.linalg.norm(rays_c, axis=1, keepdims=True)
+    d = dirs_c @ cam.world_from_cam[:3, :3].T
+    o = np.broadcast_to(cam.center, d.shape).copy()
+    t = scene.raycast(o, d)
+    hit = np.isfinite(t)
+    tt = np.where(hit, t, 0.0)
+    return o + tt[:, None] * d, tt * dirs_c[:, 2], hit
 
 
 def render_depth(scene: Scene, cam: Camera) -> np.ndarray:
     """Exact z-depth map (H, W) float32 metres, 0 where the ray misses."""
-    uv = cam.pixel_grid().reshape(-1, 2)
-    rays_c = cam.pixel_rays(uv)
-    dirs_c = rays_c / np.linalg.norm(rays_c, axis=1, keepdims=True)
-    R = cam.world_from_cam[:3, :3]
-    d = dirs_c @ R.T
-    o = np.broadcast_to(cam.center, d.shape).copy()
-    t = scene.raycast(o, d)
-    z = np.where(np.isfinite(t), t * dirs_c[:, 2], 0.0)
+    _, z, _ = _hits(scene, cam)
     return z.reshape(cam.height, cam.width).astype(np.float32)
+
+
+def render_rgbz(cam: Camera, scene: Scene | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Exact (H, W, 3) linear colour (black background) and (H, W) z-depth (0 = background)
+    of ``scene`` (default: :func:`spheres_scene`), which must have a colour function."""
+    scene = spheres_scene() if scene is None else scene
+    pts, z, hit = _hits(scene, cam)
+    col = np.where(hit[:, None], scene.color(pts), 0.0)
+    H, W = cam.height, cam.width
+    return col.reshape(H, W, 3).astype(np.float32), z.reshape(H, W).astype(np.float32)
 
 
 def make_scanset(scene: Scene, cams, noise=0.0, holes=0.0, outliers=0.0, seed=1, depth_hook=None) -> ScanSet:
@@ -215,3 +285,50 @@ def make_scanset(scene: Scene, cams, noise=0.0, holes=0.0, outliers=0.0, seed=1,
         rgb = np.repeat(shade[..., None], 3, axis=2) * np.array([0.8, 0.5, 0.3], np.float32)
         scans.append(Scan(rgb.astype(np.float32), z, cam, cam.name))
     return ScanSet(tuple(scans), scene.bounds, {"scene": scene.name})
+
+
+# ------------------------------------------------------------------ exact models (renderer tests)
+def _cube(scene: Scene) -> tuple[np.ndarray, float]:
+    """Origin corner and side of the cube over the scene's bounds (their largest extent)."""
+    b = np.asarray(scene.bounds, np.float64)
+    return b[0], float((b[1] - b[0]).max())
+
+
+def surface_pyramid(resolutions=(4, 8, 16, 32), empty: tuple[int, ...] = (), scene: Scene | None = None) -> SdfPyramid:
+    """Surface voxels |sdf| <= half a voxel diagonal (METHODS §1.1) on every level; levels in
+    ``empty`` get none.  Default scene: :func:`spheres_scene`."""
+    scene = spheres_scene() if scene is None else scene
+    origin, extent = _cube(scene)
+    levels = []
+    for L in resolutions:
+        w = extent / L
+        ijk = np.stack(np.meshgrid(*[np.arange(L)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        d = scene.sdf(origin + (ijk + 0.5) * w)
+        surf = ijk[np.abs(d) <= 0.5 * np.sqrt(3) * w] if L not in empty else np.zeros((0, 3), int)
+        levels.append(SdfLevel(L, origin, w, surf.astype(np.int32)))
+    return SdfPyramid(tuple(levels), resolutions[-1])
+
+
+def mesh(resolution: int = 48, scene: Scene | None = None):
+    """Marching-cubes mesh (vertices (V, 3) float32, faces (F, 3) int32) of the scene's SDF."""
+    from skimage.measure import marching_cubes
+
+    scene = spheres_scene() if scene is None else scene
+    origin, extent = _cube(scene)
+    w = extent / resolution
+    g = (np.arange(resolution) + 0.5) * w
+    X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
+    vals = scene.sdf(origin + np.stack([X, Y, Z], -1).reshape(-1, 3)).reshape(X.shape)
+    verts, faces, _, _ = marching_cubes(vals, 0.0, spacing=(w, w, w))
+    verts = verts + origin + 0.5 * w
+    return verts.astype(np.float32), faces[:, ::-1].astype(np.int32)
+
+
+def build_model(cameras, resolutions=(4, 8, 16, 32), empty=()) -> Model:
+    """The exact Model of :func:`spheres_scene` seen by ``cameras`` (RGBz ray-cast in float64)."""
+    rgb, depth = zip(*[render_rgbz(c) for c in cameras])
+    v, f = mesh()
+    return Model(pyramid=surface_pyramid(resolutions, empty),
+                 rgbz=RgbzImages(np.stack(rgb), np.stack(depth), tuple(cameras)),
+                 spheres=SphereSet(SPHERES[:, :3], SPHERES[:, 3]), mesh_vertices=v, mesh_faces=f,
+                 mesh_colors=colour_at(v).astype(np.float32), bounds=BOUNDS, params={}, provenance={"scene": "spheres"})

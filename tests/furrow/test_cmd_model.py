@@ -9,13 +9,13 @@ import pytest
 
 from capture.io import write_transforms
 from furrow.cli import main
-from tests.volume.scenes import make_scanset, ring_cameras, sphere_scene
+from tests.scenes import make_scanset, scan_ring, sphere_scene
 from volume.model import load_model
 
 
 @pytest.fixture(scope="module")
 def scan_dir(tmp_path_factory):
-    ss = make_scanset(sphere_scene(), ring_cameras(8, 64, 48), noise=0.0005)
+    ss = make_scanset(sphere_scene(), scan_ring(8, 64, 48), noise=0.0005)
     out = tmp_path_factory.mktemp("scans") / "sphere"
     write_transforms(ss, out)
     return out

@@ -25,9 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from furrow.bench import OUT_ROOT
+
 
 TOLERANCES = (2.0, 4.0, 8.0, 16.0)
 #: Level sweep: forced levels use the paper's default tolerance for their spacing (Eq. 10).
@@ -70,13 +69,13 @@ def _measure(ctx, renderer, views, tolerance, level=None, supersample: int = 1) 
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="furrow bench render", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scans", type=Path, default=REPO / "out" / "data" / "furball")
-    p.add_argument("--scans-720", type=Path, default=REPO / "out" / "data" / "furball_720")
+    p.add_argument("--scans", type=Path, default=OUT_ROOT / "data" / "furball")
+    p.add_argument("--scans-720", type=Path, default=OUT_ROOT / "data" / "furball_720")
     p.add_argument("--holdout", type=int, default=2)
     p.add_argument("--views", type=int, default=3, help="held-out views measured (evenly spaced)")
     p.add_argument("--l-max", type=int, default=128)
     p.add_argument("--sizes", default="640x480,1280x720")
-    p.add_argument("-o", "--out", type=Path, default=REPO / "out" / "bench" / "render")
+    p.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "render")
     p.add_argument("--supersample", type=int, default=1, help="samples per pixel and axis of the level / E sweeps")
     p.add_argument("--refine", type=int, default=None, help="parallax-correction steps of the sweeps (default 2)")
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")

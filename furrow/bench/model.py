@@ -24,11 +24,10 @@ import sys
 import time
 from pathlib import Path
 
+from furrow.bench import OUT_ROOT
+
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
@@ -223,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="also time the full pipeline on the 36-view 640x480 fur ball to 128^3 (target < 60 s)")
     ap.add_argument("--no-sweep", action="store_true", help="skip the resolution/method sweep")
     ap.add_argument("--spheres", default="", help="also sweep sphere-set error targets, e.g. 0.4,0.3,0.2,0.1,0.05")
-    ap.add_argument("-o", "--out", type=Path, default=ROOT / "out" / "bench" / "model")
+    ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "model")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     args = ap.parse_args(argv)
     res = [int(r) for r in args.res.split(",") if r]

@@ -22,10 +22,6 @@ import json
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
 
 def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="furrow bench lopt", description=__doc__.splitlines()[0])

@@ -9,8 +9,8 @@ import numpy as np
 from capture.imageio import read_color
 from capture.scan import to_uint8_srgb
 from furrow.cli import main
+from tests import scenes as scene
 from tests.conftest import image_diff_stats
-from tests.render import microfacet_scene as scene
 from volume.model import save_model
 
 
@@ -81,7 +81,7 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
     cams = scene.ring_cameras(12)
     scans = []
     for c in cams:
-        rgb, depth = scene.raycast(c)
+        rgb, depth = scene.render_rgbz(c)
         scans.append(Scan(rgb, depth, c, name=c.name))
     v, f = scene.mesh()
     m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(v.astype(np.float64)), o3d.utility.Vector3iVector(f))
