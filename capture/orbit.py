@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.camera import Camera, look_at
+from capture.camera import Camera, image_up, look_at
 
 
 def estimate_up(cameras) -> np.ndarray:
-    """(3,) unit world 'up' of a rig: the mean of the cameras' image-up directions (-y in
-    OpenCV camera axes), which for any upright capture rig is the world's up."""
-    ups = np.array([-c.cam_from_world[1, :3] for c in cameras])
+    """(3,) unit world 'up' of a rig: the mean of the cameras' image-up directions
+    (``capture.camera.image_up``), which for any upright capture rig is the world's up."""
+    ups = np.array([image_up(c) for c in cameras])
     m = ups.sum(axis=0)
     n = np.linalg.norm(m)
     if n < 1e-6 * len(ups):

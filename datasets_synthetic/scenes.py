@@ -19,8 +19,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, rotation,
-                                         torus, transformed, tube_sweep)
+from capture.rotations import rotation
+from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, torus,
+                                         transformed, tube_sweep)
 from render.raster import RasterMesh, face_normals
 
 #: Golden angle (radians): azimuth step of branches and needle whorls.

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
+from capture.rotations import rotation_between
 from render.shading.envmap import EnvMap
 from render.shading.sg import COS_LOBE_LAMBDA, COS_LOBE_MU, fh_fit, fh_glsl_params, fh_texture, sg_product
 from render.shading.ssdf import combine_ssdf, ssdf_ground, ssdf_spheres
@@ -457,17 +458,10 @@ class Compositor:
 def rotation_to_z(up) -> np.ndarray:
     """(3, 3) rotation taking the unit vector ``up`` to +z (the smallest one; a half turn about x
     for up = -z)."""
-    u = np.asarray(up, np.float64)
-    if u.shape != (3,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
-        raise ValueError(f"rotation_to_z: up must be a non-zero 3-vector, got {up!r}")
-    u = u / np.linalg.norm(u)
-    z = np.array([0.0, 0.0, 1.0])
-    c = float(u @ z)
-    if c < -1 + 1e-12:
-        return np.diag([1.0, -1.0, -1.0])
-    v = np.cross(u, z)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1 + c)
+    try:
+        return rotation_between(up, (0.0, 0.0, 1.0))
+    except ValueError:
+        raise ValueError(f"rotation_to_z: up must be a non-zero 3-vector, got {up!r}") from None
 
 
 def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres=None, ground=None,

@@ -139,6 +139,27 @@ def pixel_solid_angles(h: int) -> np.ndarray:
     return np.repeat(row[:, None], w, axis=1)
 
 
+def pixel_centre_polar(h: int) -> np.ndarray:
+    """(h,) float64 polar angle theta (from +z) of the pixel-centre rows of an equirect map of
+    height h: pi (i + 0.5) / h."""
+    return np.pi * (np.arange(h) + 0.5) / h
+
+
+def pixel_centre_azimuth(w: int) -> np.ndarray:
+    """(w,) float64 azimuth phi (atan2(y, x)) of the pixel-centre columns of an equirect map of
+    width w: pi (1 - 2 (j + 0.5) / w)."""
+    return np.pi * (1.0 - 2.0 * (np.arange(w) + 0.5) / w)
+
+
+def nearest_pixel(uv, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, columns) int64 of the pixels of an (h, 2h) equirect map whose centres are nearest
+    to (..., 2) uv (columns wrap, rows clamp)."""
+    uv = np.asarray(uv, np.float64)
+    rows = np.clip(np.round(uv[..., 1] * h - 0.5).astype(np.int64), 0, h - 1)
+    cols = np.round(uv[..., 0] * (2 * h) - 0.5).astype(np.int64) % (2 * h)
+    return rows, cols
+
+
 def dir_to_uv(dirs) -> np.ndarray:
     """(..., 3) directions (need not be unit, must be non-zero) -> (..., 2) float64 (u, v),
     u in [0, 1), v in [0, 1]. See the module docstring for the convention."""
