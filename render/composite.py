@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
+from capture.depth_normals import depth_normals
 from capture.rotations import rotation_between
 from render.shading.envmap import EnvMap
 from render.shading.sg import COS_LOBE_LAMBDA, COS_LOBE_MU, fh_fit, fh_glsl_params, fh_texture, sg_product
@@ -238,26 +239,11 @@ def composite_reference(rgb, depth, camera: Camera, env: EnvMap, exposure: float
 
 
 def normals_from_depth(depth, camera: Camera) -> np.ndarray:
-    """(H, W, 3) world unit normals of a z-depth map (central differences of the back-projected
-    points, facing the camera); 0 where a neighbour is empty."""
+    """(H, W, 3) world unit normals of a z-depth map (``capture.depth_normals``, central
+    differences of the back-projected points, facing the camera); 0 where a neighbour is empty."""
     dep = np.asarray(depth, np.float64)
     P = camera.unproject(camera.pixel_grid(), dep)
-    ok = dep > 0
-    dx = np.zeros_like(P)
-    dy = np.zeros_like(P)
-    dx[:, 1:-1] = P[:, 2:] - P[:, :-2]
-    dy[1:-1] = P[2:] - P[:-2]
-    okx = np.zeros_like(ok)
-    oky = np.zeros_like(ok)
-    okx[:, 1:-1] = ok[:, 2:] & ok[:, :-2]
-    oky[1:-1] = ok[2:] & ok[:-2]
-    n = np.cross(dx, dy)
-    ln = np.linalg.norm(n, axis=-1, keepdims=True)
-    n = n / np.where(ln > 0, ln, 1.0)
-    flip = np.sum(n * (camera.center - P), -1) < 0
-    n[flip] *= -1
-    n[~(ok & okx & oky)] = 0
-    return n
+    return depth_normals(P, dep > 0, "central", eye=camera.center)[0]
 
 
 # -- GL ------------------------------------------------------------------------------------------------

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from capture.depth_normals import depth_normals
 from capture.scan import Scan, ScanSet
 from volume.grid import voxel_centers
 
@@ -120,26 +121,6 @@ class ScanMaps:
     H: int
 
 
-def _one_sided(p: np.ndarray, valid: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    """Difference along ``axis`` taken on the side with the smaller depth step."""
-    fwd = np.zeros_like(p)
-    bwd = np.zeros_like(p)
-    vf = np.zeros(valid.shape, bool)
-    vb = np.zeros(valid.shape, bool)
-    sl_hi = [slice(None)] * 2
-    sl_lo = [slice(None)] * 2
-    sl_hi[axis] = slice(1, None)
-    sl_lo[axis] = slice(None, -1)
-    d = p[tuple(sl_hi)] - p[tuple(sl_lo)]
-    vd = valid[tuple(sl_hi)] & valid[tuple(sl_lo)]
-    fwd[tuple(sl_lo)] = d
-    vf[tuple(sl_lo)] = vd
-    bwd[tuple(sl_hi)] = d
-    vb[tuple(sl_hi)] = vd
-    use_f = vf & (~vb | (np.abs(fwd[..., 2]) <= np.abs(bwd[..., 2])))
-    return np.where(use_f[..., None], fwd, bwd), vf | vb
-
-
 def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -> ScanMaps:
     """Normals from depth gradients and the plane offsets of every pixel of ``scan``."""
     cam = scan.camera
@@ -152,16 +133,9 @@ def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -
         depth = np.where(valid, sm, 0).astype(np.float32)
     rays = cam.pixel_rays(cam.pixel_grid())  # (H, W, 3), z = 1
     pc = rays * depth[..., None].astype(np.float64)
-    gx, vx = _one_sided(pc, valid, 1)
-    gy, vy = _one_sided(pc, valid, 0)
-    n = np.cross(gy, gx)
-    norm = np.linalg.norm(n, axis=-1)
-    ok = valid & vx & vy & (norm > 0)
-    n = np.where(ok[..., None], n / np.where(norm > 0, norm, 1.0)[..., None], 0.0)
+    n, ok = depth_normals(pc, valid, "smaller_step")  # facing the camera
     ray_u = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
-    cosang = np.sum(n * ray_u, axis=-1)
-    n = np.where((cosang > 0)[..., None], -n, n)  # face the camera
-    cosine = np.abs(cosang)
+    cosine = np.abs(np.sum(n * ray_u, axis=-1))
     ok &= cosine >= np.cos(np.radians(max_grazing_deg))
     R = cam.cam_from_world[:3, :3]
     nw = n @ R  # camera -> world for row vectors: n_w = R^T n_c

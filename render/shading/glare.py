@@ -29,9 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import corner_from_cv
-
-#: Rec. 709 luminance.
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from render.shading.lights import LUMA
 
 
 @dataclass(frozen=True)

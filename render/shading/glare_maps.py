@@ -36,9 +36,8 @@ import numpy as np
 from capture.camera import resample_pixel_coords
 from render.shading.brdf import blinn_phong_normalized
 from render.shading.envmap import EnvMap
+from render.shading.lights import LUMA
 
-#: Rec. 709 luminance (linear RGB).
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: Light-source map default: sources are texels of at least this luminance (the exposure set to
 #: the highlights, METHODS §4); the bundled maps' skies stay below ~20, their suns are 50-2000.
 LIGHT_SOURCE_THRESHOLD = 40.0

@@ -39,6 +39,7 @@ import numpy as np
 
 from render.shading.envmap import (EnvMap, dir_to_uv, nearest_pixel, pixel_centre_azimuth, pixel_centre_polar,
                                    pixel_solid_angles, sample_equirect)
+from render.shading.lights import LUMA
 
 #: Intensity resolution I of Eq. 11-13 (8-bit display: 256 levels).
 MSEM_INTENSITY_LEVELS = 256
@@ -366,5 +367,5 @@ def msem_texture(ctx, volume: np.ndarray):
 def white_level(env: EnvMap, percentile: float = 99.0) -> float:
     """The map's 'white' for error units: the given percentile of the pixel luminance. Errors
     are reported in 1/256 of it (the thesis used 8-bit maps, 256 levels)."""
-    lum = env.data.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    lum = env.data.astype(np.float64) @ LUMA
     return float(np.percentile(lum, percentile))

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.camera import Camera, look_at, make_K
+from capture import orbit
+from capture.camera import Camera
 from volume.model import Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet
 
 SPHERES = np.array([[0.0, 0.0, 0.0, 0.07], [0.055, 0.03, 0.045, 0.04], [-0.05, -0.04, -0.03, 0.045]])
@@ -34,15 +35,9 @@ def sdf(p: np.ndarray) -> np.ndarray:
 def ring_cameras(n: int, width: int = 96, height: int = 72, radius: float = 0.45, elevation_deg: float = 15.0,
                  focal: float | None = None, phase_deg: float = 0.0) -> list[Camera]:
     """n cameras on a ring around +z looking at the origin (turntable)."""
-    f = focal if focal is not None else 1.1 * width
-    K = make_K(f, f, (width - 1) / 2, (height - 1) / 2)
-    el = np.radians(elevation_deg)
-    cams = []
-    for i in range(n):
-        az = np.radians(phase_deg) + 2 * np.pi * i / n
-        eye = radius * np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), np.sin(el)])
-        cams.append(Camera(K, look_at(eye, [0, 0, 0]), width, height, name=f"cam_{i:03d}.png"))
-    return cams
+    az = [np.radians(phase_deg) + 2 * np.pi * i / n for i in range(n)]
+    return orbit.ring_cameras(n, width, height, focal if focal is not None else 1.1 * width, radius,
+                              (elevation_deg,), az, name="cam_{:03d}.png")
 
 
 def raycast(cam: Camera) -> tuple[np.ndarray, np.ndarray]:

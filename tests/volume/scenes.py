@@ -12,7 +12,8 @@ from typing import Callable
 
 import numpy as np
 
-from capture.camera import Camera, look_at, make_K
+from capture import orbit
+from capture.camera import Camera
 from capture.scan import Scan, ScanSet
 
 
@@ -163,15 +164,8 @@ def furball_scene(core=0.05, n=400, length=(0.02, 0.04), radius=0.0008, seed=0) 
 # ------------------------------------------------------------------ capture
 def ring_cameras(n=24, w=80, h=60, dist=0.45, elevations=(15.0, -10.0), fov_deg=32.0, azimuths=None):
     """Turntable ring(s) around +z looking at the origin; alternating elevations."""
-    f = 0.5 * w / np.tan(np.radians(fov_deg) / 2)
-    K = make_K(f, f, (w - 1) / 2, (h - 1) / 2)
     az = np.linspace(0, 2 * np.pi, n, endpoint=False) if azimuths is None else np.radians(azimuths)
-    cams = []
-    for i, a in enumerate(az):
-        el = np.radians(elevations[i % len(elevations)])
-        eye = dist * np.array([np.cos(a) * np.cos(el), np.sin(a) * np.cos(el), np.sin(el)])
-        cams.append(Camera(K, look_at(eye, [0, 0, 0]), w, h, f"cam{i:03d}"))
-    return cams
+    return orbit.ring_cameras(len(az), w, h, orbit.focal_for_fov(w, fov_deg), dist, elevations, az, name="cam{:03d}")
 
 
 def render_depth(scene: Scene, cam: Camera) -> np.ndarray:
