@@ -98,8 +98,8 @@ def bench_energy_thin(ctx, W, H):
 
 
 def sphere_scene(camera, centre, radius, albedo):
-    """Analytic sphere: depth and normals (render.composite.raycast_sphere)."""
-    from render.composite import raycast_sphere
+    """Analytic sphere: depth and normals (render.composite_reference.raycast_sphere)."""
+    from render.composite_reference import raycast_sphere
 
     return raycast_sphere(camera, centre, radius)
 
@@ -113,7 +113,7 @@ def bench_composite(ctx, W, H, env_name, out_dir: Path):
     from render.shading.sg_fit import fit_env_sg
     from volume.model import SphereSet
 
-    from render.composite import TONE_WHITE
+    from render.tonemap import TONE_WHITE
     from render.shading.glare import GlareConfig
 
     PICTURE_GLARE = GlareConfig(display_max=TONE_WHITE, **PICTURE_GLARE_SETTINGS)

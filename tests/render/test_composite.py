@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from capture.camera import Camera, look_at, make_K
-from render.composite import (TONE_WHITE, Compositor, GroundPlane, composite_frame, composite_reference,
-                              display_white, ground_from_spheres, normals_from_depth, pixel_world_dirs,
-                              ratio_lookup, raycast_sphere, shadow_ratio, shadow_ratio_raycast, spheres_mesh, tonemap)
+from render.composite import Compositor, composite_frame, normals_from_depth
+from render.composite_reference import composite_reference, pixel_world_dirs, raycast_sphere
+from render.ground_shadow import (GroundPlane, ground_from_spheres, ratio_lookup, shadow_ratio, shadow_ratio_raycast,
+                                  spheres_mesh)
+from render.tonemap import TONE_WHITE, display_white, tonemap
 from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky, SUN_DIR
 from render.shading.sg import sg_mixture_eval
 from tests.conftest import assert_images_close
