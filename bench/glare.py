@@ -28,6 +28,8 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from bench._common import save_figure  # noqa: E402
+
 SUPERSAMPLES = (1, 2, 4)
 REPEATS = 5
 #: Picture: camera azimuth from the brightest light source (degrees), and the glare settings
@@ -215,12 +217,7 @@ def _plot(rows, out_dir: Path) -> Path:
     ax[1].set_ylabel("|streak light / excess - 1| (%)")
     ax[1].set_title("streak energy: GL vs analytic on screen")
     ax[1].legend()
-    fig.tight_layout()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    p = out_dir / "glare_cost.png"
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return p
+    return save_figure(fig, out_dir / "glare_cost.png")
 
 
 def main(argv: list[str]) -> int:

@@ -30,6 +30,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from bench._common import save_figure  # noqa: E402
+
 import numpy as np  # noqa: E402
 
 #: Scenes: name -> furrow synth arguments (noisy, holed scans as a real scanner gives them).
@@ -203,12 +205,7 @@ def plot(rows: list[dict], out: Path) -> Path:
         ax.set_title(title)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "model_bench.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, out / "model_bench.png", dpi=110)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -342,7 +342,6 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     Returns (has consensus, value, support, has a nearest cluster, its value without quorum);
     :func:`consensus_reference` is the per-voxel loop it is tested against.
     """
-    M = len(d)
     agree_d = cfg.agree(w)
     nn = np.matmul(nrm, nrm.transpose(0, 2, 1))  # (M, S, S) normal dot products
     pos2 = d[:, :, None] ** 2 + d[:, None, :] ** 2 - 2 * d[:, :, None] * d[:, None, :] * nn
@@ -350,23 +349,24 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     agree &= ok[:, :, None] & ok[:, None, :]
     count = agree.sum(2)
     quorum = np.clip(np.minimum(cfg.quorum, n_see), 1, None)
-    cand = ok & (count >= quorum[:, None])
-    key = np.where(cand, np.abs(d), np.inf)
-    c = np.argmin(key, axis=1)
-    has_c = np.isfinite(key[np.arange(M), c])
-    members = agree[np.arange(M), c, :] & has_c[:, None]
-    wsum = (members * cw).sum(1)
-    value = np.where(wsum > 0, (members * cw * d).sum(1) / np.where(wsum > 0, wsum, 1), 0.0)
-    support = members.sum(1)
+    has_c, value, support = _nearest_cluster(d, cw, agree, ok & (count >= quorum[:, None]))
     has_c &= fr <= support  # more scans see through x than support it: not a surface
     # the same choice without the quorum: the unconfirmed measurement Eq. 1 looks at
-    key1 = np.where(ok, np.abs(d), np.inf)
-    c1 = np.argmin(key1, axis=1)
-    has1 = np.isfinite(key1[np.arange(M), c1])
-    mem1 = agree[np.arange(M), c1, :] & has1[:, None]
-    w1 = (mem1 * cw).sum(1)
-    value1 = np.where(w1 > 0, (mem1 * cw * d).sum(1) / np.where(w1 > 0, w1, 1), 0.0)
+    has1, value1, _ = _nearest_cluster(d, cw, agree, ok)
     return has_c, value.astype(np.float32), support, has1, value1.astype(np.float32)
+
+
+def _nearest_cluster(d, cw, agree, cand):
+    """Per voxel, the candidate sample nearest to it (smallest |d| among ``cand`` (M, S)) and the
+    samples agreeing with it: (has one (M,), their view-cosine-weighted mean d, their count)."""
+    M = len(d)
+    key = np.where(cand, np.abs(d), np.inf)
+    c = np.argmin(key, axis=1)
+    has = np.isfinite(key[np.arange(M), c])
+    members = agree[np.arange(M), c, :] & has[:, None]
+    wsum = (members * cw).sum(1)
+    value = np.where(wsum > 0, (members * cw * d).sum(1) / np.where(wsum > 0, wsum, 1), 0.0)
+    return has, value, members.sum(1)
 
 
 def consensus_reference(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):

@@ -177,7 +177,6 @@ def msem_direct(env: EnvMap, dirs, lam, th: float) -> np.ndarray:
     dirs = np.asarray(dirs, np.float64)
     lam = np.asarray(lam, np.float64)
     H, W = env.height, env.width
-    PD = env.pixel_directions()
     OM = env.pixel_solid_angles()[:, 0]
     L = env.data.astype(np.float64)
     dth, dph = np.pi / H, 2 * np.pi / W
