@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import atomic_write
 from render.raster import RasterMesh
 
 #: Below this length a direction is treated as degenerate (metres or unitless).
@@ -204,8 +205,8 @@ def ply_bytes(mesh: RasterMesh) -> bytes:
 
 
 def write_ply(mesh: RasterMesh, path) -> Path:
-    """Write :func:`ply_bytes` to ``path``."""
-    path = Path(path)
-    path.write_bytes(ply_bytes(mesh))
-    return path
+    """Write :func:`ply_bytes` to ``path`` (atomically)."""
+    with atomic_write(path) as tmp:
+        tmp.write_bytes(ply_bytes(mesh))
+    return Path(path)
 
