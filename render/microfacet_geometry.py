@@ -71,8 +71,6 @@ WEIGHT_EPS = 1e-8
 #: When fewer than K_BLEND + 1 cameras are valid, the ULR threshold is this factor times
 #: the largest valid phi (so the last valid camera keeps a non-zero weight).
 ULR_THRESHOLD_FACTOR = 2.0
-#: Near plane when the eye is inside the object's bounds, as a fraction of the bounds diagonal.
-NEAR_FRACTION_INSIDE = 1e-3
 
 
 # ------------------------------------------------------------------ Eq. 10 / Eq. 11
@@ -504,21 +502,6 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
 
 
 # ------------------------------------------------------------------ whole frame
-def near_far(eye: Camera, bounds: np.ndarray) -> tuple[float, float]:
-    """Near/far planes (m) that hold the bounds box; near is tiny when the eye is inside."""
-    b = np.asarray(bounds, dtype=np.float64)
-    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-    z = eye.world_to_cam(corners)[:, 2]
-    diag = float(np.linalg.norm(b[1] - b[0]))
-    far = max(float(z.max()), 0.0) + 0.05 * diag + 1e-6
-    inside = np.all(eye.center >= b[0]) and np.all(eye.center <= b[1])
-    near = float(z.min()) - 0.05 * diag
-    if inside or near <= NEAR_FRACTION_INSIDE * diag:
-        near = NEAR_FRACTION_INSIDE * diag
-    far = max(far, 2 * near)
-    return near, far
-
-
 def eye_axes(eye: Camera) -> tuple[np.ndarray, np.ndarray]:
     """World right (+x) and up (-y) vectors of an OpenCV camera."""
     R = eye.cam_from_world[:3, :3]
