@@ -25,7 +25,8 @@ from typing import ClassVar
 from capture.camera import Camera
 from render.antialias import check_factor
 from render.frame import Frame
-from render.microfacet_geometry import DEFAULT_TOLERANCE_PX, DEPTH_REFINE
+from render.microfacet_geometry import DEPTH_REFINE
+from render.microfacet_lod import DEFAULT_TOLERANCE_PX
 from render.owner import GLOwner
 
 #: Samples per pixel and axis of every method unless told otherwise (render.antialias; README

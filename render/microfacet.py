@@ -27,6 +27,7 @@ import numpy as np
 
 from capture.camera import Camera
 from render import microfacet_geometry as mg
+from render import microfacet_lod as mlod
 from render.frame import Frame, FrameStats
 from render.gl import load_shader, program
 from render.methods import RenderOptions, Renderer
@@ -104,7 +105,7 @@ class MicrofacetStats(FrameStats):
     level: int = -1
     resolution: int = 0
     spacing: float = 0.0
-    lod: mg.Lod | None = field(default=None, repr=False, compare=False)
+    lod: mlod.Lod | None = field(default=None, repr=False, compare=False)
 
     def record(self) -> dict:
         """FrameStats.record plus ``level`` (the resolution L, as furrow eval has always written
@@ -207,12 +208,12 @@ class MicrofacetRenderer(Renderer):
         return self._programs[key]
 
     # ------------------------------------------------------------------ frame
-    def choose_lod(self, eye: Camera, tolerance_px: float) -> mg.Lod:
+    def choose_lod(self, eye: Camera, tolerance_px: float) -> mlod.Lod:
         """Level and spacing for this eye (Eq. 10-11, microfacet_geometry.choose_lod)."""
         center = self.bounds.mean(axis=0)
-        return mg.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
+        return mlod.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
 
-    def frame_lod(self, eye: Camera, options: RenderOptions) -> tuple[int, float, mg.Lod]:
+    def frame_lod(self, eye: Camera, options: RenderOptions) -> tuple[int, float, mlod.Lod]:
         """(level index, slice spacing l, automatic choice) of a frame: Eq. 10-11, or the
         options' forced level (spacing by Eq. 10 on it) and spacing."""
         lod = self.choose_lod(eye, options.tolerance_px)
@@ -220,9 +221,9 @@ class MicrofacetRenderer(Renderer):
         w = self.voxel_sizes[lev]
         spacing = options.spacing
         if spacing is None:
-            spacing = lod.spacing if options.level is None else max(mg.eq10_spacing(lod.e_world, lod.phi, w),
-                                                                    mg.min_spacing(w))
-        return lev, max(float(spacing), mg.min_spacing(w)), lod
+            spacing = lod.spacing if options.level is None else max(mlod.eq10_spacing(lod.e_world, lod.phi, w),
+                                                                    mlod.min_spacing(w))
+        return lev, max(float(spacing), mlod.min_spacing(w)), lod
 
     def _uniforms(self, prog, eye: Camera, level: int, spacing: float, near: float, view_proj: np.ndarray):
         right, up = mg.eye_axes(eye)

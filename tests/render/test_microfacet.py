@@ -9,6 +9,7 @@ import pytest
 from capture.camera import Camera, look_at
 from capture.scan import to_uint8_srgb
 from render import microfacet_geometry as mg
+from render import microfacet_lod as mlod
 from render.methods import RenderOptions
 from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
 from render.microfacet_reference import reference_render
@@ -42,24 +43,24 @@ def renderer(gl_ctx, model):
 # ------------------------------------------------------------------ equations by hand
 def test_eq10_spacing_by_hand():
     w = 0.004
-    assert mg.eq10_spacing(0.001, 0.0, w) == pytest.approx(w)  # phi -> 0: l = w cos 0
+    assert mlod.eq10_spacing(0.001, 0.0, w) == pytest.approx(w)  # phi -> 0: l = w cos 0
     phi = np.radians(30)
-    assert mg.eq10_spacing(0.001, phi, w) == pytest.approx(0.001 / np.tan(phi))  # 1.732 mm < 3.46 mm
-    assert mg.eq10_spacing(0.1, phi, w) == pytest.approx(w * np.cos(phi))  # geometric bound wins
+    assert mlod.eq10_spacing(0.001, phi, w) == pytest.approx(0.001 / np.tan(phi))  # 1.732 mm < 3.46 mm
+    assert mlod.eq10_spacing(0.1, phi, w) == pytest.approx(w * np.cos(phi))  # geometric bound wins
     # grazing: both bounds shrink towards 0 as phi -> 90 degrees
-    assert mg.eq10_spacing(0.001, np.radians(89.9), w) < 0.0001
-    assert mg.eq10_spacing(0.001, np.pi / 2, w) == pytest.approx(0.0, abs=1e-12)
+    assert mlod.eq10_spacing(0.001, np.radians(89.9), w) < 0.0001
+    assert mlod.eq10_spacing(0.001, np.pi / 2, w) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_eq11_level_by_hand():
     ws = [0.064, 0.032, 0.016, 0.008]
-    assert mg.eq11_level(0.02, 0.0, ws) == 1  # 0.016 < 0.02 <= 0.032
-    assert mg.eq11_level(0.032, 0.0, ws) == 1  # upper bound inclusive
-    assert mg.eq11_level(0.016, 0.0, ws) == 2
-    assert mg.eq11_level(0.1, 0.0, ws) == 0  # coarser than every level
-    assert mg.eq11_level(0.001, 0.0, ws) == 3  # finer than every level
+    assert mlod.eq11_level(0.02, 0.0, ws) == 1  # 0.016 < 0.02 <= 0.032
+    assert mlod.eq11_level(0.032, 0.0, ws) == 1  # upper bound inclusive
+    assert mlod.eq11_level(0.016, 0.0, ws) == 2
+    assert mlod.eq11_level(0.1, 0.0, ws) == 0  # coarser than every level
+    assert mlod.eq11_level(0.001, 0.0, ws) == 3  # finer than every level
     c = np.cos(np.radians(60))  # 0.5: intervals halve
-    assert mg.eq11_level(0.01, np.radians(60), ws) == 1  # 0.008 < 0.01 <= 0.016
+    assert mlod.eq11_level(0.01, np.radians(60), ws) == 1  # 0.008 < 0.01 <= 0.016
 
 
 def test_slice_distances_by_hand():
@@ -219,7 +220,7 @@ def test_eye_exactly_on_input_camera(model):
     idx, w = mg.select_cameras(lv.centers(), 0.0, cam.center, model.rgbz.cameras)
     assert np.all(np.isfinite(w))
     assert np.all(idx[:, 0] == 3) and np.all(w[:, 0] > 0.999)
-    lod = mg.choose_lod(cam, model.bounds.mean(0), model.rgbz.cameras, [x.voxel_size for x in model.pyramid.levels],
+    lod = mlod.choose_lod(cam, model.bounds.mean(0), model.rgbz.cameras, [x.voxel_size for x in model.pyramid.levels],
                         [len(x.surface) for x in model.pyramid.levels], 8.0)
     assert lod.level == 0 and lod.spacing == pytest.approx(model.pyramid.levels[0].voxel_size, rel=1e-6)
 
@@ -233,7 +234,7 @@ def test_grazing_view(renderer, model):
     assert np.degrees(lod.phi) > 60
     fr = renderer.render(eye, tolerance_px=2.0)
     w = model.pyramid.levels[fr.stats.level].voxel_size
-    assert fr.stats.spacing >= mg.min_spacing(w) * (1 - 1e-9)
+    assert fr.stats.spacing >= mlod.min_spacing(w) * (1 - 1e-9)
     assert fr.stats.facets <= mg.MAX_SLICES * len(model.pyramid.levels[fr.stats.level].surface)
     img, alive, _ = _twin(model, eye, fr.stats.level, fr.stats.spacing)
     assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
@@ -257,11 +258,11 @@ def test_empty_level(gl_ctx):
     cams = scene.ring_cameras(12)
     # Eq. 11 on an empty level: the nearest non-empty level, the finer one on ties
     ws = [0.064, 0.032, 0.016, 0.008]
-    lod = mg.choose_lod(cams[2], np.zeros(3), cams, ws, [0, 0, 850, 4000], 8.0)  # eye on a camera: wants 0
+    lod = mlod.choose_lod(cams[2], np.zeros(3), cams, ws, [0, 0, 850, 4000], 8.0)  # eye on a camera: wants 0
     assert lod.level == 2
     off = scene.ring_cameras(12, phase_deg=15)[2]  # between two cameras, tiny E: wants the finest
-    lod = mg.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 0, 4000], 1e-4)
-    lod2 = mg.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 50, 0], 1e-4)
+    lod = mlod.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 0, 4000], 1e-4)
+    lod2 = mlod.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 50, 0], 1e-4)
     assert lod.level == 3 and lod2.level == 2
     # empty coarse levels of a model are filled by the ancestors of the finest level
     m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8))
