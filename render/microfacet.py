@@ -209,7 +209,7 @@ class MicrofacetRenderer(Renderer):
 
     # ------------------------------------------------------------------ frame
     def choose_lod(self, eye: Camera, tolerance_px: float) -> mlod.Lod:
-        """Level and spacing for this eye (Eq. 10-11, microfacet_geometry.choose_lod)."""
+        """Level and spacing for this eye (Eq. 10-11, microfacet_lod.choose_lod)."""
         center = self.bounds.mean(axis=0)
         return mlod.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
 
