@@ -27,7 +27,7 @@ import numpy as np
 from capture.camera import Camera, gl_rows_to_image
 from render.gl import program
 from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
-from render.raster import RasterError
+from render.raster import RasterError, vertex_bounds
 
 #: Texture units of the MSEM (3-D) and the smoothness map.
 MSEM_UNIT = 0
@@ -93,7 +93,7 @@ class GlossyMesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 [min, max] of the vertices."""
-        return np.stack([self.vertices.min(0), self.vertices.max(0)]).astype(np.float64)
+        return vertex_bounds(self.vertices)
 
 
 @dataclass(frozen=True)

@@ -114,7 +114,12 @@ class RasterMesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 axis-aligned [min, max] of the vertices."""
-        return np.stack([self.vertices.min(0), self.vertices.max(0)]).astype(np.float64)
+        return vertex_bounds(self.vertices)
+
+
+def vertex_bounds(vertices: np.ndarray) -> np.ndarray:
+    """(2, 3) float64 axis-aligned [min, max] of (V, 3) vertices."""
+    return np.stack([vertices.min(0), vertices.max(0)]).astype(np.float64)
 
 
 @dataclass(frozen=True)
