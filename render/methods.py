@@ -63,7 +63,7 @@ class RenderOptions:
     def __post_init__(self) -> None:
         if not self.tolerance_px > 0:
             raise ValueError(f"tolerance must be > 0 pixels, got {self.tolerance_px}")
-        check_factor(self.supersample)
+        object.__setattr__(self, "supersample", check_factor(self.supersample))
         if self.refine is not None and not (int(self.refine) == self.refine and 0 <= self.refine <= MAX_REFINE):
             raise ValueError(f"refine must be 0..{MAX_REFINE} steps, got {self.refine}")
         if self.level is not None and int(self.level) != self.level:

@@ -2,7 +2,8 @@
 
 All surface voxel centres of every pyramid level (each in 6 axis-sorted orders), the input
 cameras and the RGBz texture array are uploaded once; per frame only uniforms change (plus
-the 16-byte reset of the indirect draw command).  Two interchangeable paths:
+the 16-byte reset of the indirect draw command).  Two interchangeable paths, chosen per frame
+(``RenderOptions.mode``; this is the ``"microfacet"`` method of render.methods):
 
 * ``"instanced"`` (default): a compute pass selects the cameras per voxel and appends one
   record per slice (atomic counter -> indirect draw command); an instanced 4-vertex strip
@@ -16,7 +17,7 @@ RGBz array, lets the blend cameras vote with unstructured-lumigraph weights and 
 fragment to the next camera (microfacet_geometry.shade_fragments); alpha is binary (discard)
 and the depth buffer resolves visibility, so nothing is sorted for correctness (the voxel
 order along the view's dominant axis only helps llvmpipe's early depth test).  The numpy twin
-of every step is ``render/microfacet_geometry.py``.
+of every step is ``render/microfacet_geometry.py`` (the level of detail: ``render/microfacet_lod.py``).
 """
 
 from __future__ import annotations
