@@ -15,7 +15,10 @@ HELP = "render a model with view-dependent microfacet billboards (or the fixed-m
 DESCRIPTION = """Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
 PNG per selected frame, named after the frame's file_path basename, black background,
 8-bit sRGB.  METHODS §1.2-1.7: the pyramid level and slice spacing follow the screen-space
-tolerance E (--tolerance, pixels; the paper's default 8).
+tolerance E (--tolerance, pixels; the paper's default 8).  Every method (render.methods) is
+drawn with --supersample S x S samples per pixel and can be composited with --env; a flag the
+chosen method does not use (--tolerance, --level, --refine, --mode are the microfacets') is an
+error.
 
 examples:
   furrow render out/fur_model --cameras out/furball/transforms.json -o out/renders
