@@ -109,6 +109,9 @@ class Renderer(GLOwner):
         renderer's) and the given fields changed; ``read=False`` draws and times only (the
         returned frame is empty)."""
         self.check_alive()
+        if options is not None and not isinstance(options, RenderOptions):
+            raise TypeError(f"{type(self).__name__}.render: options must be a RenderOptions, got {options!r} "
+                            "(the tolerance is RenderOptions.tolerance_px)")
         opts = (options if options is not None else self.options).changed(**changes)
         return self._render(camera, opts, read)
 

@@ -113,6 +113,12 @@ def test_registry_and_options():
     assert RenderOptions().refine_steps == 2 and RenderOptions(refine=0).refine_steps == 0
 
 
+def test_render_rejects_a_bare_tolerance(gl_ctx, model):
+    with create_renderer("mesh-vdtm", gl_ctx, model) as r:
+        with pytest.raises(TypeError, match="tolerance_px"):
+            r.render(_eye(), 8.0)
+
+
 def test_mat4_bytes_is_column_major():
     m = np.arange(16, dtype=np.float64).reshape(4, 4)
     got = np.frombuffer(mat4_bytes(m), np.float32)
