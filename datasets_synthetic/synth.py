@@ -18,23 +18,20 @@ from typing import Callable
 import numpy as np
 
 from capture.camera import Camera
-from capture.io import write_transforms
+from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
 from capture.scan import Scan, ScanSet
 from datasets_synthetic.geometry import ply_bytes
 from datasets_synthetic.lighting import LightingConfig, background, resolve_env, scene_lighting
 from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes)
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
+from datasets_synthetic.sensor import SENSORS, SensorModel, apply_sensor
 from render.raster import MeshRasterizer
 
 #: Margin added around the scene's tight bounds for the ScanSet bounds (fraction of the diagonal).
 BOUNDS_MARGIN = 0.05
 #: Reference image width for the hole radii of NoiseConfig (radii scale with width / this).
 HOLE_RADIUS_REF_WIDTH = 640
-#: Metres per unit of the 16-bit PNG depth written by default: 0.1 mm (range 6.5 m), so that the
-#: quantisation (0.03 mm RMS) stays far below a quarter pixel footprint even at 640x480
-#: (about 0.2 mm); 1 mm units would not (0.29 mm RMS).  Recorded as depth_unit_scale_factor.
-PNG_DEPTH_UNIT = 1e-4
 #: The CI-sized capture of ``--small``.
 SMALL_RIG = TurntableRig(views_per_ring=12, width=160, height=120)
 
@@ -53,6 +50,9 @@ class SynthConfig:
     """Environment lighting."""
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     """Noise models (default: none)."""
+    sensor: SensorModel = field(default_factory=lambda: SENSORS["ideal"])
+    """Depth-sensor traits applied after ``noise`` (``datasets_synthetic.sensor``; default exact
+    float depth; ``furrow synth`` defaults to the ``d435`` preset)."""
     supersample: int = 3
     """Colour supersampling factor (per axis); thin strands alias badly without it."""
     background: str = "black"
@@ -137,6 +137,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
                 depth = random_holes(depth, _view_rng(cfg.seed, i, 1), nz.holes_fraction, radius)
             if nz.depth_sigma_at_1m > 0:
                 depth = depth_noise(depth, _view_rng(cfg.seed, i, 2), nz.depth_sigma_at_1m)
+            depth = apply_sensor(depth, _view_rng(cfg.seed, i, 4), cfg.sensor)
             rec = cam
             if nz.any_pose:
                 rec = perturb_pose(cam, _view_rng(cfg.seed, i, 3), nz.pose_rot_deg, nz.pose_trans_frac * diag)
@@ -148,10 +149,11 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "name": scene.name, "seed": scene.seed, "generator": "furrow datasets_synthetic",
         "units": "metres, world +z up", "bounds": tight.tolist(), "scanset_bounds": bounds.tolist(),
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
-        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "supersample": cfg.supersample,
+        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(), "supersample": cfg.supersample,
         "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
     }
-    meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz)}
+    meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
+            "sensor": cfg.sensor.name}
     true_cams = tuple(c for _, c in views)
     return Capture(ScanSet(tuple(scans), bounds, meta), scene, true_cams, np.stack(clean), np.stack(normals), info)
 
@@ -173,9 +175,10 @@ def gt_files(cap: Capture) -> dict[str, bytes]:
 
 def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: bool = False,
                   extra_files: dict[str, bytes] | None = None, progress: Callable | None = None,
-                  png_depth_unit: float = PNG_DEPTH_UNIT) -> Path:
+                  png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT) -> Path:
     """Write the scan set (transforms.json, images/, depth/) and gt/ atomically; returns
-    the transforms.json path.  PNG depth is stored in units of ``png_depth_unit`` metres."""
+    the transforms.json path.  ``depth_format``: a ``capture.io.DEPTH_FORMATS`` name (``png``:
+    16-bit in units of ``png_depth_unit`` metres, millimetres by default; ``png-0.1mm``; ``exr``)."""
     files = gt_files(cap)
     files.update(extra_files or {})
     return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,

@@ -8,9 +8,15 @@ from pathlib import Path
 HELP = "synthesise a turntable capture of a procedural scene (furball, plant, torus) with exact ground truth"
 DESCRIPTION = """Render a seeded procedural scene from a turntable rig (world +z up, cameras ringing the z axis,
 looking at the origin) under an environment map, and write a scan set: transforms.json,
-images/ (8-bit sRGB), depth/ (z-depth: 16-bit PNG in 0.1 mm units, or float EXR in metres) and gt/
-(gt/mesh.ply exact geometry in metres, gt/scene.json parameters, gt/cameras_true.json when the
-recorded poses are perturbed).
+images/ (8-bit sRGB), depth/ (z-depth as an RGB-D sensor writes it: 16-bit PNG in millimetres, with
+one top-level "depth_unit_scale_factor": 0.001 in transforms.json, as nerfstudio reads it; or
+--depth-format png-0.1mm / exr) and gt/ (gt/mesh.ply exact geometry in metres, gt/scene.json
+parameters, gt/cameras_true.json when the recorded poses are perturbed).
+
+The depth carries the traits of a sensor (--sensor, datasets_synthetic/sensor.py): d435 (default;
+Intel RealSense D435 active stereo: z-squared noise 3.6 mm at 1 m, 1 mm output unit, flying pixels
+on 30 % of the depth-edge pixels), kinect-v1 (structured light: 1.4 mm at 1 m, disparity steps of
+2.9 mm at 1 m), or ideal (exact float depth; then only the file format quantises).
 
 scenes: furball  ellipsoidal body with thousands of thin curved strands (real tube geometry)
         plant    pot, stem, branches with many thin needles, a few flat leaves
@@ -73,10 +79,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pose-noise-deg", type=float, default=0.0, metavar="D", help="RMS rotation error of the recorded poses")
     p.add_argument("--pose-noise-frac", type=float, default=0.0, metavar="F",
                    help="RMS translation error of the recorded poses, fraction of the object size")
-    p.add_argument("--depth-format", choices=["png", "exr"], default="png",
-                   help="depth files: 16-bit PNG (default) or float EXR in metres")
+    p.add_argument("--sensor", default="d435", choices=["d435", "kinect-v1", "ideal"],
+                   help="depth-sensor traits: z^2 noise, quantisation, flying pixels (default d435; ideal = exact)")
+    p.add_argument("--flying", type=float, default=None, metavar="FRAC",
+                   help="override the sensor's fraction of depth-edge pixels that fly (0 = none)")
+    p.add_argument("--depth-format", choices=["png", "png-0.1mm", "exr"], default="png",
+                   help="depth files: 16-bit PNG in millimetres (default), in 0.1 mm, or float EXR in metres")
     p.add_argument("--png-depth-unit", type=float, default=None, metavar="M",
-                   help="metres per 16-bit PNG depth unit (default 0.0001 = 0.1 mm; 0.001 = millimetres)")
+                   help="metres per unit of --depth-format png (default 0.001 = millimetres)")
     p.add_argument("--board", action="store_true",
                    help="stand the object on a ChArUco board (for `furrow register --method board`); the board "
                         "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, e.g. "
@@ -92,6 +102,7 @@ def build_config(args):
     from datasets_synthetic.noise import NoiseConfig
     from datasets_synthetic.rig import TurntableRig
     from datasets_synthetic.scenes import SCENES
+    from datasets_synthetic.sensor import sensor_preset
     from datasets_synthetic.synth import SynthConfig
 
     if args.name not in SCENES:
@@ -106,6 +117,10 @@ def build_config(args):
     lighting = LightingConfig(env=args.env, lights=args.lights, rotation_deg=args.env_rotation)
     noise = NoiseConfig(depth_sigma_at_1m=args.depth_noise, grazing_deg=args.grazing, holes_fraction=args.holes,
                         pose_rot_deg=args.pose_noise_deg, pose_trans_frac=args.pose_noise_frac)
+    over = {}
+    if args.flying is not None:
+        over["flying_fraction"] = args.flying
+    sensor = sensor_preset(args.sensor, **over)
     params = {}
     strands = args.strands if args.strands is not None else (
         SMALL_STRANDS if args.small and args.name == "furball" else None)
@@ -115,14 +130,15 @@ def build_config(args):
         if strands < 1:
             raise ValueError(f"--strands must be >= 1, got {strands}")
         params["strands"] = strands
-    return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise,
+    return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
                        supersample=args.supersample, background=args.background, scene_params=params)
 
 
 def run(args, console) -> int:
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.preview import contact_sheet_png_bytes
-    from datasets_synthetic.synth import PNG_DEPTH_UNIT, synthesize, write_capture
+    from capture.io import DEFAULT_PNG_DEPTH_UNIT
+    from datasets_synthetic.synth import synthesize, write_capture
     from furrow.console import StageTimer, fail, track
 
     try:
@@ -154,7 +170,7 @@ def run(args, console) -> int:
         with timer.stage("contact sheet"):
             extra["preview.png"] = contact_sheet_png_bytes(cap.scanset)
     with timer.stage("write"):
-        unit = args.png_depth_unit if args.png_depth_unit is not None else PNG_DEPTH_UNIT
+        unit = args.png_depth_unit if args.png_depth_unit is not None else DEFAULT_PNG_DEPTH_UNIT
         path = write_capture(cap, args.out, depth_format=args.depth_format, overwrite=args.overwrite,
                              extra_files=extra, png_depth_unit=unit)
     st = cap.scene.stats
