@@ -7,6 +7,8 @@ at the origin, 0.15-0.3 m across).
 * ``plant``: a terracotta pot with soil, a stem, branches carrying many thin needles in whorls,
   and a few flat (two-sided) leaves on petioles.
 * ``torus``: the smooth control object (tilted, painted with a smooth pattern).
+* ``furrybunny``: fur grown on a real scanned surface (the Stanford Bunny from pymeshlab's test
+  data; ``datasets_synthetic.scanned``, where its licence is noted).
 
 A scene is a :class:`Scene`: the :class:`render.raster.RasterMesh` that is both rendered and
 written as ``gt/mesh.ply``, plus its parameters and statistics (``gt/scene.json``).  The same
@@ -21,6 +23,7 @@ import numpy as np
 
 from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, rotation,
                                          torus, transformed, tube_sweep)
+from datasets_synthetic.scanned import FurryBunnyParams, build_furrybunny
 from render.raster import RasterMesh, face_normals
 
 #: Golden angle (radians): azimuth step of branches and needle whorls.
@@ -347,7 +350,7 @@ def build_torus(seed: int = 0, p: TorusParams = TorusParams()) -> Scene:
 
 #: Scene name -> (builder(seed, params), parameter dataclass).
 SCENES = {"furball": (build_furball, FurballParams), "plant": (build_plant, PlantParams),
-          "torus": (build_torus, TorusParams)}
+          "torus": (build_torus, TorusParams), "furrybunny": (build_furrybunny, FurryBunnyParams)}
 
 
 def build_scene(name: str, seed: int = 0, **overrides) -> Scene:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-HELP = "synthesise a turntable capture of a procedural scene (furball, plant, torus) with exact ground truth"
+HELP = "synthesise a turntable capture of a procedural scene (furball, plant, torus, furrybunny) with exact ground truth"
 DESCRIPTION = """Render a seeded procedural scene from a turntable rig (world +z up, cameras ringing the z axis,
 looking at the origin) under an environment map, and write a scan set: transforms.json,
 images/ (8-bit sRGB), depth/ (z-depth as an RGB-D sensor writes it: 16-bit PNG in millimetres, with
@@ -21,6 +21,8 @@ on 30 % of the depth-edge pixels), kinect-v1 (structured light: 1.4 mm at 1 m, d
 scenes: furball  ellipsoidal body with thousands of thin curved strands (real tube geometry)
         plant    pot, stem, branches with many thin needles, a few flat leaves
         torus    smooth control object
+        furrybunny  fur grown on a real scanned surface (the Stanford Bunny that ships in pymeshlab's
+                 test data; licence noted in datasets_synthetic/scanned.py)
 
 examples:
   furrow synth furball -o out/furball_scan --preview
@@ -32,6 +34,8 @@ examples:
 SMALL_VIEWS = 12
 SMALL_SIZE = (160, 120)
 SMALL_STRANDS = 5000
+#: Scenes with a --strands parameter.
+FURRY_SCENES = ("furball", "furrybunny")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -52,14 +56,14 @@ def _floats(text: str) -> tuple[float, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("name", help="scene: furball, plant or torus")
+    p.add_argument("name", help="scene: furball, plant, torus or furrybunny")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder (new, or --overwrite)")
     p.add_argument("--views", type=int, default=None, help="number of views (default 36; --small: 12)")
     p.add_argument("--size", type=_size, default=None, help="image size WIDTHxHEIGHT (default 640x480; --small: 160x120)")
     p.add_argument("--seed", type=int, default=0, help="seed of the geometry and of the noise (default 0)")
     p.add_argument("--small", action="store_true", help="CI-sized capture: 12 views at 160x120")
     p.add_argument("--strands", type=int, default=None,
-                   help="furball: number of strands (default 14000; --small: 5000)")
+                   help="furball / furrybunny: number of strands (default 14000 / 20000; --small: 5000)")
     p.add_argument("--elevations", type=_floats, default=(25.0,),
                    help="ring elevations in degrees, comma-separated (views are split evenly; default 25)")
     p.add_argument("--fov", type=float, default=36.0, help="vertical field of view in degrees (default 36)")
@@ -122,11 +126,11 @@ def build_config(args):
         over["flying_fraction"] = args.flying
     sensor = sensor_preset(args.sensor, **over)
     params = {}
-    strands = args.strands if args.strands is not None else (
-        SMALL_STRANDS if args.small and args.name == "furball" else None)
+    furry = args.name in FURRY_SCENES
+    strands = args.strands if args.strands is not None else (SMALL_STRANDS if args.small and furry else None)
     if strands is not None:
-        if args.name != "furball":
-            raise ValueError("--strands applies to the furball only")
+        if not furry:
+            raise ValueError(f"--strands applies to {' and '.join(FURRY_SCENES)} only")
         if strands < 1:
             raise ValueError(f"--strands must be >= 1, got {strands}")
         params["strands"] = strands
