@@ -4,7 +4,10 @@ On disk (DESIGN.md "Scan format on disk", written by ``capture.io.write_transfor
 ``transforms.json``, ``images/``, ``depth/`` and ``gt/`` with ``gt/mesh.ply`` (exact geometry,
 world metres, +z up), ``gt/scene.json`` (name, seed, bounds, parameters, counts, rig, lighting,
 noise) and, when the poses were perturbed, ``gt/cameras_true.json`` (the unperturbed poses in
-the nerfstudio frame format).  Colour images are rendered with the *true* poses; only the
+the nerfstudio frame format).  Relighting ground truth (``datasets_synthetic.relight``) adds
+``relit/<map>/transforms.json``, ``relit/<map>/images/<name>.png`` (every view rendered again
+under <map> with the same scene, cameras and exposure; depth shared with the capture's depth/)
+and ``relit/<map>/lighting.json``.  Colour images are rendered with the *true* poses; only the
 recorded poses carry the pose noise.
 """
 
@@ -21,7 +24,8 @@ from capture.camera import Camera
 from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
 from capture.scan import Scan, ScanSet
 from datasets_synthetic.geometry import ply_bytes
-from datasets_synthetic.lighting import LightingConfig, background, resolve_env, scene_lighting
+from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
+from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
 from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes)
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
@@ -119,11 +123,14 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         if bad:
             raise ValueError(f"views {bad} out of range for a rig of {len(cams)} views")
         views = [views[i] for i in cfg.views]
+    lc = cfg.lighting
     with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
-        rast.set_mesh(scene.mesh)
-        rast.set_lighting(lighting)
+        hair = prepare_hair(rast, scene.mesh, lighting, ambient_residual(env, lc), lc.hair_model, lc.hair_env_lights,
+                            lc.shadows)
         shadow_info = dict(rast.shadow_info)
         for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
+            if hair is not None:
+                rast.set_emission(vertex_emission(hair, cam.center))
             res = rast.render(cam)
             if cfg.background == "env":
                 bg = background(env, cam, lighting.exposure, cfg.lighting.rotation_deg)
@@ -151,6 +158,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
         "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(), "supersample": cfg.supersample,
         "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
+        "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
             "sensor": cfg.sensor.name}
@@ -178,7 +186,10 @@ def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: b
                   png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT) -> Path:
     """Write the scan set (transforms.json, images/, depth/) and gt/ atomically; returns
     the transforms.json path.  ``depth_format``: a ``capture.io.DEPTH_FORMATS`` name (``png``:
-    16-bit in units of ``png_depth_unit`` metres, millimetres by default; ``png-0.1mm``; ``exr``)."""
+    16-bit in units of ``png_depth_unit`` metres, millimetres by default; ``png-0.1mm``; ``exr``).
+    ``extra_files`` (relative path -> bytes) go into the same atomic folder, e.g. the relighting
+    ground truth ``relit/<map>/{transforms.json, images/*.png, lighting.json}`` from
+    ``datasets_synthetic.relight.relit_files``."""
     files = gt_files(cap)
     files.update(extra_files or {})
     return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,

@@ -18,6 +18,16 @@ Intel RealSense D435 active stereo: z-squared noise 3.6 mm at 1 m, 1 mm output u
 on 30 % of the depth-edge pixels), kinect-v1 (structured light: 1.4 mm at 1 m, disparity steps of
 2.9 mm at 1 m), or ideal (exact float depth; then only the file format quantises).
 
+Relighting ground truth: --relight-env MAP (repeatable) renders every view again under MAP with
+the same scene, cameras and exposure, into DIR/relit/MAP/images/NAME.png beside
+DIR/relit/MAP/transforms.json (the capture's cameras; depth from the capture's depth/) and
+DIR/relit/MAP/lighting.json (map, exposure, lights, clipped fraction); MAP is a bundled name or a
+file, its folder the name or the file's stem.
+
+Strands (fur, needles) are shaded with the R / TT / TRT lobes of Chiang et al. 2016 under the
+environment's dominant lights and 32 median-cut lights with shadow maps (--hair chiang, default),
+or with the older Kajiya-Kay lobe (--hair kajiya-kay).
+
 scenes: furball  ellipsoidal body with thousands of thin curved strands (real tube geometry)
         plant    pot, stem, branches with many thin needles, a few flat leaves
         torus    smooth control object
@@ -27,6 +37,7 @@ scenes: furball  ellipsoidal body with thousands of thin curved strands (real tu
 examples:
   furrow synth furball -o out/furball_scan --preview
   furrow synth plant -o out/plant_small --small
+  furrow synth furball -o out/furball_relit --relight-env forest --relight-env sunset
   furrow synth torus -o out/torus_noisy --depth-noise 0.002 --holes 0.02 --grazing 75 \\
       --pose-noise-deg 1 --pose-noise-frac 0.01"""
 
@@ -34,6 +45,8 @@ examples:
 SMALL_VIEWS = 12
 SMALL_SIZE = (160, 120)
 SMALL_STRANDS = 5000
+#: --small: median-cut lights of the hair shading (32 at full size; each costs a shadow map).
+SMALL_HAIR_ENV_LIGHTS = 8
 #: Scenes with a --strands parameter.
 FURRY_SCENES = ("furball", "furrybunny")
 
@@ -64,12 +77,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--small", action="store_true", help="CI-sized capture: 12 views at 160x120")
     p.add_argument("--strands", type=int, default=None,
                    help="furball / furrybunny: number of strands (default 14000 / 20000; --small: 5000)")
-    p.add_argument("--elevations", type=_floats, default=(25.0,),
-                   help="ring elevations in degrees, comma-separated (views are split evenly; default 25)")
+    p.add_argument("--elevations", type=_floats, default=(15.0,),
+                   help="ring elevations in degrees, comma-separated (views are split evenly; default 15, the "
+                        "rig of the evaluation captures)")
     p.add_argument("--fov", type=float, default=36.0, help="vertical field of view in degrees (default 36)")
     p.add_argument("--env", default="studio",
                    help="environment: studio, courtyard, forest, sunset, procedural, or a .exr/.hdr path")
     p.add_argument("--env-rotation", type=float, default=0.0, help="rotate the environment about +z (degrees)")
+    p.add_argument("--relight-env", action="append", default=[], metavar="MAP",
+                   help="also render every view under MAP (same scene, cameras, exposure) into relit/MAP/ "
+                        "(repeatable; see above)")
+    p.add_argument("--hair", choices=["chiang", "kajiya-kay"], default="chiang",
+                   help="strand shading: chiang (R/TT/TRT lobes, default) or kajiya-kay (the older lobe)")
     p.add_argument("--lights", type=int, default=3, help="dominant lights casting shadows (0-4, default 3)")
     p.add_argument("--supersample", type=int, default=3, help="colour supersampling per axis (default 3)")
     p.add_argument("--background", choices=["env", "black"], default="black",
@@ -118,7 +137,8 @@ def build_config(args):
         raise ValueError(f"--views {views} must be a positive multiple of the number of rings ({rings})")
     rig = TurntableRig(views_per_ring=views // rings, elevations_deg=tuple(args.elevations), width=w, height=h,
                        fov_y_deg=args.fov)
-    lighting = LightingConfig(env=args.env, lights=args.lights, rotation_deg=args.env_rotation)
+    lighting = LightingConfig(env=args.env, lights=args.lights, rotation_deg=args.env_rotation, hair_model=args.hair,
+                              **({"hair_env_lights": SMALL_HAIR_ENV_LIGHTS} if args.small else {}))
     noise = NoiseConfig(depth_sigma_at_1m=args.depth_noise, grazing_deg=args.grazing, holes_fraction=args.holes,
                         pose_rot_deg=args.pose_noise_deg, pose_trans_frac=args.pose_noise_frac)
     over = {}
@@ -141,6 +161,7 @@ def build_config(args):
 def run(args, console) -> int:
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.preview import contact_sheet_png_bytes
+    from datasets_synthetic.relight import map_label, relight_images, relit_files
     from capture.io import DEFAULT_PNG_DEPTH_UNIT
     from datasets_synthetic.synth import synthesize, write_capture
     from furrow.console import StageTimer, fail, track
@@ -149,7 +170,11 @@ def run(args, console) -> int:
         if args.png_depth_unit is not None and not 0 < args.png_depth_unit <= 0.01:
             raise ValueError(f"--png-depth-unit {args.png_depth_unit} out of range (0, 0.01] metres")
         cfg = build_config(args)
-        resolve_env(cfg.lighting.env)  # fail early on a bad --env
+        for env in (cfg.lighting.env, *args.relight_env):
+            resolve_env(env)  # fail early on a bad --env / --relight-env
+        labels = [map_label(e) for e in args.relight_env]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"--relight-env maps must have distinct names, got {', '.join(labels)}")
     except (ValueError, FileNotFoundError) as e:
         fail(str(e))
         return 2
@@ -170,11 +195,18 @@ def run(args, console) -> int:
     with timer.stage(f"render {cfg.scene} ({cfg.rig.n_views} views, {cfg.rig.width}x{cfg.rig.height})"):
         cap = synthesize(cfg, scene=scene, progress=lambda it, label: track(it, label, total=len(it)))
     extra = {}
+    unit = args.png_depth_unit if args.png_depth_unit is not None else DEFAULT_PNG_DEPTH_UNIT
+    for env in args.relight_env:
+        with timer.stage(f"relight under {map_label(env)}"):
+            images, info = relight_images(cap, cfg, env, progress=lambda it, label: track(it, label, total=len(it)))
+            extra.update(relit_files(cap, images, info, env, args.depth_format, unit))
+        if info["clipped_fraction"] > 0.01:
+            console.print(f"[yellow]relit under {map_label(env)}: {info['clipped_fraction']:.1%} of the foreground "
+                          "clips at white with the capture's exposure[/]", highlight=False)
     if args.preview:
         with timer.stage("contact sheet"):
             extra["preview.png"] = contact_sheet_png_bytes(cap.scanset)
     with timer.stage("write"):
-        unit = args.png_depth_unit if args.png_depth_unit is not None else DEFAULT_PNG_DEPTH_UNIT
         path = write_capture(cap, args.out, depth_format=args.depth_format, overwrite=args.overwrite,
                              extra_files=extra, png_depth_unit=unit)
     st = cap.scene.stats
