@@ -1,6 +1,6 @@
 """Relighting ground truth (issue 15 item 4): a synthetic capture rendered again under another map.
 
-Same scene, same cameras (the true ones the images were rendered with), same exposure (the
+Same scene, same cameras (the true ones the images were rendered with), same film filter, same exposure (the
 capture's, so a brighter map gives brighter, possibly clipped, pixels, as a real camera with
 fixed settings would), same hair model and shadows; only the environment changes (its dominant
 lights, its ambient irradiance, the median-cut lights of the hair shading, and the background
@@ -30,6 +30,7 @@ import numpy as np
 from capture.io import depth_format_spec
 from capture.scan import to_uint8_srgb
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
+from datasets_synthetic.pixel_filter import path_tracer_filter
 from datasets_synthetic.lighting import ambient_residual, background, resolve_env, scene_lighting
 from render.raster import MeshRasterizer
 
@@ -69,7 +70,7 @@ def relight_images(cap, cfg, env: str, ctx=None, progress: Callable | None = Non
             rgb = res.color
             if cfg.background == "env":
                 rgb = rgb + (1.0 - res.alpha[..., None]) * background(emap, cam, exposure, lc.rotation_deg)
-            images.append(np.clip(rgb, 0, None).astype(np.float32))
+            images.append(np.clip(path_tracer_filter(rgb, cfg.pixel_filter_px), 0, None).astype(np.float32))
     fg = np.concatenate([im[d > 0] for im, d in zip(images, cap.clean_depth)]) if images else np.zeros((0, 3))
     info["clipped_fraction"] = float(np.mean(np.any(fg >= CLIP_LEVEL, axis=1))) if len(fg) else 0.0
     info["hair"] = hair.info() if hair is not None else {"model": "kajiya-kay"}

@@ -26,6 +26,7 @@ from capture.scan import Scan, ScanSet
 from datasets_synthetic.geometry import ply_bytes
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
+from datasets_synthetic.pixel_filter import path_tracer_filter
 from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes)
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
@@ -65,12 +66,18 @@ class SynthConfig:
     """Overrides of the scene's parameter dataclass (e.g. ``{"strands": 5000}``)."""
     views: tuple[int, ...] | None = None
     """Render only these indices of the rig's views (None = all); noise seeds follow the index."""
+    pixel_filter_px: float = 0.0
+    """Film filter of the colour: a Gaussian of this standard deviation in total, like a path
+    tracer's (``datasets_synthetic.pixel_filter``; ``furrow synth`` defaults to 0.5); 0 = the
+    rasteriser's 1-pixel box."""
 
     def __post_init__(self) -> None:
         if self.background not in ("env", "black"):
             raise ValueError(f"background must be 'env' or 'black', got {self.background!r}")
         if self.supersample < 1:
             raise ValueError(f"supersample must be >= 1, got {self.supersample}")
+        if not 0 <= self.pixel_filter_px <= 4:
+            raise ValueError(f"pixel_filter_px must be in [0, 4], got {self.pixel_filter_px}")
 
 
 @dataclass(frozen=True)
@@ -137,6 +144,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
                 rgb = res.color + (1.0 - res.alpha[..., None]) * bg
             else:
                 rgb = res.color
+            rgb = path_tracer_filter(rgb, cfg.pixel_filter_px)
             depth = res.depth
             if nz.grazing_deg > 0:
                 depth = grazing_dropout(cam, depth, res.normal, nz.grazing_deg)
@@ -156,7 +164,8 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "name": scene.name, "seed": scene.seed, "generator": "furrow datasets_synthetic",
         "units": "metres, world +z up", "bounds": tight.tolist(), "scanset_bounds": bounds.tolist(),
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
-        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(), "supersample": cfg.supersample,
+        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(),
+        "supersample": cfg.supersample, "pixel_filter_px": cfg.pixel_filter_px,
         "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
         "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
     }

@@ -5,13 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-HELP = "synthesise a turntable capture of a procedural scene (furball, plant, torus, furrybunny) with exact ground truth"
+HELP = ("synthesise a turntable capture of a procedural scene (furball, plant, torus, furrybunny) with exact "
+        "ground truth")
 DESCRIPTION = """Render a seeded procedural scene from a turntable rig (world +z up, cameras ringing the z axis,
 looking at the origin) under an environment map, and write a scan set: transforms.json,
 images/ (8-bit sRGB), depth/ (z-depth as an RGB-D sensor writes it: 16-bit PNG in millimetres, with
 one top-level "depth_unit_scale_factor": 0.001 in transforms.json, as nerfstudio reads it; or
 --depth-format png-0.1mm / exr) and gt/ (gt/mesh.ply exact geometry in metres, gt/scene.json
 parameters, gt/cameras_true.json when the recorded poses are perturbed).
+
+Colour is reconstructed with a Gaussian film filter of --pixel-filter pixels (default 0.5, the
+default of pbrt-v4 and Mitsuba 3), as a path tracer's images are; 0 keeps the 1-pixel box.
 
 The depth carries the traits of a sensor (--sensor, datasets_synthetic/sensor.py): d435 (default;
 Intel RealSense D435 active stereo: z-squared noise 3.6 mm at 1 m, 1 mm output unit, flying pixels
@@ -91,6 +95,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="strand shading: chiang (R/TT/TRT lobes, default) or kajiya-kay (the older lobe)")
     p.add_argument("--lights", type=int, default=3, help="dominant lights casting shadows (0-4, default 3)")
     p.add_argument("--supersample", type=int, default=3, help="colour supersampling per axis (default 3)")
+    p.add_argument("--pixel-filter", type=float, default=0.5, metavar="SIGMA",
+                   help="film filter: Gaussian of SIGMA pixels in total, like a path tracer's (default 0.5, "
+                        "pbrt-v4 / Mitsuba 3); 0 = a 1-pixel box")
     p.add_argument("--background", choices=["env", "black"], default="black",
                    help="what is seen behind the object: black (default, like a masked scan and like furrow render's output) or the environment map")
     p.add_argument("--depth-noise", type=float, default=0.0, metavar="K",
@@ -155,7 +162,8 @@ def build_config(args):
             raise ValueError(f"--strands must be >= 1, got {strands}")
         params["strands"] = strands
     return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
-                       supersample=args.supersample, background=args.background, scene_params=params)
+                       supersample=args.supersample, background=args.background, scene_params=params,
+                       pixel_filter_px=args.pixel_filter)
 
 
 def run(args, console) -> int:
