@@ -61,8 +61,8 @@ class FurballParams:
 
     body_axes: tuple[float, float, float] = (0.075, 0.062, 0.052)
     """Semi-axes of the ellipsoidal body."""
-    strands: int = 14000
-    """Number of strands (thin tubes)."""
+    strands: int = 20000
+    """Number of strands (thin tubes); 20,000 like the path-traced evaluation fur ball (issue 11)."""
     length: float = 0.030
     """Mean strand length."""
     length_jitter: float = 0.3
@@ -174,13 +174,14 @@ class PlantParams:
     """Height of the stem above the soil."""
     stem_radius: float = 0.0032
     """Stem radius at the soil (tapers to 40% at the top)."""
-    branches: int = 14
+    branches: int = 20
     """Number of needle-bearing branches."""
     branch_length: tuple[float, float] = (0.06, 0.11)
     """Range of branch lengths."""
-    needle_spacing: float = 0.0016
-    """Distance between needle whorls along a branch."""
-    needles_per_whorl: int = 5
+    needle_spacing: float = 0.00115
+    """Distance between needle whorls along a branch (with 20 branches and 6 needles a whorl about
+    6,100-6,300 needles, like the 6,400 needle curves of the path-traced evaluation conifer)."""
+    needles_per_whorl: int = 6
     """Needles in one whorl."""
     needle_length: tuple[float, float] = (0.010, 0.017)
     """Range of needle lengths."""

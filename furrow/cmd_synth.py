@@ -80,7 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the geometry and of the noise (default 0)")
     p.add_argument("--small", action="store_true", help="CI-sized capture: 12 views at 160x120")
     p.add_argument("--strands", type=int, default=None,
-                   help="furball / furrybunny: number of strands (default 14000 / 20000; --small: 5000)")
+                   help="furball / furrybunny: number of strands (default 20000; --small: 5000)")
     p.add_argument("--elevations", type=_floats, default=(15.0,),
                    help="ring elevations in degrees, comma-separated (views are split evenly; default 15, the "
                         "rig of the evaluation captures)")
