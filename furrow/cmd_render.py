@@ -24,7 +24,9 @@ examples:
   furrow render out/fur_model --cameras out/furball/transforms.json -o out/renders
   furrow render out/fur_model --cameras out/furball --frames 1::2 --tolerance 4 -o out/r4
   furrow render out/fur_model --cameras out/furball --orbit 72 -o out/orbit
-  furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline"""
+  furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline
+  furrow render out/fur_model --cameras out/furball --relight sunset -o out/relit
+  furrow render out/fur_model --cameras out/furball --relight --env sunset --ground -o out/relit_env"""
 
 #: Command-line flag -> the RenderOptions field it sets.
 OPTION_FLAGS = {"tolerance": "tolerance_px", "level": "level", "supersample": "supersample", "refine": "refine",
@@ -61,6 +63,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--exposure", type=float, default=1.0, help="with --env: linear exposure factor (default 1)")
     g.add_argument("--no-glare", action="store_true", help="with --env: no glare streaks on over-bright pixels")
     g.add_argument("--env-rotation", type=float, default=0.0, help="with --env: rotate the map about its up axis (deg)")
+    from furrow.relight_flags import add_relight_arguments
+
+    add_relight_arguments(p)
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -134,6 +139,7 @@ def run(args, console) -> int:
     from capture.imageio import write_png
     from capture.scan import to_uint8_srgb
     from furrow.console import StageTimer, track
+    from furrow.relight_flags import open_relighter
     from render.gl import gl_context
     from render.methods import create_renderer
     from volume.model import load_model
@@ -157,6 +163,7 @@ def run(args, console) -> int:
     stats = []
     with gl_context() as ctx, ExitStack() as owned:
         r = owned.enter_context(create_renderer(args.method, ctx, model, options))
+        relighter = open_relighter(args, ctx, model, owned)  # None without --relight
         compositor = None
         if env is not None:
             from render.composite import Compositor
@@ -167,9 +174,12 @@ def run(args, console) -> int:
         with timer.stage(f"render {len(views)} frames ({args.method})"):
             for cam, name in track(views, "rendering", total=len(views)):
                 fr = r.render(cam)
+                if relighter is not None:
+                    fr = relighter.apply(fr, cam)
                 img = fr.rgb if compositor is None else composite(ctx, fr, cam, env, args, model, up, compositor)
                 write_png(args.out / name, to_uint8_srgb(img))
-                stats.append({"file": name, **fr.stats.record()})
+                stats.append({"file": name, **fr.stats.record(),
+                              **({"relight_ms": relighter.last_ms} if relighter is not None else {})})
     (args.out / "render_stats.json").write_text(json.dumps({"method": args.method, "tolerance_px": options.tolerance_px,
                                                             "supersample": options.supersample, "frames": stats},
                                                            indent=1))

@@ -10,11 +10,13 @@ The capture lighting A is the model's (``volume.model.CaptureLighting``, stored 
 Two passes (numpy twin ``render.relight_reference``, environment maths
 ``render.shading.relight``):
 
-1. once per (model, A, B): the gain volume -- on the cube of a coarse pyramid level, the colour
-   gain B / A of the transfer quotient at every voxel (``relight_volume_frag.glsl``);
-2. per frame, deferred: each pixel's world point from the frame's depth, the gain volume sampled
-   there, times the colour (``relight_apply_frag.glsl``).  Black stays black, the coverage and
-   depth are the frame's, so the result composites like any frame (``--env MAP --ground``).
+1. once per (model, A, B): the share volume -- on the cube of a coarse pyramid level, the share
+   of each lighting the sphere set leaves visible near the surface (``relight_volume_frag.glsl``);
+2. per frame, deferred: each pixel's world point from the frame's depth, its orientation (the
+   smoothed SDF's gradient), the direction to the camera, the shares, the gain B / A of the
+   transfer quotient, times the colour (``relight_apply_frag.glsl``).  Black stays black, the
+   coverage and depth are the frame's, so the result composites like any frame (``--env MAP
+   --ground``).
 """
 
 from __future__ import annotations
@@ -58,8 +60,10 @@ class RelightConfig:
 
     #: Transfer kernel (render.shading.relight.KERNELS).
     kernel: str = rl.DEFAULT_KERNEL
-    #: SG lobes fitted to each environment for the visible share.
+    #: SG lobes fitted to each environment (visible share, forward scattering).
     sg_lobes: int = rl.RELIGHT_SG_K
+    #: Weight of the forward-scattered (view-dependent) transfer; 0 = view-independent.
+    forward: float = rl.FORWARD_SCATTER
     #: Self-visibility from the model's sphere set (SSDF); False: unoccluded transfers.
     visibility: bool = True
     #: Regularisation of the quotient (fraction of the reference transfers).
@@ -76,8 +80,13 @@ class RelightConfig:
             raise ValueError(f"unknown relighting kernel {self.kernel!r}; use one of {', '.join(rl.KERNELS)}")
         if not 1 <= int(self.sg_lobes) <= MAX_RELIGHT_SG:
             raise ValueError(f"sg_lobes must be 1..{MAX_RELIGHT_SG}, got {self.sg_lobes}")
-        if not (self.regularise >= 0 and self.max_gain > 0 and self.smooth >= 0 and self.volume_res >= 2):
-            raise ValueError("RelightConfig: regularise >= 0, max_gain > 0, smooth >= 0, volume_res >= 2")
+        if not (self.regularise >= 0 and self.max_gain > 0 and self.smooth >= 0 and self.volume_res >= 2
+                and self.forward >= 0):
+            raise ValueError("RelightConfig: regularise >= 0, max_gain > 0, smooth >= 0, volume_res >= 2, forward >= 0")
+
+    def gain_kwargs(self) -> dict:
+        """The keyword arguments of ``render.shading.relight.relight_gain`` this config sets."""
+        return {"forward": self.forward, "regularise": self.regularise, "max_gain": self.max_gain}
 
 
 def capture_envmap_of(model) -> tuple[EnvMap, np.ndarray]:
@@ -111,28 +120,33 @@ class Relighter(GLOwner):
         self.up = np.asarray(up, np.float64)
         self.model = model
         defines = {"MAX_SG": MAX_RELIGHT_SG, "RELIGHT_MIN_GRADIENT": f"{rl.MIN_GRADIENT:.9e}",
+                   "RELIGHT_KERNEL": list(rl.KERNELS).index(self.config.kernel),
+                   "RELIGHT_FORWARD_G": f"{rl.FORWARD_G:.9e}",
                    "RELIGHT_LIFT_VOXELS": f"{VISIBILITY_LIFT_VOXELS:.9e}",
                    "RELIGHT_BAND_VOXELS": f"{VISIBILITY_BAND_VOXELS:.9e}", "SG_FH_TABLE": 1}
         self._vol_prog = self.own(program(ctx, "composite_vert.glsl", "relight_volume_frag.glsl", defines=defines))
-        self._app_prog = self.own(program(ctx, "composite_vert.glsl", "relight_apply_frag.glsl"))
+        self._app_prog = self.own(program(ctx, "composite_vert.glsl", "relight_apply_frag.glsl", defines=defines))
         self._vol_vao = self.own(ctx.vertex_array(self._vol_prog, []))
         self._app_vao = self.own(ctx.vertex_array(self._app_prog, []))
         self._fh = self.own(fh_texture(ctx))
         self.raw = orientation_grid(model, self.config.volume_res)
         self.smooth = smoothed(self.raw, self.config.smooth * self.raw.resolution)
         self._sdf_raw = self.own(self._texture3d(self.raw.values[..., None]))
-        self._sdf_smooth = self.own(self._texture3d(self.smooth.values[..., None]))
+        self._sdf_smooth = self.own(self._texture3d(self.smooth.values[..., None], linear=True))
         sph = np.zeros((max(len(model.spheres), 1), 4), np.float32)
         if len(model.spheres):
             sph[:, :3] = model.spheres.centers
             sph[:, 3] = model.spheres.radii
         self._spheres = self.own(ctx.buffer(sph.tobytes()))
-        self._gain_tex = None
-        self.gain_volume = None
+        self._share_tex = (None, None)
+        self._tables = (None, None)
+        #: (L, L, L, 6) float32 visible shares (S_A rgb, S_B rgb) of the last share pass.
+        self.share_volume = None
         #: Seconds spent preparing each lighting and building the gain volume (last set_*).
         self.setup_seconds: dict = {}
         self.capture = self._lighting(capture_env, "capture")
         self.new = self._lighting(new_env, "new")
+        self._upload_tables()
         self._build_volume()
 
     @classmethod
@@ -164,6 +178,7 @@ class Relighter(GLOwner):
         """Relight to another map from now on (the viewer's switch): its lighting and the gain volume."""
         self.check_alive()
         self.new = self._lighting(env, "new")
+        self._upload_tables()
         self._build_volume()
 
     @property
@@ -171,58 +186,63 @@ class Relighter(GLOwner):
         """(3,) mean radiance of the new map over the capture's (the single-gain baseline)."""
         return rl.global_gain(self.capture, self.new)
 
+    def _upload_tables(self) -> None:
+        from render.shading.irradiance import irradiance_texture
+
+        self.free(*self._tables)
+        self._tables = tuple(self.own(irradiance_texture(self.ctx, lt.table)) for lt in (self.capture, self.new))
+
+    def _bind(self, p, units) -> None:
+        from render.gl import set_uniform
+
+        for unit, (name, tex) in enumerate(units):
+            tex.use(unit)
+            set_uniform(p, name, unit)
+
     # ------------------------------------------------------------------ passes
     def _set_lighting_uniforms(self, p) -> None:
         from render.gl import set_uniform
         from render.shading.sg import fh_glsl_params
 
         for tag, lt in (("a", self.capture), ("b", self.new)):
-            p[f"u_sg_axis_{tag}"].write(_padded(lt.axes, 3))
-            p[f"u_sg_lambda_{tag}"].write(_padded(lt.lams, 1))
-            p[f"u_sg_mu_{tag}"].write(_padded(lt.mus, 3))
+            for name, arr, width in (("axis", lt.axes, 3), ("lambda", lt.lams, 1), ("mu", lt.mus, 3)):
+                if f"u_sg_{name}_{tag}" in p:
+                    p[f"u_sg_{name}_{tag}"].write(_padded(arr, width))
             set_uniform(p, f"u_sg_count_{tag}", len(lt.lams))
             set_uniform(p, f"u_ref_{tag}", tuple(float(v) for v in lt.reference))
         set_uniform(p, "u_to_env", tuple(np.asarray(self.capture.to_env, np.float64).T.reshape(-1)))
         set_uniform(p, "u_global_gain", tuple(float(v) for v in self.global_gain))
         set_uniform(p, "u_regularise", float(self.config.regularise))
+        set_uniform(p, "u_forward", float(self.config.forward))
         set_uniform(p, "u_max_gain", float(self.config.max_gain))
         set_uniform(p, "u_fh_params", fh_glsl_params())
         set_uniform(p, "u_ssdf_count", len(self.model.spheres) if self.config.visibility else 0)
 
     def _build_volume(self) -> None:
-        """Pass 1: the gain volume (module doc), read back into ``gain_volume`` and kept as a texture."""
+        """Pass 1: the share volume (module doc), read back into ``share_volume``, kept as textures."""
         import moderngl
 
         from render.gl import set_uniform
-        from render.shading.irradiance import irradiance_texture
 
         t0 = time.perf_counter()
         ctx, p, L = self.ctx, self._vol_prog, self.raw.resolution
-        tabs = [irradiance_texture(ctx, lt.table) for lt in (self.capture, self.new)]
-        tgt = self.target(L * L, L, colours=(4,), depth=False)
-        try:
-            self._set_lighting_uniforms(p)
-            self._spheres.bind_to_storage_buffer(5)
-            units = (("u_fh_table", self._fh), ("u_table_a", tabs[0]), ("u_table_b", tabs[1]),
-                     ("u_sdf_raw", self._sdf_raw), ("u_sdf_smooth", self._sdf_smooth))
-            for unit, (name, tex) in enumerate(units):
-                tex.use(unit)
-                set_uniform(p, name, unit)
-            set_uniform(p, "u_origin", tuple(float(v) for v in self.raw.origin))
-            set_uniform(p, "u_voxel", float(self.raw.voxel))
-            set_uniform(p, "u_res", L)
-            tgt.fbo.use()
-            ctx.viewport = (0, 0, L * L, L)
-            ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-            self._vol_vao.render(moderngl.TRIANGLES, vertices=3)
-            atlas = tgt.read_colour(0)[..., :3]  # (L rows j, L*L columns i + L k)
-        finally:
-            for t in tabs:
-                t.release()
-        vol = atlas.reshape(L, L, L, 3).transpose(2, 0, 1, 3)  # [j, k, i] -> [i, j, k]
-        self.gain_volume = np.ascontiguousarray(vol, np.float32)
-        self.free(self._gain_tex)
-        self._gain_tex = self.own(self._texture3d(self.gain_volume, linear=True))
+        tgt = self.target(L * L, L, colours=(4, 4), depth=False)
+        self._set_lighting_uniforms(p)
+        self._spheres.bind_to_storage_buffer(5)
+        self._bind(p, (("u_fh_table", self._fh), ("u_table_a", self._tables[0]), ("u_table_b", self._tables[1]),
+                       ("u_sdf_raw", self._sdf_raw), ("u_sdf_smooth", self._sdf_smooth)))
+        set_uniform(p, "u_origin", tuple(float(v) for v in self.raw.origin))
+        set_uniform(p, "u_voxel", float(self.raw.voxel))
+        set_uniform(p, "u_res", L)
+        tgt.fbo.use()
+        ctx.viewport = (0, 0, L * L, L)
+        ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
+        self._vol_vao.render(moderngl.TRIANGLES, vertices=3)
+        # atlas rows j, columns i + L k -> [j, k, i] -> [i, j, k]
+        vols = [tgt.read_colour(c)[..., :3].reshape(L, L, L, 3).transpose(2, 0, 1, 3) for c in (0, 1)]
+        self.share_volume = np.ascontiguousarray(np.concatenate(vols, -1), np.float32)
+        self.free(*self._share_tex)
+        self._share_tex = tuple(self.own(self._texture3d(v, linear=True)) for v in vols)
         self.setup_seconds["volume"] = time.perf_counter() - t0
 
     def apply(self, frame: Frame, camera: Camera) -> Frame:
@@ -242,14 +262,16 @@ class Relighter(GLOwner):
         tgt = self.target(W, H, colours=(4,), depth=False)
         try:
             with FrameTimer(ctx) as t:
-                for unit, (name, tex) in enumerate((("u_rgb", t_rgb), ("u_depth", t_dep), ("u_gain", self._gain_tex))):
-                    tex.use(unit)
-                    set_uniform(p, name, unit)
+                self._set_lighting_uniforms(p)
+                self._bind(p, (("u_rgb", t_rgb), ("u_depth", t_dep), ("u_table_a", self._tables[0]),
+                               ("u_table_b", self._tables[1]), ("u_sdf_smooth", self._sdf_smooth),
+                               ("u_share_a", self._share_tex[0]), ("u_share_b", self._share_tex[1])))
                 ray = camera.cam_from_world[:3, :3].T @ np.linalg.inv(camera.K)
                 set_uniform(p, "u_ray", tuple(ray.T.reshape(-1)))
                 set_uniform(p, "u_eye", tuple(float(v) for v in camera.center))
                 set_uniform(p, "u_origin", tuple(float(v) for v in self.raw.origin))
-                set_uniform(p, "u_extent", float(self.raw.voxel * self.raw.resolution))
+                set_uniform(p, "u_voxel", float(self.raw.voxel))
+                set_uniform(p, "u_res", self.raw.resolution)
                 set_uniform(p, "u_height", H)
                 tgt.fbo.use()
                 ctx.viewport = (0, 0, W, H)

@@ -1,14 +1,14 @@
 """Numpy twin of the relighting passes (``render.relight.Relighter``; shaders
 ``render/shaders/relight_volume_frag.glsl`` and ``relight_apply_frag.glsl``).
 
-1. **Gain volume** (once per capture / new lighting): at every voxel centre x of a cube over the
-   model, the orientation n = the gradient of the model's signed distance smoothed at the scale of
-   the lighting (:data:`ORIENTATION_SMOOTH` of the cube), and the colour gain of
-   ``render.shading.relight.relight_gain`` there -- its visibility (the sphere set's SSDF) taken at
-   the voxel's nearest surface point x - d(x) n, lifted by VISIBILITY_LIFT_VOXELS, for the voxels
-   within VISIBILITY_BAND_VOXELS of the surface.
+1. **Share volume** (once per capture / new lighting): at every voxel centre x of a cube over the
+   model within VISIBILITY_BAND_VOXELS of the surface, the visible shares S_A, S_B
+   (``render.shading.relight.visible_share``: the sphere set's SSDF) at the voxel's nearest surface
+   point x - d(x) n, lifted by VISIBILITY_LIFT_VOXELS; n = the gradient of the model's signed
+   distance smoothed at the scale of the lighting (:data:`ORIENTATION_SMOOTH` of the cube).
 2. **Apply** (per frame, deferred over any method's Frame): the world point of each pixel's depth,
-   the gain volume sampled there (trilinear, clamped to the edge texels), times the colour.
+   its orientation (the smoothed SDF's gradient there), the direction to the camera, the shares
+   sampled from the volume, the gain of ``render.shading.relight.relight_gain``, times the colour.
 
 Volumes are sampled as GL samples a 3-D texture (texel centres at origin + (i + 0.5) w, trilinear,
 clamped to the edge texels); the gradient is the central difference over one voxel on each axis.
@@ -148,24 +148,28 @@ def voxel_centres(grid: SdfGrid) -> np.ndarray:
     return grid.origin + np.stack([X, Y, Z], -1).reshape(-1, 3)
 
 
-def gain_volume_reference(raw: SdfGrid, smooth: SdfGrid, a, b, spheres=None, **gain_kw) -> np.ndarray:
-    """(L, L, L, 3) float32 gain at the voxel centres (module doc, step 1): orientation from
-    ``smooth``, the surface point from ``raw`` (same placement); ``a``, ``b``:
-    ``render.shading.relight.RelightLighting``; ``gain_kw`` to ``relight_gain``."""
-    from render.shading.relight import relight_gain
+def share_volume_reference(raw: SdfGrid, smooth: SdfGrid, a, b, spheres=None) -> np.ndarray:
+    """(L, L, L, 6) float32 visible shares (S_A rgb, S_B rgb) at the voxel centres (module doc,
+    step 1): orientation from ``smooth``, the surface point from ``raw`` (same placement), 1
+    outside the band or without spheres; ``a``, ``b``: ``render.shading.relight.RelightLighting``."""
+    from render.shading.relight import visible_share
 
     L = raw.resolution
+    out = np.ones((L ** 3, 6))
+    if spheres is None or not len(spheres):
+        return out.reshape(L, L, L, 6).astype(np.float32)
     x = voxel_centres(raw)
     g = sdf_gradient(smooth, x)
     gl = np.linalg.norm(g, axis=1, keepdims=True)
-    n = g / np.maximum(gl, 1e-30)
+    ok = gl[:, 0] > 0
+    n = g / np.where(gl > 0, gl, 1.0)
     d = raw.values.reshape(-1).astype(np.float64)
     xs = x - (d - VISIBILITY_LIFT_VOXELS * raw.voxel)[:, None] * n
-    out = relight_gain(xs, g, a, b, None, **gain_kw)
-    band = np.abs(d) <= VISIBILITY_BAND_VOXELS * raw.voxel
-    if spheres is not None and len(spheres) and band.any():
-        out[band] = relight_gain(xs[band], g[band], a, b, spheres, **gain_kw)
-    return out.reshape(L, L, L, 3).astype(np.float32)
+    band = (np.abs(d) <= VISIBILITY_BAND_VOXELS * raw.voxel) & ok
+    if band.any():
+        out[band, :3] = visible_share(xs[band], n[band], a, spheres)
+        out[band, 3:] = visible_share(xs[band], n[band], b, spheres)
+    return out.reshape(L, L, L, 6).astype(np.float32)
 
 
 def volume_sample(volume, origin, voxel: float, points) -> np.ndarray:
@@ -175,12 +179,20 @@ def volume_sample(volume, origin, voxel: float, points) -> np.ndarray:
                      for c in range(v.shape[-1])], -1)
 
 
-def apply_reference(rgb, depth, camera: Camera, volume, origin, voxel: float) -> np.ndarray:
-    """(H, W, 3) float32 (module doc, step 2): ``rgb`` times the gain volume at each pixel's world
-    point where depth > 0; the other pixels unchanged (black stays black)."""
+def apply_reference(rgb, depth, camera: Camera, smooth: SdfGrid, shares, a, b, **gain_kw) -> np.ndarray:
+    """(H, W, 3) float32 (module doc, step 2): ``rgb`` times the gain at each pixel's world point
+    where depth > 0 (the other pixels unchanged: black stays black): orientation = gradient of
+    ``smooth`` there, the visible shares sampled from ``shares`` (same placement), the view from the
+    point to the camera; ``gain_kw`` to ``render.shading.relight.relight_gain``."""
+    from render.shading.relight import relight_gain
+
     out = np.asarray(rgb, np.float64).copy()
     dep = np.asarray(depth, np.float64)
     m = dep > 0
     if m.any():
-        out[m] *= volume_sample(volume, origin, voxel, frame_points(dep, camera)[m])
+        x = frame_points(dep, camera)[m]
+        v = camera.center - x
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        sh = volume_sample(shares, smooth.origin, smooth.voxel, x)
+        out[m] *= relight_gain(x, sdf_gradient(smooth, x), a, b, views=v, shares=(sh[:, :3], sh[:, 3:]), **gain_kw)
     return out.astype(np.float32)

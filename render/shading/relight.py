@@ -5,7 +5,7 @@ What the capture saw at a point x is C_A = integral rho(w) L_A(w) V(x, w) dw (ti
 exposure and the surface's reflectance); under another environment B the same point shows
 C_B ~ C_A * T_B(x) / T_A(x), the quotient of the two *transfers*
 
-    T(x) = E_K(n) * S(x),
+    T(x, v) = (E_K(n) + beta F(n, v)) * S(x),
 
 * E_K(n) = integral K(n.w) L(w) dw, the unoccluded transfer of a zonal kernel K around the point's
   orientation n (the SDF gradient: the surface normal, or the strand direction of fur grown
@@ -19,6 +19,10 @@ C_B ~ C_A * T_B(x) / T_A(x), the quotient of the two *transfers*
   SSDF model's f_h(SSDF(x, axis), lambda) / f_h(pi/2, lambda) (``render.shading.ssdf``; the
   visible share of the ground shadow of seed 004 Eq. 16-17), weighted by the lobes' integrals.
   S = 1 with nothing in the way, so the convex case is exact.
+* F(n, v), the light fibres scatter forwards (the TT lobe of hair, Marschner et al. 2003): the SG
+  lobes as lights, each weighted by the kernel at its axis and a Henyey-Greenstein phase
+  (mean 1 over the sphere, asymmetry FORWARD_G) of the angle between the light and the direction
+  to the camera v; beta = FORWARD_SCATTER.  This is the view-dependent part: back-lit fur glows.
 
 Energy stays sane where the quotient is ill-posed (a point the capture barely lit, a normal the
 lighting grazes): both transfers get REGULARISE x their environment's reference transfer (the
@@ -65,8 +69,13 @@ DEFAULT_KERNEL = "lambert"
 #: Rows of the transfer table (h, 2h) and of the map it is computed from (the irradiance table's
 #: h = 64 is within 1.1 % of the brute-force integral: render.shading.irradiance).
 TRANSFER_TABLE_H = 64
-#: SG lobes fitted to each environment for the visible share.
+#: SG lobes fitted to each environment (visible share, forward scattering).
 RELIGHT_SG_K = 16
+#: Weight beta of the forward-scattered light against the diffuse transfer, and the asymmetry g of
+#: its Henyey-Greenstein phase (module doc; 0 = view-independent).  Measured on the fur ball
+#: (docs/relight.md): backward scattering (g < 0) loses, beta 0.3-3 and g 0.3-0.8 all gain.
+FORWARD_SCATTER = 1.0
+FORWARD_G = 0.5
 #: Both transfers get this fraction of their environment's reference transfer added (module doc):
 #: where the capture transfer is below about this fraction of its typical value the gain tends
 #: to the global gain instead of dividing by nearly nothing.
@@ -167,9 +176,32 @@ def visible_share(points, normals, lighting: RelightLighting, spheres=None) -> n
     return np.where(tot > 0, np.einsum("pk,pkc->pc", share, w) / np.where(tot > 0, tot, 1.0), 1.0)
 
 
-def transfer(points, normals, lighting: RelightLighting, spheres=None) -> np.ndarray:
-    """(P, 3) T(x) = E_K(n) S(x) (module doc)."""
-    return unoccluded_transfer(lighting, normals) * visible_share(points, normals, lighting, spheres)
+def henyey_greenstein(c, g: float = FORWARD_G) -> np.ndarray:
+    """Henyey-Greenstein phase times 4 pi (mean 1 over the sphere) at cosine ``c`` of the scattering
+    angle (1 = straight on)."""
+    c = np.asarray(c, np.float64)
+    return (1 - g * g) / (1 + g * g - 2 * g * c) ** 1.5
+
+
+def forward_transfer(lighting: RelightLighting, normals, views, g: float = FORWARD_G) -> np.ndarray:
+    """(P, 3) F(n, v) (module doc) at world unit ``normals`` and unit directions to the camera
+    ``views`` (P, 3): sum_k integral(G_k) K(n.p_k) HG(-v.p_k)."""
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    v = np.asarray(views, np.float64).reshape(-1, 3)
+    ax = np.asarray(lighting.axes, np.float64)
+    power = np.asarray(lighting.mus, np.float64) * sg_integral(np.asarray(lighting.lams, np.float64))[:, None]
+    w = KERNELS[lighting.kernel](n @ ax.T) * henyey_greenstein(-(v @ ax.T), g)
+    return w @ power
+
+
+def transfer(points, normals, lighting: RelightLighting, spheres=None, views=None,
+             forward: float = FORWARD_SCATTER) -> np.ndarray:
+    """(P, 3) T(x, v) (module doc); without ``views`` (or with ``forward`` 0) the view-independent
+    E_K(n) S(x)."""
+    t = unoccluded_transfer(lighting, normals)
+    if views is not None and forward:
+        t = t + forward * forward_transfer(lighting, normals, views)
+    return t * visible_share(points, normals, lighting, spheres)
 
 
 def global_gain(a: RelightLighting, b: RelightLighting) -> np.ndarray:
@@ -178,19 +210,29 @@ def global_gain(a: RelightLighting, b: RelightLighting) -> np.ndarray:
     return np.where(ma > 0, mb / np.where(ma > 0, ma, 1.0), 1.0)
 
 
-def relight_gain(points, normals, a: RelightLighting, b: RelightLighting, spheres=None,
-                 regularise: float = REGULARISE, max_gain: float = MAX_GAIN) -> np.ndarray:
+def relight_gain(points, normals, a: RelightLighting, b: RelightLighting, spheres=None, views=None,
+                 forward: float = FORWARD_SCATTER, regularise: float = REGULARISE, max_gain: float = MAX_GAIN,
+                 shares=None) -> np.ndarray:
     """(P, 3) colour gain from capture lighting ``a`` to ``b`` at world ``points`` with SDF
-    gradients ``normals`` (any length): the regularised transfer quotient clamped to
-    [0, max_gain x global gain]; the global gain where the gradient is (near) zero."""
+    gradients ``normals`` (any length) seen from unit directions ``views`` (None: no forward
+    scattering): the regularised transfer quotient clamped to [0, max_gain x global gain]; the
+    global gain where the gradient is (near) zero.  ``shares``: the visible shares (S_A, S_B) to
+    use instead of computing them from ``spheres``."""
     if a.kernel != b.kernel:
         raise ValueError(f"relight_gain: both lightings need the same kernel, got {a.kernel} and {b.kernel}")
     n = np.asarray(normals, np.float64).reshape(-1, 3)
     nl = np.linalg.norm(n, axis=1)
     ok = nl > MIN_GRADIENT
     un = np.where(ok[:, None], n / np.where(ok, nl, 1.0)[:, None], np.array([0.0, 0.0, 1.0]))
-    return gain_from_transfers(transfer(points, un, a, spheres), transfer(points, un, b, spheres), a.reference,
-                               b.reference, global_gain(a, b), ok, regularise, max_gain)
+    if shares is None:
+        shares = (visible_share(points, un, a, spheres), visible_share(points, un, b, spheres))
+    f = forward if views is not None else 0.0
+    ta, tb = (unoccluded_transfer(lt, un) for lt in (a, b))
+    if f:
+        ta = ta + f * forward_transfer(a, un, views)
+        tb = tb + f * forward_transfer(b, un, views)
+    return gain_from_transfers(ta * shares[0], tb * shares[1], (1 + f) * a.reference, (1 + f) * b.reference,
+                               global_gain(a, b), ok, regularise, max_gain)
 
 
 def gain_from_transfers(ta, tb, ref_a, ref_b, g, ok, regularise: float = REGULARISE,

@@ -55,20 +55,22 @@ def test_unoccluded_transfer_against_brute_force(kernel):
 
 
 def test_sphere_occlusion_against_ray_tests():
-    """A sphere beside the point takes light away as the exact ray test says, to the accuracy of the
-    SSDF model: within 15 % of the unoccluded transfer."""
+    """Points in a trench between two big spheres (about 40 % of their light blocked): the SSDF
+    share brings the transfer within 15 % of the exact ray test (measured 3-5 % with 16 lobes;
+    ignoring the occluders is 39-42 % off)."""
     env = _sky()
-    lt = rl.relight_lighting(env, k=8)
-    sun = _unit(rl.world_to_env((0, 0, 1.0)).T @ np.array([0.64, 0.54, 0.57]))
-    sp = SphereSet(np.array([0.35 * sun + [0, 0, 0.02]]), np.array([0.15]))
-    x = np.zeros((3, 3))
-    n = _unit([[0, 0, 1.0], sun, [1.0, 0.0, 0.2]])
-    got = rl.transfer(x, n, lt, sp)
+    lt = rl.relight_lighting(env, k=16)
+    sp = SphereSet(np.array([[0.25, 0, 0.0], [-0.25, 0, 0.0]]), np.array([0.2, 0.2]))
+    x = np.array([[0, y, 0.0] for y in np.linspace(-0.1, 0.1, 5)])
     src = env.resized(rl.TRANSFER_TABLE_H)
-    ref = _brute(src, x, n, "lambert", sp)
-    free = _brute(src, x, n, "lambert")
-    assert np.all(ref.sum(1)[:2] < 0.8 * free.sum(1)[:2])  # the sun is blocked at the first two
-    assert np.max(np.abs(got - ref).sum(1) / free.sum(1)) < 0.15
+    for nrm in ([0, 0, 1.0], [0.3, 0, 1], [0, 0.5, 1]):
+        n = np.tile(_unit(nrm), (5, 1))
+        got = rl.transfer(x, n, lt, sp)
+        ref = _brute(src, x, n, "lambert", sp)
+        free = _brute(src, x, n, "lambert")
+        err = np.abs(got - ref).sum(1) / free.sum(1)
+        err_none = np.abs(free - ref).sum(1) / free.sum(1)
+        assert err_none.mean() > 0.35 and err.mean() < 0.15 and err.mean() < 0.3 * err_none.mean(), (err, err_none)
 
 
 def test_same_lighting_is_the_identity():
@@ -92,7 +94,7 @@ def test_energy_clamp_where_the_capture_saw_nothing():
     a = rl.relight_lighting(_point_light([0, 0, 1.0], [1, 1, 1]), k=2)
     b = rl.relight_lighting(_point_light([0, 0, -1.0], [1, 2, 1]), k=2)
     g = rl.global_gain(a, b)
-    np.testing.assert_allclose(g, [1, 2, 1], rtol=1e-3)
+    np.testing.assert_allclose(g, [1, 2, 1], rtol=0.05)  # the maps also hold a dim uniform floor
     n = np.array([[0, 0, -1.0], [0, 0, 1.0], [0, 0, 0]])  # lit by B only, by A only, no orientation
     q = rl.relight_gain(np.zeros((3, 3)), n, a, b)
     assert np.all(np.isfinite(q)) and np.all(q >= 0)
@@ -105,12 +107,18 @@ def test_energy_clamp_where_the_capture_saw_nothing():
 
 
 def test_grazing_orientation_stays_bounded():
-    """Orientations the light grazes (n perpendicular to the only light in A and in B): bounded
-    by the clamp, finite, and equal to the global gain when both lights are symmetric about n."""
+    """Orientations sweeping through the terminator of the capture's only (sharp) light: the gain
+    stays finite, within the clamp, and changes smoothly (no spike where the capture transfer
+    passes through ~0)."""
     a = rl.relight_lighting(_point_light([1.0, 0, 0], [1, 1, 1]), k=2)
-    b = rl.relight_lighting(_point_light([-1.0, 0, 0], [2, 2, 2]), k=2)
-    q = rl.relight_gain(np.zeros((2, 3)), np.array([[0, 0, 1.0], [0, 1.0, 0]]), a, b)
-    np.testing.assert_allclose(q, 2.0, rtol=0.02)
+    b = rl.relight_lighting(_point_light([0, 0, 1.0], [2, 2, 2]), k=2)
+    g = rl.global_gain(a, b)
+    ang = np.radians(np.arange(60.0, 120.01, 0.5))  # angle of n from the light at +x, in the x-z plane
+    n = np.stack([np.cos(ang), np.zeros_like(ang), np.sin(ang)], -1)
+    q = rl.relight_gain(np.zeros((len(n), 3)), n, a, b)[:, 0]
+    assert np.all(np.isfinite(q)) and q.min() >= 0 and q.max() <= rl.MAX_GAIN * g[0] + 1e-12
+    assert np.abs(np.diff(q)).max() < 0.25 * g[0], np.abs(np.diff(q)).max()
+    assert q[-1] > q[0]  # away from A's light, B's light dominates
 
 
 def test_lighting_follows_the_world_up():
@@ -128,3 +136,22 @@ def test_gain_bounded_on_a_real_map():
     n = np.concatenate([fibonacci_directions(200), np.zeros((1, 3))])
     q = rl.relight_gain(np.zeros((201, 3)), n, a, b)
     assert np.all(np.isfinite(q)) and q.min() >= 0 and q.max() <= rl.MAX_GAIN * rl.global_gain(a, b).max() + 1e-12
+
+
+def test_henyey_greenstein_has_mean_one():
+    c = (np.arange(100000) + 0.5) / 100000 * 2 - 1
+    for g in (0.0, 0.5, 0.8, -0.3):
+        assert rl.henyey_greenstein(c, g).mean() == pytest.approx(1.0, rel=1e-3)
+
+
+def test_forward_scattering_lights_back_lit_fur():
+    """One light behind the object as seen by the camera (v = -light) scatters forwards into the
+    view more than the same light behind the camera (v = light); the gain of a map that moves the
+    light to the back follows; views=None is the view-independent transfer."""
+    lt = rl.relight_lighting(_point_light([1.0, 0, 0], [1, 1, 1]), kernel="wrap", k=2)
+    n = np.array([[0, 0, 1.0]])
+    back = rl.forward_transfer(lt, n, np.array([[-1.0, 0, 0]]))
+    front = rl.forward_transfer(lt, n, np.array([[1.0, 0, 0]]))
+    assert back[0, 0] > 5 * front[0, 0]
+    t0 = rl.transfer(np.zeros((1, 3)), n, lt)
+    np.testing.assert_allclose(rl.transfer(np.zeros((1, 3)), n, lt, views=np.array([[-1.0, 0, 0]]), forward=0.0), t0)
