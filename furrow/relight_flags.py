@@ -17,15 +17,15 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
                         "ground shadow and the glare (--relight alone then takes the --env map)")
     g.add_argument("--relight-kernel", default=None, metavar="NAME",
                    help="transfer kernel of the relighting: wrap (default), lambert, fur, half-lambert")
-    g.add_argument("--relight-no-visibility", action="store_true",
-                   help="ignore the self-visibility from the sphere set (faster setup)")
+    g.add_argument("--relight-visibility", action="store_true",
+                   help="self-visibility from the model's sphere set (SSDF): for concave solids; adds seconds of setup")
 
 
 def relight_map(args) -> str | None:
     """The map name / file to relight to, or None; one map for all (--relight and --env agree)."""
     if args.relight is None:
-        if args.relight_kernel or args.relight_no_visibility:
-            raise ValueError("--relight-kernel and --relight-no-visibility need --relight")
+        if args.relight_kernel or args.relight_visibility:
+            raise ValueError("--relight-kernel and --relight-visibility need --relight")
         return None
     if args.relight == SAME_AS_ENV:
         if not args.env:
@@ -52,5 +52,5 @@ def open_relighter(args, ctx, model, stack):
     if args.env_rotation:
         env = env.rotated(np.radians(args.env_rotation))
     cfg = RelightConfig(**({"kernel": args.relight_kernel} if args.relight_kernel else {}),
-                        visibility=not args.relight_no_visibility)
+                        visibility=args.relight_visibility)
     return stack.enter_context(Relighter.from_model(ctx, model, env, cfg))

@@ -64,8 +64,12 @@ class RelightConfig:
     sg_lobes: int = rl.RELIGHT_SG_K
     #: Weight of the forward-scattered (view-dependent) transfer; 0 = view-independent.
     forward: float = rl.FORWARD_SCATTER
-    #: Self-visibility from the model's sphere set (SSDF); False: unoccluded transfers.
-    visibility: bool = True
+    #: Asymmetry g of the scattering phase (> 0 forwards, < 0 backwards).
+    forward_g: float = rl.FORWARD_G
+    #: Self-visibility from the model's sphere set (SSDF); False: unoccluded transfers.  Off by
+    #: default: measured neutral on the fur ball and -0.03 to -0.08 dB on the plant (their sphere
+    #: sets fill fuzzy shells), at 2-3 s of setup; it matters for concave solids.
+    visibility: bool = False
     #: Regularisation of the quotient (fraction of the reference transfers).
     regularise: float = rl.REGULARISE
     #: Largest gain as a multiple of the global gain.
@@ -81,12 +85,13 @@ class RelightConfig:
         if not 1 <= int(self.sg_lobes) <= MAX_RELIGHT_SG:
             raise ValueError(f"sg_lobes must be 1..{MAX_RELIGHT_SG}, got {self.sg_lobes}")
         if not (self.regularise >= 0 and self.max_gain > 0 and self.smooth >= 0 and self.volume_res >= 2
-                and self.forward >= 0):
+                and self.forward >= 0 and -1 < self.forward_g < 1):
             raise ValueError("RelightConfig: regularise >= 0, max_gain > 0, smooth >= 0, volume_res >= 2, forward >= 0")
 
     def gain_kwargs(self) -> dict:
         """The keyword arguments of ``render.shading.relight.relight_gain`` this config sets."""
-        return {"forward": self.forward, "regularise": self.regularise, "max_gain": self.max_gain}
+        return {"forward": self.forward, "forward_g": self.forward_g, "regularise": self.regularise,
+                "max_gain": self.max_gain}
 
 
 def capture_envmap_of(model) -> tuple[EnvMap, np.ndarray]:
@@ -121,7 +126,7 @@ class Relighter(GLOwner):
         self.model = model
         defines = {"MAX_SG": MAX_RELIGHT_SG, "RELIGHT_MIN_GRADIENT": f"{rl.MIN_GRADIENT:.9e}",
                    "RELIGHT_KERNEL": list(rl.KERNELS).index(self.config.kernel),
-                   "RELIGHT_FORWARD_G": f"{rl.FORWARD_G:.9e}",
+                   "RELIGHT_FORWARD_G": f"{self.config.forward_g:.9e}",
                    "RELIGHT_LIFT_VOXELS": f"{VISIBILITY_LIFT_VOXELS:.9e}",
                    "RELIGHT_BAND_VOXELS": f"{VISIBILITY_BAND_VOXELS:.9e}", "SG_FH_TABLE": 1}
         self._vol_prog = self.own(program(ctx, "composite_vert.glsl", "relight_volume_frag.glsl", defines=defines))

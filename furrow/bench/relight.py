@@ -18,7 +18,7 @@ one-off setup (capture / new lighting, gain volume).  Writes DIR/relight.json an
 pair (truth B | unrelit | gain | relit).
 
     furrow bench relight out/data/furball_forest out/data/plant_courtyard [--max-views 9]
-                         [--variants wrap,lambert,fur,wrap:novis] [-o out/bench/relight] [--json]
+                         [--variants wrap,wrap:vis,wrap:fwd=0,lambert:fwd=0] [-o out/bench/relight] [--json]
 """
 
 from __future__ import annotations
@@ -36,14 +36,29 @@ TARGET_DB = 2.0
 
 
 def parse_variant(text: str):
-    """``KERNEL[:novis]`` -> render.relight.RelightConfig."""
+    """``KERNEL[:vis|:novis][:fwd=BETA][:g=G][:s=SMOOTH][:res=L]`` -> render.relight.RelightConfig
+    (vis / novis: with / without the sphere set's visibility; fwd: the scattering weight, 0 =
+    view-independent; g: its phase asymmetry; s: orientation smoothing; res: volume resolution)."""
     from render.relight import RelightConfig
 
     kernel, *flags = text.split(":")
-    unknown = [f for f in flags if f != "novis"]
-    if unknown:
-        raise ValueError(f"bad variant {text!r}: flags may only be 'novis'")
-    return RelightConfig(kernel=kernel, visibility="novis" not in flags)
+    kw = {"kernel": kernel}
+    for f in flags:
+        if f == "novis":
+            kw["visibility"] = False
+        elif f == "vis":
+            kw["visibility"] = True
+        elif f.startswith("fwd="):
+            kw["forward"] = float(f[4:])
+        elif f.startswith("g="):
+            kw["forward_g"] = float(f[2:])
+        elif f.startswith("s="):
+            kw["smooth"] = float(f[2:])
+        elif f.startswith("res="):
+            kw["volume_res"] = int(f[4:])
+        else:
+            raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'fwd=BETA', 'g=G', 's=SMOOTH', 'res=L'")
+    return RelightConfig(**kw)
 
 
 def capture_map(scans: Path) -> str:
@@ -53,6 +68,16 @@ def capture_map(scans: Path) -> str:
         if meta.get("capture_env"):
             return str(meta["capture_env"])
     raise ValueError(f"{scans}: no relit/*/transforms.json names the capture map; give --capture-env")
+
+
+def find_map(name: str, map_dir: Path | None):
+    """The EnvMap called ``name``: MAP_DIR/name.exr or .hdr when given and present, else a bundled map."""
+    from render.shading.capture_env import named_envmap
+
+    for ext in (".exr", ".hdr"):
+        if map_dir is not None and (map_dir / f"{name}{ext}").is_file():
+            return named_envmap(str(map_dir / f"{name}{ext}"))
+    return named_envmap(name)
 
 
 def score(refs, imgs, frames) -> dict:
@@ -69,7 +94,7 @@ def score(refs, imgs, frames) -> dict:
     return {"psnr_masked": float(np.mean(ps)), "ssim_masked": float(np.mean(ss)), "sharpness": float(np.mean(sh))}
 
 
-def prepare(scans: Path, capture_env: str, max_views: int | None):
+def prepare(scans: Path, capture_env: str, max_views: int | None, map_dir: Path | None = None):
     """(model with capture lighting, held-out scans, their frames, median render ms / cpu ms)."""
     import dataclasses
 
@@ -78,13 +103,12 @@ def prepare(scans: Path, capture_env: str, max_views: int | None):
     from render.evaluate import build_eval_model, holdout_split
     from render.gl import gl_context
     from render.methods import create_renderer
-    from render.shading.capture_env import named_envmap
     from volume.model import CaptureLighting
 
     split = holdout_split(read_scanset(scans), 2, max_views)
     model, _ = build_eval_model(split.kept, scans, "auto", 128)
     up = estimate_up([s.camera for s in split.kept.scans])
-    model = dataclasses.replace(model, capture_env=CaptureLighting(named_envmap(capture_env).data, up, 0.0,
+    model = dataclasses.replace(model, capture_env=CaptureLighting(find_map(capture_env, map_dir).data, up, 0.0,
                                                                    capture_env))
     with gl_context() as ctx, create_renderer("microfacet", ctx, model) as r:
         r.render(split.held[0].camera, read=False)
@@ -92,17 +116,17 @@ def prepare(scans: Path, capture_env: str, max_views: int | None):
     return model, split, frames
 
 
-def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict, out_dir: Path) -> dict:
+def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict, out_dir: Path,
+               map_dir: Path | None = None) -> dict:
     """The rows of one (capture, relit map) pair (module doc)."""
     from capture.imageio import write_png
     from capture.io import read_scanset
     from capture.scan import to_uint8_srgb
     from render.relight import Relighter
-    from render.shading.capture_env import named_envmap
 
     truth = read_scanset(scans / "relit" / relit)
     refs = [truth.scans[i] for i in split.held_idx]
-    env = named_envmap(relit)
+    env = find_map(relit, map_dir)
     row = {"relit": relit, "views": len(refs), "unrelit": score(refs, [f.rgb for f in frames], frames)}
     relit_imgs = {}
     for name, cfg in configs.items():
@@ -129,11 +153,12 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
     return row
 
 
-def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path) -> dict:
+def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path,
+                  map_dir: Path | None = None) -> dict:
     from render.gl import gl_context
 
     cap = capture_env or capture_map(scans)
-    model, split, frames = prepare(scans, cap, max_views)
+    model, split, frames = prepare(scans, cap, max_views, map_dir)
     res = {"scans": str(scans), "capture_env": cap, "held": split.held_idx,
            "capture": score(split.held, [f.rgb for f in frames], frames),
            "render_ms": float(np.median([f.stats.ms for f in frames])),
@@ -143,7 +168,7 @@ def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views
         raise ValueError(f"{scans}: no relit/<map>/transforms.json (make them with furrow synth --relight-env)")
     with gl_context() as ctx:
         for relit in relits:
-            res["pairs"].append(bench_pair(ctx, model, split, frames, scans, relit, configs, out_dir))
+            res["pairs"].append(bench_pair(ctx, model, split, frames, scans, relit, configs, out_dir, map_dir))
     return res
 
 
@@ -186,6 +211,8 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--capture-env", default=None, help="the captures' map (default: from the relit metadata)")
     ap.add_argument("--variants", default="wrap", help="relighting variants KERNEL[:novis], comma separated; the "
                                                        "first is the one judged (default wrap)")
+    ap.add_argument("--map-dir", type=Path, default=None,
+                    help="folder of NAME.exr / NAME.hdr maps for capture / relit names that are not bundled")
     ap.add_argument("--max-views", type=int, default=None, help="at most this many held-out views per capture")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "relight")
     ap.add_argument("--json", action="store_true")
@@ -193,7 +220,7 @@ def main(argv: list[str]) -> int:
     configs = {v: parse_variant(v) for v in a.variants.split(",")}
     a.out.mkdir(parents=True, exist_ok=True)
     res = {"variants": list(configs), "target_db": TARGET_DB,
-           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out) for c in a.captures]}
+           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir) for c in a.captures]}
     first = res["variants"][0]
     res["met"] = all(p[first]["gain_over_single_db"] >= TARGET_DB for c in res["captures"] for p in c["pairs"])
     (a.out / "relight.json").write_text(json.dumps(res, indent=1, default=float))

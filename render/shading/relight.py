@@ -53,8 +53,10 @@ def _strand(c):
     return np.sqrt(np.maximum(1.0 - np.minimum(c * c, 1.0), 0.0))
 
 
-#: Zonal transfer kernels K(n.w): "lambert" the clamped cosine; "fur" sin(n, w), Kajiya-Kay's
-#: diffuse term of a strand whose direction is n.
+#: Zonal transfer kernels K(n.w): "lambert" the clamped cosine; "wrap" max(0, n.w + 1/2) / (3/2),
+#: wrapped diffuse (light reaches a fuzzy shell from beyond its horizon); "half-lambert"
+#: ((n.w + 1) / 2)^2; "fur" sin(n, w), Kajiya-Kay's diffuse term of a strand along n (measured
+#: uncorrelated with the truth on the combed fur ball: the strands do not follow the SDF gradient).
 def _half_lambert(c):
     return (0.5 * (np.clip(c, -1.0, 1.0) + 1.0)) ** 2
 
@@ -64,18 +66,20 @@ def _wrap(c):
 
 
 KERNELS = {"lambert": _lambert, "fur": _strand, "half-lambert": _half_lambert, "wrap": _wrap}
-#: Kernel of the relighting unless told otherwise.
-DEFAULT_KERNEL = "lambert"
+#: Kernel of the relighting unless told otherwise (measured best of the four on the fur ball and
+#: the plant, docs/relight.md).
+DEFAULT_KERNEL = "wrap"
 #: Rows of the transfer table (h, 2h) and of the map it is computed from (the irradiance table's
 #: h = 64 is within 1.1 % of the brute-force integral: render.shading.irradiance).
 TRANSFER_TABLE_H = 64
 #: SG lobes fitted to each environment (visible share, forward scattering).
 RELIGHT_SG_K = 16
 #: Weight beta of the forward-scattered light against the diffuse transfer, and the asymmetry g of
-#: its Henyey-Greenstein phase (module doc; 0 = view-independent).  Measured on the fur ball
-#: (docs/relight.md): backward scattering (g < 0) loses, beta 0.3-3 and g 0.3-0.8 all gain.
+#: its Henyey-Greenstein phase (module doc; beta 0 = view-independent).  Measured with
+#: ``furrow bench relight`` (docs/relight.md): backward scattering (g < 0) loses on the fur ball
+#: and the plant, beta 0.3-3 with g 0.3-0.8 gain, g 0.8 most on the plant.
 FORWARD_SCATTER = 1.0
-FORWARD_G = 0.5
+FORWARD_G = 0.8
 #: Both transfers get this fraction of their environment's reference transfer added (module doc):
 #: where the capture transfer is below about this fraction of its typical value the gain tends
 #: to the global gain instead of dividing by nearly nothing.
@@ -212,7 +216,7 @@ def global_gain(a: RelightLighting, b: RelightLighting) -> np.ndarray:
 
 def relight_gain(points, normals, a: RelightLighting, b: RelightLighting, spheres=None, views=None,
                  forward: float = FORWARD_SCATTER, regularise: float = REGULARISE, max_gain: float = MAX_GAIN,
-                 shares=None) -> np.ndarray:
+                 shares=None, forward_g: float = FORWARD_G) -> np.ndarray:
     """(P, 3) colour gain from capture lighting ``a`` to ``b`` at world ``points`` with SDF
     gradients ``normals`` (any length) seen from unit directions ``views`` (None: no forward
     scattering): the regularised transfer quotient clamped to [0, max_gain x global gain]; the
@@ -229,8 +233,8 @@ def relight_gain(points, normals, a: RelightLighting, b: RelightLighting, sphere
     f = forward if views is not None else 0.0
     ta, tb = (unoccluded_transfer(lt, un) for lt in (a, b))
     if f:
-        ta = ta + f * forward_transfer(a, un, views)
-        tb = tb + f * forward_transfer(b, un, views)
+        ta = ta + f * forward_transfer(a, un, views, forward_g)
+        tb = tb + f * forward_transfer(b, un, views, forward_g)
     return gain_from_transfers(ta * shares[0], tb * shares[1], (1 + f) * a.reference, (1 + f) * b.reference,
                                global_gain(a, b), ok, regularise, max_gain)
 

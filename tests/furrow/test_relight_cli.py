@@ -50,11 +50,14 @@ def test_render_relight(relightable, tmp_path, capsys):
     base = ["render", str(lit), "--cameras", str(scans), "--frames", "1", "--supersample", "1"]
     assert main(base + ["-o", str(tmp_path / "a")]) == 0
     assert main(base + ["--relight", "sunset", "-o", str(tmp_path / "b")]) == 0
+    assert main(base + ["--relight", "sunset", "--relight-visibility", "--relight-kernel", "lambert",
+                        "-o", str(tmp_path / "v")]) == 0
     assert main(base + ["--relight", "--env", "sunset", "--ground", "-o", str(tmp_path / "c")]) == 0
-    a, b, c = (read_color(tmp_path / d / "cam_001.png") for d in "abc")
+    a, b, c, v = (read_color(tmp_path / d / "cam_001.png") for d in "abcv")
     obj = a.max(-1) > 0
     assert np.array_equal(b.max(-1) > 0, obj)  # on black, the same silhouette
     assert np.abs(a.astype(int) - b.astype(int))[obj].mean() > 3  # lit differently
+    assert np.abs(v.astype(int) - b.astype(int))[obj].mean() > 0.5  # another kernel, with visibility
     assert (c.max(-1) > 0).mean() > 0.95  # composited over the map
     st = json.loads((tmp_path / "b" / "render_stats.json").read_text())
     assert st["frames"][0]["relight_ms"] > 0

@@ -49,7 +49,7 @@ def test_twins(gl_ctx, model):
     rng = np.random.default_rng(0)
     dep = np.where(rng.random((72, 96)) < 0.7, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
     fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
-    cfg = RelightConfig(kernel="wrap", volume_res=16)
+    cfg = RelightConfig(kernel="wrap", volume_res=16, visibility=True)
     with Relighter(gl_ctx, model, procedural_sky(32), _sun_sky(), cfg) as rel:
         ref = share_volume_reference(rel.raw, rel.smooth, rel.capture, rel.new, model.spheres)
         d = np.abs(ref - rel.share_volume).max(-1)

@@ -59,7 +59,7 @@ def test_sphere_occlusion_against_ray_tests():
     share brings the transfer within 15 % of the exact ray test (measured 3-5 % with 16 lobes;
     ignoring the occluders is 39-42 % off)."""
     env = _sky()
-    lt = rl.relight_lighting(env, k=16)
+    lt = rl.relight_lighting(env, kernel="lambert", k=16)
     sp = SphereSet(np.array([[0.25, 0, 0.0], [-0.25, 0, 0.0]]), np.array([0.2, 0.2]))
     x = np.array([[0, y, 0.0] for y in np.linspace(-0.1, 0.1, 5)])
     src = env.resized(rl.TRANSFER_TABLE_H)
