@@ -11,7 +11,10 @@ of the foregrounds, sharpness = RMS Laplacian of the rendering over the referenc
 * ``unrelit``: the render as is (lit by A);
 * ``gain``: the render times one RGB gain, the mean radiance of B over A in linear light;
 * ``relit``: ``render.relight.Relighter`` (the configuration given; ``--variants`` adds others);
-* ``capture``: the same render against its own truth under A (the ceiling of any relighting).
+* ``capture``: the same render against its own truth under A (the ceiling of any relighting);
+* ``oracle``: the truth under A instead of the render (its pixels with render depth relit by the
+  first variant, the others times the single gain), against the truth under B: the relighting's
+  own error, without the renderer's (``oracle_gain``: the truth under A times the single gain).
 
 Frame cost: the plain render and the relighting pass per frame (medians, ms and CPU ms), and the
 one-off setup (capture / new lighting, gain volume).  Writes DIR/relight.json and a sheet per
@@ -144,6 +147,8 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
             row[name] = {**score(refs, imgs, frames), "apply_ms": float(np.median(ms)),
                          "apply_cpu_ms": float(np.median(cpu)), "setup_s": dict(rel.setup_seconds)}
             relit_imgs[name] = imgs
+            if name == next(iter(configs)):
+                row["oracle"], row["oracle_gain"] = _oracle(rel, refs, split.held, frames, g)
         row[name]["gain_over_single_db"] = row[name]["psnr_masked"] - row["gain"]["psnr_masked"]
     first = next(iter(configs))
     k = len(refs) // 2
@@ -151,6 +156,19 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
     sheet = [refs[k].srgb8] + [to_uint8_srgb(x) for x in (frames[k].rgb, frames[k].rgb * gain, relit_imgs[first][k])]
     write_png(out_dir / f"{scans.name}_{relit}.png", np.concatenate(sheet, 1))
     return row
+
+
+def _oracle(rel, refs, held, frames, g) -> tuple[dict, dict]:
+    """Scores of the truth under A relit by ``rel`` and times the single gain ``g`` (module doc)."""
+    from render.frame import Frame
+
+    relit, gained = [], []
+    for s, f in zip(held, frames):
+        t = s.linear_rgb.astype(np.float32)
+        out = rel.apply(Frame(t, f.coverage, f.depth, f.stats), s.camera).rgb
+        gained.append(t * g.astype(np.float32))
+        relit.append(np.where((f.depth > 0)[..., None], out, gained[-1]))
+    return score(refs, relit, frames), score(refs, gained, frames)
 
 
 def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path,
@@ -183,13 +201,15 @@ def print_tables(res: dict) -> None:
 
     names = res["variants"]
     t = Table(title="relighting against relit truth: masked PSNR dB / SSIM / sharpness (held-out views 1::2)")
-    for c in ("capture -> relit", "views", "unrelit", "single gain", *names, "relit - gain dB", "capture light"):
+    for c in ("capture -> relit", "views", "unrelit", "single gain", *names, "relit - gain dB", "capture light",
+              "oracle gain -> relit"):
         t.add_column(c, justify="right")
     for c in res["captures"]:
         for p in c["pairs"]:
             t.add_row(f"{Path(c['scans']).name}: {c['capture_env']} -> {p['relit']}", str(p["views"]),
                       _fmt(p["unrelit"]), _fmt(p["gain"]), *(_fmt(p[n]) for n in names),
-                      f"{p[names[0]]['gain_over_single_db']:+.2f}", _fmt(c["capture"]))
+                      f"{p[names[0]]['gain_over_single_db']:+.2f}", _fmt(c["capture"]),
+                      f"{p['oracle_gain']['psnr_masked']:.2f} -> {p['oracle']['psnr_masked']:.2f}")
     console.print(t)
     t = Table(title="frame cost (medians; llvmpipe)")
     for c in ("capture", "render ms", "render CPU ms", *(f"{n} apply ms" for n in names),

@@ -1,4 +1,4 @@
-// Relighting transfer and gain (issue 15; METHODS §3). Twin of render/shading/relight.py
+// Relighting transfer and gain (issue 15; docs/methods.md §3). Twin of render/shading/relight.py
 // (visible_share, unoccluded_transfer, forward_transfer, relight_gain). Per lighting (A = the
 // capture's, B = the new): a transfer table (RGB32F equirect in the map's frame, LINEAR, repeat_x;
 // lookup at u_to_env * n), K SG lobes in world coordinates, its reference transfer. Spheres for the

@@ -1,4 +1,4 @@
-"""Relighting a capture (issue 15; METHODS §3): the numpy reference of the GPU pass in
+"""Relighting a capture (issue 15; docs/methods.md §3): the numpy reference of the GPU pass in
 ``render.relight`` (GLSL twin ``render/shaders/relight_common.glsl``).
 
 What the capture saw at a point x is C_A = integral rho(w) L_A(w) V(x, w) dw (times the camera's

@@ -82,3 +82,16 @@ def test_capture_lighting_from_photos(tmp_path):
         assert err < 0.1, (kw, err)
     with pytest.raises(ValueError, match="exactly one"):
         capture_envmap("forest", fisheye=tmp_path / "fish.exr")
+
+
+def test_bench_variants_parse():
+    from furrow.bench.relight import parse_variant
+
+    c = parse_variant("lambert:vis:fwd=0:g=0.3:s=0.05:res=16")
+    assert (c.kernel, c.visibility, c.forward, c.forward_g, c.smooth, c.volume_res) == ("lambert", True, 0.0, 0.3,
+                                                                                        0.05, 16)
+    assert parse_variant("wrap").visibility is False
+    with pytest.raises(ValueError, match="flags"):
+        parse_variant("wrap:shiny")
+    with pytest.raises(ValueError, match="kernel"):
+        parse_variant("phong")
