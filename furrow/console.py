@@ -18,6 +18,21 @@ console = Console(stderr=True, width=None if sys.stderr.isatty() else LOG_WIDTH)
 T = TypeVar("T")
 
 
+def _library_log() -> None:
+    """Messages the libraries log on logger ``furrow`` (e.g. depth resampled to the colour camera) go to the console."""
+    import logging
+
+    from rich.logging import RichHandler
+
+    log = logging.getLogger("furrow")
+    if not any(isinstance(h, RichHandler) for h in log.handlers):
+        log.addHandler(RichHandler(console=console, show_time=False, show_path=False, markup=False))
+        log.setLevel(logging.INFO)
+
+
+_library_log()
+
+
 def fail(msg: str) -> None:
     """Print a one-line error."""
     console.print(f"[bold red]error:[/] {msg}", highlight=False)
