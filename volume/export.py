@@ -18,14 +18,12 @@ with the radius attribute as scale, CloudCompare shows radius as a scalar field)
 
 from __future__ import annotations
 
-import os
-import tempfile
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import atomic_write
 from capture.scan import linear_to_srgb
 from volume.model import Model, ModelError
 
@@ -59,22 +57,6 @@ class ExportResult:
     faces: int = 0
 
 
-@contextmanager
-def _atomic(path: Path):
-    """A temporary file beside ``path`` with the same suffix (writers pick the format by it),
-    renamed onto ``path`` only when the body succeeds."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{path.stem}.tmp-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def _srgb(linear: np.ndarray) -> np.ndarray:
     """Linear colour -> sRGB-encoded float in [0, 1] (what Open3D writes to PLY as bytes * 255)."""
     return linear_to_srgb(np.asarray(linear, np.float32)).astype(np.float64)
@@ -102,7 +84,7 @@ def write_mesh(model: Model, path) -> ExportResult:
     if model.mesh_colors is not None:
         c = model.mesh_colors.astype(np.float64) if suffix == ".glb" else _srgb(model.mesh_colors)
         mesh.vertex_colors = o3d.utility.Vector3dVector(c)
-    with _atomic(path) as tmp:
+    with atomic_write(path) as tmp:
         ok = o3d.io.write_triangle_mesh(str(tmp), mesh, write_ascii=False, compressed=False,
                                         write_vertex_normals=True, write_vertex_colors=model.mesh_colors is not None,
                                         write_triangle_uvs=False)
@@ -171,7 +153,7 @@ def write_points(model: Model, path, voxel: float | None = None) -> ExportResult
         raise ExportError(f"{path}: the model's RGBz images hold no depth: no point to export")
     pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(p))
     pc.colors = o3d.utility.Vector3dVector(_srgb(c))
-    with _atomic(path) as tmp:
+    with atomic_write(path) as tmp:
         if not o3d.io.write_point_cloud(str(tmp), pc, write_ascii=False, compressed=False):
             raise ExportError(f"{path}: Open3D could not write the points")
     return ExportResult(path, len(p))
@@ -189,7 +171,7 @@ def write_spheres(model: Model, path) -> ExportResult:
         raise ExportError(f"{path}: the model has no occluder spheres")
     pc = o3d.t.geometry.PointCloud(o3d.core.Tensor(s.centers.astype(np.float32)))
     pc.point.radius = o3d.core.Tensor(s.radii.astype(np.float32).reshape(-1, 1))
-    with _atomic(path) as tmp:
+    with atomic_write(path) as tmp:
         if not o3d.t.io.write_point_cloud(str(tmp), pc, write_ascii=False, compressed=False):
             raise ExportError(f"{path}: Open3D could not write the spheres")
     return ExportResult(path, len(s))
