@@ -82,9 +82,9 @@ def resolve_transforms(path: Path) -> Path:
 
 def _load_json(path: Path) -> dict:
     try:
-        data = json.loads(Path(path).read_text())
-    except json.JSONDecodeError as e:
-        raise ScanIOError(f"{path}: invalid JSON ({e})") from None
+        data = json.loads(Path(path).read_bytes())
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
+        raise ScanIOError(f"{path}: invalid JSON ({type(e).__name__}: {str(e)[:120]})") from None
     except OSError as e:
         raise ScanIOError(f"{path}: cannot read ({e.strerror})") from None
     if not isinstance(data, dict):
@@ -366,6 +366,8 @@ def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSe
 
                 units = path / "depth_units.json"
                 unit = _load_json(units).get("depth_unit_scale_factor") if units.is_file() else None
+                if unit is not None and (unit := _finite(unit, "depth_unit_scale_factor", str(units))) <= 0:
+                    raise ScanIOError(f"{units}: depth_unit_scale_factor must be a positive number of metres")
                 depth = path / "depth" if (path / "depth").is_dir() else None
                 return read_colmap(model, path / "images", depth, unit, frames)
         raise ScanIOError(f"{path}: neither a {TRANSFORMS}, a plain folder layout (cameras/, rgb/, depth/) "
