@@ -8,8 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from render.methods import (DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, METHODS, MICROFACET_MODES, RenderOptions,
-                            unused_options)
+from render.methods import (
+    DEFAULT_SUPERSAMPLE,
+    DEFAULT_TOLERANCE_PX,
+    METHODS,
+    MICROFACET_MODES,
+    RenderOptions,
+    unused_options,
+)
 
 HELP = "render a model with view-dependent microfacet billboards (or the fixed-mesh baseline)"
 DESCRIPTION = """Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
@@ -36,8 +42,10 @@ OPTION_FLAGS = {"tolerance": "tolerance_px", "level": "level", "supersample": "s
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", type=Path, help="model folder written by `furrow model`")
-    p.add_argument("--cameras", type=Path, required=True, help="transforms.json (or a folder holding one) with the cameras")
-    p.add_argument("--frames", default=None, help="frames to render, python slice style: '1::2', '3', '0,4,8' (default all)")
+    p.add_argument("--cameras", type=Path, required=True,
+                   help="transforms.json (or a folder holding one) with the cameras")
+    p.add_argument("--frames", default=None,
+                   help="frames to render, python slice style: '1::2', '3', '0,4,8' (default all)")
     p.add_argument("-o", "--out", type=Path, default=None,
                    help="output folder for the PNG frames and render_stats.json (required unless --video is given)")
     p.add_argument("--video", type=Path, default=None, metavar="OUT.mp4",
@@ -45,13 +53,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fps", type=float, default=DEFAULT_FPS,
                    help=f"frames per second of --video (default {DEFAULT_FPS:g})")
     p.add_argument("--method", choices=list(METHODS), default="microfacet",
-                   help="microfacet (default), mesh-vdtm (fixed-mesh baseline) or mesh-colour (per-vertex colour floor)")
+                   help="microfacet (default), mesh-vdtm (fixed-mesh baseline) or mesh-colour "
+                        "(per-vertex colour floor)")
     p.add_argument("--tolerance", type=float, default=None,
                    help=f"screen-space tolerance E in pixels (default {DEFAULT_TOLERANCE_PX:g})")
-    p.add_argument("--level", type=int, default=None, help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
+    p.add_argument("--level", type=int, default=None,
+                   help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
     p.add_argument("--supersample", type=int, default=None, metavar="S",
-                   help=f"anti-aliasing: S x S samples per pixel, box-resolved (default {DEFAULT_SUPERSAMPLE}; 1 = off, "
-                        "about S^2 x the fill cost)")
+                   help=f"anti-aliasing: S x S samples per pixel, box-resolved (default {DEFAULT_SUPERSAMPLE}; "
+                        "1 = off, about S^2 x the fill cost)")
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="microfacet parallax correction: steps along the eye ray to each camera's depth "
                         "(default 2; 0 = the paper's colour at the slice point)")

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import contextlib
+import sys
 import time
-from typing import Iterable, Iterator, TypeVar
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
-
-import sys
 
 #: Width used when stderr is not a terminal (logs, CI): wide enough for the result tables.
 LOG_WIDTH = 140

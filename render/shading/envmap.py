@@ -92,7 +92,7 @@ class EnvMap:
         """Bilinear radiance lookup (wrap in u, clamp in v). dirs (..., 3) -> (..., 3) float64."""
         return sample_equirect(self.data, dir_to_uv(dirs))
 
-    def rotated(self, angle_z: float) -> "EnvMap":
+    def rotated(self, angle_z: float) -> EnvMap:
         """The environment turned by ``angle_z`` radians about +z (right-handed):
         ``rotated(a).sample(Rz(a) @ d) == sample(d)``. Exact for multiples of 2 pi / W, linear
         interpolation between columns otherwise."""
@@ -106,7 +106,7 @@ class EnvMap:
         out = d[:, x0 % w] * (1 - f) + d[:, (x0 + 1) % w] * f
         return EnvMap(out.astype(np.float32), self.name)
 
-    def resized(self, h: int) -> "EnvMap":
+    def resized(self, h: int) -> EnvMap:
         """Area-correct resampling to (h, 2h): each new pixel is the solid-angle-weighted mean of
         the old radiance it overlaps, so the total power (sum of L * Omega) is preserved."""
         h = int(h)
