@@ -103,9 +103,7 @@ def _block(depth, glo, guide, rows, sx, sy):
     """Resample colour rows ``rows`` (all columns); returns (depth block, edge, colour_decided, holes)."""
     h, w = depth.shape
     W = guide.shape[1]
-    yd = (rows + 0.5) / sy - 0.5
-    xd = (np.arange(W) + 0.5) / sx - 0.5
-    Y, X = np.meshgrid(yd, xd, indexing="ij")
+    Y, X = np.meshgrid((rows + 0.5) / sy - 0.5, (np.arange(W) + 0.5) / sx - 0.5, indexing="ij")
     j0, j1, fy = _corners(Y, h)
     i0, i1, fx = _corners(X, w)
     idx = [(j0, i0), (j0, i1), (j1, i0), (j1, i1)]
@@ -113,23 +111,23 @@ def _block(depth, glo, guide, rows, sx, sy):
     d = np.stack([depth[j, i] for j, i in idx], -1)
     valid = d > 0
     dmin = np.where(valid, d, np.inf).min(-1)
-    smooth = valid.all(-1) & (d.max(-1) - dmin <= DISCONTINUITY_REL * dmin)
-    out = np.where(smooth, (b * d).sum(-1), 0.0)
-    edge = ~smooth
-    # joint-bilateral choice of the surface (module docstring)
-    g = guide[rows][:, :, None, :]
-    cols = np.stack([glo[j, i] for j, i in idx], -2)
-    dist2 = np.stack([(Y - j) ** 2 + (X - i) ** 2 for j, i in idx], -1)
+    edge = ~(valid.all(-1) & (d.max(-1) - dmin <= DISCONTINUITY_REL * dmin))
+    out = np.where(edge, 0.0, (b * d).sum(-1))
+    # joint-bilateral choice of the surface (module docstring), on the edge pixels only
+    e = np.nonzero(edge)
+    idx_e = [(j[e], i[e]) for j, i in idx]
+    d_e, b_e, valid_e = d[e], b[e], valid[e]
+    cols = np.stack([glo[j, i] for j, i in idx_e], -2)
+    dist2 = np.stack([(Y[e] - j) ** 2 + (X[e] - i) ** 2 for j, i in idx_e], -1)
+    g = guide[rows][e][:, None, :]
     score = np.exp(-dist2 / (2 * SIGMA_SPATIAL**2)) * np.exp(-((g - cols) ** 2).sum(-1) / (2 * SIGMA_COLOUR**2))
     win = np.argmax(score, -1)
-    dwin = np.take_along_axis(d, win[..., None], -1)[..., 0]
-    same = valid & (np.abs(d - dwin[..., None]) <= DISCONTINUITY_REL * dwin[..., None])
-    bw = np.where(same, b + 1e-9, 0.0)
-    mean = (bw * d).sum(-1) / np.maximum(bw.sum(-1), 1e-30)
-    out = np.where(edge, np.where(dwin > 0, mean, 0.0), out)
-    nearest = np.argmin(dist2, -1)
-    n_colour = int(np.count_nonzero(edge & (dwin > 0) & (win != nearest)))
-    return out, int(edge.sum()), n_colour, int(np.count_nonzero(edge & (dwin <= 0)))
+    dwin = np.take_along_axis(d_e, win[:, None], -1)[:, 0]
+    same = valid_e & (np.abs(d_e - dwin[:, None]) <= DISCONTINUITY_REL * dwin[:, None])
+    bw = np.where(same, b_e + 1e-9, 0.0)
+    out[e] = np.where(dwin > 0, (bw * d_e).sum(-1) / np.maximum(bw.sum(-1), 1e-30), 0.0)
+    n_colour = int(np.count_nonzero((dwin > 0) & (win != np.argmin(dist2, -1))))
+    return out, len(dwin), n_colour, int(np.count_nonzero(dwin <= 0))
 
 
 def upsample_depth(depth: np.ndarray, guide: np.ndarray) -> tuple[np.ndarray, ResampleStats]:
