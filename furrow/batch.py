@@ -273,7 +273,9 @@ def run_batch(captures: Sequence[Path], out_root: Path, steps: Sequence[str] = S
 
     started = start_ray(address, workers)
     try:
-        task = ray.remote(max_calls=1, num_cpus=TASK_CPUS)(capture_task)
+        # max_calls=1: a fresh worker process per capture; max_retries=0: a capture that kills its worker
+        # (out of memory, a crash) is reported, not run again behind the user's back
+        task = ray.remote(max_calls=1, num_cpus=TASK_CPUS, max_retries=0)(capture_task)
         pending = {}
         for scans, name in zip(captures, names):
             out = out_root / name
