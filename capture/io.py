@@ -258,15 +258,25 @@ def log_resampled(notes: list, metadata: dict) -> None:
     metadata["depth_resampled"] = line
 
 
-def auto_bounds(scans) -> np.ndarray:
-    """Robust (2, 3) bounds from the back-projected depth of every scan."""
+def auto_bounds(scans, where: str = "") -> np.ndarray:
+    """Robust (2, 3) bounds from the back-projected depth of every scan; ``where`` (the scan set's
+    file or folder) prefixes the error when there are none."""
+    prefix = f"{where}: " if where else ""
     pts = [s.points() for s in scans]
     pts = np.concatenate([p for p in pts if len(p)]) if any(len(p) for p in pts) else np.zeros((0, 3))
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
     if len(pts) == 0:
-        raise ScanIOError("cannot derive object bounds: no scan has depth; give \"furrow\": {\"bounds\": ...}")
-    lo = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0)
-    hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1], axis=0)
-    return bounds_from_points(np.stack([lo, hi]), AUTO_BOUNDS_MARGIN)
+        raise ScanIOError(f"{prefix}cannot derive object bounds: no scan has depth; "
+                          "give \"furrow\": {\"bounds\": ...}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        lo = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0)
+        hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1], axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        b = bounds_from_points(np.stack([lo, hi]), AUTO_BOUNDS_MARGIN)
+    if not (np.all(np.isfinite(b)) and np.all(b[1] > b[0])):
+        raise ScanIOError(f"{prefix}cannot derive object bounds from the depth: the back-projected points span "
+                          f"{np.stack([lo, hi]).tolist()} (camera poses or depth out of range?)")
+    return b
 
 
 def _read_bounds(block, where: str):
@@ -305,7 +315,7 @@ def read_transforms(path: Path, frames: str | None = None, progress=None) -> Sca
     fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
     bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
     if bounds is None:
-        bounds = auto_bounds(scans)
+        bounds = auto_bounds(scans, str(tj))
     md = fblock.get("metadata", {})
     md = dict(md) if isinstance(md, dict) else {}
     md.update(source=str(tj), format="transforms.json")
@@ -347,7 +357,7 @@ def read_plain_folder(folder: Path, frames: str | None = None, progress=None) ->
         scans.append(_load_scan(cam, rgb_path, depth_path, None if unit is None else float(unit), cj.stem,
                                 conf_path, notes))
     bj = folder / "bounds.json"
-    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else auto_bounds(scans)
+    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else auto_bounds(scans, str(folder))
     md = {"source": str(folder), "format": "plain-folder"}
     log_resampled(notes, md)
     return ScanSet(tuple(scans), bounds, md)

@@ -19,7 +19,7 @@ import numpy as np
 from capture.camera import Camera, CameraError, cv_from_corner, make_K
 from capture.imageio import ScanIOError
 from capture.io import _load_scan, auto_bounds, log_resampled
-from capture.scan import ScanSet, select_indices
+from capture.scan import ScanError, ScanSet, select_indices
 
 #: COLMAP models with no distortion.
 PINHOLE_MODELS = {"SIMPLE_PINHOLE", "PINHOLE"}
@@ -151,11 +151,17 @@ def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None
             depth_path = next((c for c in cands if c.is_file()), None)
             if depth_path is None:
                 raise ScanIOError(f"{cands[0]}: depth file not found for COLMAP image {im.name!r}")
-        scans.append(_load_scan(camera, rgb_path, depth_path, depth_unit_scale_factor, im.name, notes=notes))
-    bounds = auto_bounds(scans) if depth_dir is not None else _bounds_from_points(points, model_dir)
-    md = {"source": str(model_dir), "format": "colmap"}
-    log_resampled(notes, md)
-    return ScanSet(tuple(scans), bounds, md)
+        try:
+            scans.append(_load_scan(camera, rgb_path, depth_path, depth_unit_scale_factor, im.name, notes=notes))
+        except ScanIOError as e:  # the camera came from the model: name it too
+            raise ScanIOError(f"{e} (camera of {where})") from None
+    try:
+        bounds = auto_bounds(scans, str(model_dir)) if depth_dir is not None else _bounds_from_points(points, model_dir)
+        md = {"source": str(model_dir), "format": "colmap"}
+        log_resampled(notes, md)
+        return ScanSet(tuple(scans), bounds, md)
+    except ScanError as e:
+        raise ScanIOError(f"{model_dir}: {e}") from None
 
 
 def _bounds_from_points(pts: np.ndarray, where) -> np.ndarray:

@@ -5,8 +5,8 @@ over the same field of view.  :func:`upsample_depth` brings such a depth map to 
 camera's pixels without ever averaging across a depth discontinuity:
 
 - The depth image covers the colour image's field of view, edges aligned: depth pixel j's centre
-  sits at colour coordinate (j + 0.5) * s - 0.5 with s = W / w (OpenCV pixel centres, as in
-  ``Camera.scaled``); W / w and H / h must agree (:data:`ASPECT_TOLERANCE`).
+  sits at colour coordinate (j + 0.5) * s - 0.5 with s = W / w (``capture.camera.resample_pixel_coords``,
+  as in ``Camera.scaled``); W / w and H / h must agree (:data:`ASPECT_TOLERANCE`).
 - Each colour pixel takes the 2 x 2 depth samples around it.  Where all four are measured and lie
   on one surface (spread <= :data:`DISCONTINUITY_REL` of the nearest), it is their bilinear
   interpolation (exact for planes).
@@ -29,6 +29,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from capture.camera import resample_pixel_coords
 
 #: Largest relative difference between W / w and H / h of a colour / depth pair.
 ASPECT_TOLERANCE = 0.01
@@ -103,7 +105,7 @@ def _block(depth, glo, guide, rows, sx, sy):
     """Resample colour rows ``rows`` (all columns); returns (depth block, edge, colour_decided, holes)."""
     h, w = depth.shape
     W = guide.shape[1]
-    Y, X = np.meshgrid((rows + 0.5) / sy - 0.5, (np.arange(W) + 0.5) / sx - 0.5, indexing="ij")
+    Y, X = np.meshgrid(resample_pixel_coords(rows, 1 / sy), resample_pixel_coords(np.arange(W), 1 / sx), indexing="ij")
     j0, j1, fy = _corners(Y, h)
     i0, i1, fx = _corners(X, w)
     idx = [(j0, i0), (j0, i1), (j1, i0), (j1, i1)]
@@ -169,7 +171,7 @@ def upsample_depth_reference(depth: np.ndarray, guide: np.ndarray) -> np.ndarray
     out = np.zeros((H, W), np.float32)
     for v in range(H):
         for u in range(W):
-            y, x = (v + 0.5) / sy - 0.5, (u + 0.5) / sx - 0.5
+            y, x = float(resample_pixel_coords(v, 1 / sy)), float(resample_pixel_coords(u, 1 / sx))
             j0, j1, fy = (int(a) if k < 2 else float(a) for k, a in enumerate(_corners(y, h)))
             i0, i1, fx = (int(a) if k < 2 else float(a) for k, a in enumerate(_corners(x, w)))
             corners = [(j0, i0, (1 - fy) * (1 - fx)), (j0, i1, (1 - fy) * fx), (j1, i0, fy * (1 - fx)),

@@ -189,3 +189,16 @@ def test_non_string_paths_name_the_file(tmp_path):
     tj.write_text(json.dumps(doc))
     with pytest.raises(ScanIOError, match="intrinsic 'fl_x' is not a number"):
         read_scanset(tj)
+
+
+def test_poses_far_out_of_range_name_the_file(tmp_path):
+    """Found by the COLMAP fuzzing: points at +-1e300 made infinite automatic bounds and a bare ScanError."""
+    write_transforms(sphere_scanset(n=2, w=24, h=18), tmp_path / "s", depth_format="png")
+    tj = tmp_path / "s" / "transforms.json"
+    doc = json.loads(tj.read_text())
+    doc.pop("furrow")
+    doc["frames"][0]["transform_matrix"][0][3] = 1e300
+    doc["frames"][1]["transform_matrix"][0][3] = -1e300
+    tj.write_text(json.dumps(doc))
+    with pytest.raises(ScanIOError, match=rf"{tj}: cannot derive object bounds"):
+        read_scanset(tj)
