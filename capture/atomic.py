@@ -12,11 +12,11 @@ from contextlib import contextmanager
 from pathlib import Path
 
 
-def _file_mode() -> int:
-    """The mode ``open()`` would give a new file: 0666 less the process umask."""
+def _file_mode(base: int = 0o666) -> int:
+    """The mode a new file (``base`` 0666) or folder (0777) gets from ``open()`` / ``mkdir()``: less the umask."""
     mask = os.umask(0)
     os.umask(mask)
-    return 0o666 & ~mask
+    return base & ~mask
 
 
 @contextmanager
@@ -48,6 +48,7 @@ def atomic_dir(target) -> Iterator[Path]:
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=parent))
     try:
         yield tmp
+        os.chmod(tmp, _file_mode(0o777))  # mkdtemp makes 0700; the result gets a normal folder's mode
         if target.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=parent))
             os.rmdir(old)

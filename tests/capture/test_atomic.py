@@ -107,3 +107,14 @@ def test_written_file_gets_a_normal_files_mode(tmp_path):
         tmp.write_text("x")
     (tmp_path / "b.txt").write_text("x")
     assert os.stat(tmp_path / "a.txt").st_mode & 0o777 == os.stat(tmp_path / "b.txt").st_mode & 0o777
+
+
+def test_built_folder_gets_a_normal_folders_mode(tmp_path):
+    import os
+
+    from capture.atomic import atomic_dir
+
+    with atomic_dir(tmp_path / "d") as tmp:
+        (tmp / "f").write_text("x")
+    (tmp_path / "e").mkdir()
+    assert os.stat(tmp_path / "d").st_mode & 0o777 == os.stat(tmp_path / "e").st_mode & 0o777
