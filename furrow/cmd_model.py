@@ -72,7 +72,7 @@ def run(args, console) -> int:
     def progress(it, desc="working"):
         return track(it, desc)
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with timer.stage("read scans"):
         scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d))
     model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
@@ -81,6 +81,10 @@ def run(args, console) -> int:
         save_model(model, out)
     summary["seconds"] = {k: round(v, 3) for k, v in timer.seconds.items()}
     summary["seconds_total"] = round(time.perf_counter() - t0, 3)
+    summary["cpu_seconds"] = {k: round(v, 3) for k, v in timer.cpu_seconds.items()}
+    summary["cpu_seconds_total"] = round(time.process_time() - c0, 3)
+    summary["peak_mb"] = {k: round(v, 1) for k, v in timer.peak_mb.items()}
+    summary["peak_mb_total"] = round(max(timer.peak_mb.values(), default=0.0), 1)
     summary["output"] = str(out)
     console.print(timer.table("furrow model: stage timings"))
     h = summary["holes"]

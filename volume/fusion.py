@@ -32,7 +32,7 @@ The Open3D TSDF peer (:mod:`volume.tsdf`) uses steps 2, 4, 5 too, with its own b
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
@@ -222,7 +222,8 @@ class FusedSdf:
     """A fused signed distance volume of one resolution.
 
     Attributes:
-        values: (L, L, L) float32 signed distance (metres, positive outside) at voxel centres.
+        values: (L, L, L) float32 signed distance (metres, positive outside) at voxel centres;
+            None while the completion (:func:`complete_sdf`) is deferred, see :func:`completed`.
         band: (L, L, L) bool, voxels whose value comes from the fused measurements.
         support: (L, L, L) uint8, scans that support the band value (0 outside the band).
         seen: (L, L, L) uint8, scans in whose image the voxel projects.
@@ -231,9 +232,11 @@ class FusedSdf:
         measured, measured_mask: the *measured* field Eq. 1 checks (volume.pyramid): at voxels
             with a surface sample, the distance of the nearest-surface cluster of samples chosen
             as in pass 2 but without the quorum (confirmed or not); elsewhere undefined.
+        pending: (band values (L, L, L) float32, outside (L, L, L) bool) kept while ``values``
+            is None: everything :func:`complete_sdf` needs.
     """
 
-    values: np.ndarray
+    values: np.ndarray | None
     band: np.ndarray
     support: np.ndarray
     seen: np.ndarray
@@ -243,6 +246,15 @@ class FusedSdf:
     near_mask: np.ndarray
     measured: np.ndarray | None = None
     measured_mask: np.ndarray | None = None
+    pending: tuple | None = None
+
+
+def completed(f: FusedSdf) -> FusedSdf:
+    """``f`` with its values (the deferred distance-transform completion done; else ``f`` itself)."""
+    if f.values is not None:
+        return f
+    bvals, outside = f.pending
+    return replace(f, values=complete_sdf(bvals, f.band, outside, f.voxel_size), pending=None)
 
 
 def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
@@ -466,11 +478,14 @@ def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray,
 
 
 def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
-                   maps: list[ScanMaps] | None = None, coarse: FusedSdf | None = None, progress=None) -> FusedSdf:
+                   maps: list[ScanMaps] | None = None, coarse: FusedSdf | None = None, progress=None,
+                   complete: bool = True) -> FusedSdf:
     """Consensus signed distance volume of ``scanset`` on the given grid (module docstring).
 
     ``coarse``: the volume of resolution L/2 on the same cube, to evaluate pass 1 only near
-    its surface (coarse-to-fine; see :func:`carve_field`).
+    its surface (coarse-to-fine; see :func:`carve_field`).  ``complete=False`` defers step 5
+    (the distance transforms, most of the cost at 256^3): ``values`` is None until
+    :func:`completed`; the measured field Eq. 1 reads is there either way.
     """
     cfg = cfg or FusionConfig()
     L, w = int(resolution), float(voxel_size)
@@ -500,6 +515,7 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
         bvals[idx] = np.clip(val[has], -trunc, trunc)
         support[idx] = sup[has]
     shape = (L, L, L)
-    values = complete_sdf(bvals.reshape(shape), band.reshape(shape), outside.reshape(shape), w)
-    return FusedSdf(values, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
-                    (near > 0).reshape(shape), meas.reshape(shape), mmask.reshape(shape))
+    f = FusedSdf(None, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
+                 (near > 0).reshape(shape), meas.reshape(shape), mmask.reshape(shape),
+                 (bvals.reshape(shape), outside.reshape(shape)))
+    return completed(f) if complete else f

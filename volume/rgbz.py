@@ -27,7 +27,7 @@ import numpy as np
 from scipy import ndimage
 
 from capture.scan import ScanSet
-from volume.model import RgbzImages, SdfLevel
+from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
 
 
 @dataclass(frozen=True)
@@ -130,13 +130,14 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
         raise ValueError(f"RGBz images need one image size for all cameras, got {sorted(sizes)}")
     geo = raycast_depth(verts, faces, cams)
     tol = cfg.agree_voxels * level.voxel_size
-    depth = np.zeros_like(geo)
+    depth = np.zeros(geo.shape, RGBZ_STORAGE)
     stats = []
     it = range(len(cams))
     for n in (progress(it) if progress else it):
         comb = combine_depth(scanset.scans[n].depth, geo[n], cams[n], level, tol, cfg.keep_measured)
         before = hole_fraction(comb)
-        depth[n] = close_holes(comb, cfg.closing_px)
-        stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(depth[n])})
-    rgb = np.stack([s.linear_rgb for s in scanset.scans]).astype(np.float32)
+        closed = close_holes(comb, cfg.closing_px)
+        depth[n] = closed
+        stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(closed)})
+    rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
     return RgbzImages(rgb, depth, tuple(cams)), stats

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.scan import ScanSet
-from volume.fusion import FusedSdf, FusionConfig, carve_field, complete_sdf, scan_maps
+from volume.fusion import FusedSdf, FusionConfig, carve_field, completed, scan_maps
 
 #: Depth beyond which Open3D ignores a pixel (metres); far larger than any turntable scene.
 DEPTH_TRUNC = 1000.0
@@ -46,8 +46,9 @@ def tsdf_volume(scanset: ScanSet, origin, voxel_size: float, resolution: int, tr
 
 
 def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
-              maps=None, coarse: FusedSdf | None = None, progress=None) -> FusedSdf:
-    """Open3D TSDF band + shared carving sign + distance-transform completion (module docstring)."""
+              maps=None, coarse: FusedSdf | None = None, progress=None, complete: bool = True) -> FusedSdf:
+    """Open3D TSDF band + shared carving sign + distance-transform completion (module docstring);
+    ``complete`` as in volume.fusion.fuse_consensus."""
     cfg = cfg or FusionConfig()
     L, w = int(resolution), float(voxel_size)
     origin = np.asarray(origin, np.float64)
@@ -58,7 +59,8 @@ def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg:
     shape = (L, L, L)
     outside = outside.reshape(shape)
     band = (weight > 0) & (np.abs(tsdf) < np.float32(trunc) * np.float32(0.999))
-    values = complete_sdf(np.where(band, tsdf, 0).astype(np.float32), band, outside, w)
+    bvals = np.where(band, tsdf, 0).astype(np.float32)
     support = np.minimum(weight, 255).astype(np.uint8) * band
-    return FusedSdf(values, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band,
-                    np.where(band, tsdf, 0).astype(np.float32), band)
+    f = FusedSdf(None, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band,
+                 bvals, band, (bvals, outside))
+    return completed(f) if complete else f
