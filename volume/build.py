@@ -18,12 +18,12 @@ decimation, every level completed), kept for the side-by-side benchmark (bench/m
 from __future__ import annotations
 
 import contextlib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from capture.scan import ScanSet
-from volume.fusion import FusionConfig, completed, fuse_consensus, scan_maps
+from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
 from volume.model import Model, SdfLevel, SdfPyramid
@@ -67,10 +67,13 @@ class ModelConfig:
 
     @classmethod
     def reference(cls, **kw) -> "ModelConfig":
-        """The pipeline before the build-only-what-is-needed changes: mesh marched on the finest
-        level and decimated by pymeshlab, every fused level completed."""
+        """The pipeline before the build-only-what-is-needed changes: numpy fusion passes, mesh
+        marched on the finest level and decimated by pymeshlab, every fused level completed,
+        RGBz geometry depth ray cast by Open3D."""
         mesh = MeshConfig(level=0, decimator="pymeshlab")
-        return cls(mesh=mesh, defer_finest=False, **kw)
+        fusion = replace(kw.pop("fusion", FusionConfig()), backend="numpy")
+        rgbz = replace(kw.pop("rgbz", RgbzConfig()), mesh_depth="raycast")
+        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, **kw)
 
 
 def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False):
@@ -82,8 +85,8 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, d
     fuse = fuse_consensus if cfg.sdf == "consensus" else fuse_tsdf
     with stage("depth normals"):
         it = scanset.scans
-        maps = [scan_maps(s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
-                for s in (progress(it, "normals") if progress else it)]
+        maps = prepare_maps([scan_maps(s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
+                             for s in (progress(it, "normals") if progress else it)], cfg.fusion.backend)
     fused, frac = {}, {}
     coarse = None
     for L in cfg.lopt.resolutions:

@@ -56,6 +56,8 @@ BILATERAL_DIAMETER = 5
 BILATERAL_SIGMA_PX = 1.5
 #: Largest distance (metres) stored for a voxel with nothing to measure from (empty volumes).
 FAR = 1.0
+#: Implementations of passes 1 and 2 (FusionConfig.backend).
+BACKENDS = ("numba", "numpy")
 
 
 @dataclass(frozen=True)
@@ -83,8 +85,13 @@ class FusionConfig:
     smooth_sigma_z: float = 0.003
     """Range sigma (metres) of the bilateral filter applied to depth before normals and planes
     are computed (depth edges larger than this are kept); 0 disables."""
+    backend: str = "numba"
+    """Pass 1 and 2 kernels: 'numba' (compiled loops, volume.fusion_jit) or 'numpy' (the
+    vectorised reference)."""
 
     def __post_init__(self) -> None:
+        if self.backend not in BACKENDS:
+            raise ValueError(f"fusion backend must be one of {BACKENDS}, got {self.backend!r}")
         if self.trunc_voxels <= 0 or self.agree_voxels <= 0 or self.quorum < 1 or self.carve_quorum < 1:
             raise ValueError(f"invalid FusionConfig {self}")
         if not 0 < self.agree_normal_deg <= 180 or not 0 < self.max_grazing_deg < 90:
@@ -270,10 +277,28 @@ def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
     return inb, has & (proj > free_margin), inb & m.void[idx], has & (proj < -trunc), near
 
 
+def prepare_maps(maps, backend: str):
+    """What the backend's passes take: a volume.fusion_jit.PackedMaps for 'numba' (packed once
+    per call; pass one in to share it between levels), the list of ScanMaps for 'numpy'."""
+    if backend == "numba":
+        from volume.fusion_jit import pack_maps
+
+        return pack_maps(maps)
+    if not isinstance(maps, (list, tuple)):
+        raise TypeError("the numpy fusion backend takes the list of ScanMaps, not packed maps")
+    return list(maps)
+
+
 def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, free_margin: float,
-                voxels: np.ndarray | None = None, progress=None):
+                voxels: np.ndarray | None = None, progress=None, backend: str = "numpy"):
     """Pass 1: counts (free, nodata, occluded, seen, near), uint8 arrays over ``voxels``
     (flat indices into the L^3 grid, C order; None = every voxel)."""
+    maps = prepare_maps(maps, backend)
+    if backend == "numba":
+        from volume.fusion_jit import carve_votes_jit
+
+        return carve_votes_jit(maps, origin, w, L, trunc, free_margin, voxels, PROJ_FACTOR, NEAR_SLACK,
+                               PASS1_CHUNK, progress)
     n = L ** 3 if voxels is None else len(voxels)
     free = np.zeros(n, np.uint8)
     nodata = np.zeros(n, np.uint8)
@@ -324,7 +349,8 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
     trunc = cfg.trunc(w)
     n = L ** 3
     if coarse is None or coarse.resolution * 2 != L:
-        free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), None, progress)
+        free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), None, progress,
+                                                    cfg.backend)
         return carve_sign(free, nodata, occ, seen, cfg, len(maps)), seen, near
     wc = coarse.voxel_size
     keep = (np.abs(coarse.values) <= COARSE_MARGIN_VOXELS * wc + trunc) | coarse.near_mask
@@ -332,7 +358,7 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
     outside = upsample2(coarse.values > 0).reshape(-1)
     seen = upsample2(coarse.seen).reshape(-1).copy()
     near = np.zeros(n, np.uint8)
-    free, nodata, occ, sn, nr = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), cand, progress)
+    free, nodata, occ, sn, nr = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), cand, progress, cfg.backend)
     outside[cand] = carve_sign(free, nodata, occ, sn, cfg, len(maps))
     seen[cand] = sn
     near[cand] = nr
@@ -492,6 +518,7 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     origin = np.asarray(origin, np.float64)
     trunc = cfg.trunc(w)
     maps = maps if maps is not None else [scan_maps(s, cfg.max_grazing_deg, cfg.smooth_sigma_z) for s in scanset.scans]
+    maps = prepare_maps(maps, cfg.backend)
     outside, seen, near = carve_field(maps, origin, w, L, cfg, coarse, progress)
     cand = np.nonzero(near)[0]
     band = np.zeros(L ** 3, bool)
@@ -499,18 +526,25 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     support = np.zeros(L ** 3, np.uint8)
     meas = np.zeros(L ** 3, np.float32)
     mmask = np.zeros(L ** 3, bool)
-    xc = _centers_of(cand, origin, w, L)
     # the quorum drops only to the number of scans whose image contains x (a lone scan counts)
     n_obs = seen[cand].astype(np.int32)
-    for s in range(0, len(cand), PASS2_CHUNK):
-        sl = slice(s, s + PASS2_CHUNK)
-        has, val, sup, has1, val1 = consensus_band(maps, xc[sl], trunc, cfg, w, n_obs[sl])
+    if cfg.backend == "numba":
+        from volume.fusion_jit import consensus_jit
+
+        parts = [(cand, consensus_jit(maps, cand, origin, w, L, n_obs, trunc, PROJ_FACTOR, cfg.agree(w),
+                                      cfg.agree_normal_deg, cfg.quorum))]
+    else:
+        xc = _centers_of(cand, origin, w, L)
+        parts = ((cand[s:s + PASS2_CHUNK], consensus_band(maps, xc[s:s + PASS2_CHUNK], trunc, cfg, w,
+                                                          n_obs[s:s + PASS2_CHUNK]))
+                 for s in range(0, len(cand), PASS2_CHUNK))
+    for cs, (has, val, sup, has1, val1) in parts:
         # unconfirmed samples may say "in front of a surface" (outside), never "inside"
-        outside[cand[sl][~has & has1 & (val1 > 0)]] = True
-        i1 = cand[sl][has1]
+        outside[cs[~has & has1 & (val1 > 0)]] = True
+        i1 = cs[has1]
         meas[i1] = val1[has1]
         mmask[i1] = True
-        idx = cand[sl][has]
+        idx = cs[has]
         band[idx] = True
         bvals[idx] = np.clip(val[has], -trunc, trunc)
         support[idx] = sup[has]
