@@ -117,7 +117,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     for L in sorted({mesh_res, sphere_res} | {L for L in fused if L <= l_opt}):
         if fused[L].values is None:
             with stage(f"complete {L}^3"):
-                fused[L] = completed(fused[L])
+                fused[L] = completed(fused[L], cfg.fusion.backend)
     with stage("pyramid"):
         points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
         pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items() if L <= l_opt}, origin, extent,

@@ -24,7 +24,7 @@ Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised ove
    free >= min(carve_quorum, #scans that see x), or free + nodata >= carve_ratio * occluded; voxels fewer than min(carve_quorum, #scans) scans contain are
    outside; the rest (hidden behind the
    surface in every view) are inside.
-5. **Completion** (:func:`complete_sdf`): outside the consensus band the distance is the
+5. **Completion** (:func:`volume.completion.complete_sdf`): outside the consensus band the distance is the
    Euclidean distance transform of the sign field, so it is finite everywhere.
 
 The Open3D TSDF peer (:mod:`volume.tsdf`) uses steps 2, 4, 5 too, with its own band.
@@ -38,6 +38,7 @@ import numpy as np
 from scipy import ndimage
 
 from capture.scan import Scan, ScanSet
+from volume.completion import complete_sdf
 from volume.grid import voxel_centers
 
 #: Voxels per chunk in pass 1 (memory ~ 40 bytes per voxel per array).
@@ -54,8 +55,6 @@ SILHOUETTE_PX = 1
 #: Pixel diameter and spatial sigma of the bilateral depth filter (see FusionConfig.smooth_sigma_z).
 BILATERAL_DIAMETER = 5
 BILATERAL_SIGMA_PX = 1.5
-#: Largest distance (metres) stored for a voxel with nothing to measure from (empty volumes).
-FAR = 1.0
 #: Implementations of passes 1 and 2 (FusionConfig.backend).
 BACKENDS = ("numba", "numpy")
 
@@ -86,8 +85,8 @@ class FusionConfig:
     """Range sigma (metres) of the bilateral filter applied to depth before normals and planes
     are computed (depth edges larger than this are kept); 0 disables."""
     backend: str = "numba"
-    """Pass 1 and 2 kernels: 'numba' (compiled loops, volume.fusion_jit) or 'numpy' (the
-    vectorised reference)."""
+    """Compiled kernels, 'numba' (passes 1-2 in volume.fusion_jit, the distance transform of
+    the ``edt`` package), or 'numpy' (vectorised numpy passes and scipy's transform: the reference)."""
 
     def __post_init__(self) -> None:
         if self.backend not in BACKENDS:
@@ -256,12 +255,12 @@ class FusedSdf:
     pending: tuple | None = None
 
 
-def completed(f: FusedSdf) -> FusedSdf:
+def completed(f: FusedSdf, backend: str = "numba") -> FusedSdf:
     """``f`` with its values (the deferred distance-transform completion done; else ``f`` itself)."""
     if f.values is not None:
         return f
     bvals, outside = f.pending
-    return replace(f, values=complete_sdf(bvals, f.band, outside, f.voxel_size), pending=None)
+    return replace(f, values=complete_sdf(bvals, f.band, outside, f.voxel_size, backend), pending=None)
 
 
 def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
@@ -404,7 +403,7 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     """Step 3 of the module docstring, vectorised over voxels and sample pairs.
 
     Returns (has consensus, value, support, has a nearest cluster, its value without quorum);
-    :func:`consensus_reference` is the per-voxel loop it is tested against.
+    :func:`volume.fusion_reference.consensus_reference` is the per-voxel loop it is tested against.
     """
     M = len(d)
     agree_d = cfg.agree(w)
@@ -433,74 +432,10 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     return has_c, value.astype(np.float32), support, has1, value1.astype(np.float32)
 
 
-def consensus_reference(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):
-    """Slow, obviously-correct per-voxel version of :func:`consensus_from_samples` (float64)."""
-    M, S = d.shape
-    cos_n = np.cos(np.radians(cfg.agree_normal_deg))
-    out = (np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64), np.zeros(M, bool),
-           np.zeros(M, np.float32))
-    for m in range(M):
-        def agrees(i, j):
-            if not (ok[m, i] and ok[m, j]):
-                return False
-            pi = -float(d[m, i]) * nrm[m, i].astype(np.float64)  # nearest points relative to x
-            pj = -float(d[m, j]) * nrm[m, j].astype(np.float64)
-            return float(np.dot(nrm[m, i], nrm[m, j])) > cos_n and float(np.sum((pi - pj) ** 2)) < cfg.agree(w) ** 2
-        q = max(1, min(cfg.quorum, int(n_see[m])))
-        best = best1 = None
-        for i in range(S):
-            if not ok[m, i]:
-                continue
-            n_agree = sum(agrees(i, j) for j in range(S))
-            if n_agree >= q and (best is None or abs(d[m, i]) < abs(d[m, best])):
-                best = i
-            if best1 is None or abs(d[m, i]) < abs(d[m, best1]):
-                best1 = i
-        for k, choice in ((0, best), (3, best1)):
-            if choice is None:
-                continue
-            mem = [j for j in range(S) if agrees(choice, j)]
-            ws = sum(float(cw[m, j]) for j in mem)
-            val = sum(float(cw[m, j]) * float(d[m, j]) for j in mem) / ws if ws > 0 else 0.0
-            if k == 0:
-                out[0][m] = fr[m] <= len(mem)
-                out[1][m] = val
-                out[2][m] = len(mem)
-            else:
-                out[3][m] = True
-                out[4][m] = val
-    return out
-
-
 def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: FusionConfig, w: float,
                    n_see: np.ndarray):
     """Pass 2 for band voxels x (M, 3): see :func:`consensus_from_samples`."""
     return consensus_from_samples(*gather_samples(maps, x, trunc), n_see, cfg, w)
-
-
-def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray, w: float) -> np.ndarray:
-    """Fill a full signed distance volume (L, L, L) float32 from band values and a sign field.
-
-    Band voxels keep their fused value and sign; every other voxel gets its sign from
-    ``outside`` and the magnitude (EDT distance to the nearest voxel of the other sign - w/2),
-    an exact Euclidean distance transform of the binary sign field (scipy), so the filled
-    part is 1-Lipschitz and cannot create Eq. 1 discontinuities by itself.
-    """
-    L = band.shape[0]
-    sign_out = np.where(band, band_values > 0, outside)
-    vals = np.empty(band.shape, np.float32)
-    far = np.float32(max(FAR, 2 * L * w))
-    for side in (True, False):
-        region = sign_out == side
-        if not region.any():
-            continue
-        if (~region).any():
-            mag = (ndimage.distance_transform_edt(region).astype(np.float32) - np.float32(0.5)) * np.float32(w)
-        else:
-            mag = np.full(band.shape, far, np.float32)
-        vals[region] = (mag if side else -mag)[region]
-    vals[band] = band_values[band]
-    return vals
 
 
 def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
@@ -552,4 +487,4 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     f = FusedSdf(None, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
                  (near > 0).reshape(shape), meas.reshape(shape), mmask.reshape(shape),
                  (bvals.reshape(shape), outside.reshape(shape)))
-    return completed(f) if complete else f
+    return completed(f, cfg.backend) if complete else f

@@ -5,7 +5,7 @@ meshes) integrates every depth map with its projective distance D - z, truncated
 ``trunc`` and averaged with unit weights.  Its band (voxels with weight > 0 and |tsdf| < 1)
 gives the values near the surface; everything else gets its sign from the same space-carving
 votes as the consensus fusion and its magnitude from the distance transform
-(``volume.fusion.complete_sdf``), so the two methods differ only in how the band is fused.
+(``volume.completion.complete_sdf``), so the two methods differ only in how the band is fused.
 """
 
 from __future__ import annotations
@@ -63,4 +63,4 @@ def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg:
     support = np.minimum(weight, 255).astype(np.uint8) * band
     f = FusedSdf(None, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band,
                  bvals, band, (bvals, outside))
-    return completed(f) if complete else f
+    return completed(f, cfg.backend) if complete else f

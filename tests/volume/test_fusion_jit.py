@@ -16,8 +16,10 @@ import numpy as np
 import pytest
 
 from tests.volume.scenes import furball_scene, make_scanset, ring_cameras
+from volume.completion import complete_sdf
 from volume.fusion import (NEAR_SLACK, PROJ_FACTOR, FusionConfig, _centers_of, carve_field, carve_votes, completed,
-                           consensus_band, consensus_reference, fuse_consensus, gather_samples, scan_maps)
+                           consensus_band, fuse_consensus, gather_samples, scan_maps)
+from volume.fusion_reference import consensus_reference
 from volume.fusion_jit import consensus_jit, pack_maps
 from volume.grid import cube_for_bounds
 from volume.pyramid import discontinuity_fraction
@@ -105,9 +107,27 @@ def test_deferred_completion_equals_the_direct_one(fur):
     lazy = fuse_consensus(ss, origin, w, 16, cfg, maps, complete=False)
     assert lazy.values is None and lazy.pending is not None
     np.testing.assert_array_equal(lazy.measured, direct.measured)  # what Eq. 1 reads is there already
-    done = completed(lazy)
+    done = completed(lazy, cfg.backend)
     assert done.pending is None and completed(done) is done
     np.testing.assert_array_equal(done.values, direct.values)
+
+
+def test_edt_completion_matches_scipy():
+    """The multi-label ``edt`` transform against scipy's, one transform per side (float32 rounding)."""
+    rng = np.random.default_rng(3)
+    n, w = 40, 0.004
+    g = np.indices((n, n, n)).transpose(1, 2, 3, 0) - n / 2
+    outside = (np.linalg.norm(g, axis=-1) > 11) & (np.abs(g[..., 0] - 7) > 3)  # a ball with a slot cut
+    band = rng.random((n, n, n)) < 0.02
+    bvals = np.where(outside, 1, -1) * rng.uniform(0, w, (n, n, n)).astype(np.float32)
+    a = complete_sdf(bvals, band, outside, w, "numpy")
+    b = complete_sdf(bvals, band, outside, w, "numba")
+    assert b.dtype == np.float32 and np.array_equal(b[band], bvals[band])
+    np.testing.assert_allclose(b, a, rtol=0, atol=1e-6 * n * w)
+    for empty in (np.ones_like(outside), np.zeros_like(outside)):  # one sign only: the same far value
+        none = np.zeros_like(band)
+        np.testing.assert_array_equal(complete_sdf(bvals, none, empty, w, "numba"),
+                                      complete_sdf(bvals, none, empty, w, "numpy"))
 
 
 def test_backend_is_validated():
