@@ -12,8 +12,9 @@ mesh, RGBz) on the 36-view 640x480 fur ball to a 128^3 pyramid: the issue's targ
 
 ``--speed`` times ``furrow model`` at the defaults on the 640x480 captures with millimetre
 16-bit PNG depth (``furball-mm``, ``plant-mm``; 18 kept views = frames 0::2, and all 36), each
-run in a fresh process: wall and CPU seconds (the child's rusage) and peak resident memory (its
-ru_maxrss), medians of ``--repeats`` runs, with the stage table of ``--json``.  ``--before``
+run in a fresh process after one untimed warm-up run: wall and CPU seconds (the child's
+rusage) and peak resident memory (its ru_maxrss), medians of ``--repeats`` runs, with the stage
+table of ``--json``.  ``--before``
 names what the current tree is compared with, run interleaved with it (so a ratio compares
 runs made side by side): ``reference`` = ``furrow model --reference-pipeline`` of this tree
 (the slow paths kept beside the fast ones), ``git:REF`` = ``furrow model`` of that commit (a
@@ -241,13 +242,15 @@ def run_speed(scene: str, scans: Path, views: list[int], repeats: int, before: s
     for n in views:
         frames = ["--frames", VIEW_FRAMES[n]] if VIEW_FRAMES.get(n) else []
         runs = {name: [] for name, _, _ in variants}
-        for rep in range(repeats):
+        for rep in range(-1, repeats):  # run -1: untimed warm-up (numba's compile cache, the disk cache)
             for name, tree, extra in variants:
                 env = {**os.environ, "PYTHONPATH": str(tree), "OMP_WAIT_POLICY": "passive"}
                 out = work / f"model-{scene}-{n}-{name}"
                 cmd = [sys.executable, "-m", "furrow", "model", str(scans), "-o", str(out), "--overwrite", "--json",
                        *frames, *extra]
                 r = _run_child(cmd, tree, env)
+                if rep < 0:
+                    continue
                 runs[name].append(r)
                 print(f"speed {scene} {n} views {name} run {rep + 1}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
                       f"{r['peak_mb']:.0f} MiB", flush=True)
