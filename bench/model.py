@@ -12,7 +12,7 @@ mesh, RGBz) on the 36-view 640x480 fur ball to a 128^3 pyramid: the issue's targ
 
 ``--speed`` times ``furrow model`` at the defaults on the 640x480 captures with millimetre
 16-bit PNG depth (``furball-mm``, ``plant-mm``; 18 kept views = frames 0::2, and all 36), each
-run in a fresh process after one untimed warm-up run: wall and CPU seconds (the child's
+run in a fresh process (after one untimed warm-up run of this tree: numba compiles once): wall and CPU seconds (the child's
 rusage) and peak resident memory (its ru_maxrss), medians of ``--repeats`` runs, with the stage
 table of ``--json``.  ``--before``
 names what the current tree is compared with, run interleaved with it (so a ratio compares
@@ -248,6 +248,8 @@ def run_speed(scene: str, scans: Path, views: list[int], repeats: int, before: s
                 out = work / f"model-{scene}-{n}-{name}"
                 cmd = [sys.executable, "-m", "furrow", "model", str(scans), "-o", str(out), "--overwrite", "--json",
                        *frames, *extra]
+                if rep < 0 and name == "before":
+                    continue  # the warm-up compiles this tree's numba kernels; the before tree has none
                 r = _run_child(cmd, tree, env)
                 if rep < 0:
                     continue
