@@ -5,8 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from render.viewer.adaptive import (AdaptiveConfig, Action, choose_scale, fit_cost, frame_size, is_stale,
-                                    next_action, quantise)
+from render.viewer.adaptive import (
+    Action,
+    AdaptiveConfig,
+    choose_scale,
+    fit_cost,
+    frame_size,
+    is_stale,
+    next_action,
+    quantise,
+)
 
 FULL = (640, 480)
 FULL_PX = FULL[0] * FULL[1]
@@ -23,8 +31,9 @@ def test_fit_cost_recovers_a_line():
         fit_cost([], [])
 
 
-def simulate(a, b, n, cfg=AdaptiveConfig(), noise=0.0, seed=0):
+def simulate(a, b, n, cfg=None, noise=0.0, seed=0):
     """Run the controller against a renderer costing a + b * pixels ms (times +- noise share)."""
+    cfg = cfg or AdaptiveConfig()
     rng = np.random.default_rng(seed)
     hist, scale, scales = [], None, []
     for _ in range(n):
