@@ -7,7 +7,8 @@ Pure functions over numbers (no GL, no threads), used by render.viewer.session:
   predicted time fits the frame budget (``1000 / target_fps`` ms), quantised so that the size
   does not jitter from frame to frame;
 * :func:`next_action`: render a moving frame (the camera changed since the last frame), the
-  full-resolution supersampled frame (the camera has been still for ``still_s``) or wait;
+  full-size frame then its supersampled refinement (the camera has been still for ``still_s``),
+  or wait;
 * :func:`is_stale`: a frame whose camera/settings version is no longer the latest is dropped.
 """
 
@@ -36,7 +37,7 @@ MIN_SPREAD = 1.5
 #: Scale used before any frame was measured.
 FIRST_SCALE = 0.5
 #: Hysteresis: the previous moving scale is kept when the new choice is within this many steps
-#: of it and the previous size's predicted time is within HOLD_SLACK of the budget.
+#: of it and the previous size's predicted time is within HOLD_SLACK (share) of the budget.
 HOLD_STEPS = 2
 HOLD_SLACK = 0.1
 #: Timing tolerance (s) of the stillness test.
@@ -130,7 +131,8 @@ def choose_scale(history, full_pixels: int, cfg: AdaptiveConfig = AdaptiveConfig
     if previous is not None:
         scale = min(scale, previous * cfg.max_growth)
         predicted = a + b * previous * previous * full_pixels
-        if abs(scale - previous) <= HOLD_STEPS * cfg.scale_step and predicted <= cfg.budget_ms * (1 + HOLD_SLACK):
+        near_budget = abs(predicted - cfg.budget_ms) <= HOLD_SLACK * cfg.budget_ms
+        if near_budget and abs(scale - previous) <= HOLD_STEPS * cfg.scale_step:
             scale = previous
     return quantise(scale, cfg)
 
@@ -146,30 +148,36 @@ def frame_size(full_size: tuple[int, int], scale: float, multiple: int = 2) -> t
 
 class Action(NamedTuple):
     """What a session does next: ``kind`` is "moving" (a reduced frame of the latest camera),
-    "full" (the full-resolution, supersampled frame) or "wait" (for ``wait_s`` seconds or the
-    next camera update, whichever comes first; None = until the next update)."""
+    "full" (the full-size frame, one sample per pixel), "refine" (the full-size supersampled frame)
+    or "wait" (for ``wait_s`` seconds or the next update, whichever comes first; None = until the
+    next update)."""
 
     kind: str
     wait_s: float | None = None
 
 
 def next_action(now: float, version: int, last_change_t: float, moving_done: int, full_done: int,
-                cfg: AdaptiveConfig = AdaptiveConfig()) -> Action:
+                refined_done: int, refine: bool, cfg: AdaptiveConfig = AdaptiveConfig()) -> Action:
     """The next step of a client session.
+
+    Once the camera has been still for ``cfg.still_s``, the full-size frame goes out first with one
+    sample per pixel (fast: the view sharpens to full size right after the stop), then, when
+    ``refine`` (supersampling asked for), the supersampled frame replaces it.
 
     Args:
         now: current time (s, monotonic).
         version: counter of the latest camera / settings (bumped on every change).
         last_change_t: time of that change.
-        moving_done: version of the last moving frame sent (-1: none).
-        full_done: version of the last full frame sent (-1: none).
+        moving_done, full_done, refined_done: versions of the last moving, full and supersampled
+            frames sent (-1: none).
+        refine: whether a supersampled frame follows the full one.
         cfg: the stillness delay.
     """
-    if full_done == version:
+    if refined_done == version or (full_done == version and not refine):
         return Action("wait", None)
     still_for = now - last_change_t
     if still_for >= cfg.still_s - TIME_EPS:
-        return Action("full")
+        return Action("full" if full_done != version else "refine")
     if moving_done != version:
         return Action("moving")
     return Action("wait", cfg.still_s - still_for)

@@ -80,16 +80,20 @@ def test_quantise_and_frame_size():
 
 def test_next_action_sequence():
     cfg = AdaptiveConfig(still_s=0.2)
+    nxt = lambda now, moving, full, refined, refine=True: next_action(now, 5, 1.0, moving, full, refined, refine, cfg)
     # camera moved at t=1.0 (version 5), nothing rendered: a moving frame
-    assert next_action(1.01, 5, 1.0, moving_done=4, full_done=3, cfg=cfg) == Action("moving")
+    assert nxt(1.01, 4, 3, 3) == Action("moving")
     # moving frame sent, still moving window: wait the rest of the stillness delay
-    act = next_action(1.05, 5, 1.0, moving_done=5, full_done=3, cfg=cfg)
+    act = nxt(1.05, 5, 3, 3)
     assert act.kind == "wait" and act.wait_s == pytest.approx(0.15)
     # still for 0.2 s: the full frame, even when the moving frame never went out
-    assert next_action(1.2, 5, 1.0, moving_done=5, full_done=3, cfg=cfg) == Action("full")
-    assert next_action(1.3, 5, 1.0, moving_done=4, full_done=3, cfg=cfg) == Action("full")
-    # full frame of this version sent: wait for the next change
-    assert next_action(9.0, 5, 1.0, moving_done=5, full_done=5, cfg=cfg) == Action("wait", None)
+    assert nxt(1.2, 5, 3, 3) == Action("full")
+    assert nxt(1.3, 4, 3, 3) == Action("full")
+    # full frame sent: the supersampled one, then wait for the next change
+    assert nxt(1.4, 5, 5, 3) == Action("refine")
+    assert nxt(9.0, 5, 5, 5) == Action("wait", None)
+    # no supersampling asked for: nothing after the full frame
+    assert nxt(1.4, 5, 5, 3, refine=False) == Action("wait", None)
 
 
 def test_stale_work_is_dropped():
@@ -101,3 +105,18 @@ def test_config_validation():
         AdaptiveConfig(target_fps=0)
     with pytest.raises(ValueError):
         AdaptiveConfig(min_scale=0)
+
+
+def test_grows_back_from_the_smallest_size():
+    """After a slow frame (e.g. shader compilation) the size shrinks to the minimum; cheap frames
+    afterwards grow it back (the hysteresis holds only near the budget)."""
+    cfg = AdaptiveConfig()
+    a, b = 8.0, 60.0 / FULL_PX
+    hist = [(FULL_PX // 4, 800.0)]
+    scale = choose_scale(hist, FULL_PX, cfg, previous=0.5)
+    assert scale <= 0.2
+    for _ in range(30):
+        w, h = frame_size(FULL, scale)
+        hist.append((w * h, a + b * w * h))
+        scale = choose_scale(hist, FULL_PX, cfg, previous=scale)
+    assert scale == 1.0
