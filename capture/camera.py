@@ -7,9 +7,13 @@ coordinates to pixels.  This module alone converts to and from
 * the nerfstudio / instant-ngp ``transform_matrix`` (camera-to-world, OpenGL axes:
   x right, y up, z back) and its half-pixel-shifted intrinsics (pixel centre at i + 0.5),
 * the OpenGL view and projection matrices used by ``render/``,
-* OpenGL framebuffer row order (bottom row first) and image row order (top row first).
+* OpenGL framebuffer row order (bottom row first) and image row order (top row first),
+* corner-origin pixel coordinates (pixel i's centre at i + 0.5: OpenGL windows, nerfstudio,
+  COLMAP, VCG range maps) and resampled images (a pixel grid at another resolution).
 
-Nowhere else in the code base flips an axis.
+Nowhere else in the code base flips an axis or shifts a pixel centre: other modules call the
+named functions below (GLSL calls ``render/shaders/framebuffer_row.glsl``, its twin), and
+``tests/capture/test_no_flips.py`` greps the tree to keep it so.
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ import numpy as np
 
 #: Diagonal that flips y and z: OpenCV camera axes <-> OpenGL camera axes.
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+#: Row of ``cam_from_world`` holding the camera's y axis (image down) in world coordinates.
+_IMAGE_DOWN_ROW = 1
 #: Largest deviation of R^T R from I (and of det R from 1) accepted for a rigid pose.
 RIGID_TOLERANCE = 1e-4
 #: Offset between OpenCV pixel centres (integers) and nerfstudio/OpenGL ones (i + 0.5).
@@ -179,9 +185,7 @@ class Camera:
         K[0, 0] *= factor
         K[1, 1] *= factor
         K[0, 1] *= factor
-        # OpenCV centres: u' + 0.5 = factor * (u + 0.5)
-        K[0, 2] = factor * (K[0, 2] + HALF_PIXEL) - HALF_PIXEL
-        K[1, 2] = factor * (K[1, 2] + HALF_PIXEL) - HALF_PIXEL
+        K[:2, 2] = resample_pixel_coords(K[:2, 2], factor)
         return Camera(K, self.cam_from_world, round(self.width * factor), round(self.height * factor), self.name)
 
     # ------------------------------------------------------------- conventions
@@ -192,8 +196,8 @@ class Camera:
             "transform_matrix": (self.world_from_cam @ CV_TO_GL).tolist(),
             "fl_x": float(self.K[0, 0]),
             "fl_y": float(self.K[1, 1]),
-            "cx": float(self.K[0, 2] + HALF_PIXEL),
-            "cy": float(self.K[1, 2] + HALF_PIXEL),
+            "cx": float(corner_from_cv(self.K[0, 2])),
+            "cy": float(corner_from_cv(self.K[1, 2])),
             "w": self.width,
             "h": self.height,
         }
@@ -206,7 +210,7 @@ class Camera:
         c2w_gl = check_rigid(transform_matrix, f"camera {name!r}" if name else "transform_matrix")
         c2w_cv = c2w_gl @ CV_TO_GL
         return Camera(
-            make_K(fl_x, fl_y, cx - HALF_PIXEL, cy - HALF_PIXEL), invert_rigid(c2w_cv), int(w), int(h), name
+            make_K(fl_x, fl_y, cv_from_corner(cx), cv_from_corner(cy)), invert_rigid(c2w_cv), int(w), int(h), name
         )
 
     def gl_view(self) -> np.ndarray:
@@ -228,9 +232,9 @@ class Camera:
         P = np.zeros((4, 4))
         P[0, 0] = 2 * fx / W
         P[0, 1] = -2 * s / W
-        P[0, 2] = 1 - 2 * (cx + HALF_PIXEL) / W
+        P[0, 2] = 1 - 2 * corner_from_cv(cx) / W
         P[1, 1] = 2 * fy / H
-        P[1, 2] = 2 * (cy + HALF_PIXEL) / H - 1
+        P[1, 2] = 2 * corner_from_cv(cy) / H - 1
         P[2, 2] = -(far + near) / (far - near)
         P[2, 3] = -2 * far * near / (far - near)
         P[3, 2] = -1.0
@@ -248,6 +252,65 @@ def invert_rigid(m: np.ndarray) -> np.ndarray:
 def gl_rows_to_image(fb: np.ndarray) -> np.ndarray:
     """OpenGL read-back (bottom row first) -> image rows (top row first). Its own inverse."""
     return np.ascontiguousarray(fb[::-1])
+
+
+def gl_row(row, height: int):
+    """Image row (top first) <-> OpenGL framebuffer row (bottom first) of an image ``height``
+    rows tall: ``height - 1 - row`` (integers or arrays). Its own inverse."""
+    return height - 1 - row
+
+
+# ------------------------------------------------------------------ pixel centres
+def corner_from_cv(uv):
+    """OpenCV pixel coordinates (pixel i's centre at i) -> corner-origin ones (centre at i + 0.5:
+    OpenGL window coordinates, nerfstudio / COLMAP / VCG principal points). Scalars or arrays."""
+    return np.add(uv, HALF_PIXEL)
+
+
+def cv_from_corner(xy):
+    """Inverse of :func:`corner_from_cv`: corner-origin pixel coordinates -> OpenCV ones."""
+    return np.subtract(xy, HALF_PIXEL)
+
+
+def resample_pixel_coords(uv, factor: float):
+    """OpenCV pixel coordinates of the same image points on a grid ``factor`` times as fine
+    (edges kept: ``u' + 0.5 = factor (u + 0.5)``); ``factor = 1 / s`` maps sub-sample indices of
+    an s-times supersampled image back to pixel coordinates."""
+    return factor * corner_from_cv(uv) - HALF_PIXEL
+
+
+# ------------------------------------------------------------------ axes
+def gl_from_cv_axes() -> np.ndarray:
+    """(3, 3) diagonal flipping y and z: OpenCV camera axes (y down, z forward) <-> OpenGL ones
+    (y up, z back); also any frame with its y along image rows and z into the picture (a
+    ChArUco board's) <-> one with y up and z out of it. Its own inverse."""
+    return CV_TO_GL[:3, :3].copy()
+
+
+def image_right(camera: "Camera") -> np.ndarray:
+    """(3,) unit world direction of increasing image column u (the camera's +x)."""
+    return camera.cam_from_world[0, :3].copy()
+
+
+def image_up(camera: "Camera") -> np.ndarray:
+    """(3,) unit world direction that points up in the image (the camera's -y: OpenCV rows go down)."""
+    return -camera.cam_from_world[_IMAGE_DOWN_ROW, :3]
+
+
+def image_axes(camera: "Camera") -> tuple[np.ndarray, np.ndarray]:
+    """(right, up): :func:`image_right` and :func:`image_up`."""
+    return image_right(camera), image_up(camera)
+
+
+def cv_rotation_from_gl_axes(right, up, forward) -> np.ndarray:
+    """(3, 3) OpenCV world -> camera rotation of a camera given OpenGL-style by the world
+    directions of its image right, image up and optical axis (unit, orthogonal). ``right`` is
+    negated when (right, down, forward) would be left-handed (a mirrored camera file)."""
+    right, up, forward = (np.asarray(a, np.float64) for a in (right, up, forward))
+    down = -up
+    if np.dot(np.cross(right, down), forward) <= 0:
+        right = -right
+    return np.stack([right, down, forward])
 
 
 def gl_ndc_depth_to_z(ndc_depth01: np.ndarray, near: float, far: float) -> np.ndarray:

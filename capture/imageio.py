@@ -6,12 +6,11 @@ writes to a temporary file beside the target and renames it into place.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import atomic_write
 from capture.scan import srgb_to_linear
 
 
@@ -31,10 +30,7 @@ def read_color(path: Path) -> np.ndarray:
     if not path.is_file():
         raise ScanIOError(f"{path}: colour image not found")
     if path.suffix.lower() == ".exr":
-        img = read_exr(path)
-        if img.ndim == 2:
-            img = np.repeat(img[..., None], 3, axis=2)
-        return np.ascontiguousarray(img[..., :3], dtype=np.float32)
+        return read_exr_rgb(path)
     img = _cv2().imread(str(path), _cv2().IMREAD_UNCHANGED)
     if img is None:
         raise ScanIOError(f"{path}: not a readable image (corrupt or unsupported format)")
@@ -88,7 +84,8 @@ class _Chan:
 
 
 def read_exr(path: Path) -> np.ndarray:
-    """EXR -> float32 (H, W) or (H, W, C) with channels in RGB(A) / Y / Z order."""
+    """EXR -> float32 (H, W) or (H, W, C): the first of the channel sets RGB, RGBA, separate
+    R G B, then one of Z, Y, depth, D, R, V, or the only channel. OpenEXR package (PITFALLS)."""
     import OpenEXR
 
     try:
@@ -96,42 +93,36 @@ def read_exr(path: Path) -> np.ndarray:
             chans = {k: _Chan(np.array(v.pixels)) for k, v in f.channels().items()}
     except Exception as e:
         raise ScanIOError(f"{path}: not a readable EXR file ({e})") from None
-    if "RGB" in chans:
-        return np.asarray(chans["RGB"].pixels, dtype=np.float32)
-    if "RGBA" in chans:
-        return np.asarray(chans["RGBA"].pixels, dtype=np.float32)
+    for key in ("RGB", "RGBA"):
+        if key in chans:
+            return np.asarray(chans[key].pixels, dtype=np.float32)
+    if all(k in chans for k in ("R", "G", "B")):
+        return np.stack([chans[k].pixels for k in ("R", "G", "B")], axis=-1).astype(np.float32)
     for key in ("Z", "Y", "depth", "D", "R", "V"):
         if key in chans:
             return np.asarray(chans[key].pixels, dtype=np.float32)
     if len(chans) == 1:
         return np.asarray(next(iter(chans.values())).pixels, dtype=np.float32)
-    if all(k in chans for k in ("R", "G", "B")):
-        return np.stack([chans[k].pixels for k in ("R", "G", "B")], axis=-1).astype(np.float32)
     raise ScanIOError(f"{path}: EXR has channels {sorted(chans)}; expected RGB, Y or Z")
 
 
-def _atomic_target(path: Path):
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.tmp-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    return Path(tmp)
+def read_exr_rgb(path: Path) -> np.ndarray:
+    """EXR -> float32 (H, W, 3) colour (:func:`read_exr`; one channel is repeated as grey, alpha dropped)."""
+    img = read_exr(path)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    return np.ascontiguousarray(img[..., :3], dtype=np.float32)
 
 
 def write_exr(path: Path, data: np.ndarray) -> None:
-    """Write float32 (H, W) as channel Z, or (H, W, 3) as RGB, atomically."""
+    """Write float32 (H, W) as channel Z, or (H, W, 3) as RGB (ZIP compression, lossless), atomically."""
     import OpenEXR
 
     data = np.ascontiguousarray(data, dtype=np.float32)
-    tmp = _atomic_target(path)
-    try:
-        key = "Z" if data.ndim == 2 else "RGB"
-        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-        with OpenEXR.File(header, {key: data}) as f:
-            f.write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    key = "Z" if data.ndim == 2 else "RGB"
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with atomic_write(path) as tmp, OpenEXR.File(header, {key: data}) as f:
+        f.write(str(tmp))
 
 
 def write_png(path: Path, img: np.ndarray) -> None:
@@ -139,13 +130,9 @@ def write_png(path: Path, img: np.ndarray) -> None:
     img = np.asarray(img)
     if img.ndim == 3:
         img = np.ascontiguousarray(img[..., ::-1])  # RGB -> BGR
-    tmp = _atomic_target(path)
-    try:
+    with atomic_write(path) as tmp:
         if not _cv2().imwrite(str(tmp), img):
             raise ScanIOError(f"{path}: could not write PNG")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def depth_to_uint16(depth_m: np.ndarray, unit: float, name: str) -> np.ndarray:

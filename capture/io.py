@@ -17,14 +17,12 @@ Plain folder layout: ``rgb/NAME.png``, ``depth/NAME.png|.exr``, ``cameras/NAME.j
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import atomic_dir
 from capture.camera import Camera, CameraError
 from capture.imageio import ScanIOError, depth_to_uint16, read_color, read_depth_raw, write_exr, write_png
 from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, to_uint8_srgb
@@ -280,37 +278,12 @@ def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSe
 
 
 # --------------------------------------------------------------------------- writing
-class _AtomicFolder:
-    """Build a folder under a temporary name beside ``target``; rename into place on success."""
-
-    def __init__(self, target: Path, overwrite: bool):
-        self.target = Path(target)
-        self.overwrite = overwrite
-
-    def __enter__(self) -> Path:
-        if self.target.exists() and not self.overwrite:
-            raise ScanIOError(f"{self.target}: already exists (choose another output or allow overwrite)")
-        self.target.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-", dir=self.target.parent))
-        return self.tmp
-
-    def __exit__(self, exc_type, exc, tb):
-        if exc_type is not None:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            return False
-        if self.target.exists():
-            old = self.target.with_name(f".{self.target.name}.old-{os.getpid()}")
-            os.replace(self.target, old)
-            os.replace(self.tmp, self.target)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(self.tmp, self.target)
-        return False
-
-
-def atomic_folder(target: Path, overwrite: bool = False) -> _AtomicFolder:
-    """``with atomic_folder(out) as tmp:`` write into ``tmp``; it becomes ``out`` on success only."""
-    return _AtomicFolder(target, overwrite)
+def atomic_folder(target: Path, overwrite: bool = False):
+    """``with atomic_folder(out) as tmp:`` write into ``tmp``; it becomes ``out`` on success only
+    (``capture.atomic.atomic_dir``). An existing ``out`` is an error unless ``overwrite``."""
+    if Path(target).exists() and not overwrite:
+        raise ScanIOError(f"{target}: already exists (choose another output or allow overwrite)")
+    return atomic_dir(target)
 
 
 def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, depth_format: str, unit: float) -> None:
@@ -346,7 +319,7 @@ def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
             frames.append(frame)
         meta = {"camera_model": "PINHOLE", "frames": frames,
                 "furrow": {"bounds": np.asarray(scanset.bounds).tolist(),
-                           "metadata": _jsonable(scanset.metadata)}}
+                           "metadata": jsonable(scanset.metadata)}}
         (tmp / TRANSFORMS).write_text(json.dumps(meta, indent=1))
         for rel, data in (extra_files or {}).items():
             (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
@@ -370,11 +343,13 @@ def write_plain_folder(scanset: ScanSet, out_dir: Path, depth_format: str = "exr
     return out_dir
 
 
-def _jsonable(x):
+def jsonable(x):
+    """``x`` made JSON-serialisable: dict keys as strings, tuples as lists, numpy arrays and
+    scalars as Python values, anything else unknown as its ``str``."""
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [jsonable(v) for v in x]
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, (np.floating, np.integer)):

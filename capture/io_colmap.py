@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from capture.camera import HALF_PIXEL, Camera, CameraError, make_K
+from capture.camera import Camera, CameraError, cv_from_corner, make_K
 from capture.imageio import ScanIOError
 from capture.io import _load_scan, auto_bounds
 from capture.scan import ScanSet, select_indices
@@ -33,7 +33,7 @@ def _camera_K(cam, where: str) -> np.ndarray:
             raise ScanIOError(f"{where}: COLMAP camera model {name} has non-zero distortion {list(extra)}; "
                               "undistort first (colmap image_undistorter)")
     return make_K(cam.focal_length_x, cam.focal_length_y,
-                  cam.principal_point_x - HALF_PIXEL, cam.principal_point_y - HALF_PIXEL)
+                  cv_from_corner(cam.principal_point_x), cv_from_corner(cam.principal_point_y))
 
 
 def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None,

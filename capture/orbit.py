@@ -1,20 +1,21 @@
-"""New viewpoints derived from a capture rig: its up direction and a turntable orbit.
+"""New viewpoints derived from a capture rig (its up direction and a turntable orbit), and the
+turntable ring of cameras itself.
 
-Nothing here assumes the world's +z is up or that the object sits at the origin: both are
-estimated from the input cameras and the object's bounds.
+Nothing in the orbit assumes the world's +z is up or that the object sits at the origin: both
+are estimated from the input cameras and the object's bounds.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from capture.camera import Camera, look_at
+from capture.camera import Camera, image_up, look_at, make_K
 
 
 def estimate_up(cameras) -> np.ndarray:
-    """(3,) unit world 'up' of a rig: the mean of the cameras' image-up directions (-y in
-    OpenCV camera axes), which for any upright capture rig is the world's up."""
-    ups = np.array([-c.cam_from_world[1, :3] for c in cameras])
+    """(3,) unit world 'up' of a rig: the mean of the cameras' image-up directions
+    (``capture.camera.image_up``), which for any upright capture rig is the world's up."""
+    ups = np.array([image_up(c) for c in cameras])
     m = ups.sum(axis=0)
     n = np.linalg.norm(m)
     if n < 1e-6 * len(ups):
@@ -63,3 +64,25 @@ def closest_point_to_axes(cameras) -> np.ndarray:
     if np.linalg.matrix_rank(A, tol=1e-9) < 3:        # parallel axes: fall back to the mean centre + 1 m
         return np.mean([c.center + c.forward for c in cameras], axis=0)
     return np.linalg.solve(A, b)
+
+
+def ring_cameras(n: int, width: int, height: int, focal: float, radius: float, elevations_deg=(0.0,),
+                 azimuths_rad=None, target=(0.0, 0.0, 0.0), name: str = "cam_{:03d}") -> list[Camera]:
+    """``n`` turntable cameras around the world +z axis through ``target``, looking at it (world +z
+    up in the image): camera i at azimuth ``azimuths_rad[i]`` (default 2 pi i / n, counter-clockwise
+    from +x), elevation ``elevations_deg[i % len]`` and distance ``radius`` (metres); square pixels
+    of ``focal`` pixels, principal point at the image centre; named ``name.format(i)``."""
+    K = make_K(focal, focal, (width - 1) / 2, (height - 1) / 2)
+    az = 2 * np.pi * np.arange(n) / n if azimuths_rad is None else np.asarray(azimuths_rad, np.float64)
+    target = np.asarray(target, np.float64)
+    cams = []
+    for i, a in enumerate(az):
+        el = np.radians(elevations_deg[i % len(elevations_deg)])
+        eye = target + radius * np.array([np.cos(a) * np.cos(el), np.sin(a) * np.cos(el), np.sin(el)])
+        cams.append(Camera(K, look_at(eye, target), width, height, name.format(i)))
+    return cams
+
+
+def focal_for_fov(size_px: int, fov_deg: float) -> float:
+    """Focal length (pixels) whose field of view across ``size_px`` pixels is ``fov_deg`` degrees."""
+    return 0.5 * size_px / np.tan(np.radians(fov_deg) / 2)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import atomic_write
 from render.raster import RasterMesh
 
 #: Below this length a direction is treated as degenerate (metres or unitless).
@@ -178,13 +179,6 @@ def transformed(mesh: RasterMesh, R: np.ndarray, t) -> RasterMesh:
                       rot(mesh.tangents), mesh.occlusion, mesh.specular)
 
 
-def rotation(axis, angle_rad: float) -> np.ndarray:
-    """(3, 3) rotation by ``angle_rad`` about ``axis`` (Rodrigues)."""
-    k = _unit(np.asarray(axis, np.float64))
-    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle_rad) * Kx + (1 - np.cos(angle_rad)) * Kx @ Kx
-
-
 def ply_bytes(mesh: RasterMesh) -> bytes:
     """Binary little-endian PLY: float xyz, float normals (0 when absent), uchar sRGB colour, int faces."""
     from capture.scan import to_uint8_srgb
@@ -211,8 +205,8 @@ def ply_bytes(mesh: RasterMesh) -> bytes:
 
 
 def write_ply(mesh: RasterMesh, path) -> Path:
-    """Write :func:`ply_bytes` to ``path``."""
-    path = Path(path)
-    path.write_bytes(ply_bytes(mesh))
-    return path
+    """Write :func:`ply_bytes` to ``path`` (atomically)."""
+    with atomic_write(path) as tmp:
+        tmp.write_bytes(ply_bytes(mesh))
+    return Path(path)
 

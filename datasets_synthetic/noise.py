@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
+from capture.rotations import rotation
 
 
 @dataclass(frozen=True)
@@ -124,9 +125,7 @@ def random_rotation(rng: np.random.Generator, rms_deg: float) -> np.ndarray:
     a = float(np.linalg.norm(w))
     if a == 0:
         return np.eye(3)
-    k = w / a
-    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(a) * Kx + (1 - np.cos(a)) * Kx @ Kx
+    return rotation(w, a)
 
 
 def perturb_pose(camera: Camera, rng: np.random.Generator, rot_deg: float, trans_m: float) -> Camera:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capture.camera import Camera, look_at, make_K
+from capture.camera import Camera, make_K
+from capture.orbit import ring_cameras
 
 
 @dataclass(frozen=True)
@@ -73,15 +74,12 @@ class TurntableRig:
         if self.distance is None and radius is None:
             raise ValueError("rig: give the object's radius or a fixed distance")
         d = float(self.distance) if self.distance is not None else self.fit_distance(radius)
-        K = self.intrinsics()
+        focal = float(self.intrinsics()[0, 0])
         step = 360.0 / self.views_per_ring
         cams = []
         for r, el in enumerate(self.elevations_deg):
             off = 0.5 * step if (self.stagger and r % 2) else 0.0
-            for i in range(self.views_per_ring):
-                az = np.radians(self.azimuth0_deg + off + i * step)
-                e = np.radians(el)
-                eye = d * np.array([np.cos(e) * np.cos(az), np.cos(e) * np.sin(az), np.sin(e)])
-                cams.append(Camera(K, look_at(eye, (0.0, 0.0, 0.0)), self.width, self.height,
-                                   name=f"r{r}_v{i:03d}"))
+            az = [np.radians(self.azimuth0_deg + off + i * step) for i in range(self.views_per_ring)]
+            cams += ring_cameras(self.views_per_ring, self.width, self.height, focal, d, (el,), az,
+                                 name=f"r{r}_v{{:03d}}")
         return cams

@@ -19,8 +19,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, rotation,
-                                         torus, transformed, tube_sweep)
+from capture.rotations import rotation
+from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, torus,
+                                         transformed, tube_sweep)
 from render.raster import RasterMesh, face_normals
 
 #: Golden angle (radians): azimuth step of branches and needle whorls.
@@ -229,8 +230,15 @@ def _leaf(rng, base, direction, length):
                       occlusion=np.full(V, 0.8), specular=np.full(V, 0.3))
 
 
-def build_plant(seed: int = 0, p: PlantParams = PlantParams()) -> Scene:
-    rng = np.random.default_rng(seed)
+#: Plant bark colour (linear RGB): stem, branches (x 1.2) and petioles (x 1.4).
+PLANT_BARK = np.array([0.10, 0.075, 0.03])
+#: Needle colours (linear RGB) at the base and the tip of a branch.
+NEEDLE_GREEN = np.array([0.025, 0.09, 0.018])
+NEEDLE_TIP_GREEN = np.array([0.07, 0.2, 0.04])
+
+
+def _plant_pot(p: PlantParams, rng) -> tuple[list, float]:
+    """([terracotta pot, soil disc] meshes, soil height z)."""
     z0 = 0.0
     rb, rt, h = p.pot_radius_bottom, p.pot_radius_top, p.pot_height
     lip = 0.004
@@ -245,39 +253,38 @@ def build_plant(seed: int = 0, p: PlantParams = PlantParams()) -> Scene:
                  occlusion=np.full(12, 0.6))
     soil_col = soil.colors * rng.uniform(0.6, 1.4, size=(len(soil.colors), 1))
     soil = RasterMesh(soil.vertices, soil.faces, soil_col, soil.normals, None, soil.occlusion, soil.specular)
+    return [pot, soil], soil_z
 
-    # stem: a gently curved tapered tube
-    stem_path = _curve_path([0, 0, soil_z - 0.005], [0.05, 0.02, 1.0], [1.0, 0.3, 0], p.stem_height + 0.005, 16, 0.15)
-    sr = p.stem_radius * np.linspace(1.0, 0.4, 16)
-    bark = np.array([0.10, 0.075, 0.03])
-    parts = [pot, soil, tube_sweep(stem_path[None], sr[None], 8, bark[None], None, 0.05, strand=False)]
 
-    needle_paths, needle_rad, needle_col = [], [], []
-    needle_green = np.array([0.025, 0.09, 0.018])
-    tip_green = np.array([0.07, 0.2, 0.04])
+def _add_needles(needles: dict, path: np.ndarray, start_frac: float, p: PlantParams, rng) -> None:
+    """Append whorls of needles along ``path`` (from ``start_frac`` of its length) to the
+    ``needles`` lists (paths, radii, colours): younger (further out) = shorter and lighter."""
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    arc = np.concatenate([[0], np.cumsum(seg)])
+    L = arc[-1]
+    pos = np.arange(start_frac * L, L, p.needle_spacing)
+    for k, a in enumerate(pos):
+        i = int(np.clip(np.searchsorted(arc, a), 1, len(path) - 1))
+        f = (a - arc[i - 1]) / max(arc[i] - arc[i - 1], 1e-12)
+        c = path[i - 1] * (1 - f) + path[i] * f
+        T = _unit(path[i] - path[i - 1])
+        N = _perpendicular(T)
+        B = np.cross(T, N)
+        young = a / L
+        for w in range(p.needles_per_whorl):
+            psi = 2 * np.pi * w / p.needles_per_whorl + k * GOLDEN + rng.normal(0, 0.15)
+            alpha = np.radians(rng.uniform(45, 65))
+            nd = np.cos(alpha) * T + np.sin(alpha) * (np.cos(psi) * N + np.sin(psi) * B)
+            ln = rng.uniform(*p.needle_length) * (0.7 + 0.3 * (1 - young))
+            needles["paths"].append(_curve_path(c, nd, [0, 0, -1.0], ln, 4, 0.25))
+            needles["radii"].append(p.needle_radius * np.linspace(1.0, 0.3, 4))
+            needles["colours"].append((NEEDLE_GREEN * (1 - young) + NEEDLE_TIP_GREEN * young) * rng.uniform(0.8, 1.2))
 
-    def add_needles(path, start_frac):
-        seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
-        arc = np.concatenate([[0], np.cumsum(seg)])
-        L = arc[-1]
-        pos = np.arange(start_frac * L, L, p.needle_spacing)
-        for k, a in enumerate(pos):
-            i = int(np.clip(np.searchsorted(arc, a), 1, len(path) - 1))
-            f = (a - arc[i - 1]) / max(arc[i] - arc[i - 1], 1e-12)
-            c = path[i - 1] * (1 - f) + path[i] * f
-            T = _unit(path[i] - path[i - 1])
-            N = _perpendicular(T)
-            B = np.cross(T, N)
-            young = a / L
-            for w in range(p.needles_per_whorl):
-                psi = 2 * np.pi * w / p.needles_per_whorl + k * GOLDEN + rng.normal(0, 0.15)
-                alpha = np.radians(rng.uniform(45, 65))
-                nd = np.cos(alpha) * T + np.sin(alpha) * (np.cos(psi) * N + np.sin(psi) * B)
-                ln = rng.uniform(*p.needle_length) * (0.7 + 0.3 * (1 - young))
-                needle_paths.append(_curve_path(c, nd, [0, 0, -1.0], ln, 4, 0.25))
-                needle_rad.append(p.needle_radius * np.linspace(1.0, 0.3, 4))
-                needle_col.append((needle_green * (1 - young) + tip_green * young) * rng.uniform(0.8, 1.2))
 
+def _plant_branches(stem_path: np.ndarray, soil_z: float, p: PlantParams, rng, needles: dict) -> list:
+    """Branch tubes in a golden-angle spiral up the stem (shorter higher up), their needles and
+    the leader's added to ``needles``."""
+    parts = []
     z_lo, z_hi = soil_z + 0.3 * p.stem_height, soil_z + 0.93 * p.stem_height
     n_b = int(p.branches)
     for b in range(n_b):
@@ -290,27 +297,44 @@ def build_plant(seed: int = 0, p: PlantParams = PlantParams()) -> Scene:
         ln = rng.uniform(*p.branch_length) * (1.0 - 0.45 * (zb - z_lo) / (z_hi - z_lo))
         path = _curve_path(start, out, [0, 0, 1.0], ln, 10, np.radians(rng.uniform(15, 35)))
         rad = p.stem_radius * 0.45 * np.linspace(1.0, 0.45, 10)
-        parts.append(tube_sweep(path[None], rad[None], 6, bark[None] * 1.2, None, 0.05, strand=False))
-        add_needles(path, 0.12)
-    add_needles(stem_path[np.searchsorted(stem_path[:, 2], z_hi - 0.02):], 0.0)  # the leader
+        parts.append(tube_sweep(path[None], rad[None], 6, PLANT_BARK[None] * 1.2, None, 0.05, strand=False))
+        _add_needles(needles, path, 0.12, p, rng)
+    _add_needles(needles, stem_path[np.searchsorted(stem_path[:, 2], z_hi - 0.02):], 0.0, p, rng)  # the leader
+    return parts
 
+
+def _plant_leaves(stem_path: np.ndarray, soil_z: float, p: PlantParams, rng) -> list:
+    """Broad leaves on short petioles low on the stem."""
+    parts = []
     for li in range(int(p.leaves)):
         zl = soil_z + p.stem_height * (0.08 + 0.28 * li / max(p.leaves - 1, 1))
         i = int(np.clip(np.searchsorted(stem_path[:, 2], zl), 1, len(stem_path) - 1))
         az = li * 2.4 + 0.7 + rng.normal(0, 0.2)
         out = np.array([np.cos(az), np.sin(az), 0.55])
         petiole = _curve_path(stem_path[i], out, [0, 0, -1.0], 0.012, 4, 0.2)
-        parts.append(tube_sweep(petiole[None], np.full((1, 4), 0.0011), 5, bark[None] * 1.4, None, 0.05, strand=False))
+        parts.append(tube_sweep(petiole[None], np.full((1, 4), 0.0011), 5, PLANT_BARK[None] * 1.4, None, 0.05,
+                                strand=False))
         parts.append(_leaf(rng, petiole[-1], out * np.array([1, 1, 0.4]), rng.uniform(*p.leaf_length)))
+    return parts
 
-    needles = tube_sweep(np.array(needle_paths), np.array(needle_rad), 3, np.array(needle_col),
-                         None, 0.04, strand=True)
-    parts.append(needles)
+
+def build_plant(seed: int = 0, p: PlantParams = PlantParams()) -> Scene:
+    rng = np.random.default_rng(seed)
+    parts, soil_z = _plant_pot(p, rng)
+    # stem: a gently curved tapered tube
+    stem_path = _curve_path([0, 0, soil_z - 0.005], [0.05, 0.02, 1.0], [1.0, 0.3, 0], p.stem_height + 0.005, 16, 0.15)
+    sr = p.stem_radius * np.linspace(1.0, 0.4, 16)
+    parts.append(tube_sweep(stem_path[None], sr[None], 8, PLANT_BARK[None], None, 0.05, strand=False))
+    needles = {"paths": [], "radii": [], "colours": []}
+    parts += _plant_branches(stem_path, soil_z, p, rng, needles)
+    parts += _plant_leaves(stem_path, soil_z, p, rng)
+    parts.append(tube_sweep(np.array(needles["paths"]), np.array(needles["radii"]), 3, np.array(needles["colours"]),
+                            None, 0.04, strand=True))
     mesh = merge(parts)
     b = mesh.bounds
     centre = 0.5 * (b[0] + b[1])
     mesh = transformed(mesh, np.eye(3), -centre)
-    stats = {"branches": n_b, "needles": len(needle_paths), "leaves": int(p.leaves),
+    stats = {"branches": int(p.branches), "needles": len(needles["paths"]), "leaves": int(p.leaves),
              "vertices": len(mesh.vertices), "triangles": len(mesh.faces)}
     return Scene("plant", seed, mesh, {**asdict(p), "centre_offset_m": (-centre).tolist()}, stats)
 

@@ -5,8 +5,9 @@ float32 framebuffers). Each pair (``render.shading.glare_maps.Streaks``) is one 
 triangle fan of 4 triangles -- centre colour c, rim black, linearly interpolated -- blended with
 ONE, ONE (overlaps add up). To keep the light of thin pairs right the layer is drawn at
 ``supersample`` x the resolution and box-averaged by a second pass (glare_down_frag.glsl).
-numpy twin: ``render.shading.glare_maps.rasterize_streaks_reference``; the read-back rows are
-flipped by ``gl_rows_to_image`` only.
+numpy twin: ``render.shading.glare_maps.rasterize_streaks_reference``; image rows and
+framebuffer rows meet only in ``capture.camera`` (``gl_row``, ``gl_rows_to_image``) and in
+``framebuffer_row.glsl``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import time
 
 import numpy as np
 
-from capture.camera import gl_rows_to_image
+from capture.camera import gl_row, gl_rows_to_image
 
 #: Default sub-samples per pixel side of the streak layer.
 GLARE_SUPERSAMPLE = 4
@@ -89,8 +90,8 @@ class GlareLayer:
         hi = (streaks.centre + ext).max(0)
         w, h = self.size
         u0, u1 = max(int(np.floor(lo[0])) - 1, 0), min(int(np.ceil(hi[0])) + 2, w)
-        # image row v -> framebuffer row h - 1 - v
-        y0, y1 = max(h - 2 - int(np.ceil(hi[1])), 0), min(h + 1 - int(np.floor(lo[1])), h)
+        v_top, v_bottom = int(np.floor(lo[1])) - 1, int(np.ceil(hi[1])) + 1  # image rows, 1 px margin
+        y0, y1 = max(gl_row(v_bottom, h), 0), min(gl_row(v_top, h) + 1, h)
         if u1 <= u0 or y1 <= y0:
             return None
         return (u0, y0, u1 - u0, y1 - y0)

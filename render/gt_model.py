@@ -19,10 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from capture.scan import ScanSet, srgb_to_linear
+from volume.grid import cube_for_bounds, voxel_centers_of
+from volume.metrics import read_ply_mesh  # noqa: F401 (re-exported: furrow/cmd_eval.py, bench/render.py)
 from volume.model import Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet
+from volume.tsdf import integrate_tsdf
 
-#: Cube margin around the scan set's bounds (fraction of the largest side).
-CUBE_MARGIN = 0.06
 #: Coarsest level kept in the pyramid.
 L_MIN = 4
 #: TSDF truncation of the baseline mesh, in finest voxel sizes.
@@ -50,13 +51,6 @@ def fill_fringe_depth(srgb8: np.ndarray, depth: np.ndarray, radius: float = FRIN
     return out
 
 
-def cube(bounds: np.ndarray, margin: float = CUBE_MARGIN) -> tuple[np.ndarray, float]:
-    """(origin, extent) of the cube centred on ``bounds`` grown by ``margin``."""
-    b = np.asarray(bounds, np.float64)
-    side = float((b[1] - b[0]).max()) * (1 + 2 * margin)
-    return 0.5 * (b[0] + b[1]) - 0.5 * side, side
-
-
 def surface_pyramid(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray, extent: float, l_max: int,
                     l_min: int = L_MIN) -> SdfPyramid:
     """Surface voxels |distance to the mesh| <= half a voxel diagonal on levels l_min..l_max."""
@@ -71,7 +65,7 @@ def surface_pyramid(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
     cand = np.stack(np.meshgrid(*[np.arange(L)] * 3, indexing="ij"), -1).reshape(-1, 3)
     while L <= l_max:
         w = extent / L
-        centres = origin + (cand + 0.5) * w
+        centres = voxel_centers_of(cand, origin, w)
         d = scene.compute_distance(o3d.core.Tensor(centres.astype(np.float32))).numpy()
         surf = cand[d <= 0.5 * np.sqrt(3) * w]
         levels.append(SdfLevel(L, origin, w, surf.astype(np.int32)))
@@ -82,25 +76,12 @@ def surface_pyramid(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
 
 
 def tsdf_mesh(scanset: ScanSet, origin: np.ndarray, extent: float, resolution: int):
-    """Baseline mesh from the scans: Open3D UniformTSDFVolume (0.19) + marching cubes.
+    """Baseline mesh from the scans: Open3D UniformTSDFVolume (0.19, ``volume.tsdf.integrate_tsdf``
+    with colour) + marching cubes.
 
     Returns (vertices (V, 3) float32, faces (F, 3) int32, colours (V, 3) float32 linear)."""
-    import open3d as o3d
-
     w = extent / resolution
-    vol = o3d.pipelines.integration.UniformTSDFVolume(
-        length=float(extent), resolution=int(resolution), sdf_trunc=float(TSDF_TRUNC_VOXELS * w),
-        color_type=o3d.pipelines.integration.TSDFVolumeColorType.RGB8,
-        origin=np.asarray(origin, np.float64).reshape(3, 1))
-    for s in scanset.scans:
-        cam = s.camera
-        rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
-            o3d.geometry.Image(np.ascontiguousarray(s.srgb8)), o3d.geometry.Image(np.ascontiguousarray(s.depth)),
-            depth_scale=1.0, depth_trunc=1000.0, convert_rgb_to_intensity=False)
-        K = cam.K
-        intr = o3d.camera.PinholeCameraIntrinsic(cam.width, cam.height, K[0, 0], K[1, 1], K[0, 2], K[1, 2])
-        vol.integrate(rgbd, intr, np.ascontiguousarray(cam.cam_from_world))
-    m = vol.extract_triangle_mesh()
+    m = integrate_tsdf(scanset, origin, extent, resolution, TSDF_TRUNC_VOXELS * w, colour=True).extract_triangle_mesh()
     v = np.asarray(m.vertices, np.float32)
     f = np.asarray(m.triangles, np.int32)
     c = srgb_to_linear(np.asarray(m.vertex_colors, np.float32)) if m.has_vertex_colors() else np.zeros_like(v)
@@ -110,7 +91,7 @@ def tsdf_mesh(scanset: ScanSet, origin: np.ndarray, extent: float, resolution: i
 def model_from_geometry(scanset: ScanSet, vertices: np.ndarray, faces: np.ndarray, l_max: int = 128,
                         l_min: int = L_MIN, provenance: dict | None = None) -> Model:
     """The Model of ``scanset`` with voxels from the exact mesh (module docstring)."""
-    origin, extent = cube(scanset.bounds)
+    origin, extent = cube_for_bounds(scanset.bounds)
     pyr = surface_pyramid(vertices, faces, origin, extent, l_max, l_min)
     rgb = np.stack([s.linear_rgb for s in scanset.scans]).astype(np.float32)
     depth = np.stack([fill_fringe_depth(s.srgb8, s.depth) for s in scanset.scans]).astype(np.float32)
@@ -121,16 +102,3 @@ def model_from_geometry(scanset: ScanSet, vertices: np.ndarray, faces: np.ndarra
                                                 "baseline_mesh": f"open3d TSDF {l_max}^3"},
                  provenance=provenance or {})
 
-
-def read_ply_mesh(path) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices float32, faces int32) of a triangle mesh file (Open3D reader), clear errors."""
-    import open3d as o3d
-    from pathlib import Path
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: ground-truth mesh not found")
-    m = o3d.io.read_triangle_mesh(str(path))
-    if len(m.triangles) == 0:
-        raise ValueError(f"{path}: no triangles in the mesh")
-    return np.asarray(m.vertices, np.float32), np.asarray(m.triangles, np.int32)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
+from capture.camera import image_axes as eye_axes  # noqa: F401 (mg.eye_axes: microfacet.py, vdtm.py)
 
 #: A slice is a square of side sqrt(3) w, so it covers its voxel from every direction (§1.2).
 SLICE_SIDE_FACTOR = float(np.sqrt(3.0))
@@ -517,12 +518,6 @@ def near_far(eye: Camera, bounds: np.ndarray) -> tuple[float, float]:
         near = NEAR_FRACTION_INSIDE * diag
     far = max(far, 2 * near)
     return near, far
-
-
-def eye_axes(eye: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """World right (+x) and up (-y) vectors of an OpenCV camera."""
-    R = eye.cam_from_world[:3, :3]
-    return R[0].copy(), -R[1].copy()
 
 
 def slice_half_extents(centers: np.ndarray, w: float, eye_pos: np.ndarray, v: np.ndarray, a: np.ndarray,

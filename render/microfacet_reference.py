@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.camera import Camera
+from capture.camera import Camera, image_axes
 from render import microfacet_geometry as mg
 
 
@@ -21,7 +21,7 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
     """
     near, _ = mg.near_far(eye, bounds)
     eye_pos = eye.center
-    right, up = mg.eye_axes(eye)
+    right, up = image_axes(eye)
     vox, n = mg.slice_distances(centers, w, eye_pos, spacing, near)
     v, a, b = mg.slice_frame(centers, eye_pos, right, up)
     idx, wts = mg.select_cameras(centers, mg.footprint_radius(w), eye_pos, cameras)

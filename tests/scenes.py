@@ -22,7 +22,8 @@ from functools import partial
 
 import numpy as np
 
-from capture.camera import Camera, look_at, make_K
+from capture import orbit
+from capture.camera import Camera
 from capture.scan import Scan, ScanSet
 from volume.model import Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet
 
@@ -202,7 +203,7 @@ def spheres_scene() -> Scene:
 def ring_cameras(n: int, width: int = 96, height: int = 72, *, radius: float = 0.45,
                  elevations: tuple[float, ...] = (15.0,), focal: float | None = None, fov_deg: float | None = None,
                  phase_deg: float = 0.0, azimuths=None, name: str = "cam_{:03d}.png") -> list[Camera]:
-    """n cameras on a turntable ring around +z looking at the origin.
+    """n cameras on a turntable ring around +z looking at the origin (capture.orbit.ring_cameras).
 
     Camera i sits at azimuth ``phase_deg + 360 i / n`` (or ``azimuths[i]``, degrees) and elevation
     ``elevations[i % len(elevations)]`` (degrees), ``radius`` metres from the origin.  Focal length:
@@ -212,17 +213,11 @@ def ring_cameras(n: int, width: int = 96, height: int = 72, *, radius: float = 0
     if focal is not None:
         f = float(focal)
     elif fov_deg is not None:
-        f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
+        f = orbit.focal_for_fov(width, fov_deg)
     else:
         f = 1.1 * width
-    K = make_K(f, f, (width - 1) / 2, (height - 1) / 2)
     az = np.radians(phase_deg) + 2 * np.pi * np.arange(n) / n if azimuths is None else np.radians(azimuths)
-    cams = []
-    for i, a in enumerate(az):
-        el = np.radians(elevations[i % len(elevations)])
-        eye = radius * np.array([np.cos(a) * np.cos(el), np.sin(a) * np.cos(el), np.sin(el)])
-        cams.append(Camera(K, look_at(eye, [0, 0, 0]), width, height, name.format(i)))
-    return cams
+    return orbit.ring_cameras(len(az), width, height, f, radius, tuple(elevations), az, name=name)
 
 
 #: The volume tests' capture ring: alternating elevations (above / below) and a 32 degree field of view.

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from capture.io import jsonable
 from capture.scan import ScanSet
 from volume.fusion import FusionConfig, fuse_consensus, scan_maps
 from volume.grid import cube_for_bounds
@@ -121,7 +122,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
               "eq1_fraction": {str(L): v for L, v in frac.items()},
               "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
-            "scanset_metadata": _jsonable(scanset.metadata), **(provenance or {})}
+            "scanset_metadata": jsonable(scanset.metadata), **(provenance or {})}
     bounds = np.asarray(scanset.bounds, np.float64)
     model = Model(pyramid, rgbz, spheres, verts, faces, colors, bounds, params, prov)
     summary = {
@@ -136,17 +137,3 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
     }
     return model, summary
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (str, int, float, bool)) or x is None:
-        return x
-    return str(x)

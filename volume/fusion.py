@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from capture.depth_normals import depth_normals
 from capture.scan import Scan, ScanSet
 from volume.grid import voxel_centers
 
@@ -120,26 +121,6 @@ class ScanMaps:
     H: int
 
 
-def _one_sided(p: np.ndarray, valid: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    """Difference along ``axis`` taken on the side with the smaller depth step."""
-    fwd = np.zeros_like(p)
-    bwd = np.zeros_like(p)
-    vf = np.zeros(valid.shape, bool)
-    vb = np.zeros(valid.shape, bool)
-    sl_hi = [slice(None)] * 2
-    sl_lo = [slice(None)] * 2
-    sl_hi[axis] = slice(1, None)
-    sl_lo[axis] = slice(None, -1)
-    d = p[tuple(sl_hi)] - p[tuple(sl_lo)]
-    vd = valid[tuple(sl_hi)] & valid[tuple(sl_lo)]
-    fwd[tuple(sl_lo)] = d
-    vf[tuple(sl_lo)] = vd
-    bwd[tuple(sl_hi)] = d
-    vb[tuple(sl_hi)] = vd
-    use_f = vf & (~vb | (np.abs(fwd[..., 2]) <= np.abs(bwd[..., 2])))
-    return np.where(use_f[..., None], fwd, bwd), vf | vb
-
-
 def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -> ScanMaps:
     """Normals from depth gradients and the plane offsets of every pixel of ``scan``."""
     cam = scan.camera
@@ -152,16 +133,9 @@ def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -
         depth = np.where(valid, sm, 0).astype(np.float32)
     rays = cam.pixel_rays(cam.pixel_grid())  # (H, W, 3), z = 1
     pc = rays * depth[..., None].astype(np.float64)
-    gx, vx = _one_sided(pc, valid, 1)
-    gy, vy = _one_sided(pc, valid, 0)
-    n = np.cross(gy, gx)
-    norm = np.linalg.norm(n, axis=-1)
-    ok = valid & vx & vy & (norm > 0)
-    n = np.where(ok[..., None], n / np.where(norm > 0, norm, 1.0)[..., None], 0.0)
+    n, ok = depth_normals(pc, valid, "smaller_step")  # facing the camera
     ray_u = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
-    cosang = np.sum(n * ray_u, axis=-1)
-    n = np.where((cosang > 0)[..., None], -n, n)  # face the camera
-    cosine = np.abs(cosang)
+    cosine = np.abs(np.sum(n * ray_u, axis=-1))
     ok &= cosine >= np.cos(np.radians(max_grazing_deg))
     R = cam.cam_from_world[:3, :3]
     nw = n @ R  # camera -> world for row vectors: n_w = R^T n_c
@@ -368,7 +342,6 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     Returns (has consensus, value, support, has a nearest cluster, its value without quorum);
     :func:`consensus_reference` is the per-voxel loop it is tested against.
     """
-    M = len(d)
     agree_d = cfg.agree(w)
     nn = np.matmul(nrm, nrm.transpose(0, 2, 1))  # (M, S, S) normal dot products
     pos2 = d[:, :, None] ** 2 + d[:, None, :] ** 2 - 2 * d[:, :, None] * d[:, None, :] * nn
@@ -376,23 +349,24 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     agree &= ok[:, :, None] & ok[:, None, :]
     count = agree.sum(2)
     quorum = np.clip(np.minimum(cfg.quorum, n_see), 1, None)
-    cand = ok & (count >= quorum[:, None])
-    key = np.where(cand, np.abs(d), np.inf)
-    c = np.argmin(key, axis=1)
-    has_c = np.isfinite(key[np.arange(M), c])
-    members = agree[np.arange(M), c, :] & has_c[:, None]
-    wsum = (members * cw).sum(1)
-    value = np.where(wsum > 0, (members * cw * d).sum(1) / np.where(wsum > 0, wsum, 1), 0.0)
-    support = members.sum(1)
+    has_c, value, support = _nearest_cluster(d, cw, agree, ok & (count >= quorum[:, None]))
     has_c &= fr <= support  # more scans see through x than support it: not a surface
     # the same choice without the quorum: the unconfirmed measurement Eq. 1 looks at
-    key1 = np.where(ok, np.abs(d), np.inf)
-    c1 = np.argmin(key1, axis=1)
-    has1 = np.isfinite(key1[np.arange(M), c1])
-    mem1 = agree[np.arange(M), c1, :] & has1[:, None]
-    w1 = (mem1 * cw).sum(1)
-    value1 = np.where(w1 > 0, (mem1 * cw * d).sum(1) / np.where(w1 > 0, w1, 1), 0.0)
+    has1, value1, _ = _nearest_cluster(d, cw, agree, ok)
     return has_c, value.astype(np.float32), support, has1, value1.astype(np.float32)
+
+
+def _nearest_cluster(d, cw, agree, cand):
+    """Per voxel, the candidate sample nearest to it (smallest |d| among ``cand`` (M, S)) and the
+    samples agreeing with it: (has one (M,), their view-cosine-weighted mean d, their count)."""
+    M = len(d)
+    key = np.where(cand, np.abs(d), np.inf)
+    c = np.argmin(key, axis=1)
+    has = np.isfinite(key[np.arange(M), c])
+    members = agree[np.arange(M), c, :] & has[:, None]
+    wsum = (members * cw).sum(1)
+    value = np.where(wsum > 0, (members * cw * d).sum(1) / np.where(wsum > 0, wsum, 1), 0.0)
+    return has, value, members.sum(1)
 
 
 def consensus_reference(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):

@@ -24,6 +24,11 @@ def cube_for_bounds(bounds: np.ndarray, margin: float = CUBE_MARGIN) -> tuple[np
     return centre - 0.5 * side, side
 
 
+def voxel_centers_of(ijk, origin, voxel_size: float) -> np.ndarray:
+    """(..., 3) float64 world centres ``origin + (ijk + 0.5) w`` of voxel indices (..., 3)."""
+    return np.asarray(origin, np.float64) + (np.asarray(ijk) + 0.5) * voxel_size
+
+
 def voxel_centers(origin: np.ndarray, voxel_size: float, resolution: int, start: int = 0,
                   stop: int | None = None, dtype=np.float64) -> np.ndarray:
     """World centres (M, 3) of the voxels with flat index in [start, stop) (C order over i, j, k)."""

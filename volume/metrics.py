@@ -11,6 +11,8 @@ RaycastingScene: unsigned distance to the triangles, sign from its occupancy tes
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from volume.grid import voxel_centers
@@ -55,10 +57,14 @@ def mesh_sdf(verts: np.ndarray, faces: np.ndarray, origin, voxel_size: float, re
 
 
 def read_ply_mesh(path) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, faces) of a PLY triangle mesh (Open3D reader); error naming the file."""
+    """(vertices (V, 3) float32, faces (F, 3) int32) of a triangle mesh file (Open3D reader);
+    FileNotFoundError / ValueError naming the file when it is missing / has no triangles."""
     import open3d as o3d
 
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: mesh file not found")
     m = o3d.io.read_triangle_mesh(str(path))
     if len(m.triangles) == 0:
-        raise ValueError(f"{path}: no triangles (missing or unreadable mesh)")
+        raise ValueError(f"{path}: no triangles in the mesh (unreadable or empty)")
     return np.asarray(m.vertices, np.float32), np.asarray(m.triangles, np.int32)

@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import atomic_dir
 from capture.camera import Camera
 
 #: Schema name written into model.json.
@@ -303,18 +302,15 @@ def _camera_json(cam: Camera) -> dict:
 def save_model(model: Model, folder) -> Path:
     """Write ``model`` to ``folder`` (created or replaced) atomically; returns the folder.
 
-    Everything is written into a temporary folder in the same parent and renamed into place,
-    so an interrupted save leaves either the old folder or nothing.
+    Everything is written into a temporary folder in the same parent and renamed into place
+    (``capture.atomic.atomic_dir``), so an interrupted save leaves either the old folder or nothing.
     """
     if not isinstance(model, Model):
         raise ModelError("save_model: expected a Model")
     folder = Path(folder)
-    parent = folder.resolve().parent
-    parent.mkdir(parents=True, exist_ok=True)
     if folder.exists() and not (folder / "model.json").exists() and any(folder.iterdir()):
         raise ModelError(f"{folder}: exists, is not empty and is not a furrow model; refusing to replace it")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=parent))
-    try:
+    with atomic_dir(folder) as tmp:
         pyr = model.pyramid
         arrays = {}
         for lv in pyr.levels:
@@ -351,17 +347,6 @@ def save_model(model: Model, folder) -> Path:
             json.dump(meta, fh, indent=1)
             fh.flush()
             os.fsync(fh.fileno())
-        if folder.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{folder.name}.old-", dir=parent))
-            os.rmdir(old)
-            os.rename(folder, old)
-            os.rename(tmp, folder)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.rename(tmp, folder)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return folder
 
 

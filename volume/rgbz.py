@@ -2,7 +2,8 @@
 
 For each input camera:
 1. **geometry depth**: the model's mesh ray cast into the camera (Open3D RaycastingScene,
-   exact triangle intersection; z-depth = t * cos of the ray with the optical axis);
+   exact triangle intersection; ``capture.raycast.raycast_depth``: z-depth = t * cos of the ray
+   with the optical axis);
 2. **combine with the measured depth** (``keep_measured``, default): every measured depth
    sample is kept and the geometry depth fills only the pixels nothing was measured at.  In
    the paper the RGBz depth *is* the range image taken with the colour image (METHODS §1.4,
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from capture.raycast import raycast_depth
 from capture.scan import ScanSet
 from volume.model import RgbzImages, SdfLevel
 
@@ -41,34 +43,6 @@ class RgbzConfig:
     with the geometry (``agree_voxels``)."""
     closing_px: int = 5
     """Diameter (pixels) of the elliptical closing kernel; 0 disables the closing."""
-
-
-def raycast_depth(verts: np.ndarray, faces: np.ndarray, cameras) -> np.ndarray:
-    """(N, H, W) float32 z-depth of the mesh in every camera (0 = miss)."""
-    import open3d as o3d
-
-    N = len(cameras)
-    H, W = (cameras[0].height, cameras[0].width) if N else (0, 0)
-    out = np.zeros((N, H, W), np.float32)
-    if len(faces) == 0 or N == 0:
-        return out
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(np.ascontiguousarray(verts, np.float32)),
-                        o3d.core.Tensor(np.ascontiguousarray(faces, np.uint32)))
-    dirs_cache: dict = {}
-    for n, cam in enumerate(cameras):
-        key = cam.K.tobytes()
-        if key not in dirs_cache:  # unit camera-frame ray per pixel, shared by equal intrinsics
-            rays_c = cam.pixel_rays(cam.pixel_grid()).reshape(-1, 3)
-            dirs_cache[key] = (rays_c / np.linalg.norm(rays_c, axis=1, keepdims=True)).astype(np.float32)
-        dirs_c = dirs_cache[key]
-        rays = np.empty((len(dirs_c), 6), np.float32)
-        rays[:, :3] = cam.center
-        rays[:, 3:] = dirs_c @ cam.cam_from_world[:3, :3].astype(np.float32)  # R^T applied to row vectors
-        t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-        z = np.where(np.isfinite(t), t * dirs_c[:, 2], np.float32(0))
-        out[n] = z.reshape(H, W)
-    return out
 
 
 def sdf_at(level: SdfLevel, points: np.ndarray) -> np.ndarray:

@@ -19,24 +19,32 @@ from volume.fusion import FusedSdf, FusionConfig, carve_field, complete_sdf, sca
 DEPTH_TRUNC = 1000.0
 
 
-def tsdf_volume(scanset: ScanSet, origin, voxel_size: float, resolution: int, trunc: float):
-    """Raw Open3D TSDF: (tsdf (L,L,L) float32 in metres, weight (L,L,L) float32), [i,j,k] = x,y,z."""
+def integrate_tsdf(scanset: ScanSet, origin, length: float, resolution: int, trunc: float, colour: bool = False):
+    """Open3D ``UniformTSDFVolume`` of the cube ``origin + [0, length]^3`` at ``resolution``^3 voxels
+    with every scan's depth (metres) integrated, truncation ``trunc`` (metres), unit weights; with
+    ``colour`` the scans' sRGB8 colour is fused too (else none)."""
     import open3d as o3d
 
-    L = int(resolution)
+    kind = o3d.pipelines.integration.TSDFVolumeColorType
     vol = o3d.pipelines.integration.UniformTSDFVolume(
-        length=float(L * voxel_size), resolution=L, sdf_trunc=float(trunc),
-        color_type=o3d.pipelines.integration.TSDFVolumeColorType.NoColor,
-        origin=np.asarray(origin, np.float64).reshape(3, 1))
+        length=float(length), resolution=int(resolution), sdf_trunc=float(trunc),
+        color_type=kind.RGB8 if colour else kind.NoColor, origin=np.asarray(origin, np.float64).reshape(3, 1))
     for scan in scanset.scans:
         cam = scan.camera
         depth = o3d.geometry.Image(np.ascontiguousarray(scan.depth, dtype=np.float32))
-        color = o3d.geometry.Image(np.zeros((cam.height, cam.width, 3), np.uint8))
+        rgb = np.ascontiguousarray(scan.srgb8) if colour else np.zeros((cam.height, cam.width, 3), np.uint8)
         rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
-            color, depth, depth_scale=1.0, depth_trunc=DEPTH_TRUNC, convert_rgb_to_intensity=False)
+            o3d.geometry.Image(rgb), depth, depth_scale=1.0, depth_trunc=DEPTH_TRUNC, convert_rgb_to_intensity=False)
         K = cam.K
         intr = o3d.camera.PinholeCameraIntrinsic(cam.width, cam.height, K[0, 0], K[1, 1], K[0, 2], K[1, 2])
         vol.integrate(rgbd, intr, np.ascontiguousarray(cam.cam_from_world))
+    return vol
+
+
+def tsdf_volume(scanset: ScanSet, origin, voxel_size: float, resolution: int, trunc: float):
+    """Raw Open3D TSDF: (tsdf (L,L,L) float32 in metres, weight (L,L,L) float32), [i,j,k] = x,y,z."""
+    L = int(resolution)
+    vol = integrate_tsdf(scanset, origin, L * voxel_size, L, trunc)
     tw = np.asarray(vol.extract_volume_tsdf(), dtype=np.float32)
     # Open3D 0.19 stores voxel (x, y, z) at x L^2 + y L + z, i.e. C order [x, y, z]
     # (checked against an independent numpy projective TSDF in tests/volume/test_fusion.py)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from capture.camera import gl_from_cv_axes
 from capture.scan import ScanSet
 
 #: Minimum ChArUco corners for a pose.
@@ -63,7 +64,7 @@ class BoardSpec:
         """(4, 4) board frame -> world."""
         w, h = self.size_m
         M = np.eye(4)
-        M[:3, :3] = np.diag([1.0, -1.0, -1.0])
+        M[:3, :3] = gl_from_cv_axes()  # board y along its rows, z into it -> world y, z up
         M[:3, 3] = [-w / 2, h / 2, self.z_m]
         return M
 

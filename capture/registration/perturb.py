@@ -5,14 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import invert_rigid
-
-
-def rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
-    """(3, 3) rotation about a unit axis (Rodrigues)."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * K @ K
+from capture.rotations import rotation
 
 
 def perturb_poses(poses: list[np.ndarray], rot_deg: float, trans_m: float, center: np.ndarray,

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
+from capture.depth_normals import depth_normals
 from capture.registration import points as P
 from capture.scan import Scan
 
@@ -82,39 +83,10 @@ def depth_frame(scan: Scan, cfg: P.CloudConfig = P.CloudConfig()) -> DepthFrame:
     ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes)
     rays = cam.pixel_rays(cam.pixel_grid())
     pts = rays * np.where(ok, d, 0.0)[..., None]
-    # per axis: central difference where both neighbours are usable, else the one-sided
-    # difference to the usable neighbour (1-2 pixel wide needles and strands keep a normal)
-    def diff(axis: int) -> tuple[np.ndarray, np.ndarray]:
-        fwd = np.zeros_like(pts)
-        bwd = np.zeros_like(pts)
-        okf = np.zeros_like(ok)
-        okb = np.zeros_like(ok)
-        if axis == 1:
-            fwd[:, :-1] = pts[:, 1:] - pts[:, :-1]
-            okf[:, :-1] = ok[:, 1:] & ok[:, :-1]
-            bwd[:, 1:] = pts[:, 1:] - pts[:, :-1]
-            okb[:, 1:] = ok[:, 1:] & ok[:, :-1]
-        else:
-            fwd[:-1] = pts[1:] - pts[:-1]
-            okf[:-1] = ok[1:] & ok[:-1]
-            bwd[1:] = pts[1:] - pts[:-1]
-            okb[1:] = ok[1:] & ok[:-1]
-        if cfg.edge_frac > 0:  # a jump across a depth edge is not a tangent
-            lim = (NORMAL_JUMP_FACTOR * cfg.edge_frac * d)
-            okf &= np.abs(fwd[..., 2]) <= lim
-            okb &= np.abs(bwd[..., 2]) <= lim
-        out = np.where((okf & okb)[..., None], 0.5 * (fwd + bwd), np.where(okf[..., None], fwd, bwd))
-        return out, okf | okb
-
-    du, oku = diff(1)
-    dv, okv = diff(0)
-    okn = ok & oku & okv
-    n = np.cross(du, dv)
-    norm = np.linalg.norm(n, axis=-1)
-    okn &= norm > 0
-    n = np.where(okn[..., None], n / np.where(norm > 0, norm, 1.0)[..., None], 0.0)
-    flip = np.sum(n * pts, axis=-1) > 0  # must face the camera (origin): n . p < 0
-    n[flip] *= -1
+    # central difference where both neighbours are usable, else the one-sided one to the usable
+    # neighbour (1-2 pixel wide needles and strands keep a normal); a depth edge is no tangent
+    lim = NORMAL_JUMP_FACTOR * cfg.edge_frac * d if cfg.edge_frac > 0 else None
+    n, okn = depth_normals(pts, ok, "average", max_step=lim)
     lum = chroma(scan.linear_rgb)
     gv, gu = np.gradient(lum)
     from scipy.ndimage import binary_erosion

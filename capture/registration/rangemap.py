@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from capture.camera import Camera, make_K
+from capture.camera import Camera, cv_from_corner, cv_rotation_from_gl_axes, make_K
 from capture.scan import Scan, ScanSet, bounds_from_points
 
 CAMERA_FIELDS = ("view_px view_py view_pz x_axisx x_axisy x_axisz y_axisx y_axisy y_axisz z_axisx z_axisy "
@@ -84,8 +84,7 @@ def rangemap_camera(pts: np.ndarray, cam: dict, unit: float = MM) -> Camera:
                   [cam["z_axisx"], cam["z_axisy"], cam["z_axisz"]]])
     c = np.array([cam["view_px"], cam["view_py"], cam["view_pz"]])
     fwd = R[2] if np.median((pts - c) @ R[2]) > 0 else -R[2]
-    # OpenCV: x right, y down, z forward; VCG y points up in the image
-    Rcv = np.stack([R[0] if np.dot(np.cross(R[0], -R[1]), fwd) > 0 else -R[0], -R[1], fwd])
+    Rcv = cv_rotation_from_gl_axes(R[0], R[1], fwd)  # VCG: x right, y up in the image
     if np.linalg.det(Rcv) < 0:
         Rcv[0] *= -1
     pose = np.eye(4)
@@ -94,7 +93,7 @@ def rangemap_camera(pts: np.ndarray, cam: dict, unit: float = MM) -> Camera:
     f = cam["focal"] / cam["scalex"]
     fy = cam["focal"] / cam["scaley"]
     W, H = int(cam.get("viewportx", 640)), int(cam.get("viewporty", 480))
-    K = make_K(f, fy, cam["centerx"] - 0.5, cam["centery"] - 0.5)
+    K = make_K(f, fy, cv_from_corner(cam["centerx"]), cv_from_corner(cam["centery"]))
     return Camera(K, pose, W, H, "rangemap")
 
 

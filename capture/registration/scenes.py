@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.camera import Camera, look_at, make_K
+from capture.camera import Camera
+from capture.orbit import focal_for_fov
+from capture.orbit import ring_cameras as ring
 from capture.registration.perturb import rotation
 from capture.registration.raycast import raycast_scan
 from capture.scan import ScanSet, bounds_from_points
@@ -82,15 +84,8 @@ def noise_texture(p: np.ndarray, seed: int = 0, n: int = 24) -> np.ndarray:
 def ring_cameras(n: int, radius: float = 0.5, elevation_deg: float = 20.0, width: int = 160, height: int = 120,
                  fov_deg: float = 45.0, start_deg: float = 0.0, target=(0.0, 0.0, 0.0)) -> list[Camera]:
     """``n`` turntable cameras evenly spaced in azimuth around +z, looking at ``target``."""
-    f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
-    K = make_K(f, f, (width - 1) / 2, (height - 1) / 2)
-    el = np.radians(elevation_deg)
-    cams = []
-    for k in range(n):
-        az = np.radians(start_deg + 360.0 * k / n)
-        eye = np.asarray(target) + radius * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
-        cams.append(Camera(K, look_at(eye, target), width, height, f"view{k:03d}"))
-    return cams
+    az = [np.radians(start_deg + 360.0 * k / n) for k in range(n)]
+    return ring(n, width, height, focal_for_fov(width, fov_deg), radius, (elevation_deg,), az, target, "view{:03d}")
 
 
 def render_set(mesh, cameras: list[Camera], impostor_at: int | None = None, rich_texture: bool = False) -> ScanSet:

@@ -27,6 +27,8 @@ import numpy as np
 from furrow.bench import OUT_ROOT
 
 
+from furrow.bench._common import save_figure
+
 SUPERSAMPLES = (1, 2, 4)
 REPEATS = 5
 #: Picture: camera azimuth from the brightest light source (degrees), and the glare settings
@@ -97,8 +99,8 @@ def bench_energy_thin(ctx, W, H):
 
 
 def sphere_scene(camera, centre, radius, albedo):
-    """Analytic sphere: depth and normals (render.composite.raycast_sphere)."""
-    from render.composite import raycast_sphere
+    """Analytic sphere: depth and normals (render.composite_reference.raycast_sphere)."""
+    from render.composite_reference import raycast_sphere
 
     return raycast_sphere(camera, centre, radius)
 
@@ -112,7 +114,7 @@ def bench_composite(ctx, W, H, env_name, out_dir: Path):
     from render.shading.sg_fit import fit_env_sg
     from volume.model import SphereSet
 
-    from render.composite import TONE_WHITE
+    from render.tonemap import TONE_WHITE
     from render.shading.glare import GlareConfig
 
     PICTURE_GLARE = GlareConfig(display_max=TONE_WHITE, **PICTURE_GLARE_SETTINGS)
@@ -214,12 +216,7 @@ def _plot(rows, out_dir: Path) -> Path:
     ax[1].set_ylabel("|streak light / excess - 1| (%)")
     ax[1].set_title("streak energy: GL vs analytic on screen")
     ax[1].legend()
-    fig.tight_layout()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    p = out_dir / "glare_cost.png"
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return p
+    return save_figure(fig, out_dir / "glare_cost.png")
 
 
 def main(argv: list[str]) -> int:

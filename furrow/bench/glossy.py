@@ -27,7 +27,6 @@ Writes ``glossy_error_vs_smoothness.png`` and, per object and mode, ``<object>_<
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -36,6 +35,8 @@ import numpy as np
 
 from furrow.bench import OUT_ROOT
 
+
+from furrow.bench._common import print_result, save_figure
 
 #: Smoothness bins (lambda) of the error table.
 BINS = ((0.0, 0.2), (0.2, 0.4), (0.4, 0.6), (0.6, 0.8), (0.8, 1.0001))
@@ -174,11 +175,8 @@ def _plot(res: dict, out: Path) -> str:
         ax.plot(x, [r["mean_err_gated_256"] for r in rr], "o-", label=f"{key[0]} {key[1]} (gated)")
         ax.plot(x, [r["mean_err_ungated_256"] for r in rr], "x--", label=f"{key[0]} {key[1]} (ungated)")
     ax.set_xlabel("smoothness lambda (bin centre)"); ax.set_ylabel("mean error (1/256 of white)")
-    ax.set_title(f"MSEM {res['s']}^3 vs Phong, {res['map']}"); ax.legend(fontsize=6); fig.tight_layout()
-    p = out / "glossy_error_vs_smoothness.png"
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return str(p)
+    ax.set_title(f"MSEM {res['s']}^3 vs Phong, {res['map']}"); ax.legend(fontsize=6)
+    return str(save_figure(fig, out / "glossy_error_vs_smoothness.png"))
 
 
 def _print_tables(res: dict) -> None:
@@ -221,12 +219,8 @@ def main(argv: list[str]) -> int:
     rh = a.ref_height or (128 if a.quick else 256)
     W = a.width or (96 if a.quick else 160)
     res = run(a.quick, a.map, s, rh, W, W * 3 // 4, a.out, a.repeats)
-    if a.json:
-        print(json.dumps(res, indent=1, default=float))
-    else:
-        _print_tables(res)
-        print(f"images: {', '.join(res['images'])}\nplots: {', '.join(res['plots'])}")
-    return 0
+    return print_result(res, a.json, _print_tables, f"images: {', '.join(res['images'])}",
+                        f"plots: {', '.join(res['plots'])}")
 
 
 if __name__ == "__main__":

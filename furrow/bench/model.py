@@ -29,6 +29,8 @@ from furrow.bench import OUT_ROOT
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 
+from furrow.bench._common import save_figure
+
 import numpy as np  # noqa: E402
 
 #: Scenes: name -> furrow synth arguments (noisy, holed scans as a real scanner gives them).
@@ -202,12 +204,7 @@ def plot(rows: list[dict], out: Path) -> Path:
         ax.set_title(title)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "model_bench.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, out / "model_bench.png", dpi=110)
 
 
 def main(argv: list[str] | None = None) -> int:

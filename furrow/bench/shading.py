@@ -27,7 +27,6 @@ The msem and sphere sections take a few minutes (brute-force references); --quic
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -36,6 +35,8 @@ import numpy as np
 
 from furrow.bench import OUT_ROOT
 
+
+from furrow.bench._common import print_result, save_figure
 
 SECTIONS = ("irradiance", "msem", "sphere", "sg", "prefilter", "ssdf")
 #: The thesis' Table 3 (mean error, 256 levels, vs unaccelerated) and Table 4 (time).
@@ -244,21 +245,21 @@ def _plots(res: dict, out: Path) -> list[str]:
             ax[1].semilogx([r["th"] for r in rr], [r["build_s"] for r in rr], "o-", label=f"{s}^3")
         ax[0].set_xlabel("th"); ax[0].set_ylabel("error (1/256 of white)"); ax[0].legend(fontsize=7)
         ax[1].set_xlabel("th"); ax[1].set_ylabel("build time (s)"); ax[1].legend(fontsize=7)
-        fig.tight_layout(); p = out / "msem_error_time.png"; fig.savefig(p, dpi=100); plt.close(fig); saved.append(str(p))
+        saved.append(str(save_figure(fig, out / "msem_error_time.png")))
     if res.get("sg"):
         f = res["sg"]["env_fit"]
         fig, ax = plt.subplots(figsize=(5, 3.5))
         ax.semilogx([r["K"] for r in f], [r["radiance_rel_l2"] for r in f], "o-", label="radiance rel. L2")
         ax.semilogx([r["K"] for r in f], [r["irradiance_mean_rel"] for r in f], "x-", label="irradiance mean rel.")
-        ax.set_xlabel("K lobes"); ax.legend(); fig.tight_layout()
-        p = out / "sg_fit_vs_k.png"; fig.savefig(p, dpi=100); plt.close(fig); saved.append(str(p))
+        ax.set_xlabel("K lobes"); ax.legend()
+        saved.append(str(save_figure(fig, out / "sg_fit_vs_k.png")))
     if res.get("ssdf"):
         fig, ax = plt.subplots(figsize=(5, 3.5))
         for lam in ("1", "10", "100"):
             ax.semilogx([r["spheres"] for r in res["ssdf"]], [r[f"err_mean_l{lam}"] for r in res["ssdf"]], "o-",
                         label=f"lambda {lam}")
-        ax.set_xlabel("spheres"); ax.set_ylabel("mean |error| / f_h(pi/2)"); ax.legend(); fig.tight_layout()
-        p = out / "ssdf_error_vs_spheres.png"; fig.savefig(p, dpi=100); plt.close(fig); saved.append(str(p))
+        ax.set_xlabel("spheres"); ax.set_ylabel("mean |error| / f_h(pi/2)"); ax.legend()
+        saved.append(str(save_figure(fig, out / "ssdf_error_vs_spheres.png")))
     return saved
 
 
@@ -330,11 +331,7 @@ def main(argv: list[str]) -> int:
         res[s] = runners[s]()
         print(f"[shading bench] {s} done in {time.perf_counter() - t:.1f} s", file=sys.stderr)
     res["plots"] = _plots(res, a.out)
-    if a.json:
-        print(json.dumps(res, indent=1, default=float))
-    else:
-        _print_tables(res)
-        print(f"plots: {', '.join(res['plots'])}")
+    print_result(res, a.json, _print_tables, f"plots: {', '.join(res['plots'])}")
     return 0
 
 

@@ -1,11 +1,12 @@
 #version 430
 // Composite of a captured object (RGB + z-depth) over the environment seen by the camera, with the
 // object's shadow ratio on the ground plane (METHODS §3, seed 004 Eq. 16-17), times the exposure.
-// Twin of render.composite.composite_reference. Image pixel (u, v) (OpenCV centres) of framebuffer
-// fragment: u = gl_FragCoord.x - 0.5, v = H - 0.5 - gl_FragCoord.y (read back with gl_rows_to_image).
+// Twin of render.composite_reference.composite_reference. Each fragment shades the image pixel (u, v) (OpenCV
+// centres) that framebuffer_row.glsl's image_pixel gives (read back with gl_rows_to_image).
 // Object pixels may get the light-reflection map added (METHODS §4, seed 002 §3.3; twin:
 // render.shading.glare_maps.light_reflection_map): sum_j k_s E_j (n + 2) / (8 pi) cos^n(N.H_j), N.L_j > 0,
 // with the view direction V = -normalize(ray) (independent of the depth).
+#include "framebuffer_row.glsl"
 #include "shading_envmap.glsl"
 #include "shading_brdf.glsl"
 layout(std430, binding = 6) readonly buffer LrmSources { vec4 lrm_src[]; };  // per source: (L, 0), (E rgb, 0)
@@ -27,7 +28,7 @@ uniform float u_exposure;
 out vec4 o_col;
 
 void main() {
-    ivec2 px = ivec2(int(gl_FragCoord.x), u_height - 1 - int(gl_FragCoord.y));
+    ivec2 px = image_pixel(gl_FragCoord.xy, u_height);
     float z = texelFetch(u_depth, px, 0).r;
     vec3 col;
     if (z > 0.0) {

@@ -3,6 +3,7 @@
 // template vertex in_corner = (a, b, weight): centre (0, 0, 1), then the rim (+-1, 0, 0), (0, +-1, 0);
 // position = centre + a L axis + b (W / 2) perp (OpenCV pixels, v down), colour = c * weight
 // (centre c, rim black, interpolated). Twin: render.shading.glare_maps.rasterize_streaks_reference.
+#include "framebuffer_row.glsl"
 in vec3 in_corner;
 in vec2 in_centre;   // (u, v) OpenCV pixel centre
 in vec2 in_axis;     // unit, image axes
@@ -14,7 +15,6 @@ out vec3 v_col;
 void main() {
     vec2 perp = vec2(-in_axis.y, in_axis.x);
     vec2 p = in_centre + in_corner.x * in_len * in_axis + in_corner.y * 0.5 * in_wid * perp;
-    // same convention as Camera.gl_projection: NDC x = 2 (u + 0.5) / W - 1, y = 1 - 2 (v + 0.5) / H
-    gl_Position = vec4(2.0 * (p.x + 0.5) / u_size.x - 1.0, 1.0 - 2.0 * (p.y + 0.5) / u_size.y, 0.0, 1.0);
+    gl_Position = vec4(image_to_ndc(p, u_size), 0.0, 1.0);  // same convention as Camera.gl_projection
     v_col = in_col * in_corner.z;
 }

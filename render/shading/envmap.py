@@ -20,12 +20,12 @@ lossy EXR compression (DWAB) leaves are clamped to 0 on load.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from capture.imageio import read_exr_rgb, write_exr
 
 #: Folder of the bundled CC0 environment maps (package data of datasets_synthetic, found by path
 #: so that render/ does not import datasets_synthetic).
@@ -139,6 +139,27 @@ def pixel_solid_angles(h: int) -> np.ndarray:
     return np.repeat(row[:, None], w, axis=1)
 
 
+def pixel_centre_polar(h: int) -> np.ndarray:
+    """(h,) float64 polar angle theta (from +z) of the pixel-centre rows of an equirect map of
+    height h: pi (i + 0.5) / h."""
+    return np.pi * (np.arange(h) + 0.5) / h
+
+
+def pixel_centre_azimuth(w: int) -> np.ndarray:
+    """(w,) float64 azimuth phi (atan2(y, x)) of the pixel-centre columns of an equirect map of
+    width w: pi (1 - 2 (j + 0.5) / w)."""
+    return np.pi * (1.0 - 2.0 * (np.arange(w) + 0.5) / w)
+
+
+def nearest_pixel(uv, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, columns) int64 of the pixels of an (h, 2h) equirect map whose centres are nearest
+    to (..., 2) uv (columns wrap, rows clamp)."""
+    uv = np.asarray(uv, np.float64)
+    rows = np.clip(np.round(uv[..., 1] * h - 0.5).astype(np.int64), 0, h - 1)
+    cols = np.round(uv[..., 0] * (2 * h) - 0.5).astype(np.int64) % (2 * h)
+    return rows, cols
+
+
 def dir_to_uv(dirs) -> np.ndarray:
     """(..., 3) directions (need not be unit, must be non-zero) -> (..., 2) float64 (u, v),
     u in [0, 1), v in [0, 1]. See the module docstring for the convention."""
@@ -226,15 +247,15 @@ def bundled_envmap(name: str) -> EnvMap:
 
 
 def load_envmap(path) -> EnvMap:
-    """Read an equirect HDR map (.exr via OpenEXR, .hdr/.pic Radiance RGBE). The image must be
-    2:1; errors name the file."""
+    """Read an equirect HDR map (.exr: ``capture.imageio.read_exr_rgb``, .hdr/.pic Radiance RGBE).
+    The image must be 2:1; errors name the file."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"environment map {path} not found")
     ext = path.suffix.lower()
     try:
         if ext == ".exr":
-            data = _read_exr(path)
+            data = read_exr_rgb(path)
         elif ext in (".hdr", ".pic", ".rgbe"):
             from render.shading.rgbe import read_rgbe
             data = read_rgbe(path)
@@ -250,41 +271,11 @@ def load_envmap(path) -> EnvMap:
     return EnvMap(np.maximum(data, 0).astype(np.float32), path.stem)
 
 
-def _read_exr(path: Path) -> np.ndarray:
-    import OpenEXR
-
-    with OpenEXR.File(str(path)) as f:
-        ch = f.channels()
-        if "RGB" in ch:
-            px = np.asarray(ch["RGB"].pixels)
-        elif "RGBA" in ch:
-            px = np.asarray(ch["RGBA"].pixels)[..., :3]
-        elif all(c in ch for c in "RGB"):
-            px = np.stack([np.asarray(ch[c].pixels) for c in "RGB"], -1)
-        elif "Y" in ch:
-            px = np.repeat(np.asarray(ch["Y"].pixels)[..., None], 3, -1)
-        else:
-            raise ValueError(f"no R,G,B or Y channels (found {sorted(ch)})")
-    return px.astype(np.float32)
-
-
 def save_envmap(env: EnvMap, path) -> Path:
-    """Write ``env`` as a float32 RGB EXR (ZIP compression, lossless), atomically (temp file in
-    the same folder + rename)."""
-    import OpenEXR
-
+    """Write ``env`` as a float32 RGB EXR (``capture.imageio.write_exr``: ZIP compression,
+    lossless, atomic)."""
     path = Path(path)
     if path.suffix.lower() != ".exr":
         raise ValueError(f"save_envmap: {path}: only .exr is written")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.exr", dir=path.parent)
-    os.close(fd)
-    try:
-        with OpenEXR.File(header, {"RGB": np.ascontiguousarray(env.data, np.float32)}) as f:
-            f.write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_exr(path, env.data)
     return path

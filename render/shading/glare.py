@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Rec. 709 luminance.
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from capture.camera import corner_from_cv
+from render.shading.lights import LUMA
 
 
 @dataclass(frozen=True)
@@ -123,12 +123,20 @@ def streak_energy(pos, col) -> np.ndarray:
     return (area[:, None] * c.mean(1)).sum(0)
 
 
-def bright_pixels(img, display_max: float):
-    """Pixels whose luminance exceeds display_max: (centres (N,2) px, excess energy (N,3),
-    intensity (N,) = luminance / display_max)."""
+def bright_pixel_indices(img, display_max: float):
+    """Pixels whose luminance exceeds display_max: (ij (N, 2) int64 (column, row), excess energy
+    (N, 3) = the colour above luminance display_max (hue kept), intensity (N,) = luminance /
+    display_max)."""
     img = np.asarray(img, np.float64)
     lum = img @ LUMA
     ys, xs = np.nonzero(lum > display_max)
     val = img[ys, xs]
     clipped = val * (display_max / lum[ys, xs])[:, None]
-    return np.stack([xs + 0.5, ys + 0.5], 1), val - clipped, lum[ys, xs] / display_max
+    return np.stack([xs, ys], 1), val - clipped, lum[ys, xs] / display_max
+
+
+def bright_pixels(img, display_max: float):
+    """:func:`bright_pixel_indices` with the pixels as centres (N, 2) in corner-origin pixel
+    coordinates (``capture.camera.corner_from_cv``), the convention of :func:`streak_triangles`."""
+    ij, excess, intensity = bright_pixel_indices(img, display_max)
+    return corner_from_cv(ij), excess, intensity

@@ -33,11 +33,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from capture.camera import resample_pixel_coords
 from render.shading.brdf import blinn_phong_normalized
 from render.shading.envmap import EnvMap
+from render.shading.lights import LUMA
 
-#: Rec. 709 luminance (linear RGB).
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: Light-source map default: sources are texels of at least this luminance (the exposure set to
 #: the highlights, METHODS §4); the bundled maps' skies stay below ~20, their suns are 50-2000.
 LIGHT_SOURCE_THRESHOLD = 40.0
@@ -131,16 +131,15 @@ class GlareSources(NamedTuple):
 
 def glare_sources(image, display_max: float = 1.0, mask=None, spec=None, default_n: float = 100.0) -> GlareSources:
     """Bright pixels of ``image`` (H, W, 3) linear, exposure applied: luminance > display_max
-    (inside ``mask`` if given). Their excess is what render.shading.glare.bright_pixels defines
-    (the colour above luminance display_max, hue kept); n from ``spec`` (H, W, 2) or default_n."""
-    from render.shading.glare import bright_pixels
+    (inside ``mask`` if given). Their excess is what render.shading.glare.bright_pixel_indices
+    defines (the colour above luminance display_max, hue kept); n from ``spec`` (H, W, 2) or default_n."""
+    from render.shading.glare import bright_pixel_indices
 
     img = np.asarray(image, np.float64)
     if mask is not None:
         img = np.where(np.asarray(mask, bool)[..., None], img, 0.0)
-    c, e, inten = bright_pixels(img, display_max)
-    ij = np.rint(c - 0.5).astype(np.int64)  # bright_pixels puts centres at +0.5
-    n = np.full(len(c), float(default_n)) if spec is None else np.asarray(spec, np.float64)[ij[:, 1], ij[:, 0], 1]
+    ij, e, inten = bright_pixel_indices(img, display_max)
+    n = np.full(len(ij), float(default_n)) if spec is None else np.asarray(spec, np.float64)[ij[:, 1], ij[:, 0], 1]
     return GlareSources(ij.astype(np.float64), e, inten * display_max, n)
 
 
@@ -199,24 +198,24 @@ def _tent(streaks: Streaks, m: int, uu, vv):
 
 def _extent(streaks: Streaks, m: int):
     a = np.abs(streaks.axis[m])
-    return a * streaks.length[m] + a[::-1] * streaks.width[m] / 2
+    return a * streaks.length[m] + a[..., ::-1] * streaks.width[m] / 2
 
 
 def rasterize_streaks_reference(streaks: Streaks, width: int, height: int, supersample: int = 1) -> np.ndarray:
     """(H, W, 3) float64 numpy twin of render.glare.GlareLayer: every pair's tent evaluated at the
-    s x s sub-sample centres of each pixel (u + (k + 0.5) / s - 0.5), summed, box-averaged."""
+    s x s sub-sample centres of each pixel (``capture.camera.resample_pixel_coords``), summed,
+    box-averaged."""
     s = int(supersample)
     Ws, Hs = width * s, height * s
     out = np.zeros((Hs, Ws, 3))
     for m in range(len(streaks)):
         c, ext = streaks.centre[m], _extent(streaks, m)
-        # sub-sample (i, j) sits at u = (i + 0.5) / s - 0.5
-        lo = np.maximum(np.floor((c - ext + 0.5) * s - 0.5).astype(int), 0)
-        hi = np.minimum(np.ceil((c + ext + 0.5) * s - 0.5).astype(int), [Ws - 1, Hs - 1])
+        lo = np.maximum(np.floor(resample_pixel_coords(c - ext, s)).astype(int), 0)
+        hi = np.minimum(np.ceil(resample_pixel_coords(c + ext, s)).astype(int), [Ws - 1, Hs - 1])
         if np.any(hi < lo):
             continue
         jj, ii = np.mgrid[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
-        w = _tent(streaks, m, (ii + 0.5) / s - 0.5, (jj + 0.5) / s - 0.5)
+        w = _tent(streaks, m, resample_pixel_coords(ii, 1.0 / s), resample_pixel_coords(jj, 1.0 / s))
         out[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1] += w[..., None] * streaks.colour[m]
     return out.reshape(height, s, width, s, 3).mean(axis=(1, 3))
 

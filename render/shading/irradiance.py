@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from render.shading.envmap import EnvMap, dir_to_uv, pixel_solid_angles, sample_equirect
+from render.shading.envmap import EnvMap, dir_to_uv, pixel_centre_polar, pixel_solid_angles, sample_equirect
 
 #: Default table height (table is (h, 2h, 3)). Measured against the full-resolution brute-force
 #: integral over 1000 random normals on the four bundled maps (src_factor 2): h=64 max 1.08%
@@ -39,8 +39,8 @@ def irradiance_table(env: EnvMap, h: int = IRRADIANCE_TABLE_H, src_factor: int =
         raise ValueError(f"irradiance_table: h and src_factor must be >= 1 (got {h}, {f})")
     src = env.resized(f * h)
     H, W = src.height, src.width
-    th_s = np.pi * (np.arange(H) + 0.5) / H
-    th_t = np.pi * (np.arange(h) + 0.5) / h
+    th_s = pixel_centre_polar(H)
+    th_t = pixel_centre_polar(h)
     omega = pixel_solid_angles(H)[:, 0]
     # table column j sits at source column position f*j + (f-1)/2; offset m columns -> dphi
     dphi = (np.arange(W) - (f - 1) / 2.0) * (2 * np.pi / W)

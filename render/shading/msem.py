@@ -37,7 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.shading.envmap import EnvMap, dir_to_uv, pixel_solid_angles, sample_equirect
+from render.shading.envmap import (EnvMap, dir_to_uv, nearest_pixel, pixel_centre_azimuth, pixel_centre_polar,
+                                   pixel_solid_angles, sample_equirect)
+from render.shading.lights import LUMA
 
 #: Intensity resolution I of Eq. 11-13 (8-bit display: 256 levels).
 MSEM_INTENSITY_LEVELS = 256
@@ -123,7 +125,7 @@ def convolve_zonal(src: EnvMap, kernel, reach: float, normalise: bool) -> np.nda
     beyond the angle ``reach``. Rotation about +z is a column shift, so each output row is a sum
     over a band of source rows of circular cross-correlations (real FFTs)."""
     H, W = src.height, src.width
-    th_c = np.pi * (np.arange(H) + 0.5) / H
+    th_c = pixel_centre_polar(H)
     om = pixel_solid_angles(H)[:, 0]
     band = int(min(H - 1, np.ceil(min(reach, np.pi) / (np.pi / H)) + 1))
     cos_d = np.cos(np.arange(W) * (2 * np.pi / W))
@@ -175,15 +177,13 @@ def msem_direct(env: EnvMap, dirs, lam, th: float) -> np.ndarray:
     dirs = np.asarray(dirs, np.float64)
     lam = np.asarray(lam, np.float64)
     H, W = env.height, env.width
-    PD = env.pixel_directions()
     OM = env.pixel_solid_angles()[:, 0]
     L = env.data.astype(np.float64)
     dth, dph = np.pi / H, 2 * np.pi / W
     alpha = _reach(lam, th)
     cos_a = np.cos(alpha)
     uv = dir_to_uv(dirs)
-    i0 = np.clip(np.round(uv[:, 1] * H - 0.5).astype(np.int64), 0, H - 1)
-    j0 = np.round(uv[:, 0] * W - 0.5).astype(np.int64) % W
+    i0, j0 = nearest_pixel(uv, H)
     R = np.ceil(alpha / dth).astype(np.int64) + 1
     lo, hi = i0 - R, i0 + R
     polar = (lo < 0) | (hi > H - 1)
@@ -196,8 +196,8 @@ def msem_direct(env: EnvMap, dirs, lam, th: float) -> np.ndarray:
     # the window's rows and columns, and free of the cancellation of 1 - dot near the peak
     th_t = np.arctan2(np.hypot(dirs[:, 0], dirs[:, 1]), dirs[:, 2])
     ph_t = np.arctan2(dirs[:, 1], dirs[:, 0])
-    th_s = np.pi * (np.arange(H) + 0.5) / H
-    ph_s = np.pi * (1.0 - 2.0 * (np.arange(W) + 0.5) / W)
+    th_s = pixel_centre_polar(H)
+    ph_s = pixel_centre_azimuth(W)
     Lf = L.reshape(-1, 3)
     # windows near a pole: the band of rows (clipped) times every column
     C = np.where(polar, -1, C)
@@ -250,7 +250,7 @@ def _local_range(env: EnvMap, half_rows: int) -> np.ndarray:
     hi = maximum_filter1d(d, 2 * half_rows + 1, axis=0, mode="nearest")
     lo = minimum_filter1d(d, 2 * half_rows + 1, axis=0, mode="nearest")
     out = np.empty((H, W))
-    th = np.pi * (np.arange(H) + 0.5) / H
+    th = pixel_centre_polar(H)
     # the window's rows reach theta +- half_rows rows: use the smallest sin(theta) in it
     smin = np.sin(np.clip(np.minimum(th, np.pi - th) - half_rows * np.pi / H, 0, None))
     for i in range(H):
@@ -366,5 +366,5 @@ def msem_texture(ctx, volume: np.ndarray):
 def white_level(env: EnvMap, percentile: float = 99.0) -> float:
     """The map's 'white' for error units: the given percentile of the pixel luminance. Errors
     are reported in 1/256 of it (the thesis used 8-bit maps, 256 levels)."""
-    lum = env.data.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    lum = env.data.astype(np.float64) @ LUMA
     return float(np.percentile(lum, percentile))

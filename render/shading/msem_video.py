@@ -5,14 +5,13 @@ one reused 3-D texture."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 import time
 from pathlib import Path
 from typing import Iterable
 
 import numpy as np
 
+from capture.atomic import atomic_write
 from render.shading.envmap import EnvMap
 from render.shading.msem import msem_build
 
@@ -30,14 +29,8 @@ def build_msem_video(frames: Iterable[EnvMap], s: int, out_dir, th: float = 0.00
         t = time.perf_counter()
         vol = msem_build(env, s, th, **kw).volume.astype(np.float16)
         path = out / FRAME_NAME.format(i)
-        fd, tmp = tempfile.mkstemp(prefix=".msem.", suffix=".npy", dir=out)
-        os.close(fd)
-        try:
+        with atomic_write(path) as tmp:
             np.save(tmp, vol)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
         paths.append(path)
         secs.append(time.perf_counter() - t)
     return {"paths": paths, "seconds": secs}

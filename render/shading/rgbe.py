@@ -7,12 +7,12 @@ Format: Greg Ward, "Real Pixels", Graphics Gems II (1991).
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from capture.atomic import atomic_write
 
 _RES = re.compile(rb"^-Y\s+(\d+)\s+\+X\s+(\d+)\s*$")
 
@@ -136,8 +136,6 @@ def write_rgbe(path, rgb: np.ndarray) -> Path:
                 body += _rle_channel(px[y, :, c])
         else:
             body += px[y].tobytes()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.hdr", dir=path.parent)
-    with os.fdopen(fd, "wb") as f:
-        f.write(body)
-    os.replace(tmp, path)
+    with atomic_write(path) as tmp:
+        tmp.write_bytes(body)
     return path

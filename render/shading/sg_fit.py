@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from render.shading.envmap import EnvMap
+from render.shading.lights import LUMA
 
 #: Height of the map the fit runs on (the fit is of low-frequency lighting).
 FIT_HEIGHT = 32
@@ -91,7 +92,7 @@ def fit_env_sg(env: EnvMap, k: int, fit_height: int = FIT_HEIGHT, maxiter: int =
     if axes:
         res -= np.exp(np.array(lams)[None] * (dirs @ np.array(axes).T - 1)) @ np.array(mus)
     while len(axes) < k:
-        i = int(np.argmax(res @ np.array([0.2126, 0.7152, 0.0722])))
+        i = int(np.argmax(res @ LUMA))
         mu = np.maximum(res[i], 0.0)
         axes.append(dirs[i])
         lams.append(lam0)

@@ -116,17 +116,15 @@ def test_corrupt_png_named(scan_dir):
         read_scanset(scan_dir)
 
 
-def test_size_mismatch_named(scan_dir):
+@pytest.mark.parametrize("rel, img, msg", [
+    ("images/f001.png", np.zeros((10, 10, 3), np.uint8), r"f001.png: image is 10x10 but its camera says 40x30"),
+    ("depth/f001.png", np.ones((30, 41), np.uint16), r"depth/f001.png: depth is 41x30"),
+    ("depth/f000.png", np.zeros((30, 40), np.uint16), r"depth/f000.png: depth is all zero"),
+], ids=["size_mismatch", "depth_size_mismatch", "all_zero_depth"])
+def test_bad_image_named(scan_dir, rel, img, msg):
     import cv2
-    cv2.imwrite(str(scan_dir / "images/f001.png"), np.zeros((10, 10, 3), np.uint8))
-    with pytest.raises(ScanIOError, match=r"f001.png: image is 10x10 but its camera says 40x30"):
-        read_scanset(scan_dir)
-
-
-def test_depth_size_mismatch_named(scan_dir):
-    import cv2
-    cv2.imwrite(str(scan_dir / "depth/f001.png"), np.ones((30, 41), np.uint16))
-    with pytest.raises(ScanIOError, match=r"depth/f001.png: depth is 41x30"):
+    cv2.imwrite(str(scan_dir / rel), img)
+    with pytest.raises(ScanIOError, match=msg):
         read_scanset(scan_dir)
 
 
@@ -143,13 +141,6 @@ def test_nonrigid_pose_named(scan_dir):
         m["frames"][2]["transform_matrix"] = tm.tolist()
     _edit(scan_dir, scale)
     with pytest.raises(ScanIOError, match=r"frame 2 \(images/f002.png\).*not rigid"):
-        read_scanset(scan_dir)
-
-
-def test_all_zero_depth_named(scan_dir):
-    import cv2
-    cv2.imwrite(str(scan_dir / "depth/f000.png"), np.zeros((30, 40), np.uint16))
-    with pytest.raises(ScanIOError, match=r"depth/f000.png: depth is all zero"):
         read_scanset(scan_dir)
 
 

@@ -73,26 +73,19 @@ def _assert_failed_cleanly(rc, stderr, out, needle):
     assert not [p for p in out.parent.iterdir() if p.name.startswith(f".{out.name}")]  # no temp folder left
 
 
-def test_corrupt_png(scan_dir, tmp_path, capsys):
+@pytest.mark.parametrize("frame, key, damage", [
+    (3, "file_path", lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n not really a png")),
+    (5, "depth_file_path", lambda p: p.unlink()),
+], ids=["corrupt_png", "missing_depth_file"])
+def test_damaged_frame_file(scan_dir, tmp_path, capsys, frame, key, damage):
     d = _copy(scan_dir, tmp_path / "bad")
     frames = json.loads((d / "transforms.json").read_text())["frames"]
-    img = d / frames[3]["file_path"]
-    img.write_bytes(b"\x89PNG\r\n\x1a\n not really a png")
+    bad = d / frames[frame][key]
+    damage(bad)
     out = tmp_path / "out" / "model"
     out.parent.mkdir()
     rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
-    _assert_failed_cleanly(rc, err, out, img.name)
-
-
-def test_missing_depth_file(scan_dir, tmp_path, capsys):
-    d = _copy(scan_dir, tmp_path / "bad")
-    frames = json.loads((d / "transforms.json").read_text())["frames"]
-    dep = d / frames[5]["depth_file_path"]
-    dep.unlink()
-    out = tmp_path / "out" / "model"
-    out.parent.mkdir()
-    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
-    _assert_failed_cleanly(rc, err, out, dep.name)
+    _assert_failed_cleanly(rc, err, out, bad.name)
 
 
 def test_non_rigid_pose(scan_dir, tmp_path, capsys):

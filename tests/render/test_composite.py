@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from capture.camera import Camera, look_at, make_K
-from render.composite import (TONE_WHITE, Compositor, GroundPlane, composite_frame, composite_reference,
-                              display_white, ground_from_spheres, normals_from_depth, pixel_world_dirs,
-                              ratio_lookup, raycast_sphere, shadow_ratio, shadow_ratio_raycast, spheres_mesh, tonemap)
+from render.composite import Compositor, composite_frame, normals_from_depth
+from render.composite_reference import composite_reference, raycast_sphere
+from render.ground_shadow import (GroundPlane, ground_from_spheres, ratio_lookup, shadow_ratio, shadow_ratio_raycast,
+                                  spheres_mesh)
+from render.tonemap import TONE_WHITE, display_white, tonemap
 from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky, SUN_DIR
 from render.shading.sg import sg_mixture_eval
 from tests.conftest import assert_images_close
@@ -53,6 +55,14 @@ def _fit(name: str, k: int = 10):
 
 def _camera(w=160, h=120, eye=(0.8, -0.6, 0.35), target=(0.0, 0.0, 0.1), f=150.0):
     return Camera(make_K(f, f, (w - 1) / 2, (h - 1) / 2), look_at(eye, target), w, h)
+
+
+def _sunset_sphere(colour, w=160, h=120):
+    """(env, SG fit, camera, z, normals, flat ``colour`` on the sphere) of the first sphere under sunset."""
+    env, fit = _fit("sunset", 10)
+    cam = _camera(w, h)
+    z, n = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
+    return env, fit, cam, z, n, np.where((z > 0)[..., None], np.array(colour), 0.0)
 
 
 def _sphere_render(camera, centre, radius):
@@ -184,10 +194,7 @@ def test_shadow_grid_gl_matches_numpy(gl_ctx):
 
 @pytest.mark.gl
 def test_composite_gl_matches_numpy(gl_ctx):
-    env, fit = _fit("sunset", 10)
-    cam = _camera()
-    z, _ = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
-    rgb = np.where((z > 0)[..., None], np.array([0.6, 0.3, 0.2]), 0.0)
+    env, fit, cam, z, _, rgb = _sunset_sphere([0.6, 0.3, 0.2])
     g = ground_from_spheres(SPHERES, resolution=32)
     with Compositor(gl_ctx) as c:
         grid = c.shadow_grid(SPHERES, fit, g)
@@ -244,10 +251,7 @@ def test_background_orientation(gl_ctx):
 
 @pytest.mark.gl
 def test_composite_frame_end_to_end(gl_ctx):
-    env, fit = _fit("sunset", 10)
-    cam = _camera()
-    z, n = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
-    rgb = np.where((z > 0)[..., None], np.array([0.3, 0.3, 0.3]), 0.0)
+    env, fit, cam, z, n, rgb = _sunset_sphere([0.3, 0.3, 0.3])
     st = {}
     out = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, exposure=1.0, glare=False, sg_fit=fit, stats=st)
     assert out.shape == (120, 160, 3) and out.dtype == np.float32
@@ -279,10 +283,7 @@ def test_other_up_axis_gives_the_same_frame(gl_ctx):
     """A capture whose world is turned (up = Q z) composites exactly like the +z-up one."""
     from render.composite import rotation_to_z
 
-    env, fit = _fit("sunset", 10)
-    cam = _camera(96, 72)
-    z, n = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
-    rgb = np.where((z > 0)[..., None], np.array([0.2, 0.4, 0.6]), 0.0)
+    env, fit, cam, z, n, rgb = _sunset_sphere([0.2, 0.4, 0.6], 96, 72)
     spec = np.where((z > 0)[..., None], np.array([0.5, 200.0]), 0.0)
     kw = dict(sg_fit=fit, glare=False, specular=spec, output="linear")
     ref = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, normals=n, **kw)
@@ -299,10 +300,7 @@ def test_other_up_axis_gives_the_same_frame(gl_ctx):
 
 @pytest.mark.gl
 def test_compositor_reuse_gives_the_same_frame(gl_ctx):
-    env, fit = _fit("sunset", 10)
-    cam = _camera(96, 72)
-    z, _ = _sphere_render(cam, SPHERES.centers[0], SPHERES.radii[0])
-    rgb = np.where((z > 0)[..., None], np.array([0.2, 0.4, 0.6]), 0.0)
+    env, fit, cam, z, _, rgb = _sunset_sphere([0.2, 0.4, 0.6], 96, 72)
     one = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, sg_fit=fit, glare=False)
     with Compositor(gl_ctx) as c:
         a = composite_frame(gl_ctx, rgb, z, cam, env, spheres=SPHERES, sg_fit=fit, glare=False, compositor=c)

@@ -22,6 +22,13 @@ def _level(scene, res=L):
     return SdfLevel(res, o, w, np.zeros((0, 3), np.int32), v)
 
 
+def _sphere_mesh():
+    """(scene, level, vertices, faces): the sphere scene's exact SDF level and its marching-cubes mesh."""
+    scene = sphere_scene()
+    lv = _level(scene)
+    return (scene, lv) + tuple(marching_cubes(lv))
+
+
 # ------------------------------------------------------------------ spheres
 def test_sphere_set_meets_error_target_and_matches_brute_force():
     lv = _level(torus_scene())
@@ -74,9 +81,7 @@ def test_marching_cubes_no_surface():
 
 
 def test_vertex_colors_from_constant_images():
-    scene = sphere_scene()
-    lv = _level(scene)
-    v, f = marching_cubes(lv)
+    _, lv, v, f = _sphere_mesh()
     cams = scan_ring(6, 64, 48)
     depth = raycast_depth(v, f, cams)
     col = np.array([0.2, 0.4, 0.6], np.float32)
@@ -87,9 +92,7 @@ def test_vertex_colors_from_constant_images():
 
 # ------------------------------------------------------------------ RGBz
 def test_raycast_depth_matches_exact_depth():
-    scene = sphere_scene()
-    lv = _level(scene)
-    v, f = marching_cubes(lv)
+    scene, lv, v, f = _sphere_mesh()
     cams = scan_ring(3, 80, 60)
     geo = raycast_depth(v, f, cams)
     for cam, g in zip(cams, geo):
@@ -115,9 +118,7 @@ def test_hole_fraction_and_closing():
 
 
 def test_build_rgbz_fills_holes_and_keeps_agreeing_depth():
-    scene = sphere_scene()
-    lv = _level(scene)
-    v, f = marching_cubes(lv)
+    scene, lv, v, f = _sphere_mesh()
     ss = make_scanset(scene, scan_ring(4, 80, 60), holes=0.03, seed=3)
     rgbz, stats = build_rgbz(ss, v, f, lv, RgbzConfig())
     assert rgbz.depth.shape == (4, 60, 80) and rgbz.rgb.shape == (4, 60, 80, 3)
@@ -152,9 +153,7 @@ def test_rgbz_keeps_measured_fringe_and_geometry_fills_the_rest():
     """METHODS §1.4: the RGBz depth is the measured range image; the geometry depth only fills
     unmeasured pixels.  A fringe measured ~2-3 cm outside the sphere (no geometry hit there, far
     from the surface) is kept by default and dropped by the former agreement rule."""
-    scene = sphere_scene()
-    lv = _level(scene)
-    v, f = marching_cubes(lv)
+    scene, lv, v, f = _sphere_mesh()
     cams = scan_ring(3, 80, 60)
     geo = raycast_depth(v, f, cams)
 

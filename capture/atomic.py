@@ -1,0 +1,52 @@
+"""Atomic writes: a file or a folder is built under a temporary name beside its target and
+renamed into place only when complete, so an interrupted or failed write leaves the previous
+version (or nothing) and no temporary behind. The one implementation every package uses."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+
+@contextmanager
+def atomic_write(path) -> Iterator[Path]:
+    """``with atomic_write(path) as tmp:`` write the file ``tmp`` (same folder, same suffix, so
+    writers that choose the format by extension work); on success it replaces ``path``, on an
+    exception it is removed and ``path`` is left as it was. Creates the parent folder."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{path.stem}.tmp-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def atomic_dir(target) -> Iterator[Path]:
+    """``with atomic_dir(target) as tmp:`` build the folder ``tmp`` (beside ``target``); on success
+    it takes ``target``'s place (a previous ``target`` is moved aside, then deleted), on an
+    exception it is deleted and ``target`` is left as it was. Creates the parent folder."""
+    target = Path(target)
+    parent = target.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=parent))
+    try:
+        yield tmp
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=parent))
+            os.rmdir(old)
+            os.replace(target, old)
+            os.replace(tmp, target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, target)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
