@@ -372,7 +372,7 @@ def camera_from_viser(wxyz, position, fov_y: float, width: int, height: int, nam
     c2w[:3, :3] = rotation_from_wxyz(wxyz)
     c2w[:3, 3] = np.asarray(position, dtype=np.float64)
     f = 0.5 * height / np.tan(0.5 * fov_y)
-    K = make_K(f, f, 0.5 * width - HALF_PIXEL, 0.5 * height - HALF_PIXEL)
+    K = make_K(f, f, cv_from_corner(0.5 * width), cv_from_corner(0.5 * height))
     return Camera(K, invert_rigid(check_rigid(c2w, "viser camera")), int(width), int(height), name)
 
 
@@ -380,7 +380,7 @@ def viser_view(camera: Camera, distance: float) -> dict:
     """Where a viser client's camera goes to look through ``camera``: ``position`` (its centre),
     ``look_at`` (``distance`` metres along its optical axis), ``up_direction`` (the world
     direction up in its image) and ``fov`` (its vertical field of view, radians)."""
-    up = -camera.cam_from_world[1, :3]
+    up = image_up(camera)
     fov = 2.0 * np.arctan(0.5 * camera.height / camera.K[1, 1])
     return {"position": camera.center, "look_at": camera.center + float(distance) * camera.forward,
             "up_direction": up, "fov": float(fov)}

@@ -12,13 +12,11 @@ is recorded in the shared :class:`FrameLog` (``furrow view --stats``).
 from __future__ import annotations
 
 import json
-import os
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import CancelledError
 from dataclasses import dataclass
-from pathlib import Path
 
 from capture.camera import Camera, camera_from_viser
 from render.viewer.adaptive import AdaptiveConfig, choose_scale, frame_size, next_action
@@ -82,11 +80,11 @@ class FrameLog:
             return list(self._frames)
 
     def write(self, path) -> None:
-        """Write ``{"frames": [...]}`` atomically (temporary file + rename)."""
-        path = Path(path)
-        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(json.dumps({"frames": self.frames()}, indent=1))
-        os.replace(tmp, path)
+        """Write ``{"frames": [...]}`` to ``path`` atomically."""
+        from capture.atomic import atomic_write
+
+        with atomic_write(path) as tmp:
+            tmp.write_text(json.dumps({"frames": self.frames()}, indent=1))
 
 
 class Session:

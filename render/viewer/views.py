@@ -52,8 +52,8 @@ def load_env(name: str):
 
 
 def make_compositor(ctx):
-    """The environment compositor GL owner (render.composite.Compositor)."""
-    from render.composite import Compositor
+    """The environment compositor GL owner (render.compositor.Compositor)."""
+    from render.compositor import Compositor
 
     return Compositor(ctx)
 
