@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from render.viewer.adaptive import AdaptiveConfig
-from render.viewer.session import MOVING_JPEG_QUALITY, FrameLog, Session, ViewCamera
+from render.viewer.session import FrameLog, Session, ViewCamera
 from render.viewer.settings import ViewSettings
 
 #: Frustum size as a share of the object's bounding-box diagonal.
@@ -147,11 +147,11 @@ class Viewer:
         recent: list[dict] = []
         last_full: list[dict] = []
 
-        def send(image, moving: bool) -> None:
-            if moving:
-                client.scene.set_background_image(image, format="jpeg", jpeg_quality=MOVING_JPEG_QUALITY)
-            else:
+        def send(image, jpeg_quality: int | None) -> None:
+            if jpeg_quality is None:
                 client.scene.set_background_image(image, format="png")
+            else:
+                client.scene.set_background_image(image, format="jpeg", jpeg_quality=jpeg_quality)
 
         def note(msg: str) -> None:
             controls.note.content = f"*{msg}*"

@@ -22,8 +22,10 @@ from capture.camera import Camera, camera_from_viser
 from render.viewer.adaptive import AdaptiveConfig, choose_scale, frame_size, next_action
 from render.viewer.settings import ViewSettings
 
-#: JPEG quality of moving frames (full frames go out as PNG).
+#: JPEG quality of moving frames, and of the full frame when a supersampled one follows (the
+#: last still frame goes out as PNG: lossless, but ~10x slower to encode).
 MOVING_JPEG_QUALITY = 60
+FULL_JPEG_QUALITY = 92
 #: Seconds stop() waits for the thread.
 STOP_TIMEOUT_S = 10.0
 
@@ -49,6 +51,15 @@ class ViewCamera:
             return int(self.width), int(self.height)
         s = max_lines / self.height
         return max(1, round(self.width * s)), int(max_lines)
+
+
+def transport_quality(kind: str, settings: ViewSettings) -> int | None:
+    """JPEG quality a frame of ``kind`` is sent with, or None for PNG (the last still frame)."""
+    if kind == "moving":
+        return MOVING_JPEG_QUALITY
+    if kind == "full" and settings.options.supersample > 1:
+        return FULL_JPEG_QUALITY
+    return None
 
 
 class FrameLog:
@@ -92,7 +103,8 @@ class Session:
 
     Args:
         worker: the GL thread (render.viewer.gl_worker.GLWorker).
-        send: ``send(image, moving)`` hands an (H, W, 3) uint8 picture to the client.
+        send: ``send(image, jpeg_quality)`` hands an (H, W, 3) uint8 picture to the client, as
+            JPEG of that quality, or PNG when it is None.
         settings: the client's initial ViewSettings.
         cfg: the adaptive-resolution knobs.
         log: where frames are recorded (a FrameLog), or None.
@@ -232,7 +244,7 @@ class Session:
                 return  # the camera moved while the still frame was drawn: drop it
         moving = kind == "moving"
         try:
-            self.send(drawn.image, moving)
+            self.send(drawn.image, transport_quality(kind, settings))
         except Exception as e:  # the client went away mid-frame
             self.on_note(f"could not send a frame: {type(e).__name__}: {e}")
             return

@@ -84,7 +84,7 @@ def fake_draw(monkeypatch):
 
 def run_session(moves, cfg, settle_s=1.0, interval_s=1 / 60):
     worker, log, sent = FakeWorker(), FrameLog(), []
-    s = Session(worker, lambda img, moving: sent.append((img.shape, moving)), ViewSettings(), cfg, log).start()
+    s = Session(worker, lambda img, q: sent.append((img.shape, q)), ViewSettings(), cfg, log).start()
     for i in range(moves):
         s.update_camera(view(i))
         time.sleep(interval_s)
@@ -121,7 +121,7 @@ def test_stale_full_frame_is_dropped_and_latest_camera_drawn(fake_draw):
     frame shows the newest camera, not the ones queued meanwhile."""
     cfg = AdaptiveConfig(still_s=0.05)
     worker, log, sent = FakeWorker(), FrameLog(), []
-    s = Session(worker, lambda img, moving: sent.append(moving), ViewSettings(), cfg, log).start()
+    s = Session(worker, lambda img, q: sent.append(q), ViewSettings(), cfg, log).start()
     s.update_camera(view(0))
     while not any(ss == 2 for _, ss in fake_draw):                # wait for the supersampled frame to start
         time.sleep(0.005)
@@ -151,7 +151,7 @@ def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
 
     monkeypatch.setattr(views, "draw", draw)
     worker, log = FakeWorker(), FrameLog()
-    s = Session(worker, lambda img, moving: None, ViewSettings(), AdaptiveConfig(still_s=0.05), log,
+    s = Session(worker, lambda img, q: None, ViewSettings(), AdaptiveConfig(still_s=0.05), log,
                 on_note=notes.append).start()
     s.update_camera(view(0))
     time.sleep(0.2)
@@ -167,7 +167,7 @@ def test_send_failure_is_survived(fake_draw):
     """A client that went away (send raises) does not end the thread with an exception."""
     notes = []
 
-    def send(img, moving):
+    def send(img, q):
         raise ConnectionError("client gone")
 
     worker = FakeWorker()
@@ -184,3 +184,13 @@ def test_full_size_cap():
     vc = ViewCamera((1.0, 0, 0, 0), (0, 0, 0), 0.8, 1920, 1080)
     assert vc.full_size(720) == (1280, 720)
     assert vc.full_size(2000) == (1920, 1080)
+
+
+def test_transport_quality():
+    from render.viewer.session import FULL_JPEG_QUALITY, MOVING_JPEG_QUALITY, transport_quality
+
+    ss2, ss1 = ViewSettings(), ViewSettings().changed(options={"supersample": 1})
+    assert transport_quality("moving", ss2) == MOVING_JPEG_QUALITY
+    assert transport_quality("full", ss2) == FULL_JPEG_QUALITY   # a PNG follows
+    assert transport_quality("full", ss1) is None                # the last still frame: PNG
+    assert transport_quality("refine", ss2) is None
