@@ -133,7 +133,7 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
     opts = settings.options.changed(supersample=supersample)
     view, note = settings.view, ""
     if view in RENDERER_VIEWS:
-        if "debug" in type(renderer).uses:
+        if "debug" in renderer.uses:
             opts = opts.changed(debug=view, supersample=1)
         else:
             view, note = "colour", f"method {settings.method!r} draws no {settings.view!r} view"
