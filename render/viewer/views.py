@@ -2,7 +2,7 @@
 
 * "colour": the frame as 8-bit sRGB over black, or composited into an environment map
   (:func:`composite_env`, METHODS §3-§4) with exposure, ground shadow, glare and map rotation;
-* "depth": the z-depth, near = bright (turbo colour map over the drawn pixels' range);
+* "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
 * "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
   pixel shows it), for methods whose FrameStats report a ``level``;
 * "camera" / "rejections": drawn by the renderer itself (RenderOptions.debug): per pixel the
@@ -27,8 +27,10 @@ EMPTY_RGB = (0, 0, 0)
 #: Rejection view: kept fragments grey, Eq. 2 rejections red (8-bit sRGB).
 KEPT_RGB = (150, 150, 150)
 REJECTED_RGB = (230, 40, 40)
-#: Palette of the camera and level views (matplotlib's tab20, cycled).
+#: Palette of the camera and level views (matplotlib's tab20, cycled); colour map of the depth
+#: view (dark far -> bright near).
 PALETTE = "tab20"
+DEPTH_COLOURS = "inferno"
 
 
 @dataclass(frozen=True)
@@ -93,7 +95,7 @@ def depth_image(depth: np.ndarray) -> np.ndarray:
     if drawn.any():
         lo, hi = d[drawn].min(), d[drawn].max()
         t = 1.0 - (d[drawn] - lo) / max(hi - lo, 1e-12)
-        lut = np.round(matplotlib.colormaps["turbo"](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+        lut = np.round(matplotlib.colormaps[DEPTH_COLOURS](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
         out[drawn] = lut[np.clip(np.round(t * 255), 0, 255).astype(int)]
     return out
 
