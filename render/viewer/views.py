@@ -84,7 +84,7 @@ def palette(n: int) -> np.ndarray:
 
 
 def depth_image(depth: np.ndarray) -> np.ndarray:
-    """(H, W) z-depth (0 = nothing) -> (H, W, 3) uint8: near bright, far dark (turbo over the
+    """(H, W) z-depth (0 = nothing) -> (H, W, 3) uint8: near bright, far dark (DEPTH_COLOURS over the
     drawn range), EMPTY_RGB where nothing was drawn."""
     import matplotlib
 
