@@ -96,3 +96,53 @@ def test_viewer_starts_and_closes(model_dir, tmp_path):
     assert len(v.frustums) == len(model.rgbz.cameras)
     assert v.close(tmp_path / "stats.json")
     assert json.loads((tmp_path / "stats.json").read_text()) == {"frames": []}
+
+
+@pytest.mark.gl
+def test_screenshot_and_turntable_export(model_dir, tmp_path, monkeypatch):
+    """The screenshot button's PNG and the MP4 export (progress shown, frames at full size), as
+    files under --out and as downloads sent to the client."""
+    from types import SimpleNamespace
+
+    import imageio_ffmpeg
+    from viser.transforms import SO3
+
+    from capture.imageio import read_color
+    from render.viewer.server import Viewer
+    from render.viewer.session import Session, ViewCamera
+    from volume.model import load_model
+
+    model = load_model(model_dir)
+    v = Viewer(model, model.rgbz.cameras, port=0, out_dir=tmp_path)
+    try:
+        downloads = []
+        client = SimpleNamespace(send_file_download=lambda name, data: downloads.append((name, data)))
+        session = Session(v.worker, send=lambda *a: None)
+        cam = model.rgbz.cameras[2]
+        fov = 2 * np.arctan(0.5 * cam.height / cam.K[1, 1])
+        session.update_camera(ViewCamera(tuple(SO3.from_matrix(cam.world_from_cam[:3, :3]).wxyz), tuple(cam.center),
+                                         fov, 64, 48))
+        notes = []
+        png = v.screenshot(client, session, notes.append)
+        assert notes == [] and png is not None and downloads[0][0] == png.name
+        img = read_color(png)
+        assert img.shape[:2] == (48, 64) and img.max() > 0
+        progress = []
+        widget = lambda: SimpleNamespace(value=None, visible=False, disabled=False)
+        controls = SimpleNamespace(export_kind=SimpleNamespace(value="turntable"), export_frames=SimpleNamespace(value=5),
+                                   export_fps=SimpleNamespace(value=10), export=widget(), progress=widget())
+        orig = Viewer._render_full
+
+        def spy(self, *a):
+            progress.append(controls.progress.visible)
+            return orig(self, *a)
+
+        monkeypatch.setattr(Viewer, "_render_full", spy)
+        mp4 = v.export(client, session, controls, notes.append)
+        assert notes == [] and mp4 is not None and mp4.suffix == ".mp4" and downloads[-1][0] == mp4.name
+        assert progress == [True] * 5 and controls.progress.value == 100.0 and not controls.progress.visible
+        gen = imageio_ffmpeg.read_frames(str(mp4))
+        meta = next(gen)
+        assert meta["size"] == (64, 48) and len(list(gen)) == 5
+    finally:
+        assert v.close()
