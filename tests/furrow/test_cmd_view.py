@@ -129,8 +129,9 @@ def test_screenshot_and_turntable_export(model_dir, tmp_path, monkeypatch):
         assert img.shape[:2] == (48, 64) and img.max() > 0
         progress = []
         widget = lambda: SimpleNamespace(value=None, visible=False, disabled=False)
-        controls = SimpleNamespace(export_kind=SimpleNamespace(value="turntable"), export_frames=SimpleNamespace(value=5),
-                                   export_fps=SimpleNamespace(value=10), export=widget(), progress=widget())
+        controls = SimpleNamespace(export_kind=SimpleNamespace(value="turntable"),
+                                   export_frames=SimpleNamespace(value=5), export_fps=SimpleNamespace(value=10),
+                                   export=widget(), progress=widget())
         orig = Viewer._render_full
 
         def spy(self, *a):
