@@ -9,6 +9,7 @@ import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
 from render.ground_shadow import GroundPlane
+from render.owner import GLOwner
 from render.shading.envmap import EnvMap
 from render.shading.sg import fh_glsl_params, fh_texture
 
@@ -21,40 +22,27 @@ def _set(prog, name, value):
         prog[name].value = value
 
 
-class Compositor:
+class Compositor(GLOwner):
     """Owns the GL objects of the compositing passes (programs, environment / fh / ratio
     textures). Context passed in; ``release()`` (or ``with``) frees them."""
 
     def __init__(self, ctx):
         from render.gl import program
 
-        self.ctx = ctx
-        self._shadow = program(ctx, "composite_vert.glsl", "composite_shadow_frag.glsl",
-                               defines={"SG_FH_TABLE": 1, "MAX_SG": MAX_SG})
-        self._comp = program(ctx, "composite_vert.glsl", "composite_frag.glsl")
-        self._vao_s = ctx.vertex_array(self._shadow, [])
-        self._vao_c = ctx.vertex_array(self._comp, [])
-        self._fh = fh_texture(ctx)
+        super().__init__(ctx)
+        self._shadow = self.own(program(ctx, "composite_vert.glsl", "composite_shadow_frag.glsl",
+                                        defines={"SG_FH_TABLE": 1, "MAX_SG": MAX_SG}))
+        self._comp = self.own(program(ctx, "composite_vert.glsl", "composite_frag.glsl"))
+        self._vao_s = self.own(ctx.vertex_array(self._shadow, []))
+        self._vao_c = self.own(ctx.vertex_array(self._comp, []))
+        self._fh = self.own(fh_texture(ctx))
         self._env = None
         self._env_key = None
         self._ratio = None
         self._grid_key = self._grid = None
         self._src_key = self._src = None
         self._glare = None
-        self._dummy_ratio = ctx.texture((2, 2), 4, np.ones((2, 2, 4), np.float32).tobytes(), dtype="f4")
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.release()
-
-    def release(self) -> None:
-        for o in (self._vao_s, self._vao_c, self._shadow, self._comp, self._fh, self._env, self._ratio,
-                  self._dummy_ratio, self._glare):
-            if o is not None:
-                o.release()
-        self._env = self._ratio = self._glare = None
+        self._dummy_ratio = self.own(ctx.texture((2, 2), 4, np.ones((2, 2, 4), np.float32).tobytes(), dtype="f4"))
 
     # -- inputs ---------------------------------------------------------------------------------
     def set_env(self, env: EnvMap) -> None:
@@ -63,10 +51,9 @@ class Compositor:
 
         if self._env_key is env:
             return
-        if self._env is not None:
-            self._env.release()
+        self.free(self._env)
         d = np.ascontiguousarray(env.data, np.float32)
-        self._env = self.ctx.texture((env.width, env.height), 3, d.tobytes(), dtype="f4")
+        self._env = self.own(self.ctx.texture((env.width, env.height), 3, d.tobytes(), dtype="f4"))
         self._env.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._env.repeat_x, self._env.repeat_y = True, False
         self._env_key = env
@@ -78,9 +65,8 @@ class Compositor:
         s = GLARE_SUPERSAMPLE if supersample is None else int(supersample)
         g = self._glare
         if g is None or g.size != (int(width), int(height)) or g.s != s:
-            if g is not None:
-                g.release()
-            self._glare = GlareLayer(self.ctx, width, height, s)
+            self.free(g)
+            self._glare = self.own(GlareLayer(self.ctx, width, height, s))
         return self._glare
 
     def light_sources(self, env: EnvMap):
@@ -140,9 +126,8 @@ class Compositor:
             ssbo.release()
         tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
         tex.repeat_x = tex.repeat_y = False
-        if self._ratio is not None:
-            self._ratio.release()
-        self._ratio = tex
+        self.free(self._ratio)
+        self._ratio = self.own(tex)
         self._grid_key, self._grid = (spheres, fit, ground), grid
         return grid
 

@@ -3,7 +3,10 @@
 The context is always passed explicitly (no global context).  On machines without a GPU
 this is Mesa's llvmpipe through EGL (shared/PITFALLS.md).  Shaders live in
 ``render/shaders/*.glsl`` and may ``#include "other.glsl"`` (resolved relative to that
-folder, each file at most once, recursion detected).
+folder, each file at most once, recursion detected).  Constants a shader shares with its numpy
+twin are injected as ``#define``s from Python: by the program's owner (``defines=``, e.g.
+``render.microfacet.shader_defines``) or, for an include used by several owners, wherever the
+file is expanded (:data:`TWIN_CONSTANTS`).
 """
 
 from __future__ import annotations
@@ -17,6 +20,18 @@ SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 #: OpenGL version required: 4.3 core (geometry shaders, texture arrays, SSBOs).
 GL_REQUIRE = 430
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$')
+
+
+def _sg_constants() -> dict:
+    from render.shading import sg
+
+    return {"SG_COS_LAMBDA": f"{sg.COS_LOBE_LAMBDA:.9e}", "SG_COS_MU": f"{sg.COS_LOBE_MU:.9e}",
+            "SG_PRODUCT_AXIS_EPS": f"{sg.PRODUCT_AXIS_EPS:.9e}"}
+
+
+#: Shader file -> the #defines of its numpy twin's constants, put in front of the file's text
+#: wherever it is expanded (so every program including it gets them).
+TWIN_CONSTANTS = {"shading_sg.glsl": _sg_constants}
 
 _NO_GL_HELP = (
     "could not create a headless OpenGL {req} context through EGL ({err}). "
@@ -83,6 +98,9 @@ def _expand(name: str, seen: set[str], stack: tuple[str, ...]) -> str:
             out.append(_expand(m.group(1), seen, stack + (name,)))
         else:
             out.append(line)
+    if name in TWIN_CONSTANTS:  # after a #version line, if the file has one
+        at = 1 if out and out[0].lstrip().startswith("#version") else 0
+        out[at:at] = [f"#define {k} {v}" for k, v in TWIN_CONSTANTS[name]().items()]
     return "\n".join(out) + "\n"
 
 

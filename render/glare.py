@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from capture.camera import gl_row, gl_rows_to_image
+from render.owner import GLOwner
 
 #: Default sub-samples per pixel side of the streak layer.
 GLARE_SUPERSAMPLE = 4
@@ -24,7 +25,7 @@ GLARE_SUPERSAMPLE = 4
 _FAN = np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [1, 0, 0]], np.float32)
 
 
-class GlareLayer:
+class GlareLayer(GLOwner):
     """Draws streak pairs for a width x height image. ``render(streaks)`` -> (H, W, 3) float32
     light (top row first); ``last_ms``: GPU time of the last call (draw + average + read back)."""
 
@@ -33,49 +34,35 @@ class GlareLayer:
 
         if int(width) < 1 or int(height) < 1 or not 1 <= int(supersample) <= 8:
             raise ValueError(f"GlareLayer: bad size {width}x{height} or supersample {supersample}")
-        self.ctx = ctx
+        super().__init__(ctx)
         self.size = (int(width), int(height))
         self.s = int(supersample)
-        self._prog = program(ctx, "glare_vert.glsl", "glare_frag.glsl")
-        self._down = program(ctx, "composite_vert.glsl", "glare_down_frag.glsl", defines={"SUPERSAMPLE": self.s})
-        self._fan = ctx.buffer(_FAN.tobytes())
+        self._prog = self.own(program(ctx, "glare_vert.glsl", "glare_frag.glsl"))
+        self._down = self.own(program(ctx, "composite_vert.glsl", "glare_down_frag.glsl",
+                                      defines={"SUPERSAMPLE": self.s}))
+        self._fan = self.own(ctx.buffer(_FAN.tobytes()))
         self._inst = None
         self._vao = None
         self._cap = 0
         w, h = self.size
-        self._hi = ctx.texture((w * self.s, h * self.s), 4, dtype="f4")
-        self._fbo_hi = ctx.framebuffer(color_attachments=[self._hi])
-        self._lo = ctx.texture((w, h), 4, dtype="f4")
-        self._fbo_lo = ctx.framebuffer(color_attachments=[self._lo])
-        self._vao_down = ctx.vertex_array(self._down, [])
+        self._hi = self.own(ctx.texture((w * self.s, h * self.s), 4, dtype="f4"))
+        self._fbo_hi = self.own(ctx.framebuffer(color_attachments=[self._hi]))
+        self._lo = self.own(ctx.texture((w, h), 4, dtype="f4"))
+        self._fbo_lo = self.own(ctx.framebuffer(color_attachments=[self._lo]))
+        self._vao_down = self.own(ctx.vertex_array(self._down, []))
         self.last_ms = 0.0
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.release()
-
-    def release(self) -> None:
-        for o in (self._vao, self._inst, self._vao_down, self._fan, self._fbo_hi, self._hi, self._fbo_lo,
-                  self._lo, self._prog, self._down):
-            if o is not None:
-                o.release()
-        self._vao = self._inst = None
 
     def _upload(self, streaks) -> int:
         m = len(streaks)
         data = np.concatenate([streaks.centre, streaks.axis, streaks.length[:, None], streaks.width[:, None],
                                streaks.colour], 1).astype(np.float32)
         if m > self._cap:
-            if self._vao is not None:
-                self._vao.release()
-                self._inst.release()
+            self.free(self._vao, self._inst)
             self._cap = max(m, 2 * self._cap, 256)
-            self._inst = self.ctx.buffer(reserve=self._cap * 9 * 4)
-            self._vao = self.ctx.vertex_array(self._prog, [
+            self._inst = self.own(self.ctx.buffer(reserve=self._cap * 9 * 4))
+            self._vao = self.own(self.ctx.vertex_array(self._prog, [
                 (self._fan, "3f", "in_corner"),
-                (self._inst, "2f 2f 1f 1f 3f/i", "in_centre", "in_axis", "in_len", "in_wid", "in_col")])
+                (self._inst, "2f 2f 1f 1f 3f/i", "in_centre", "in_axis", "in_len", "in_wid", "in_col")]))
         if m:
             self._inst.write(data.tobytes())
         return m

@@ -25,7 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
-from render.raster import RasterError, _gl, depth_range
+from render.gl import program
+from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
+from render.raster import RasterError, vertex_bounds
 
 #: Texture units of the MSEM (3-D) and the smoothness map.
 MSEM_UNIT = 0
@@ -91,7 +93,7 @@ class GlossyMesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 [min, max] of the vertices."""
-        return np.stack([self.vertices.min(0), self.vertices.max(0)]).astype(np.float64)
+        return vertex_bounds(self.vertices)
 
 
 @dataclass(frozen=True)
@@ -111,7 +113,7 @@ class GlossyResult:
     mask: np.ndarray
 
 
-class GlossyRenderer:
+class GlossyRenderer(GLOwner):
     """Owns the program, MSEM 3-D texture, smoothness map, buffers and framebuffers.
 
     Usage::
@@ -122,112 +124,59 @@ class GlossyRenderer:
             res = g.render(camera)
     """
 
-    def __init__(self, ctx, kr=(1.0, 1.0, 1.0)) -> None:
-        from render.gl import program
+    released_error = RasterError
 
-        self.ctx = ctx
+    def __init__(self, ctx, kr=(1.0, 1.0, 1.0)) -> None:
+        super().__init__(ctx)
         self.kr = tuple(float(x) for x in np.broadcast_to(np.asarray(kr, float), (3,)))
-        self._prog = program(ctx, "raster_glossy_vert.glsl", "raster_glossy_frag.glsl")
+        self._prog = self.own(program(ctx, "raster_glossy_vert.glsl", "raster_glossy_frag.glsl"))
         self._msem = self._map = self._vbo = self._ibo = self._vao = None
         self._mesh: GlossyMesh | None = None
-        self._fbos: dict = {}
-        self._released = False
-
-    def __enter__(self) -> "GlossyRenderer":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.release()
-
-    def release(self) -> None:
-        """Free every GL object created here (idempotent)."""
-        if self._released:
-            return
-        self._released = True
-        self._free_mesh()
-        if self._msem is not None:
-            self._msem.release()
-        for objs in self._fbos.values():
-            for o in objs[::-1]:
-                o.release()
-        self._fbos.clear()
-        self._prog.release()
-
-    def _free_mesh(self) -> None:
-        for o in (self._vao, self._vbo, self._ibo, self._map):
-            if o is not None:
-                o.release()
-        self._vao = self._vbo = self._ibo = self._map = None
-
-    def _alive(self) -> None:
-        if self._released:
-            raise RasterError("GlossyRenderer used after release()")
 
     def set_msem(self, volume: np.ndarray) -> None:
         """Upload an (s, s, s, 3) MSEM (``render.shading.msem.msem_build(...).volume``)."""
         from render.shading.msem import msem_texture
 
-        self._alive()
+        self.check_alive()
         vol = np.asarray(volume)
         if vol.ndim != 4 or vol.shape[3] != 3 or len(set(vol.shape[:3])) != 1:
             raise RasterError(f"MSEM volume must be (s, s, s, 3), got {vol.shape}")
-        if self._msem is not None:
-            self._msem.release()
-        self._msem = msem_texture(self.ctx, vol)
+        self.free(self._msem)
+        self._msem = self.own(msem_texture(self.ctx, vol))
 
     def set_mesh(self, mesh: GlossyMesh) -> None:
         """Upload ``mesh`` (and its smoothness map) replacing the previous one."""
         import moderngl
 
-        self._alive()
-        self._free_mesh()
+        self.check_alive()
+        self.free(self._vao, self._vbo, self._ibo, self._map)
         V = len(mesh.vertices)
         uv = mesh.uv if mesh.uv is not None else np.zeros((V, 2), np.float32)
         data = np.concatenate([mesh.vertices, mesh.normals, mesh.smoothness[:, None], uv], 1)
-        self._vbo = self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())
-        self._ibo = self.ctx.buffer(mesh.faces.tobytes())
-        fmt, names = [], []
-        for name, n in _ATTRIBUTES:
-            if name in self._prog:
-                fmt.append(f"{n}f")
-                names.append(name)
-            else:
-                fmt.append(f"{4 * n}x")
-        self._vao = self.ctx.vertex_array(self._prog, [(self._vbo, " ".join(fmt), *names)],
-                                          index_buffer=self._ibo, index_element_size=4)
+        self._vbo = self.own(self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes()))
+        self._ibo = self.own(self.ctx.buffer(mesh.faces.tobytes()))
+        fmt, names = vertex_format(self._prog, _ATTRIBUTES)
+        self._vao = self.own(self.ctx.vertex_array(self._prog, [(self._vbo, fmt, *names)],
+                                                   index_buffer=self._ibo, index_element_size=4))
         m = mesh.smoothness_map if mesh.smoothness_map is not None else np.zeros((1, 1), np.float32)
-        self._map = self.ctx.texture((m.shape[1], m.shape[0]), 1, np.ascontiguousarray(m).tobytes(), dtype="f4")
+        self._map = self.own(self.ctx.texture((m.shape[1], m.shape[0]), 1, np.ascontiguousarray(m).tobytes(), dtype="f4"))
         self._map.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._map.repeat_x, self._map.repeat_y = True, False
         self._mesh = mesh
 
-    def _fbo(self, w: int, h: int):
-        if (w, h) not in self._fbos:
-            tc = self.ctx.texture((w, h), 4, dtype="f4")
-            ta = self.ctx.texture((w, h), 4, dtype="f4")
-            rb = self.ctx.depth_renderbuffer((w, h))
-            self._fbos[(w, h)] = (tc, ta, rb, self.ctx.framebuffer(color_attachments=[tc, ta], depth_attachment=rb))
-        return self._fbos[(w, h)]
-
     def draw(self, camera: Camera, near: float | None = None, far: float | None = None):
-        """Draw into the framebuffer for ``camera`` without reading back; returns the fbo's
-        textures (colour, aux). For timing; :meth:`render` reads back."""
-        self._alive()
+        """Draw into the framebuffer for ``camera`` without reading back; returns the target
+        (render.owner.Target; colour attachments: colour, aux). For timing; :meth:`render` reads back."""
+        self.check_alive()
         if self._mesh is None or self._msem is None:
             raise RasterError("GlossyRenderer: call set_msem() and set_mesh() before rendering")
         if near is None or far is None:
-            n0, f0 = depth_range(camera, self._mesh.bounds)
+            n0, f0 = near_far(camera, self._mesh.bounds)
             near, far = (n0 if near is None else near), (f0 if far is None else far)
-        ctx = self.ctx
-        tc, ta, _, fbo = self._fbo(camera.width, camera.height)
-        fbo.use()
-        fbo.viewport = (0, 0, camera.width, camera.height)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(ctx.DEPTH_TEST)
-        ctx.disable(ctx.CULL_FACE | ctx.BLEND)
+        tgt = self.begin_frame(camera.width, camera.height, 1, colours=(4, 4))
         p = self._prog
-        p["u_view"].write(_gl(camera.gl_view()))
-        p["u_proj"].write(_gl(camera.gl_projection(near, far)))
+        p["u_view"].write(mat4_bytes(camera.gl_view()))
+        p["u_proj"].write(mat4_bytes(camera.gl_projection(near, far)))
         p["u_eye"].value = tuple(float(x) for x in camera.center)
         p["u_kr"].value = self.kr
         self._msem.use(location=MSEM_UNIT)
@@ -236,14 +185,13 @@ class GlossyRenderer:
         p["u_smooth_map"].value = SMOOTH_MAP_UNIT
         p["u_use_map"].value = int(self._mesh.smoothness_map is not None)
         self._vao.render()
-        return tc, ta
+        return tgt
 
     def render(self, camera: Camera, near: float | None = None, far: float | None = None) -> GlossyResult:
         """Render the current mesh for ``camera``; see :class:`GlossyResult`."""
-        tc, ta = self.draw(camera, near, far)
-        h, w = camera.height, camera.width
-        col = gl_rows_to_image(np.frombuffer(tc.read(), np.float32).reshape(h, w, 4))
-        aux = gl_rows_to_image(np.frombuffer(ta.read(), np.float32).reshape(h, w, 4))
+        tgt = self.draw(camera, near, far)
+        col = gl_rows_to_image(tgt.read_colour(0))
+        aux = gl_rows_to_image(tgt.read_colour(1))
         mask = aux[..., 3] > 0.5
         return GlossyResult(color=np.ascontiguousarray(col[..., :3]), smoothness=np.where(mask, aux[..., 0], 0).astype(np.float32),
                             depth=np.where(mask, aux[..., 1], 0).astype(np.float32), mask=mask)

@@ -20,7 +20,6 @@ import numpy as np
 
 from capture.scan import ScanSet, srgb_to_linear
 from volume.grid import cube_for_bounds, voxel_centers_of
-from volume.metrics import read_ply_mesh  # noqa: F401 (re-exported: furrow/cmd_eval.py, bench/render.py)
 from volume.model import Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet
 from volume.tsdf import integrate_tsdf
 

@@ -2,7 +2,8 @@
 
 All surface voxel centres of every pyramid level (each in 6 axis-sorted orders), the input
 cameras and the RGBz texture array are uploaded once; per frame only uniforms change (plus
-the 16-byte reset of the indirect draw command).  Two interchangeable paths:
+the 16-byte reset of the indirect draw command).  Two interchangeable paths, chosen per frame
+(``RenderOptions.mode``; this is the ``"microfacet"`` method of render.methods):
 
 * ``"instanced"`` (default): a compute pass selects the cameras per voxel and appends one
   record per slice (atomic counter -> indirect draw command); an instanced 4-vertex strip
@@ -16,29 +17,27 @@ RGBz array, lets the blend cameras vote with unstructured-lumigraph weights and 
 fragment to the next camera (microfacet_geometry.shade_fragments); alpha is binary (discard)
 and the depth buffer resolves visibility, so nothing is sorted for correctness (the voxel
 order along the view's dominant axis only helps llvmpipe's early depth test).  The numpy twin
-of every step is ``render/microfacet_geometry.py``.
+of every step is ``render/microfacet_geometry.py`` (the level of detail: ``render/microfacet_lod.py``).
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from capture.camera import Camera, gl_ndc_depth_to_z, gl_rows_to_image
+from capture.camera import Camera, image_axes
 from render import microfacet_geometry as mg
-from render.antialias import Supersampler, check_factor, split_rgba
-from render.gl import program
+from render import microfacet_lod as mlod
+from render.frame import Frame, FrameStats
+from render.gl import load_shader, program
+from render.methods import RenderOptions, Renderer
+from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Compute work-group size of microfacet_select.glsl.
 LOCAL_SIZE = 64
 #: Bytes of one slice record (4 x vec4, microfacet_slice.glsl).
 SLICE_BYTES = 64
-MODES = ("instanced", "geometry")
-#: Most parallax-correction steps accepted (render quality saturates after 2: bench/render.py).
-MAX_REFINE = 4
-
 
 #: Draw, on every coarse level, the ancestors of the finest level's surface voxels too
 #: (covering_surfaces): the plant's top vanished from a fused 8^3 level (volume.build), whose
@@ -93,46 +92,29 @@ def rgbz_array(rgb: np.ndarray, depth: np.ndarray) -> np.ndarray:
     return np.concatenate([np.asarray(rgb, np.float32), np.asarray(depth, np.float32)[..., None]], axis=-1)
 
 
-def _mat(m: np.ndarray) -> bytes:
-    return np.asarray(m, dtype=np.float32).T.tobytes()
-
-
-@dataclass
-class Frame:
-    """One rendered frame.
+@dataclass(frozen=True)
+class MicrofacetStats(FrameStats):
+    """FrameStats plus the level of detail of the frame.
 
     Attributes:
-        rgb: (H, W, 3) float32 linear colour, black where nothing was drawn.
-        alpha: (H, W) bool foreground.
-        level: pyramid level index used (-1: nothing to draw).
+        level: pyramid level index drawn (-1: nothing to draw).
         resolution: that level's L.
         spacing: slice spacing l (m).
-        facets: number of slices drawn.
-        ms: GPU frame time in milliseconds (selection + draw, synchronised; no read-back).
-        lod: the level-of-detail choice.
-        cpu_ms: process CPU time over the same interval (llvmpipe threads included): the cost
-            independent of other load on the machine.
-        depth: (H, W) float32 z-depth (metres) of the drawn slices (the nearest sample when
-            supersampled), 0 where nothing was drawn.
-        coverage: (H, W) float32 share of the pixel's samples drawn (1 or 0 without supersampling).
-        supersample: samples per pixel and axis the frame was drawn with.
+        lod: the automatic level-of-detail choice (Eq. 10-11) for this eye.
     """
 
-    rgb: np.ndarray
-    alpha: np.ndarray
-    level: int
-    resolution: int
-    spacing: float
-    facets: int
-    ms: float
-    lod: mg.Lod | None = field(default=None, repr=False)
-    cpu_ms: float = 0.0
-    depth: np.ndarray | None = field(default=None, repr=False)
-    coverage: np.ndarray | None = field(default=None, repr=False)
-    supersample: int = 1
+    level: int = -1
+    resolution: int = 0
+    spacing: float = 0.0
+    lod: mlod.Lod | None = field(default=None, repr=False, compare=False)
+
+    def record(self) -> dict:
+        """FrameStats.record plus ``level`` (the resolution L, as furrow eval has always written
+        it) and ``spacing_m``."""
+        return {**super().record(), "level": int(self.resolution), "spacing_m": float(self.spacing)}
 
 
-class MicrofacetRenderer:
+class MicrofacetRenderer(Renderer):
     """Owns the GPU buffers and programs of the microfacet renderer for one model.
 
     Args:
@@ -140,19 +122,20 @@ class MicrofacetRenderer:
         levels: the pyramid levels (volume.model.SdfLevel, coarse -> fine).
         rgb, depth, cameras: the RGBz images (volume.model.RgbzImages fields).
         bounds: (2, 3) object box (near/far planes, LOD centre).
-        mode: "instanced" or "geometry".
+        options: default per-frame options (render.methods.RenderOptions; this method reads all).
         rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
         n_fallback: fallback candidates tried after the blend cameras (default N_FALLBACK).
-        refine: parallax-correction steps of passing colours (default DEPTH_REFINE; 0 = the
-            paper's colour at the slice point; microfacet_geometry.refine_colours).
+
+    The programs are compiled on first use per parallax-refinement setting (the only option
+    that is a shader constant), so options change per frame without re-uploading anything.
     """
 
-    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, mode: str = "instanced", rule: str = "vote",
-                 n_fallback: int | None = None, refine: int | None = None):
-        if mode not in MODES:
-            raise ValueError(f"unknown microfacet mode {mode!r}; use one of {MODES}")
-        self.ctx = ctx
-        self.mode = mode
+    name = "microfacet"
+    uses = frozenset(f.name for f in fields(RenderOptions))
+
+    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
+                 rule: str = "vote", n_fallback: int | None = None):
+        super().__init__(ctx, options)
         self.levels = tuple(levels)
         self.surfaces = covering_surfaces(self.levels)
         self.cameras = tuple(cameras)
@@ -161,10 +144,7 @@ class MicrofacetRenderer:
         self.counts = [len(x) for x in self.surfaces]
         if len(self.cameras) == 0:
             raise ValueError("microfacet renderer: the model has no input camera")
-        if refine is not None and not 0 <= int(refine) <= MAX_REFINE:
-            raise ValueError(f"refine must be 0..{MAX_REFINE} steps, got {refine}")
-        d = shader_defines(rule, n_fallback, refine)
-        self.refine = mg.DEPTH_REFINE if refine is None else int(refine)
+        shader_defines(rule, n_fallback)  # validates the rule
         self.n_fallback = mg.N_FALLBACK if n_fallback is None else int(n_fallback)
         self.rule = rule
         # Per level, the voxel centres in 6 orders (front to back along +-x, +-y, +-z): the
@@ -181,75 +161,73 @@ class MicrofacetRenderer:
                 o = np.argsort(cen @ direction, kind="stable") if len(cen) else np.zeros(0, np.int64)
                 c = np.zeros((max(len(cen), 1), 4), np.float32)
                 c[: len(cen), :3] = cen[o]
-                bufs.append(ctx.buffer(c.tobytes()))
+                bufs.append(self.own(ctx.buffer(c.tobytes())))
                 ords.append(o)
             self.voxel_bufs.append(bufs)
             self.orders.append(ords)
         self._last_order = None
-        self.cam_buf = ctx.buffer(camera_block(self.cameras))
+        self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
         texels = rgbz_array(rgb, depth)
         n, H, W = texels.shape[:3]
         self.tex_size = (W, H)
-        self.tex = ctx.texture_array((W, H, n), 4, texels.astype(RGBZ_DTYPE).tobytes(), dtype="f2")
+        self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.astype(RGBZ_DTYPE).tobytes(), dtype="f2"))
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.tex.repeat_x = self.tex.repeat_y = False
         self.max_records = max(max(self.counts), 1) * mg.MAX_SLICES
-        self.slice_buf = ctx.buffer(reserve=self.max_records * SLICE_BYTES)
-        self.indirect = ctx.buffer(reserve=16)
-        self.select = ctx.compute_shader(_src("microfacet_select.glsl", d))
-        self.draw_prog = program(ctx, "microfacet_vert.glsl", "microfacet_frag.glsl", defines=d)
-        self.fill_prog = program(ctx, "microfacet_vert.glsl", "microfacet_quad_frag.glsl", defines=d)
-        self.geom_prog = program(ctx, "microfacet_points_vert.glsl", "microfacet_frag.glsl",
-                                 geometry="microfacet_geom.glsl", defines=d)
-        self.vao_inst = ctx.vertex_array(self.draw_prog, [])
-        self.vao_fill = ctx.vertex_array(self.fill_prog, [])
-        self.vao_geom = ctx.vertex_array(self.geom_prog, [])
-        self.query = ctx.query(primitives=True)
-        self._fbo = None
-        self._fbo_size = None
-        self._ss = None
+        self.slice_buf = self.own(ctx.buffer(reserve=self.max_records * SLICE_BYTES))
+        self.indirect = self.own(ctx.buffer(reserve=16))
+        self.query = ctx.query(primitives=True)  # moderngl queries have no release()
+        self._programs: dict[tuple, tuple] = {}
+
+    @classmethod
+    def from_model(cls, ctx, model, options: RenderOptions | None = None, rule: str = "vote",
+                   n_fallback: int | None = None) -> "MicrofacetRenderer":
+        """Renderer for a volume.model.Model."""
+        return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
+                   model.bounds, options, rule, n_fallback)
 
     def level_centers(self, level: int) -> np.ndarray:
         """(N, 3) world centres of the voxels drawn on ``level`` (see covering_surfaces)."""
         lv = self.levels[level]
         return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
-    @classmethod
-    def from_model(cls, ctx, model, mode: str = "instanced", rule: str = "vote",
-                   n_fallback: int | None = None, refine: int | None = None) -> "MicrofacetRenderer":
-        """Renderer for a volume.model.Model."""
-        return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                   model.bounds, mode, rule, n_fallback, refine)
-
-    def release(self) -> None:
-        for o in [*(b for bufs in self.voxel_bufs for b in bufs), self.cam_buf, self.tex, self.slice_buf, self.indirect, self.select,
-                  self.draw_prog, self.fill_prog, self.geom_prog, self.vao_inst, self.vao_fill, self.vao_geom]:
-            o.release()
-        if self._fbo is not None:
-            for o in self._fbo:
-                o.release()
-        if self._ss is not None:
-            self._ss.release()
+    def _program(self, kind: str, refine: int):
+        """(program, vertex array) of ``kind`` ("select", "draw", "fill", "geometry") for
+        ``refine`` parallax-correction steps, compiled on first use."""
+        key = (kind, refine)
+        if key not in self._programs:
+            ctx = self.ctx
+            d = shader_defines(self.rule, self.n_fallback, key[1])
+            if kind == "select":
+                self._programs[key] = (self.own(ctx.compute_shader(load_shader("microfacet_select.glsl", d))), None)
+            else:
+                frag = "microfacet_quad_frag.glsl" if kind == "fill" else "microfacet_frag.glsl"
+                vert = "microfacet_points_vert.glsl" if kind == "geometry" else "microfacet_vert.glsl"
+                prog = self.own(program(ctx, vert, frag, geometry="microfacet_geom.glsl" if kind == "geometry" else None,
+                                        defines=d))
+                self._programs[key] = (prog, self.own(ctx.vertex_array(prog, [])))
+        return self._programs[key]
 
     # ------------------------------------------------------------------ frame
-    def _target(self, W: int, H: int):
-        if self._fbo_size != (W, H):
-            if self._fbo is not None:
-                for o in self._fbo:
-                    o.release()
-            col = self.ctx.renderbuffer((W, H), 4, dtype="f4")
-            dep = self.ctx.depth_renderbuffer((W, H))
-            self._fbo = (self.ctx.framebuffer([col], dep), col, dep)
-            self._fbo_size = (W, H)
-        return self._fbo[0]
-
-    def choose_lod(self, eye: Camera, tolerance_px: float) -> mg.Lod:
-        """Level and spacing for this eye (Eq. 10-11, microfacet_geometry.choose_lod)."""
+    def choose_lod(self, eye: Camera, tolerance_px: float) -> mlod.Lod:
+        """Level and spacing for this eye (Eq. 10-11, microfacet_lod.choose_lod)."""
         center = self.bounds.mean(axis=0)
-        return mg.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
+        return mlod.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
+
+    def frame_lod(self, eye: Camera, options: RenderOptions) -> tuple[int, float, mlod.Lod]:
+        """(level index, slice spacing l, automatic choice) of a frame: Eq. 10-11, or the
+        options' forced level (spacing by Eq. 10 on it) and spacing."""
+        lod = self.choose_lod(eye, options.tolerance_px)
+        lev = lod.level if options.level is None else int(options.level)
+        w = self.voxel_sizes[lev]
+        spacing = options.spacing
+        if spacing is None:
+            spacing = lod.spacing if options.level is None else max(mlod.eq10_spacing(lod.e_world, lod.phi, w),
+                                                                    mlod.min_spacing(w))
+        return lev, max(float(spacing), mlod.min_spacing(w)), lod
 
     def _uniforms(self, prog, eye: Camera, level: int, spacing: float, near: float, view_proj: np.ndarray):
-        right, up = mg.eye_axes(eye)
+        right, up = image_axes(eye)
         w = self.voxel_sizes[level]
         vals = {"n_cams": len(self.cameras), "eye_pos": tuple(eye.center), "eye_right": tuple(right),
                 "eye_up": tuple(up), "spacing": spacing, "voxel_size": w, "near_plane": near}
@@ -257,103 +235,63 @@ class MicrofacetRenderer:
             if k in prog:
                 prog[k].value = v
         if "view_proj" in prog:
-            prog["view_proj"].write(_mat(view_proj))
+            prog["view_proj"].write(mat4_bytes(view_proj))
         if "rgbz" in prog:
             prog["rgbz"].value = 0
         if "tex_size" in prog:
             prog["tex_size"].value = self.tex_size
 
-    def render(self, eye: Camera, tolerance_px: float = mg.DEFAULT_TOLERANCE_PX, level: int | None = None,
-               spacing: float | None = None, fill_only: bool = False, read: bool = True,
-               supersample: int = 1) -> Frame:
-        """Render one frame from ``eye``.
-
-        Args:
-            eye: the viewing camera (its size is the image size).
-            tolerance_px: E in pixels for the automatic level/spacing (Eq. 10-11).
-            level: force this pyramid level index (spacing then from Eq. 10 on it).
-            spacing: force the slice spacing l (m).
-            fill_only: draw the same squares untextured (the bare fill-cost reference;
-                instanced mode only).
-            read: read the image back (False for timing only).
-            supersample: samples per pixel and axis (render.antialias): the frame is drawn at
-                that multiple of the eye's size (E stays in output pixels) and box-resolved on
-                the GPU; rgb is then the mean over the samples (over black) and ``coverage``
-                the drawn share.
-        """
+    def _draw(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
+              view_proj: np.ndarray) -> int:
+        """Select and draw the slices of level ``lev`` into the bound target; returns the facet count."""
         ctx = self.ctx
-        lod = self.choose_lod(eye, tolerance_px)
-        lev = lod.level if level is None else int(level)
-        w = self.voxel_sizes[lev]
-        if spacing is None:
-            spacing = lod.spacing if level is None else max(mg.eq10_spacing(lod.e_world, lod.phi, w), mg.min_spacing(w))
-        spacing = max(float(spacing), mg.min_spacing(w))
-        near, far = mg.near_far(eye, self.bounds)
-        f = check_factor(supersample)
+        n_vox = self.counts[lev]
+        self.cam_buf.bind_to_storage_buffer(0)
+        axis = view_axis(eye)
+        self.voxel_bufs[lev][axis].bind_to_storage_buffer(1)
+        self._last_order = self.orders[lev][axis]
+        self.tex.use(0)
+        if options.mode == "geometry" and not options.fill_only:
+            prog, vao = self._program("geometry", options.refine_steps)
+            self._uniforms(prog, eye, lev, spacing, near, view_proj)
+            with self.query:
+                vao.render(mode=ctx.POINTS, vertices=n_vox)
+            ctx.finish()
+            return int(self.query.primitives) // 2  # two triangles per square
+        self.indirect.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
+        self.slice_buf.bind_to_storage_buffer(2)
+        self.indirect.bind_to_storage_buffer(3)
+        select, _ = self._program("select", options.refine_steps)
+        self._uniforms(select, eye, lev, spacing, near, view_proj)
+        select["n_voxels"].value = n_vox
+        select["max_records"].value = self.max_records
+        select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
+        ctx.memory_barrier()
+        prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps)
+        self._uniforms(prog, eye, lev, spacing, near, view_proj)
+        vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
+        ctx.finish()
+        return int(np.frombuffer(self.indirect.read(), np.uint32)[1])
+
+    def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
+        """One frame (Renderer.render).  ``options.supersample`` samples per pixel and axis: the
+        frame is drawn at that multiple of the eye's size (E stays in output pixels) and
+        box-resolved on the GPU; ``fill_only`` draws the same squares untextured (instanced)."""
+        lev, spacing, lod = self.frame_lod(eye, options)
+        near, far = near_far(eye, self.bounds)
+        f = options.supersample
         draw_eye = eye if f == 1 else eye.scaled(f)
         view_proj = draw_eye.gl_projection(near, far) @ draw_eye.gl_view()
-        W, H = eye.width, eye.height
-        if f == 1:
-            fbo = self._target(W, H)
-        else:
-            if self._ss is None:
-                self._ss = Supersampler(ctx)
-            fbo = self._ss.target(W, H, f)
-        fbo.use()
-        ctx.viewport = (0, 0, W * f, H * f)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable_only(ctx.DEPTH_TEST)
-        ctx.depth_func = "<"
+        self.begin_frame(eye.width, eye.height, f)
         n_vox = self.counts[lev]
-        facets = 0
-        ctx.finish()
-        t0 = time.perf_counter()
-        c0 = time.process_time()
-        if n_vox > 0:
-            self.cam_buf.bind_to_storage_buffer(0)
-            axis = view_axis(eye)
-            self.voxel_bufs[lev][axis].bind_to_storage_buffer(1)
-            self._last_order = self.orders[lev][axis]
-            self.tex.use(0)
-            if self.mode == "instanced" or fill_only:
-                self.indirect.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
-                self.slice_buf.bind_to_storage_buffer(2)
-                self.indirect.bind_to_storage_buffer(3)
-                self._uniforms(self.select, eye, lev, spacing, near, view_proj)
-                self.select["n_voxels"].value = n_vox
-                self.select["max_records"].value = self.max_records
-                self.select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
-                ctx.memory_barrier()
-                prog, vao = (self.fill_prog, self.vao_fill) if fill_only else (self.draw_prog, self.vao_inst)
-                self._uniforms(prog, eye, lev, spacing, near, view_proj)
-                vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
-                ctx.finish()
-                facets = int(np.frombuffer(self.indirect.read(), np.uint32)[1])
-            else:
-                self._uniforms(self.geom_prog, eye, lev, spacing, near, view_proj)
-                with self.query:
-                    self.vao_geom.render(mode=ctx.POINTS, vertices=n_vox)
-                ctx.finish()
-                facets = int(self.query.primitives) // 2  # two triangles per square
-        if f > 1:
-            self._ss.resolve()
-            ctx.finish()
-        ms = (time.perf_counter() - t0) * 1e3
-        cpu_ms = (time.process_time() - c0) * 1e3
-        rgb = np.zeros((H, W, 3), np.float32)
-        alpha = np.zeros((H, W), bool)
-        depth = coverage = None
-        if read:
-            if f == 1:
-                raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)
-                d01 = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(H, W)
-            else:
-                raw, d01 = self._ss.read()
-            rgb, coverage, alpha = split_rgba(gl_rows_to_image(raw), f)
-            depth = gl_ndc_depth_to_z(gl_rows_to_image(d01), near, far).astype(np.float32)
-            depth[~alpha] = 0.0
-        return Frame(rgb, alpha, lev if n_vox > 0 else -1, self.levels[lev].resolution, float(spacing), facets,
-                     ms, lod, cpu_ms, depth, coverage, f)
+        with FrameTimer(self.ctx) as t:
+            facets = self._draw(eye, options, lev, spacing, near, view_proj) if n_vox > 0 else 0
+            self.resolve_frame()
+        stats = MicrofacetStats(t.ms, t.cpu_ms, facets, f, lev if n_vox > 0 else -1, self.levels[lev].resolution,
+                                float(spacing), lod)
+        if not read:
+            return Frame.empty(eye.width, eye.height, stats)
+        return Frame.from_gl(*self.read_frame(), near, far, stats)
 
     def read_slices(self, count: int) -> dict:
         """The slice records of the last instanced frame (for tests): centres, s, weights,
@@ -393,8 +331,3 @@ def view_axis(eye: Camera) -> int:
     a = int(np.argmax(np.abs(f)))
     return 2 * a + (0 if f[a] >= 0 else 1)
 
-
-def _src(name: str, defines: dict) -> str:
-    from render.gl import load_shader
-
-    return load_shader(name, defines)

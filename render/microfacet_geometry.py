@@ -3,9 +3,8 @@
 Everything the shaders compute is written here once more in plain float64 numpy, so that
 tests can compare the GPU output with an obviously-correct reference:
 
-* :func:`eq10_spacing` / :func:`eq11_level` / :func:`choose_lod`: slice spacing l and pyramid
-  level from the screen-space tolerance E (Eq. 8-11).  These run on the CPU once per frame
-  and reach the GPU as uniforms.
+* the slice spacing l and pyramid level from the screen-space tolerance E (Eq. 8-11) are in
+  ``render/microfacet_lod.py``: they run on the CPU once per frame and reach the GPU as uniforms.
 * :func:`slice_distances`: slices perpendicular to the ray eye -> voxel centre, at distances
   n*l from the eye, only where their clip slab meets the voxel, at least one (METHODS §1.2);
   :func:`slice_half_extents`: the quad that covers the voxel seen from the eye.
@@ -22,17 +21,12 @@ The GLSL counterparts are ``render/shaders/microfacet_common.glsl`` and friends.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from capture.camera import Camera
-from capture.camera import image_axes as eye_axes  # noqa: F401 (mg.eye_axes: microfacet.py, vdtm.py)
 
 #: A slice is a square of side sqrt(3) w, so it covers its voxel from every direction (§1.2).
 SLICE_SIDE_FACTOR = float(np.sqrt(3.0))
-#: Paper default screen-space tolerance E in pixels (§1.7).
-DEFAULT_TOLERANCE_PX = 8.0
 #: Cameras blended per voxel (the nearest by phi).
 K_BLEND = 3
 #: Candidate cameras per voxel: K_BLEND blended + (K_CAND - K_BLEND) per-fragment fallbacks.
@@ -72,116 +66,14 @@ WEIGHT_EPS = 1e-8
 #: When fewer than K_BLEND + 1 cameras are valid, the ULR threshold is this factor times
 #: the largest valid phi (so the last valid camera keeps a non-zero weight).
 ULR_THRESHOLD_FACTOR = 2.0
-#: Near plane when the eye is inside the object's bounds, as a fraction of the bounds diagonal.
-NEAR_FRACTION_INSIDE = 1e-3
 
 
-# ------------------------------------------------------------------ Eq. 10 / Eq. 11
-def eq10_spacing(e_world: float, phi: float, w: float) -> float:
-    """Largest slice spacing l (metres) for tolerance ``e_world`` (metres at the voxel) and
-    angle ``phi`` (radians) on a level of voxel size ``w``: l = min(E / tan phi, w cos phi)
-    (Eq. 10).  phi -> 0 gives w; phi is clamped to [0, pi/2]."""
-    phi = float(np.clip(phi, 0.0, np.pi / 2))
-    geo = w * np.cos(phi)
-    t = np.tan(phi)
-    if t <= np.tan(PHI_EPS):
-        return float(geo)
-    return float(min(e_world / t, geo))
-
-
-def eq11_level(l_desired: float, phi: float, voxel_sizes) -> int:
-    """Index of the pyramid level for a desired spacing (Eq. 11): the level i with
-    w_i cos(phi) / 2 < l <= w_i cos(phi).  Coarser than every level -> the coarsest (index 0,
-    voxel_sizes coarse -> fine, i.e. decreasing); finer than every level -> the finest."""
-    ws = np.asarray(voxel_sizes, dtype=np.float64)
-    if ws.size == 0:
-        raise ValueError("eq11_level: no levels")
-    c = max(np.cos(float(np.clip(phi, 0.0, np.pi / 2))), 1e-12)
-    for i, w in enumerate(ws):
-        if w * c / 2 < l_desired <= w * c:
-            return i
-    if l_desired > ws[0] * c:
-        return 0
-    return len(ws) - 1
-
-
+# ------------------------------------------------------------------ selection footprint
 def footprint_radius(w: float) -> float:
     """Radius (m) of the footprint tested in the camera selection for voxel size w."""
     return FOOTPRINT_SCALE * 0.5 * SLICE_SIDE_FACTOR * w
 
 
-def min_spacing(w: float) -> float:
-    """Smallest l allowed on a level of voxel size w (keeps slices per voxel <= MAX_SLICES)."""
-    return SLICE_SIDE_FACTOR * w / (MAX_SLICES - 1 - 2 * SLAB_COVER)
-
-
-@dataclass(frozen=True)
-class Lod:
-    """The per-frame level-of-detail choice (METHODS §1.7).
-
-    Attributes:
-        level: index into the pyramid levels (coarse -> fine).
-        spacing: slice spacing l in metres (Eq. 10 on that level, clamped by :func:`min_spacing`).
-        phi: representative angle (radians) between the view ray and the blended cameras.
-        e_world: the tolerance E expressed in metres at the object's centre.
-    """
-
-    level: int
-    spacing: float
-    phi: float
-    e_world: float
-
-
-def choose_lod(eye: Camera, center: np.ndarray, cameras, voxel_sizes, counts, tolerance_px: float,
-               footprint_radius: float = 0.0) -> Lod:
-    """Pick the level and slice spacing for one frame.
-
-    E (pixels) becomes E_world = E * z / f at the object's centre (z its depth in the eye,
-    f the eye's mean focal length).  phi is the weighted mean angle of the cameras blended
-    at the centre (:func:`select_cameras`).  l_E = E_world / tan(phi); the level follows Eq. 11;
-    then l = Eq. 10 on that level.  Levels with no surface voxel are skipped (nearest
-    non-empty level, finer first).
-
-    Args:
-        eye: the rendering camera.
-        center: (3,) world point standing for the object (bounds centre).
-        cameras: input cameras.
-        voxel_sizes: w per level, coarse -> fine.
-        counts: surface voxels per level (0 = empty level).
-        tolerance_px: E in pixels (> 0).
-        footprint_radius: radius (m) of the footprint used in the camera selection at the centre.
-    """
-    if not tolerance_px > 0:
-        raise ValueError(f"tolerance must be > 0 pixels, got {tolerance_px}")
-    center = np.asarray(center, dtype=np.float64)
-    f = 0.5 * (eye.K[0, 0] + eye.K[1, 1])
-    z = float(eye.world_to_cam(center)[2])
-    dist = float(np.linalg.norm(center - eye.center))
-    z = z if z > 1e-9 else max(dist, 1e-9)
-    e_world = tolerance_px * z / f
-    idx, wts = select_cameras(center[None], footprint_radius, eye.center, cameras)
-    valid = idx[0, :K_BLEND] >= 0
-    if valid.any():
-        phis = camera_angles(center[None], eye.center, cameras)[0][idx[0, :K_BLEND][valid]]
-        phi = float(np.sum(wts[0, :K_BLEND][valid] * phis) / max(np.sum(wts[0, :K_BLEND][valid]), WEIGHT_EPS))
-    else:
-        phi = 0.0
-    ws = np.asarray(voxel_sizes, dtype=np.float64)
-    counts = np.asarray(counts)
-    t = np.tan(max(phi, PHI_EPS))
-    l_e = e_world / t
-    lev = eq11_level(l_e, phi, ws)
-    if counts[lev] == 0:
-        nonempty = np.flatnonzero(counts > 0)
-        if nonempty.size == 0:
-            return Lod(lev, float(eq10_spacing(e_world, phi, ws[lev])), phi, e_world)
-        # nearest non-empty level, the finer one on ties
-        lev = int(min(nonempty, key=lambda i: (abs(int(i) - lev), -int(i))))
-    spacing = max(eq10_spacing(e_world, phi, ws[lev]), min_spacing(ws[lev]))
-    return Lod(int(lev), float(spacing), float(phi), float(e_world))
-
-
-# ------------------------------------------------------------------ slices (§1.2)
 def slice_distances(centers: np.ndarray, w: float, eye_pos: np.ndarray, spacing: float,
                     near: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Slices of each voxel: distances s = n*l from the eye along its ray that cut the voxel.
@@ -505,19 +397,6 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
 
 
 # ------------------------------------------------------------------ whole frame
-def near_far(eye: Camera, bounds: np.ndarray) -> tuple[float, float]:
-    """Near/far planes (m) that hold the bounds box; near is tiny when the eye is inside."""
-    b = np.asarray(bounds, dtype=np.float64)
-    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-    z = eye.world_to_cam(corners)[:, 2]
-    diag = float(np.linalg.norm(b[1] - b[0]))
-    far = max(float(z.max()), 0.0) + 0.05 * diag + 1e-6
-    inside = np.all(eye.center >= b[0]) and np.all(eye.center <= b[1])
-    near = float(z.min()) - 0.05 * diag
-    if inside or near <= NEAR_FRACTION_INSIDE * diag:
-        near = NEAR_FRACTION_INSIDE * diag
-    far = max(far, 2 * near)
-    return near, far
 
 
 def slice_half_extents(centers: np.ndarray, w: float, eye_pos: np.ndarray, v: np.ndarray, a: np.ndarray,

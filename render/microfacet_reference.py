@@ -7,6 +7,7 @@ import numpy as np
 
 from capture.camera import Camera, image_axes
 from render import microfacet_geometry as mg
+from render.owner import near_far
 
 
 def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float, cameras,
@@ -19,7 +20,7 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
 
     Returns (image (H, W, 3) linear, alive (H, W) bool, slices (voxel, n)).
     """
-    near, _ = mg.near_far(eye, bounds)
+    near, _ = near_far(eye, bounds)
     eye_pos = eye.center
     right, up = image_axes(eye)
     vox, n = mg.slice_distances(centers, w, eye_pos, spacing, near)

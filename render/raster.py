@@ -10,9 +10,11 @@ Conventions: cameras are :class:`capture.camera.Camera` (OpenCV); the GL matrice
 ``gl_rows_to_image`` only.  Depth is the eye-space z-depth (metres along the optical axis)
 written to a float32 target, 0 = background.  Colour is linear float32.  Supersampling:
 colour (and the coverage ``alpha``) come from a pass at ``supersample`` x the resolution with
-the camera scaled exactly (``Camera.scaled``), averaged over s x s blocks; depth, normals and
-the mask are single samples at the pixel centres (no mixed depths at edges): for odd ``s`` the
-centre sub-sample of each block (exactly the pixel centre), for even ``s`` a native pass.
+the camera scaled exactly (``Camera.scaled``), averaged over s x s blocks on the GPU (the one
+supersampling path: ``render.owner.GLOwner.begin_frame`` / ``resolve_frame``,
+``render.antialias``); depth, normals and the mask are single samples at the pixel centres (no
+mixed depths at edges): for odd ``s`` the centre sub-sample of each block (exactly the pixel
+centre), for even ``s`` a native pass.
 
 Shaded mode (``lighting=``): ambient irradiance of the environment minus its dominant lights x
 per-vertex ambient occlusion -- from the exact irradiance table (``render.shading.irradiance``,
@@ -30,13 +32,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image, look_at
+from render.gl import program
+from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
 from render.shading.irradiance import irradiance_texture
 from render.shading.sh import sh9_glsl_uniform
 
-#: Near plane never closer than this (metres).
+#: Near plane of the numpy reference rasteriser (metres; render.raster_reference).
 MIN_NEAR = 1e-3
-#: Near / far are the eye-depth range of the mesh bounds grown by this fraction.
-DEPTH_RANGE_MARGIN = 0.05
 #: Shadow-map resolution (texels per side) and the ortho box margin (fraction of the radius).
 SHADOW_MAP_SIZE = 2048
 SHADOW_BOX_MARGIN = 0.02
@@ -44,10 +46,14 @@ SHADOW_BOX_MARGIN = 0.02
 SHADOW_BIAS_TEXELS = 3.0
 #: Most directional lights the shaded program supports.
 MAX_LIGHTS = 4
+#: A vertex belongs to a strand (Kajiya-Kay shading) when its tangent's squared length exceeds this.
+HAIR_TANGENT_SQ = 0.25
 #: Texture unit of the ambient irradiance table in the shaded program.
 IRRADIANCE_TEXTURE_UNIT = 0
 
 
+#: Colour attachments of the rasteriser's target (components): colour + coverage, z-depth, normal.
+RASTER_COLOURS = (4, 1, 4)
 #: Interleaved vertex layout: (attribute name, float count).
 _ATTRIBUTES = (("in_pos", 3), ("in_color", 3), ("in_normal", 3), ("in_tangent", 3), ("in_occl", 1), ("in_spec", 1))
 
@@ -108,7 +114,12 @@ class RasterMesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 axis-aligned [min, max] of the vertices."""
-        return np.stack([self.vertices.min(0), self.vertices.max(0)]).astype(np.float64)
+        return vertex_bounds(self.vertices)
+
+
+def vertex_bounds(vertices: np.ndarray) -> np.ndarray:
+    """(2, 3) float64 axis-aligned [min, max] of (V, 3) vertices."""
+    return np.stack([vertices.min(0), vertices.max(0)]).astype(np.float64)
 
 
 @dataclass(frozen=True)
@@ -191,24 +202,6 @@ class Lighting:
         object.__setattr__(self, "light_colors", c)
 
 
-def depth_range(camera: Camera, bounds: np.ndarray) -> tuple[float, float]:
-    """(near, far) in metres enclosing the eye depth of the 8 corners of ``bounds``."""
-    b = np.asarray(bounds, dtype=np.float64)
-    corners = np.array([[b[i, 0], b[j, 1], b[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-    z = camera.world_to_cam(corners)[:, 2]
-    span = max(float(z.max() - z.min()), 1e-3)
-    near = max(float(z.min()) - DEPTH_RANGE_MARGIN * span, MIN_NEAR)
-    far = max(float(z.max()) + DEPTH_RANGE_MARGIN * span, near * 1.01 + 1e-3)
-    return near, far
-
-
-def _box_down(img: np.ndarray, s: int) -> np.ndarray:
-    if s == 1:
-        return img
-    h, w = img.shape[0] // s, img.shape[1] // s
-    return img.reshape(h, s, w, s, *img.shape[2:]).mean(axis=(1, 3)).astype(np.float32)
-
-
 def _ortho(half: float, near: float, far: float) -> np.ndarray:
     P = np.zeros((4, 4))
     P[0, 0] = P[1, 1] = 1.0 / half
@@ -218,12 +211,7 @@ def _ortho(half: float, near: float, far: float) -> np.ndarray:
     return P
 
 
-def _gl(m: np.ndarray) -> bytes:
-    """Row-major numpy (4, 4) -> column-major bytes for a GLSL mat4 uniform."""
-    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
-
-
-class MeshRasterizer:
+class MeshRasterizer(GLOwner):
     """Owns the GL programs, buffers and framebuffers of the mesh rasteriser.
 
     ``ctx`` is an explicit moderngl context (``render.gl.create_context``); it is not released
@@ -235,74 +223,45 @@ class MeshRasterizer:
             res = r.render(camera)
     """
 
+    released_error = RasterError
+
     def __init__(self, ctx, supersample: int = 1) -> None:
         if int(supersample) < 1:
             raise RasterError(f"supersample must be >= 1, got {supersample}")
-        from render.gl import program
-
-        self.ctx = ctx
+        super().__init__(ctx)
         self.supersample = int(supersample)
-        self._program = program
-        self._prog_flat = program(ctx, "raster_mesh_vert.glsl", "raster_mesh_frag.glsl")
+        self._prog_flat = self.own(program(ctx, "raster_mesh_vert.glsl", "raster_mesh_frag.glsl"))
         self._prog_shaded_by_mode: dict[str, object] = {}
         self._prog_shaded = None
         self._prog_shadow = None
         self._irr_tex = None
-        self._fbos: dict[tuple[int, int], tuple] = {}
-        self._vbo = self._ibo = None
+        self._vbo = self._ibo = self._vis_vbo = None
         self._vaos: dict[str, object] = {}
         self._mesh: RasterMesh | None = None
         self._lighting: Lighting | None = None
-        self._vis_vbo = None
         self.shadow_info: dict = {}
         #: (V, K) float32 per-vertex visibility of the K lights from the last shadow build.
         self.vertex_visibility = np.zeros((0, 0), np.float32)
-        self._released = False
 
-    # ------------------------------------------------------------------ resources
-    def __enter__(self) -> "MeshRasterizer":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.release()
-
-    def release(self) -> None:
-        """Free every GL object this rasteriser created (idempotent)."""
-        if self._released:
-            return
-        self._released = True
-        self._free_mesh()
-        for tex_c, tex_d, tex_n, rb, fbo in self._fbos.values():
-            for o in (fbo, tex_c, tex_d, tex_n, rb):
-                o.release()
-        self._fbos.clear()
-        if self._irr_tex is not None:
-            self._irr_tex.release()
-            self._irr_tex = None
-        for p in (self._prog_flat, self._prog_shadow, *self._prog_shaded_by_mode.values()):
-            if p is not None:
-                p.release()
+    @property
+    def mesh(self) -> RasterMesh | None:
+        """The mesh last given to set_mesh()."""
+        return self._mesh
 
     def _free_mesh(self) -> None:
-        for vao in self._vaos.values():
-            vao.release()
+        self.free(*self._vaos.values(), self._vbo, self._ibo, self._vis_vbo)
         self._vaos.clear()
-        for b in (self._vbo, self._ibo, self._vis_vbo):
-            if b is not None:
-                b.release()
         self._vbo = self._ibo = self._vis_vbo = None
 
     def _check(self) -> None:
-        if self._released:
-            raise RasterError("MeshRasterizer used after release()")
+        self.check_alive()
         if self._mesh is None:
             raise RasterError("MeshRasterizer: call set_mesh() before rendering")
 
     # ------------------------------------------------------------------ mesh
     def set_mesh(self, mesh: RasterMesh) -> None:
         """Upload ``mesh`` (replaces the previous one; invalidates shadow maps)."""
-        if self._released:
-            raise RasterError("MeshRasterizer used after release()")
+        self.check_alive()
         self._free_mesh()
         V = len(mesh.vertices)
         normals = mesh.normals if mesh.normals is not None else np.zeros((V, 3), np.float32)
@@ -310,9 +269,9 @@ class MeshRasterizer:
         occl = mesh.occlusion if mesh.occlusion is not None else np.ones(V, np.float32)
         spec = mesh.specular if mesh.specular is not None else np.zeros(V, np.float32)
         data = np.concatenate([mesh.vertices, mesh.colors, normals, tangents, occl[:, None], spec[:, None]], axis=1)
-        self._vbo = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
-        self._ibo = self.ctx.buffer(mesh.faces.tobytes())
-        self._vis_vbo = self.ctx.buffer(np.ones((V, MAX_LIGHTS), np.float32).tobytes())
+        self._vbo = self.own(self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes()))
+        self._ibo = self.own(self.ctx.buffer(mesh.faces.tobytes()))
+        self._vis_vbo = self.own(self.ctx.buffer(np.ones((V, MAX_LIGHTS), np.float32).tobytes()))
         self._mesh = mesh
         self._has_normals = mesh.normals is not None
         if self._lighting is not None:
@@ -323,40 +282,32 @@ class MeshRasterizer:
             progs = {"flat": self._prog_flat, "shadow": self._prog_shadow}
             progs.update({f"shaded_{m}": p for m, p in self._prog_shaded_by_mode.items()})
             prog = progs[kind]
-            fmt, names = [], []
-            for name, n in _ATTRIBUTES:  # attributes the compiler removed become padding
-                if name in prog:
-                    fmt.append(f"{n}f")
-                    names.append(name)
-                else:
-                    fmt.append(f"{4 * n}x")
-            content = [(self._vbo, " ".join(fmt), *names)]
+            fmt, names = vertex_format(prog, _ATTRIBUTES)
+            content = [(self._vbo, fmt, *names)]
             if "in_vis" in prog:
                 content.append((self._vis_vbo, "4f", "in_vis"))
-            self._vaos[kind] = self.ctx.vertex_array(prog, content, index_buffer=self._ibo, index_element_size=4)
+            self._vaos[kind] = self.own(self.ctx.vertex_array(prog, content, index_buffer=self._ibo,
+                                                              index_element_size=4))
         return self._vaos[kind]
 
     # ------------------------------------------------------------------ lighting
     def set_lighting(self, lighting: Lighting | None) -> None:
         """Switch to shaded mode with ``lighting`` (None = flat per-vertex colour)."""
-        if self._released:
-            raise RasterError("MeshRasterizer used after release()")
+        self.check_alive()
         self._lighting = lighting
-        if self._irr_tex is not None:
-            self._irr_tex.release()
-            self._irr_tex = None
+        self.free(self._irr_tex)
+        self._irr_tex = None
         if lighting is None:
             return
         mode = lighting.ambient
         if mode not in self._prog_shaded_by_mode:
-            self._prog_shaded_by_mode[mode] = self._program(
-                self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl",
-                defines={"MAX_LIGHTS": MAX_LIGHTS, "AMBIENT_TABLE": int(mode == "table")})
+            self._prog_shaded_by_mode[mode] = self.own(program(
+                self.ctx, "raster_mesh_vert.glsl", "raster_shaded_frag.glsl", defines=shaded_defines(mode)))
         self._prog_shaded = self._prog_shaded_by_mode[mode]
         if mode == "table":
-            self._irr_tex = irradiance_texture(self.ctx, lighting.irradiance)
+            self._irr_tex = self.own(irradiance_texture(self.ctx, lighting.irradiance))
         if self._prog_shadow is None:
-            self._prog_shadow = self._program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl")
+            self._prog_shadow = self.own(program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl"))
         if self._mesh is not None:
             self._build_shadows()
 
@@ -375,66 +326,46 @@ class MeshRasterizer:
             radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
             ctx = self.ctx
             vao = self._vao("shadow")
-            tex = ctx.depth_texture((SHADOW_MAP_SIZE, SHADOW_MAP_SIZE))
-            fbo = ctx.framebuffer(depth_attachment=tex)
-            try:
-                for i, d in enumerate(lt.light_dirs.astype(np.float64)):
-                    vp = light_view_projection(d, centre, radius)
-                    fbo.use()
-                    fbo.clear(depth=1.0)
-                    ctx.enable(ctx.DEPTH_TEST)
-                    ctx.disable(ctx.CULL_FACE)
-                    self._prog_shadow["u_mvp"].write(_gl(vp))
-                    vao.render()
-                    depth = np.frombuffer(tex.read(), np.float32).reshape(SHADOW_MAP_SIZE, SHADOW_MAP_SIZE)
-                    vis[:, i] = shadow_map_visibility(self._mesh.vertices, depth, vp, d,
-                                                      SHADOW_BIAS_TEXELS * 2 * radius / SHADOW_MAP_SIZE)
-            finally:
-                fbo.release()
-                tex.release()
+            tgt = self.target(SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, colours=())
+            for i, d in enumerate(lt.light_dirs.astype(np.float64)):
+                vp = light_view_projection(d, centre, radius)
+                tgt.fbo.use()
+                tgt.fbo.clear(depth=1.0)
+                ctx.enable(ctx.DEPTH_TEST)
+                ctx.disable(ctx.CULL_FACE)
+                self._prog_shadow["u_mvp"].write(mat4_bytes(vp))
+                vao.render()
+                vis[:, i] = shadow_map_visibility(self._mesh.vertices, tgt.read_depth(), vp, d,
+                                                  SHADOW_BIAS_TEXELS * 2 * radius / SHADOW_MAP_SIZE)
             self.shadow_info = {"map_size": SHADOW_MAP_SIZE, "texel_m": 2 * radius / SHADOW_MAP_SIZE,
                                 "mean_visibility": vis[:, : len(lt.light_dirs)].mean(0).tolist()}
         self._vis_vbo.write(vis.tobytes())
         self.vertex_visibility = vis[:, : len(lt.light_dirs)].copy() if lt is not None else vis[:, :0].copy()
 
     # ------------------------------------------------------------------ render
-    def _fbo(self, w: int, h: int):
-        key = (w, h)
-        if key not in self._fbos:
-            ctx = self.ctx
-            tex_c = ctx.texture((w, h), 4, dtype="f4")
-            tex_d = ctx.texture((w, h), 1, dtype="f4")
-            tex_n = ctx.texture((w, h), 4, dtype="f4")
-            rb = ctx.depth_renderbuffer((w, h))
-            fbo = ctx.framebuffer(color_attachments=[tex_c, tex_d, tex_n], depth_attachment=rb)
-            self._fbos[key] = (tex_c, tex_d, tex_n, rb, fbo)
-        return self._fbos[key]
+    def planes(self, camera: Camera) -> tuple[float, float]:
+        """Default near / far planes of ``camera``: those of the mesh bounds (render.owner.near_far)."""
+        self._check()
+        return near_far(camera, self._mesh.bounds)
 
-    def _pass(self, camera: Camera, near: float, far: float, shaded: bool, colour_only: bool = False):
-        ctx = self.ctx
-        tex_c, tex_d, tex_n, _, fbo = self._fbo(camera.width, camera.height)
-        fbo.use()
-        fbo.viewport = (0, 0, camera.width, camera.height)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(ctx.DEPTH_TEST)
-        ctx.disable(ctx.CULL_FACE | ctx.BLEND)
-        view, proj = _gl(camera.gl_view()), _gl(camera.gl_projection(near, far))
+    def draw(self, camera: Camera, factor: int, near: float, far: float):
+        """Draw the mesh for ``camera`` with ``factor`` x ``factor`` samples per pixel into this
+        owner's frame target (GLOwner.begin_frame; colour attachments: colour + coverage,
+        z-depth, normal); returns the target.  resolve_frame() / read_frame() then give the
+        box-resolved colour."""
+        self._check()
+        shaded = self._lighting is not None
+        cam = camera if factor == 1 else camera.scaled(factor)
+        tgt = self.begin_frame(camera.width, camera.height, factor, colours=RASTER_COLOURS)
         prog = self._prog_shaded if shaded else self._prog_flat
-        prog["u_view"].write(view)
-        prog["u_proj"].write(proj)
-        prog["u_eye"].value = tuple(float(x) for x in camera.center)
+        prog["u_view"].write(mat4_bytes(cam.gl_view()))
+        prog["u_proj"].write(mat4_bytes(cam.gl_projection(near, far)))
+        prog["u_eye"].value = tuple(float(x) for x in cam.center)
         prog["u_has_normals"].value = int(self._has_normals)
         if shaded:
             self._set_shading_uniforms(prog)
         self._vao(f"shaded_{self._lighting.ambient}" if shaded else "flat").render()
-        w, h = camera.width, camera.height
-        # framebuffer row order (bottom first): render() reduces, then flips with gl_rows_to_image
-        col = np.frombuffer(tex_c.read(), np.float32).reshape(h, w, 4)
-        if colour_only:
-            return col, None, None
-        dep = np.frombuffer(tex_d.read(), np.float32).reshape(h, w)
-        nor = np.frombuffer(tex_n.read(), np.float32).reshape(h, w, 4)[..., :3]
-        return col, dep, nor
+        return tgt
 
     def _set_shading_uniforms(self, prog) -> None:
         lt = self._lighting
@@ -458,33 +389,40 @@ class MeshRasterizer:
     def render(self, camera: Camera, near: float | None = None, far: float | None = None) -> RasterResult:
         """Render the current mesh for ``camera``; see :class:`RasterResult`.
 
-        ``near`` / ``far`` default to the eye-depth range of the mesh bounds.
+        ``near`` / ``far`` default to those of the mesh bounds (:meth:`planes`).
         """
         self._check()
         if near is None or far is None:
-            n0, f0 = depth_range(camera, self._mesh.bounds)
+            n0, f0 = self.planes(camera)
             near = n0 if near is None else near
             far = f0 if far is None else far
-        shaded = self._lighting is not None
         s = self.supersample
+        tgt = self.draw(camera, s, near, far)
+        self.resolve_frame()
+        block, _ = self.read_frame()  # s x s blocks are the same set of samples in either row order
         if s % 2 == 1:
             # odd factor: the centre sub-sample of each s x s block sits exactly on the pixel centre
             # (Camera.scaled keeps centres exact), so one pass gives the single-sample depth too
             # (in bottom-first rows the centre sub-samples are rows c + s m as well, since the
             # block height s is odd and the image height is H s)
-            col, dep, nor = self._pass(camera.scaled(s) if s > 1 else camera, near, far, shaded)
             c = s // 2
-            dep, nor = dep[c::s, c::s], nor[c::s, c::s]
+            dep, nor = tgt.read_colour(1)[c::s, c::s], tgt.read_colour(2)[c::s, c::s, :3]
         else:
-            _, dep, nor = self._pass(camera, near, far, shaded)
-            col, _, _ = self._pass(camera.scaled(s), near, far, shaded, colour_only=True)
-        block = _box_down(col, s)  # s x s blocks are the same set of samples in either row order
+            tgt = self.draw(camera, 1, near, far)
+            dep, nor = tgt.read_colour(1), tgt.read_colour(2)[..., :3]
+        # framebuffer row order (bottom first) until here
         color, alpha = gl_rows_to_image(block[..., :3]), gl_rows_to_image(block[..., 3])
         dep, nor = gl_rows_to_image(dep), gl_rows_to_image(nor)
         mask = dep > 0
         return RasterResult(color=np.ascontiguousarray(color, np.float32), depth=np.where(mask, dep, 0).astype(np.float32),
                             normal=np.where(mask[..., None], nor, 0).astype(np.float32), mask=mask,
                             alpha=np.clip(alpha, 0, 1).astype(np.float32))
+
+
+def shaded_defines(ambient: str) -> dict:
+    """Constants of raster_shaded_frag.glsl, shared with its numpy twin (render.raster_reference)."""
+    return {"MAX_LIGHTS": MAX_LIGHTS, "AMBIENT_TABLE": int(ambient == "table"),
+            "HAIR_TANGENT_SQ": f"{HAIR_TANGENT_SQ:.9e}"}
 
 
 def light_view_projection(direction, centre, radius: float) -> np.ndarray:

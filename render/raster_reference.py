@@ -14,13 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera
-from render.raster import MIN_NEAR, Lighting, RasterMesh, RasterResult, face_normals
+from render.raster import HAIR_TANGENT_SQ, MIN_NEAR, Lighting, RasterMesh, RasterResult, face_normals
 from render.shading.brdf import blinn_phong_normalized
 from render.shading.irradiance import irradiance_lookup
 from render.shading.sh import sh9_irradiance
-
-#: Strands are the pixels whose interpolated tangent has squared length above this (as in GLSL).
-HAIR_TANGENT_SQ = 0.25
 
 
 def interpolate_reference(mesh: RasterMesh, camera: Camera, attrs: np.ndarray | None = None, near: float = MIN_NEAR):

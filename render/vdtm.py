@@ -7,46 +7,28 @@ paper's "conventional method", METHODS §1.8 Fig. 11).  A camera textures a frag
 sees it: |d - D| < ``vis_tol`` (default: the finest voxel size).  Fragments no candidate sees
 keep the mesh's vertex colour (black when the model has none).
 
-The floor is the plain mesh with per-vertex colour, drawn with ``render.raster.MeshRasterizer``.
+The floor (:class:`MeshColourRenderer`) is the plain mesh with per-vertex colour, drawn with
+``render.raster.MeshRasterizer``.
 :func:`vdtm_reference` is the numpy twin of the fragment shader.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
-
 import numpy as np
 
-from capture.camera import Camera, gl_rows_to_image
+from capture.camera import Camera
 from render import microfacet_geometry as mg
-from render.antialias import Supersampler, check_factor, split_rgba
+from render.frame import Frame, FrameStats
 from render.gl import program
+from render.methods import RenderOptions, Renderer
 from render.microfacet import camera_block, rgbz_array, shader_defines
+from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Visibility tolerance of a camera for a mesh fragment, in finest-level voxel sizes.
 VIS_TOL_VOXELS = 1.0
 
 
-@dataclass
-class MeshFrame:
-    """One baseline frame: linear rgb (H, W, 3), alpha (H, W) bool, ms (draw, synchronised), facets
-    (triangles), cpu_ms (process CPU time of the draw, llvmpipe threads included), coverage (H, W)
-    share of drawn samples (supersampled frames; render.antialias)."""
-
-    rgb: np.ndarray
-    alpha: np.ndarray
-    ms: float
-    facets: int
-    cpu_ms: float = 0.0
-    coverage: np.ndarray | None = None
-
-
-def _mat(m) -> bytes:
-    return np.asarray(m, np.float32).T.tobytes()
-
-
-class VdtmRenderer:
+class VdtmRenderer(Renderer):
     """Owns the GL objects of the VDTM baseline for one model.
 
     Args:
@@ -55,10 +37,14 @@ class VdtmRenderer:
         rgb, depth, cameras: RGBz images of the input cameras.
         bounds: (2, 3) object box (near/far).
         vis_tol: visibility tolerance |d - D| in metres.
+        options: default per-frame options (this method reads ``supersample``).
     """
 
-    def __init__(self, ctx, vertices, faces, colors, rgb, depth, cameras, bounds, vis_tol: float):
-        self.ctx = ctx
+    name = "mesh-vdtm"
+
+    def __init__(self, ctx, vertices, faces, colors, rgb, depth, cameras, bounds, vis_tol: float,
+                 options: RenderOptions | None = None):
+        super().__init__(ctx, options)
         self.cameras = tuple(cameras)
         self.bounds = np.asarray(bounds, np.float64)
         self.vis_tol = float(vis_tol)
@@ -66,71 +52,39 @@ class VdtmRenderer:
         v = np.asarray(vertices, np.float32)
         col = np.zeros_like(v) if colors is None else np.asarray(colors, np.float32)
         self.n_faces = int(len(faces))
-        self.vbo = ctx.buffer(np.concatenate([v, col], 1).astype(np.float32).tobytes())
-        self.ibo = ctx.buffer(np.asarray(faces, np.int32).tobytes())
-        self.prog = program(ctx, "vdtm_vert.glsl", "vdtm_frag.glsl", defines=shader_defines())
-        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "3f 3f", "in_pos", "in_color")], index_buffer=self.ibo,
-                                    index_element_size=4)
-        self.cam_buf = ctx.buffer(camera_block(self.cameras))
+        self.vbo = self.own(ctx.buffer(np.concatenate([v, col], 1).astype(np.float32).tobytes()))
+        self.ibo = self.own(ctx.buffer(np.asarray(faces, np.int32).tobytes()))
+        self.prog = self.own(program(ctx, "vdtm_vert.glsl", "vdtm_frag.glsl", defines=shader_defines()))
+        self.vao = self.own(ctx.vertex_array(self.prog, [(self.vbo, "3f 3f", "in_pos", "in_color")],
+                                             index_buffer=self.ibo, index_element_size=4))
+        self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
         texels = rgbz_array(rgb, depth)
         n, H, W = texels.shape[:3]
         self.tex_size = (W, H)
-        self.tex = ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4")
+        self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4"))
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
-        self._fbo = None
-        self._size = None
-        self._ss = None
 
     @classmethod
-    def from_model(cls, ctx, model) -> "VdtmRenderer":
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> "VdtmRenderer":
         """Baseline from a Model.  Visibility is tested against the mesh's own depth in every
         camera (a fixed-mesh VDTM knows only its mesh): the model's RGBz depth keeps every
         measured sample for the microfacets (volume.rgbz), fur fringe included, which would
         reject mesh texels the baseline has always used (measured: -0.2 to -0.3 dB)."""
-        from volume.rgbz import raycast_depth
+        from capture.raycast import raycast_depth
 
         w = model.pyramid.levels[-1].voxel_size
         depth = raycast_depth(model.mesh_vertices, model.mesh_faces, model.rgbz.cameras)
         return cls(ctx, model.mesh_vertices, model.mesh_faces, model.mesh_colors, model.rgbz.rgb, depth,
-                   model.rgbz.cameras, model.bounds, VIS_TOL_VOXELS * w)
+                   model.rgbz.cameras, model.bounds, VIS_TOL_VOXELS * w, options)
 
-    def release(self) -> None:
-        for o in (self.vbo, self.ibo, self.prog, self.vao, self.cam_buf, self.tex):
-            o.release()
-        if self._fbo is not None:
-            for o in self._fbo:
-                o.release()
-        if self._ss is not None:
-            self._ss.release()
-
-    def render(self, eye: Camera, read: bool = True, supersample: int = 1) -> MeshFrame:
-        """Render one frame; ``supersample`` samples per pixel and axis as MicrofacetRenderer.render."""
-        ctx = self.ctx
-        W, H = eye.width, eye.height
-        f = check_factor(supersample)
-        if f > 1:
-            if self._ss is None:
-                self._ss = Supersampler(ctx)
-            fbo = self._ss.target(W, H, f)
-        elif self._size != (W, H):
-            if self._fbo is not None:
-                for o in self._fbo:
-                    o.release()
-            c = ctx.renderbuffer((W, H), 4, dtype="f4")
-            d = ctx.depth_renderbuffer((W, H))
-            self._fbo = (ctx.framebuffer([c], d), c, d)
-            self._size = (W, H)
-        if f == 1:
-            fbo = self._fbo[0]
-        fbo.use()
-        ctx.viewport = (0, 0, W * f, H * f)
+    def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
+        """One frame (Renderer.render) with ``options.supersample`` samples per pixel and axis."""
+        f = options.supersample
+        self.begin_frame(eye.width, eye.height, f)
         draw_eye = eye if f == 1 else eye.scaled(f)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable_only(ctx.DEPTH_TEST)
-        near, far = mg.near_far(eye, self.bounds)
+        near, far = near_far(eye, self.bounds)
         p = self.prog
-        right, up = mg.eye_axes(eye)
-        p["view_proj"].write(_mat(draw_eye.gl_projection(near, far) @ draw_eye.gl_view()))
+        p["view_proj"].write(mat4_bytes(draw_eye.gl_projection(near, far) @ draw_eye.gl_view()))
         for k, val in {"n_cams": len(self.cameras), "eye_pos": tuple(eye.center), "vis_tol": self.vis_tol}.items():
             if k in p:
                 p[k].value = val
@@ -140,23 +94,14 @@ class VdtmRenderer:
             p["tex_size"].value = self.tex_size
         self.cam_buf.bind_to_storage_buffer(0)
         self.tex.use(0)
-        ctx.finish()
-        t0 = time.perf_counter()
-        c0 = time.process_time()
-        if self.n_faces:
-            self.vao.render(ctx.TRIANGLES)
-        if f > 1:
-            self._ss.resolve()
-        ctx.finish()
-        ms = (time.perf_counter() - t0) * 1e3
-        cpu_ms = (time.process_time() - c0) * 1e3
-        rgb = np.zeros((H, W, 3), np.float32)
-        alpha = np.zeros((H, W), bool)
-        coverage = None
-        if read:
-            raw = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32) if f == 1 else self._ss.read()[0]
-            rgb, coverage, alpha = split_rgba(gl_rows_to_image(raw.reshape(H, W, 4)), f)
-        return MeshFrame(rgb, alpha, ms, self.n_faces, cpu_ms, coverage)
+        with FrameTimer(self.ctx) as t:
+            if self.n_faces:
+                self.vao.render(self.ctx.TRIANGLES)
+            self.resolve_frame()
+        stats = FrameStats(t.ms, t.cpu_ms, self.n_faces, f)
+        if not read:
+            return Frame.empty(eye.width, eye.height, stats)
+        return Frame.from_gl(*self.read_frame(), near, far, stats)
 
 
 def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, cameras, rgb: np.ndarray,
@@ -187,16 +132,32 @@ def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, ca
     return img
 
 
-def render_vertex_colour(ctx, model, eye: Camera, supersample: int = 1) -> MeshFrame:
-    """The floor: the mesh with its per-vertex colour (black when the model has none)."""
-    from render.raster import MeshRasterizer, RasterMesh
+class MeshColourRenderer(Renderer):
+    """The floor: the model's mesh with its per-vertex colour (black when the model has none),
+    drawn by the mesh rasteriser (render.raster.MeshRasterizer); reads ``supersample``."""
 
-    cols = model.mesh_colors if model.mesh_colors is not None else np.zeros_like(model.mesh_vertices)
-    with MeshRasterizer(ctx, supersample=check_factor(supersample)) as r:
-        r.set_mesh(RasterMesh(model.mesh_vertices, model.mesh_faces, cols))
-        t0 = time.perf_counter()
-        c0 = time.process_time()
-        res = r.render(eye)
-        ms = (time.perf_counter() - t0) * 1e3
-        cpu_ms = (time.process_time() - c0) * 1e3
-    return MeshFrame(res.color, res.alpha > 0, ms, int(len(model.mesh_faces)), cpu_ms, res.alpha)
+    name = "mesh-colour"
+
+    def __init__(self, ctx, vertices, faces, colors, options: RenderOptions | None = None):
+        from render.raster import MeshRasterizer, RasterMesh
+
+        super().__init__(ctx, options)
+        cols = colors if colors is not None else np.zeros_like(vertices)
+        self.rasterizer = self.own(MeshRasterizer(ctx))
+        self.rasterizer.set_mesh(RasterMesh(vertices, faces, cols))
+
+    @classmethod
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> "MeshColourRenderer":
+        return cls(ctx, model.mesh_vertices, model.mesh_faces, model.mesh_colors, options)
+
+    def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
+        r = self.rasterizer
+        f = options.supersample
+        near, far = r.planes(eye)
+        with FrameTimer(self.ctx) as t:
+            r.draw(eye, f, near, far)
+            r.resolve_frame()
+        stats = FrameStats(t.ms, t.cpu_ms, len(r.mesh.faces), f)
+        if not read:
+            return Frame.empty(eye.width, eye.height, stats)
+        return Frame.from_gl(*r.read_frame(), near, far, stats)

@@ -23,27 +23,32 @@ import sys
 from pathlib import Path
 
 
+#: The method whose level-of-detail the cap limits.
+METHOD = "microfacet"
+
+
 def main(argv: list[str]) -> int:
+    from render.methods import DEFAULT_TOLERANCE_PX
+
     p = argparse.ArgumentParser(prog="furrow bench lopt", description=__doc__.splitlines()[0])
     p.add_argument("scans", type=Path, help="scan set (transforms.json or its folder)")
     p.add_argument("--caps", default="8,16,32,64,128", help="comma-separated L_opt caps")
-    p.add_argument("--tolerance", type=float, default=8.0, help="E in pixels (default 8)")
+    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE_PX,
+                   help=f"E in pixels (default {DEFAULT_TOLERANCE_PX:g})")
     p.add_argument("--holdout", type=int, default=2)
     p.add_argument("--json", action="store_true", help="print JSON")
     args = p.parse_args(argv)
 
     import volume.build as vb
     from capture.io import read_scanset
-    from capture.scan import ScanSet
-    from furrow.cmd_eval import evaluate
+    from render.evaluate import evaluate, holdout_split, result_key
     from render.gl import gl_context
+    from render.methods import RenderOptions
     from volume.model import SdfPyramid
     from volume.pyramid import choose_l_opt
 
     ss = read_scanset(args.scans)
-    k = args.holdout
-    kept = ScanSet(tuple(s for i, s in enumerate(ss.scans) if i % k == 0), ss.bounds, ss.metadata)
-    held = [s for i, s in enumerate(ss.scans) if i % k != 0]
+    kept, held = holdout_split(ss, args.holdout)[:2]
     cfg = vb.ModelConfig()
     orig = vb.choose_l_opt
     vb.choose_l_opt = lambda frac, t: max(frac)  # keep every level; Eq. 1's own choice is reported below
@@ -61,8 +66,8 @@ def main(argv: list[str]) -> int:
             if not lv:
                 continue
             r = evaluate(ctx, dataclasses.replace(model, pyramid=SdfPyramid(lv, lv[-1].resolution)), held,
-                         args.tolerance)
-            a = r["microfacet"]
+                         RenderOptions(tolerance_px=args.tolerance), methods=(METHOD,))
+            a = r[result_key(METHOD)]
             row = {"cap": L, "levels_used": sorted({v["level"] for v in a["views"]}), "psnr": a["psnr"],
                    "psnr_masked": a["psnr_masked"], "hole_fraction": a["hole_fraction"], "facets": a["facets"]}
             out["caps"].append(row)

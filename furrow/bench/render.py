@@ -29,8 +29,8 @@ from furrow.bench import OUT_ROOT
 
 
 TOLERANCES = (2.0, 4.0, 8.0, 16.0)
-#: Level sweep: forced levels use the paper's default tolerance for their spacing (Eq. 10).
-LEVEL_SWEEP_TOLERANCE = 8.0
+#: The method measured, the baseline beside it (render.methods registry names).
+METHOD, BASELINE = "microfacet", "mesh-vdtm"
 
 
 def _ensure_capture(path: Path, size: tuple[int, int]) -> None:
@@ -44,26 +44,80 @@ def _ensure_capture(path: Path, size: tuple[int, int]) -> None:
     write_capture(cap, path, depth_format="exr")
 
 
-def _measure(ctx, renderer, views, tolerance, level=None, supersample: int = 1) -> dict:
+def _mean(rows: list[dict], keys) -> dict:
+    return {k: float(np.mean([r[k] for r in rows])) for k in keys}
+
+
+def _measure(renderer, views, options) -> dict:
     """Mean metrics over the views; frame time = median (ms); fill = same squares untextured."""
-    from render import metrics
+    from render.evaluate import score_view
 
     rows = []
     for s in views:
-        fr = renderer.render(s.camera, tolerance, level=level, supersample=supersample)
-        fill = renderer.render(s.camera, tolerance, level=level, fill_only=True, read=False, supersample=supersample)
-        fg = (s.depth > 0) | (s.srgb8.max(axis=-1) > 0)
-        m = metrics.compare(s.srgb8, fr.rgb, fg, fr.alpha)
-        rows.append({**m, "ms": fr.ms, "fill_ms": fill.ms, "cpu_ms": fr.cpu_ms, "fill_cpu_ms": fill.cpu_ms,
-                     "facets": fr.facets, "level": fr.resolution, "spacing_mm": 1e3 * fr.spacing})
-    out = {k: float(np.mean([r[k] for r in rows])) for k in ("psnr", "psnr_masked", "ssim", "hole_fraction", "facets",
-                                                             "spacing_mm")}
+        m = score_view(s, renderer.render(s.camera, options))
+        fill = renderer.render(s.camera, options, fill_only=True, read=False).stats
+        rows.append({**m, "fill_ms": fill.ms, "fill_cpu_ms": fill.cpu_ms, "spacing_mm": 1e3 * m["spacing_m"]})
+    out = _mean(rows, ("psnr", "psnr_masked", "ssim", "hole_fraction", "facets", "spacing_mm"))
     for k in ("ms", "fill_ms", "cpu_ms", "fill_cpu_ms"):
         out[k] = float(np.median([r[k] for r in rows]))
     out["ratio_to_fill"] = out["ms"] / max(out["fill_ms"], 1e-6)
     out["cpu_ratio_to_fill"] = out["cpu_ms"] / max(out["fill_cpu_ms"], 1e-6)
     out["level"] = int(np.round(np.median([r["level"] for r in rows])))
     return out
+
+
+def _sweep(r, vd, views, resolutions, base, con, key: str) -> dict:
+    """One image size: forced levels, tolerances (+ geometry-shader time), the quality options at
+    the paper's E, and the baseline."""
+    from render.evaluate import score_view
+
+    r.render(views[0].camera, base, read=False)  # warm-up (shader compilation)
+    r.render(views[0].camera, base, mode="geometry", read=False)
+    res = {"levels": [], "tolerances": [], "options": []}
+    for li, L in enumerate(resolutions):
+        con.print(f"{key}: level {L}^3 ...")
+        res["levels"].append({"L": L, **_measure(r, views, base.changed(level=li))})
+    for E in TOLERANCES:
+        con.print(f"{key}: E = {E:g} px ...")
+        row = {"E": E, **_measure(r, views, base.changed(tolerance_px=E))}
+        row["geometry_shader_ms"] = float(np.median([r.render(s.camera, base, tolerance_px=E, mode="geometry",
+                                                              read=False).stats.ms for s in views]))
+        res["tolerances"].append(row)
+    # the two quality options beyond the paper, at the paper's E
+    for refine in (0, base.refine_steps):
+        for ssf in (1, 2):
+            con.print(f"{key}: E = {base.tolerance_px:g}, refine {refine}, {ssf}x{ssf} samples ...")
+            res["options"].append({"refine": refine, "supersample": ssf,
+                                   **_measure(r, views, base.changed(refine=refine, supersample=ssf))})
+    for name, ssf, keys in (("mesh_vdtm", base.supersample, ("psnr", "psnr_masked", "ssim", "ms", "cpu_ms", "facets")),
+                            ("mesh_vdtm_ss2", 2, ("psnr", "psnr_masked", "ms"))):
+        res[name] = _mean([score_view(s, vd.render(s.camera, supersample=ssf)) for s in views], keys)
+    return res
+
+
+def _load(args, sizes, con):
+    """(model, held-out frame indices, {size: reference scans})."""
+    from capture.io import read_scanset
+    from render.evaluate import holdout_split
+    from render.gt_model import model_from_geometry
+    from volume.metrics import read_ply_mesh
+
+    _ensure_capture(args.scans, sizes[0])
+    ss = read_scanset(args.scans)
+    split = holdout_split(ss, args.holdout, args.views)
+    v, f = read_ply_mesh(args.scans / "gt" / "mesh.ply")
+    con.print(f"model: {len(split.kept.scans)} kept views, voxels from gt/mesh.ply up to {args.l_max}^3 ...")
+    model = model_from_geometry(split.kept, v, f, args.l_max)
+    refs = {sizes[0]: split.held}
+    for size in sizes[1:]:
+        path = args.scans_720 if size == (1280, 720) else None
+        if path is None:
+            con.print(f"[yellow]no reference capture for {size}; skipped")
+            continue
+        _ensure_capture(path, size)
+        s2 = read_scanset(path)
+        refs[size] = [s2.scans[i] for i in split.held_idx]
+    return model, split.held_idx, refs
 
 
 def main(argv: list[str]) -> int:
@@ -86,89 +140,39 @@ def main(argv: list[str]) -> int:
         return 0
 
     from rich.console import Console
-    from rich.table import Table
 
-    from capture.io import read_scanset
-    from capture.scan import ScanSet
     from render.gl import gl_context
-    from render.gt_model import model_from_geometry, read_ply_mesh
-    from render.microfacet import MicrofacetRenderer
-    from render.vdtm import VdtmRenderer
+    from render.methods import RenderOptions, create_renderer
 
+    base = RenderOptions(supersample=args.supersample, refine=args.refine)
     con = Console(stderr=True, width=170)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
-    _ensure_capture(args.scans, sizes[0])
-    ss = read_scanset(args.scans)
-    n = len(ss.scans)
-    held_all = [i for i in range(n) if i % args.holdout]
-    held = [held_all[int(round(j))] for j in np.linspace(0, len(held_all) - 1, min(args.views, len(held_all)))]
-    kept = ScanSet(tuple(ss.scans[i] for i in range(n) if i % args.holdout == 0), ss.bounds, ss.metadata)
-    v, f = read_ply_mesh(args.scans / "gt" / "mesh.ply")
-    con.print(f"model: {len(kept.scans)} kept views, voxels from gt/mesh.ply up to {args.l_max}^3 ...")
-    model = model_from_geometry(kept, v, f, args.l_max)
-    refs = {sizes[0]: [ss.scans[i] for i in held]}
-    for size in sizes[1:]:
-        path = args.scans_720 if size == (1280, 720) else None
-        if path is None:
-            con.print(f"[yellow]no reference capture for {size}; skipped")
-            continue
-        _ensure_capture(path, size)
-        s2 = read_scanset(path)
-        refs[size] = [s2.scans[i] for i in held]
+    model, held, refs = _load(args, sizes, con)
     results = {"scans": str(args.scans), "held_views": held, "levels": model.pyramid.resolutions,
                "supersample": args.supersample, "refine": args.refine,
                "surface_voxels": [len(lv.surface) for lv in model.pyramid.levels], "sizes": {}}
-    with gl_context() as ctx:
-        r = MicrofacetRenderer.from_model(ctx, model, refine=args.refine)
-        g = MicrofacetRenderer.from_model(ctx, model, mode="geometry", refine=args.refine)
-        r0 = MicrofacetRenderer.from_model(ctx, model, refine=0)
-        vd = VdtmRenderer.from_model(ctx, model)
+    with gl_context() as ctx, create_renderer(METHOD, ctx, model, base) as r, \
+            create_renderer(BASELINE, ctx, model, base) as vd:
         for size, views in refs.items():
             key = f"{size[0]}x{size[1]}"
-            r.render(views[0].camera, 8.0, read=False)  # warm-up (shader compilation)
-            g.render(views[0].camera, 8.0, read=False)
-            res = {"levels": [], "tolerances": []}
-            for li, L in enumerate(model.pyramid.resolutions):
-                con.print(f"{key}: level {L}^3 ...")
-                res["levels"].append({"L": L, **_measure(ctx, r, views, LEVEL_SWEEP_TOLERANCE, level=li,
-                                                          supersample=args.supersample)})
-            for E in TOLERANCES:
-                con.print(f"{key}: E = {E:g} px ...")
-                row = {"E": E, **_measure(ctx, r, views, E, supersample=args.supersample)}
-                row["geometry_shader_ms"] = float(np.median([g.render(s.camera, E, read=False,
-                                                                        supersample=args.supersample).ms
-                                                               for s in views]))
-                res["tolerances"].append(row)
-            # the two quality options beyond the paper, at the paper's E = 8 px
-            res["options"] = []
-            for rr, refine in ((r0, 0), (r, r.refine)):
-                for ssf in (1, 2):
-                    con.print(f"{key}: E = 8, refine {refine}, {ssf}x{ssf} samples ...")
-                    res["options"].append({"refine": refine, "supersample": ssf,
-                                           **_measure(ctx, rr, views, 8.0, supersample=ssf)})
-            from render import metrics
-
-            base = []
-            for s in views:
-                b = vd.render(s.camera, supersample=args.supersample)
-                fg = (s.depth > 0) | (s.srgb8.max(axis=-1) > 0)
-                base.append({**metrics.compare(s.srgb8, b.rgb, fg, b.alpha), "ms": b.ms, "cpu_ms": b.cpu_ms,
-                             "facets": b.facets})
-            res["mesh_vdtm"] = {k: float(np.mean([x[k] for x in base])) for k in ("psnr", "psnr_masked", "ssim", "ms",
-                                                                                  "cpu_ms", "facets")}
-            b2 = []
-            for s in views:
-                b = vd.render(s.camera, supersample=2)
-                fg = (s.depth > 0) | (s.srgb8.max(axis=-1) > 0)
-                b2.append({**metrics.compare(s.srgb8, b.rgb, fg, b.alpha), "ms": b.ms})
-            res["mesh_vdtm_ss2"] = {k: float(np.mean([x[k] for x in b2])) for k in ("psnr", "psnr_masked", "ms")}
-            results["sizes"][key] = res
-        for o in (r, g, r0, vd):
-            o.release()
+            results["sizes"][key] = _sweep(r, vd, views, model.pyramid.resolutions, base, con, key)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "render.json").write_text(json.dumps(results, indent=1))
+    _tables(con, results, len(held))
+    _plot(results, args.out / "render.png")
+    con.print(f"wrote {args.out / 'render.json'} and {args.out / 'render.png'}")
+    if args.json:
+        print(json.dumps(results, indent=1))
+    return 0
+
+
+def _tables(con, results: dict, n_views: int) -> None:
+    from rich.table import Table
+
+    from render.methods import DEFAULT_TOLERANCE_PX
+
     for key, res in results["sizes"].items():
-        t = Table(title=f"microfacet speed vs error, {key} (fur ball, {len(held)} held-out views, llvmpipe)")
+        t = Table(title=f"microfacet speed vs error, {key} (fur ball, {n_views} held-out views, llvmpipe)")
         for c in ("config", "level", "l mm", "facets", "ms/frame", "CPU ms", "fill ms", "x fill", "GS ms", "PSNR",
                   "PSNR mask", "holes %"):
             t.add_column(c, justify="right")
@@ -186,7 +190,8 @@ def main(argv: list[str]) -> int:
                   f"{b['psnr']:.2f}",
                   f"{b['psnr_masked']:.2f}", "")
         con.print(t)
-        t = Table(title=f"quality options at E = 8 px, {key}: parallax correction (refine) and supersampling")
+        t = Table(title=f"quality options at E = {DEFAULT_TOLERANCE_PX:g} px, {key}: parallax correction (refine) "
+                        "and supersampling")
         for c in ("refine", "samples", "ms/frame", "x fill", "PSNR", "PSNR mask", "holes %"):
             t.add_column(c, justify="right")
         for row in res.get("options", []):
@@ -197,11 +202,6 @@ def main(argv: list[str]) -> int:
         if b2:
             t.add_row("mesh VDTM", "2x2", f"{b2['ms']:.1f}", "", f"{b2['psnr']:.2f}", f"{b2['psnr_masked']:.2f}", "")
         con.print(t)
-    _plot(results, args.out / "render.png")
-    con.print(f"wrote {args.out / 'render.json'} and {args.out / 'render.png'}")
-    if args.json:
-        print(json.dumps(results, indent=1))
-    return 0
 
 
 def _plot(results: dict, path: Path) -> None:

@@ -115,3 +115,12 @@ vec2 slice_half_extents(vec3 c, vec3 v, vec3 a, vec3 b, float s) {
     return vec2(half_sq);
 #endif
 }
+
+// The slices [lo, hi] of the voxel at c (slice_range), its candidate cameras and blend weights
+// (select_cameras); false when none of its slices is drawn (cand and w are then not set).
+bool voxel_slices(vec3 c, out int lo, out int hi, out int cand[K_CAND], out float w[K_BLEND]) {
+    slice_range(c, lo, hi);
+    if (hi < lo) return false;
+    select_cameras(c, FOOTPRINT_SCALE * 0.5 * SLICE_SIDE * voxel_size, cand, w);
+    return true;
+}

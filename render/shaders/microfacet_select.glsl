@@ -14,11 +14,9 @@ void main() {
     if (id >= n_voxels) return;
     vec3 c = centers[id].xyz;
     int lo, hi;
-    slice_range(c, lo, hi);
-    if (hi < lo) return;
     int cand[K_CAND];
     float w[K_BLEND];
-    select_cameras(c, FOOTPRINT_SCALE * 0.5 * SLICE_SIDE * voxel_size, cand, w);
+    if (!voxel_slices(c, lo, hi, cand, w)) return;
     uint cnt = uint(hi - lo + 1);
     uint base = atomicAdd(icount, cnt);
     for (uint k = 0u; k < cnt; ++k) {

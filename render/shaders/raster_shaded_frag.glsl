@@ -27,7 +27,7 @@ const float PI = 3.14159265358979323846;
 void main() {
     vec3 V = normalize(u_eye - v_world);
     vec3 N = raster_normal(V);
-    bool hair = dot(v_tangent, v_tangent) > 0.25;
+    bool hair = dot(v_tangent, v_tangent) > HAIR_TANGENT_SQ;  // injected from render.raster
     vec3 T = hair ? normalize(v_tangent) : vec3(0.0);
 #if AMBIENT_TABLE
     vec3 irradiance = env_irradiance(u_irradiance, N) * v_occl;

@@ -2,9 +2,9 @@
 // G(i) = mu * exp(lambda * (i.p - 1)); 1 - i.p is computed as |i - p|^2 / 2.
 #ifndef FURROW_SHADING_SG_GLSL
 #define FURROW_SHADING_SG_GLSL
+// Injected from render.shading.sg (render/gl.py TWIN_CONSTANTS): SG_COS_LAMBDA, SG_COS_MU (the
+// clamped cosine as one SG: COS_LOBE_LAMBDA / _MU) and SG_PRODUCT_AXIS_EPS (PRODUCT_AXIS_EPS).
 const float SG_PI = 3.14159265358979323846;
-const float SG_COS_LAMBDA = 2.133;  // clamped cosine as one SG (COS_LOBE_LAMBDA / _MU)
-const float SG_COS_MU = 1.170;
 
 struct SG { vec3 axis; float lambda; vec3 mu; };
 
@@ -24,7 +24,7 @@ SG sg_product(SG a, SG b) {
     float lam = length(v);
     float s = a.lambda + b.lambda;
     SG r;
-    bool small = lam <= 1e-7 * s;
+    bool small = lam <= SG_PRODUCT_AXIS_EPS * s;
     r.axis = small ? a.axis : v / lam;
     r.lambda = small ? 0.0 : lam;
     float denom = r.lambda + s;

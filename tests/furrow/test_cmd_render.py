@@ -60,7 +60,7 @@ def test_render_cli_errors(tmp_path):
 
 
 def test_eval_summary_means():
-    from furrow.cmd_eval import summarise
+    from render.evaluate import summarise
 
     views = [{"psnr": 20.0, "ssim": 0.5, "psnr_masked": 10.0, "ssim_masked": 0.2, "hole_fraction": 0.1,
               "largest_hole": 3, "ms": 10.0, "cpu_ms": 5.0, "facets": 100},

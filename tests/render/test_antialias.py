@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from capture.camera import gl_ndc_depth_to_z, gl_rows_to_image
-from render import microfacet_geometry as mg
 from render.antialias import box_resolve, check_factor
+from render.methods import RenderOptions
 from render.microfacet import MicrofacetRenderer
+from render.owner import near_far
 from render.vdtm import VdtmRenderer
 from tests.conftest import assert_images_close
 from tests import scenes as scene
@@ -18,6 +19,8 @@ from tests import scenes as scene
 #: Mean colour error on the silhouette pixels with 2x2 samples must be below this share of the
 #: error with 1 sample (measured: microfacets 0.209 -> 0.157, i.e. 0.75; mesh VDTM 0.129 -> 0.031).
 EDGE_ERROR_RATIO = 0.85
+#: Renderers' default: one sample per pixel (each test sets the factor it measures).
+ONE = RenderOptions(supersample=1)
 
 
 @pytest.fixture(scope="module")
@@ -27,17 +30,17 @@ def model():
 
 @pytest.mark.parametrize("factor", [2, 3])
 def test_gpu_resolve_matches_twin(gl_ctx, model, factor):
-    r = MicrofacetRenderer.from_model(gl_ctx, model)
+    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE)
     try:
         eye = scene.ring_cameras(12, phase_deg=13, elevations=(10,))[1]
-        fr = r.render(eye, 4.0, supersample=factor)
-        big_c, big_d = r._ss.read_big()
+        fr = r.render(eye, tolerance_px=4.0, supersample=factor)
+        big_c, big_d = r.frame_samples()
         assert big_c.shape[:2] == (eye.height * factor, eye.width * factor)
         col, d01 = box_resolve(gl_rows_to_image(big_c), gl_rows_to_image(big_d), factor)
         np.testing.assert_allclose(fr.rgb, col[..., :3], atol=1e-6)
         np.testing.assert_allclose(fr.coverage, col[..., 3], atol=1e-6)
         assert np.array_equal(fr.alpha, col[..., 3] > 0)
-        near, far = mg.near_far(eye, model.bounds)
+        near, far = near_far(eye, model.bounds)
         z = gl_ndc_depth_to_z(d01, near, far)
         np.testing.assert_allclose(fr.depth[fr.alpha], z[fr.alpha], rtol=1e-5)
         assert np.all(fr.depth[~fr.alpha] == 0)
@@ -50,12 +53,12 @@ def test_gpu_resolve_matches_twin(gl_ctx, model, factor):
 def test_supersampled_frame_is_box_average_of_large_frame(gl_ctx, model):
     """Drawing at factor f and resolving equals drawing the scaled eye at f x the size (same
     level and spacing: E is given in output pixels) and averaging in numpy."""
-    r = MicrofacetRenderer.from_model(gl_ctx, model)
+    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE)
     try:
         eye = scene.ring_cameras(12, phase_deg=21, elevations=(12,))[5]
-        a = r.render(eye, 8.0, supersample=2)
-        big = r.render(eye.scaled(2), 16.0)
-        assert (a.level, a.spacing) == (big.level, big.spacing)
+        a = r.render(eye, tolerance_px=8.0, supersample=2)
+        big = r.render(eye.scaled(2), tolerance_px=16.0)
+        assert (a.stats.level, a.stats.spacing) == (big.stats.level, big.stats.spacing)
         H, W = eye.height, eye.width
         ref = big.rgb.reshape(H, 2, W, 2, 3).mean(axis=(1, 3))
         assert_images_close(a.rgb, ref, mean_tol=1e-6, max_tol=1e-5, what="supersampled vs averaged")
@@ -65,8 +68,8 @@ def test_supersampled_frame_is_box_average_of_large_frame(gl_ctx, model):
 
 def test_supersampling_reduces_edge_error(gl_ctx, model):
     """Against an area-sampled exact image of an unseen view, 2x2 samples beat 1 (edges)."""
-    r = MicrofacetRenderer.from_model(gl_ctx, model)
-    v = VdtmRenderer.from_model(gl_ctx, model)
+    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE)
+    v = VdtmRenderer.from_model(gl_ctx, model, ONE)
     try:
         eye = scene.ring_cameras(12, phase_deg=15, elevations=(5,))[2]
         big_rgb, big_depth = scene.render_rgbz(eye.scaled(4))
@@ -75,7 +78,7 @@ def test_supersampling_reduces_edge_error(gl_ctx, model):
         cover = (big_depth > 0).reshape(H, 4, W, 4).mean(axis=(1, 3))
         edge = (cover > 0) & (cover < 1)
         assert edge.sum() > 100
-        for rend in (lambda f: r.render(eye, 2.0, supersample=f), lambda f: v.render(eye, supersample=f)):
+        for rend in (lambda f: r.render(eye, tolerance_px=2.0, supersample=f), lambda f: v.render(eye, supersample=f)):
             err = [float(np.mean(np.abs(rend(f).rgb - exact)[edge])) for f in (1, 2)]
             assert err[1] < EDGE_ERROR_RATIO * err[0], err
     finally:

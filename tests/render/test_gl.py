@@ -65,3 +65,30 @@ def test_program_from_included_shader_runs(gl_ctx, tmp_path, monkeypatch):
     assert np.array_equal(got, 2 * xs + 1)
     for o in (vao, fbo, tex, vbo, prog):
         o.release()
+
+
+def test_twin_constants_come_from_python(tmp_path, monkeypatch):
+    """An include listed in TWIN_CONSTANTS gets its numpy twin's constants as #defines wherever it
+    is expanded (after #version when it has one); the shipped shaders use the injected names."""
+    from render.shading import sg
+
+    src = rgl.load_shader("composite_shadow_frag.glsl")
+    for name, value in (("SG_COS_LAMBDA", sg.COS_LOBE_LAMBDA), ("SG_COS_MU", sg.COS_LOBE_MU),
+                        ("SG_PRODUCT_AXIS_EPS", sg.PRODUCT_AXIS_EPS)):
+        line = next(ln for ln in src.splitlines() if ln.startswith(f"#define {name} "))
+        assert float(line.split()[2]) == value
+    body = (rgl.SHADER_DIR / "shading_sg.glsl").read_text()
+    assert "SG_PRODUCT_AXIS_EPS * s" in body and "1e-7" not in body
+    monkeypatch.setattr(rgl, "SHADER_DIR", tmp_path)
+    monkeypatch.setitem(rgl.TWIN_CONSTANTS, "t.glsl", lambda: {"K": 2})
+    (tmp_path / "t.glsl").write_text("#version 430\nvoid main(){}\n")
+    (tmp_path / "u.glsl").write_text('#version 430\n#include "t.glsl"\n')
+    assert rgl.load_shader("t.glsl").splitlines()[:2] == ["#version 430", "#define K 2"]
+    assert "#define K 2" in rgl.load_shader("u.glsl").splitlines()
+
+
+def test_hair_threshold_comes_from_python():
+    from render.raster import HAIR_TANGENT_SQ, shaded_defines
+
+    assert float(shaded_defines("table")["HAIR_TANGENT_SQ"]) == HAIR_TANGENT_SQ
+    assert "> HAIR_TANGENT_SQ" in (rgl.SHADER_DIR / "raster_shaded_frag.glsl").read_text()

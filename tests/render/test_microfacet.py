@@ -9,10 +9,15 @@ import pytest
 from capture.camera import Camera, look_at
 from capture.scan import to_uint8_srgb
 from render import microfacet_geometry as mg
+from render import microfacet_lod as mlod
+from render.methods import RenderOptions
 from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
 from render.microfacet_reference import reference_render
 from tests.conftest import assert_images_close, image_diff_stats
 from tests import scenes as scene
+
+#: One sample per pixel: the numpy twins shade pixel centres.
+ONE = RenderOptions(supersample=1)
 
 #: GPU (float32) vs twin (float64): colour difference allowed per value, and the share of
 #: pixels allowed to differ (texel-boundary / slice-edge ties).
@@ -30,7 +35,7 @@ def model():
 
 @pytest.fixture(scope="module")
 def renderer(gl_ctx, model):
-    r = MicrofacetRenderer.from_model(gl_ctx, model)
+    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE)
     yield r
     r.release()
 
@@ -38,24 +43,24 @@ def renderer(gl_ctx, model):
 # ------------------------------------------------------------------ equations by hand
 def test_eq10_spacing_by_hand():
     w = 0.004
-    assert mg.eq10_spacing(0.001, 0.0, w) == pytest.approx(w)  # phi -> 0: l = w cos 0
+    assert mlod.eq10_spacing(0.001, 0.0, w) == pytest.approx(w)  # phi -> 0: l = w cos 0
     phi = np.radians(30)
-    assert mg.eq10_spacing(0.001, phi, w) == pytest.approx(0.001 / np.tan(phi))  # 1.732 mm < 3.46 mm
-    assert mg.eq10_spacing(0.1, phi, w) == pytest.approx(w * np.cos(phi))  # geometric bound wins
+    assert mlod.eq10_spacing(0.001, phi, w) == pytest.approx(0.001 / np.tan(phi))  # 1.732 mm < 3.46 mm
+    assert mlod.eq10_spacing(0.1, phi, w) == pytest.approx(w * np.cos(phi))  # geometric bound wins
     # grazing: both bounds shrink towards 0 as phi -> 90 degrees
-    assert mg.eq10_spacing(0.001, np.radians(89.9), w) < 0.0001
-    assert mg.eq10_spacing(0.001, np.pi / 2, w) == pytest.approx(0.0, abs=1e-12)
+    assert mlod.eq10_spacing(0.001, np.radians(89.9), w) < 0.0001
+    assert mlod.eq10_spacing(0.001, np.pi / 2, w) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_eq11_level_by_hand():
     ws = [0.064, 0.032, 0.016, 0.008]
-    assert mg.eq11_level(0.02, 0.0, ws) == 1  # 0.016 < 0.02 <= 0.032
-    assert mg.eq11_level(0.032, 0.0, ws) == 1  # upper bound inclusive
-    assert mg.eq11_level(0.016, 0.0, ws) == 2
-    assert mg.eq11_level(0.1, 0.0, ws) == 0  # coarser than every level
-    assert mg.eq11_level(0.001, 0.0, ws) == 3  # finer than every level
+    assert mlod.eq11_level(0.02, 0.0, ws) == 1  # 0.016 < 0.02 <= 0.032
+    assert mlod.eq11_level(0.032, 0.0, ws) == 1  # upper bound inclusive
+    assert mlod.eq11_level(0.016, 0.0, ws) == 2
+    assert mlod.eq11_level(0.1, 0.0, ws) == 0  # coarser than every level
+    assert mlod.eq11_level(0.001, 0.0, ws) == 3  # finer than every level
     c = np.cos(np.radians(60))  # 0.5: intervals halve
-    assert mg.eq11_level(0.01, np.radians(60), ws) == 1  # 0.008 < 0.01 <= 0.016
+    assert mlod.eq11_level(0.01, np.radians(60), ws) == 1  # 0.008 < 0.01 <= 0.016
 
 
 def test_slice_distances_by_hand():
@@ -105,11 +110,11 @@ def _twin(model, eye, level, spacing, rule="vote", n_fallback=None, refine=None)
 
 @pytest.mark.parametrize("rule,n_fallback", [("vote", 0), ("vote", 3), ("any", 1), ("any", 3)])
 def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
-    r = MicrofacetRenderer.from_model(gl_ctx, model, rule=rule, n_fallback=n_fallback)
+    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE, rule=rule, n_fallback=n_fallback)
     try:
         eye = scene.ring_cameras(12, phase_deg=19, elevations=(8,))[3]
-        fr = r.render(eye, 4.0, level=2)
-        img, alive, _ = _twin(model, eye, 2, fr.spacing, rule, n_fallback)
+        fr = r.render(eye, tolerance_px=4.0, level=2)
+        img, alive, _ = _twin(model, eye, 2, fr.stats.spacing, rule, n_fallback)
         assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                             outlier_frac=TWIN_OUTLIER_FRAC, what=f"{rule}/{n_fallback} vs twin")
@@ -120,21 +125,21 @@ def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
 @pytest.mark.parametrize("mode", ["instanced", "geometry"])
 def test_gpu_matches_numpy_twin(gl_ctx, model, mode):
     """Slices, camera selection, Eq. 2 and the blend on the GPU equal the float64 twin."""
-    r = MicrofacetRenderer.from_model(gl_ctx, model, mode=mode)
+    r = MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(mode=mode, supersample=1))
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
-        fr = r.render(eye, 2.0, level=2)
-        img, alive, (vox, n) = _twin(model, eye, 2, fr.spacing)
-        assert fr.facets == len(vox)
+        fr = r.render(eye, tolerance_px=2.0, level=2)
+        img, alive, (vox, n) = _twin(model, eye, 2, fr.stats.spacing)
+        assert fr.stats.facets == len(vox)
         if mode == "instanced":
-            rec = r.read_slices(fr.facets)
+            rec = r.read_slices(fr.stats.facets)
             assert set(zip(rec["voxel"].tolist(), rec["n"].tolist())) == set(zip(vox.tolist(), n.tolist()))
             lv = model.pyramid.levels[2]
             idx, w = mg.select_cameras(lv.centers(), mg.footprint_radius(lv.voxel_size), eye.center,
                                        model.rgbz.cameras)
             np.testing.assert_array_equal(rec["cand"], idx[rec["voxel"]])
             np.testing.assert_allclose(rec["weights"], w[rec["voxel"]], atol=WEIGHT_TOL)
-            np.testing.assert_allclose(rec["s"], rec["n"] * fr.spacing, rtol=1e-6)
+            np.testing.assert_allclose(rec["s"], rec["n"] * fr.stats.spacing, rtol=1e-6)
         assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                             outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} vs twin")
@@ -143,12 +148,12 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, mode):
 
 
 def test_geometry_shader_equals_instanced(gl_ctx, model, renderer):
-    g = MicrofacetRenderer.from_model(gl_ctx, model, mode="geometry")
+    g = MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(mode="geometry", supersample=1))
     try:
         eye = scene.ring_cameras(12, phase_deg=11)[4]
-        a = renderer.render(eye, 4.0)
-        b = g.render(eye, 4.0)
-        assert (a.level, a.facets) == (b.level, b.facets)
+        a = renderer.render(eye, tolerance_px=4.0)
+        b = g.render(eye, tolerance_px=4.0)
+        assert (a.stats.level, a.stats.facets) == (b.stats.level, b.stats.facets)
         assert np.mean(a.alpha != b.alpha) <= TWIN_OUTLIER_FRAC
         assert_images_close(a.rgb, b.rgb, mean_tol=1e-4, max_tol=1e-3, outlier_frac=TWIN_OUTLIER_FRAC)
     finally:
@@ -164,13 +169,13 @@ INPUT_POSE_MIN_PSNR = 45.0
 def test_input_pose_reproduces_input(renderer, model, tolerance):
     for i in (0, 5):
         cam = model.rgbz.cameras[i]
-        fr = renderer.render(cam, tolerance)
+        fr = renderer.render(cam, tolerance_px=tolerance)
         ref = to_uint8_srgb(model.rgbz.rgb[i])
         mask = (model.rgbz.depth[i] > 0) | fr.alpha
         st = image_diff_stats(to_uint8_srgb(fr.rgb), ref, mask)
         assert st["psnr"] > INPUT_POSE_MIN_PSNR, st
         for lev in range(len(model.pyramid.levels)):  # every level, not only the automatic one
-            fl = renderer.render(cam, tolerance, level=lev)
+            fl = renderer.render(cam, tolerance_px=tolerance, level=lev)
             st = image_diff_stats(to_uint8_srgb(fl.rgb), ref, (model.rgbz.depth[i] > 0) | fl.alpha)
             assert st["psnr"] > INPUT_POSE_MIN_PSNR, (lev, st)
 
@@ -179,15 +184,15 @@ def test_input_pose_reproduces_input(renderer, model, tolerance):
 def test_one_camera_only(gl_ctx):
     cams = scene.ring_cameras(12)[:1]
     m = scene.build_model(cams)
-    r = MicrofacetRenderer.from_model(gl_ctx, m)
+    r = MicrofacetRenderer.from_model(gl_ctx, m, ONE)
     try:
-        fr = r.render(cams[0], 8.0)
+        fr = r.render(cams[0], tolerance_px=8.0)
         st = image_diff_stats(to_uint8_srgb(fr.rgb), to_uint8_srgb(m.rgbz.rgb[0]), (m.rgbz.depth[0] > 0) | fr.alpha)
         assert st["psnr"] > INPUT_POSE_MIN_PSNR
         eye = scene.ring_cameras(12, phase_deg=10)[0]
-        fr = r.render(eye, 8.0)
+        fr = r.render(eye, tolerance_px=8.0)
         assert np.all(np.isfinite(fr.rgb)) and fr.alpha.any()
-        img, alive, _ = _twin(m, eye, fr.level, fr.spacing)
+        img, alive, _ = _twin(m, eye, fr.stats.level, fr.stats.spacing)
         assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
     finally:
         r.release()
@@ -199,9 +204,9 @@ def test_eye_inside_bounds(renderer, model):
     K = model.rgbz.cameras[0].K
     eye = Camera(K, look_at([0.11, -0.09, 0.1], [0.0, 0.0, 0.0]), 96, 72)
     assert np.all(eye.center > model.bounds[0]) and np.all(eye.center < model.bounds[1])
-    fr = renderer.render(eye, 4.0, level=2)
+    fr = renderer.render(eye, tolerance_px=4.0, level=2)
     assert np.all(np.isfinite(fr.rgb)) and fr.alpha.any()
-    img, alive, _ = _twin(model, eye, 2, fr.spacing)
+    img, alive, _ = _twin(model, eye, 2, fr.stats.spacing)
     assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
     assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                         outlier_frac=TWIN_OUTLIER_FRAC)
@@ -215,7 +220,7 @@ def test_eye_exactly_on_input_camera(model):
     idx, w = mg.select_cameras(lv.centers(), 0.0, cam.center, model.rgbz.cameras)
     assert np.all(np.isfinite(w))
     assert np.all(idx[:, 0] == 3) and np.all(w[:, 0] > 0.999)
-    lod = mg.choose_lod(cam, model.bounds.mean(0), model.rgbz.cameras, [x.voxel_size for x in model.pyramid.levels],
+    lod = mlod.choose_lod(cam, model.bounds.mean(0), model.rgbz.cameras, [x.voxel_size for x in model.pyramid.levels],
                         [len(x.surface) for x in model.pyramid.levels], 8.0)
     assert lod.level == 0 and lod.spacing == pytest.approx(model.pyramid.levels[0].voxel_size, rel=1e-6)
 
@@ -227,11 +232,11 @@ def test_grazing_view(renderer, model):
     eye = Camera(K, look_at([0.0, 0.001, 0.45], [0.0, 0.0, 0.0]), 96, 72)
     lod = renderer.choose_lod(eye, 2.0)
     assert np.degrees(lod.phi) > 60
-    fr = renderer.render(eye, 2.0)
-    w = model.pyramid.levels[fr.level].voxel_size
-    assert fr.spacing >= mg.min_spacing(w) * (1 - 1e-9)
-    assert fr.facets <= mg.MAX_SLICES * len(model.pyramid.levels[fr.level].surface)
-    img, alive, _ = _twin(model, eye, fr.level, fr.spacing)
+    fr = renderer.render(eye, tolerance_px=2.0)
+    w = model.pyramid.levels[fr.stats.level].voxel_size
+    assert fr.stats.spacing >= mlod.min_spacing(w) * (1 - 1e-9)
+    assert fr.stats.facets <= mg.MAX_SLICES * len(model.pyramid.levels[fr.stats.level].surface)
+    img, alive, _ = _twin(model, eye, fr.stats.level, fr.stats.spacing)
     assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
     assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                         outlier_frac=TWIN_OUTLIER_FRAC)
@@ -253,28 +258,28 @@ def test_empty_level(gl_ctx):
     cams = scene.ring_cameras(12)
     # Eq. 11 on an empty level: the nearest non-empty level, the finer one on ties
     ws = [0.064, 0.032, 0.016, 0.008]
-    lod = mg.choose_lod(cams[2], np.zeros(3), cams, ws, [0, 0, 850, 4000], 8.0)  # eye on a camera: wants 0
+    lod = mlod.choose_lod(cams[2], np.zeros(3), cams, ws, [0, 0, 850, 4000], 8.0)  # eye on a camera: wants 0
     assert lod.level == 2
     off = scene.ring_cameras(12, phase_deg=15)[2]  # between two cameras, tiny E: wants the finest
-    lod = mg.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 0, 4000], 1e-4)
-    lod2 = mg.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 50, 0], 1e-4)
+    lod = mlod.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 0, 4000], 1e-4)
+    lod2 = mlod.choose_lod(off, np.zeros(3), cams, ws, [10, 0, 50, 0], 1e-4)
     assert lod.level == 3 and lod2.level == 2
     # empty coarse levels of a model are filled by the ancestors of the finest level
     m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8))
-    r = MicrofacetRenderer.from_model(gl_ctx, m)
+    r = MicrofacetRenderer.from_model(gl_ctx, m, ONE)
     try:
         assert r.counts[0] > 0 and r.counts[1] > 0
-        fr = r.render(cams[2], 8.0)
-        assert fr.level == 0 and fr.facets > 0
+        fr = r.render(cams[2], tolerance_px=8.0)
+        assert fr.stats.level == 0 and fr.stats.facets > 0
     finally:
         r.release()
     # every level empty: a black frame, no facet, level -1
     m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8, 16, 32))
-    r = MicrofacetRenderer.from_model(gl_ctx, m)
+    r = MicrofacetRenderer.from_model(gl_ctx, m, ONE)
     try:
         for level in (None, 0, 3):
-            fr = r.render(cams[2], 8.0, level=level)
-            assert fr.level == -1 and fr.facets == 0 and not fr.alpha.any() and not fr.rgb.any()
+            fr = r.render(cams[2], tolerance_px=8.0, level=level)
+            assert fr.stats.level == -1 and fr.stats.facets == 0 and not fr.alpha.any() and not fr.rgb.any()
     finally:
         r.release()
 
@@ -284,12 +289,12 @@ def test_frame_depth_is_within_half_a_slice_of_the_surface(renderer, model):
     l/2 of its RGBz depth, so the drawn depth lies within l/2 of the true surface (plus the
     depth of the texel's footprint on the sphere; 95% of pixels)."""
     cam = model.rgbz.cameras[3]
-    fr = renderer.render(cam, 8.0)
+    fr = renderer.render(cam, tolerance_px=8.0)
     true = model.rgbz.depth[3]
     both = (fr.depth > 0) & (true > 0)
     assert both.sum() > 0.8 * (true > 0).sum()
     err = np.abs(fr.depth[both] - true[both])
-    assert np.quantile(err, 0.95) <= 0.5 * fr.spacing + 1e-6, (np.quantile(err, 0.95), fr.spacing)
+    assert np.quantile(err, 0.95) <= 0.5 * fr.stats.spacing + 1e-6, (np.quantile(err, 0.95), fr.stats.spacing)
     assert np.all(fr.depth[~fr.alpha] == 0)
 
 
@@ -306,12 +311,12 @@ def test_refinement_matches_twin_and_reduces_parallax(gl_ctx, model):
     exact, exact_depth = scene.render_rgbz(eye)
     psnr = {}
     for refine in (0, 2):
-        r = MicrofacetRenderer.from_model(gl_ctx, model, refine=refine)
+        r = MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(refine=refine, supersample=1))
         try:
-            fr = r.render(eye, 8.0, level=1)
+            fr = r.render(eye, tolerance_px=8.0, level=1)
         finally:
             r.release()
-        img, alive, _ = _twin(model, eye, 1, fr.spacing, refine=refine)
+        img, alive, _ = _twin(model, eye, 1, fr.stats.spacing, refine=refine)
         assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                             outlier_frac=TWIN_OUTLIER_FRAC, what=f"refine={refine} vs twin")
@@ -322,4 +327,4 @@ def test_refinement_matches_twin_and_reduces_parallax(gl_ctx, model):
 
 def test_refine_steps_validated(gl_ctx, model):
     with pytest.raises(ValueError, match="refine"):
-        MicrofacetRenderer.from_model(gl_ctx, model, refine=-1)
+        MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(refine=-1))

@@ -8,7 +8,8 @@ import pytest
 from capture.scan import to_uint8_srgb
 from render.raster import RasterMesh
 from render.raster_reference import rasterize_reference
-from render.vdtm import VdtmRenderer, render_vertex_colour, vdtm_reference
+from render.methods import RenderOptions
+from render.vdtm import MeshColourRenderer, VdtmRenderer, vdtm_reference
 from tests.conftest import assert_images_close, image_diff_stats
 from tests import scenes as scene
 
@@ -16,6 +17,8 @@ from tests import scenes as scene
 #: texel-boundary ties) and the colour tolerance per value.
 EDGE_FRAC = 0.01
 COLOUR_TOL = 2e-3
+#: One sample per pixel: the numpy twin shades pixel centres.
+ONE = RenderOptions(supersample=1)
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +27,7 @@ def model():
 
 
 def test_vdtm_matches_numpy_twin(gl_ctx, model):
-    r = VdtmRenderer.from_model(gl_ctx, model)
+    r = VdtmRenderer.from_model(gl_ctx, model, ONE)
     try:
         eye = scene.ring_cameras(12, phase_deg=13, elevations=(20,))[2]
         fr = r.render(eye)
@@ -42,7 +45,7 @@ def test_vdtm_matches_numpy_twin(gl_ctx, model):
 def test_vdtm_input_pose(gl_ctx, model):
     """At an input camera the baseline shows that camera's image inside the mesh silhouette
     (which differs from the true one by the marching-cubes error: compare inside both)."""
-    r = VdtmRenderer.from_model(gl_ctx, model)
+    r = VdtmRenderer.from_model(gl_ctx, model, ONE)
     try:
         cam = model.rgbz.cameras[4]
         fr = r.render(cam)
@@ -55,7 +58,8 @@ def test_vdtm_input_pose(gl_ctx, model):
 
 def test_vertex_colour_floor(gl_ctx, model):
     cam = model.rgbz.cameras[0]
-    fr = render_vertex_colour(gl_ctx, model, cam)
+    with MeshColourRenderer.from_model(gl_ctx, model, ONE) as r:
+        fr = r.render(cam)
     inside = fr.alpha & (model.rgbz.depth[0] > 0)
     assert inside.sum() > 0.9 * (model.rgbz.depth[0] > 0).sum()
     st = image_diff_stats(to_uint8_srgb(fr.rgb), to_uint8_srgb(model.rgbz.rgb[0]), inside)

@@ -1,0 +1,52 @@
+"""``furrow render --method NAME``: every registered method through the one interface."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from capture.imageio import read_color
+from capture.scan import to_uint8_srgb
+from furrow.cli import main
+from render.methods import METHODS
+from tests.conftest import image_diff_stats
+from tests import scenes as scene
+from tests.furrow.test_cmd_render import _transforms
+from volume.model import save_model
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("methods")
+    cams = scene.ring_cameras(12)
+    model = scene.build_model(cams)
+    save_model(model, tmp / "model")
+    return tmp, model, _transforms(cams, tmp / "transforms.json")
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_every_method_renders_the_input_pose(setup, method):
+    tmp, model, tj = setup
+    out = tmp / method
+    assert main(["render", str(tmp / "model"), "--cameras", str(tj), "--frames", "4", "--method", method,
+                 "--supersample", "2", "-o", str(out)]) == 0
+    img = read_color(out / "cam_004.png")
+    fg = model.rgbz.depth[4] > 0
+    # the object's input image, away from the silhouette (the mesh methods draw a marching-cubes mesh)
+    inner = fg & np.roll(fg, 2, 0) & np.roll(fg, -2, 0) & np.roll(fg, 2, 1) & np.roll(fg, -2, 1)
+    st = image_diff_stats(img, to_uint8_srgb(model.rgbz.rgb[4]), inner)
+    assert st["psnr"] > 25.0, (method, st)
+    stats = json.loads((out / "render_stats.json").read_text())
+    assert stats["method"] == method and stats["supersample"] == 2
+    assert stats["frames"][0]["supersample"] == 2 and stats["frames"][0]["facets"] > 0
+
+
+def test_options_a_method_ignores_are_rejected(setup, capsys):
+    tmp, _, tj = setup
+    base = ["render", str(tmp / "model"), "--cameras", str(tj), "-o", str(tmp / "bad")]
+    assert main(base + ["--method", "mesh-colour", "--tolerance", "4"]) == 1
+    assert "--tolerance does not apply to --method mesh-colour" in capsys.readouterr().err
+    assert main(base + ["--method", "mesh-vdtm", "--level", "8"]) == 1
+    assert not (tmp / "bad").exists()
