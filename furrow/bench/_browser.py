@@ -19,7 +19,7 @@ CHROMIUM_ARGS = ("--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-s
 VISER_DEFAULT_FOV = 1.3089969389957472
 #: Seconds to wait for the server's URL, the page's first frame, a still frame.
 START_TIMEOUT_S = 120.0
-FRAME_TIMEOUT_S = 120.0
+FRAME_TIMEOUT_S = 240.0
 #: The readout line that says a full frame with these samples per pixel was shown.
 STILL_TEXT = r"still: {w}x{h}, {s}x{s} samples"
 
