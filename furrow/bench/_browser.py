@@ -88,6 +88,12 @@ def wait_still(page, width: int, height: int, samples: int, timeout_s: float = F
     page.get_by_text(pattern).wait_for(timeout=timeout_s * 1000)
 
 
+def wait_opaque(page, timeout_s: float = FRAME_TIMEOUT_S) -> None:
+    """Wait until viser's canvases have faded in (they start translucent over a white page)."""
+    page.wait_for_function("() => [...document.querySelectorAll('canvas')]"
+                           ".every(c => getComputedStyle(c).opacity === '1')", timeout=timeout_s * 1000)
+
+
 def hide_overlays(page) -> None:
     """Uncheck the capture-camera frustums and hide viser's panel and notifications, so that a
     screenshot shows the server's picture alone."""
