@@ -8,7 +8,9 @@ own frame log (render.viewer.session.FrameLog, as ``furrow view --stats`` writes
 * while dragging: frames per second sent and their height (lines); target >= 10 fps at >= 240
   lines;
 * after each stop: seconds from the last camera change to the full 640x480 frame (one sample
-  per pixel, JPEG), and to the supersampled one (PNG); target <= 0.5 s for the full frame.
+  per pixel, JPEG), and to the supersampled one (PNG); target <= 0.5 s for the full frame;
+* a cost table: wall and process-CPU milliseconds of a whole frame (draw, read back, encode) at
+  fixed sizes, side by side: the CPU figures do not grow with the machine's other load.
 
 Two drivers: ``server`` (default) runs the viewer's GL thread and a client session in this
 process and encodes each frame as viser would (render.viewer.session.transport_quality), without a
@@ -43,6 +45,9 @@ TARGET_FPS, TARGET_LINES, TARGET_STILL_S = 10.0, 240, 0.5
 UPDATE_HZ, DEG_PER_S = 60.0, 45.0
 #: Seconds after each stop for the still frames; seconds of each drag not counted (ramp-up).
 SETTLE_S, RAMP_S = 2.5, 0.5
+#: Cost table: heights of the one-sample frames, orbit views per row.
+COST_LINES = (120, 240, 360, 480)
+COST_FRAMES = 8
 #: Moving frames further apart than this belong to different drags; shorter drags are ignored.
 SEGMENT_GAP_S, MIN_DRAG_S = 1.0, 1.0
 
@@ -137,6 +142,41 @@ def drive_browser(model_dir: Path, drag_s: float, repeats: int, out: Path) -> li
     return json.loads(stats.read_text())["frames"]
 
 
+def cost_table(model, n: int = COST_FRAMES) -> list[dict]:
+    """Whole-pipeline cost of one frame (draw, read back, sRGB, encode) at fixed heights, with one
+    sample per pixel (moving frames, JPEG) and, at full size, supersampled (the still frame, PNG):
+    median wall ms and median process CPU ms (every thread of this process, llvmpipe's included)
+    over ``n`` orbit views.  CPU ms does not grow with other load on the machine: on an idle
+    machine a frame takes at most about its CPU time (less when llvmpipe's threads overlap)."""
+    from render.viewer.gl_worker import GLWorker
+    from render.viewer.session import FULL_JPEG_QUALITY, MOVING_JPEG_QUALITY
+    from render.viewer.settings import ViewSettings
+    from render.viewer.views import draw
+
+    fov = 2 * np.arctan(0.5 * SIZE[1] / model.rgbz.cameras[0].K[1, 1])
+    views = orbit_views(model, n, *SIZE, fov)
+    settings = ViewSettings()
+    worker = GLWorker(model)
+    rows = []
+    try:
+        worker.call(lambda sc: draw(sc, views[0].camera(*SIZE), settings, 2))  # renderer made, shaders compiled
+        for lines, ss, quality in [(h, 1, MOVING_JPEG_QUALITY) for h in COST_LINES] + [(SIZE[1], 1, FULL_JPEG_QUALITY),
+                                                                                       (SIZE[1], 2, None)]:
+            size = (round(lines * SIZE[0] / SIZE[1]), lines)
+            wall, cpu = [], []
+            for v in views:
+                t0, c0 = time.perf_counter(), time.process_time()
+                drawn = worker.call(lambda sc, v=v, size=size, ss=ss: draw(sc, v.camera(*size), settings, ss))
+                encode(drawn.image, quality)
+                wall.append((time.perf_counter() - t0) * 1e3)
+                cpu.append((time.process_time() - c0) * 1e3)
+            rows.append({"width": size[0], "height": lines, "supersample": ss, "format": "png" if quality is None
+                         else f"jpeg{quality}", "wall_ms": float(np.median(wall)), "cpu_ms": float(np.median(cpu))})
+    finally:
+        worker.close()
+    return rows
+
+
 def segments(frames: list[dict]) -> list[list[dict]]:
     """The moving frames split into drags (a gap of more than SEGMENT_GAP_S between two)."""
     mv = sorted((f for f in frames if f["moving"]), key=lambda f: f["t"])
@@ -189,15 +229,16 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     model_dir = args.model or build_model(args.out)
+    from volume.model import load_model
+
     load0 = os.getloadavg()
     if args.driver == "server":
-        from volume.model import load_model
-
         frames = drive_server(load_model(model_dir), args.drag_s, args.repeats)
     else:
         frames = drive_browser(model_dir, args.drag_s, args.repeats, args.out)
+    costs = cost_table(load_model(model_dir))
     res = {"driver": args.driver, "model": str(model_dir), "size": list(SIZE), "load_before": list(load0),
-           "load_after": list(os.getloadavg()), "cpus": os.cpu_count(), **summarise(frames)}
+           "load_after": list(os.getloadavg()), "cpus": os.cpu_count(), **summarise(frames), "costs": costs}
     (args.out / f"bench_view_{args.driver}.json").write_text(json.dumps({**res, "frames": frames}, indent=1))
     m = res["median"]
     ok = (m["fps"] >= TARGET_FPS and m["lines"] >= TARGET_LINES, m["full_s"] <= TARGET_STILL_S)
@@ -210,6 +251,11 @@ def main(argv=None) -> int:
         for i, d in enumerate(r["drags"]):
             print(f"{i:>4} {d['fps']:>6.1f} {d['lines']:>6.0f} {d['moving_ms']:>9.1f} {d['moving_cpu_ms']:>7.1f} "
                   f"{d['full_s']:>7.3f} {d['full_cpu_ms']:>7.1f} {d['refined_s']:>15.3f}")
+        print("whole-frame cost (draw, read back, encode), medians over orbit views:")
+        print(f"{'size':>9} {'samples':>7} {'format':>7} {'wall ms':>8} {'CPU ms':>7} {'fps if CPU-bound':>17}")
+        for c in r["costs"]:
+            print(f"{c['width']:>4}x{c['height']:<4} {c['supersample']:>7} {c['format']:>7} {c['wall_ms']:>8.1f} "
+                  f"{c['cpu_ms']:>7.1f} {1000 / c['cpu_ms']:>17.1f}")
 
     return print_result(res, args.json, tables,
                         f"median while dragging: {m['fps']:.1f} fps at {m['lines']:.0f} lines "
