@@ -49,7 +49,7 @@ SETTLE_S, RAMP_S = 2.5, 0.5
 COST_LINES = (120, 240, 360, 480)
 COST_FRAMES = 8
 #: Moving frames further apart than this belong to different drags; shorter drags are ignored.
-SEGMENT_GAP_S, MIN_DRAG_S = 1.0, 1.0
+SEGMENT_GAP_S, MIN_DRAG_S = 2.0, 1.0
 
 
 def build_model(out: Path) -> Path:
