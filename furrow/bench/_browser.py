@@ -5,7 +5,6 @@ here; SwiftShader gives the page WebGL).  Used by the viewer's tests and ``furro
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -20,8 +19,9 @@ VISER_DEFAULT_FOV = 1.3089969389957472
 #: Seconds to wait for the server's URL, the page's first frame, a still frame.
 START_TIMEOUT_S = 120.0
 FRAME_TIMEOUT_S = 240.0
-#: The readout line that says a full frame with these samples per pixel was shown.
-STILL_TEXT = r"still: {w}x{h}, {s}x{s} samples"
+#: The readout line that says a full frame with these samples per pixel was shown (the still
+#: frames' count before the colon).
+STILL_TEXT = r"still #(\d+): {w}x{h}, {s}x{s} samples"
 
 
 def find_chromium() -> str | None:
@@ -81,11 +81,17 @@ class ViewProcess:
             self.proc.communicate()
 
 
-def wait_still(page, width: int, height: int, samples: int, timeout_s: float = FRAME_TIMEOUT_S) -> None:
+def wait_still(page, width: int, height: int, samples: int, after: int = 0,
+               timeout_s: float = FRAME_TIMEOUT_S) -> int:
     """Wait until the page's readout reports a full ``width`` x ``height`` frame with ``samples``
-    x ``samples`` samples per pixel."""
-    pattern = re.compile(STILL_TEXT.format(w=width, h=height, s=samples))
-    page.get_by_text(pattern).wait_for(timeout=timeout_s * 1000)
+    x ``samples`` samples per pixel that is still frame number ``after + 1`` or later; returns
+    its number."""
+    pattern = STILL_TEXT.format(w=width, h=height, s=samples)
+    handle = page.wait_for_function(
+        "([p, n]) => { const m = document.body.innerText.match(new RegExp(p)); "
+        "return m && parseInt(m[1]) > n ? parseInt(m[1]) : null; }", arg=[pattern, after],
+        timeout=timeout_s * 1000)
+    return int(handle.json_value())
 
 
 def wait_opaque(page, timeout_s: float = FRAME_TIMEOUT_S) -> None:

@@ -120,8 +120,9 @@ def on_settings_change(controls: Controls, apply: Callable[[ViewSettings], None]
         h.on_update(changed)
 
 
-def readout_text(recent: list[dict], last_full: dict | None, level: str) -> str:
-    """The readout: moving fps and frame size over the recent frames, the last full frame's time."""
+def readout_text(recent: list[dict], last_full: dict | None, level: str, still_count: int = 0) -> str:
+    """The readout: moving fps and frame size over the recent frames, the last full frame's time
+    (and how many still frames were sent so far: "still #N")."""
     lines = []
     moving = [r for r in recent if r["moving"]][-READOUT_WINDOW:]
     if len(moving) >= 2:
@@ -131,7 +132,7 @@ def readout_text(recent: list[dict], last_full: dict | None, level: str) -> str:
                      f"{moving[-1]['total_ms']:.0f} ms/frame")
     if last_full is not None:
         ss = last_full.get("supersample", 1)
-        lines.append(f"still: {last_full['width']}x{last_full['height']}, {ss}x{ss} samples, "
+        lines.append(f"still #{still_count}: {last_full['width']}x{last_full['height']}, {ss}x{ss} samples, "
                      f"{last_full['total_ms']:.0f} ms (render {last_full['ms']:.0f} ms)")
     if level:
         lines.append(level)

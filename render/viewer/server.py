@@ -75,6 +75,7 @@ class Viewer:
         self.sessions: dict[int, Session] = {}
         self._lock = threading.Lock()
         self._closed = False
+        self._frustums: list[dict] | None = None
         check_port(host, port)
         from render.viewer.gl_worker import GLWorker
 
@@ -94,7 +95,6 @@ class Viewer:
             server.stop()
             raise PortInUse(f"port {port} on {host} is in use (choose another with --port)")
         self.port = server.get_port()
-        self.frustums = self._add_frustums(server)
         server.on_client_connect(self._connect)
         server.on_client_disconnect(self._disconnect)
         return server
@@ -103,25 +103,37 @@ class Viewer:
     def url(self) -> str:
         return f"http://{self.host}:{self.port}"
 
-    def _add_frustums(self, server) -> list:
-        from viser.transforms import SO3
+    def frustum_specs(self) -> list[dict]:
+        """The frustum of every capture camera (computed once): viser add_camera_frustum keyword
+        arguments (vertical fov, aspect, pose as R_world_camera quaternion and position, a
+        thumbnail of the capture image when the model holds one per camera)."""
+        if self._frustums is None:
+            from viser.transforms import SO3
 
-        from capture.scan import to_uint8_srgb
+            from capture.scan import to_uint8_srgb
 
-        b = np.asarray(self.model.bounds, float)
-        scale = FRUSTUM_SCALE * float(np.linalg.norm(b[1] - b[0]))
-        rgb = getattr(self.model.rgbz, "rgb", None)
+            b = np.asarray(self.model.bounds, float)
+            scale = FRUSTUM_SCALE * float(np.linalg.norm(b[1] - b[0]))
+            rgb = getattr(self.model.rgbz, "rgb", None)
+            self._frustums = []
+            for i, cam in enumerate(self.cameras):
+                thumb = None
+                if rgb is not None and len(rgb) == len(self.cameras):
+                    step = max(1, int(np.ceil(max(cam.width, cam.height) / FRUSTUM_THUMB)))
+                    thumb = to_uint8_srgb(np.asarray(rgb[i])[::step, ::step])
+                self._frustums.append(dict(
+                    fov=float(2.0 * np.arctan(0.5 * cam.height / cam.K[1, 1])), aspect=cam.width / cam.height,
+                    scale=scale, wxyz=SO3.from_matrix(cam.world_from_cam[:3, :3]).wxyz, position=cam.center,
+                    image=thumb, format="jpeg", color=FRUSTUM_RGB, thickness=FRUSTUM_LINE_PX,
+                    thickness_units="screen"))
+        return self._frustums
+
+    def _add_frustums(self, client) -> list:
+        """The capture cameras as clickable frustums in ``client``'s own scene (each client shows
+        or hides its own)."""
         handles = []
-        for i, cam in enumerate(self.cameras):
-            thumb = None
-            if rgb is not None and len(rgb) == len(self.cameras):
-                step = max(1, int(np.ceil(max(cam.width, cam.height) / FRUSTUM_THUMB)))
-                thumb = to_uint8_srgb(np.asarray(rgb[i])[::step, ::step])
-            fov = 2.0 * np.arctan(0.5 * cam.height / cam.K[1, 1])
-            h = server.scene.add_camera_frustum(
-                f"/capture/cam_{i:03d}", fov=float(fov), aspect=cam.width / cam.height, scale=scale,
-                wxyz=SO3.from_matrix(cam.world_from_cam[:3, :3]).wxyz, position=cam.center, image=thumb,
-                format="jpeg", color=FRUSTUM_RGB, thickness=FRUSTUM_LINE_PX, thickness_units="screen")
+        for i, (cam, spec) in enumerate(zip(self.cameras, self.frustum_specs())):
+            h = client.scene.add_camera_frustum(f"/capture/cam_{i:03d}", **spec)
             h.on_click(lambda event, cam=cam: self.snap(event.client, cam))
             handles.append(h)
         return handles
@@ -146,6 +158,7 @@ class Viewer:
         controls = gui.build_controls(client.gui, self.settings, self.env_names, METHODS)
         recent: list[dict] = []
         last_full: list[dict] = []
+        still_count = [0]
 
         def send(image, jpeg_quality: int | None) -> None:
             if jpeg_quality is None:
@@ -162,14 +175,17 @@ class Viewer:
             del recent[:-gui.READOUT_WINDOW]
             if not rec["moving"]:
                 last_full[:] = [rec]
+                still_count[0] += 1
                 controls.note.visible = False
             level = f"tolerance E {controls.tolerance.value:g} px -> level L = {rec['level']}" if "level" in rec else ""
-            controls.readout.content = gui.readout_text(recent, last_full[0] if last_full else None, level)
+            controls.readout.content = gui.readout_text(recent, last_full[0] if last_full else None, level,
+                                                        still_count[0])
 
         session = Session(self.worker, send, self.settings, self.cfg, self.log, name=str(client.client_id),
                           on_note=note, on_frame=frame_done)
         gui.on_settings_change(controls, session.update_settings, note)
-        controls.cameras.on_update(lambda _e: self._show_frustums(controls.cameras.value))
+        frustums = self._add_frustums(client)
+        controls.cameras.on_update(lambda _e: _show(frustums, controls.cameras.value))
         controls.screenshot.on_click(lambda _e: self._spawn(self.screenshot, client, session, note))
         controls.export.on_click(lambda _e: self._spawn(self.export, client, session, controls, note))
 
@@ -189,10 +205,6 @@ class Viewer:
             session = self.sessions.pop(client.client_id, None)
         if session is not None:
             session.stop()
-
-    def _show_frustums(self, visible: bool) -> None:
-        for h in self.frustums:
-            h.visible = bool(visible)
 
     @staticmethod
     def _spawn(fn, *args) -> None:
@@ -284,3 +296,7 @@ class Viewer:
             self.log.write(stats_path)
         return released and self.worker.released
 
+
+def _show(handles, visible: bool) -> None:
+    for h in handles:
+        h.visible = bool(visible)

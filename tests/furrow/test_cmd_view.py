@@ -93,7 +93,15 @@ def test_viewer_starts_and_closes(model_dir, tmp_path):
     model = load_model(model_dir)
     v = Viewer(model, model.rgbz.cameras, port=0, out_dir=tmp_path)
     assert v.url.startswith("http://127.0.0.1:") and v.port > 0
-    assert len(v.frustums) == len(model.rgbz.cameras)
+    specs = v.frustum_specs()
+    assert len(specs) == len(model.rgbz.cameras)
+    cam = model.rgbz.cameras[3]
+    from viser.transforms import SO3
+
+    # viser's frustum pose is R_world_camera in OpenCV axes, as furrow's: no flip
+    np.testing.assert_allclose(SO3(specs[3]["wxyz"]).as_matrix(), cam.world_from_cam[:3, :3], atol=1e-9)
+    np.testing.assert_allclose(specs[3]["position"], cam.center)
+    assert specs[3]["image"].dtype == np.uint8 and specs[3]["aspect"] == cam.width / cam.height
     assert v.close(tmp_path / "stats.json")
     assert json.loads((tmp_path / "stats.json").read_text()) == {"frames": []}
 

@@ -10,6 +10,8 @@ One viewer process on the analytic spheres model; a page opens it with a fixed f
 * dragging the mouse for a few seconds yields reduced-size frames, then a full-size one after
   the stop (from ``--stats``);
 * a second page that disconnects while being drawn leaves the server serving the first;
+* clicking a capture camera's frustum snaps the view to that camera (checked against
+  ``furrow render`` of it);
 * Ctrl-C exits 0 with the GL objects released.
 
 The README screenshot is written by this test when FURROW_README_SHOT names a file.
@@ -46,7 +48,9 @@ SILHOUETTE_IOU = 0.95
 COLOUR_MAD = 8.0
 MASK_LEVEL = 10
 MARGIN = 12
-#: README picture: eye distance factor and JPEG quality.
+#: The capture camera whose frustum is clicked (seen from README_EYE_FACTOR * EYE).
+SNAP_CAMERA = 11
+#: README picture (and the frustum click): eye distance factor; JPEG quality.
 README_EYE_FACTOR = 2.2
 README_JPEG_QUALITY = 80
 #: Drag duration (s) and the wait after it for the still frames (s, loaded 2-core machine).
@@ -93,6 +97,31 @@ def render_reference(model_dir: Path, out: Path, fov: float, *, up=UP, target=TA
     tj.write_text(json.dumps({"frames": [{"file_path": "images/ref.png", **cam.to_nerfstudio()}]}))
     assert main(["render", str(model_dir), "--cameras", str(tj), "-o", str(out)]) == 0
     return read_color(out / "ref.png")[..., :3]
+
+
+def snap_to_frustum(browser, url: str, model_dir: Path, path: Path) -> np.ndarray:
+    """Click capture camera SNAP_CAMERA's frustum (the centre of its image plane, projected with
+    the page's camera) from further out; returns the screenshot once the view has settled."""
+    from render.viewer.server import FRUSTUM_SCALE
+    from volume.model import load_model
+
+    model = load_model(model_dir)
+    b = np.asarray(model.bounds, float)
+    cam = model.rgbz.cameras[SNAP_CAMERA]
+    f = 0.5 * H / np.tan(0.5 * B.VISER_DEFAULT_FOV)
+    page_cam = Camera(make_K(f, f, (W - 1) / 2, (H - 1) / 2), look_at(README_EYE_FACTOR * EYE, TARGET, UP), W, H)
+    uv, _ = page_cam.project(cam.center + FRUSTUM_SCALE * float(np.linalg.norm(b[1] - b[0])) * cam.forward)
+    page = browser.new_page(viewport={"width": W, "height": H})
+    page.goto(B.view_url(url, README_EYE_FACTOR * EYE, TARGET, UP))
+    n = B.wait_still(page, W, H, 2)
+    B.wait_opaque(page)
+    page.mouse.click(float(uv[0]), float(uv[1]))
+    B.wait_still(page, W, H, 2, after=n)
+    B.hide_overlays(page)
+    time.sleep(0.5)
+    page.screenshot(path=str(path))
+    page.close()
+    return read_color(path)[..., :3]
 
 
 def readme_shot(browser, url: str, path: str) -> None:
@@ -148,6 +177,7 @@ def test_view_in_a_real_browser(model_dir, tmp_path):
             B.drag(page, DRAG_S, W / 3, H / 2)
             time.sleep(SETTLE_S)
             served_after_close = time.monotonic() - t_closed
+            snapped = snap_to_frustum(browser, vp.url, model_dir, tmp_path / "snap.png")
             browser.close()
     finally:
         rc, err = vp.interrupt()
@@ -165,6 +195,15 @@ def test_view_in_a_real_browser(model_dir, tmp_path):
     for name, kw in wrong.items():
         iou, mad = compare(shot, render_reference(model_dir, tmp_path / name.replace(" ", "_"), **kw))
         assert iou < SILHOUETTE_IOU or mad > COLOUR_MAD, (name, iou, mad)
+
+    # the clicked frustum's camera: the capture camera scaled to the canvas (both 4:3)
+    cam = scene.ring_cameras(12, 160, 120)[SNAP_CAMERA].scaled(W / 160)
+    tj = tmp_path / "snap_ref" / "transforms.json"
+    tj.parent.mkdir()
+    tj.write_text(json.dumps({"frames": [{"file_path": "images/snap.png", **cam.to_nerfstudio()}]}))
+    assert main(["render", str(model_dir), "--cameras", str(tj), "-o", str(tj.parent)]) == 0
+    iou, mad = compare(snapped, read_color(tj.parent / "snap.png")[..., :3])
+    assert iou >= SILHOUETTE_IOU and mad <= COLOUR_MAD, ("frustum snap", iou, mad)
 
     frames = json.loads(stats.read_text())["frames"]
     first = frames[0]["client"]
@@ -187,6 +226,7 @@ def test_view_in_a_real_browser(model_dir, tmp_path):
     after = [f for f in mine if not f["moving"] and f["t"] > last_move]
     assert after and (after[0]["width"], after[0]["height"]) == (W, H), after
     # the first client was served after the second one disconnected
-    others = {f["client"] for f in frames} - {first}   # the second page (and the README page, if made)
+    snap_client = max((f["client"] for f in frames), key=int)             # connected last
+    others = {f["client"] for f in frames} - {first, snap_client}        # the second (and README) page
     assert others, "the second page never got a frame"
-    assert served_after_close > DRAG_S and moving[-1]["t"] > max(f["t"] for f in frames if f["client"] != first)
+    assert served_after_close > DRAG_S and moving[-1]["t"] > max(f["t"] for f in frames if f["client"] in others)
