@@ -35,7 +35,7 @@ _library_log()
 
 def fail(msg: str) -> None:
     """Print a one-line error."""
-    console.print(f"[bold red]error:[/] {msg}", highlight=False)
+    console.print(f"[bold red]error:[/] {msg}", highlight=False, soft_wrap=True)
 
 
 def track(items: Iterable[T], description: str, total: int | None = None) -> Iterator[T]:

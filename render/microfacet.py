@@ -48,11 +48,16 @@ COARSE_COVERS_FINE = True
 RGBZ_DTYPE = np.float16
 
 
-def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None) -> dict:
+def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None,
+                   debug: str | None = None) -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
     if rule not in mg.FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
+    if debug not in mg.DEBUG_OUTPUTS:
+        raise ValueError(f"unknown debug output {debug!r}; use one of {mg.DEBUG_OUTPUTS[1:]}")
     return {
+        "DEBUG_VIEW": mg.DEBUG_OUTPUTS.index(debug),
+        "DEBUG_BACK_DEPTH": f"{mg.DEBUG_BACK_DEPTH:.9f}",
         "FALLBACK_RULE": mg.FALLBACK_RULES.index(rule),
         "N_FALLBACK": mg.N_FALLBACK if n_fallback is None else int(n_fallback),
         "ALPHA_VOTE": f"{mg.ALPHA_VOTE:.6f}",
@@ -191,13 +196,13 @@ class MicrofacetRenderer(Renderer):
         lv = self.levels[level]
         return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
-    def _program(self, kind: str, refine: int):
+    def _program(self, kind: str, refine: int, debug: str | None = None):
         """(program, vertex array) of ``kind`` ("select", "draw", "fill", "geometry") for
-        ``refine`` parallax-correction steps, compiled on first use."""
-        key = (kind, refine)
+        ``refine`` parallax-correction steps and the ``debug`` output, compiled on first use."""
+        key = (kind, refine, None if kind in ("select", "fill") else debug)
         if key not in self._programs:
             ctx = self.ctx
-            d = shader_defines(self.rule, self.n_fallback, key[1])
+            d = shader_defines(self.rule, self.n_fallback, key[1], key[2])
             if kind == "select":
                 self._programs[key] = (self.own(ctx.compute_shader(load_shader("microfacet_select.glsl", d))), None)
             else:
@@ -252,7 +257,7 @@ class MicrofacetRenderer(Renderer):
         self._last_order = self.orders[lev][axis]
         self.tex.use(0)
         if options.mode == "geometry" and not options.fill_only:
-            prog, vao = self._program("geometry", options.refine_steps)
+            prog, vao = self._program("geometry", options.refine_steps, options.debug)
             self._uniforms(prog, eye, lev, spacing, near, view_proj)
             with self.query:
                 vao.render(mode=ctx.POINTS, vertices=n_vox)
@@ -267,7 +272,7 @@ class MicrofacetRenderer(Renderer):
         select["max_records"].value = self.max_records
         select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
         ctx.memory_barrier()
-        prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps)
+        prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps, options.debug)
         self._uniforms(prog, eye, lev, spacing, near, view_proj)
         vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
         ctx.finish()

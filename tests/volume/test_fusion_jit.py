@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tests.volume.scenes import furball_scene, make_scanset, ring_cameras
+from tests.scenes import furball_scene, make_scanset, scan_ring as ring_cameras
 from volume.completion import complete_sdf
 from volume.fusion import (NEAR_SLACK, PROJ_FACTOR, FusionConfig, _centers_of, carve_field, carve_votes, completed,
                            consensus_band, fuse_consensus, gather_samples, scan_maps)
