@@ -7,8 +7,11 @@ struct Cam {
     vec4 intr;     // fx, fy, cx, cy (OpenCV pixel centres)
     vec4 size;     // W, H, skew, 0
     vec4 center;   // camera centre (world), w unused
+    vec4 proj[3];  // rows of K [R | t] (float64 product): homogeneous projection of (p, 1)
 };
 layout(std430, binding = 0) readonly buffer Cameras { Cam cams[]; };
+// Per frame: cam_project_h(i, eye_pos) of every camera (render.microfacet.eye_projections).
+layout(std430, binding = 5) readonly buffer EyeProjections { vec4 eye_h[]; };
 
 uniform int n_cams;
 uniform vec3 eye_pos;
@@ -21,18 +24,14 @@ uniform float near_plane;   // slices closer than this along their ray are dropp
 // Homogeneous projection of a world point into camera i: (u z, v z, z), affine in p, so it
 // interpolates exactly across a slice; u, v OpenCV pixels, z = z-depth D.
 vec3 cam_project_h(int i, vec3 p) {
-    vec4 pc = cams[i].cfw * vec4(p, 1.0);
-    return vec3(cams[i].intr.x * pc.x + cams[i].size.z * pc.y + cams[i].intr.z * pc.z,
-                cams[i].intr.y * pc.y + cams[i].intr.w * pc.z, pc.z);
+    vec4 q = vec4(p, 1.0);
+    return vec3(dot(cams[i].proj[0], q), dot(cams[i].proj[1], q), dot(cams[i].proj[2], q));
 }
 
 // Projection of a world point into camera i: (u, v) OpenCV pixels and z-depth D.
 vec3 cam_project(int i, vec3 p) {
-    vec4 pc = cams[i].cfw * vec4(p, 1.0);
-    float z = pc.z;
-    float iz = 1.0 / max(z, 1e-30);
-    float x = pc.x * iz, y = pc.y * iz;
-    return vec3(cams[i].intr.x * x + cams[i].size.z * y + cams[i].intr.z, cams[i].intr.y * y + cams[i].intr.w, z);
+    vec3 h = cam_project_h(i, p);
+    return vec3(h.xy / max(h.z, 1e-30), h.z);
 }
 
 bool footprint_inside(int i, vec3 p, float r) {
