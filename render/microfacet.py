@@ -84,6 +84,7 @@ def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: in
         "REFINE_RANGE": f"{mg.REFINE_RANGE:.6f}",
         "REFINE_ACCEPT": f"{mg.REFINE_ACCEPT:.6f}",
         "PIX_MARGIN": f"{mcull.PIX_MARGIN:.6f}",
+        "VOTE_MARGIN": f"{mcull.VOTE_MARGIN:.9e}",
         "EMPTY_MIN": f"{mcull.EMPTY_MIN:.1f}",
         "TOL_MARGIN_REL": f"{mcull.TOL_MARGIN_REL:.9e}",
         "TOL_MARGIN_ABS": f"{mcull.TOL_MARGIN_ABS:.9e}",

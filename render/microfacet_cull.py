@@ -4,7 +4,7 @@ On llvmpipe a fragment costs the whole shader whatever its branches take (only t
 test skips work), and most slice fragments are discarded by Eq. 2: on the fur ball at E = 8 the
 slices of the 8^3 level rasterise 48 fragments per visible pixel, 12 % of them alive.  So the
 compute pass splits every slice quad into G x G tiles of about TILE_PX output pixels and keeps
-only the tiles on which some camera *can* pass Eq. 2 (docs/methods.md §1.4):
+only the tiles where a fragment *can* be drawn (docs/methods.md §1.4):
 
 * a fragment passes camera i only if that camera's RGBz depth d at the fragment's nearest texel
   is valid (d > 0) and |d - D| < l/2, D the fragment's own z-depth in camera i;
@@ -15,9 +15,13 @@ only the tiles on which some camera *can* pass Eq. 2 (docs/methods.md §1.4):
   map (:func:`depth_bounds_pyramid`, at most 2 x 2 blocks read per camera and tile).
 
 A fragment is drawn only if one of the first K_BLEND + N_FALLBACK candidates passes it (the
-"vote" and "any" rules of microfacet_geometry.shade_fragments both need a PASS), so a tile on
-which none of them can pass holds no drawn fragment: dropping it changes nothing in the frame
-(tests/render/test_microfacet_cull.py compares culled and unculled frames).  A camera with a
+"vote" and "any" rules of microfacet_geometry.shade_fragments both need a PASS), and under
+"vote" only if the passing blend weight is at least ALPHA_VOTE of the seeing weight: a tile on
+which no candidate can pass, or where the blend cameras certain to see through it outvote those
+that may pass (:func:`tiles_drawable`), holds no drawn fragment: dropping it changes nothing in
+the frame (tests/render/test_microfacet_cull.py compares culled and unculled frames).  These
+are shade()'s rules restated as bounds: a change to them must change :func:`tiles_drawable`
+and tile_drawable() in the shader too (the frame comparisons fail otherwise).  A camera with a
 tile corner behind it never culls the tile (the pixel box is then unbounded); the part of a box
 outside the image is dropped (fragments there are NO_VIEW in that camera).
 """
@@ -39,6 +43,8 @@ TOL_MARGIN_REL = 1e-4
 TOL_MARGIN_ABS = 1e-5
 #: Stored "min" of a block without a valid depth (the largest half float: no D lies above it).
 EMPTY_MIN = 65504.0
+#: Margin of the vote test (float32 sums of the weights on the GPU).
+VOTE_MARGIN = 1e-6
 
 
 def depth_bounds_pyramid(depth: np.ndarray) -> list[np.ndarray]:
@@ -113,9 +119,11 @@ def cull_tolerance(spacing: float) -> float:
     return 0.5 * spacing * (1.0 + TOL_MARGIN_REL) + TOL_MARGIN_ABS
 
 
-def tiles_may_pass(cam, levels: list[np.ndarray], cam_index: int, corners: np.ndarray, spacing: float) -> np.ndarray:
-    """(T,) bool: camera ``cam`` (index ``cam_index`` in the pyramid) may pass Eq. 2 somewhere on
-    each tile, given its (T, 4, 3) world corners."""
+def tile_tests(cam, levels: list[np.ndarray], cam_index: int, corners: np.ndarray, spacing: float):
+    """What camera ``cam`` (index ``cam_index`` in the pyramid) can say on each tile, given its
+    (T, 4, 3) world corners: (may_pass, free), two (T,) bool arrays -- it may pass Eq. 2
+    somewhere on the tile; it certainly sees through all of it (the tile's pixel box inside its
+    image, and no depth there or a depth at least FREE_FACTOR l/2 behind every point: FREE)."""
     T = len(corners)
     pr = mg.project_h(cam, corners.reshape(-1, 3)).reshape(T, 4, 3)
     z = pr[..., 2]
@@ -123,19 +131,41 @@ def tiles_may_pass(cam, levels: list[np.ndarray], cam_index: int, corners: np.nd
     zs = np.where(z > 0, z, 1.0)
     size = np.array([cam.width, cam.height])
     uv = np.clip(pr[..., :2] / zs[..., None], -2.0, float(size.sum()) + 2.0)  # as the shader, before int
-    lo = np.floor(uv.min(axis=1) + 0.5 - PIX_MARGIN).astype(np.int64)
-    hi = np.floor(uv.max(axis=1) + 0.5 + PIX_MARGIN).astype(np.int64)
-    lo = np.maximum(lo, 0)
-    hi = np.minimum(hi, size - 1)
-    empty = (hi < lo).any(axis=1)
-    ok = ~behind & ~empty
+    lo0 = np.floor(uv.min(axis=1) + 0.5 - PIX_MARGIN).astype(np.int64)
+    hi0 = np.floor(uv.max(axis=1) + 0.5 + PIX_MARGIN).astype(np.int64)
+    lo, hi = np.maximum(lo0, 0), np.minimum(hi0, size - 1)
+    inside = (lo == lo0).all(axis=1) & (hi == hi0).all(axis=1)
+    ok = ~behind & ~(hi < lo).any(axis=1)
     tol = cull_tolerance(spacing)
-    out = behind.copy()
+    may, free = behind.copy(), np.zeros(T, bool)
     if ok.any():
         bb = block_bounds(levels, cam_index, lo[ok], hi[ok])
         zmin, zmax = z[ok].min(axis=1), z[ok].max(axis=1)
-        out[ok] = (bb[:, 1] > zmin - tol) & (bb[:, 0] < zmax + tol)
-    return out
+        may[ok] = (bb[:, 1] > zmin - tol) & (bb[:, 0] < zmax + tol)
+        free[ok] = inside[ok] & (bb[:, 0] >= zmax + mg.FREE_FACTOR * tol)
+    return may, free
+
+
+def tiles_drawable(may: np.ndarray, free: np.ndarray, weights: np.ndarray, rule: str = "vote") -> np.ndarray:
+    """(T,) bool: can a fragment of each tile be drawn (shade_fragments' rules)?
+
+    Args:
+        may, free: (T, N) tile_tests of the first N = K_BLEND + n_fallback candidates (False
+            for missing candidates).
+        weights: (K_BLEND,) the voxel's blend weights.
+        rule: "vote": the blend cameras certain to see through a tile (weight F) outvote those
+            that may pass it (weight P) when P (1 - ALPHA_VOTE) < ALPHA_VOTE F - VOTE_MARGIN
+            (F > 0 is seen weight, so the fallback never runs); else, and under "any", some
+            candidate must be able to pass.
+    """
+    any_pass = may.any(axis=1)
+    if rule != "vote":
+        return any_pass
+    k = mg.K_BLEND
+    P = (may[:, :k] * weights).sum(axis=1)
+    F = (free[:, :k] * weights).sum(axis=1)
+    outvoted = (F > mg.WEIGHT_EPS) & (P * (1 - mg.ALPHA_VOTE) < mg.ALPHA_VOTE * F - VOTE_MARGIN)
+    return any_pass & ~outvoted
 
 
 def tile_count(half_extents: np.ndarray, s: np.ndarray, focal: float, tile_px: float = TILE_PX) -> np.ndarray:
@@ -152,37 +182,35 @@ def tile_edges(half: float, g: int) -> np.ndarray:
 
 def select_tiles(centers: np.ndarray, w: float, eye_pos: np.ndarray, eye_right: np.ndarray, eye_up: np.ndarray,
                  spacing: float, near: float, cameras, levels: list[np.ndarray], focal: float,
-                 tile_px: float = TILE_PX, n_fallback: int | None = None) -> dict:
+                 tile_px: float = TILE_PX, n_fallback: int | None = None, rule: str = "vote") -> dict:
     """The tiles the compute pass draws (twin of microfacet_select.glsl with culling).
 
     Returns a dict of arrays, one row per kept tile: ``voxel`` and ``n`` (the slice), ``rect``
     (M, 4) = (x0, x1, y0, y1) its extent along the slice axes a, b (metres, the slice centre at 0).
     """
-    n_fallback = mg.N_FALLBACK if n_fallback is None else int(n_fallback)
+    n_proj = mg.K_BLEND + (mg.N_FALLBACK if n_fallback is None else int(n_fallback))
     c = np.asarray(centers, np.float64).reshape(-1, 3)
     vox, n = mg.slice_distances(c, w, eye_pos, spacing, near)
     v, a, b = mg.slice_frame(c, eye_pos, eye_right, eye_up)
-    idx, _ = mg.select_cameras(c, mg.footprint_radius(w), eye_pos, cameras)
+    idx, wts = mg.select_cameras(c, mg.footprint_radius(w), eye_pos, cameras)
     s = n * spacing
     ha, hb = mg.slice_half_extents(c[vox], w, eye_pos, v[vox], a[vox], b[vox], s)
     g = tile_count(np.stack([ha, hb], 1), s, focal, tile_px)
-    rows = {"voxel": [], "n": [], "rect": []}
+    rows = {"voxel": [np.zeros(0, np.int64)], "n": [np.zeros(0, np.int64)], "rect": [np.zeros((0, 4))]}
     for j in range(len(vox)):
         ea, eb = tile_edges(ha[j], g[j]), tile_edges(hb[j], g[j])
         ty, tx = np.meshgrid(np.arange(g[j]), np.arange(g[j]), indexing="ij")
         rect = np.stack([ea[tx.ravel()], ea[tx.ravel() + 1], eb[ty.ravel()], eb[ty.ravel() + 1]], 1)
         q = eye_pos + s[j] * v[vox[j]]
-        xs = rect[:, [0, 1, 0, 1]]
-        ys = rect[:, [2, 2, 3, 3]]
-        corners = q + xs[..., None] * a[vox[j]] + ys[..., None] * b[vox[j]]
-        keep = np.zeros(len(rect), bool)
-        for k in range(mg.K_BLEND + n_fallback):
+        corners = q + rect[:, [0, 1, 0, 1], None] * a[vox[j]] + rect[:, [2, 2, 3, 3], None] * b[vox[j]]
+        may = np.zeros((len(rect), n_proj), bool)
+        free = np.zeros((len(rect), n_proj), bool)
+        for k in range(n_proj):
             ci = idx[vox[j], k]
             if ci >= 0:
-                keep |= tiles_may_pass(cameras[ci], levels, int(ci), corners, spacing)
+                may[:, k], free[:, k] = tile_tests(cameras[ci], levels, int(ci), corners, spacing)
+        keep = tiles_drawable(may, free, np.where(idx[vox[j], :mg.K_BLEND] >= 0, wts[vox[j]], 0.0), rule)
         rows["voxel"].append(np.full(keep.sum(), vox[j]))
         rows["n"].append(np.full(keep.sum(), n[j]))
         rows["rect"].append(rect[keep])
-    if not rows["voxel"]:
-        return {"voxel": np.zeros(0, np.int64), "n": np.zeros(0, np.int64), "rect": np.zeros((0, 4))}
     return {k: np.concatenate(x) for k, x in rows.items()}

@@ -43,9 +43,8 @@ void main() {
     if (!voxel_slices(c, lo, hi, cand, w)) return;
     vec3 v, a, b;
     slice_frame(c, v, a, b);
-    const int NC = K_BLEND + N_FALLBACK;   // the cameras that can draw a fragment
-    vec3 pa[NC], pb[NC];
-    for (int j = 0; j < NC; ++j) {
+    vec3 pa[N_PROJ], pb[N_PROJ];   // the slice axes projected into the candidates shade() reads
+    for (int j = 0; j < N_PROJ; ++j) {
         pa[j] = cand[j] >= 0 ? cam_project_dir(cand[j], a) : vec3(0.0);
         pb[j] = cand[j] >= 0 ? cam_project_dir(cand[j], b) : vec3(0.0);
     }
@@ -57,19 +56,19 @@ void main() {
         int g = 1;
         if (cull != 0)
             g = clamp(int(ceil(2.0 * max(hab.x, hab.y) * eye_focal / max(s, 1e-12) / tile_px)), 1, MAX_TILES);
-        vec3 p0[NC];
-        for (int j = 0; j < NC; ++j) p0[j] = cand[j] >= 0 ? eye_h[cand[j]].xyz + s * cam_project_dir(cand[j], v) : vec3(0.0);
+        vec3 p0[N_PROJ];
+        for (int j = 0; j < N_PROJ; ++j) p0[j] = cand[j] >= 0 ? eye_h[cand[j]].xyz + s * cam_project_dir(cand[j], v) : vec3(0.0);
         for (int ty = 0; ty < g; ++ty)
             for (int tx = 0; tx < g; ++tx) {
                 vec4 rect = vec4(hab.x * (-1.0 + 2.0 * float(tx) / float(g)), hab.x * (-1.0 + 2.0 * float(tx + 1) / float(g)),
                                  hab.y * (-1.0 + 2.0 * float(ty) / float(g)), hab.y * (-1.0 + 2.0 * float(ty + 1) / float(g)));
                 bool keep = cull == 0;
-                for (int j = 0; j < NC && !keep; ++j) {
-                    if (cand[j] < 0) continue;
-                    vec3 h[4];
-                    for (int k = 0; k < 4; ++k)
-                        h[k] = p0[j] + ((k & 1) == 0 ? rect.x : rect.y) * pa[j] + ((k & 2) == 0 ? rect.z : rect.w) * pb[j];
-                    keep = tile_may_pass(cand[j], h, tol);
+                if (!keep) {
+                    vec3 hs[N_PROJ][4];
+                    for (int j = 0; j < N_PROJ; ++j)
+                        for (int k = 0; k < 4; ++k)
+                            hs[j][k] = p0[j] + ((k & 1) == 0 ? rect.x : rect.y) * pa[j] + ((k & 2) == 0 ? rect.z : rect.w) * pb[j];
+                    keep = tile_drawable(cand, w, hs, tol);
                 }
                 if (keep) emit(c, id, n, s, rect, cand, w);
             }
