@@ -85,6 +85,7 @@ def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: in
         "REFINE_ACCEPT": f"{mg.REFINE_ACCEPT:.6f}",
         "PIX_MARGIN": f"{mcull.PIX_MARGIN:.6f}",
         "VOTE_MARGIN": f"{mcull.VOTE_MARGIN:.9e}",
+        "BOUND_BLOCKS": mcull.BOUND_BLOCKS,
         "EMPTY_MIN": f"{mcull.EMPTY_MIN:.1f}",
         "TOL_MARGIN_REL": f"{mcull.TOL_MARGIN_REL:.9e}",
         "TOL_MARGIN_ABS": f"{mcull.TOL_MARGIN_ABS:.9e}",
@@ -167,7 +168,7 @@ class MicrofacetRenderer(Renderer):
         cull: split the instanced path's slices into tiles and drop those on which no camera
             can pass Eq. 2 (render/microfacet_cull.py; the frame is unchanged); an attribute,
             may change between frames.
-        tile_px: target tile side in output pixels (attribute ``tile_px``).
+        tile_px: target tile side in drawn pixels (supersampled; attribute ``tile_px``).
         prepass: draw the instanced path as a visibility pre-pass and a colour pass (PREPASS;
             attribute ``prepass``); False = one pass with the whole shader per fragment.
 
@@ -404,7 +405,7 @@ class MicrofacetRenderer(Renderer):
         select["max_records"].value = self.max_records
         select["cull"].value = int(self.cull)
         select["tile_px"].value = self.tile_px
-        select["eye_focal"].value = float(eye.K[0, 0])
+        select["eye_focal"].value = float(eye.K[0, 0]) * options.supersample  # drawn pixels
         select["pyr_levels"].value = len(self.pyr_offsets)
         select["pyr_offset"].value = tuple(self.pyr_offsets) + (0,) * (MAX_PYR_LEVELS - len(self.pyr_offsets))
         select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)

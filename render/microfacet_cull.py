@@ -3,7 +3,7 @@
 On llvmpipe a fragment costs the whole shader whatever its branches take (only the early depth
 test skips work), and most slice fragments are discarded by Eq. 2: on the fur ball at E = 8 the
 slices of the 8^3 level rasterise 48 fragments per visible pixel, 12 % of them alive.  So the
-compute pass splits every slice quad into G x G tiles of about TILE_PX output pixels and keeps
+compute pass splits every slice quad into G x G tiles of about TILE_PX drawn pixels and keeps
 only the tiles where a fragment *can* be drawn (docs/methods.md §1.4):
 
 * a fragment passes camera i only if that camera's RGBz depth d at the fragment's nearest texel
@@ -12,7 +12,7 @@ only the tiles where a fragment *can* be drawn (docs/methods.md §1.4):
   largest D of the tile's four corners, and the nearest texels of its fragments lie in the
   pixel box of the corners' projections (convex: every corner in front of the camera);
 * the min / max of the valid depths over that box come from a min / max pyramid of each depth
-  map (:func:`depth_bounds_pyramid`, at most 2 x 2 blocks read per camera and tile).
+  map (:func:`depth_bounds_pyramid`, at most 3 x 3 blocks read per camera and tile).
 
 A fragment is drawn only if one of the first K_BLEND + N_FALLBACK candidates passes it (the
 "vote" and "any" rules of microfacet_geometry.shade_fragments both need a PASS), and under
@@ -32,8 +32,11 @@ import numpy as np
 
 from render import microfacet_geometry as mg
 
-#: Target side of a slice tile in output pixels (the slices of coarse levels span ~100 px).
-TILE_PX = 16.0
+#: Target side of a slice tile in drawn (supersampled) pixels.  The slices of the fur ball's 8^3
+#: level span ~100 output pixels; measured there (prepass CPU ms, 1x1 / 2x2 samples): tiles of
+#: 8 px 59 / 108, 16 px 38 / 90, 32 px 34 / 94, 64 px 35 / 115, whole slices 42 / 148
+#: (render.json of furrow bench render; smaller tiles cull more but cost more primitives).
+TILE_PX = 32.0
 #: Most tiles per slice side.
 MAX_TILES = 16
 #: Margin added around the pixel box of a tile's corners (pixels; float32 interpolation noise).
@@ -43,6 +46,8 @@ TOL_MARGIN_REL = 1e-4
 TOL_MARGIN_ABS = 1e-5
 #: Stored "min" of a block without a valid depth (the largest half float: no D lies above it).
 EMPTY_MIN = 65504.0
+#: Blocks per axis read from the depth-bounds pyramid per box (the finest level where it fits).
+BOUND_BLOCKS = 3
 #: Margin of the vote test (float32 sums of the weights on the GPU).
 VOTE_MARGIN = 1e-6
 
@@ -92,10 +97,10 @@ def pack_pyramid(levels: list[np.ndarray]) -> tuple[np.ndarray, list[int]]:
 
 def block_bounds(levels: list[np.ndarray], cam: int, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(T, 2) min / max of the valid depths of camera ``cam`` over the pixel boxes [lo, hi]
-    ((T, 2) inclusive x, y): read from the level where each box spans at most 2 x 2 blocks
-    (a superset of the box: the bound is conservative)."""
+    ((T, 2) inclusive x, y): read from the finest level k where each box spans at most
+    BOUND_BLOCKS blocks per axis (2^k <= span < 2^(k+1); a superset of the box: conservative)."""
     span = np.max(hi - lo, axis=1)
-    k = np.where(span > 0, np.floor(np.log2(np.maximum(span, 1))).astype(np.int64) + 1, 0)
+    k = np.where(span > 1, np.floor(np.log2(np.maximum(span, 1))).astype(np.int64), 0)
     k = np.minimum(k, len(levels) - 1)
     out = np.empty((len(lo), 2), np.float32)
     for kk in np.unique(k):
@@ -104,8 +109,8 @@ def block_bounds(levels: list[np.ndarray], cam: int, lo: np.ndarray, hi: np.ndar
         a, b = lo[m] >> kk, hi[m] >> kk
         mins = np.full(m.sum(), EMPTY_MIN, np.float32)
         maxs = np.zeros(m.sum(), np.float32)
-        for dy in (0, 1):
-            for dx in (0, 1):
+        for dy in range(BOUND_BLOCKS):
+            for dx in range(BOUND_BLOCKS):
                 x = np.minimum(a[:, 0] + dx, b[:, 0])
                 y = np.minimum(a[:, 1] + dy, b[:, 1])
                 mins = np.minimum(mins, lv[y, x, 0])

@@ -55,10 +55,19 @@ void select_cameras(vec3 p, float r, out int cand[K_CAND], out float wts[K_BLEND
         if (!footprint_inside(i, p, r)) continue;
         vec3 u = normalize(p - cams[i].center.xyz);
         float phi = acos(clamp(dot(v, u), -1.0, 1.0));
-        if (phi >= bphi[NB - 1]) continue;
-        int j = NB - 1;
-        while (j > 0 && phi < bphi[j - 1]) { bphi[j] = bphi[j - 1]; bidx[j] = bidx[j - 1]; --j; }
-        bphi[j] = phi; bidx[j] = i;
+        // stable insertion into the sorted list by compare-and-swap over constant slots
+        // (registers: llvmpipe spills dynamically indexed local arrays)
+        float cp = phi;
+        int ci = i;
+        for (int j = 0; j < NB; ++j) {
+            bool before = cp < bphi[j];
+            float tp = bphi[j];
+            int ti = bidx[j];
+            bphi[j] = before ? cp : tp;
+            bidx[j] = before ? ci : ti;
+            cp = before ? tp : cp;
+            ci = before ? ti : ci;
+        }
         nvalid = min(nvalid + 1, NB);
     }
     for (int j = 0; j < K_CAND; ++j) cand[j] = bidx[j];

@@ -7,17 +7,17 @@ uniform int pyr_levels;                      // levels of the pyramid (the last 
 uniform int pyr_offset[MAX_PYR_LEVELS];      // first word of each level (cameras, rows, columns)
 uniform ivec2 depth_size;                    // W, H of every depth map
 
-// Min / max valid depth of camera cam over the pixel box [lo, hi] (inclusive): at most 2 x 2
-// blocks of the level where the box spans less than two blocks (twin: block_bounds).
+// Min / max valid depth of camera cam over the pixel box [lo, hi] (inclusive): at most
+// BOUND_BLOCKS x BOUND_BLOCKS (3) blocks of the finest level where it spans no more (twin: block_bounds).
 vec2 block_bounds(int cam, ivec2 lo, ivec2 hi) {
     int span = max(hi.x - lo.x, hi.y - lo.y);
-    int k = span > 0 ? min(findMSB(span) + 1, pyr_levels - 1) : 0;
+    int k = span > 1 ? min(findMSB(span), pyr_levels - 1) : 0;
     ivec2 a = lo >> k, b = hi >> k;
     ivec2 dim = (depth_size + (1 << k) - 1) >> k;
     int base = pyr_offset[k] + cam * dim.x * dim.y;
     vec2 r = vec2(EMPTY_MIN, 0.0);
-    for (int dy = 0; dy < 2; ++dy)
-        for (int dx = 0; dx < 2; ++dx) {
+    for (int dy = 0; dy < BOUND_BLOCKS; ++dy)
+        for (int dx = 0; dx < BOUND_BLOCKS; ++dx) {
             ivec2 q = min(a + ivec2(dx, dy), b);
             vec2 mm = unpackHalf2x16(bounds[base + q.y * dim.x + q.x]);
             r = vec2(min(r.x, mm.x), max(r.y, mm.y));

@@ -1,7 +1,7 @@
 #version 430
 // Pass 1 (instanced path): per surface voxel, camera selection and slice records (§1.2-1.3);
-// each slice split into G x G tiles of about tile_px output pixels, the tiles on which no
-// camera can pass Eq. 2 dropped (cull != 0; microfacet_cull.glsl).  Twin: microfacet_cull.select_tiles.
+// each slice split into G x G tiles of about tile_px drawn pixels, the tiles where no
+// fragment can be drawn dropped (cull != 0; microfacet_cull.glsl).  Twin: microfacet_cull.select_tiles.
 layout(local_size_x = 64) in;
 #include "microfacet_common.glsl"
 #include "microfacet_slice.glsl"
@@ -12,8 +12,8 @@ layout(std430, binding = 3) buffer Indirect { uint vcount; uint icount; uint fir
 uniform int n_voxels;
 uniform uint max_records;
 uniform int cull;          // 0: one tile per slice, nothing dropped (the paper's slices)
-uniform float tile_px;     // target tile side in output pixels
-uniform float eye_focal;   // output pixels per unit of depth
+uniform float tile_px;     // target tile side in drawn pixels
+uniform float eye_focal;   // drawn pixels per unit of depth
 
 // Homogeneous projection (u z, v z, z) of a direction (no translation) into camera i.
 vec3 cam_project_dir(int i, vec3 d) {
