@@ -22,6 +22,9 @@ ONE = RenderOptions(supersample=1)
 SAME_MEAN_TOL = 1e-3
 SAME_MAX_TOL = 1e-3
 SAME_OUTLIER_FRAC = 0.005
+#: Depth of the drawn samples: metres allowed for all but SAME_OUTLIER_FRAC of them, and for all.
+DEPTH_TOL_M = 1e-5
+DEPTH_MAX_M = 1e-3
 #: GPU (float32) vs twin (float64) tiles: share of slices whose kept tiles may differ (tile
 #: counts and cull tests that tie within float32 rounding).
 TILE_MISMATCH_FRAC = 0.01
@@ -155,8 +158,9 @@ def test_cull_and_prepass_change_nothing(gl_ctx, model, supersample):
                 assert np.mean(a.coverage != b.coverage) <= SAME_OUTLIER_FRAC, (what, opts)
                 assert_images_close(b.rgb, a.rgb, mean_tol=SAME_MEAN_TOL, max_tol=SAME_MAX_TOL,
                                     outlier_frac=SAME_OUTLIER_FRAC, what=f"{what} {opts}")
-                both = a.alpha & b.alpha
-                np.testing.assert_allclose(b.depth[both], a.depth[both], atol=1e-5)
+                both = a.alpha & b.alpha  # depth: tiles are other triangles (interpolation ties)
+                dz = np.abs(b.depth[both] - a.depth[both])
+                assert np.mean(dz > DEPTH_TOL_M) <= SAME_OUTLIER_FRAC and dz.max() <= DEPTH_MAX_M, (what, opts)
     finally:
         ref.release()
         fast.release()
