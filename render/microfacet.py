@@ -256,14 +256,15 @@ class MicrofacetRenderer(Renderer):
         return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
     def _program(self, kind: str, refine: int):
-        """(program, vertex array) of ``kind`` ("select", "draw", "fill", "geometry", "prepass",
-        "colour") for
+        """(program, vertex array) of ``kind`` ("select" (tiles, culled), "select_all" (one record
+        per slice), "draw", "fill", "geometry", "prepass", "colour") for
         ``refine`` parallax-correction steps, compiled on first use."""
         key = (kind, refine if kind in ("draw", "geometry", "colour") else 0)  # the others never refine
         if key not in self._programs:
             ctx = self.ctx
             d = shader_defines(self.rule, self.n_fallback, key[1])
-            if kind == "select":
+            if kind in ("select", "select_all"):
+                d = {**d, "CULL": int(kind == "select")}
                 self._programs[key] = (self.own(ctx.compute_shader(load_shader("microfacet_select.glsl", d))), None)
             elif kind == "prepass":
                 d = {**shader_defines(self.rule, self.n_fallback, 0), "DEPTH_ONLY": 1}
@@ -399,15 +400,15 @@ class MicrofacetRenderer(Renderer):
         self.slice_buf.bind_to_storage_buffer(2)
         self.indirect.bind_to_storage_buffer(3)
         self.pyr_buf.bind_to_storage_buffer(4)
-        select, _ = self._program("select", options.refine_steps)
+        select, _ = self._program("select" if self.cull else "select_all", options.refine_steps)
         self._uniforms(select, eye, lev, spacing, near, view_proj)
         select["n_voxels"].value = n_vox
         select["max_records"].value = self.max_records
-        select["cull"].value = int(self.cull)
-        select["tile_px"].value = self.tile_px
-        select["eye_focal"].value = float(eye.K[0, 0]) * options.supersample  # drawn pixels
-        select["pyr_levels"].value = len(self.pyr_offsets)
-        select["pyr_offset"].value = tuple(self.pyr_offsets) + (0,) * (MAX_PYR_LEVELS - len(self.pyr_offsets))
+        if self.cull:
+            select["tile_px"].value = self.tile_px
+            select["eye_focal"].value = float(eye.K[0, 0]) * options.supersample  # drawn pixels
+            select["pyr_levels"].value = len(self.pyr_offsets)
+            select["pyr_offset"].value = tuple(self.pyr_offsets) + (0,) * (MAX_PYR_LEVELS - len(self.pyr_offsets))
         select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
         ctx.memory_barrier()
         _, records, _, _, self._slices = (int(x) for x in np.frombuffer(self.indirect.read(), np.uint32))
