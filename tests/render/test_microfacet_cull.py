@@ -178,3 +178,18 @@ def test_record_overflow_grows_the_buffer(gl_ctx, model):
         np.testing.assert_allclose(got.rgb, want.rgb, atol=1e-6)
     finally:
         r.release()
+
+
+def test_refinement_never_changes_what_is_drawn(gl_ctx, model):
+    """The pre-pass decides without the parallax refinement (microfacet_prepass_frag.glsl): in the
+    one-pass path the refinement may change a fragment's colour, never whether it is drawn."""
+    r = _renderer(gl_ctx, model, cull=False, prepass=False)
+    try:
+        for what, eye in _eyes(model).items():
+            for level in (1, 3):
+                a = r.render(eye, level=level, refine=0)
+                b = r.render(eye, level=level, refine=2)
+                np.testing.assert_array_equal(a.coverage, b.coverage, err_msg=f"{what}, level {level}")
+                assert not np.array_equal(a.rgb, b.rgb)  # the refinement did act
+    finally:
+        r.release()
