@@ -185,11 +185,13 @@ def test_refinement_never_changes_what_is_drawn(gl_ctx, model):
     one-pass path the refinement may change a fragment's colour, never whether it is drawn."""
     r = _renderer(gl_ctx, model, cull=False, prepass=False)
     try:
+        recoloured = 0
         for what, eye in _eyes(model).items():
             for level in (1, 3):
                 a = r.render(eye, level=level, refine=0)
                 b = r.render(eye, level=level, refine=2)
                 np.testing.assert_array_equal(a.coverage, b.coverage, err_msg=f"{what}, level {level}")
-                assert not np.array_equal(a.rgb, b.rgb)  # the refinement did act
+                recoloured += int(np.sum(np.any(a.rgb != b.rgb, axis=-1)))
+        assert recoloured > 100  # the refinement did act
     finally:
         r.release()
