@@ -284,34 +284,37 @@ def _tables(con, results: dict, n_views: int) -> None:
 
     for key, res in results["sizes"].items():
         t = Table(title=f"microfacet speed vs error, {key} (fur ball, {n_views} held-out views, llvmpipe)")
-        for c in ("config", "level", "l mm", "facets", "ms/frame", "CPU ms", "fill ms", "x fill", "GS ms", "PSNR",
-                  "PSNR mask", "holes %"):
+        for c in ("config", "level", "l mm", "facets", "ms/frame", "CPU ms", "fill ms", "x fill", "CPU x fill", "GS ms",
+                  "PSNR", "PSNR mask", "holes %"):
             t.add_column(c, justify="right")
         for row in res["levels"]:
             t.add_row(f"L={row['L']}", str(row["level"]), f"{row['spacing_mm']:.2f}", f"{row['facets']:.0f}",
-                      f"{row['ms']:.1f}", f"{row['cpu_ms']:.1f}", f"{row['fill_ms']:.1f}", f"{row['ratio_to_fill']:.1f}", "",
+                      f"{row['ms']:.1f}", f"{row['cpu_ms']:.1f}", f"{row['fill_ms']:.1f}", f"{row['ratio_to_fill']:.1f}",
+                      f"{row['cpu_ratio_to_fill']:.1f}", "",
                       f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}", f"{100 * row['hole_fraction']:.1f}")
         for row in res["tolerances"]:
             t.add_row(f"E={row['E']:g}px", str(row["level"]), f"{row['spacing_mm']:.2f}", f"{row['facets']:.0f}",
                       f"{row['ms']:.1f}", f"{row['cpu_ms']:.1f}", f"{row['fill_ms']:.1f}",
-                      f"{row['ratio_to_fill']:.1f}", f"{row['geometry_shader_ms']:.1f}", f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}",
+                      f"{row['ratio_to_fill']:.1f}", f"{row['cpu_ratio_to_fill']:.1f}", f"{row['geometry_shader_ms']:.1f}",
+                      f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}",
                       f"{100 * row['hole_fraction']:.1f}")
         b = res["mesh_vdtm"]
-        t.add_row("mesh VDTM", "", "", f"{b['facets']:.0f}", f"{b['ms']:.1f}", f"{b['cpu_ms']:.1f}", "", "", "",
+        t.add_row("mesh VDTM", "", "", f"{b['facets']:.0f}", f"{b['ms']:.1f}", f"{b['cpu_ms']:.1f}", "", "", "", "",
                   f"{b['psnr']:.2f}",
                   f"{b['psnr_masked']:.2f}", "")
         con.print(t)
         t = Table(title=f"quality options at E = {DEFAULT_TOLERANCE_PX:g} px, {key}: parallax correction (refine) "
                         "and supersampling")
-        for c in ("refine", "samples", "ms/frame", "x fill", "PSNR", "PSNR mask", "holes %"):
+        for c in ("refine", "samples", "ms/frame", "CPU ms", "x fill", "CPU x fill", "PSNR", "PSNR mask", "holes %"):
             t.add_column(c, justify="right")
         for row in res.get("options", []):
             t.add_row(str(row["refine"]), f"{row['supersample']}x{row['supersample']}", f"{row['ms']:.1f}",
-                      f"{row['ratio_to_fill']:.1f}", f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}",
+                      f"{row['cpu_ms']:.1f}", f"{row['ratio_to_fill']:.1f}", f"{row['cpu_ratio_to_fill']:.1f}",
+                      f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}",
                       f"{100 * row['hole_fraction']:.1f}")
         b2 = res.get("mesh_vdtm_ss2")
         if b2:
-            t.add_row("mesh VDTM", "2x2", f"{b2['ms']:.1f}", "", f"{b2['psnr']:.2f}", f"{b2['psnr_masked']:.2f}", "")
+            t.add_row("mesh VDTM", "2x2", f"{b2['ms']:.1f}", "", "", "", f"{b2['psnr']:.2f}", f"{b2['psnr_masked']:.2f}", "")
         con.print(t)
 
 
