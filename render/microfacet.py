@@ -57,11 +57,16 @@ COARSE_COVERS_FINE = True
 RGBZ_DTYPE = np.float16
 
 
-def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None) -> dict:
+def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None,
+                   debug: str | None = None) -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
     if rule not in mg.FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
+    if debug not in mg.DEBUG_OUTPUTS:
+        raise ValueError(f"unknown debug output {debug!r}; use one of {mg.DEBUG_OUTPUTS[1:]}")
     return {
+        "DEBUG_VIEW": mg.DEBUG_OUTPUTS.index(debug),
+        "DEBUG_BACK_DEPTH": f"{mg.DEBUG_BACK_DEPTH:.9f}",
         "FALLBACK_RULE": mg.FALLBACK_RULES.index(rule),
         "N_FALLBACK": mg.N_FALLBACK if n_fallback is None else int(n_fallback),
         "ALPHA_VOTE": f"{mg.ALPHA_VOTE:.6f}",
@@ -255,14 +260,15 @@ class MicrofacetRenderer(Renderer):
         lv = self.levels[level]
         return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
-    def _program(self, kind: str, refine: int):
+    def _program(self, kind: str, refine: int, debug: str | None = None):
         """(program, vertex array) of ``kind`` ("select" (tiles, culled), "select_all" (one record
-        per slice), "draw", "fill", "geometry", "prepass", "colour") for
-        ``refine`` parallax-correction steps, compiled on first use."""
-        key = (kind, refine if kind in ("draw", "geometry", "colour") else 0)  # the others never refine
+        per slice), "draw", "fill", "geometry", "prepass", "colour") for ``refine``
+        parallax-correction steps and the ``debug`` output, compiled on first use."""
+        refines = kind in ("draw", "geometry", "colour")  # the others never refine ...
+        key = (kind, refine if refines else 0, debug if kind in ("draw", "geometry") else None)  # ... or debug
         if key not in self._programs:
             ctx = self.ctx
-            d = shader_defines(self.rule, self.n_fallback, key[1])
+            d = shader_defines(self.rule, self.n_fallback, key[1], key[2])
             if kind in ("select", "select_all"):
                 d = {**d, "CULL": int(kind == "select")}
                 self._programs[key] = (self.own(ctx.compute_shader(load_shader("microfacet_select.glsl", d))), None)
@@ -332,7 +338,7 @@ class MicrofacetRenderer(Renderer):
         self._last_order = self.orders[lev][axis]
         self.tex.use(0)
         if options.mode == "geometry" and not options.fill_only:
-            prog, vao = self._program("geometry", options.refine_steps)
+            prog, vao = self._program("geometry", options.refine_steps, options.debug)
             self._uniforms(prog, eye, lev, spacing, near, view_proj)
             with self.query:
                 vao.render(mode=ctx.POINTS, vertices=n_vox)
@@ -349,15 +355,20 @@ class MicrofacetRenderer(Renderer):
             self.free(self.slice_buf)
             self.slice_buf = self.own(ctx.buffer(reserve=self.max_records * SLICE_BYTES))
         self._timer.lap("select")
-        if self.prepass and not options.fill_only:
+        if self._two_pass(options):
             self._two_passes(eye, options, lev, spacing, near, view_proj)
         else:
-            prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps)
+            prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps, options.debug)
             self._uniforms(prog, eye, lev, spacing, near, view_proj)
             vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
             self._timer.lap("fill" if options.fill_only else "draw")
         ctx.finish()
         return self._slices, records
+
+    def _two_pass(self, options: RenderOptions) -> bool:
+        """Whether a frame with ``options`` is drawn as pre-pass + colour pass (the instanced path's
+        colour frames; fills and debug views take the one-pass path, which sees every fragment)."""
+        return self.prepass and options.mode == "instanced" and not options.fill_only and options.debug is None
 
     def _two_passes(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
                     view_proj: np.ndarray) -> None:
@@ -400,11 +411,12 @@ class MicrofacetRenderer(Renderer):
         self.slice_buf.bind_to_storage_buffer(2)
         self.indirect.bind_to_storage_buffer(3)
         self.pyr_buf.bind_to_storage_buffer(4)
-        select, _ = self._program("select" if self.cull else "select_all", options.refine_steps)
+        cull = self.cull and options.debug is None  # debug views show every slice fragment
+        select, _ = self._program("select" if cull else "select_all", options.refine_steps)
         self._uniforms(select, eye, lev, spacing, near, view_proj)
         select["n_voxels"].value = n_vox
         select["max_records"].value = self.max_records
-        if self.cull:
+        if cull:
             select["tile_px"].value = self.tile_px
             select["eye_focal"].value = float(eye.K[0, 0]) * options.supersample  # drawn pixels
             select["pyr_levels"].value = len(self.pyr_offsets)
@@ -425,7 +437,7 @@ class MicrofacetRenderer(Renderer):
         f = options.supersample
         draw_eye = eye if f == 1 else eye.scaled(f)
         view_proj = draw_eye.gl_projection(near, far) @ draw_eye.gl_view()
-        two_pass = self.prepass and options.mode == "instanced" and not options.fill_only
+        two_pass = self._two_pass(options)
         self.begin_frame(eye.width, eye.height, f, colours=(4, 1) if two_pass else (4,))
         n_vox = self.counts[lev]
         with FrameTimer(self.ctx, laps=self.profile) as t:

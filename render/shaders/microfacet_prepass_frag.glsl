@@ -12,7 +12,8 @@ out float record;
 
 void main() {
     vec3 col;
-    if (!shade_fragment(col))
+    int src;
+    if (!shade_fragment(col, src))
         discard;
     record = float(v_id);
 }
