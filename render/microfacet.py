@@ -250,7 +250,7 @@ class MicrofacetRenderer(Renderer):
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None, rule: str = "vote",
-                   n_fallback: int | None = None) -> "MicrofacetRenderer":
+                   n_fallback: int | None = None) -> MicrofacetRenderer:
         """Renderer for a volume.model.Model."""
         return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
                    model.bounds, options, rule, n_fallback)

@@ -121,7 +121,7 @@ class FrameTimer:
         self.timing_laps = bool(laps)
         self.laps: dict[str, tuple[float, float]] = {}
 
-    def __enter__(self) -> "FrameTimer":
+    def __enter__(self) -> FrameTimer:
         self.ctx.finish()
         self._t0 = self._lt = time.perf_counter()
         self._c0 = self._lc = time.process_time()

@@ -35,7 +35,6 @@ import numpy as np
 
 from furrow.bench import OUT_ROOT
 
-
 TOLERANCES = (2.0, 4.0, 8.0, 16.0)
 #: Frames of the pipeline comparison: (name, RenderOptions changes); level -1 = the finest.
 PIPELINE_FRAMES = (("E=8, 1x1", {"supersample": 1}), ("E=8, 2x2", {"supersample": 2}),
@@ -224,13 +223,14 @@ def _pipelines(r, views, base, repeats: int, con, key: str) -> list[dict]:
                     times[p].append(r.render(s.camera, opts, read=False).stats)
                 times["fill"].append(_bare_fill(r, s.camera, opts))
                 r.profile = True  # the per-pass breakdown, in a separate (synchronised) frame
-                for k, (ms, cpu) in r.render(s.camera, opts).stats.passes.items():
+                for k, (_, cpu) in r.render(s.camera, opts).stats.passes.items():
                     passes.setdefault(k, []).append(cpu)
                 r.profile = False
         load.append(_load_average())
         row = {"frame": name, "options": {k: v for k, v in changes.items()}, "load_before_after": load,
                "facets": int(times["fast"][0].facets), "tiles": int(np.median([t.tiles for t in times["fast"]])),
-               "level": int(times["fast"][0].resolution), "passes_cpu_ms": {k: float(np.median(v)) for k, v in passes.items()}}
+               "level": int(times["fast"][0].resolution),
+               "passes_cpu_ms": {k: float(np.median(v)) for k, v in passes.items()}}
         for k, ts in times.items():
             row[f"{k}_ms"] = float(np.median([t.ms for t in ts]))
             row[f"{k}_cpu_ms"] = float(np.median([t.cpu_ms for t in ts]))
@@ -289,13 +289,15 @@ def _tables(con, results: dict, n_views: int) -> None:
             t.add_column(c, justify="right")
         for row in res["levels"]:
             t.add_row(f"L={row['L']}", str(row["level"]), f"{row['spacing_mm']:.2f}", f"{row['facets']:.0f}",
-                      f"{row['ms']:.1f}", f"{row['cpu_ms']:.1f}", f"{row['fill_ms']:.1f}", f"{row['ratio_to_fill']:.1f}",
+                      f"{row['ms']:.1f}", f"{row['cpu_ms']:.1f}", f"{row['fill_ms']:.1f}",
+                      f"{row['ratio_to_fill']:.1f}",
                       f"{row['cpu_ratio_to_fill']:.1f}", "",
                       f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}", f"{100 * row['hole_fraction']:.1f}")
         for row in res["tolerances"]:
             t.add_row(f"E={row['E']:g}px", str(row["level"]), f"{row['spacing_mm']:.2f}", f"{row['facets']:.0f}",
                       f"{row['ms']:.1f}", f"{row['cpu_ms']:.1f}", f"{row['fill_ms']:.1f}",
-                      f"{row['ratio_to_fill']:.1f}", f"{row['cpu_ratio_to_fill']:.1f}", f"{row['geometry_shader_ms']:.1f}",
+                      f"{row['ratio_to_fill']:.1f}", f"{row['cpu_ratio_to_fill']:.1f}",
+                      f"{row['geometry_shader_ms']:.1f}",
                       f"{row['psnr']:.2f}", f"{row['psnr_masked']:.2f}",
                       f"{100 * row['hole_fraction']:.1f}")
         b = res["mesh_vdtm"]
@@ -314,7 +316,8 @@ def _tables(con, results: dict, n_views: int) -> None:
                       f"{100 * row['hole_fraction']:.1f}")
         b2 = res.get("mesh_vdtm_ss2")
         if b2:
-            t.add_row("mesh VDTM", "2x2", f"{b2['ms']:.1f}", "", "", "", f"{b2['psnr']:.2f}", f"{b2['psnr_masked']:.2f}", "")
+            t.add_row("mesh VDTM", "2x2", f"{b2['ms']:.1f}", "", "", "", f"{b2['psnr']:.2f}",
+                      f"{b2['psnr_masked']:.2f}", "")
         con.print(t)
 
 
