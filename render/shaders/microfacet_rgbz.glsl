@@ -1,6 +1,11 @@
 // RGBz lookup, Eq. 2 and the blend (METHODS §1.3-1.4).
 // Twin: microfacet_geometry.sample_rgbz / classify / shade_fragments.
 uniform sampler2DArray rgbz;   // layer i: rgb linear + z-depth (m, 0 = none) of camera i
+#ifdef DEPTH_ONLY
+// Visibility pre-pass (microfacet_prepass_frag.glsl): the depths alone (layer i: z-depth of
+// camera i), colours read as black; the decisions are those of the full RGBz lookup.
+uniform sampler2DArray zdepth;
+#endif
 
 const int NO_VIEW = 0;   // outside the image, behind the camera, or occluded (d <= D - FREE_FACTOR tol)
 const int PASS = 1;      // Eq. 2: |d - D| < tol
@@ -18,7 +23,11 @@ int rgbz_classify(int i, vec3 pr, float tol, out vec3 col, out float d) {
     vec3 uvz = vec3(pr.xy / pr.z, pr.z);
     ivec2 ij = ivec2(floor(uvz.xy + 0.5));
     if (ij.x < 0 || ij.y < 0 || ij.x >= tex_size.x || ij.y >= tex_size.y) return NO_VIEW;
+#ifdef DEPTH_ONLY
+    vec4 t = vec4(vec3(0.0), texelFetch(zdepth, ivec3(ij, i), 0).r);
+#else
     vec4 t = texelFetch(rgbz, ivec3(ij, i), 0);
+#endif
     col = t.rgb;
     d = t.a;
     if (!(t.a > 0.0)) return FREE;
