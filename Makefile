@@ -8,8 +8,9 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# Debian packages for headless OpenGL (Mesa llvmpipe through EGL) and Open3D (libusb).
-DEB_PKGS := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libusb-1.0-0
+# Debian packages for headless OpenGL (Mesa llvmpipe through EGL), Open3D (libusb) and the
+# browser that the `furrow view` test drives (chromium; Playwright cannot download its own here).
+DEB_PKGS := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libusb-1.0-0 chromium
 DEMO := out/demo
 export OMP_WAIT_POLICY := passive
 
@@ -22,7 +23,7 @@ sysdeps:
 	    echo "installing Debian packages: $$missing"; \
 	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
 	  else \
-	    echo "error: missing Debian packages for headless OpenGL / Open3D: $$missing"; \
+	    echo "error: missing Debian packages for headless OpenGL / Open3D / the viewer test: $$missing"; \
 	    echo "run:   sudo apt-get install --no-install-recommends $$missing"; exit 1; \
 	  fi; \
 	fi
@@ -30,7 +31,7 @@ sysdeps:
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev]'
+	$(BIN)/python -m pip install -q -e '.[dev,cluster]'
 	@touch $(STAMP)
 
 setup: sysdeps $(STAMP)

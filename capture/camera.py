@@ -342,3 +342,45 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     out[:3, :3] = R
     out[:3, 3] = -R @ eye
     return out
+
+
+# ------------------------------------------------------------------ web viewer (viser)
+def rotation_from_wxyz(wxyz) -> np.ndarray:
+    """(3, 3) rotation matrix of the quaternion (w, x, y, z) (normalised here)."""
+    q = np.asarray(wxyz, dtype=np.float64)
+    n = np.linalg.norm(q)
+    if q.shape != (4,) or not np.isfinite(n) or n < 1e-12:
+        raise CameraError(f"expected a non-zero quaternion (w, x, y, z), got {q.tolist()}")
+    w, x, y, z = q / n
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def camera_from_viser(wxyz, position, fov_y: float, width: int, height: int, name: str = "") -> Camera:
+    """The Camera of a viser (1.x) browser client.
+
+    viser reports a client's camera as ``wxyz``, the rotation R of ``P_world = R p_camera + t``
+    with ``t = position``, in OpenCV axes (x right, y down, z forward: viser's CameraHandle), its
+    vertical field of view ``fov_y`` in radians and the canvas size ``width`` x ``height`` in
+    pixels.  The browser shows the server's image stretched over the whole canvas, so the
+    principal point is the canvas centre and pixels are square.  No axis changes sign here.
+    """
+    if not 0 < fov_y < np.pi:
+        raise CameraError(f"viser camera: vertical field of view must be in (0, pi) radians, got {fov_y}")
+    c2w = np.eye(4)
+    c2w[:3, :3] = rotation_from_wxyz(wxyz)
+    c2w[:3, 3] = np.asarray(position, dtype=np.float64)
+    f = 0.5 * height / np.tan(0.5 * fov_y)
+    K = make_K(f, f, cv_from_corner(0.5 * width), cv_from_corner(0.5 * height))
+    return Camera(K, invert_rigid(check_rigid(c2w, "viser camera")), int(width), int(height), name)
+
+
+def viser_view(camera: Camera, distance: float) -> dict:
+    """Where a viser client's camera goes to look through ``camera``: ``position`` (its centre),
+    ``look_at`` (``distance`` metres along its optical axis), ``up_direction`` (the world
+    direction up in its image) and ``fov`` (its vertical field of view, radians)."""
+    up = image_up(camera)
+    fov = 2.0 * np.arctan(0.5 * camera.height / camera.K[1, 1])
+    return {"position": camera.center, "look_at": camera.center + float(distance) * camera.forward,
+            "up_direction": up, "fov": float(fov)}

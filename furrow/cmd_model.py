@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 HELP = "build the model (SDF pyramid up to L_opt, RGBz images, occluder spheres, mesh) from a scan set"
@@ -13,7 +14,9 @@ the spirit of Wheeler-Sato-Ikeuchi, or Open3D's TSDF as the peer), choose the re
 by the paper's Eq. 1 (METHODS §1.1), keep every power-of-two level up to it with its surface
 voxels, project the geometry into every camera as cleaned RGBz images (METHODS §1.4), fit an
 occluder sphere set to an error target (METHODS §3) and extract a decimated mesh for the
-baseline renderer.  The model folder is written atomically (temporary folder + rename).
+baseline renderer (marched on --mesh-level).  The finest level's distance transforms are done
+only when something uses that level.  The closing table gives wall and CPU seconds and peak
+resident memory per stage.  The model folder is written atomically (temporary folder + rename).
 
 --capture-env MAP (an equirect .exr/.hdr or a bundled name), --capture-env-fisheye IMG or
 --capture-env-mirrorball IMG stores the lighting the scans were taken under, with the rig's up
@@ -50,6 +53,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="consensus: scans that must agree for a depth sample to count (default 3; use 1-2 "
                         "when each surface point is seen by fewer views)")
     p.add_argument("--mesh-faces", type=int, default=60000, help="decimate the mesh to this many triangles (default 60000)")
+    p.add_argument("--mesh-level", type=_pow2, default=128,
+                   help="fused level the baseline mesh is marched on (default 128, capped at --max-res)")
+    p.add_argument("--reference-pipeline", action="store_true",
+                   help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
+                        "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
     p.add_argument("--overwrite", action="store_true", help="replace MODEL if it exists (only a furrow model folder)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary on stdout")
     g = p.add_argument_group("capture lighting (for furrow render --relight)")
@@ -77,10 +85,13 @@ def run(args, console) -> int:
     from volume.model import save_model
     from volume.pyramid import LoptConfig
 
-    cfg = ModelConfig(sdf=args.sdf, lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t,
-                                                    min_res=min(8, args.max_res)),
-                      fusion=FusionConfig(quorum=args.quorum),
-                      sphere_error=args.sphere_error, mesh=MeshConfig(target_faces=args.mesh_faces))
+    kw = dict(sdf=args.sdf, lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res)),
+              fusion=FusionConfig(quorum=args.quorum), sphere_error=args.sphere_error)
+    if args.reference_pipeline:
+        cfg = ModelConfig.reference(**kw)
+        cfg = replace(cfg, mesh=replace(cfg.mesh, target_faces=args.mesh_faces))
+    else:
+        cfg = ModelConfig(mesh=MeshConfig(target_faces=args.mesh_faces, level=args.mesh_level), **kw)
     out = Path(args.out)
     if out.exists() and not (out / "model.json").is_file() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"{out}: exists and is not a furrow model folder; choose another output")
@@ -91,7 +102,7 @@ def run(args, console) -> int:
     def progress(it, desc="working"):
         return track(it, desc)
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
         scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d))
@@ -104,6 +115,10 @@ def run(args, console) -> int:
         save_model(model, out)
     summary["seconds"] = {k: round(v, 3) for k, v in timer.seconds.items()}
     summary["seconds_total"] = round(time.perf_counter() - t0, 3)
+    summary["cpu_seconds"] = {k: round(v, 3) for k, v in timer.cpu_seconds.items()}
+    summary["cpu_seconds_total"] = round(time.process_time() - c0, 3)
+    summary["peak_mb"] = {k: round(v, 1) for k, v in timer.peak_mb.items()}
+    summary["peak_mb_total"] = round(max(timer.peak_mb.values(), default=0.0), 1)
     summary["output"] = str(out)
     console.print(timer.table("furrow model: stage timings"))
     h = summary["holes"]

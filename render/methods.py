@@ -25,7 +25,7 @@ from typing import ClassVar
 from capture.camera import Camera
 from render.antialias import check_factor
 from render.frame import Frame
-from render.microfacet_geometry import DEPTH_REFINE
+from render.microfacet_geometry import DEBUG_OUTPUTS, DEPTH_REFINE
 from render.microfacet_lod import DEFAULT_TOLERANCE_PX
 from render.owner import GLOwner
 
@@ -59,6 +59,10 @@ class RenderOptions:
     mode: str = "instanced"
     #: Draw the same microfacet squares untextured: the bare fill-cost reference of bench/render.py.
     fill_only: bool = False
+    #: A debug output instead of the colour (methods that list "debug" in ``uses``): "camera" (the
+    #: dominant input camera's index + 1 per pixel) or "rejections" (1 kept, 2 rejected by Eq. 2)
+    #: in the red channel (render.microfacet_geometry.debug_codes); needs supersample 1.
+    debug: str | None = None
 
     def __post_init__(self) -> None:
         if not self.tolerance_px > 0:
@@ -70,6 +74,10 @@ class RenderOptions:
             raise ValueError(f"level must be a level index, got {self.level}")
         if self.spacing is not None and not self.spacing > 0:
             raise ValueError(f"spacing must be > 0 metres, got {self.spacing}")
+        if self.debug not in DEBUG_OUTPUTS:
+            raise ValueError(f"unknown debug output {self.debug!r}; use one of {DEBUG_OUTPUTS[1:]}")
+        if self.debug is not None and self.supersample != 1:
+            raise ValueError("debug outputs are codes per pixel: they need supersample 1")
         if self.mode not in MICROFACET_MODES:
             raise ValueError(f"unknown microfacet mode {self.mode!r}; use one of {MICROFACET_MODES}")
 

@@ -27,17 +27,26 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from capture.camera import Camera, image_axes
+from render import microfacet_cull as mcull
 from render import microfacet_geometry as mg
 from render import microfacet_lod as mlod
 from render.frame import Frame, FrameStats
 from render.gl import load_shader, program
-from render.methods import RenderOptions, Renderer
+from render.methods import Renderer, RenderOptions
 from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Compute work-group size of microfacet_select.glsl.
 LOCAL_SIZE = 64
-#: Bytes of one slice record (4 x vec4, microfacet_slice.glsl).
-SLICE_BYTES = 64
+#: Bytes of one slice tile record (5 x vec4, microfacet_slice.glsl).
+SLICE_BYTES = 80
+#: Most levels of the depth-bounds pyramid (a 2^15 pixel image).
+MAX_PYR_LEVELS = 16
+#: Cull slice tiles on which no camera can pass Eq. 2 (render/microfacet_cull.py; exact).
+CULL = True
+#: Instanced path in two passes: a visibility pre-pass (Eq. 2 and the vote on the depths alone)
+#: leaves per sample the nearest drawn slice, then one colour pass shades each drawn sample once
+#: (on llvmpipe every rasterised fragment costs the whole shader; most are discarded).
+PREPASS = True
 
 #: Draw, on every coarse level, the ancestors of the finest level's surface voxels too
 #: (covering_surfaces): the plant's top vanished from a fused 8^3 level (volume.build), whose
@@ -48,16 +57,22 @@ COARSE_COVERS_FINE = True
 RGBZ_DTYPE = np.float16
 
 
-def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None) -> dict:
+def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None,
+                   debug: str | None = None) -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
     if rule not in mg.FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
+    if debug not in mg.DEBUG_OUTPUTS:
+        raise ValueError(f"unknown debug output {debug!r}; use one of {mg.DEBUG_OUTPUTS[1:]}")
     return {
+        "DEBUG_VIEW": mg.DEBUG_OUTPUTS.index(debug),
+        "DEBUG_BACK_DEPTH": f"{mg.DEBUG_BACK_DEPTH:.9f}",
         "FALLBACK_RULE": mg.FALLBACK_RULES.index(rule),
         "N_FALLBACK": mg.N_FALLBACK if n_fallback is None else int(n_fallback),
         "ALPHA_VOTE": f"{mg.ALPHA_VOTE:.6f}",
         "K_BLEND": mg.K_BLEND,
         "K_CAND": mg.K_CAND,
+        "N_PROJ": mg.K_BLEND + (mg.N_FALLBACK if n_fallback is None else int(n_fallback)),
         "MAX_SLICES": mg.MAX_SLICES,
         "MAX_VERTS": 4 * mg.MAX_SLICES,
         "PHI_EPS": f"{mg.PHI_EPS:.9e}",
@@ -73,17 +88,35 @@ def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: in
         "DEPTH_REFINE": mg.DEPTH_REFINE if refine is None else int(refine),
         "REFINE_RANGE": f"{mg.REFINE_RANGE:.6f}",
         "REFINE_ACCEPT": f"{mg.REFINE_ACCEPT:.6f}",
+        "PIX_MARGIN": f"{mcull.PIX_MARGIN:.6f}",
+        "VOTE_MARGIN": f"{mcull.VOTE_MARGIN:.9e}",
+        "BOUND_BLOCKS": mcull.BOUND_BLOCKS,
+        "EMPTY_MIN": f"{mcull.EMPTY_MIN:.1f}",
+        "TOL_MARGIN_REL": f"{mcull.TOL_MARGIN_REL:.9e}",
+        "TOL_MARGIN_ABS": f"{mcull.TOL_MARGIN_ABS:.9e}",
+        "MAX_TILES": mcull.MAX_TILES,
+        "MAX_PYR_LEVELS": MAX_PYR_LEVELS,
     }
 
 
 def camera_block(cameras) -> bytes:
     """std430 array of ``Cam`` structs (microfacet_common.glsl) for the input cameras."""
-    out = np.zeros((max(len(cameras), 1), 28), np.float32)
+    out = np.zeros((max(len(cameras), 1), 40), np.float32)
     for i, c in enumerate(cameras):
         out[i, :16] = c.cam_from_world.T.reshape(-1)  # column-major mat4
         out[i, 16:20] = [c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2]]
         out[i, 20:24] = [c.width, c.height, c.K[0, 1], 0.0]
         out[i, 24:27] = c.center
+        out[i, 28:40] = (c.K @ c.cam_from_world[:3]).reshape(-1)  # rows of K [R | t]
+    return out.tobytes()
+
+
+def eye_projections(cameras, eye_pos: np.ndarray) -> bytes:
+    """std430 ``vec4`` per camera: the homogeneous projection (u z, v z, z) of the eye centre
+    (cam_project_h; microfacet_common.glsl ``eye_h``), computed once per frame in float64."""
+    out = np.zeros((max(len(cameras), 1), 4), np.float32)
+    for i, c in enumerate(cameras):
+        out[i, :3] = mg.project_h(c, np.asarray(eye_pos, np.float64)[None])[0]
     return out.tobytes()
 
 
@@ -99,6 +132,12 @@ class MicrofacetStats(FrameStats):
     Attributes:
         level: pyramid level index drawn (-1: nothing to draw).
         resolution: that level's L.
+        tiles: slice tiles drawn (instanced path: the slices split into tiles, those on which
+            no camera can pass Eq. 2 culled, render/microfacet_cull.py; else = facets).
+        passes: when the renderer's ``profile`` is on, {pass: (wall ms, CPU ms)} of the frame's
+            passes, each synchronised: "select" (compute pass and its count read back), "prepass"
+            and "colour" (two-pass path) or "draw" / "fill" / "geometry", "resolve", "read"
+            (read-back to numpy); else empty.
         spacing: slice spacing l (m).
         lod: the automatic level-of-detail choice (Eq. 10-11) for this eye.
     """
@@ -107,11 +146,17 @@ class MicrofacetStats(FrameStats):
     resolution: int = 0
     spacing: float = 0.0
     lod: mlod.Lod | None = field(default=None, repr=False, compare=False)
+    tiles: int = 0
+    passes: dict = field(default_factory=dict, compare=False)
 
     def record(self) -> dict:
         """FrameStats.record plus ``level`` (the resolution L, as furrow eval has always written
         it) and ``spacing_m``."""
-        return {**super().record(), "level": int(self.resolution), "spacing_m": float(self.spacing)}
+        out = {**super().record(), "level": int(self.resolution), "spacing_m": float(self.spacing),
+               "tiles": int(self.tiles)}
+        if self.passes:
+            out["passes"] = {k: {"ms": float(v[0]), "cpu_ms": float(v[1])} for k, v in self.passes.items()}
+        return out
 
 
 class MicrofacetRenderer(Renderer):
@@ -125,6 +170,12 @@ class MicrofacetRenderer(Renderer):
         options: default per-frame options (render.methods.RenderOptions; this method reads all).
         rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
         n_fallback: fallback candidates tried after the blend cameras (default N_FALLBACK).
+        cull: split the instanced path's slices into tiles and drop those on which no camera
+            can pass Eq. 2 (render/microfacet_cull.py; the frame is unchanged); an attribute,
+            may change between frames.
+        tile_px: target tile side in drawn pixels (supersampled; attribute ``tile_px``).
+        prepass: draw the instanced path as a visibility pre-pass and a colour pass (PREPASS;
+            attribute ``prepass``); False = one pass with the whole shader per fragment.
 
     The programs are compiled on first use per parallax-refinement setting (the only option
     that is a shader constant), so options change per frame without re-uploading anything.
@@ -134,7 +185,8 @@ class MicrofacetRenderer(Renderer):
     uses = frozenset(f.name for f in fields(RenderOptions))
 
     def __init__(self, ctx, levels, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
-                 rule: str = "vote", n_fallback: int | None = None):
+                 rule: str = "vote", n_fallback: int | None = None, cull: bool = CULL,
+                 tile_px: float = mcull.TILE_PX, prepass: bool = PREPASS):
         super().__init__(ctx, options)
         self.levels = tuple(levels)
         self.surfaces = covering_surfaces(self.levels)
@@ -167,21 +219,38 @@ class MicrofacetRenderer(Renderer):
             self.orders.append(ords)
         self._last_order = None
         self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
+        self.eye_buf = self.own(ctx.buffer(reserve=16 * max(len(self.cameras), 1)))
         texels = rgbz_array(rgb, depth)
         n, H, W = texels.shape[:3]
         self.tex_size = (W, H)
         self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.astype(RGBZ_DTYPE).tobytes(), dtype="f2"))
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.tex.repeat_x = self.tex.repeat_y = False
+        # min / max pyramid of the depths as the texture holds them (microfacet_cull)
+        pyr = mcull.depth_bounds_pyramid(texels[..., 3].astype(RGBZ_DTYPE).astype(np.float32))
+        if len(pyr) > MAX_PYR_LEVELS:
+            raise ValueError(f"microfacet renderer: RGBz images of {W}x{H} need {len(pyr)} pyramid levels "
+                             f"(at most {MAX_PYR_LEVELS})")
+        words, self.pyr_offsets = mcull.pack_pyramid(pyr)
+        self.pyr_buf = self.own(ctx.buffer(words.tobytes()))
+        self.ztex = self.own(ctx.texture_array((W, H, n), 1, texels[..., 3].astype(RGBZ_DTYPE).tobytes(), dtype="f2"))
+        self.ztex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.ztex.repeat_x = self.ztex.repeat_y = False
+        self.prepass = bool(prepass)
+        self.cull = bool(cull)
+        #: Time every pass of the next frames (MicrofacetStats.passes; synchronises between passes).
+        self.profile = False
+        self._timer = FrameTimer(ctx)
+        self.tile_px = float(tile_px)
         self.max_records = max(max(self.counts), 1) * mg.MAX_SLICES
         self.slice_buf = self.own(ctx.buffer(reserve=self.max_records * SLICE_BYTES))
-        self.indirect = self.own(ctx.buffer(reserve=16))
+        self.indirect = self.own(ctx.buffer(reserve=20))  # draw command + slice count
         self.query = ctx.query(primitives=True)  # moderngl queries have no release()
         self._programs: dict[tuple, tuple] = {}
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None, rule: str = "vote",
-                   n_fallback: int | None = None) -> "MicrofacetRenderer":
+                   n_fallback: int | None = None) -> MicrofacetRenderer:
         """Renderer for a volume.model.Model."""
         return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
                    model.bounds, options, rule, n_fallback)
@@ -191,20 +260,32 @@ class MicrofacetRenderer(Renderer):
         lv = self.levels[level]
         return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
-    def _program(self, kind: str, refine: int):
-        """(program, vertex array) of ``kind`` ("select", "draw", "fill", "geometry") for
-        ``refine`` parallax-correction steps, compiled on first use."""
-        key = (kind, refine)
+    def _program(self, kind: str, refine: int, debug: str | None = None):
+        """(program, vertex array) of ``kind`` ("select" (tiles, culled), "select_all" (one record
+        per slice), "draw", "fill", "geometry", "prepass", "colour") for ``refine``
+        parallax-correction steps and the ``debug`` output, compiled on first use."""
+        refines = kind in ("draw", "geometry", "colour")  # the others never refine ...
+        key = (kind, refine if refines else 0, debug if kind in ("draw", "geometry") else None)  # ... or debug
         if key not in self._programs:
             ctx = self.ctx
-            d = shader_defines(self.rule, self.n_fallback, key[1])
-            if kind == "select":
+            d = shader_defines(self.rule, self.n_fallback, key[1], key[2])
+            if kind in ("select", "select_all"):
+                d = {**d, "CULL": int(kind == "select")}
                 self._programs[key] = (self.own(ctx.compute_shader(load_shader("microfacet_select.glsl", d))), None)
+            elif kind == "prepass":
+                d = {**shader_defines(self.rule, self.n_fallback, 0), "DEPTH_ONLY": 1}
+                prog = self.own(program(ctx, "microfacet_vert.glsl", "microfacet_prepass_frag.glsl", defines=d))
+                self._programs[key] = (prog, self.own(ctx.vertex_array(prog, [])))
+            elif kind == "colour":
+                prog = self.own(program(ctx, "microfacet_colour_vert.glsl", "microfacet_colour_frag.glsl", defines=d))
+                self._programs[key] = (prog, self.own(ctx.vertex_array(prog, [])))
             else:
                 frag = "microfacet_quad_frag.glsl" if kind == "fill" else "microfacet_frag.glsl"
                 vert = "microfacet_points_vert.glsl" if kind == "geometry" else "microfacet_vert.glsl"
-                prog = self.own(program(ctx, vert, frag, geometry="microfacet_geom.glsl" if kind == "geometry" else None,
-                                        defines=d))
+                if kind == "fill":
+                    d = {**d, "FILL_ONLY": 1}  # positions only: the bare fill
+                geom = "microfacet_geom.glsl" if kind == "geometry" else None
+                prog = self.own(program(ctx, vert, frag, geometry=geom, defines=d))
                 self._programs[key] = (prog, self.own(ctx.vertex_array(prog, [])))
         return self._programs[key]
 
@@ -236,42 +317,116 @@ class MicrofacetRenderer(Renderer):
                 prog[k].value = v
         if "view_proj" in prog:
             prog["view_proj"].write(mat4_bytes(view_proj))
-        if "rgbz" in prog:
-            prog["rgbz"].value = 0
-        if "tex_size" in prog:
-            prog["tex_size"].value = self.tex_size
+        for name, unit in (("rgbz", 0), ("zdepth", 1), ("records", 2)):
+            if name in prog:
+                prog[name].value = unit
+        for name, value in (("tex_size", self.tex_size), ("depth_size", self.tex_size)):
+            if name in prog:
+                prog[name].value = value
 
     def _draw(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
-              view_proj: np.ndarray) -> int:
-        """Select and draw the slices of level ``lev`` into the bound target; returns the facet count."""
+              view_proj: np.ndarray) -> tuple[int, int]:
+        """Select and draw the slices of level ``lev`` into the bound target; returns the counts of
+        slices (facets) and of tiles drawn."""
         ctx = self.ctx
         n_vox = self.counts[lev]
         self.cam_buf.bind_to_storage_buffer(0)
+        self.eye_buf.write(eye_projections(self.cameras, eye.center))
+        self.eye_buf.bind_to_storage_buffer(5)
         axis = view_axis(eye)
         self.voxel_bufs[lev][axis].bind_to_storage_buffer(1)
         self._last_order = self.orders[lev][axis]
         self.tex.use(0)
         if options.mode == "geometry" and not options.fill_only:
-            prog, vao = self._program("geometry", options.refine_steps)
+            prog, vao = self._program("geometry", options.refine_steps, options.debug)
             self._uniforms(prog, eye, lev, spacing, near, view_proj)
             with self.query:
                 vao.render(mode=ctx.POINTS, vertices=n_vox)
             ctx.finish()
-            return int(self.query.primitives) // 2  # two triangles per square
-        self.indirect.write(np.array([4, 0, 0, 0], np.uint32).tobytes())
+            self._timer.lap("geometry")
+            facets = int(self.query.primitives) // 2  # two triangles per square
+            return facets, facets
+        while True:
+            records = self._select(eye, options, lev, spacing, near, view_proj)
+            if records <= self.max_records:
+                break
+            # more tiles than the buffer holds: grow it and select again (rare: first frames)
+            self.max_records = int(2 ** np.ceil(np.log2(records)))
+            self.free(self.slice_buf)
+            self.slice_buf = self.own(ctx.buffer(reserve=self.max_records * SLICE_BYTES))
+        self._timer.lap("select")
+        if self._two_pass(options):
+            self._two_passes(eye, options, lev, spacing, near, view_proj)
+        else:
+            prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps, options.debug)
+            self._uniforms(prog, eye, lev, spacing, near, view_proj)
+            vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
+            self._timer.lap("fill" if options.fill_only else "draw")
+        ctx.finish()
+        return self._slices, records
+
+    def _two_pass(self, options: RenderOptions) -> bool:
+        """Whether a frame with ``options`` is drawn as pre-pass + colour pass (the instanced path's
+        colour frames; fills and debug views take the one-pass path, which sees every fragment)."""
+        return self.prepass and options.mode == "instanced" and not options.fill_only and options.debug is None
+
+    def _two_passes(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
+                    view_proj: np.ndarray) -> None:
+        """The visibility pre-pass (depth + record index per sample) and the colour pass (each
+        drawn sample shaded once) into the frame's target (colour 0, record index 1)."""
+        ctx = self.ctx
+        tgt = self._frame[3]
+        colour, records = tgt.colours[0], tgt.colours[1]
+        pre_fbo = ctx.framebuffer([records], tgt.depth)
+        col_fbo = ctx.framebuffer([colour], tgt.depth)
+        try:
+            pre_fbo.use()
+            self.ztex.use(1)
+            prog, vao = self._program("prepass", options.refine_steps)
+            self._uniforms(prog, eye, lev, spacing, near, view_proj)
+            vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
+            self._timer.lap("prepass")
+            col_fbo.use()
+            col_fbo.depth_mask = False
+            ctx.depth_func = ">"
+            records.use(2)
+            prog, vao = self._program("colour", options.refine_steps)
+            self._uniforms(prog, eye, lev, spacing, near, view_proj)
+            prog["target_size"].value = tuple(float(x) for x in tgt.size)
+            vao.render(ctx.TRIANGLES, vertices=3)
+            self._timer.lap("colour")
+            ctx.depth_func = "<"
+            tgt.fbo.use()
+        finally:
+            pre_fbo.release()
+            col_fbo.release()
+
+    def _select(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
+                view_proj: np.ndarray) -> int:
+        """Run the compute pass (slice tiles of level ``lev`` into the slice buffer, their count
+        into the indirect draw command); returns the number of tiles it wanted to write."""
+        ctx = self.ctx
+        n_vox = self.counts[lev]
+        self.indirect.write(np.array([4, 0, 0, 0, 0], np.uint32).tobytes())
         self.slice_buf.bind_to_storage_buffer(2)
         self.indirect.bind_to_storage_buffer(3)
-        select, _ = self._program("select", options.refine_steps)
+        self.pyr_buf.bind_to_storage_buffer(4)
+        cull = self.cull and options.debug is None  # debug views show every slice fragment
+        select, _ = self._program("select" if cull else "select_all", options.refine_steps)
         self._uniforms(select, eye, lev, spacing, near, view_proj)
         select["n_voxels"].value = n_vox
         select["max_records"].value = self.max_records
+        if cull:
+            select["tile_px"].value = self.tile_px
+            select["eye_focal"].value = float(eye.K[0, 0]) * options.supersample  # drawn pixels
+            select["pyr_levels"].value = len(self.pyr_offsets)
+            select["pyr_offset"].value = tuple(self.pyr_offsets) + (0,) * (MAX_PYR_LEVELS - len(self.pyr_offsets))
         select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
         ctx.memory_barrier()
-        prog, vao = self._program("fill" if options.fill_only else "draw", options.refine_steps)
-        self._uniforms(prog, eye, lev, spacing, near, view_proj)
-        vao.render_indirect(self.indirect, mode=ctx.TRIANGLE_STRIP, count=1)
-        ctx.finish()
-        return int(np.frombuffer(self.indirect.read(), np.uint32)[1])
+        _, records, _, _, self._slices = (int(x) for x in np.frombuffer(self.indirect.read(), np.uint32))
+        if records > self.max_records:  # the draw command must not read past the buffer
+            self.indirect.write(np.array([4, self.max_records, 0, 0], np.uint32).tobytes())
+        return records
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         """One frame (Renderer.render).  ``options.supersample`` samples per pixel and axis: the
@@ -282,25 +437,34 @@ class MicrofacetRenderer(Renderer):
         f = options.supersample
         draw_eye = eye if f == 1 else eye.scaled(f)
         view_proj = draw_eye.gl_projection(near, far) @ draw_eye.gl_view()
-        self.begin_frame(eye.width, eye.height, f)
+        two_pass = self._two_pass(options)
+        self.begin_frame(eye.width, eye.height, f, colours=(4, 1) if two_pass else (4,))
         n_vox = self.counts[lev]
-        with FrameTimer(self.ctx) as t:
-            facets = self._draw(eye, options, lev, spacing, near, view_proj) if n_vox > 0 else 0
+        with FrameTimer(self.ctx, laps=self.profile) as t:
+            self._timer = t
+            facets, tiles = self._draw(eye, options, lev, spacing, near, view_proj) if n_vox > 0 else (0, 0)
             self.resolve_frame()
+            t.lap("resolve")
+        self._timer = FrameTimer(self.ctx)
         stats = MicrofacetStats(t.ms, t.cpu_ms, facets, f, lev if n_vox > 0 else -1, self.levels[lev].resolution,
-                                float(spacing), lod)
+                                float(spacing), lod, tiles, t.laps)
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
-        return Frame.from_gl(*self.read_frame(), near, far, stats)
+        with FrameTimer(self.ctx, laps=self.profile) as r:
+            back = self.read_frame()
+            r.lap("read")
+        t.laps.update(r.laps)
+        return Frame.from_gl(*back, near, far, stats)
 
     def read_slices(self, count: int) -> dict:
-        """The slice records of the last instanced frame (for tests): centres, s, weights,
-        candidates, voxel index, slice number."""
-        raw = np.frombuffer(self.slice_buf.read(size=count * SLICE_BYTES), np.float32).reshape(count, 16)
+        """The slice tile records of the last instanced frame (for tests): centres, s, weights,
+        candidates, voxel index, slice number, tile rectangle (x0, x1, y0, y1 along the slice axes)."""
+        raw = np.frombuffer(self.slice_buf.read(size=count * SLICE_BYTES), np.float32).reshape(count, SLICE_BYTES // 4)
         ints = raw.view(np.int32)
         return {"center": raw[:, 0:3].astype(np.float64), "s": raw[:, 3].astype(np.float64),
                 "weights": raw[:, 4:7].astype(np.float64), "cand": np.concatenate([ints[:, 8:12], ints[:, 12:14]], 1),
-                "voxel": self._last_order[ints[:, 14]], "n": ints[:, 15].copy()}
+                "voxel": self._last_order[ints[:, 14]], "n": ints[:, 15].copy(),
+                "rect": raw[:, 16:20].astype(np.float64)}
 
 
 def covering_surfaces(levels) -> list[np.ndarray]:

@@ -249,6 +249,13 @@ REFINE_RANGE = 2.0
 REFINE_ACCEPT = 1.0
 #: Fallback rules: "vote" (default) and "any" (see shade_fragments).
 FALLBACK_RULES = ("vote", "any")
+#: Debug outputs of the fragment shader (RenderOptions.debug), index = its DEBUG_VIEW define
+#: (0 = the colour): the dominant camera index + 1 per drawn pixel, or DEBUG_KEPT / DEBUG_REJECTED
+#: per pixel (a fragment Eq. 2 / the vote rejects is drawn at DEBUG_BACK_DEPTH, behind all kept ones).
+DEBUG_OUTPUTS = (None, "camera", "rejections")
+DEBUG_KEPT, DEBUG_REJECTED = 1, 2
+#: Window depth of rejected fragments in the rejections view (just in front of the cleared 1.0).
+DEBUG_BACK_DEPTH = 0.999999
 #: "vote" rule: a fragment is drawn when the passing share of the seeing blend weight >= this.
 ALPHA_VOTE = 0.5
 
@@ -334,7 +341,8 @@ def refine_colours(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.n
 
 def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, spacing: float,
                     cameras, rgb: np.ndarray, depth: np.ndarray, rule: str = "vote",
-                    n_fallback: int = None, eye_pos: np.ndarray | None = None, refine: int | None = None):
+                    n_fallback: int = None, eye_pos: np.ndarray | None = None, refine: int | None = None,
+                    with_source: bool = False):
     """Colour of slice fragments (the fragment shader's twin, microfacet_rgbz.glsl).
 
     "vote": the blend cameras that see the point (PASS, FREE or UNSURE) vote with their
@@ -345,7 +353,9 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
     "any": blend the passing blend cameras; if none passes, the first passing remaining candidate.
     With ``eye_pos`` given, passing colours are parallax-corrected (:func:`refine_colours`,
     ``refine`` steps, default DEPTH_REFINE).
-    Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.
+    Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.  With ``with_source``
+    also (N,) the dominant camera of each alive fragment: the passing blend camera of largest
+    weight (first of equals), or the fallback candidate that decided; -1 for dead ones.
     """
     if rule not in FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {FALLBACK_RULES}")
@@ -385,6 +395,7 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
         fcol = cols[np.arange(N), first]
         alive = np.where(use_blend, alive_b, has & (fstat == PASS))
         out = np.where(use_blend[:, None], blend_col, fcol)
+        fsrc = cand[np.arange(N), first]
     else:
         use_blend = wpass > WEIGHT_EPS
         ok = valid & (status == PASS)
@@ -393,7 +404,23 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
         fcol = cols[np.arange(N), first]
         alive = use_blend | has
         out = np.where(use_blend[:, None], blend_col, fcol)
-    return np.where(alive[:, None], out, 0.0), alive
+        fsrc = cand[np.arange(N), first]
+    colour = np.where(alive[:, None], out, 0.0)
+    if not with_source:
+        return colour, alive
+    bsrc = cand[np.arange(N), np.argmax(wb * passing, axis=1)]
+    return colour, alive, np.where(alive, np.where(use_blend, bsrc, fsrc), -1)
+
+
+def debug_codes(alive: np.ndarray, source: np.ndarray, debug: str) -> np.ndarray:
+    """(N,) codes the fragment shader writes for the ``debug`` output (DEBUG_OUTPUTS) of fragments
+    shaded by :func:`shade_fragments` (``with_source``): camera index + 1 (0 = discarded), or
+    DEBUG_KEPT / DEBUG_REJECTED."""
+    if debug == "camera":
+        return np.where(alive, source + 1, 0)
+    if debug == "rejections":
+        return np.where(alive, DEBUG_KEPT, DEBUG_REJECTED)
+    raise ValueError(f"unknown debug output {debug!r}; use one of {DEBUG_OUTPUTS[1:]}")
 
 
 # ------------------------------------------------------------------ whole frame

@@ -12,11 +12,15 @@ from render.owner import near_far
 
 def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float, cameras,
                      rgb: np.ndarray, depth: np.ndarray, bounds: np.ndarray, rule: str = "vote",
-                     n_fallback: int | None = None, refine: int | None = None):
+                     n_fallback: int | None = None, refine: int | None = None, debug: str | None = None):
     """Brute-force ray caster of the microfacet slices (slow, float64): the GPU frame's twin.
 
     For every pixel centre of ``eye``, intersect the ray with every slice quad, shade each hit
     (microfacet_geometry.shade_fragments) and keep the nearest surviving one.
+
+    With ``debug`` (microfacet_geometry.DEBUG_OUTPUTS) the image holds the fragment shader's debug
+    codes in its red channel instead (microfacet_geometry.debug_codes); for "rejections" every
+    pixel a slice covers is alive, rejected fragments behind all kept ones.
 
     Returns (image (H, W, 3) linear, alive (H, W) bool, slices (voxel, n)).
     """
@@ -32,6 +36,7 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
     ha_all, hb_all = mg.slice_half_extents(centers[vox], w, eye_pos, v[vox], a[vox], b[vox], n * spacing)
     best_z = np.full(H * W, np.inf)
     img = np.zeros((H * W, 3))
+    rejected = np.zeros(H * W, bool)
     for j, nn, ha, hb in zip(vox, n, ha_all, hb_all):
         s = nn * spacing
         denom = rays @ v[j]
@@ -48,11 +53,18 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
         pix, x = pix[inq], x[inq]
         if not len(pix):
             continue
-        col, alive = mg.shade_fragments(x, np.repeat(idx[j:j + 1], len(pix), 0),
-                                        np.repeat(wts[j:j + 1], len(pix), 0), spacing, cameras, rgb, depth, rule,
-                                        n_fallback, eye_pos, refine)
+        col, alive, src = mg.shade_fragments(x, np.repeat(idx[j:j + 1], len(pix), 0),
+                                             np.repeat(wts[j:j + 1], len(pix), 0), spacing, cameras, rgb, depth,
+                                             rule, n_fallback, eye_pos, refine, with_source=True)
+        if debug is not None:
+            col = np.zeros_like(col)
+            col[:, 0] = mg.debug_codes(alive, src, debug)
+            rejected[pix[~alive]] = True
         pix = pix[alive]
         best_z[pix] = t[pix]
         img[pix] = col[alive]
     alive = np.isfinite(best_z)
+    if debug == "rejections":
+        img[rejected & ~alive, 0] = mg.DEBUG_REJECTED
+        alive |= rejected
     return img.reshape(H, W, 3), alive.reshape(H, W), (vox, n)

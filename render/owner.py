@@ -108,17 +108,33 @@ class Target(NamedTuple):
 class FrameTimer:
     """``with FrameTimer(ctx) as t:`` the GL work inside, synchronised (``ctx.finish()`` on
     entry and exit); then ``t.ms`` (wall) and ``t.cpu_ms`` (process CPU time, llvmpipe's threads
-    included: the cost independent of other load on the machine)."""
+    included: the cost independent of other load on the machine).
 
-    def __init__(self, ctx) -> None:
+    With ``laps=True``, ``t.lap(name)`` synchronises and books the wall / CPU time since the
+    previous lap (or the start) under ``name``: the per-pass breakdown ``t.laps``
+    ({name: (ms, cpu_ms)}, summed over repeated names).  Without, ``lap`` does nothing (no
+    synchronisation inside the frame)."""
+
+    def __init__(self, ctx, laps: bool = False) -> None:
         self.ctx = ctx
         self.ms = self.cpu_ms = 0.0
+        self.timing_laps = bool(laps)
+        self.laps: dict[str, tuple[float, float]] = {}
 
-    def __enter__(self) -> "FrameTimer":
+    def __enter__(self) -> FrameTimer:
         self.ctx.finish()
-        self._t0 = time.perf_counter()
-        self._c0 = time.process_time()
+        self._t0 = self._lt = time.perf_counter()
+        self._c0 = self._lc = time.process_time()
         return self
+
+    def lap(self, name: str) -> None:
+        if not self.timing_laps:
+            return
+        self.ctx.finish()
+        t, c = time.perf_counter(), time.process_time()
+        ms, cpu = self.laps.get(name, (0.0, 0.0))
+        self.laps[name] = (ms + (t - self._lt) * 1e3, cpu + (c - self._lc) * 1e3)
+        self._lt, self._lc = t, c
 
     def __exit__(self, *exc) -> None:
         self.ctx.finish()

@@ -23,3 +23,8 @@ if has eval; then
 fi
 echo "demo outputs in $OUT:"
 find "$OUT" -maxdepth 2 \( -name '*.png' -o -name '*.json' \) | sort | head -60
+if [ -d "$OUT/furball_model" ] && has view; then
+  echo
+  echo "look at the model interactively (then open the printed URL in a browser; Ctrl-C stops it):"
+  echo "  $F view $OUT/furball_model --cameras $OUT/furball_scan"
+fi

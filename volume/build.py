@@ -4,21 +4,27 @@ Levels are fused coarse to fine (each level's pass 1 only near the coarser level
 see volume.fusion.carve_field) for every power of two from ``min_res`` to ``max_res``; Eq. 1
 is then evaluated from ``max_res`` down exactly as the paper's loop does, and the pyramid keeps
 the levels up to L_opt.  Each level's volume is computed the same way whatever the order, so
-the result equals the paper's top-down loop.  Spheres (level min(max_res, 64)), the mesh and
-the RGBz geometry depth (level max_res) use the finest fused volume: they describe the solid,
-while L_opt limits only the billboard levels.
+the result equals the paper's top-down loop.
+
+Only what a consumer needs is built.  Eq. 1 reads the *measured* field, which fusion gives
+before its distance-transform completion; the finest level's completion (most of its cost)
+is therefore deferred and done only when something uses that level's values: the pyramid
+(L_opt = max_res), the mesh (``MeshConfig.level``) or the spheres (level min(max_res, 64)).  Spheres, mesh and the RGBz geometry depth describe the solid, not the
+billboard LOD: they use their own levels even when Eq. 1 keeps coarser levels only.
+``ModelConfig.reference()`` is the former pipeline (mesh on the finest level, pymeshlab
+decimation, every level completed), kept for the side-by-side benchmark (bench/model.py).
 """
 
 from __future__ import annotations
 
 import contextlib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from capture.io import jsonable
 from capture.scan import ScanSet
-from volume.fusion import FusionConfig, fuse_consensus, scan_maps
+from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
 from volume.model import Model, SdfLevel, SdfPyramid
@@ -53,26 +59,41 @@ class ModelConfig:
     """Voxels holding measured depth points of >= 2 scans are surface voxels too (volume.pyramid)."""
     keep_values: bool = True
     """Store every level's signed distance values in the model (not only surface voxels)."""
+    defer_finest: bool = True
+    """Complete the finest fused level's distances only when a consumer needs them (module docstring)."""
 
     def __post_init__(self) -> None:
         if self.sdf not in METHODS:
             raise ValueError(f"--sdf must be one of {METHODS}, got {self.sdf!r}")
 
+    @classmethod
+    def reference(cls, **kw) -> "ModelConfig":
+        """The pipeline before the build-only-what-is-needed changes: numpy fusion passes, mesh
+        marched on the finest level and decimated by pymeshlab, every fused level completed,
+        RGBz geometry depth ray cast by Open3D."""
+        mesh = MeshConfig(level=0, decimator="pymeshlab")
+        fusion = replace(kw.pop("fusion", FusionConfig()), backend="numpy")
+        rgbz = replace(kw.pop("rgbz", RgbzConfig()), mesh_depth="raycast")
+        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, **kw)
 
-def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None):
-    """Fuse every level min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction})."""
+
+def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False):
+    """Fuse every level min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction}).
+
+    ``defer_finest``: the finest level's values are left to volume.fusion.completed."""
     stage = stage or (lambda name: contextlib.nullcontext())
     origin, extent = cube_for_bounds(scanset.bounds)
     fuse = fuse_consensus if cfg.sdf == "consensus" else fuse_tsdf
     with stage("depth normals"):
         it = scanset.scans
-        maps = [scan_maps(s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
-                for s in (progress(it, "normals") if progress else it)]
+        maps = prepare_maps([scan_maps(s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
+                             for s in (progress(it, "normals") if progress else it)], cfg.fusion.backend)
     fused, frac = {}, {}
     coarse = None
     for L in cfg.lopt.resolutions:
         with stage(f"fuse {cfg.sdf} {L}^3"):
-            f = fuse(scanset, origin, extent / L, L, cfg.fusion, maps, coarse=coarse)
+            f = fuse(scanset, origin, extent / L, L, cfg.fusion, maps, coarse=coarse,
+                     complete=not (defer_finest and L == cfg.lopt.max_res))
             frac[L] = discontinuity_fraction(f.measured, f.voxel_size, cfg.lopt.alpha, f.measured_mask)
         fused[L] = coarse = f
     return origin, extent, fused, frac
@@ -87,38 +108,39 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     """
     cfg = cfg or ModelConfig()
     stage = stage or (lambda name: contextlib.nullcontext())
-    origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress)
+    origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress, cfg.defer_finest)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     # N_i over the measured voxels (reported only; Eq. 1 divides by L^3, see volume.pyramid)
     per_measured = {L: (frac[L] * L ** 3 / n if (n := int(np.count_nonzero(f.measured_mask))) else 0.0)
                     for L, f in fused.items() if f.measured_mask is not None}
-    points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
+    mesh_res = max(fused) if cfg.mesh.level == 0 else min(cfg.mesh.level, max(fused))
+    sphere_res = min(max(fused), SPHERE_LEVEL)
+    for L in sorted({mesh_res, sphere_res} | {L for L in fused if L <= l_opt}):
+        if fused[L].values is None:
+            with stage(f"complete {L}^3"):
+                fused[L] = completed(fused[L], cfg.fusion.backend)
     with stage("pyramid"):
-        pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items()}, origin, extent, l_opt,
-                                            keep_values=True, points=points)
-    # spheres, mesh and RGBz depth describe the solid, not the billboard LOD: they use the
-    # finest fused level (<= SPHERE_LEVEL for spheres) even when Eq. 1 keeps coarser levels only
-    top = fused[max(fused)]
-    finest = SdfLevel(top.resolution, origin, top.voxel_size, np.zeros((0, 3), np.int32), top.values)
+        points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
+        pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items() if L <= l_opt}, origin, extent,
+                                            l_opt, keep_values=True, points=points)
     with stage("spheres"):
-        fs = fused[min(max(fused), SPHERE_LEVEL)]
-        sl = SdfLevel(fs.resolution, origin, fs.voxel_size, np.zeros((0, 3), np.int32), fs.values)
-        spheres, sphere_err = fit_spheres(sl, cfg.sphere_error)
-    with stage("mesh"):
-        verts, faces = marching_cubes(finest)
+        spheres, sphere_err = fit_spheres(_level(fused[sphere_res], origin), cfg.sphere_error)
+    mesh_level = _level(fused[mesh_res], origin)
+    with stage(f"mesh {mesh_res}^3"):
+        verts, faces = marching_cubes(mesh_level)
         verts, faces = clean_and_decimate(verts, faces, cfg.mesh)
     with stage("rgbz"):
-        rgbz, holes = build_rgbz(scanset, verts, faces, finest, cfg.rgbz,
+        rgbz, holes = build_rgbz(scanset, verts, faces, mesh_level, cfg.rgbz,
                                  (lambda it: progress(it, "rgbz")) if progress else None)
     with stage("mesh colour"):
-        colors = vertex_colors(verts, faces, rgbz.cameras, rgbz.rgb, rgbz.depth, finest.voxel_size) \
+        colors = vertex_colors(verts, faces, rgbz.cameras, rgbz.rgb, rgbz.depth, mesh_level.voxel_size) \
             if len(verts) else None
     if not cfg.keep_values:
         pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
                                 keep_values=False, points=points)
     params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
-              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels, "sphere_level": sl.resolution,
-              "mesh_level": finest.resolution,
+              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels, "sphere_level": sphere_res,
+              "mesh_level": mesh_res,
               "eq1_fraction": {str(L): v for L, v in frac.items()},
               "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
@@ -137,3 +159,9 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
     }
     return model, summary
+
+
+def _level(f, origin) -> SdfLevel:
+    """The SdfLevel (no surface voxels) of a completed FusedSdf."""
+    return SdfLevel(f.resolution, origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
+

@@ -24,7 +24,7 @@ Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised ove
    free >= min(carve_quorum, #scans that see x), or free + nodata >= carve_ratio * occluded; voxels fewer than min(carve_quorum, #scans) scans contain are
    outside; the rest (hidden behind the
    surface in every view) are inside.
-5. **Completion** (:func:`complete_sdf`): outside the consensus band the distance is the
+5. **Completion** (:func:`volume.completion.complete_sdf`): outside the consensus band the distance is the
    Euclidean distance transform of the sign field, so it is finite everywhere.
 
 The Open3D TSDF peer (:mod:`volume.tsdf`) uses steps 2, 4, 5 too, with its own band.
@@ -32,13 +32,14 @@ The Open3D TSDF peer (:mod:`volume.tsdf`) uses steps 2, 4, 5 too, with its own b
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
 
 from capture.depth_normals import depth_normals
 from capture.scan import Scan, ScanSet
+from volume.completion import complete_sdf
 from volume.grid import voxel_centers
 
 #: Voxels per chunk in pass 1 (memory ~ 40 bytes per voxel per array).
@@ -55,8 +56,8 @@ SILHOUETTE_PX = 1
 #: Pixel diameter and spatial sigma of the bilateral depth filter (see FusionConfig.smooth_sigma_z).
 BILATERAL_DIAMETER = 5
 BILATERAL_SIGMA_PX = 1.5
-#: Largest distance (metres) stored for a voxel with nothing to measure from (empty volumes).
-FAR = 1.0
+#: Implementations of passes 1 and 2 (FusionConfig.backend).
+BACKENDS = ("numba", "numpy")
 
 
 @dataclass(frozen=True)
@@ -84,8 +85,13 @@ class FusionConfig:
     smooth_sigma_z: float = 0.003
     """Range sigma (metres) of the bilateral filter applied to depth before normals and planes
     are computed (depth edges larger than this are kept); 0 disables."""
+    backend: str = "numba"
+    """Compiled kernels, 'numba' (passes 1-2 in volume.fusion_jit, the distance transform of
+    the ``edt`` package), or 'numpy' (vectorised numpy passes and scipy's transform: the reference)."""
 
     def __post_init__(self) -> None:
+        if self.backend not in BACKENDS:
+            raise ValueError(f"fusion backend must be one of {BACKENDS}, got {self.backend!r}")
         if self.trunc_voxels <= 0 or self.agree_voxels <= 0 or self.quorum < 1 or self.carve_quorum < 1:
             raise ValueError(f"invalid FusionConfig {self}")
         if not 0 < self.agree_normal_deg <= 180 or not 0 < self.max_grazing_deg < 90:
@@ -196,7 +202,8 @@ class FusedSdf:
     """A fused signed distance volume of one resolution.
 
     Attributes:
-        values: (L, L, L) float32 signed distance (metres, positive outside) at voxel centres.
+        values: (L, L, L) float32 signed distance (metres, positive outside) at voxel centres;
+            None while the completion (:func:`complete_sdf`) is deferred, see :func:`completed`.
         band: (L, L, L) bool, voxels whose value comes from the fused measurements.
         support: (L, L, L) uint8, scans that support the band value (0 outside the band).
         seen: (L, L, L) uint8, scans in whose image the voxel projects.
@@ -205,9 +212,11 @@ class FusedSdf:
         measured, measured_mask: the *measured* field Eq. 1 checks (volume.pyramid): at voxels
             with a surface sample, the distance of the nearest-surface cluster of samples chosen
             as in pass 2 but without the quorum (confirmed or not); elsewhere undefined.
+        pending: (band values (L, L, L) float32, outside (L, L, L) bool) kept while ``values``
+            is None: everything :func:`complete_sdf` needs.
     """
 
-    values: np.ndarray
+    values: np.ndarray | None
     band: np.ndarray
     support: np.ndarray
     seen: np.ndarray
@@ -217,6 +226,15 @@ class FusedSdf:
     near_mask: np.ndarray
     measured: np.ndarray | None = None
     measured_mask: np.ndarray | None = None
+    pending: tuple | None = None
+
+
+def completed(f: FusedSdf, backend: str = "numba") -> FusedSdf:
+    """``f`` with its values (the deferred distance-transform completion done; else ``f`` itself)."""
+    if f.values is not None:
+        return f
+    bvals, outside = f.pending
+    return replace(f, values=complete_sdf(bvals, f.band, outside, f.voxel_size, backend), pending=None)
 
 
 def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
@@ -232,10 +250,28 @@ def _votes(m: ScanMaps, x: np.ndarray, trunc: float, free_margin: float):
     return inb, has & (proj > free_margin), inb & m.void[idx], has & (proj < -trunc), near
 
 
+def prepare_maps(maps, backend: str):
+    """What the backend's passes take: a volume.fusion_jit.PackedMaps for 'numba' (packed once
+    per call; pass one in to share it between levels), the list of ScanMaps for 'numpy'."""
+    if backend == "numba":
+        from volume.fusion_jit import pack_maps
+
+        return pack_maps(maps)
+    if not isinstance(maps, (list, tuple)):
+        raise TypeError("the numpy fusion backend takes the list of ScanMaps, not packed maps")
+    return list(maps)
+
+
 def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, free_margin: float,
-                voxels: np.ndarray | None = None, progress=None):
+                voxels: np.ndarray | None = None, progress=None, backend: str = "numpy"):
     """Pass 1: counts (free, nodata, occluded, seen, near), uint8 arrays over ``voxels``
     (flat indices into the L^3 grid, C order; None = every voxel)."""
+    maps = prepare_maps(maps, backend)
+    if backend == "numba":
+        from volume.fusion_jit import carve_votes_jit
+
+        return carve_votes_jit(maps, origin, w, L, trunc, free_margin, voxels, PROJ_FACTOR, NEAR_SLACK,
+                               PASS1_CHUNK, progress)
     n = L ** 3 if voxels is None else len(voxels)
     free = np.zeros(n, np.uint8)
     nodata = np.zeros(n, np.uint8)
@@ -286,7 +322,8 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
     trunc = cfg.trunc(w)
     n = L ** 3
     if coarse is None or coarse.resolution * 2 != L:
-        free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), None, progress)
+        free, nodata, occ, seen, near = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), None, progress,
+                                                    cfg.backend)
         return carve_sign(free, nodata, occ, seen, cfg, len(maps)), seen, near
     wc = coarse.voxel_size
     keep = (np.abs(coarse.values) <= COARSE_MARGIN_VOXELS * wc + trunc) | coarse.near_mask
@@ -294,7 +331,7 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
     outside = upsample2(coarse.values > 0).reshape(-1)
     seen = upsample2(coarse.seen).reshape(-1).copy()
     near = np.zeros(n, np.uint8)
-    free, nodata, occ, sn, nr = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), cand, progress)
+    free, nodata, occ, sn, nr = carve_votes(maps, origin, w, L, trunc, cfg.agree(w), cand, progress, cfg.backend)
     outside[cand] = carve_sign(free, nodata, occ, sn, cfg, len(maps))
     seen[cand] = sn
     near[cand] = nr
@@ -340,7 +377,7 @@ def consensus_from_samples(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: floa
     """Step 3 of the module docstring, vectorised over voxels and sample pairs.
 
     Returns (has consensus, value, support, has a nearest cluster, its value without quorum);
-    :func:`consensus_reference` is the per-voxel loop it is tested against.
+    :func:`volume.fusion_reference.consensus_reference` is the per-voxel loop it is tested against.
     """
     agree_d = cfg.agree(w)
     nn = np.matmul(nrm, nrm.transpose(0, 2, 1))  # (M, S, S) normal dot products
@@ -369,88 +406,28 @@ def _nearest_cluster(d, cw, agree, cand):
     return has, value, members.sum(1)
 
 
-def consensus_reference(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):
-    """Slow, obviously-correct per-voxel version of :func:`consensus_from_samples` (float64)."""
-    M, S = d.shape
-    cos_n = np.cos(np.radians(cfg.agree_normal_deg))
-    out = (np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64), np.zeros(M, bool),
-           np.zeros(M, np.float32))
-    for m in range(M):
-        def agrees(i, j):
-            if not (ok[m, i] and ok[m, j]):
-                return False
-            pi = -float(d[m, i]) * nrm[m, i].astype(np.float64)  # nearest points relative to x
-            pj = -float(d[m, j]) * nrm[m, j].astype(np.float64)
-            return float(np.dot(nrm[m, i], nrm[m, j])) > cos_n and float(np.sum((pi - pj) ** 2)) < cfg.agree(w) ** 2
-        q = max(1, min(cfg.quorum, int(n_see[m])))
-        best = best1 = None
-        for i in range(S):
-            if not ok[m, i]:
-                continue
-            n_agree = sum(agrees(i, j) for j in range(S))
-            if n_agree >= q and (best is None or abs(d[m, i]) < abs(d[m, best])):
-                best = i
-            if best1 is None or abs(d[m, i]) < abs(d[m, best1]):
-                best1 = i
-        for k, choice in ((0, best), (3, best1)):
-            if choice is None:
-                continue
-            mem = [j for j in range(S) if agrees(choice, j)]
-            ws = sum(float(cw[m, j]) for j in mem)
-            val = sum(float(cw[m, j]) * float(d[m, j]) for j in mem) / ws if ws > 0 else 0.0
-            if k == 0:
-                out[0][m] = fr[m] <= len(mem)
-                out[1][m] = val
-                out[2][m] = len(mem)
-            else:
-                out[3][m] = True
-                out[4][m] = val
-    return out
-
-
 def consensus_band(maps: list[ScanMaps], x: np.ndarray, trunc: float, cfg: FusionConfig, w: float,
                    n_see: np.ndarray):
     """Pass 2 for band voxels x (M, 3): see :func:`consensus_from_samples`."""
     return consensus_from_samples(*gather_samples(maps, x, trunc), n_see, cfg, w)
 
 
-def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray, w: float) -> np.ndarray:
-    """Fill a full signed distance volume (L, L, L) float32 from band values and a sign field.
-
-    Band voxels keep their fused value and sign; every other voxel gets its sign from
-    ``outside`` and the magnitude (EDT distance to the nearest voxel of the other sign - w/2),
-    an exact Euclidean distance transform of the binary sign field (scipy), so the filled
-    part is 1-Lipschitz and cannot create Eq. 1 discontinuities by itself.
-    """
-    L = band.shape[0]
-    sign_out = np.where(band, band_values > 0, outside)
-    vals = np.empty(band.shape, np.float32)
-    far = np.float32(max(FAR, 2 * L * w))
-    for side in (True, False):
-        region = sign_out == side
-        if not region.any():
-            continue
-        if (~region).any():
-            mag = (ndimage.distance_transform_edt(region).astype(np.float32) - np.float32(0.5)) * np.float32(w)
-        else:
-            mag = np.full(band.shape, far, np.float32)
-        vals[region] = (mag if side else -mag)[region]
-    vals[band] = band_values[band]
-    return vals
-
-
 def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
-                   maps: list[ScanMaps] | None = None, coarse: FusedSdf | None = None, progress=None) -> FusedSdf:
+                   maps: list[ScanMaps] | None = None, coarse: FusedSdf | None = None, progress=None,
+                   complete: bool = True) -> FusedSdf:
     """Consensus signed distance volume of ``scanset`` on the given grid (module docstring).
 
     ``coarse``: the volume of resolution L/2 on the same cube, to evaluate pass 1 only near
-    its surface (coarse-to-fine; see :func:`carve_field`).
+    its surface (coarse-to-fine; see :func:`carve_field`).  ``complete=False`` defers step 5
+    (the distance transforms, most of the cost at 256^3): ``values`` is None until
+    :func:`completed`; the measured field Eq. 1 reads is there either way.
     """
     cfg = cfg or FusionConfig()
     L, w = int(resolution), float(voxel_size)
     origin = np.asarray(origin, np.float64)
     trunc = cfg.trunc(w)
     maps = maps if maps is not None else [scan_maps(s, cfg.max_grazing_deg, cfg.smooth_sigma_z) for s in scanset.scans]
+    maps = prepare_maps(maps, cfg.backend)
     outside, seen, near = carve_field(maps, origin, w, L, cfg, coarse, progress)
     cand = np.nonzero(near)[0]
     band = np.zeros(L ** 3, bool)
@@ -458,22 +435,30 @@ def fuse_consensus(scanset: ScanSet, origin, voxel_size: float, resolution: int,
     support = np.zeros(L ** 3, np.uint8)
     meas = np.zeros(L ** 3, np.float32)
     mmask = np.zeros(L ** 3, bool)
-    xc = _centers_of(cand, origin, w, L)
     # the quorum drops only to the number of scans whose image contains x (a lone scan counts)
     n_obs = seen[cand].astype(np.int32)
-    for s in range(0, len(cand), PASS2_CHUNK):
-        sl = slice(s, s + PASS2_CHUNK)
-        has, val, sup, has1, val1 = consensus_band(maps, xc[sl], trunc, cfg, w, n_obs[sl])
+    if cfg.backend == "numba":
+        from volume.fusion_jit import consensus_jit
+
+        parts = [(cand, consensus_jit(maps, cand, origin, w, L, n_obs, trunc, PROJ_FACTOR, cfg.agree(w),
+                                      cfg.agree_normal_deg, cfg.quorum))]
+    else:
+        xc = _centers_of(cand, origin, w, L)
+        parts = ((cand[s:s + PASS2_CHUNK], consensus_band(maps, xc[s:s + PASS2_CHUNK], trunc, cfg, w,
+                                                          n_obs[s:s + PASS2_CHUNK]))
+                 for s in range(0, len(cand), PASS2_CHUNK))
+    for cs, (has, val, sup, has1, val1) in parts:
         # unconfirmed samples may say "in front of a surface" (outside), never "inside"
-        outside[cand[sl][~has & has1 & (val1 > 0)]] = True
-        i1 = cand[sl][has1]
+        outside[cs[~has & has1 & (val1 > 0)]] = True
+        i1 = cs[has1]
         meas[i1] = val1[has1]
         mmask[i1] = True
-        idx = cand[sl][has]
+        idx = cs[has]
         band[idx] = True
         bvals[idx] = np.clip(val[has], -trunc, trunc)
         support[idx] = sup[has]
     shape = (L, L, L)
-    values = complete_sdf(bvals.reshape(shape), band.reshape(shape), outside.reshape(shape), w)
-    return FusedSdf(values, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
-                    (near > 0).reshape(shape), meas.reshape(shape), mmask.reshape(shape))
+    f = FusedSdf(None, band.reshape(shape), support.reshape(shape), seen.reshape(shape), origin, w, L,
+                 (near > 0).reshape(shape), meas.reshape(shape), mmask.reshape(shape),
+                 (bvals.reshape(shape), outside.reshape(shape)))
+    return completed(f, cfg.backend) if complete else f

@@ -1,9 +1,10 @@
 """RGBz images (METHODS §1.4): the geometry's z-depth in every camera, cleaned.
 
 For each input camera:
-1. **geometry depth**: the model's mesh ray cast into the camera (Open3D RaycastingScene,
-   exact triangle intersection; ``capture.raycast.raycast_depth``: z-depth = t * cos of the ray
-   with the optical axis);
+1. **geometry depth**: the model's mesh in the camera, z-buffer rasterised at the pixel
+   centres (volume.mesh_depth, numba) or ray cast (``capture.raycast.raycast_depth``: Open3D RaycastingScene, exact
+   triangle intersection, z-depth = t * cos of the ray with the optical axis: the reference,
+   ``RgbzConfig.mesh_depth = "raycast"``);
 2. **combine with the measured depth** (``keep_measured``, default): every measured depth
    sample is kept and the geometry depth fills only the pixels nothing was measured at.  In
    the paper the RGBz depth *is* the range image taken with the colour image (METHODS §1.4,
@@ -29,7 +30,7 @@ from scipy import ndimage
 
 from capture.raycast import raycast_depth
 from capture.scan import ScanSet
-from volume.model import RgbzImages, SdfLevel
+from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,12 @@ class RgbzConfig:
     with the geometry (``agree_voxels``)."""
     closing_px: int = 5
     """Diameter (pixels) of the elliptical closing kernel; 0 disables the closing."""
+    mesh_depth: str = "raster"
+    """Geometry depth: 'raster' (numba z-buffer, volume.mesh_depth) or 'raycast' (Open3D, the reference)."""
+
+    def __post_init__(self) -> None:
+        if self.mesh_depth not in ("raster", "raycast"):
+            raise ValueError(f"rgbz mesh_depth must be 'raster' or 'raycast', got {self.mesh_depth!r}")
 
 
 def sdf_at(level: SdfLevel, points: np.ndarray) -> np.ndarray:
@@ -102,15 +109,21 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
     sizes = {(c.width, c.height) for c in cams}
     if len(sizes) != 1:
         raise ValueError(f"RGBz images need one image size for all cameras, got {sorted(sizes)}")
-    geo = raycast_depth(verts, faces, cams)
+    if cfg.mesh_depth == "raster":
+        from volume.mesh_depth import mesh_depth
+
+        geo = mesh_depth(verts, faces, cams)
+    else:
+        geo = raycast_depth(verts, faces, cams)
     tol = cfg.agree_voxels * level.voxel_size
-    depth = np.zeros_like(geo)
+    depth = np.zeros(geo.shape, RGBZ_STORAGE)
     stats = []
     it = range(len(cams))
     for n in (progress(it) if progress else it):
         comb = combine_depth(scanset.scans[n].depth, geo[n], cams[n], level, tol, cfg.keep_measured)
         before = hole_fraction(comb)
-        depth[n] = close_holes(comb, cfg.closing_px)
-        stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(depth[n])})
-    rgb = np.stack([s.linear_rgb for s in scanset.scans]).astype(np.float32)
+        closed = close_holes(comb, cfg.closing_px)
+        depth[n] = closed
+        stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(closed)})
+    rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
     return RgbzImages(rgb, depth, tuple(cams)), stats

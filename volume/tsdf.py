@@ -5,7 +5,7 @@ meshes) integrates every depth map with its projective distance D - z, truncated
 ``trunc`` and averaged with unit weights.  Its band (voxels with weight > 0 and |tsdf| < 1)
 gives the values near the surface; everything else gets its sign from the same space-carving
 votes as the consensus fusion and its magnitude from the distance transform
-(``volume.fusion.complete_sdf``), so the two methods differ only in how the band is fused.
+(``volume.completion.complete_sdf``), so the two methods differ only in how the band is fused.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.scan import ScanSet
-from volume.fusion import FusedSdf, FusionConfig, carve_field, complete_sdf, scan_maps
+from volume.fusion import FusedSdf, FusionConfig, carve_field, completed, scan_maps
 
 #: Depth beyond which Open3D ignores a pixel (metres); far larger than any turntable scene.
 DEPTH_TRUNC = 1000.0
@@ -54,8 +54,9 @@ def tsdf_volume(scanset: ScanSet, origin, voxel_size: float, resolution: int, tr
 
 
 def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg: FusionConfig | None = None,
-              maps=None, coarse: FusedSdf | None = None, progress=None) -> FusedSdf:
-    """Open3D TSDF band + shared carving sign + distance-transform completion (module docstring)."""
+              maps=None, coarse: FusedSdf | None = None, progress=None, complete: bool = True) -> FusedSdf:
+    """Open3D TSDF band + shared carving sign + distance-transform completion (module docstring);
+    ``complete`` as in volume.fusion.fuse_consensus."""
     cfg = cfg or FusionConfig()
     L, w = int(resolution), float(voxel_size)
     origin = np.asarray(origin, np.float64)
@@ -66,7 +67,8 @@ def fuse_tsdf(scanset: ScanSet, origin, voxel_size: float, resolution: int, cfg:
     shape = (L, L, L)
     outside = outside.reshape(shape)
     band = (weight > 0) & (np.abs(tsdf) < np.float32(trunc) * np.float32(0.999))
-    values = complete_sdf(np.where(band, tsdf, 0).astype(np.float32), band, outside, w)
+    bvals = np.where(band, tsdf, 0).astype(np.float32)
     support = np.minimum(weight, 255).astype(np.uint8) * band
-    return FusedSdf(values, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band,
-                    np.where(band, tsdf, 0).astype(np.float32), band)
+    f = FusedSdf(None, band, support, seen.reshape(shape), origin, w, L, (near > 0).reshape(shape) | band,
+                 bvals, band, (bvals, outside))
+    return completed(f, cfg.backend) if complete else f

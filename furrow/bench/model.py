@@ -1,4 +1,5 @@
-"""``furrow bench model``: time and accuracy of the signed distance volume against resolution and method.
+"""``furrow bench model``: time and accuracy of the signed distance volume against resolution and method,
+and the speed of the whole ``furrow model`` build before/after (``--speed``).
 
 For each scene (``datasets_synthetic`` captures with exact ground truth, cached under
 ``OUT/data``) and each fusion method (``consensus``: Wheeler-Sato-Ikeuchi style, ``tsdf``:
@@ -8,6 +9,18 @@ surface-voxel precision / recall / F1, sign accuracy within 3 voxels of the surf
 mean distance error there (volume.metrics), plus Eq. 1's fraction and the cumulative fusion
 time.  ``--target`` also times the whole ``furrow model`` pipeline (fusion, pyramid, spheres,
 mesh, RGBz) on the 36-view 640x480 fur ball to a 128^3 pyramid: the issue's target is < 60 s.
+
+``--speed`` times ``furrow model`` at the defaults on the 640x480 captures with millimetre
+16-bit PNG depth (``furball-mm``, ``plant-mm``; 18 kept views = frames 0::2, and all 36), each
+run in a fresh process (after one untimed warm-up run of this tree: numba compiles once): wall and CPU seconds (the child's
+rusage) and peak resident memory (its ru_maxrss), medians of ``--repeats`` runs, with the stage
+table of ``--json``.  ``--before``
+names what the current tree is compared with, run interleaved with it (so a ratio compares
+runs made side by side): ``reference`` = ``furrow model --reference-pipeline`` of this tree
+(the slow paths kept beside the fast ones), ``git:REF`` = ``furrow model`` of that commit (a
+``git archive`` of it), ``none``.  ``--eval`` adds the held-out quality of both trees
+(``furrow eval SCANS --holdout 2``: masked PSNR / SSIM of microfacet and mesh-vdtm; needs
+``git:REF``).  Targets (issue 12): 18 views of the fur ball < 20 s, of the plant < 10 s.
 
 The ground truth is computed coarse to fine too: the exact distance at a coarse voxel centre
 bounds its children's (1-Lipschitz), so only children that can lie within 3 voxels of the
@@ -24,21 +37,28 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from furrow.bench import OUT_ROOT
-
-os.environ.setdefault("OMP_WAIT_POLICY", "passive")
-
-
 from furrow.bench._common import save_figure
 
-import numpy as np  # noqa: E402
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+#: The source checkout (``--speed`` times this tree and ``git archive``s the before ref from it).
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Scenes: name -> furrow synth arguments (noisy, holed scans as a real scanner gives them).
 SCENES = {
     "furball": ["furball", "--depth-noise", "0.002", "--holes", "0.02", "--grazing", "75"],
     "torus": ["torus", "--depth-noise", "0.002", "--holes", "0.02", "--grazing", "75"],
     "furball-clean": ["furball"],
+    # the speed benchmark's captures: 36 views 640x480 (the synth defaults), millimetre PNG depth
+    "furball-mm": ["furball", "--size", "640x480", "--views", "36", "--png-depth-unit", "0.001"],
+    "plant-mm": ["plant", "--size", "640x480", "--views", "36", "--png-depth-unit", "0.001"],
 }
+#: --speed targets: wall seconds for 18 kept views (issue 12).
+SPEED_TARGETS = {"furball-mm": 20.0, "plant-mm": 10.0}
+#: --speed view counts -> furrow --frames spec.
+VIEW_FRAMES = {18: "0::2", 36: None}
 GT_COARSE = 32
 NEAR_VOXELS = 3.0
 
@@ -177,6 +197,124 @@ def run_spheres(name: str, scans: Path, targets: list[float], res: int = 64) -> 
     return rows
 
 
+def _run_child(cmd: list[str], cwd: Path, env: dict) -> dict:
+    """Run ``cmd`` in a fresh process: (wall s, CPU s, peak MiB, the last stdout line parsed as JSON)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        t0 = time.perf_counter()
+        p = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=out, stderr=err, text=True)
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        lines = out.read().strip().splitlines()
+        if p.returncode != 0 or not lines:
+            raise SystemExit(f"{' '.join(cmd)} failed ({p.returncode}): {err.read()[-2000:]}")
+    return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "peak_mb": ru.ru_maxrss / 1024.0,
+            "summary": json.loads(lines[-1])}
+
+
+def _tree(before: str, work: Path) -> Path | None:
+    """Source tree of the ``before`` variant: a git archive of REF for ``git:REF``, else None."""
+    import subprocess
+
+    if not before.startswith("git:"):
+        return None
+    dst = work / ("before-" + before[4:].replace("/", "_"))
+    if not (dst / "furrow").is_dir():
+        dst.mkdir(parents=True, exist_ok=True)
+        arc = subprocess.run(["git", "-C", str(ROOT), "archive", before[4:]], capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(dst)], input=arc, check=True)
+    return dst
+
+
+def run_speed(scene: str, scans: Path, views: list[int], repeats: int, before: str, work: Path) -> list[dict]:
+    """Interleaved before/after ``furrow model`` runs at the defaults (module docstring)."""
+    variants = [("after", ROOT, [])]
+    old = _tree(before, work)
+    if before == "reference":
+        variants.insert(0, ("before", ROOT, ["--reference-pipeline"]))
+    elif old is not None:
+        variants.insert(0, ("before", old, []))
+    rows = []
+    for n in views:
+        frames = ["--frames", VIEW_FRAMES[n]] if VIEW_FRAMES.get(n) else []
+        runs = {name: [] for name, _, _ in variants}
+        for rep in range(-1, repeats):  # run -1: untimed warm-up (numba's compile cache, the disk cache)
+            for name, tree, extra in variants:
+                env = {**os.environ, "PYTHONPATH": str(tree), "OMP_WAIT_POLICY": "passive"}
+                out = work / f"model-{scene}-{n}-{name}"
+                cmd = [sys.executable, "-m", "furrow", "model", str(scans), "-o", str(out), "--overwrite", "--json",
+                       *frames, *extra]
+                if rep < 0 and name == "before":
+                    continue  # the warm-up compiles this tree's numba kernels; the before tree has none
+                r = _run_child(cmd, tree, env)
+                if rep < 0:
+                    continue
+                runs[name].append(r)
+                print(f"speed {scene} {n} views {name} run {rep + 1}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
+                      f"{r['peak_mb']:.0f} MiB", flush=True)
+        for name, rr in runs.items():
+            med = {k: float(np.median([r[k] for r in rr])) for k in ("wall_s", "cpu_s", "peak_mb")}
+            stages = {k: float(np.median([r["summary"]["seconds"].get(k, np.nan) for r in rr]))
+                      for k in rr[0]["summary"]["seconds"]}
+            rows.append({"scene": scene, "views": n, "variant": name, "before": before if name == "before" else "",
+                         "runs": len(rr), **med, "wall_all": [round(r["wall_s"], 2) for r in rr],
+                         "cpu_all": [round(r["cpu_s"], 2) for r in rr], "stages_median_s": stages,
+                         "l_opt": rr[0]["summary"]["l_opt"], "mesh": rr[0]["summary"]["mesh"],
+                         "target_s": SPEED_TARGETS.get(scene) if n == 18 else None})
+        if "before" in runs:  # ratio of runs made side by side (same repeat)
+            ratio = [b["wall_s"] / a["wall_s"] for b, a in zip(runs["before"], runs["after"])]
+            rows[-1]["speedup_wall_median"] = float(np.median(ratio))
+            rows[-1]["speedup_cpu_median"] = float(np.median([b["cpu_s"] / a["cpu_s"]
+                                                              for b, a in zip(runs["before"], runs["after"])]))
+    return rows
+
+
+def run_quality(scene: str, scans: Path, before: str, work: Path) -> list[dict]:
+    """Held-out masked PSNR / SSIM of microfacet and mesh-vdtm, ``furrow eval --holdout 2`` of both trees."""
+    old = _tree(before, work)
+    rows = []
+    for name, tree in ([("before", old)] if old is not None else []) + [("after", ROOT)]:
+        js = work / f"eval-{scene}-{name}.json"
+        env = {**os.environ, "PYTHONPATH": str(tree), "OMP_WAIT_POLICY": "passive"}
+        cmd = [sys.executable, "-m", "furrow", "eval", str(scans), "--holdout", "2", "--json", str(js),
+               "-o", str(work / f"eval-{scene}-{name}")]
+        import subprocess
+
+        subprocess.run(cmd, cwd=tree, env=env, check=True, capture_output=True)
+        d = json.loads(js.read_text())
+        rows.append({"scene": scene, "variant": name, **{f"{m}_{k}": d[m][k] for m in ("microfacet", "mesh_vdtm")
+                                                          for k in ("psnr_masked", "ssim_masked")}})
+        print(f"quality {scene} {name}: " + ", ".join(f"{k} {v:.3f}" for k, v in rows[-1].items()
+                                                     if isinstance(v, float)), flush=True)
+    return rows
+
+
+def speed_table(rows: list[dict], quality: list[dict]):
+    from rich.table import Table
+
+    t = Table(title="furrow model at the defaults (medians of fresh-process runs; ratio = before / after, same repeat)")
+    for c in ("scene", "views", "variant", "runs", "wall s", "CPU s", "peak MiB", "speed-up wall / CPU", "target",
+              "microfacet dB / SSIM", "mesh-vdtm dB / SSIM"):
+        t.add_column(c, justify="left" if c in ("scene", "variant") else "right")
+    q = {(r["scene"], r["variant"]): r for r in quality}
+    for r in rows:
+        sp = f"{r['speedup_wall_median']:.2f}x / {r['speedup_cpu_median']:.2f}x" if "speedup_wall_median" in r else ""
+        tg = ""
+        if r["target_s"] and r["variant"] == "after":
+            tg = f"< {r['target_s']:.0f} s: {'met' if r['wall_s'] < r['target_s'] else 'MISSED'}"
+        qq = q.get((r["scene"], r["variant"])) if r["views"] == 18 else None
+        mf = f"{qq['microfacet_psnr_masked']:.2f} / {qq['microfacet_ssim_masked']:.3f}" if qq else ""
+        mv = f"{qq['mesh_vdtm_psnr_masked']:.2f} / {qq['mesh_vdtm_ssim_masked']:.3f}" if qq else ""
+        t.add_row(r["scene"], str(r["views"]), r["variant"] + (f" ({r['before']})" if r["before"] else ""),
+                  str(r["runs"]), f"{r['wall_s']:.1f}", f"{r['cpu_s']:.1f}", f"{r['peak_mb']:.0f}", sp, tg, mf, mv)
+    return t
+
+
 def _fmt(r: dict) -> str:
     return (f"{r['scene']:14s} {r['method']:9s} {r['resolution']:4d}^3  {r['seconds_cumulative']:7.2f}s  "
             f"P {r['precision']:.3f} R {r['recall']:.3f} F1 {r['f1']:.3f}  sign {r['sign_accuracy']:.4f}  "
@@ -219,6 +357,12 @@ def main(argv: list[str] | None = None) -> int:
                     help="also time the full pipeline on the 36-view 640x480 fur ball to 128^3 (target < 60 s)")
     ap.add_argument("--no-sweep", action="store_true", help="skip the resolution/method sweep")
     ap.add_argument("--spheres", default="", help="also sweep sphere-set error targets, e.g. 0.4,0.3,0.2,0.1,0.05")
+    ap.add_argument("--speed", action="store_true", help="time furrow model at the defaults, before/after (docstring)")
+    ap.add_argument("--speed-scenes", default="furball-mm", help="comma list of furball-mm, plant-mm, or NAME=PATH")
+    ap.add_argument("--views", default="18,36", help="--speed: kept views, 18 (frames 0::2) and/or 36")
+    ap.add_argument("--repeats", type=int, default=3, help="--speed: runs per variant (medians)")
+    ap.add_argument("--before", default="reference", help="--speed: reference, git:REF or none")
+    ap.add_argument("--eval", action="store_true", help="--speed: also held-out quality of both trees (git:REF)")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "model")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     args = ap.parse_args(argv)
@@ -226,6 +370,8 @@ def main(argv: list[str] | None = None) -> int:
     if any(r < GT_COARSE or r & (r - 1) for r in res):
         raise SystemExit(f"--res: powers of two >= {GT_COARSE}, got {res}")
     data = args.out / "data"
+    if args.speed:
+        return _speed_main(args, data)
     rows, target = [], None
     if not args.no_sweep:
         for scene in [s for s in args.scenes.split(",") if s]:
@@ -249,6 +395,29 @@ def main(argv: list[str] | None = None) -> int:
     if rows:
         p = plot(rows, args.out)
         print(f"plot: {p}")
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+def _speed_main(args, data: Path) -> int:
+    from rich.console import Console
+
+    views = [int(v) for v in args.views.split(",") if v]
+    if any(v not in VIEW_FRAMES for v in views):
+        raise SystemExit(f"--views: choose from {sorted(VIEW_FRAMES)}")
+    work = (args.out / "speed").resolve()
+    work.mkdir(parents=True, exist_ok=True)
+    rows, quality = [], []
+    for item in [s for s in args.speed_scenes.split(",") if s]:
+        name, _, path = item.partition("=")
+        scans = (Path(path) if path else capture(name, data, False)).resolve()
+        rows += run_speed(name, scans, views, args.repeats, args.before, work)
+        if args.eval:
+            quality += run_quality(name, scans, args.before, work)
+    result = {"speed": rows, "quality": quality, "before": args.before, "load_average": os.getloadavg()}
+    (args.out / "model_bench_speed.json").write_text(json.dumps(result, indent=1))
+    Console(stderr=True, width=200).print(speed_table(rows, quality))
     if args.json:
         print(json.dumps(result))
     return 0

@@ -7,8 +7,11 @@ struct Cam {
     vec4 intr;     // fx, fy, cx, cy (OpenCV pixel centres)
     vec4 size;     // W, H, skew, 0
     vec4 center;   // camera centre (world), w unused
+    vec4 proj[3];  // rows of K [R | t] (float64 product): homogeneous projection of (p, 1)
 };
 layout(std430, binding = 0) readonly buffer Cameras { Cam cams[]; };
+// Per frame: cam_project_h(i, eye_pos) of every camera (render.microfacet.eye_projections).
+layout(std430, binding = 5) readonly buffer EyeProjections { vec4 eye_h[]; };
 
 uniform int n_cams;
 uniform vec3 eye_pos;
@@ -21,18 +24,14 @@ uniform float near_plane;   // slices closer than this along their ray are dropp
 // Homogeneous projection of a world point into camera i: (u z, v z, z), affine in p, so it
 // interpolates exactly across a slice; u, v OpenCV pixels, z = z-depth D.
 vec3 cam_project_h(int i, vec3 p) {
-    vec4 pc = cams[i].cfw * vec4(p, 1.0);
-    return vec3(cams[i].intr.x * pc.x + cams[i].size.z * pc.y + cams[i].intr.z * pc.z,
-                cams[i].intr.y * pc.y + cams[i].intr.w * pc.z, pc.z);
+    vec4 q = vec4(p, 1.0);
+    return vec3(dot(cams[i].proj[0], q), dot(cams[i].proj[1], q), dot(cams[i].proj[2], q));
 }
 
 // Projection of a world point into camera i: (u, v) OpenCV pixels and z-depth D.
 vec3 cam_project(int i, vec3 p) {
-    vec4 pc = cams[i].cfw * vec4(p, 1.0);
-    float z = pc.z;
-    float iz = 1.0 / max(z, 1e-30);
-    float x = pc.x * iz, y = pc.y * iz;
-    return vec3(cams[i].intr.x * x + cams[i].size.z * y + cams[i].intr.z, cams[i].intr.y * y + cams[i].intr.w, z);
+    vec3 h = cam_project_h(i, p);
+    return vec3(h.xy / max(h.z, 1e-30), h.z);
 }
 
 bool footprint_inside(int i, vec3 p, float r) {
@@ -56,10 +55,19 @@ void select_cameras(vec3 p, float r, out int cand[K_CAND], out float wts[K_BLEND
         if (!footprint_inside(i, p, r)) continue;
         vec3 u = normalize(p - cams[i].center.xyz);
         float phi = acos(clamp(dot(v, u), -1.0, 1.0));
-        if (phi >= bphi[NB - 1]) continue;
-        int j = NB - 1;
-        while (j > 0 && phi < bphi[j - 1]) { bphi[j] = bphi[j - 1]; bidx[j] = bidx[j - 1]; --j; }
-        bphi[j] = phi; bidx[j] = i;
+        // stable insertion into the sorted list by compare-and-swap over constant slots
+        // (registers: llvmpipe spills dynamically indexed local arrays)
+        float cp = phi;
+        int ci = i;
+        for (int j = 0; j < NB; ++j) {
+            bool before = cp < bphi[j];
+            float tp = bphi[j];
+            int ti = bidx[j];
+            bphi[j] = before ? cp : tp;
+            bidx[j] = before ? ci : ti;
+            cp = before ? tp : cp;
+            ci = before ? ti : ci;
+        }
         nvalid = min(nvalid + 1, NB);
     }
     for (int j = 0; j < K_CAND; ++j) cand[j] = bidx[j];

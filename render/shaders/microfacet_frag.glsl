@@ -2,17 +2,27 @@
 // Per fragment: Eq. 2 in the candidate cameras, ULR blend, per-fragment fallback (§1.3-1.5).
 #include "microfacet_common.glsl"
 #include "microfacet_rgbz.glsl"
-in vec3 v_world;
-flat in ivec4 v_c03;
-flat in ivec2 v_c45;
-flat in vec3 v_w;
-in vec3 v_proj[K_CAND];
-flat in vec3 v_eye_proj[K_CAND];
+#include "microfacet_frag_in.glsl"
 out vec4 frag;
 
+// DEBUG_VIEW (render.methods.RenderOptions.debug; twin: microfacet_geometry.debug_codes) writes a
+// code in the red channel instead of the colour: 1 = the dominant camera index + 1 of each drawn
+// fragment; 2 = 1 for a drawn fragment, 2 for one that Eq. 2 / the vote rejects, the rejected
+// ones pushed behind everything drawn (DEBUG_BACK_DEPTH) so they show only where nothing passed.
 void main() {
     vec3 col;
-    if (!shade(v_proj[0], v_proj[1], v_proj[2], v_proj[3], v_proj[4], v_proj[5], v_eye_proj, v_c03, v_c45, v_w, 0.5 * spacing, col))
+    int src;
+    bool drawn = shade_fragment(col, src);
+#if DEBUG_VIEW == 2
+    frag = vec4(drawn ? 1.0 : 2.0, 0.0, 0.0, 1.0);
+    gl_FragDepth = drawn ? gl_FragCoord.z : DEBUG_BACK_DEPTH;
+#else
+    if (!drawn)
         discard;
+#if DEBUG_VIEW == 1
+    frag = vec4(float(src + 1), 0.0, 0.0, 1.0);
+#else
     frag = vec4(col, 1.0);
+#endif
+#endif
 }

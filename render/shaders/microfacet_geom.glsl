@@ -18,7 +18,7 @@ void main() {
         float s = float(n) * spacing;
         vec2 hab = slice_half_extents(c, v, a, b, s);
         for (int k = 0; k < 4; ++k) {
-            set_corner(slice_corner(v, a, b, hab, s, k), cand, vec3(w[0], w[1], w[2]));
+            set_corner(slice_corner(v, a, b, vec4(-hab.x, hab.x, -hab.y, hab.y), s, k), cand, vec3(w[0], w[1], w[2]));
             EmitVertex();
         }
         EndPrimitive();

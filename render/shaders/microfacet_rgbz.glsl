@@ -1,6 +1,11 @@
 // RGBz lookup, Eq. 2 and the blend (METHODS §1.3-1.4).
 // Twin: microfacet_geometry.sample_rgbz / classify / shade_fragments.
 uniform sampler2DArray rgbz;   // layer i: rgb linear + z-depth (m, 0 = none) of camera i
+#ifdef DEPTH_ONLY
+// Visibility pre-pass (microfacet_prepass_frag.glsl): the depths alone (layer i: z-depth of
+// camera i), colours read as black; the decisions are those of the full RGBz lookup.
+uniform sampler2DArray zdepth;
+#endif
 
 const int NO_VIEW = 0;   // outside the image, behind the camera, or occluded (d <= D - FREE_FACTOR tol)
 const int PASS = 1;      // Eq. 2: |d - D| < tol
@@ -18,7 +23,11 @@ int rgbz_classify(int i, vec3 pr, float tol, out vec3 col, out float d) {
     vec3 uvz = vec3(pr.xy / pr.z, pr.z);
     ivec2 ij = ivec2(floor(uvz.xy + 0.5));
     if (ij.x < 0 || ij.y < 0 || ij.x >= tex_size.x || ij.y >= tex_size.y) return NO_VIEW;
+#ifdef DEPTH_ONLY
+    vec4 t = vec4(vec3(0.0), texelFetch(zdepth, ivec3(ij, i), 0).r);
+#else
     vec4 t = texelFetch(rgbz, ivec3(ij, i), 0);
+#endif
     col = t.rgb;
     d = t.a;
     if (!(t.a > 0.0)) return FREE;
@@ -71,47 +80,53 @@ vec3 refine_colour(int i, vec3 pr, vec3 pe, float d, float tol, vec3 col) {
     return col;
 }
 
-int vote(int ci, vec3 pr, vec3 pe, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen) {
+// src / wsrc: the passing blend camera of largest weight so far (the dominant camera, debug view).
+int vote(int ci, vec3 pr, vec3 pe, float w, float tol, inout vec3 acc, inout float wpass, inout float wseen,
+         inout int src, inout float wsrc) {
     if (ci < 0) return NO_VIEW;
     vec3 c;
     float d;
     int st = rgbz_classify(ci, pr, tol, c, d);
     if (st == PASS) c = refine_colour(ci, pr, pe, d, tol, c);
+    if (st == PASS && w > wsrc) { src = ci; wsrc = w; }
     if (st == PASS) { acc += w * c; wpass += w; wseen += w; }
     else if (st == FREE) wseen += w;
     else if (st == UNSURE) wseen += UNSURE_WEIGHT * w;
     return st;
 }
 
-// Fallback step: the first candidate that decides (PASS or FREE under "vote"; PASS under "any").
-void fallback(int ci, vec3 pr, vec3 pe, float tol, inout int decided, inout vec3 colour) {
+// Fallback step: the first candidate that decides (PASS or FREE under "vote"; PASS under "any");
+// src = that candidate.
+void fallback(int ci, vec3 pr, vec3 pe, float tol, inout int decided, inout vec3 colour, inout int src) {
     if (decided != 0 || ci < 0) return;
     vec3 c;
     float d;
     int st = rgbz_classify(ci, pr, tol, c, d);
     if (st == PASS) c = refine_colour(ci, pr, pe, d, tol, c);
 #if FALLBACK_RULE == 0
-    if (st == PASS || st == FREE) { decided = st; colour = c; }
+    if (st == PASS || st == FREE) { decided = st; colour = c; src = ci; }
 #else
-    if (st == PASS) { decided = st; colour = c; }
+    if (st == PASS) { decided = st; colour = c; src = ci; }
 #endif
 }
 
 // p0..p5: homogeneous projections of the fragment into the candidates (cam_project_h);
-// e[k]: the eye's projection into candidate k (refine_colour).
+// e[k]: the eye's projection into candidate k (refine_colour).  src: the camera whose colour
+// dominates a drawn fragment (largest passing blend weight, or the deciding fallback), else -1.
 bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, vec3 e[K_CAND], ivec4 c03, ivec2 c45, vec3 w,
-           float tol, out vec3 colour) {
+           float tol, out vec3 colour, out int src) {
     vec3 acc = vec3(0.0);
-    float wpass = 0.0, wseen = 0.0;
+    float wpass = 0.0, wseen = 0.0, wsrc = 0.0;
     colour = vec3(0.0);
-    int st0 = vote(c03.x, p0, e[0], w.x, tol, acc, wpass, wseen);
+    src = -1;
+    int st0 = vote(c03.x, p0, e[0], w.x, tol, acc, wpass, wseen, src, wsrc);
 #if FALLBACK_RULE == 0
     // Early out (exact): weights sum to 1, so when the best camera frees the point with
     // weight w0, at most 1 - w0 can pass; drawing needs wpass >= ALPHA_VOTE (w0 + wpass).
     if (st0 == FREE && (1.0 - w.x) * (1.0 - ALPHA_VOTE) < ALPHA_VOTE * w.x) return false;
 #endif
-    vote(c03.y, p1, e[1], w.y, tol, acc, wpass, wseen);
-    vote(c03.z, p2, e[2], w.z, tol, acc, wpass, wseen);
+    vote(c03.y, p1, e[1], w.y, tol, acc, wpass, wseen, src, wsrc);
+    vote(c03.z, p2, e[2], w.z, tol, acc, wpass, wseen, src, wsrc);
 #if FALLBACK_RULE == 0
     if (wseen > WEIGHT_EPS) {
         if (wpass < ALPHA_VOTE * wseen || !(wpass > WEIGHT_EPS)) return false;
@@ -122,14 +137,15 @@ bool shade(vec3 p0, vec3 p1, vec3 p2, vec3 p3, vec3 p4, vec3 p5, vec3 e[K_CAND],
     if (wpass > WEIGHT_EPS) { colour = acc / wpass; return true; }
 #endif
     int decided = 0;   // the blend cameras did not decide: try the next N_FALLBACK candidates
+    src = -1;
 #if N_FALLBACK > 0
-    fallback(c03.w, p3, e[3], tol, decided, colour);
+    fallback(c03.w, p3, e[3], tol, decided, colour, src);
 #endif
 #if N_FALLBACK > 1
-    fallback(c45.x, p4, e[4], tol, decided, colour);
+    fallback(c45.x, p4, e[4], tol, decided, colour, src);
 #endif
 #if N_FALLBACK > 2
-    fallback(c45.y, p5, e[5], tol, decided, colour);
+    fallback(c45.y, p5, e[5], tol, decided, colour, src);
 #endif
     return decided == PASS;
 }

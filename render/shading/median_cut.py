@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from render.shading.envmap import EnvMap
+from render.shading.envmap import EnvMap, pixel_centre_polar
 from render.shading.lights import LUMA
 
 
@@ -35,7 +35,7 @@ class CutLights(NamedTuple):
 def _regions(energy: np.ndarray, depth: int) -> list[tuple[int, int, int, int]]:
     """Row/column boxes (r0, r1, c0, c1) of the median cut of ``energy`` (H, W)."""
     H, W = energy.shape
-    row_sin = np.sin(np.pi * (np.arange(H) + 0.5) / H)
+    row_sin = np.sin(pixel_centre_polar(H))
     boxes = [(0, H, 0, W)]
     for _ in range(depth):
         nxt = []

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from capture.io import write_transforms
+from capture.io import read_scanset, write_transforms
 from furrow.cli import main
 from tests.scenes import make_scanset, scan_ring, sphere_scene
 from volume.model import load_model
@@ -52,11 +52,37 @@ def test_model_end_to_end(scan_dir, tmp_path, capsys):
 def test_model_frames_and_tsdf(scan_dir, tmp_path, capsys):
     out = tmp_path / "m2"
     rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16", "--frames", "0::2",
-                               "--sdf", "tsdf", "--quorum", "2", "--json"], capsys)
+                               "--sdf", "tsdf", "--quorum", "2", "--mesh-level", "8", "--json"], capsys)
     assert rc == 0, stderr
     m = load_model(out)
     assert len(m.rgbz) == 4 and m.params["sdf"] == "tsdf" and m.provenance["frames"] == "0::2"
+    assert m.params["mesh_level"] == 8 and "mesh 8^3" in json.loads(stdout)["seconds"]
     assert m.params["fusion"]["quorum"] == 2
+
+
+def test_reference_pipeline_gives_the_same_model(scan_dir, tmp_path, capsys):
+    """The fast default (numba passes, deferred finest completion, z-buffer geometry depth) against
+    --reference-pipeline, both meshing the finest level: same Eq. 1 choice and surface voxels,
+    the same RGBz depth up to pixel centres on a silhouette (0.2 %)."""
+    outs = {}
+    for name, extra in (("fast", ["--mesh-level", "32"]), ("ref", ["--reference-pipeline"])):
+        out = tmp_path / name
+        rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "32", "--json", *extra],
+                                  capsys)
+        assert rc == 0, stderr
+        s = json.loads(stdout)
+        assert s["cpu_seconds_total"] > 0 and s["peak_mb_total"] > 50 and set(s["peak_mb"]) == set(s["seconds"])
+        outs[name] = (s, load_model(out))
+    (sf, mf), (sr, mr) = outs["fast"], outs["ref"]
+    assert sf["l_opt"] == sr["l_opt"] and sf["surface_voxels"] == sr["surface_voxels"]
+    assert sf["eq1_fraction"] == pytest.approx(sr["eq1_fraction"], rel=1e-3, abs=1e-5)
+    assert mf.params["mesh_level"] == mr.params["mesh_level"] == 32
+    assert mr.params["fusion"]["backend"] == "numpy" and mr.params["mesh"]["decimator"] == "pymeshlab"
+    measured = np.stack([s.depth for s in read_scanset(scan_dir).scans]) > 0
+    np.testing.assert_array_equal(mf.rgbz.depth[measured], mr.rgbz.depth[measured])  # measured depth kept by both
+    both = (mf.rgbz.depth > 0) & (mr.rgbz.depth > 0)
+    assert np.mean((mf.rgbz.depth > 0) != (mr.rgbz.depth > 0)) < 0.002
+    assert np.mean(np.abs(mf.rgbz.depth[both].astype(np.float32) - mr.rgbz.depth[both]) > 1e-3) < 0.002
 
 
 def _copy(src, dst):
@@ -126,8 +152,11 @@ def test_existing_model_needs_overwrite(scan_dir, tmp_path, capsys):
 @pytest.mark.slow
 def test_synthetic_captures_eq1_fur_drops_torus_keeps(tmp_path, capsys):
     """On the synth helper's captures (--small: 12 views 160x120, noisy, holed), Eq. 1 with the
-    paper's values keeps 64^3 for the smooth torus and drops for the fur ball."""
-    noise = ["--depth-noise", "0.002", "--holes", "0.02"]
+    paper's values keeps 64^3 for the smooth torus and drops for the fur ball.  The depth model is
+    this noise on exact depth (--sensor ideal, the generator's default until 2026-12): with the D435
+    sensor's flying pixels the torus drops to 8^3 as well (Eq. 1 fraction at 64^3 0.005 -> 0.015,
+    measured; the z^2 noise and quantisation alone keep 64^3)."""
+    noise = ["--depth-noise", "0.002", "--holes", "0.02", "--sensor", "ideal"]
     res = {}
     for name in ("torus", "furball"):
         scans = tmp_path / name

@@ -90,8 +90,10 @@ def test_options_change_per_frame_without_reupload(gl_ctx, model):
                      dict(level=1), dict(refine=0)):
             r.render(eye, **opts)
         assert (r.tex, r.cam_buf, r.slice_buf, *[b for bufs in r.voxel_bufs for b in bufs]) == uploads
-        # programs: one per (kind, refine) used, compiled once
-        assert sorted(r._programs) == [("draw", 0), ("draw", 2), ("geometry", 2), ("select", 0), ("select", 2)]
+        # programs: one per (kind, refine, debug output) used, compiled once (the instanced path's
+        # visibility pre-pass and compute pass never refine)
+        assert sorted(r._programs) == [("colour", 0, None), ("colour", 2, None), ("geometry", 2, None),
+                                       ("prepass", 0, None), ("select", 0, None)]
         b = r.render(eye)  # back to the renderer's options: the same frame (up to depth ties between
         # slices, whose draw order follows the compute pass's atomic counter)
         assert_images_close(b.rgb, a.rgb, mean_tol=1e-4, max_tol=1e-6, outlier_frac=0.002, what="same options again")

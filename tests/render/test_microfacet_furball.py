@@ -20,11 +20,16 @@ ONE = RenderOptions(supersample=1)
 
 @pytest.fixture(scope="module")
 def furball(gl_ctx):
+    from datasets_synthetic.lighting import LightingConfig
     from datasets_synthetic.rig import TurntableRig
     from datasets_synthetic.synth import SynthConfig, synthesize
     from render.gt_model import model_from_geometry
 
+    # written for the generator's Kajiya-Kay strands and 14,000 strands (its defaults until 2026-12);
+    # with the R/TT/TRT hair lobes the held-out test below measured microfacet 19.32 / 19.68 dB
+    # against the vertex-colour floor 19.39 / 19.35 dB (views 1 / 7): a tie, reported to issue 11
     cap = synthesize(SynthConfig(scene="furball", background="black", supersample=2,
+                                 lighting=LightingConfig(hair_model="kajiya-kay"), scene_params={"strands": 14000},
                                  rig=TurntableRig(views_per_ring=12, width=200, height=150)), ctx=gl_ctx)
     model = model_from_geometry(cap.scanset, cap.scene.mesh.vertices, cap.scene.mesh.faces, l_max=64)
     return cap, model

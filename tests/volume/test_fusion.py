@@ -230,7 +230,8 @@ def test_surface_exactly_through_voxel_centres():
 
 
 def test_vectorised_consensus_matches_per_voxel_reference():
-    from volume.fusion import _centers_of, consensus_from_samples, consensus_reference, gather_samples
+    from volume.fusion import _centers_of, consensus_from_samples, gather_samples
+    from volume.fusion_reference import consensus_reference
 
     ss, o, w, gt = _setup(torus_scene(), n=12, w=80, h=60, **NOISY)
     cfg = FusionConfig()

@@ -175,3 +175,30 @@ def test_capture_lighting_validated(kw, msg):
     args.update(kw)
     with pytest.raises(ModelError, match=msg):
         CaptureLighting(**args)
+
+
+def test_rgbz_stored_as_half_floats(tmp_path):
+    """RGBz images are kept as float16 (RGBZ_STORAGE): every 8-bit sRGB value survives exactly,
+    depth within half a unit of its 11-bit mantissa; float32 input (and float32 files of earlier
+    models) are converted on construction."""
+    from capture.scan import srgb_to_linear, to_uint8_srgb
+    from volume.model import RGBZ_STORAGE
+
+    levels = np.arange(256, dtype=np.float32)
+    rgb = srgb_to_linear(np.broadcast_to(levels[:48].reshape(6, 8, 1) / 255, (6, 8, 3)))
+    rgb = np.stack([rgb, srgb_to_linear(np.broadcast_to(levels[48:96].reshape(6, 8, 1) / 255, (6, 8, 3))),
+                    srgb_to_linear(np.broadcast_to(levels[208:].reshape(6, 8, 1) / 255, (6, 8, 3)))])
+    depth = np.random.default_rng(1).uniform(0.05, 30.0, (3, 6, 8)).astype(np.float32)
+    r = RgbzImages(rgb, depth, _cams())
+    assert r.rgb.dtype == RGBZ_STORAGE == np.float16 and r.depth.dtype == np.float16
+    np.testing.assert_array_equal(to_uint8_srgb(r.rgb), to_uint8_srgb(rgb))
+    np.testing.assert_allclose(r.depth.astype(np.float32), depth, rtol=2.0 ** -11)
+    m = make_model()
+    np.savez(tmp_path / "old_rgbz.npz", rgb=rgb, depth=depth)  # a float32 file as earlier models wrote
+    out = save_model(m, tmp_path / "m")
+    (tmp_path / "old_rgbz.npz").replace(out / "rgbz.npz")
+    back = load_model(out)
+    assert back.rgbz.rgb.dtype == np.float16
+    np.testing.assert_array_equal(back.rgbz.depth, r.depth)
+    with pytest.raises(ModelError, match="float32 or float16"):
+        RgbzImages(rgb.astype(np.float64), depth, _cams())

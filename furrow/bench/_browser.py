@@ -1,0 +1,130 @@
+"""Driving ``furrow view`` in a real headless browser: Debian's chromium through Playwright
+(shared PITFALLS "Added after the first release": Playwright's own browser download cannot work
+here; SwiftShader gives the page WebGL).  Used by the viewer's tests and ``furrow bench view``."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+#: Chromium flags: software WebGL (SwiftShader through ANGLE) on a machine without a GPU.
+CHROMIUM_ARGS = ("--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader")
+#: viser's default vertical field of view of a new client (radians; 75 degrees in viser 1.1.1).
+VISER_DEFAULT_FOV = 1.3089969389957472
+#: Seconds to wait for the server's URL, the page's first frame, a still frame.
+START_TIMEOUT_S = 120.0
+FRAME_TIMEOUT_S = 240.0
+#: The readout line that says a full frame with these samples per pixel was shown (the still
+#: frames' count before the colon).
+STILL_TEXT = r"still #(\d+): {w}x{h}, {s}x{s} samples"
+
+
+def find_chromium() -> str | None:
+    """Path of a Chromium executable (Debian's ``chromium``), or None."""
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        p = shutil.which(name)
+        if p:
+            return p
+    return None
+
+
+def launch(playwright, headless: bool = True):
+    """A Chromium browser (Debian's) with software WebGL."""
+    exe = find_chromium()
+    if exe is None:
+        raise RuntimeError("no chromium executable found (apt-get install --no-install-recommends chromium)")
+    return playwright.chromium.launch(executable_path=exe, headless=headless, args=list(CHROMIUM_ARGS))
+
+
+def view_url(base: str, eye, target, up) -> str:
+    """The viewer's URL with a fixed first camera (viser's initialCamera* parameters) and a fixed
+    device pixel ratio: viser's client otherwise drops its canvas to 75 % resolution when its own
+    frame rate is low (SwiftShader), and reports that smaller size as the camera's image size."""
+    fmt = lambda v: ",".join(f"{float(x):.6f}" for x in v)
+    return (f"{base}/?initialCameraPosition={fmt(eye)}&initialCameraLookAt={fmt(target)}"
+            f"&initialCameraUp={fmt(up)}&fixedDpr=1")
+
+
+class ViewProcess:
+    """``furrow view`` as a subprocess (``python -m furrow view ...``); ``url`` once serving."""
+
+    def __init__(self, model, *extra, cwd=None, env=None) -> None:
+        cmd = [sys.executable, "-m", "furrow", "view", str(model), "--port", "0", *map(str, extra)]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
+                                     env={**os.environ, **(env or {})})
+        self.url = self._read_url()
+
+    def _read_url(self) -> str:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < START_TIMEOUT_S:
+            line = self.proc.stdout.readline()
+            if line.startswith("http://"):
+                return line.strip()
+            if not line and self.proc.poll() is not None:
+                raise RuntimeError(f"furrow view exited with {self.proc.returncode}: {self.proc.stderr.read()}")
+        raise TimeoutError("furrow view printed no URL")
+
+    def interrupt(self, timeout: float = 60.0) -> tuple[int, str]:
+        """Ctrl-C (SIGINT); returns (exit code, stderr)."""
+        self.proc.send_signal(signal.SIGINT)
+        _, err = self.proc.communicate(timeout=timeout)
+        return self.proc.returncode, err
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.communicate()
+
+
+def wait_still(page, width: int, height: int, samples: int, after: int = 0,
+               timeout_s: float = FRAME_TIMEOUT_S) -> int:
+    """Wait until the page's readout reports a full ``width`` x ``height`` frame with ``samples``
+    x ``samples`` samples per pixel that is still frame number ``after + 1`` or later; returns
+    its number."""
+    pattern = STILL_TEXT.format(w=width, h=height, s=samples)
+    handle = page.wait_for_function(
+        "([p, n]) => { const m = document.body.innerText.match(new RegExp(p)); "
+        "return m && parseInt(m[1]) > n ? parseInt(m[1]) : null; }", arg=[pattern, after],
+        timeout=timeout_s * 1000)
+    return int(handle.json_value())
+
+
+def wait_opaque(page, timeout_s: float = FRAME_TIMEOUT_S) -> None:
+    """Wait until viser's canvases have faded in (they start translucent over a white page)."""
+    page.wait_for_function("() => [...document.querySelectorAll('canvas')]"
+                           ".every(c => getComputedStyle(c).opacity === '1')", timeout=timeout_s * 1000)
+
+
+def hide_overlays(page) -> None:
+    """Uncheck the capture-camera frustums and hide viser's panel and notifications, so that a
+    screenshot shows the server's picture alone."""
+    page.get_by_text("show capture cameras").click()
+    page.add_style_tag(content=".mantine-Paper-root, .mantine-Notification-root, "
+                               "[class*='Notification'] { visibility: hidden !important; }")
+
+
+def drag(page, seconds: float, x0: float, y0: float, radius: float = 120.0, steps_per_s: float = 60.0) -> int:
+    """Orbit by dragging the mouse in circles around (x0, y0) for ``seconds``; returns the moves made."""
+    import math
+
+    page.mouse.move(x0 + radius, y0)
+    page.mouse.down()
+    n = int(seconds * steps_per_s)
+    t0 = time.monotonic()
+    for i in range(n):
+        a = 2 * math.pi * i / (steps_per_s * 2.0)
+        page.mouse.move(x0 + radius * math.cos(a), y0 + 0.3 * radius * math.sin(a))
+        wait = t0 + (i + 1) / steps_per_s - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+    page.mouse.up()
+    return n
+
+
+def save_screenshot(page, path: Path) -> None:
+    page.screenshot(path=str(path))

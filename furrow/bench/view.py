@@ -1,0 +1,268 @@
+"""``furrow bench view``: is ``furrow view`` fluid on this machine?
+
+A model built from 18 views of a 640x480 fur capture (``furrow synth furball --views 18`` then
+``furrow model``, cached under -o) is dragged around in a 640x480 view: camera updates at 60 Hz
+along an orbit for --drag-s seconds, then a stop, --repeats times.  Measured from the viewer's
+own frame log (render.viewer.session.FrameLog, as ``furrow view --stats`` writes it):
+
+* while dragging: frames per second sent and their height (lines); target >= 10 fps at >= 240
+  lines;
+* after each stop: seconds from the last camera change to the full 640x480 frame (one sample
+  per pixel, JPEG), and to the supersampled one (PNG); target <= 0.5 s for the full frame;
+* a cost table: wall and process-CPU milliseconds of a whole frame (draw, read back, encode) at
+  fixed sizes, side by side: the CPU figures do not grow with the machine's other load.
+
+Two drivers: ``server`` (default) runs the viewer's GL thread and a client session in this
+process and encodes each frame as viser would (render.viewer.session.transport_quality), without a
+browser; ``browser`` runs ``furrow view`` and drags in Debian's headless chromium (whose
+SwiftShader WebGL competes for the same CPU cores).  The machine's load average is reported
+with the figures: on a shared machine they are pessimistic.
+
+    furrow bench view [--driver server|browser] [--model DIR] [--drag-s 4] [--repeats 3]
+                      [-o out/bench/view] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from furrow.bench import OUT_ROOT
+from furrow.bench._common import print_result
+
+#: The capture the issue names: 18 views of a 640x480 fur scan.
+VIEWS, SIZE = 18, (640, 480)
+#: Targets: frames per second and lines while dragging; seconds from the stop to the full frame.
+TARGET_FPS, TARGET_LINES, TARGET_STILL_S = 10.0, 240, 0.5
+#: Camera updates per second while dragging (a browser sends about this many), orbit speed (deg/s).
+UPDATE_HZ, DEG_PER_S = 60.0, 45.0
+#: Seconds after each stop for the still frames; seconds of each drag not counted (ramp-up).
+SETTLE_S, RAMP_S = 2.5, 0.5
+#: Cost table: heights of the one-sample frames, orbit views per row.
+COST_LINES = (120, 240, 360, 480)
+COST_FRAMES = 8
+#: Moving frames further apart than this belong to different drags; shorter drags are ignored.
+SEGMENT_GAP_S, MIN_DRAG_S = 2.0, 1.0
+
+
+def build_model(out: Path) -> Path:
+    """The 18-view 640x480 fur model under ``out`` (built once with the CLI, then reused)."""
+    scan, model = out / "fur18_scan", out / "fur18_model"
+    if not (model / "model.json").is_file():
+        run = lambda *a: subprocess.run([sys.executable, "-m", "furrow", *map(str, a)], check=True)
+        run("synth", "furball", "-o", scan, "--views", VIEWS, "--size", f"{SIZE[0]}x{SIZE[1]}", "--seed", 1,
+            "--overwrite")
+        run("model", scan, "-o", model, "--overwrite")
+    return model
+
+
+def orbit_views(model, n: int, width: int, height: int, fov: float):
+    """n ViewCameras on the rig's orbit (the capture cameras' mean distance and height)."""
+    from viser.transforms import SO3
+
+    from capture.orbit import orbit_cameras
+    from render.viewer.session import ViewCamera
+
+    cams = orbit_cameras(model.rgbz.cameras, n, center=np.asarray(model.bounds, float).mean(axis=0))
+    return [ViewCamera(tuple(SO3.from_matrix(c.world_from_cam[:3, :3]).wxyz), tuple(c.center), fov, width, height)
+            for c in cams]
+
+
+def encode(image: np.ndarray, jpeg_quality: int | None) -> bytes:
+    """The bytes viser would send (JPEG of that quality, or PNG)."""
+    import cv2
+
+    bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    if jpeg_quality is not None:
+        return cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])[1].tobytes()
+    return cv2.imencode(".png", bgr)[1].tobytes()
+
+
+def drive_server(model, drag_s: float, repeats: int) -> list[dict]:
+    """Drag in-process; returns the frame log."""
+    from render.viewer.gl_worker import GLWorker
+    from render.viewer.session import FrameLog, Session
+
+    fov = 2 * np.arctan(0.5 * SIZE[1] / model.rgbz.cameras[0].K[1, 1])
+    steps = int(round(360.0 / DEG_PER_S * UPDATE_HZ))
+    views = orbit_views(model, steps, *SIZE, fov)
+    worker = GLWorker(model)
+    log = FrameLog()
+    session = Session(worker, encode, log=log, name="bench").start()
+    session.update_camera(views[0])
+    time.sleep(SETTLE_S * 2)  # first frames: renderer creation and warm-up
+    k = 0
+    try:
+        for _ in range(repeats):
+            t_end = time.monotonic() + drag_s
+            while time.monotonic() < t_end:
+                k += 1
+                session.update_camera(views[k % len(views)])
+                time.sleep(1.0 / UPDATE_HZ)
+            time.sleep(SETTLE_S)
+    finally:
+        session.stop()
+        worker.close()
+    return log.frames()
+
+
+def drive_browser(model_dir: Path, drag_s: float, repeats: int, out: Path) -> list[dict]:
+    """Drag in headless chromium against ``furrow view``; returns its --stats frames."""
+    from playwright.sync_api import sync_playwright
+
+    from capture.camera import image_up
+    from furrow.bench import _browser as B
+    from volume.model import load_model
+
+    model = load_model(model_dir)
+    c = np.asarray(model.bounds, float).mean(axis=0)
+    cam0 = model.rgbz.cameras[0]
+    stats = out / "view_stats.json"
+    vp = B.ViewProcess(model_dir, "--stats", stats, "--out", out)
+    try:
+        with sync_playwright() as p:
+            browser = B.launch(p)
+            page = browser.new_page(viewport={"width": SIZE[0], "height": SIZE[1]})
+            page.goto(B.view_url(vp.url, cam0.center, c, image_up(cam0)))
+            B.wait_still(page, *SIZE, 2)
+            B.hide_overlays(page)
+            for _ in range(repeats):
+                B.drag(page, drag_s, SIZE[0] / 2, SIZE[1] / 2)
+                time.sleep(SETTLE_S)
+            browser.close()
+    finally:
+        vp.interrupt()
+    return json.loads(stats.read_text())["frames"]
+
+
+def cost_table(model, n: int = COST_FRAMES) -> list[dict]:
+    """Whole-pipeline cost of one frame (draw, read back, sRGB, encode) at fixed heights, with one
+    sample per pixel (moving frames, JPEG) and, at full size, supersampled (the still frame, PNG):
+    median wall ms and median process CPU ms (every thread of this process, llvmpipe's included)
+    over ``n`` orbit views.  CPU ms does not grow with other load on the machine: on an idle
+    machine a frame takes at most about its CPU time (less when llvmpipe's threads overlap)."""
+    from render.viewer.gl_worker import GLWorker
+    from render.viewer.session import FULL_JPEG_QUALITY, MOVING_JPEG_QUALITY
+    from render.viewer.settings import ViewSettings
+    from render.viewer.views import draw
+
+    fov = 2 * np.arctan(0.5 * SIZE[1] / model.rgbz.cameras[0].K[1, 1])
+    views = orbit_views(model, n, *SIZE, fov)
+    settings = ViewSettings()
+    worker = GLWorker(model)
+    rows = []
+    try:
+        worker.call(lambda sc: draw(sc, views[0].camera(*SIZE), settings, 2))  # renderer made, shaders compiled
+        for lines, ss, quality in [(h, 1, MOVING_JPEG_QUALITY) for h in COST_LINES] + [(SIZE[1], 1, FULL_JPEG_QUALITY),
+                                                                                       (SIZE[1], 2, None)]:
+            size = (round(lines * SIZE[0] / SIZE[1]), lines)
+            wall, cpu = [], []
+            for v in views:
+                t0, c0 = time.perf_counter(), time.process_time()
+                drawn = worker.call(lambda sc, v=v, size=size, ss=ss: draw(sc, v.camera(*size), settings, ss))
+                encode(drawn.image, quality)
+                wall.append((time.perf_counter() - t0) * 1e3)
+                cpu.append((time.process_time() - c0) * 1e3)
+            rows.append({"width": size[0], "height": lines, "supersample": ss, "format": "png" if quality is None
+                         else f"jpeg{quality}", "wall_ms": float(np.median(wall)), "cpu_ms": float(np.median(cpu))})
+    finally:
+        worker.close()
+    return rows
+
+
+def segments(frames: list[dict]) -> list[list[dict]]:
+    """The moving frames split into drags (a gap of more than SEGMENT_GAP_S between two)."""
+    mv = sorted((f for f in frames if f["moving"]), key=lambda f: f["t"])
+    out: list[list[dict]] = []
+    for f in mv:
+        if out and f["t"] - out[-1][-1]["t"] <= SEGMENT_GAP_S:
+            out[-1].append(f)
+        else:
+            out.append([f])
+    return [seg for seg in out if seg[-1]["t"] - seg[0]["t"] >= MIN_DRAG_S]
+
+
+def summarise(frames: list[dict]) -> dict:
+    """Per drag (found from the log alone): fps and median lines of the moving frames (the first
+    RAMP_S excluded), seconds from the stop to the full-size and the supersampled frame (the
+    viewer's own ``since_change_s``); medians over the drags."""
+    rows = []
+    for seg in segments(frames):
+        mv = [f for f in seg if f["t"] >= seg[0]["t"] + RAMP_S]
+        end = seg[-1]["t"]
+        still = [f for f in frames if not f["moving"] and end < f["t"] <= end + SETTLE_S
+                 and (f["width"], f["height"]) == SIZE]
+        full = next((f for f in still if not f.get("refined")), None)
+        ref = next((f for f in still if f.get("refined")), None)
+        span = mv[-1]["t"] - mv[0]["t"]
+        rows.append({"fps": (len(mv) - 1) / span if span > 0 else 0.0,
+                     "lines": float(np.median([f["height"] for f in mv])),
+                     "moving_ms": float(np.median([f["total_ms"] for f in mv])),
+                     "moving_cpu_ms": float(np.median([f.get("cpu_ms", np.nan) for f in mv])),
+                     "full_s": full["since_change_s"] if full else float("nan"),
+                     "full_cpu_ms": full.get("cpu_ms", float("nan")) if full else float("nan"),
+                     "refined_s": ref["since_change_s"] if ref else float("nan"),
+                     "level": mv[-1].get("level")})
+    if not rows:
+        raise RuntimeError("no drag found in the frame log (no moving frames)")
+    med = {k: float(np.nanmedian([r[k] for r in rows])) for k in rows[0] if k != "level"}
+    med["level"] = rows[0]["level"]
+    return {"drags": rows, "median": med}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="furrow bench view", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--driver", choices=("server", "browser"), default="server")
+    ap.add_argument("--model", type=Path, default=None, help="model folder (default: build the 18-view fur model)")
+    ap.add_argument("--drag-s", type=float, default=4.0, help="seconds per drag (default 4)")
+    ap.add_argument("--repeats", type=int, default=3, help="drags (default 3)")
+    ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "view")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    model_dir = args.model or build_model(args.out)
+    from volume.model import load_model
+
+    load0 = os.getloadavg()
+    if args.driver == "server":
+        frames = drive_server(load_model(model_dir), args.drag_s, args.repeats)
+    else:
+        frames = drive_browser(model_dir, args.drag_s, args.repeats, args.out)
+    costs = cost_table(load_model(model_dir))
+    res = {"driver": args.driver, "model": str(model_dir), "size": list(SIZE), "load_before": list(load0),
+           "load_after": list(os.getloadavg()), "cpus": os.cpu_count(), **summarise(frames), "costs": costs}
+    (args.out / f"bench_view_{args.driver}.json").write_text(json.dumps({**res, "frames": frames}, indent=1))
+    m = res["median"]
+    ok = (m["fps"] >= TARGET_FPS and m["lines"] >= TARGET_LINES, m["full_s"] <= TARGET_STILL_S)
+
+    def tables(r):
+        print(f"furrow view, {r['driver']} driver, {SIZE[0]}x{SIZE[1]} view of {model_dir} (level L={m['level']})")
+        print(f"load average before {r['load_before'][0]:.1f}, after {r['load_after'][0]:.1f} on {r['cpus']} cores")
+        print(f"{'drag':>4} {'fps':>6} {'lines':>6} {'ms/frame':>9} {'cpu ms':>7} {'full s':>7} {'cpu ms':>7} "
+              f"{'supersampled s':>15}")
+        for i, d in enumerate(r["drags"]):
+            print(f"{i:>4} {d['fps']:>6.1f} {d['lines']:>6.0f} {d['moving_ms']:>9.1f} {d['moving_cpu_ms']:>7.1f} "
+                  f"{d['full_s']:>7.3f} {d['full_cpu_ms']:>7.1f} {d['refined_s']:>15.3f}")
+        print("whole-frame cost (draw, read back, encode), medians over orbit views:")
+        print(f"{'size':>9} {'samples':>7} {'format':>7} {'wall ms':>8} {'CPU ms':>7} {'fps if CPU-bound':>17}")
+        for c in r["costs"]:
+            print(f"{c['width']:>4}x{c['height']:<4} {c['supersample']:>7} {c['format']:>7} {c['wall_ms']:>8.1f} "
+                  f"{c['cpu_ms']:>7.1f} {1000 / c['cpu_ms']:>17.1f}")
+
+    return print_result(res, args.json, tables,
+                        f"median while dragging: {m['fps']:.1f} fps at {m['lines']:.0f} lines "
+                        f"(target >= {TARGET_FPS:g} fps at >= {TARGET_LINES} lines): {'met' if ok[0] else 'NOT met'}",
+                        f"median stop -> full {SIZE[0]}x{SIZE[1]} frame: {m['full_s']:.3f} s "
+                        f"(target <= {TARGET_STILL_S} s): {'met' if ok[1] else 'NOT met'}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,68 @@
+"""What a viewer client asked for: the method, its per-frame options, the size cap, the
+environment compositing and the debug view (one frozen, validated value per change)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from render.methods import RenderOptions
+
+#: Debug views computed from any method's Frame ("colour" is the normal picture).
+FRAME_VIEWS = ("colour", "depth", "level")
+#: Debug views a renderer draws itself (RenderOptions.debug; only methods that read that option).
+RENDERER_VIEWS = ("camera", "rejections")
+VIEWS = FRAME_VIEWS + RENDERER_VIEWS
+#: Default cap on the full frame's height (lines); the browser canvas is used up to it.
+DEFAULT_MAX_LINES = 720
+#: Full-frame height caps offered in the GUI.
+MAX_LINES_CHOICES = (240, 360, 480, 720, 1080)
+
+
+@dataclass(frozen=True)
+class EnvSettings:
+    """Environment compositing of the picture (METHODS §3-§4; render.composite)."""
+
+    #: Environment map: a bundled name or a .exr/.hdr path; None = black background, no compositing.
+    map: str | None = None
+    #: Linear exposure factor (> 0).
+    exposure: float = 1.0
+    #: The object's shadow on a ground plane under it (from its sphere set).
+    ground: bool = False
+    #: Glare streaks on over-bright pixels.
+    glare: bool = True
+    #: Rotation of the map about its up axis, degrees.
+    rotation_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.exposure > 0:
+            raise ValueError(f"exposure must be > 0, got {self.exposure}")
+
+
+@dataclass(frozen=True)
+class ViewSettings:
+    """One client's choices (the GUI's state)."""
+
+    #: Registry name of the rendering method (render.methods.METHODS).
+    method: str = "microfacet"
+    #: Per-frame options of the full frame (moving frames use one sample per pixel).
+    options: RenderOptions = field(default_factory=RenderOptions)
+    #: Cap on the full frame's height in lines (the canvas aspect is kept).
+    max_lines: int = DEFAULT_MAX_LINES
+    env: EnvSettings = field(default_factory=EnvSettings)
+    #: One of VIEWS.
+    view: str = "colour"
+
+    def __post_init__(self) -> None:
+        if self.view not in VIEWS:
+            raise ValueError(f"unknown view {self.view!r}; use one of {', '.join(VIEWS)}")
+        if int(self.max_lines) < 16:
+            raise ValueError(f"max_lines must be >= 16, got {self.max_lines}")
+
+    def changed(self, **changes) -> ViewSettings:
+        """A copy with fields replaced; ``options`` / ``env`` may be given as dicts of field changes."""
+        if isinstance(changes.get("options"), dict):
+            changes["options"] = self.options.changed(**changes["options"])
+        if isinstance(changes.get("env"), dict):
+            changes["env"] = dataclasses.replace(self.env, **changes["env"])
+        return dataclasses.replace(self, **changes)

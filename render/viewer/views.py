@@ -1,0 +1,158 @@
+"""The pictures a viewer client can ask for, drawn on the GL thread from one rendered Frame.
+
+* "colour": the frame as 8-bit sRGB over black, or composited into an environment map
+  (:func:`composite_env`, METHODS §3-§4) with exposure, ground shadow, glare and map rotation;
+* "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
+* "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
+  pixel shows it), for methods whose FrameStats report a ``level``;
+* "camera" / "rejections": drawn by the renderer itself (RenderOptions.debug): per pixel the
+  index + 1 of the dominant input camera, or 1 for a kept and 2 for an Eq. 2-rejected slice
+  fragment (render.microfacet); shown through fixed palettes.
+
+Methods are looked up by name and never branched on: a view a method cannot give is reported
+(``Drawn.note``) and the colour picture is shown instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from capture.camera import Camera
+from render.viewer.settings import RENDERER_VIEWS, EnvSettings, ViewSettings
+
+#: Colour of pixels where nothing was drawn in the debug views (8-bit sRGB).
+EMPTY_RGB = (0, 0, 0)
+#: Rejection view: kept fragments grey, Eq. 2 rejections red (8-bit sRGB).
+KEPT_RGB = (150, 150, 150)
+REJECTED_RGB = (230, 40, 40)
+#: Palette of the camera and level views (matplotlib's tab20, cycled); colour map of the depth
+#: view (dark far -> bright near).
+PALETTE = "tab20"
+DEPTH_COLOURS = "inferno"
+
+
+@dataclass(frozen=True)
+class Drawn:
+    """A picture ready to send: ``image`` (H, W, 3) uint8 sRGB, the frame's ``stats``
+    (render.frame.FrameStats) and a ``note`` when the asked view could not be drawn."""
+
+    image: np.ndarray
+    stats: object
+    note: str = ""
+
+
+def load_env(name: str):
+    """An environment map by bundled name or .exr/.hdr path (errors name what is missing)."""
+    from pathlib import Path
+
+    from render.shading.envmap import bundled_envmap, load_envmap
+
+    p = Path(name)
+    return load_envmap(p) if p.suffix.lower() in (".exr", ".hdr") else bundled_envmap(name)
+
+
+def make_compositor(ctx):
+    """The environment compositor GL owner (render.compositor.Compositor)."""
+    from render.compositor import Compositor
+
+    return Compositor(ctx)
+
+
+def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, spheres, up, compositor) -> np.ndarray:
+    """``frame`` (render.frame.Frame) composited into ``env``: (H, W, 3) float32 display-referred
+    linear colour in [0, 1] (render.composite.composite_frame)."""
+    from render.composite import composite_frame
+
+    # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
+    # edge pixels (their samples were averaged with black)
+    cov = frame.coverage
+    obj = np.where(cov[..., None] > 0, frame.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
+    return composite_frame(ctx, obj.astype(np.float32), frame.depth, camera, env,
+                           spheres=spheres if env_settings.ground else None,
+                           ground=None if env_settings.ground else False, exposure=env_settings.exposure,
+                           glare=env_settings.glare, up=up, compositor=compositor)
+
+
+def palette(n: int) -> np.ndarray:
+    """(n, 3) uint8 distinct colours (PALETTE, cycled)."""
+    import matplotlib
+
+    cols = np.asarray(matplotlib.colormaps[PALETTE].colors)[:, :3]
+    return np.round(cols[np.arange(n) % len(cols)] * 255).astype(np.uint8)
+
+
+def depth_image(depth: np.ndarray) -> np.ndarray:
+    """(H, W) z-depth (0 = nothing) -> (H, W, 3) uint8: near bright, far dark (DEPTH_COLOURS over the
+    drawn range), EMPTY_RGB where nothing was drawn."""
+    import matplotlib
+
+    d = np.asarray(depth, np.float64)
+    drawn = d > 0
+    out = np.zeros((*d.shape, 3), np.uint8)
+    out[:] = EMPTY_RGB
+    if drawn.any():
+        lo, hi = d[drawn].min(), d[drawn].max()
+        t = 1.0 - (d[drawn] - lo) / max(hi - lo, 1e-12)
+        lut = np.round(matplotlib.colormaps[DEPTH_COLOURS](np.linspace(0, 1, 256))[:, :3] * 255).astype(np.uint8)
+        out[drawn] = lut[np.clip(np.round(t * 255), 0, 255).astype(int)]
+    return out
+
+
+def code_image(codes: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """(H, W) integer codes (0 = nothing, k >= 1 -> ``colours[k - 1]``) -> (H, W, 3) uint8."""
+    codes = np.asarray(codes)
+    out = np.zeros((*codes.shape, 3), np.uint8)
+    out[:] = EMPTY_RGB
+    hit = codes > 0
+    out[hit] = colours[(codes[hit] - 1) % len(colours)]
+    return out
+
+
+def frame_codes(frame) -> np.ndarray:
+    """(H, W) int codes a renderer wrote for a debug view (red channel, one sample per pixel;
+    0 where nothing was drawn)."""
+    return np.where(frame.coverage > 0, np.rint(frame.rgb[..., 0]), 0).astype(np.int64)
+
+
+def colour_image(scene, frame, camera: Camera, env_settings: EnvSettings) -> np.ndarray:
+    """The "colour" view: sRGB over black, or composited into the environment."""
+    from capture.scan import to_uint8_srgb
+
+    if env_settings.map is None:
+        return to_uint8_srgb(frame.rgb)
+    env = scene.envmap(env_settings.map, env_settings.rotation_deg)
+    img = composite_env(scene.ctx, frame, camera, env, env_settings, scene.model.spheres, scene.rig_up(),
+                        scene.compositor())
+    return to_uint8_srgb(img)
+
+
+def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Drawn:
+    """Render ``camera`` with ``settings`` (``supersample`` samples per pixel and axis) and make
+    the asked view (runs on the GL thread: ``scene`` is a render.viewer.gl_worker.GLScene)."""
+    renderer = scene.renderer(settings.method)
+    opts = settings.options.changed(supersample=supersample)
+    view, note = settings.view, ""
+    if view in RENDERER_VIEWS:
+        if "debug" in renderer.uses:
+            opts = opts.changed(debug=view, supersample=1)
+        else:
+            view, note = "colour", f"method {settings.method!r} draws no {settings.view!r} view"
+    frame = renderer.render(camera, opts)
+    if view == "colour":
+        img = colour_image(scene, frame, camera, settings.env)
+    elif view == "depth":
+        img = depth_image(frame.depth)
+    elif view == "level":
+        level = getattr(frame.stats, "level", None)
+        if level is None:
+            img, note = colour_image(scene, frame, camera, settings.env), \
+                f"method {settings.method!r} draws no pyramid level"
+        else:
+            img = code_image(np.where(frame.coverage > 0, level + 1, 0), palette(16))
+    elif view == "camera":
+        img = code_image(frame_codes(frame), palette(20))
+    else:
+        img = code_image(frame_codes(frame), np.array([KEPT_RGB, REJECTED_RGB], np.uint8))
+    return Drawn(img, frame.stats, note)

@@ -1,0 +1,196 @@
+"""A viewer client's render thread (render.viewer.session) against a simulated renderer: reduced
+frames while the camera moves, the full then the supersampled frame after the stop, stale work
+dropped, the latest camera drawn, failures reported."""
+
+from __future__ import annotations
+
+import threading
+import time
+from concurrent.futures import Future
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from render.viewer import views
+from render.viewer.adaptive import AdaptiveConfig
+from render.viewer.session import FrameLog, Session, ViewCamera
+from render.viewer.settings import ViewSettings
+
+FULL = (320, 240)
+
+
+class Stats(SimpleNamespace):
+    def record(self):
+        return {"ms": self.ms, "supersample": self.supersample}
+
+
+class FakeWorker:
+    """Runs jobs on one thread like render.viewer.gl_worker.GLWorker."""
+
+    def __init__(self):
+        self.jobs = []
+        self.cv = threading.Condition()
+        self.closed = False
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def submit(self, fn, wanted=None):
+        fut = Future()
+        with self.cv:
+            self.jobs.append((fn, fut))
+            self.cv.notify()
+        return fut
+
+    def _run(self):
+        while True:
+            with self.cv:
+                while not self.jobs and not self.closed:
+                    self.cv.wait()
+                if self.closed:
+                    return
+                fn, fut = self.jobs.pop(0)
+            try:
+                fut.set_result(fn(None))
+            except Exception as e:
+                fut.set_exception(e)
+
+    def close(self):
+        with self.cv:
+            self.closed = True
+            self.cv.notify()
+
+
+def view(i: int) -> ViewCamera:
+    a = 0.05 * i
+    return ViewCamera((np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)), (0.0, 0.0, -1.0), 0.8, *FULL)
+
+
+@pytest.fixture
+def fake_draw(monkeypatch):
+    """draw() costing 4 ms + 0.5 ms per 1000 pixels x samples^2 (a full 320x240 frame: ~42 ms,
+    supersampled 2x2: ~158 ms); records the cameras it draws (when it starts each)."""
+    drawn = []
+
+    def draw(scene, camera, settings, supersample):
+        ms = 4.0 + 0.5e-3 * camera.width * camera.height * supersample ** 2
+        drawn.append((camera, supersample))
+        time.sleep(ms / 1e3)
+        return views.Drawn(np.zeros((camera.height, camera.width, 3), np.uint8), Stats(ms=ms, supersample=supersample))
+
+    monkeypatch.setattr(views, "draw", draw)
+    return drawn
+
+
+def run_session(moves, cfg, settle_s=1.0, interval_s=1 / 60):
+    worker, log, sent = FakeWorker(), FrameLog(), []
+    s = Session(worker, lambda img, q: sent.append((img.shape, q)), ViewSettings(), cfg, log).start()
+    for i in range(moves):
+        s.update_camera(view(i))
+        time.sleep(interval_s)
+    t_stop = log.now()
+    time.sleep(settle_s)
+    s.stop()
+    worker.close()
+    return log.frames(), t_stop, s
+
+
+def test_moving_then_full_then_supersampled(fake_draw):
+    cfg = AdaptiveConfig(target_fps=40.0, still_s=0.2)          # 25 ms budget: a full frame (42 ms) does not fit
+    frames, t_stop, _ = run_session(60, cfg)
+    moving = [f for f in frames if f["moving"]]
+    assert len(moving) >= 10
+    late = moving[len(moving) // 2:]
+    assert all(f["width"] < FULL[0] and f["supersample"] == 1 for f in late)
+    assert np.median([f["total_ms"] for f in late]) <= 1.3 * cfg.budget_ms
+    still = [f for f in frames if not f["moving"]]
+    assert [(f["width"], f["height"], f["supersample"]) for f in still] == [(*FULL, 1), (*FULL, 2)]
+    assert still[0]["t"] >= t_stop + cfg.still_s - 0.02          # not before the camera was still
+    assert still[0]["since_change_s"] < cfg.still_s + 0.3         # full frame soon after the stop
+    assert still[1]["refined"] and not still[0]["refined"]
+
+
+def test_cheap_frames_grow_to_full_size(fake_draw):
+    cfg = AdaptiveConfig(target_fps=5.0)                          # 200 ms budget: everything fits
+    frames, _, _ = run_session(40, cfg)
+    assert [f for f in frames if f["moving"]][-1]["width"] == FULL[0]
+
+
+def test_stale_full_frame_is_dropped_and_latest_camera_drawn(fake_draw):
+    """A move while the supersampled frame is drawn: that frame never goes out, and the next
+    frame shows the newest camera, not the ones queued meanwhile."""
+    cfg = AdaptiveConfig(still_s=0.05)
+    worker, log, sent = FakeWorker(), FrameLog(), []
+    s = Session(worker, lambda img, q: sent.append(q), ViewSettings(), cfg, log).start()
+    s.update_camera(view(0))
+    while not any(ss == 2 for _, ss in fake_draw):                # wait for the supersampled frame to start
+        time.sleep(0.005)
+    n_before = len(fake_draw)
+    for i in range(1, 6):                                         # moves during the 158 ms frame
+        s.update_camera(view(i))
+    time.sleep(0.6)
+    s.stop()
+    worker.close()
+    frames = log.frames()
+    after = fake_draw[n_before:]
+    latest = view(5).camera(*FULL)
+    np.testing.assert_allclose(after[0][0].cam_from_world, latest.cam_from_world)   # jumped to the newest
+    supersampled = [f for f in frames if f["supersample"] == 2]
+    assert len(supersampled) == 1                                 # the stale one was dropped
+
+
+def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
+    notes = []
+    calls = []
+
+    def draw(scene, camera, settings, supersample):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError("boom")
+        return views.Drawn(np.zeros((camera.height, camera.width, 3), np.uint8), Stats(ms=1.0, supersample=1))
+
+    monkeypatch.setattr(views, "draw", draw)
+    worker, log = FakeWorker(), FrameLog()
+    s = Session(worker, lambda img, q: None, ViewSettings(), AdaptiveConfig(still_s=0.05), log,
+                on_note=notes.append).start()
+    s.update_camera(view(0))
+    time.sleep(0.2)
+    s.update_camera(view(1))
+    time.sleep(0.3)
+    s.stop()
+    worker.close()
+    assert notes and "boom" in notes[0]
+    assert log.frames()
+
+
+def test_send_failure_is_survived(fake_draw):
+    """A client that went away (send raises) does not end the thread with an exception."""
+    notes = []
+
+    def send(img, q):
+        raise ConnectionError("client gone")
+
+    worker = FakeWorker()
+    s = Session(worker, send, ViewSettings(), AdaptiveConfig(still_s=0.05), FrameLog(), on_note=notes.append).start()
+    s.update_camera(view(0))
+    time.sleep(0.4)
+    assert s.alive
+    s.stop()
+    worker.close()
+    assert not s.alive and any("client gone" in n for n in notes)
+
+
+def test_full_size_cap():
+    vc = ViewCamera((1.0, 0, 0, 0), (0, 0, 0), 0.8, 1920, 1080)
+    assert vc.full_size(720) == (1280, 720)
+    assert vc.full_size(2000) == (1920, 1080)
+
+
+def test_transport_quality():
+    from render.viewer.session import FULL_JPEG_QUALITY, MOVING_JPEG_QUALITY, transport_quality
+
+    ss2, ss1 = ViewSettings(), ViewSettings().changed(options={"supersample": 1})
+    assert transport_quality("moving", ss2) == MOVING_JPEG_QUALITY
+    assert transport_quality("full", ss2) == FULL_JPEG_QUALITY   # a PNG follows
+    assert transport_quality("full", ss1) is None                # the last still frame: PNG
+    assert transport_quality("refine", ss2) is None

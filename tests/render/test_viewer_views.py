@@ -1,0 +1,83 @@
+"""The viewer's pictures (render.viewer.views): debug colourings and the method-agnostic dispatch."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from capture.camera import Camera, look_at, make_K
+from render.frame import Frame, FrameStats
+from render.viewer import views
+from render.viewer.settings import ViewSettings
+
+
+def test_depth_image_near_is_bright_and_empty_is_black():
+    d = np.zeros((4, 5), np.float32)
+    d[1, 1], d[2, 3] = 0.5, 1.5
+    img = views.depth_image(d)
+    assert img[0, 0].tolist() == list(views.EMPTY_RGB)
+    lum = img.astype(float).sum(-1)
+    assert lum[1, 1] > lum[2, 3] > 0
+
+
+def test_code_image_and_frame_codes():
+    pal = np.array([[10, 0, 0], [0, 20, 0]], np.uint8)
+    codes = np.array([[0, 1], [2, 3]])
+    img = views.code_image(codes, pal)
+    assert img[0, 0].tolist() == [0, 0, 0] and img[0, 1].tolist() == [10, 0, 0]
+    assert img[1, 0].tolist() == [0, 20, 0] and img[1, 1].tolist() == [10, 0, 0]   # palette cycles
+    rgb = np.zeros((1, 3, 3), np.float32)
+    rgb[0, :, 0] = [3.0000002, 7.0, 9.0]
+    f = Frame(rgb, np.array([[1.0, 1.0, 0.0]], np.float32), np.ones((1, 3), np.float32),
+              FrameStats(1.0, 1.0, 1, 1))
+    assert views.frame_codes(f).tolist() == [[3, 7, 0]]
+
+
+class FakeRenderer:
+    """Returns a fixed frame; records the options it was asked for."""
+
+    uses = frozenset({"supersample"})
+
+    def __init__(self, stats):
+        self.stats, self.asked = stats, []
+
+    def render(self, camera, options):
+        self.asked.append(options)
+        H, W = camera.height, camera.width
+        cov = np.zeros((H, W), np.float32)
+        cov[1:3, 1:3] = 1.0
+        return Frame(np.full((H, W, 3), 0.5, np.float32) * cov[..., None], cov, cov * 2.0, self.stats)
+
+
+@pytest.fixture
+def cam():
+    return Camera(make_K(5.0, 5.0, 1.5, 1.5), look_at([0, -1, 0], [0, 0, 0]), 4, 4)
+
+
+def test_views_a_method_cannot_give_fall_back_with_a_note(cam):
+    r = FakeRenderer(FrameStats(1.0, 1.0, 1, 1))
+    scene = SimpleNamespace(renderer=lambda name: r)
+    for view in ("camera", "rejections", "level"):
+        drawn = views.draw(scene, cam, ViewSettings(method="fake", view=view), 1)
+        assert "fake" in drawn.note and view.split()[0][:5] in drawn.note
+        assert drawn.image[2, 2].tolist() == drawn.image[1, 1].tolist() != [0, 0, 0]   # the colour picture
+    assert all(o.debug is None for o in r.asked)
+
+
+def test_level_and_debug_views_of_a_method_that_gives_them(cam):
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class LevelStats(FrameStats):
+        level: int = 0
+
+    r = FakeRenderer(LevelStats(1.0, 1.0, 1, 1, level=3))
+    r.uses = frozenset({"supersample", "debug"})
+    scene = SimpleNamespace(renderer=lambda name: r)
+    lev = views.draw(scene, cam, ViewSettings(view="level"), 2)
+    assert lev.note == "" and lev.image[1, 1].tolist() == views.palette(16)[3].tolist()
+    assert lev.image[0, 0].tolist() == list(views.EMPTY_RGB)
+    views.draw(scene, cam, ViewSettings(view="camera"), 2)
+    assert r.asked[-1].debug == "camera" and r.asked[-1].supersample == 1
