@@ -18,9 +18,15 @@ baseline renderer (marched on --mesh-level).  The finest level's distance transf
 only when something uses that level.  The closing table gives wall and CPU seconds and peak
 resident memory per stage.  The model folder is written atomically (temporary folder + rename).
 
+--capture-env MAP (an equirect .exr/.hdr or a bundled name), --capture-env-fisheye IMG or
+--capture-env-mirrorball IMG stores the lighting the scans were taken under, with the rig's up
+axis, so that `furrow render --relight` can relight the model (issue 15); a model without it
+cannot be relit.
+
 examples:
   furrow model out/furball_scan -o out/furball_model
-  furrow model out/furball_scan -o out/m64 --frames 0::2 --max-res 64 --sdf tsdf --json"""
+  furrow model out/furball_scan -o out/m64 --frames 0::2 --max-res 64 --sdf tsdf --json
+  furrow model out/furball_scan -o out/furball_model --capture-env forest"""
 
 
 def _pow2(text: str) -> int:
@@ -54,6 +60,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
     p.add_argument("--overwrite", action="store_true", help="replace MODEL if it exists (only a furrow model folder)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary on stdout")
+    g = p.add_argument_group("capture lighting (for furrow render --relight)")
+    x = g.add_mutually_exclusive_group()
+    x.add_argument("--capture-env", default=None, metavar="MAP",
+                   help="the scans' lighting: an equirect .exr/.hdr or a bundled name (studio, courtyard, forest, "
+                        "sunset)")
+    x.add_argument("--capture-env-fisheye", type=Path, default=None, metavar="IMG",
+                   help="the scans' lighting as an HDR angular fisheye photo looking up (square, .exr/.hdr)")
+    x.add_argument("--capture-env-mirrorball", type=Path, default=None, metavar="IMG",
+                   help="the scans' lighting as an HDR mirror-ball photo taken level (square crop, .exr/.hdr)")
+    g.add_argument("--capture-env-rotation", type=float, default=0.0, metavar="DEG",
+                   help="turn the capture lighting about the rig's up axis (degrees, as --env-rotation of render)")
+    g.add_argument("--capture-env-fov", type=float, default=185.0, metavar="DEG",
+                   help="field of view of --capture-env-fisheye (default 185)")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -84,10 +103,14 @@ def run(args, console) -> int:
         return track(it, desc)
 
     t0, c0 = time.perf_counter(), time.process_time()
+    capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
         scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d))
     model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
                                  provenance={"source": str(args.scans), "frames": args.frames})
+    if capture_env is not None:
+        model = _with_capture_env(model, capture_env, scanset, args)
+        summary["capture_env"] = model.capture_env.record()
     with timer.stage("write"):
         save_model(model, out)
     summary["seconds"] = {k: round(v, 3) for k, v in timer.seconds.items()}
@@ -112,4 +135,24 @@ def run(args, console) -> int:
     return 0
 
 
+def _capture_env(args):
+    """The EnvMap of the --capture-env* flags, or None."""
+    if args.capture_env is None and args.capture_env_fisheye is None and args.capture_env_mirrorball is None:
+        return None
+    from render.shading.capture_env import capture_envmap
 
+    return capture_envmap(args.capture_env, args.capture_env_fisheye, args.capture_env_mirrorball,
+                          fov_deg=args.capture_env_fov)
+
+
+def _with_capture_env(model, env, scanset, args):
+    """``model`` with the capture lighting ``env`` stored, its up axis the rig's."""
+    import dataclasses
+
+    from capture.orbit import estimate_up
+    from volume.model import CaptureLighting
+
+    src = args.capture_env or f"{'fisheye' if args.capture_env_fisheye else 'mirror ball'} " \
+                              f"{args.capture_env_fisheye or args.capture_env_mirrorball}"
+    up = estimate_up([s.camera for s in scanset.scans])
+    return dataclasses.replace(model, capture_env=CaptureLighting(env.data, up, args.capture_env_rotation, src))

@@ -31,7 +31,9 @@ examples:
   furrow render out/fur_model --cameras out/furball --frames 1::2 --tolerance 4 -o out/r4
   furrow render out/fur_model --cameras out/furball --orbit 72 -o out/orbit
   furrow render out/fur_model --cameras out/furball --orbit 120 --video out/orbit.mp4 --fps 30
-  furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline"""
+  furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline
+  furrow render out/fur_model --cameras out/furball --relight sunset -o out/relit
+  furrow render out/fur_model --cameras out/furball --relight --env sunset --ground -o out/relit_env"""
 
 #: Frames per second of --video.
 DEFAULT_FPS = 24.0
@@ -79,6 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--exposure", type=float, default=1.0, help="with --env: linear exposure factor (default 1)")
     g.add_argument("--no-glare", action="store_true", help="with --env: no glare streaks on over-bright pixels")
     g.add_argument("--env-rotation", type=float, default=0.0, help="with --env: rotate the map about its up axis (deg)")
+    from furrow.relight_flags import add_relight_arguments
+
+    add_relight_arguments(p)
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -152,6 +157,7 @@ def run(args, console) -> int:
     from capture.imageio import write_png
     from capture.scan import to_uint8_srgb
     from furrow.console import StageTimer, track
+    from furrow.relight_flags import open_relighter
     from render.gl import gl_context
     from render.methods import create_renderer
     from volume.model import load_model
@@ -180,6 +186,7 @@ def run(args, console) -> int:
     stats = []
     with gl_context() as ctx, ExitStack() as owned:
         r = owned.enter_context(create_renderer(args.method, ctx, model, options))
+        relighter = open_relighter(args, ctx, model, owned)  # None without --relight
         compositor = None
         if env is not None:
             from render.composite import Compositor
@@ -191,11 +198,14 @@ def run(args, console) -> int:
         def frames():
             for cam, name in track(views, "rendering", total=len(views)):
                 fr = r.render(cam)
+                if relighter is not None:
+                    fr = relighter.apply(fr, cam)
                 img = to_uint8_srgb(fr.rgb if compositor is None else
                                     composite(ctx, fr, cam, env, args, model, up, compositor))
                 if args.out is not None:
                     write_png(args.out / name, img)
-                stats.append({"file": name, **fr.stats.record()})
+                stats.append({"file": name, **fr.stats.record(),
+                              **({"relight_ms": relighter.last_ms} if relighter is not None else {})})
                 yield img
 
         with timer.stage(f"render {len(views)} frames ({args.method})"):

@@ -113,3 +113,9 @@ def program(ctx, vertex: str, fragment: str | None = None, geometry: str | None 
     if geometry:
         src["geometry_shader"] = load_shader(geometry, defines)
     return ctx.program(**src, **kw)
+
+
+def set_uniform(prog, name: str, value) -> None:
+    """Set a uniform's value if the program has it (the compiler drops unused ones)."""
+    if name in prog:
+        prog[name].value = value

@@ -13,6 +13,9 @@ On disk a model is a folder::
       rgbz.npz       rgb (N,H,W,3) float16 linear, depth (N,H,W) float16 metres (float32 read too)
       spheres.npz    centers (N,3) float64, radii (N,) float64
       mesh.npz       vertices (V,3) float32, faces (F,3) int32, colors (V,3) float32 (optional)
+      capture_env.npz  radiance (H,2H,3) float32 linear: the capture's lighting (optional; only
+                     a model with it can be relit, issue 15; model.json "capture_env" says how
+                     the map sits in the world)
 
 :func:`save_model` writes into a temporary folder beside the target and renames it into
 place, so an interrupted run never leaves a half model; :func:`load_model` checks the schema
@@ -43,6 +46,11 @@ EXTENT_RTOL = 1e-6
 RGBZ_STORAGE = np.float16
 #: The array files of a model folder.
 ARRAY_FILES = ("pyramid.npz", "rgbz.npz", "spheres.npz", "mesh.npz")
+#: The optional file holding the capture lighting (CaptureLighting); models written before it
+#: existed lack it and load with ``capture_env=None``.
+CAPTURE_ENV_FILE = "capture_env.npz"
+#: Tolerance on |up| = 1 of a CaptureLighting.
+UP_NORM_TOL = 1e-6
 
 
 class ModelError(ValueError):
@@ -241,6 +249,47 @@ class RgbzImages:
 
 
 @dataclass(frozen=True)
+class CaptureLighting:
+    """The environment the capture was lit by (issue 15): what relighting divides out.
+
+    Attributes:
+        radiance: (H, 2H, 3) float32 linear HDR radiance (>= 0, finite), equirectangular in the
+            convention of ``render.shading.envmap`` (the map's own +z up).
+        up: (3,) unit world direction of the map's +z (the rig's up, ``capture.orbit.estimate_up``).
+        rotation_deg: turn of the map about its up axis in degrees (as ``EnvMap.rotated``).
+        source: where it came from (a file, a bundled name, a fisheye or mirror-ball photo).
+    """
+
+    radiance: np.ndarray
+    up: np.ndarray
+    rotation_deg: float = 0.0
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        r = np.asarray(self.radiance)
+        if r.ndim != 3 or r.shape[2] != 3 or r.shape[1] != 2 * r.shape[0] or r.shape[0] < 1 or r.dtype != np.float32:
+            raise ModelError(f"CaptureLighting: radiance must be (H, 2H, 3) float32, got {r.shape} {r.dtype}")
+        if not np.all(np.isfinite(r)) or r.min() < 0:
+            raise ModelError("CaptureLighting: radiance must be finite and >= 0")
+        if not r.max() > 0:
+            raise ModelError("CaptureLighting: radiance is black (nothing lit the capture)")
+        up = np.asarray(self.up, np.float64)
+        if up.shape != (3,) or not np.all(np.isfinite(up)) or abs(np.linalg.norm(up) - 1) > UP_NORM_TOL:
+            raise ModelError(f"CaptureLighting: up must be a unit (3,) vector, got {up!r}")
+        if not np.isfinite(float(self.rotation_deg)):
+            raise ModelError(f"CaptureLighting: rotation_deg must be finite, got {self.rotation_deg}")
+        object.__setattr__(self, "radiance", _ro(r))
+        object.__setattr__(self, "up", _ro(up))
+        object.__setattr__(self, "rotation_deg", float(self.rotation_deg))
+        object.__setattr__(self, "source", str(self.source))
+
+    def record(self) -> dict:
+        """The model.json entry (the radiance itself goes to CAPTURE_ENV_FILE)."""
+        return {"file": CAPTURE_ENV_FILE, "shape": list(self.radiance.shape), "up": self.up.tolist(),
+                "rotation_deg": self.rotation_deg, "source": self.source}
+
+
+@dataclass(frozen=True)
 class Model:
     """Everything the renderers need, built by ``furrow model``.
 
@@ -254,6 +303,8 @@ class Model:
         bounds: (2, 3) float64 [min, max] object box in metres (world).
         params: every parameter used to build the model (JSON-serialisable).
         provenance: input description (source path, frames, generator, ...; JSON-serialisable).
+        capture_env: the capture's lighting (:class:`CaptureLighting`), or None: such a model
+            cannot be relit.
     """
 
     pyramid: SdfPyramid
@@ -265,8 +316,11 @@ class Model:
     bounds: np.ndarray
     params: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
+    capture_env: CaptureLighting | None = None
 
     def __post_init__(self) -> None:
+        if self.capture_env is not None and not isinstance(self.capture_env, CaptureLighting):
+            raise ModelError("Model: capture_env must be a CaptureLighting or None")
         if not isinstance(self.pyramid, SdfPyramid):
             raise ModelError("Model: pyramid must be an SdfPyramid")
         if not isinstance(self.rgbz, RgbzImages):
@@ -332,6 +386,10 @@ def save_model(model: Model, folder) -> Path:
         if model.mesh_colors is not None:
             mesh["colors"] = model.mesh_colors
         np.savez(tmp / "mesh.npz", **mesh)
+        files = list(ARRAY_FILES)
+        if model.capture_env is not None:
+            np.savez(tmp / CAPTURE_ENV_FILE, radiance=model.capture_env.radiance)
+            files.append(CAPTURE_ENV_FILE)
         meta = {
             "schema": SCHEMA,
             "version": SCHEMA_VERSION,
@@ -349,8 +407,10 @@ def save_model(model: Model, folder) -> Path:
                      "colors": model.mesh_colors is not None},
             "params": model.params,
             "provenance": model.provenance,
-            "files": list(ARRAY_FILES),
+            "files": files,
         }
+        if model.capture_env is not None:
+            meta["capture_env"] = model.capture_env.record()
         with open(tmp / "model.json", "w") as fh:
             json.dump(meta, fh, indent=1)
             fh.flush()
@@ -411,10 +471,16 @@ def load_model(folder) -> Model:
         rz = _npz(folder, "rgbz.npz")
         sp = _npz(folder, "spheres.npz")
         me = _npz(folder, "mesh.npz")
+        cap = meta.get("capture_env")
+        capture_env = None
+        if cap is not None:
+            capture_env = CaptureLighting(_npz(folder, CAPTURE_ENV_FILE)["radiance"], np.array(cap["up"], np.float64),
+                                          float(cap.get("rotation_deg", 0.0)), str(cap.get("source", "")))
         return Model(pyramid=pyramid, rgbz=RgbzImages(rz["rgb"], rz["depth"], cams),
                      spheres=SphereSet(sp["centers"], sp["radii"]), mesh_vertices=me["vertices"],
                      mesh_faces=me["faces"], mesh_colors=me.get("colors"), bounds=np.array(meta["bounds"]),
-                     params=meta.get("params", {}), provenance=meta.get("provenance", {}))
+                     params=meta.get("params", {}), provenance=meta.get("provenance", {}),
+                     capture_env=capture_env)
     except ModelError as e:
         if str(folder) in str(e):
             raise

@@ -126,6 +126,57 @@ def test_validation_errors():
     assert len(SphereSet(np.zeros((0, 3)), np.zeros(0))) == 0
 
 
+# ---------------------------------------------------------------------------- capture lighting (issue 15)
+def _lighting(h=4):
+    from volume.model import CaptureLighting
+
+    rad = np.random.default_rng(1).random((h, 2 * h, 3)).astype(np.float32)
+    return CaptureLighting(rad, np.array([0.0, 0.0, 1.0]), 30.0, "forest")
+
+
+def test_capture_env_round_trip(tmp_path):
+    import dataclasses
+
+    m = dataclasses.replace(make_model(), capture_env=_lighting())
+    out = save_model(m, tmp_path / "m")
+    r = load_model(out)
+    np.testing.assert_array_equal(r.capture_env.radiance, m.capture_env.radiance)
+    np.testing.assert_array_equal(r.capture_env.up, [0, 0, 1])
+    assert r.capture_env.rotation_deg == 30.0 and r.capture_env.source == "forest"
+    meta = json.loads((out / "model.json").read_text())
+    assert meta["version"] == 1 and "capture_env.npz" in meta["files"] and meta["capture_env"]["up"] == [0, 0, 1]
+
+
+def test_model_without_capture_env_loads_as_before(tmp_path):
+    """A model written before the capture lighting existed (no key, no file) loads with None."""
+    out = save_model(make_model(), tmp_path / "m")
+    meta = json.loads((out / "model.json").read_text())
+    assert "capture_env" not in meta and not (out / "capture_env.npz").exists()
+    assert load_model(out).capture_env is None
+
+
+def test_capture_env_missing_file_is_named(tmp_path):
+    import dataclasses
+
+    out = save_model(dataclasses.replace(make_model(), capture_env=_lighting()), tmp_path / "m")
+    (out / "capture_env.npz").unlink()
+    with pytest.raises(ModelError, match="capture_env.npz"):
+        load_model(out)
+
+
+@pytest.mark.parametrize("kw, msg", [({"radiance": np.zeros((4, 4, 3), np.float32)}, "2H"),
+                                     ({"radiance": np.zeros((4, 8, 3), np.float32)}, "black"),
+                                     ({"radiance": -np.ones((4, 8, 3), np.float32)}, ">= 0"),
+                                     ({"up": np.array([0.0, 0.0, 2.0])}, "unit")])
+def test_capture_lighting_validated(kw, msg):
+    from volume.model import CaptureLighting
+
+    args = {"radiance": np.ones((4, 8, 3), np.float32), "up": np.array([0.0, 0.0, 1.0])}
+    args.update(kw)
+    with pytest.raises(ModelError, match=msg):
+        CaptureLighting(**args)
+
+
 def test_rgbz_stored_as_half_floats(tmp_path):
     """RGBz images are kept as float16 (RGBZ_STORAGE): every 8-bit sRGB value survives exactly,
     depth within half a unit of its 11-bit mantissa; float32 input (and float32 files of earlier

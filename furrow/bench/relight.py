@@ -1,0 +1,258 @@
+"""``furrow bench relight CAPTURE...``: relighting against relit ground truth (issue 15).
+
+Each CAPTURE is a synthetic scan set with relighting truth (``furrow synth ... --env A
+--relight-env B``: DIR/relit/B/), lit by map A (``--capture-env``, default: read from the relit
+truth's metadata).  The frames i % 2 == 0 build the model (as ``furrow eval --holdout 2``, capture
+lighting A stored), the others are held out and rendered once with the microfacets; then, for
+every relit map B, against the truth under B (masked PSNR / SSIM on 8-bit sRGB inside the union
+of the foregrounds, sharpness = RMS Laplacian of the rendering over the reference's,
+``render.metrics``):
+
+* ``unrelit``: the render as is (lit by A);
+* ``gain``: the render times one RGB gain, the mean radiance of B over A in linear light;
+* ``relit``: ``render.relight.Relighter`` (the configuration given; ``--variants`` adds others);
+* ``capture``: the same render against its own truth under A (the ceiling of any relighting);
+* ``oracle``: the truth under A instead of the render (its pixels with render depth relit by the
+  first variant, the others times the single gain), against the truth under B: the relighting's
+  own error, without the renderer's (``oracle_gain``: the truth under A times the single gain).
+
+Frame cost: the plain render and the relighting pass per frame (medians, ms and CPU ms), and the
+one-off setup (capture / new lighting, gain volume).  Writes DIR/relight.json and a sheet per
+pair (truth B | unrelit | gain | relit).
+
+    furrow bench relight out/data/furball_forest out/data/plant_courtyard [--max-views 9]
+                         [--variants wrap,wrap:vis,wrap:fwd=0,lambert:fwd=0] [-o out/bench/relight] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from furrow.bench import OUT_ROOT
+
+#: Gain of a pair that relighting must beat by this much masked PSNR (issue 15), dB.
+TARGET_DB = 2.0
+
+
+def parse_variant(text: str):
+    """``KERNEL[:vis|:novis][:fwd=BETA][:g=G][:s=SMOOTH][:res=L]`` -> render.relight.RelightConfig
+    (vis / novis: with / without the sphere set's visibility; fwd: the scattering weight, 0 =
+    view-independent; g: its phase asymmetry; s: orientation smoothing; res: volume resolution)."""
+    from render.relight import RelightConfig
+
+    kernel, *flags = text.split(":")
+    kw = {"kernel": kernel}
+    for f in flags:
+        if f == "novis":
+            kw["visibility"] = False
+        elif f == "vis":
+            kw["visibility"] = True
+        elif f.startswith("fwd="):
+            kw["forward"] = float(f[4:])
+        elif f.startswith("g="):
+            kw["forward_g"] = float(f[2:])
+        elif f.startswith("s="):
+            kw["smooth"] = float(f[2:])
+        elif f.startswith("res="):
+            kw["volume_res"] = int(f[4:])
+        else:
+            raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'fwd=BETA', 'g=G', 's=SMOOTH', 'res=L'")
+    return RelightConfig(**kw)
+
+
+def capture_map(scans: Path) -> str:
+    """The capture map recorded in the relit truth's metadata (furrow synth --relight-env)."""
+    for tj in sorted((scans / "relit").glob("*/transforms.json")):
+        meta = json.loads(tj.read_text()).get("furrow", {}).get("metadata", {})
+        if meta.get("capture_env"):
+            return str(meta["capture_env"])
+    raise ValueError(f"{scans}: no relit/*/transforms.json names the capture map; give --capture-env")
+
+
+def find_map(name: str, map_dir: Path | None):
+    """The EnvMap called ``name``: MAP_DIR/name.exr or .hdr when given and present, else a bundled map."""
+    from render.shading.capture_env import named_envmap
+
+    for ext in (".exr", ".hdr"):
+        if map_dir is not None and (map_dir / f"{name}{ext}").is_file():
+            return named_envmap(str(map_dir / f"{name}{ext}"))
+    return named_envmap(name)
+
+
+def score(refs, imgs, frames) -> dict:
+    """Mean masked PSNR / SSIM and sharpness ratio of linear images against reference scans."""
+    from render import metrics
+    from render.evaluate import reference_foreground
+
+    ps, ss, sh = [], [], []
+    for ref, img, fr in zip(refs, imgs, frames):
+        union = reference_foreground(ref) | fr.alpha
+        ps.append(metrics.psnr(ref.srgb8, img, union))
+        ss.append(metrics.ssim(ref.srgb8, img, union))
+        sh.append(metrics.sharpness_ratio(img, ref.srgb8, union))
+    return {"psnr_masked": float(np.mean(ps)), "ssim_masked": float(np.mean(ss)), "sharpness": float(np.mean(sh))}
+
+
+def prepare(scans: Path, capture_env: str, max_views: int | None, map_dir: Path | None = None):
+    """(model with capture lighting, held-out scans, their frames, median render ms / cpu ms)."""
+    import dataclasses
+
+    from capture.io import read_scanset
+    from capture.orbit import estimate_up
+    from render.evaluate import build_eval_model, holdout_split
+    from render.gl import gl_context
+    from render.methods import create_renderer
+    from volume.model import CaptureLighting
+
+    split = holdout_split(read_scanset(scans), 2, max_views)
+    model, _ = build_eval_model(split.kept, scans, "auto", 128)
+    up = estimate_up([s.camera for s in split.kept.scans])
+    model = dataclasses.replace(model, capture_env=CaptureLighting(find_map(capture_env, map_dir).data, up, 0.0,
+                                                                   capture_env))
+    with gl_context() as ctx, create_renderer("microfacet", ctx, model) as r:
+        r.render(split.held[0].camera, read=False)
+        frames = [r.render(s.camera) for s in split.held]
+    return model, split, frames
+
+
+def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict, out_dir: Path,
+               map_dir: Path | None = None) -> dict:
+    """The rows of one (capture, relit map) pair (module doc)."""
+    from capture.imageio import write_png
+    from capture.io import read_scanset
+    from capture.scan import to_uint8_srgb
+    from render.relight import Relighter
+
+    truth = read_scanset(scans / "relit" / relit)
+    refs = [truth.scans[i] for i in split.held_idx]
+    env = find_map(relit, map_dir)
+    row = {"relit": relit, "views": len(refs), "unrelit": score(refs, [f.rgb for f in frames], frames)}
+    relit_imgs = {}
+    for name, cfg in configs.items():
+        with Relighter.from_model(ctx, model, env, cfg) as rel:
+            g = rel.global_gain
+            if "gain" not in row:
+                row["gain"] = {**score(refs, [f.rgb * g.astype(np.float32) for f in frames], frames),
+                               "global_gain": g.tolist()}
+            rel.apply(frames[0], split.held[0].camera)  # warm-up: shader compilation
+            imgs, ms, cpu = [], [], []
+            for f, s in zip(frames, split.held):
+                imgs.append(rel.apply(f, s.camera).rgb)
+                ms.append(rel.last_ms)
+                cpu.append(rel.last_cpu_ms)
+            row[name] = {**score(refs, imgs, frames), "apply_ms": float(np.median(ms)),
+                         "apply_cpu_ms": float(np.median(cpu)), "setup_s": dict(rel.setup_seconds)}
+            relit_imgs[name] = imgs
+            if name == next(iter(configs)):
+                row["oracle"], row["oracle_gain"] = _oracle(rel, refs, split.held, frames, g)
+        row[name]["gain_over_single_db"] = row[name]["psnr_masked"] - row["gain"]["psnr_masked"]
+    first = next(iter(configs))
+    k = len(refs) // 2
+    gain = np.asarray(row["gain"]["global_gain"], np.float32)
+    sheet = [refs[k].srgb8] + [to_uint8_srgb(x) for x in (frames[k].rgb, frames[k].rgb * gain, relit_imgs[first][k])]
+    write_png(out_dir / f"{scans.name}_{relit}.png", np.concatenate(sheet, 1))
+    return row
+
+
+def _oracle(rel, refs, held, frames, g) -> tuple[dict, dict]:
+    """Scores of the truth under A relit by ``rel`` and times the single gain ``g`` (module doc)."""
+    from render.frame import Frame
+
+    relit, gained = [], []
+    for s, f in zip(held, frames):
+        t = s.linear_rgb.astype(np.float32)
+        out = rel.apply(Frame(t, f.coverage, f.depth, f.stats), s.camera).rgb
+        gained.append(t * g.astype(np.float32))
+        relit.append(np.where((f.depth > 0)[..., None], out, gained[-1]))
+    return score(refs, relit, frames), score(refs, gained, frames)
+
+
+def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path,
+                  map_dir: Path | None = None) -> dict:
+    from render.gl import gl_context
+
+    cap = capture_env or capture_map(scans)
+    model, split, frames = prepare(scans, cap, max_views, map_dir)
+    res = {"scans": str(scans), "capture_env": cap, "held": split.held_idx,
+           "capture": score(split.held, [f.rgb for f in frames], frames),
+           "render_ms": float(np.median([f.stats.ms for f in frames])),
+           "render_cpu_ms": float(np.median([f.stats.cpu_ms for f in frames])), "pairs": []}
+    relits = sorted(p.name for p in (scans / "relit").iterdir() if (p / "transforms.json").is_file())
+    if not relits:
+        raise ValueError(f"{scans}: no relit/<map>/transforms.json (make them with furrow synth --relight-env)")
+    with gl_context() as ctx:
+        for relit in relits:
+            res["pairs"].append(bench_pair(ctx, model, split, frames, scans, relit, configs, out_dir, map_dir))
+    return res
+
+
+def _fmt(s: dict) -> str:
+    return f"{s['psnr_masked']:.2f} / {s['ssim_masked']:.3f} / {s['sharpness']:.2f}"
+
+
+def print_tables(res: dict) -> None:
+    from rich.table import Table
+
+    from furrow.console import console
+
+    names = res["variants"]
+    t = Table(title="relighting against relit truth: masked PSNR dB / SSIM / sharpness (held-out views 1::2)")
+    for c in ("capture -> relit", "views", "unrelit", "single gain", *names, "relit - gain dB", "capture light",
+              "oracle gain -> relit"):
+        t.add_column(c, justify="right")
+    for c in res["captures"]:
+        for p in c["pairs"]:
+            t.add_row(f"{Path(c['scans']).name}: {c['capture_env']} -> {p['relit']}", str(p["views"]),
+                      _fmt(p["unrelit"]), _fmt(p["gain"]), *(_fmt(p[n]) for n in names),
+                      f"{p[names[0]]['gain_over_single_db']:+.2f}", _fmt(c["capture"]),
+                      f"{p['oracle_gain']['psnr_masked']:.2f} -> {p['oracle']['psnr_masked']:.2f}")
+    console.print(t)
+    t = Table(title="frame cost (medians; llvmpipe)")
+    for c in ("capture", "render ms", "render CPU ms", *(f"{n} apply ms" for n in names),
+              "setup s (capture, new, volume)"):
+        t.add_column(c, justify="right")
+    for c in res["captures"]:
+        p = c["pairs"][0]
+        st = p[names[0]]["setup_s"]
+        t.add_row(Path(c["scans"]).name, f"{c['render_ms']:.1f}", f"{c['render_cpu_ms']:.1f}",
+                  *(f"{p[n]['apply_ms']:.2f}" for n in names),
+                  f"{st.get('capture', 0):.1f}, {st.get('new', 0):.1f}, {st.get('volume', 0):.1f}")
+    console.print(t)
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="furrow bench relight", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("captures", nargs="+", type=Path, help="synthetic captures with relit/<map>/ truth")
+    ap.add_argument("--capture-env", default=None, help="the captures' map (default: from the relit metadata)")
+    ap.add_argument("--variants", default="wrap", help="relighting variants KERNEL[:novis], comma separated; the "
+                                                       "first is the one judged (default wrap)")
+    ap.add_argument("--map-dir", type=Path, default=None,
+                    help="folder of NAME.exr / NAME.hdr maps for capture / relit names that are not bundled")
+    ap.add_argument("--max-views", type=int, default=None, help="at most this many held-out views per capture")
+    ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "relight")
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args(argv)
+    configs = {v: parse_variant(v) for v in a.variants.split(",")}
+    a.out.mkdir(parents=True, exist_ok=True)
+    res = {"variants": list(configs), "target_db": TARGET_DB,
+           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir) for c in a.captures]}
+    first = res["variants"][0]
+    res["met"] = all(p[first]["gain_over_single_db"] >= TARGET_DB for c in res["captures"] for p in c["pairs"])
+    (a.out / "relight.json").write_text(json.dumps(res, indent=1, default=float))
+    if a.json:
+        print(json.dumps(res, indent=1, default=float))
+        return 0
+    print_tables(res)
+    print(f"relit beats the single gain by >= {TARGET_DB} dB on every pair: {res['met']}  ({a.out / 'relight.json'})")
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main(sys.argv[1:]))

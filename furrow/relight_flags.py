@@ -1,0 +1,56 @@
+"""The ``--relight`` flags of ``furrow render`` (issue 15), kept apart from cmd_render.py: parse
+them, and open the relighter (``render.relight.Relighter``) the frames go through."""
+
+from __future__ import annotations
+
+import argparse
+
+#: --relight given without a map: relight to the --env map.
+SAME_AS_ENV = ""
+
+
+def add_relight_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("relighting (the model must store its capture lighting: furrow model --capture-env)")
+    g.add_argument("--relight", nargs="?", const=SAME_AS_ENV, default=None, metavar="MAP",
+                   help="light the object by MAP (.exr/.hdr equirect or a bundled name) instead of the capture's "
+                        "lighting, on black; with --env the same map lights the object, the background, the "
+                        "ground shadow and the glare (--relight alone then takes the --env map)")
+    g.add_argument("--relight-kernel", default=None, metavar="NAME",
+                   help="transfer kernel of the relighting: wrap (default), lambert, fur, half-lambert")
+    g.add_argument("--relight-visibility", action="store_true",
+                   help="self-visibility from the model's sphere set (SSDF): for concave solids; adds seconds of setup")
+
+
+def relight_map(args) -> str | None:
+    """The map name / file to relight to, or None; one map for all (--relight and --env agree)."""
+    if args.relight is None:
+        if args.relight_kernel or args.relight_visibility:
+            raise ValueError("--relight-kernel and --relight-visibility need --relight")
+        return None
+    if args.relight == SAME_AS_ENV:
+        if not args.env:
+            raise ValueError("--relight without a map needs --env MAP (or give --relight MAP)")
+        return args.env
+    if args.env and args.env != args.relight:
+        raise ValueError(f"--relight {args.relight} and --env {args.env}: one map lights everything; give the same "
+                         "map (or only --relight)")
+    return args.relight
+
+
+def open_relighter(args, ctx, model, stack):
+    """The Relighter of --relight entered on ``stack`` (an ExitStack), or None without --relight; the
+    map turned by --env-rotation like the background."""
+    name = relight_map(args)
+    if name is None:
+        return None
+    import numpy as np
+
+    from render.relight import RelightConfig, Relighter
+    from render.shading.capture_env import named_envmap
+
+    env = named_envmap(name)
+    if args.env_rotation:
+        env = env.rotated(np.radians(args.env_rotation))
+    cfg = RelightConfig(**({"kernel": args.relight_kernel} if args.relight_kernel else {}),
+                        visibility=args.relight_visibility)
+    return stack.enter_context(Relighter.from_model(ctx, model, env, cfg))
