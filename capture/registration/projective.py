@@ -85,8 +85,9 @@ def depth_frame(scan: Scan, cfg: P.CloudConfig = P.CloudConfig()) -> DepthFrame:
     cam = P.camera_frame(scan.camera)
     d = P.smooth_depth(scan.depth, cfg.median_px)
     fit = cfg.normal_radius_px != 0
-    import os
-    ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes, far_side_only=fit and not os.environ.get("EDGE"))
+    # flying pixels lie behind the edge they fly from: drop the far side of a depth jump only
+    # (the plane fit removes the rest), so thin needles in front keep their pixels
+    ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes, far_side_only=fit)
     rays = cam.pixel_rays(cam.pixel_grid())
     pts = rays * np.where(ok, d, 0.0)[..., None]
     sigma_m = 0.0
@@ -276,6 +277,16 @@ def normal_equations(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: flo
     """Gauss-Newton system (A 6x6, b 6, correspondences) of the point-to-plane (+ photometric)
     residuals of ``samples`` against ``tgt`` at ``T`` (target_from_source), in the left twist
     (w, t) of ``T``, Huber-weighted; None with fewer than 6 correspondences."""
+    parts = normal_equation_parts(samples, tgt, T, gate, color_scale)
+    if parts is None:
+        return None
+    (A, b), (Ac, bc), n = parts
+    return A + Ac, b + bc, n
+
+
+def normal_equation_parts(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: float, color_scale: float = 0.0):
+    """As :func:`normal_equations`, the surface and the photometric systems apart:
+    ((A, b) surface, (A, b) colour (zero when off), correspondences) or None."""
     good, q, t, n, uv = associate(samples.points, samples.normals, tgt, T, gate)
     if good.sum() < 6:
         return None
@@ -285,13 +296,11 @@ def normal_equations(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: flo
     huber = HUBER_FRAC * gate
     w = np.where(np.abs(r) <= huber, 1.0, huber / np.maximum(np.abs(r), 1e-300))
     J = point_twist_jacobian(q, n)
-    A = (J * w[:, None]).T @ J
-    b = -(J * w[:, None]).T @ r
+    Ac, bc = np.zeros((6, 6)), np.zeros(6)
     if color_scale > 0 and cok.sum() >= 6:
         rc, Jc, wc = _color_rows(q[cok], uv[cok], samples.intensity[good][cok], tgt, color_scale)
-        A += (Jc * wc[:, None]).T @ Jc
-        b -= (Jc * wc[:, None]).T @ rc
-    return A, b, int(good.sum())
+        Ac, bc = (Jc * wc[:, None]).T @ Jc, -(Jc * wc[:, None]).T @ rc
+    return ((J * w[:, None]).T @ J, -(J * w[:, None]).T @ r), (Ac, bc), int(good.sum())
 
 
 def twist_to_transform(x: np.ndarray) -> np.ndarray:
