@@ -280,13 +280,14 @@ def normal_equations(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: flo
     parts = normal_equation_parts(samples, tgt, T, gate, color_scale)
     if parts is None:
         return None
-    (A, b), (Ac, bc), n = parts
+    (A, b), (Ac, bc), n, _ = parts
     return A + Ac, b + bc, n
 
 
 def normal_equation_parts(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: float, color_scale: float = 0.0):
     """As :func:`normal_equations`, the surface and the photometric systems apart:
-    ((A, b) surface, (A, b) colour (zero when off), correspondences) or None."""
+    ((A, b) surface, (A, b) colour (zero when off), correspondences, colour RMSE (clipped
+    chromaticity difference, NaN when off)) or None."""
     good, q, t, n, uv = associate(samples.points, samples.normals, tgt, T, gate)
     if good.sum() < 6:
         return None
@@ -296,11 +297,12 @@ def normal_equation_parts(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate
     huber = HUBER_FRAC * gate
     w = np.where(np.abs(r) <= huber, 1.0, huber / np.maximum(np.abs(r), 1e-300))
     J = point_twist_jacobian(q, n)
-    Ac, bc = np.zeros((6, 6)), np.zeros(6)
+    Ac, bc, crmse = np.zeros((6, 6)), np.zeros(6), float("nan")
     if color_scale > 0 and cok.sum() >= 6:
         rc, Jc, wc = _color_rows(q[cok], uv[cok], samples.intensity[good][cok], tgt, color_scale)
         Ac, bc = (Jc * wc[:, None]).T @ Jc, -(Jc * wc[:, None]).T @ rc
-    return ((J * w[:, None]).T @ J, -(J * w[:, None]).T @ r), (Ac, bc), int(good.sum())
+        crmse = float(np.sqrt(np.mean(np.minimum(np.abs(rc / color_scale), COLOR_RMSE_CLIP) ** 2)))
+    return ((J * w[:, None]).T @ J, -(J * w[:, None]).T @ r), (Ac, bc), int(good.sum()), crmse
 
 
 def twist_to_transform(x: np.ndarray) -> np.ndarray:

@@ -37,13 +37,15 @@ NORMAL_NOISE_MAX_DEG = 8.0
 #: denoised, 0.018 raw; the plant at 640x480 noise-free (0.014): 0.039 / 0.022 pair error;
 #: with millimetre depth and z^2 noise (0.75 footprints): 0.093 denoised / 0.25 raw.
 DENOISE_MIN_NOISE_PX = 0.25
+#: The noise estimate fits planes at every this-many-th pixel in x and y.
+NOISE_SAMPLE_STRIDE = 3
 #: Largest window half-size (pixels) :func:`choose_radius` picks.
 MAX_RADIUS = 4
 #: Below this ratio of the middle to the largest eigenvalue of the window's covariance the
 #: points form a line (a needle seen along its length), not a surface patch.
 LINE_EIGEN_RATIO = 0.05
 #: A window with fewer same-surface points than this gives no normal.
-MIN_WINDOW_POINTS = 4
+MIN_WINDOW_POINTS = 3
 #: A pixel further from its window's plane than this many times the image's noise (see
 #: :func:`plane_fit`; plus ``OUTLIER_FLOOR_FRAC`` of its depth) is an outlier, dropped: a
 #: flying pixel next to a depth edge that the gate alone keeps when it lies close to one side.
@@ -52,13 +54,13 @@ OUTLIER_SIGMAS = 3.0
 OUTLIER_FLOOR_FRAC = 5e-4
 
 
-def _moments(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray, radius: int):
+def _moments(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray, radius: int, at: np.ndarray):
     """Count, sum and second moments (xx, yy, zz, xy, xz, yz) of the points within ``radius``
     pixels of each usable pixel whose depth is within ``gate`` of the pixel's own (relative to
     the pixel's point, for numerical accuracy).  Returns (rows, cols, n, s1, s2) over the
-    usable pixels only (a plant fills a tenth of its images)."""
+    pixels ``at`` only (a plant fills a tenth of its images)."""
     H, W = ok.shape
-    iy, ix = np.nonzero(ok)
+    iy, ix = np.nonzero(at)
     c = pts[iy, ix]
     g = gate[iy, ix]
     n = np.zeros(len(iy))
@@ -78,12 +80,12 @@ def _moments(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray, radius: int):
     return iy, ix, n, s1, s2
 
 
-def _fit(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray, radius: int) -> dict:
-    """One gated plane fit over the usable pixels (arrays over ``rows``/``cols``): normal,
+def _fit(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray, radius: int, at: np.ndarray | None = None) -> dict:
+    """One gated plane fit over the usable pixels (or those ``at``; arrays over ``rows``/``cols``): normal,
     has (a normal), plane (a patch, not a line), z (depth where the pixel's ray meets the
     plane), dist (the pixel's own distance from its window's plane), rms (the window's RMS
     plane residual)."""
-    iy, ix, n, s1, s2 = _moments(pts, ok, gate, int(radius))
+    iy, ix, n, s1, s2 = _moments(pts, ok, gate, int(radius), ok if at is None else at)
     p = pts[iy, ix]
     good = n >= MIN_WINDOW_POINTS
     nn = np.maximum(n, 1.0)
@@ -93,11 +95,11 @@ def _fit(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray, radius: int) -> dict
         C[:, a, b] = C[:, b, a] = s2[:, k] / nn - m[:, a] * m[:, b]
     C[~good] = np.eye(3)
     lam, vec = np.linalg.eigh(C)  # ascending
+    v_min, t = vec[:, :, 0], vec[:, :, 2]
     line = good & (lam[:, 1] < LINE_EIGEN_RATIO * np.maximum(lam[:, 2], 1e-30))
     # a line: the normal is the part of the viewing ray perpendicular to it
-    t = vec[:, :, 2]
     ray = p / np.maximum(np.linalg.norm(p, axis=-1, keepdims=True), 1e-12)
-    normal = np.where(line[:, None], ray - np.sum(ray * t, axis=-1, keepdims=True) * t, vec[:, :, 0])
+    normal = np.where(line[:, None], ray - np.sum(ray * t, axis=-1, keepdims=True) * t, v_min)
     norm = np.linalg.norm(normal, axis=-1)
     good &= norm > 1e-9
     normal = normal / np.where(norm > 0, norm, 1.0)[:, None]
@@ -116,7 +118,9 @@ def noise_at_1m(pts: np.ndarray, ok: np.ndarray, gate: np.ndarray) -> float:
     residual of 3x3 plane fits facing the camera within 60 degrees (median over the pixels;
     the residual along the normal is the depth noise times |n_z|; corrected for the 3 fitted
     parameters)."""
-    f = _fit(pts, ok, gate, 1)
+    sub = np.zeros_like(ok)
+    sub[::NOISE_SAMPLE_STRIDE, ::NOISE_SAMPLE_STRIDE] = True
+    f = _fit(pts, ok, gate, 1, at=ok & sub)
     z = pts[f["rows"], f["cols"], 2]
     nz = np.abs(f["normal"][:, 2])
     pl = f["plane"] & (nz > 0.5)

@@ -173,11 +173,14 @@ def sensor_depth(depth: np.ndarray, rng: np.random.Generator, unit: float = SENS
     nb_min = np.full(d.shape, np.inf)
     nb_max = np.zeros(d.shape)
     empty_nb = np.zeros(d.shape, bool)
-    for axis in (0, 1):
-        for shift in (1, -1):
-            nb_min = np.minimum(nb_min, np.roll(near, shift, axis))
-            nb_max = np.maximum(nb_max, np.roll(far, shift, axis))
-            empty_nb |= ~np.roll(valid, shift, axis)
+    H, W = d.shape
+    pn, pf = np.pad(near, 1, constant_values=np.inf), np.pad(far, 1)
+    pv = np.pad(valid, 1, constant_values=True)  # beyond the image is not empty space
+    for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        sl = (slice(1 + dy, 1 + dy + H), slice(1 + dx, 1 + dx + W))
+        nb_min = np.minimum(nb_min, pn[sl])
+        nb_max = np.maximum(nb_max, pf[sl])
+        empty_nb |= ~pv[sl]
     lo = np.where(valid, np.minimum(d, nb_min), nb_min)
     hi = np.where(valid, np.maximum(d, nb_max), 0.0)
     step = valid & (hi - lo > SENSOR_EDGE_FRAC * lo)

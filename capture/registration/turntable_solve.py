@@ -72,6 +72,8 @@ FEATURE_INLIER_PX = 3.0
 #: An evidence is named as placing a view when it holds at least this share of the information
 #: on the view's angle.
 EVIDENCE_SHARE_MIN = 0.1
+#: Neighbouring views (in angle) further apart than this are not paired.
+MAX_GAP_DEG = 75.0
 #: Most views taken out as contradicting before giving up.
 MAX_REMOVALS = 8
 
@@ -138,20 +140,25 @@ def prepare_view(scan, cfg: TurntableConfig) -> ViewData:
 
 
 def ring_pairs(model: Turntable, active: list[int], max_deg: float) -> list[tuple[int, int]]:
-    """Ordered pairs (target, source) of active views within ``max_deg`` about the axis, or
-    within 1.5 ring steps (the median gap between neighbouring angles) when that is wider."""
-    t = np.sort(np.mod(model.angles[active], 2 * math.pi))
+    """Ordered pairs (target, source) of active views within ``max_deg`` about the axis (or 1.5
+    ring steps, the median gap between neighbouring angles, when wider), and every view with
+    its nearest active neighbour on either side up to ``MAX_GAP_DEG`` (a view left out must not
+    cut the ring in two)."""
+    order = sorted(active, key=lambda k: model.angles[k] % (2 * math.pi))
+    t = np.array([model.angles[k] % (2 * math.pi) for k in order])
     if len(t) > 1:
         step = float(np.median(np.diff(np.concatenate([t, t[:1] + 2 * math.pi]))))
         max_deg = max(max_deg, 1.5 * math.degrees(step))
-    out = []
-    for i in active:
-        for j in active:
-            if i != j:
-                d = (model.angles[j] - model.angles[i] + math.pi) % (2 * math.pi) - math.pi
-                if abs(math.degrees(d)) <= max_deg:
-                    out.append((i, j))
-    return out
+
+    def gap(i, j):
+        d = (model.angles[j] - model.angles[i] + math.pi) % (2 * math.pi) - math.pi
+        return abs(math.degrees(d))
+
+    out = {(i, j) for i in active for j in active if i != j and gap(i, j) <= max_deg}
+    for a, b in zip(order, order[1:] + order[:1]):
+        if a != b and gap(a, b) <= MAX_GAP_DEG:
+            out |= {(a, b), (b, a)}
+    return sorted(out)
 
 
 def _geometry_sigma(vi: ViewData, vj: ViewData, size: float) -> float:
@@ -170,10 +177,10 @@ def _pair_systems(views, matches, i, j, T, level, gate, cfg, size) -> dict:
         parts = PR.normal_equation_parts(sj, fi, T, gate, cs)
         s2 = _geometry_sigma(vi, vj, size) ** 2
         if parts is not None:
-            (A, b), (Ac, bc), n = parts
+            (A, b), (Ac, bc), n, crmse = parts
             if "geometry" in cfg.evidence and n >= R.MIN_FITNESS * len(sj.points):
                 out["geometry"] = (A / s2, b / s2)
-            if cs > 0 and PR.alignment_stats(sj, fi, T, gate)[3] <= R.MAX_COLOR_RMSE:
+            if cs > 0 and crmse <= R.MAX_COLOR_RMSE:
                 out["colour"] = (Ac / s2, bc / s2)
     if "silhouette" in cfg.evidence:
         A, b, _ = EV.silhouette_equations(vj.silhouette, vi.silhouette, vi.frame.camera, T, SILHOUETTE_SIGMA_PX)
