@@ -43,7 +43,6 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
 
 SCENES = ("control", "torus", "plant", "furball", "face", "sfm", "furball-board", "plant-board", "torus-board")
 RIGS = ("free", "turntable")

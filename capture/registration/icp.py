@@ -35,7 +35,6 @@ from capture.registration import projective as PR
 from capture.registration import report as R
 from capture.scan import ScanSet
 
-
 #: The colour term's scale (metres per chromaticity unit) is at least the measured depth noise
 #: divided by this: with noisier depth the geometry pulls harder on the pose and the colour
 #: must keep up, else symmetric shapes slide.  Measured on the glossy synthetic torus at 640x480
@@ -244,7 +243,6 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
     """Register scan j (source) onto scan i (target): ICP from ``init`` then, if it fails and
     ``cfg.global_fallback`` (or there is no ``init``), ICP from FPFH + RANSAC.
     ``center_j``: object centre in camera j (for the translation part of the correction)."""
-    dist = cfg.corr_voxels * voxels[-1]
     tried = []
     if init is not None:
         # multi-start: the coarse levels widen the basin but can slide a good start away on

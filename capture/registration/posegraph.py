@@ -8,10 +8,9 @@ into camera i.  Pair results are replaced (``dataclasses.replace``), never chang
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-
-from typing import TYPE_CHECKING
 
 from capture.camera import invert_rigid
 from capture.registration import report as R
