@@ -142,6 +142,8 @@ def run(args, console) -> int:
     console.print(evidence_table(rep))
     n, k = report["n_scans"], report["n_registered"]
     console.print(f"rig: {rep.rig} ({rep.rig_detection or 'not tested'})", highlight=False)
+    for note in rep.notes:
+        console.print(f"  {note}", highlight=False)
     console.print(f"registered {k}/{n} scans with {rep.method}; wrote {path}", highlight=False)
     for s in rep.scans:
         if not s.registered:

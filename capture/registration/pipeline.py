@@ -176,6 +176,8 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
                                       residuals=rec.residuals, angle_sigma_deg=rec.sigma_deg))
     notes.append(f"turntable axis {np.round(out.model.axis, 4).tolist()} through "
                  f"{np.round(out.model.point, 4).tolist()}; {sum(placed)}/{len(placed)} views placed")
+    notes.append("axis placed by " + ", ".join(f"{e} {v:.0%}" for e, v in
+                                               sorted(out.axis_evidence.items(), key=lambda x: -x[1])))
     rep.seconds["turntable"] = time.perf_counter() - t0
     return poses, placed, rep
 

@@ -271,6 +271,8 @@ class TurntableOutcome:
     model: Turntable
     records: list[ViewRecord]
     pairs: list[tuple[int, int]]
+    axis_evidence: dict = field(default_factory=dict)
+    """Share of the information on the axis (4 numbers) per evidence."""
 
     @property
     def placed(self) -> list[bool]:
@@ -312,10 +314,14 @@ def _view_residuals(model, views, matches, pairs, k, gate, size) -> dict:
     return out
 
 
-def evaluate(model, views, matches, pairs, active, cfg, size) -> list[ViewRecord]:
-    """Per view: evidence shares, angle sigma, residuals, placement (inactive views: not placed)."""
+def evaluate(model, views, matches, pairs, active, cfg, size) -> tuple[list[ViewRecord], dict]:
+    """Per view: evidence shares, angle sigma, residuals, placement (inactive views: not placed);
+    and the evidence shares of the information on the axis."""
     gate = cfg.gates[-1]
     acc = build_system(model, views, matches, pairs, len(cfg.gates) - 1, cfg, size)
+    axis = {e: float(np.trace(acc[e][0][:4, :4])) for e in EVIDENCE}
+    total_axis = sum(axis.values())
+    axis = {e: v / total_axis for e, v in axis.items() if total_axis > 0 and v > 0}
     free = [0, 1, 2, 3] + [4 + k for k in active if k != model.reference]
     H = sum(acc[e][0] for e in EVIDENCE)[np.ix_(free, free)]
     try:
@@ -330,7 +336,8 @@ def evaluate(model, views, matches, pairs, active, cfg, size) -> list[ViewRecord
         info = {e: float(acc[e][0][4 + k, 4 + k]) for e in EVIDENCE}
         total = sum(info.values())
         ev = [e for e in EVIDENCE if total > 0 and info[e] / total >= EVIDENCE_SHARE_MIN]
-        sigma = 0.0 if k == model.reference else float(np.degrees(np.sqrt(max(cov[free.index(4 + k)] [free.index(4 + k)], 0))))
+        c = free.index(4 + k) if k != model.reference else None
+        sigma = 0.0 if c is None else float(np.degrees(np.sqrt(max(cov[c, c], 0.0))))
         res = _view_residuals(model, views, matches, pairs, k, gate, size)
         for e in res:
             res[e]["information_share"] = info.get(e, 0.0) / total if total > 0 else 0.0
@@ -343,7 +350,7 @@ def evaluate(model, views, matches, pairs, active, cfg, size) -> list[ViewRecord
         elif sigma > MAX_ANGLE_SIGMA_DEG:
             reason = f"its angle is not determined (sigma {sigma:.2f} degrees)"
         records.append(ViewRecord(not reason, ev, sigma, res, reason))
-    return records
+    return records, axis
 
 
 def solve_turntable(scans, model: Turntable, off: dict, cfg: TurntableConfig, size: float,
@@ -372,7 +379,7 @@ def solve_turntable(scans, model: Turntable, off: dict, cfg: TurntableConfig, si
         free = [0, 1, 2, 3] + [4 + k for k in active if k != model.reference]
         for level in range(len(cfg.gates)):
             model = solve_gate(model, views, matches, pairs, free, level, cfg, size)
-        records = evaluate(model, views, matches, pairs, active, cfg, size)
+        records, axis = evaluate(model, views, matches, pairs, active, cfg, size)
         bad = [k for k in active if records[k].residuals.get("silhouette", {}).get("outside_frac", 0.0)
                > MAX_SILHOUETTE_OUTSIDE_FRAC]
         if not bad or len(removed) >= MAX_REMOVALS or len(active) <= 3:
@@ -382,7 +389,7 @@ def solve_turntable(scans, model: Turntable, off: dict, cfg: TurntableConfig, si
         active = [k for k in active if k != worst]
     for k, why in {**off, **removed}.items():
         records[k] = ViewRecord(False, [], float("nan"), records[k].residuals if k in removed else {}, why)
-    return TurntableOutcome(model, records, pairs)
+    return TurntableOutcome(model, records, pairs, axis)
 
 
 def _rereference(model: Turntable, active: list[int]) -> Turntable:
