@@ -259,38 +259,6 @@ def gl_ndc_depth_to_z(ndc_depth01: np.ndarray, near: float, far: float) -> np.nd
     return np.where(d >= 1.0, 0.0, z)
 
 
-def pixel_centre_from_corner_origin(c):
-    """A pixel coordinate counted from the image corner (pixel i spans [i, i + 1), centre at
-    i + 0.5: COLMAP, nerfstudio, VCG/MeshLab) -> OpenCV (centre of pixel i at i)."""
-    return np.asarray(c, dtype=np.float64) - HALF_PIXEL if np.ndim(c) else float(c) - HALF_PIXEL
-
-
-def pixel_centre_to_corner_origin(c):
-    """Inverse of :func:`pixel_centre_from_corner_origin`: OpenCV -> corner-origin pixel coordinate."""
-    return np.asarray(c, dtype=np.float64) + HALF_PIXEL if np.ndim(c) else float(c) + HALF_PIXEL
-
-
-def flip_yz(m: np.ndarray) -> np.ndarray:
-    """``m`` (4, 4) with its frame's y and z axes reversed (right-multiplied by ``CV_TO_GL``):
-    OpenCV camera axes (y down, z forward) <-> OpenGL ones (y up, z back), and likewise a
-    printed board's frame (y down the page, z into it) <-> a z-up world."""
-    return np.asarray(m, dtype=np.float64) @ CV_TO_GL
-
-
-def cv_rotation(forward, up) -> np.ndarray:
-    """(3, 3) OpenCV rotation (rows: the camera's x right, y down, z forward, in world
-    coordinates) of a camera looking along ``forward`` with world ``up`` appearing upwards in
-    the image: the image's y axis points down, so camera y is -up made perpendicular to z."""
-    z = np.asarray(forward, dtype=np.float64)
-    z = z / np.linalg.norm(z)
-    up = np.asarray(up, dtype=np.float64)
-    x = np.cross(z, up)
-    if np.linalg.norm(x) < 1e-9:  # looking along up: pick any perpendicular
-        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(z, x), z])
-
-
 def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     """(4, 4) OpenCV cam_from_world for a camera at ``eye`` looking at ``target``.
 
@@ -298,7 +266,15 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     down, so camera -y is aligned with it as far as possible).
     """
     eye = np.asarray(eye, dtype=np.float64)
-    R = cv_rotation(np.asarray(target, dtype=np.float64) - eye, up)
+    z = np.asarray(target, dtype=np.float64) - eye
+    z /= np.linalg.norm(z)
+    up = np.asarray(up, dtype=np.float64)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:  # looking along up: pick any perpendicular
+        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R = np.stack([x, y, z])
     out = np.eye(4)
     out[:3, :3] = R
     out[:3, 3] = -R @ eye

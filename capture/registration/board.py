@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capture.camera import flip_yz
 from capture.scan import ScanSet
 
 #: Minimum ChArUco corners for a pose.
@@ -64,8 +63,9 @@ class BoardSpec:
         """(4, 4) board frame -> world."""
         w, h = self.size_m
         M = np.eye(4)
+        M[:3, :3] = np.diag([1.0, -1.0, -1.0])
         M[:3, 3] = [-w / 2, h / 2, self.z_m]
-        return flip_yz(M)  # the board's y runs down the page and its z into it
+        return M
 
     def image(self, px_per_square: int = 40):
         """(H, W) uint8 board image, no margin: pixel (i, j) covers board [i, i+1) x [j, j+1) / px_per_m."""

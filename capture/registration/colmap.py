@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from capture.camera import invert_rigid, pixel_centre_from_corner_origin, pixel_centre_to_corner_origin
+from capture.camera import invert_rigid
 from capture.scan import ScanSet
 
 #: Up to this many images: exhaustive matching; above: sequential with this overlap.
@@ -116,8 +116,7 @@ def _run_sfm(scanset: ScanSet, work: Path, seed: int):
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.mask_path = str(mask_dir)
-    reader.camera_params = ",".join(str(v) for v in (K0[0, 0], K0[1, 1], pixel_centre_to_corner_origin(K0[0, 2]),
-                                                     pixel_centre_to_corner_origin(K0[1, 2])))
+    reader.camera_params = ",".join(str(v) for v in (K0[0, 0], K0[1, 1], K0[0, 2] + 0.5, K0[1, 2] + 0.5))
     ext = pycolmap.FeatureExtractionOptions()
     ext.use_gpu = False
     ext.num_threads = 2
@@ -172,7 +171,7 @@ def sfm_poses(scanset: ScanSet, reference_poses: list[np.ndarray] | None = None,
             for p2 in img.points2D:
                 if not p2.has_point3D():
                     continue
-                u, v = pixel_centre_from_corner_origin(p2.xy)  # COLMAP centres at i + 0.5 -> OpenCV
+                u, v = p2.xy[0] - 0.5, p2.xy[1] - 0.5  # COLMAP centres at i + 0.5 -> OpenCV
                 iu, iv = int(round(u)), int(round(v))
                 if not (0 <= iu < cam.width and 0 <= iv < cam.height):
                     continue

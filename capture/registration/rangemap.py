@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from capture.camera import Camera, cv_rotation, make_K, pixel_centre_from_corner_origin
+from capture.camera import Camera, make_K
 from capture.scan import Scan, ScanSet, bounds_from_points
 
 CAMERA_FIELDS = ("view_px view_py view_pz x_axisx x_axisy x_axisz y_axisx y_axisy y_axisz z_axisx z_axisy "
@@ -83,16 +83,18 @@ def rangemap_camera(pts: np.ndarray, cam: dict, unit: float = MM) -> Camera:
                   [cam["y_axisx"], cam["y_axisy"], cam["y_axisz"]],
                   [cam["z_axisx"], cam["z_axisy"], cam["z_axisz"]]])
     c = np.array([cam["view_px"], cam["view_py"], cam["view_pz"]])
-    # the viewing direction: the side of the camera the points lie on
     fwd = R[2] if np.median((pts - c) @ R[2]) > 0 else -R[2]
-    Rcv = cv_rotation(fwd, R[1])  # VCG's y axis points up in the image
+    # OpenCV: x right, y down, z forward; VCG y points up in the image
+    Rcv = np.stack([R[0] if np.dot(np.cross(R[0], -R[1]), fwd) > 0 else -R[0], -R[1], fwd])
+    if np.linalg.det(Rcv) < 0:
+        Rcv[0] *= -1
     pose = np.eye(4)
     pose[:3, :3] = Rcv
     pose[:3, 3] = -Rcv @ (c * unit)
     f = cam["focal"] / cam["scalex"]
     fy = cam["focal"] / cam["scaley"]
     W, H = int(cam.get("viewportx", 640)), int(cam.get("viewporty", 480))
-    K = make_K(f, fy, pixel_centre_from_corner_origin(cam["centerx"]), pixel_centre_from_corner_origin(cam["centery"]))
+    K = make_K(f, fy, cam["centerx"] - 0.5, cam["centery"] - 0.5)
     return Camera(K, pose, W, H, "rangemap")
 
 

@@ -115,16 +115,6 @@ def test_central_difference_reference_unchanged_on_exact_depth():
     assert np.abs(b.normals[both] @ n_true - 1).max() < 1e-4
 
 
-def test_look_at_builds_on_cv_rotation():
-    from capture.camera import cv_rotation
-
-    P0 = look_at((0.5, 0.2, 0.3), (0, 0, 0))
-    R = cv_rotation(-np.array([0.5, 0.2, 0.3]), (0, 0, 1))
-    assert np.allclose(P0[:3, :3], R)
-    assert np.allclose(R @ R.T, np.eye(3)) and np.linalg.det(R) == pytest.approx(1.0)
-    assert R[1] @ [0, 0, 1] < 0  # image y points down: world up is -y
-
-
 @pytest.mark.slow
 def test_millimetre_depth_on_a_scene_the_weights_were_not_chosen_on():
     """The analytic control object (tilted torus + sphere + box, ``scenes.control_object``) at
