@@ -7,11 +7,14 @@ system in the pair's relative twist chained to the unknowns (``Turntable.pair_ja
 * ``geometry``: projective point-to-plane of the range images (``projective``), residuals in
   units of the measured depth noise;
 * ``colour``: the photometric (chromaticity) term of the same association;
-* ``silhouette``: outline points inside the other view's silhouette (``evidence``), pixels;
+* ``silhouette``: outline points inside the other view's silhouette (``evidence``), pixels; it
+  informs the axis only (``SILHOUETTE_AXIS_ONLY``);
 * ``features``: SIFT matches lifted by depth, reprojection pixels (Cauchy-weighted).
 
-The sum is solved by damped Gauss-Newton over coarse-to-fine depth gates (silhouettes and
-features have a wide basin, the surface a precise one).  Then, per view: which evidence
+Each pair's evidence counts only where it agrees with itself at the current poses (enough
+surface correspondences, a small chromaticity residual, mostly inlying features).  The sum is
+solved by damped Gauss-Newton over coarse-to-fine depth gates, the chromaticity blurred at
+the coarse ones (``COLOR_BLUR_PX``).  Then, per view: which evidence
 carries its angle (share of the information on it), with what residual, and the angle's
 standard deviation from the inverse information.  A view is placed when its evidence
 determines its angle (``MAX_ANGLE_SIGMA_DEG``) and none of it contradicts the others (its
