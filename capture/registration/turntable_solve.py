@@ -62,7 +62,7 @@ MIN_FEATURE_INLIERS = 6
 #: Largest angle change of one Gauss-Newton step (degrees); larger steps are scaled down.
 MAX_STEP_DEG = 2.0
 #: Stop a gate when no angle moves by more than this (degrees).
-CONVERGED_DEG = 1e-4
+CONVERGED_DEG = 2e-3
 #: A view is placed only when its angle's standard deviation is below this (degrees).
 MAX_ANGLE_SIGMA_DEG = 0.5
 #: An outline point further than this (pixels) outside a neighbour's silhouette is outside ...
