@@ -182,8 +182,10 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
     return poses, placed, rep
 
 
-def choose_rig(scanset: ScanSet, rig: str, method: str, init: str):
-    """(turntable fit or None, rig to use) for ``rig`` = auto / free / turntable."""
+def choose_rig(scanset: ScanSet, rig: str, method: str, init: str, board=None):
+    """(turntable fit or None, rig to use) for ``rig`` = auto / free / turntable.  ``auto`` takes
+    the turntable when the nominal poses describe one, the method is auto/icp from nominal poses,
+    and (method auto) no ChArUco board is seen in most images (the board then places the scans)."""
     from capture.registration.turntable import fit_turntable
 
     if rig not in RIGS:
@@ -196,6 +198,12 @@ def choose_rig(scanset: ScanSet, rig: str, method: str, init: str):
             raise ValueError(f"rig turntable: the nominal poses allow no turntable model ({fit.reason})")
         return fit, "turntable"
     auto_ok = init == "nominal" and method in ("auto", "icp") and fit.is_turntable
+    if auto_ok and method == "auto":
+        from capture.registration import board as B
+
+        seen = sum(p is not None for p in B.board_poses(scanset, board).poses)
+        if seen >= AUTO_BOARD_FRACTION * len(scanset.scans):
+            return replace(fit, reason=f"{fit.reason}; a board is seen in {seen} images: free rig"), "free"
     return fit, "turntable" if auto_ok else "free"
 
 
@@ -221,7 +229,7 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
     cfg = config or ICP.IcpConfig()
     t0 = time.perf_counter()
     notes: list[str] = []
-    fit, use = choose_rig(scanset, rig, method, init)
+    fit, use = choose_rig(scanset, rig, method, init, board)
     if use == "turntable":
         poses, registered, rep = _register_turntable(scanset, fit, turntable_config, notes, progress)
         used = "turntable"
