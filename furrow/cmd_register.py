@@ -23,8 +23,8 @@ methods: icp   Open3D coarse ICP + projective point-to-plane ICP + pose graph (l
 
 rigs:    free       a pose per scan (the methods above)
          turntable  one axis, one angle per scan, placed by all the evidence at once: the range
-                    surface, the colour pattern, silhouettes against the empty background,
-                    SIFT features (fur without a board)
+                    surface, the colour pattern, SIFT features (fur without a board); silhouettes
+                    against the empty background check it (a foreign object is flagged)
          auto       turntable when the nominal poses lie on one circle about one axis
                     (said in the report), else free
 
