@@ -29,8 +29,10 @@ from capture.registration.perturb import rotation
 #: A nominal view whose orientation differs from the turntable model by more than this (degrees)
 #: is off the turntable: its nominal pose is wrong (flagged by name, never placed).
 MAX_VIEW_DEVIATION_DEG = 20.0
-#: ... or whose camera centre is further than this fraction of the circle's radius from it.
-MAX_VIEW_OFFSET_FRAC = 0.25
+#: ... or whose camera centre is further than this fraction of the circle's radius from it (the
+#: nominal pose only starts the view's angle: 10 degree / 10 % perturbations put centres up to
+#: 0.29 of the radius off the circle of the 36-view plant, and those views are placed).
+MAX_VIEW_OFFSET_FRAC = 0.5
 #: ``rig auto`` takes the poses for a turntable when at least this fraction of the views is on it ...
 MIN_ON_FRACTION = 0.75
 #: ... there are at least this many views ...
