@@ -19,7 +19,17 @@ methods: icp   Open3D coarse ICP + projective point-to-plane ICP + pose graph (l
                FPFH+RANSAC fallback
          colmap  pycolmap SfM on the colour images, Umeyama into the depth frame, then ICP
          board   ChArUco PnP (opencv-contrib) for the initial poses, then ICP
-         auto    board if seen in most images, else icp (SfM if global registration fails)"""
+         auto    board if seen in most images, else icp (SfM if global registration fails)
+
+rigs:    free       a pose per scan (the methods above)
+         turntable  one axis, one angle per scan, placed by all the evidence at once: the range
+                    surface, the colour pattern, SIFT features (fur without a board); silhouettes
+                    against the empty background check it (a foreign object is flagged)
+         auto       turntable when the nominal poses lie on one circle about one axis
+                    (said in the report), else free
+
+The report (console and registration.json) says per scan which evidence placed it
+(geometry, colour, silhouette, features, board) and with what residual."""
 
 #: Exit status when the output was written but some scans were flagged.
 EXIT_FLAGGED = 3
@@ -31,6 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=["auto", "icp", "colmap", "board"], default="auto")
     p.add_argument("--init", choices=["nominal", "none"], default="nominal",
                    help="start from the input poses (nominal) or from nothing (global registration)")
+    p.add_argument("--rig", choices=["auto", "free", "turntable"], default="auto",
+                   help="pose model: a pose per scan (free), one axis + one angle per scan (turntable), "
+                        "or detected from the nominal poses (auto, default)")
     p.add_argument("--colored", action="store_true", help="coloured ICP at the finest Open3D level")
     p.add_argument("--board", default=None, metavar="NXxNY:SQUARE_M:MARKER_M[:DICT]",
                    help="ChArUco board for --method board/auto, e.g. 7x7:0.05:0.037:DICT_4X4_50 "
@@ -64,6 +77,37 @@ def parse_board(text: str | None, z: float | None):
     return replace(spec, z_m=z) if z is not None else spec
 
 
+def _residual_text(rec) -> str:
+    """One line of a scan's residual figures, per evidence."""
+    parts = []
+    for e, r in rec.residuals.items():
+        if e == "geometry":
+            parts.append(f"geometry fit {r.get('fitness', 0):.2f} rmse {1000 * (r.get('rmse_m') or 0):.2f} mm")
+        elif e == "colour":
+            parts.append(f"colour {r.get('chroma_rmse', float('nan')):.3f}")
+        elif e == "silhouette":
+            parts.append(f"silhouette {r.get('rms_px', 0):.1f} px ({r.get('outside_frac', 0):.0%} out)")
+        elif e == "features":
+            parts.append(f"features {r.get('inliers', 0)}/{r.get('matches', 0)}")
+    return "; ".join(parts)
+
+
+def evidence_table(rep):
+    """A rich table: per scan, placed or flagged, by which evidence, with what residual."""
+    import math
+
+    from rich.table import Table
+
+    t = Table(title=f"registration ({rep.rig} rig): evidence per scan")
+    for c in ("scan", "placed", "evidence", "angle sigma", "residuals"):
+        t.add_column(c)
+    for s in rep.scans:
+        sig = f"{s.angle_sigma_deg:.3f} deg" if math.isfinite(s.angle_sigma_deg) else ""
+        t.add_row(s.name, "yes" if s.registered else "[yellow]flagged[/]", ", ".join(s.evidence), sig,
+                  _residual_text(s) if s.registered else s.reason)
+    return t
+
+
 def _same_or_inside(a: Path, b: Path) -> bool:
     a, b = a.resolve(), b.resolve()
     return a == b or b in a.parents or a in b.parents
@@ -88,7 +132,7 @@ def run(args, console) -> int:
     with timer.stage(f"register ({args.method}, init {args.init})"):
         cfg = ICP.IcpConfig(colored=args.colored)
         out, rep, _ = pipeline.register(ss, args.method, args.init, cfg, keep_flagged=args.keep_flagged,
-                                        board=parse_board(args.board, args.board_z))
+                                        board=parse_board(args.board, args.board_z), rig=args.rig, progress=track)
     report = rep.to_json()
     report["input"] = str(args.scans)
     with timer.stage("write"):
@@ -96,11 +140,15 @@ def run(args, console) -> int:
                                     extra_files={"registration.json": json.dumps(report, indent=1).encode()},
                                     progress=track)
     console.print(timer.table())
+    console.print(evidence_table(rep))
     n, k = report["n_scans"], report["n_registered"]
+    console.print(f"rig: {rep.rig} ({rep.rig_detection or 'not tested'})", highlight=False)
+    for note in rep.notes:
+        console.print(f"  {note}", highlight=False)
     console.print(f"registered {k}/{n} scans with {rep.method}; wrote {path}", highlight=False)
     for s in rep.scans:
         if not s.registered:
-            console.print(f"[yellow]flagged[/] {s.name}: fitness {s.best_fitness:.3f}, {s.reason}", highlight=False)
+            console.print(f"[yellow]flagged[/] {s.name}: {s.reason}", highlight=False)
     if args.json:
         sys.stdout.write(json.dumps(report, indent=1) + "\n")
     return 0 if k == n else EXIT_FLAGGED

@@ -10,6 +10,7 @@ Flagged scans are left out of the returned scan set (not merged) unless ``keep_f
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 
@@ -64,31 +65,159 @@ def _report_from_icp(scanset: ScanSet, out: ICP.IcpOutcome, method: str, init: s
     return rep
 
 
-def _fit_gauge(poses: list[np.ndarray], ref: list, mask: list[bool]) -> list[np.ndarray]:
-    """Right-multiply ``poses`` (cam_from_world) by the rigid G that best maps them onto the
-    reference poses where both exist (chordal mean of the rotations, mean of the translations)."""
-    from capture.camera import invert_rigid
+RIGS = ("auto", "free", "turntable")
 
-    Gs = [invert_rigid(p) @ r for p, r, m in zip(poses, ref, mask) if m and r is not None]
-    if not Gs:
-        return poses
-    M = sum(G[:3, :3] for G in Gs)
-    U, _, Vt = np.linalg.svd(M)
-    Rm = U @ np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))]) @ Vt
-    G = np.eye(4)
-    G[:3, :3] = Rm
-    # translation: least squares over cameras of |R_k (R t_G) ... | -> mean of the G translations
-    G[:3, 3] = np.mean([g[:3, 3] for g in Gs], axis=0)
-    return [p @ G for p in poses]
+
+def _initial_poses(scanset, method, board, notes):
+    """(initial cam_from_world per scan or None, board poses or None, method used) from the
+    board or SfM for ``board``/``colmap``/``auto``."""
+    if method in ("board", "auto"):
+        from capture.registration import board as B
+
+        bres = B.board_poses(scanset, board)
+        seen = sum(p is not None for p in bres.poses)
+        if method == "board" or seen >= AUTO_BOARD_FRACTION * len(scanset.scans):
+            if seen == 0:
+                raise RuntimeError("method 'board': no ChArUco board detected in any image")
+            notes.append(f"board detected in {seen}/{len(scanset.scans)} images; "
+                         f"median reprojection {bres.median_reprojection_px:.3f} px")
+            return _fill(bres.poses, scanset), bres.poses, "board"
+        return None, None, "icp"
+    if method == "colmap":
+        return _sfm_init(scanset, notes), None, "colmap"
+    return None, None, method
+
+
+def _fill(poses, scanset):
+    return [p if p is not None else s.camera.cam_from_world for p, s in zip(poses, scanset.scans)]
+
+
+def _sfm_init(scanset, notes):
+    from capture.registration import colmap as C
+
+    sfm = C.sfm_poses(scanset, use_init_for_gauge=True)
+    notes.append(f"SfM registered {sum(p is not None for p in sfm.poses)}/{len(scanset.scans)} images, "
+                 f"scale {sfm.scale:.5g}, mean reprojection {sfm.reprojection_px:.3f} px")
+    return _fill(sfm.poses, scanset)
+
+
+def _board_gauge(scanset, out: ICP.IcpOutcome, board_init, notes) -> tuple[ICP.IcpOutcome, set]:
+    """The board fixes the gauge: the ICP solution moved onto the board frame; scans ICP could
+    not connect keep their board pose (PnP on the board is independent of the surface)."""
+    poses = R.fit_gauge(out.cam_from_world, board_init, out.registered)
+    notes.append("gauge: least-squares fit to all board poses")
+    by_board = [k for k, (r, b) in enumerate(zip(out.registered, board_init)) if not r and b is not None]
+    registered = list(out.registered)
+    for k in by_board:
+        poses[k] = board_init[k]
+        registered[k] = True
+    if by_board:
+        notes.append(f"{len(by_board)} scans posed by the board alone (ICP could not connect them): "
+                     f"{[scanset.scans[k].name for k in by_board]}")
+    return replace(out, cam_from_world=poses, registered=registered), set(by_board)
+
+
+def _register_free(scanset, method, init, cfg, board, notes):
+    """The per-scan-pose registration (ICP / board / SfM + ICP): (outcome, method used, board-only scans)."""
+    use_init = init == "nominal"
+    init_poses, board_init, used = _initial_poses(scanset, method, board, notes)
+    if init_poses is not None:
+        use_init = True
+    out = ICP.register_icp(scanset, cfg, use_init=use_init, init_poses=init_poses)
+    if method == "auto" and used == "icp" and not use_init and \
+            sum(not r for r in out.registered) > AUTO_SFM_FLAGGED_FRACTION * len(scanset.scans):
+        notes.append("too many scans flagged from global registration: retried from SfM poses")
+        out = ICP.register_icp(scanset, cfg, use_init=True, init_poses=_sfm_init(scanset, notes))
+        used = "colmap"
+    by_board: set = set()
+    if used == "board" and board_init is not None:
+        out, by_board = _board_gauge(scanset, out, board_init, notes)
+    return out, used, by_board
+
+
+def _free_evidence(rep: R.RegistrationReport, out: ICP.IcpOutcome, cfg: ICP.IcpConfig, used: str, by_board: set) -> None:
+    """Per scan: the evidence that placed it in the free rig, and its residual figures."""
+    for k, rec in enumerate(rep.scans):
+        if not rec.registered:
+            continue
+        if k in by_board:
+            rec.evidence = ["board"]
+            continue
+        mine = [p for p in out.pairs if k in (p.i, p.j) and p.status == "ok"]
+        rec.evidence = ["geometry"] + (["colour"] if cfg.color_scale_frac > 0 and
+                                       any(math.isfinite(p.color_rmse) for p in mine) else [])
+        if used == "board":
+            rec.evidence.append("board")
+        rec.residuals = {"geometry": {"fitness": rec.best_fitness, "rmse_m": rec.best_inlier_rmse_m,
+                                      "edge_residual_deg": rec.max_residual_deg, "edge_residual_m": rec.max_residual_m}}
+        c = [p.color_rmse for p in mine if math.isfinite(p.color_rmse)]
+        if "colour" in rec.evidence:
+            rec.residuals["colour"] = {"chroma_rmse": float(np.median(c))}
+
+
+def _register_turntable(scanset, fit, tcfg, notes, progress=None):
+    """Turntable rig: (cam_from_world per scan, placed flags, report)."""
+    from capture.registration import turntable_solve as TS
+
+    t0 = time.perf_counter()
+    tcfg = tcfg or TS.TurntableConfig()
+    out = TS.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress)
+    placed = out.placed
+    poses_in = [s.camera.cam_from_world for s in scanset.scans]
+    model_poses = [out.model.pose(k) if placed[k] else None for k in range(len(placed))]
+    fitted = R.fit_gauge([p if p is not None else np.eye(4) for p in model_poses], poses_in, placed)
+    poses = [fitted[k] if placed[k] else poses_in[k] for k in range(len(placed))]
+    names = [s.name or f"scan{k}" for k, s in enumerate(scanset.scans)]
+    rep = R.RegistrationReport(method="turntable", init="nominal", gauge="least-squares fit to the nominal poses",
+                               object_size_m=scanset.size, thresholds=R.thresholds(), rig="turntable",
+                               rig_detection=fit.reason)
+    for k, rec in enumerate(out.records):
+        rep.scans.append(R.ScanRecord(names[k], rec.placed, reason=rec.reason, evidence=list(rec.evidence),
+                                      residuals=rec.residuals, angle_sigma_deg=rec.sigma_deg))
+    notes.append(f"turntable axis {np.round(out.model.axis, 4).tolist()} through "
+                 f"{np.round(out.model.point, 4).tolist()}; {sum(placed)}/{len(placed)} views placed")
+    notes.append("axis placed by " + ", ".join(f"{e} {v:.0%}" for e, v in
+                                               sorted(out.axis_evidence.items(), key=lambda x: -x[1])))
+    rep.seconds["turntable"] = time.perf_counter() - t0
+    return poses, placed, rep
+
+
+def choose_rig(scanset: ScanSet, rig: str, method: str, init: str, board=None):
+    """(turntable fit or None, rig to use) for ``rig`` = auto / free / turntable.  ``auto`` takes
+    the turntable when the nominal poses describe one, the method is auto/icp from nominal poses,
+    and (method auto) no ChArUco board is seen in most images (the board then places the scans)."""
+    from capture.registration.turntable import fit_turntable
+
+    if rig not in RIGS:
+        raise ValueError(f"unknown rig {rig!r}; choose from {', '.join(RIGS)}")
+    if rig == "free":
+        return None, "free"
+    fit = fit_turntable([s.camera.cam_from_world for s in scanset.scans])
+    if rig == "turntable":
+        if fit.model is None:
+            raise ValueError(f"rig turntable: the nominal poses allow no turntable model ({fit.reason})")
+        return fit, "turntable"
+    auto_ok = init == "nominal" and method in ("auto", "icp") and fit.is_turntable
+    if auto_ok and method == "auto":
+        from capture.registration import board as B
+
+        seen = sum(p is not None for p in B.board_poses(scanset, board).poses)
+        if seen >= AUTO_BOARD_FRACTION * len(scanset.scans):
+            return replace(fit, reason=f"{fit.reason}; a board is seen in {seen} images: free rig"), "free"
+    return fit, "turntable" if auto_ok else "free"
 
 
 def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", config: ICP.IcpConfig | None = None,
-             keep_flagged: bool = False, board=None) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
+             keep_flagged: bool = False, board=None, rig: str = "free", turntable_config=None,
+             progress=None) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
     """Register ``scanset``.
 
     Args:
         method: one of ``METHODS``. init: ``"nominal"`` (start from the input poses) or ``"none"``.
         board: a ``board.BoardSpec`` for ``board``/``auto`` (None = the default synthetic board).
+        rig: ``free`` (a pose per scan), ``turntable`` (one axis, one angle per scan:
+            ``turntable_solve``) or ``auto`` (turntable when the nominal poses describe one and
+            the method is auto/icp from nominal poses).
     Returns:
         (registered scan set (flagged scans left out unless ``keep_flagged``), report,
         cam_from_world per input scan (flagged scans keep their input pose)).
@@ -100,63 +229,24 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
     cfg = config or ICP.IcpConfig()
     t0 = time.perf_counter()
     notes: list[str] = []
-    init_poses = None
-    board_init = None
-    use_init = init == "nominal"
-    used = method
-    if method in ("board", "auto"):
-        from capture.registration import board as B
-
-        bres = B.board_poses(scanset, board)
-        frac = sum(p is not None for p in bres.poses) / len(scanset.scans)
-        if method == "board" or frac >= AUTO_BOARD_FRACTION:
-            if frac == 0:
-                raise RuntimeError("method 'board': no ChArUco board detected in any image")
-            init_poses = [p if p is not None else s.camera.cam_from_world for p, s in zip(bres.poses, scanset.scans)]
-            board_init = bres.poses
-            use_init = True
-            used = "board"
-            notes.append(f"board detected in {sum(p is not None for p in bres.poses)}/{len(scanset.scans)} images; "
-                         f"median reprojection {bres.median_reprojection_px:.3f} px")
-        else:
-            used = "icp"
-    if method == "colmap":
-        from capture.registration import colmap as C
-
-        sfm = C.sfm_poses(scanset, use_init_for_gauge=True)
-        init_poses = [p if p is not None else s.camera.cam_from_world for p, s in zip(sfm.poses, scanset.scans)]
-        use_init = True
-        notes.append(f"SfM registered {sum(p is not None for p in sfm.poses)}/{len(scanset.scans)} images, "
-                     f"scale {sfm.scale:.5g}, mean reprojection {sfm.reprojection_px:.3f} px")
-    out = ICP.register_icp(scanset, cfg, use_init=use_init, init_poses=init_poses)
-    if method == "auto" and used == "icp" and not use_init and \
-            sum(not r for r in out.registered) > AUTO_SFM_FLAGGED_FRACTION * len(scanset.scans):
-        from capture.registration import colmap as C
-
-        notes.append("too many scans flagged from global registration: retried from SfM poses")
-        sfm = C.sfm_poses(scanset, use_init_for_gauge=True)
-        init_poses = [p if p is not None else s.camera.cam_from_world for p, s in zip(sfm.poses, scanset.scans)]
-        out = ICP.register_icp(scanset, cfg, use_init=True, init_poses=init_poses)
-        used = "colmap"
-    if used == "board" and board_init is not None:
-        # the board fixes the gauge: move the ICP solution (anchored on one scan) onto the
-        # board frame by the rigid transform that best agrees with all board poses
-        out.cam_from_world = _fit_gauge(out.cam_from_world, board_init, out.registered)
-        notes.append("gauge: least-squares fit to all board poses")
-        # scans ICP could not connect keep their board pose (PnP on the board is independent of
-        # the object's surface: this is what makes fur registrable)
-        by_board = [k for k, (r, b) in enumerate(zip(out.registered, board_init)) if not r and b is not None]
-        for k in by_board:
-            out.cam_from_world[k] = board_init[k]
-            out.registered[k] = True
-        if by_board:
-            names = [scanset.scans[k].name for k in by_board]
-            notes.append(f"{len(by_board)} scans posed by the board alone (ICP could not connect them): {names}")
-    rep = _report_from_icp(scanset, out, used, init)
+    fit, use = choose_rig(scanset, rig, method, init, board)
+    if use == "turntable":
+        poses, registered, rep = _register_turntable(scanset, fit, turntable_config, notes, progress)
+        used = "turntable"
+    else:
+        out, used, by_board = _register_free(scanset, method, init, cfg, board, notes)
+        rep = _report_from_icp(scanset, out, used, init)
+        _free_evidence(rep, out, cfg, used, by_board)
+        if fit is not None:
+            rep.rig_detection = fit.reason
+        poses, registered = out.cam_from_world, out.registered
     rep.notes.extend(notes)
     rep.seconds["total"] = time.perf_counter() - t0
-    keep = [True] * len(scanset.scans) if keep_flagged else list(out.registered)
-    result = _with_poses(scanset, out.cam_from_world, keep)
+    if not any(registered):
+        raise RuntimeError(f"no scan could be placed ({rep.rig} rig): " +
+                           "; ".join(f"{s.name}: {s.reason}" for s in rep.scans[:3]))
+    keep = [True] * len(scanset.scans) if keep_flagged else list(registered)
+    result = _with_poses(scanset, poses, keep)
     result = replace(result, metadata={**scanset.metadata, "registration": {
-        "method": used, "init": init, "flagged": rep.flagged, "gauge": rep.gauge}})
-    return result, rep, out.cam_from_world
+        "method": used, "init": init, "rig": rep.rig, "flagged": rep.flagged, "gauge": rep.gauge}})
+    return result, rep, poses

@@ -42,6 +42,10 @@ class CloudConfig:
     """Keep pixels next to "no data" (thin needles / strands); False drops them (smooth objects)."""
     min_points: int = 30
     """Fewer valid points than this is an error naming the scan."""
+    normal_radius_px: int = -1
+    """Range-image normals (projective stage): half-size of the plane-fit window in pixels
+    (``rangeimage.plane_fit``); -1 = auto from the measured noise (``rangeimage.choose_radius``);
+    0 = central differences of neighbouring pixels (the estimate before issue 16)."""
 
     def __post_init__(self) -> None:
         if int(self.stride) < 1:
@@ -52,7 +56,7 @@ class CloudError(ValueError):
     """A scan cannot be turned into a usable point cloud; the message names it."""
 
 
-def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True) -> np.ndarray:
+def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True, far_side_only: bool = False) -> np.ndarray:
     """(H, W) bool: valid pixels with no *valid* 4-neighbour more than ``edge_frac * depth`` away
     in depth (mixed pixels at depth discontinuities).  With ``keep_silhouettes`` pixels next to
     "no data" are kept, so one-pixel needles and strands in front of empty space survive;
@@ -72,7 +76,7 @@ def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True
             else:
                 nb[:, 0 if shift == 1 else -1] = np.nan
             with np.errstate(invalid="ignore"):
-                jump = np.abs(nb - dz) > edge_frac * dz
+                jump = (dz - nb if far_side_only else np.abs(nb - dz)) > edge_frac * dz
             ok &= ~jump
             if not keep_silhouettes:
                 ok &= np.isfinite(nb)

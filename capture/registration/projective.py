@@ -27,6 +27,7 @@ import numpy as np
 from capture.camera import Camera
 from capture.depth_normals import depth_normals
 from capture.registration import points as P
+from capture.registration import rangeimage as RI
 from capture.scan import Scan
 
 #: Minimum cosine between source and target normals for a projective correspondence.
@@ -65,6 +66,8 @@ class DepthFrame:
         grad: (H, W, 2) float64 d intensity / d (u, v) (central differences).
         color_valid: (H, W) bool pixels whose 3x3 neighbourhood is all measured: colour there is
             not blended with the background (anti-aliased silhouettes) and its gradient is clean.
+        depth_sigma_m: measured depth noise (metres) at the median depth (``rangeimage.noise_at_1m``;
+            0 when the normals come from central differences).
     """
 
     points: np.ndarray
@@ -74,26 +77,43 @@ class DepthFrame:
     intensity: np.ndarray
     grad: np.ndarray
     color_valid: np.ndarray
+    depth_sigma_m: float = 0.0
 
 
 def depth_frame(scan: Scan, cfg: P.CloudConfig = P.CloudConfig()) -> DepthFrame:
-    """Points and central-difference normals of a scan's depth map (edges removed)."""
+    """Points and normals of a scan's depth map (edges removed): gated plane-fit normals and
+    denoised points (``rangeimage.plane_fit``), or central differences when the radius is 0."""
     cam = P.camera_frame(scan.camera)
     d = P.smooth_depth(scan.depth, cfg.median_px)
-    ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes)
+    fit = cfg.normal_radius_px != 0
+    # flying pixels lie behind the edge they fly from: drop the far side of a depth jump only
+    # (the plane fit removes the rest), so thin needles in front keep their pixels
+    ok = P.edge_mask(d, cfg.edge_frac, cfg.keep_silhouettes, far_side_only=fit)
     rays = cam.pixel_rays(cam.pixel_grid())
     pts = rays * np.where(ok, d, 0.0)[..., None]
-    # central difference where both neighbours are usable, else the one-sided one to the usable
-    # neighbour (1-2 pixel wide needles and strands keep a normal); a depth edge is no tangent
-    lim = NORMAL_JUMP_FACTOR * cfg.edge_frac * d if cfg.edge_frac > 0 else None
-    n, okn = depth_normals(pts, ok, "average", max_step=lim)
+    sigma_m = 0.0
+    if fit:
+        gate = cfg.edge_frac * d if cfg.edge_frac > 0 else np.full(d.shape, np.inf)
+        z_med = float(np.median(d[ok])) if ok.any() else 1.0
+        sigma_1m = RI.noise_at_1m(pts, ok, gate)
+        sigma_m = sigma_1m * z_med**2
+        radius = cfg.normal_radius_px
+        if radius < 0:
+            radius = RI.choose_radius(sigma_1m, z_med, float(cam.K[0, 0]))
+        n, okn, pts = RI.plane_fit(pts, ok, gate, radius, RI.worth_denoising(sigma_1m, z_med, float(cam.K[0, 0])))
+        pts = np.where(okn[..., None], pts, 0.0)
+    else:
+        # central difference where both neighbours are usable, else the one-sided one to the usable
+        # neighbour (1-2 pixel wide needles and strands keep a normal); a depth edge is no tangent
+        lim = NORMAL_JUMP_FACTOR * cfg.edge_frac * d if cfg.edge_frac > 0 else None
+        n, okn = depth_normals(pts, ok, "average", max_step=lim)
     lum = chroma(scan.linear_rgb)
     gv, gu = np.gradient(lum)
     from scipy.ndimage import binary_erosion
 
     meas = d > 0
     cval = binary_erosion(meas, structure=np.ones((3, 3), bool), iterations=COLOR_ERODE_PX, border_value=0)
-    return DepthFrame(pts, n, okn, cam, lum, np.stack([gu, gv], axis=-1), cval)
+    return DepthFrame(pts, n, okn, cam, lum, np.stack([gu, gv], axis=-1), cval, sigma_m)
 
 
 def chroma(rgb: np.ndarray) -> np.ndarray:
@@ -165,6 +185,124 @@ def associate(src_pts: np.ndarray, src_nrm: np.ndarray, tgt: DepthFrame, T: np.n
     return good, q, t, n, np.stack([uf, vf], axis=1)
 
 
+@dataclass(frozen=True)
+class Samples:
+    """Source samples of a range frame (every ``stride``-th usable pixel): points, normals,
+    chromaticity, colour-valid flag, (N, ...) camera frame."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    intensity: np.ndarray
+    color_valid: np.ndarray
+
+
+def source_samples(src: DepthFrame, stride: int = 1) -> Samples:
+    """The usable pixels of ``src`` on a ``stride`` grid."""
+    m = src.valid[::stride, ::stride]
+    return Samples(src.points[::stride, ::stride][m], src.normals[::stride, ::stride][m],
+                   src.intensity[::stride, ::stride][m], src.color_valid[::stride, ::stride][m])
+
+
+def projection_jacobian(K: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(N, 2, 3) d(u, v) / d q of the pinhole projection of camera points q (skew ignored)."""
+    z = q[:, 2]
+    J = np.zeros((len(q), 2, 3))
+    J[:, 0, 0] = K[0, 0] / z
+    J[:, 0, 2] = -K[0, 0] * q[:, 0] / z**2
+    J[:, 1, 1] = K[1, 1] / z
+    J[:, 1, 2] = -K[1, 1] * q[:, 1] / z**2
+    return J
+
+
+def point_twist_jacobian(q: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """(N, 6) d(a . q) / d(w, t) for the left perturbation q' = q + w x q + t: [q x a, a]."""
+    return np.concatenate([np.cross(q, a), a], axis=1)
+
+
+def _color_rows(q, uv, si, tgt: DepthFrame, color_scale: float):
+    """Photometric rows (residual, Jacobian, Huber weight), all scaled to metres."""
+    rc = (_bilinear(tgt.intensity, uv[:, 0], uv[:, 1]) - si) * color_scale
+    g = _bilinear(tgt.grad, uv[:, 0], uv[:, 1])
+    a = np.einsum("nk,nkj->nj", g, projection_jacobian(tgt.camera.K, q))  # dI/dq
+    Jc = point_twist_jacobian(q, a) * color_scale
+    hc = COLOR_HUBER * color_scale
+    return rc, Jc, np.where(np.abs(rc) <= hc, 1.0, hc / np.maximum(np.abs(rc), 1e-300))
+
+
+def _color_ok(samples: Samples, good: np.ndarray, uv: np.ndarray, tgt: DepthFrame) -> np.ndarray:
+    H, W = tgt.color_valid.shape
+    cu = np.clip(np.rint(uv[:, 0]).astype(np.int64), 0, W - 1)
+    cv = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, H - 1)
+    return samples.color_valid[good] & tgt.color_valid[cv, cu]
+
+
+def normal_equations(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: float,
+                     color_scale: float = 0.0) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """Gauss-Newton system (A 6x6, b 6, correspondences) of the point-to-plane (+ photometric)
+    residuals of ``samples`` against ``tgt`` at ``T`` (target_from_source), in the left twist
+    (w, t) of ``T``, Huber-weighted; None with fewer than 6 correspondences."""
+    parts = normal_equation_parts(samples, tgt, T, gate, color_scale)
+    if parts is None:
+        return None
+    (A, b), (Ac, bc), n, _ = parts
+    return A + Ac, b + bc, n
+
+
+def normal_equation_parts(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: float, color_scale: float = 0.0):
+    """As :func:`normal_equations`, the surface and the photometric systems apart:
+    ((A, b) surface, (A, b) colour (zero when off), correspondences, colour RMSE (clipped
+    chromaticity difference, NaN when off)) or None."""
+    good, q, t, n, uv = associate(samples.points, samples.normals, tgt, T, gate)
+    if good.sum() < 6:
+        return None
+    q, t, n, uv = q[good], t[good], n[good], uv[good]
+    cok = _color_ok(samples, good, uv, tgt)
+    r = np.sum(n * (q - t), axis=1)
+    huber = HUBER_FRAC * gate
+    w = np.where(np.abs(r) <= huber, 1.0, huber / np.maximum(np.abs(r), 1e-300))
+    J = point_twist_jacobian(q, n)
+    Ac, bc, crmse = np.zeros((6, 6)), np.zeros(6), float("nan")
+    if color_scale > 0 and cok.sum() >= 6:
+        rc, Jc, wc = _color_rows(q[cok], uv[cok], samples.intensity[good][cok], tgt, color_scale)
+        Ac, bc = (Jc * wc[:, None]).T @ Jc, -(Jc * wc[:, None]).T @ rc
+        crmse = float(np.sqrt(np.mean(np.minimum(np.abs(rc / color_scale), COLOR_RMSE_CLIP) ** 2)))
+    return ((J * w[:, None]).T @ J, -(J * w[:, None]).T @ r), (Ac, bc), int(good.sum()), crmse
+
+
+def twist_to_transform(x: np.ndarray) -> np.ndarray:
+    """(4, 4) rigid map of a twist (w, t) (rotation vector w, then translation t)."""
+    from capture.registration.perturb import rotation
+
+    ang = float(np.linalg.norm(x[:3]))
+    D = np.eye(4)
+    if ang > 0:
+        D[:3, :3] = rotation(x[:3] / ang, ang)
+    D[:3, 3] = x[3:]
+    return D
+
+
+def solve_damped(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """x of (A + DAMPING * mean diagonal * I) x = b, or None when singular."""
+    try:
+        return np.linalg.solve(A + DAMPING * np.trace(A) / len(A) * np.eye(len(A)), b)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def alignment_stats(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: float) -> tuple[float, float, int, float]:
+    """(fitness, point-to-plane RMSE (m), correspondences, colour RMSE) of ``samples`` at ``T``."""
+    good, q, t, n, uv = associate(samples.points, samples.normals, tgt, T, gate)
+    r = np.sum(n[good] * (q[good] - t[good]), axis=1)
+    rmse = float(np.sqrt(np.mean(r**2))) if len(r) else float("inf")
+    uvg = uv[good]
+    cok = _color_ok(samples, good, uvg, tgt)
+    crmse = float("nan")
+    if cok.sum() > 0:
+        rc = _bilinear(tgt.intensity, uvg[cok, 0], uvg[cok, 1]) - samples.intensity[good][cok]
+        crmse = float(np.sqrt(np.mean(np.minimum(np.abs(rc), COLOR_RMSE_CLIP) ** 2)))
+    return float(good.sum()) / max(len(samples.points), 1), rmse, int(good.sum()), crmse
+
+
 def projective_icp(src: DepthFrame, tgt: DepthFrame, T0: np.ndarray, gate: float, iterations: int = 30,
                    stride: int = 1, color_scale: float = 0.0) -> ProjectiveResult:
     """Point-to-plane (+ optional photometric) Gauss-Newton with projective association.
@@ -176,73 +314,23 @@ def projective_icp(src: DepthFrame, tgt: DepthFrame, T0: np.ndarray, gate: float
     Returns:
         :class:`ProjectiveResult` (target_from_source); fitness / rmse are geometric.
     """
-    from capture.registration.perturb import rotation
-
-    m = src.valid[::stride, ::stride]
-    sp = src.points[::stride, ::stride][m]
-    sn = src.normals[::stride, ::stride][m]
-    si = src.intensity[::stride, ::stride][m]
-    sc = src.color_valid[::stride, ::stride][m]
-    K = tgt.camera.K
+    samples = source_samples(src, stride)
     T = np.asarray(T0, dtype=np.float64).copy()
-    huber = HUBER_FRAC * gate
     it = 0
     info = np.zeros((6, 6))
     for it in range(0, iterations + 1):
-        good, q, t, n, uv = associate(sp, sn, tgt, T, gate)
-        if good.sum() < 6:
+        system = normal_equations(samples, tgt, T, gate, color_scale)
+        if system is None:
             break
-        q, t, n, uv = q[good], t[good], n[good], uv[good]
-        H, W = tgt.color_valid.shape
-        cu = np.clip(np.rint(uv[:, 0]).astype(np.int64), 0, W - 1)
-        cv = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, H - 1)
-        cok = sc[good] & tgt.color_valid[cv, cu]
-        r = np.sum(n * (q - t), axis=1)
-        w = np.where(np.abs(r) <= huber, 1.0, huber / np.maximum(np.abs(r), 1e-300))
-        # left perturbation: q' = q + w x q + dt  ->  d r = (q x n) . w + n . dt
-        J = np.concatenate([np.cross(q, n), n], axis=1)
-        A = (J * w[:, None]).T @ J
-        b = -(J * w[:, None]).T @ r
-        if color_scale > 0 and cok.sum() >= 6:
-            qc, uvc = q[cok], uv[cok]
-            rc = _bilinear(tgt.intensity, uvc[:, 0], uvc[:, 1]) - si[good][cok]
-            g = _bilinear(tgt.grad, uvc[:, 0], uvc[:, 1])
-            z = qc[:, 2]
-            # a = dI/dq = g^T d(pi)/dq  (skew term of K ignored in the Jacobian)
-            a = np.stack([g[:, 0] * K[0, 0] / z, g[:, 1] * K[1, 1] / z,
-                          -(g[:, 0] * K[0, 0] * qc[:, 0] + g[:, 1] * K[1, 1] * qc[:, 1]) / z**2], axis=1)
-            Jc = np.concatenate([np.cross(qc, a), a], axis=1) * color_scale
-            rc = rc * color_scale
-            hc = COLOR_HUBER * color_scale
-            wc = np.where(np.abs(rc) <= hc, 1.0, hc / np.maximum(np.abs(rc), 1e-300))
-            A += (Jc * wc[:, None]).T @ Jc
-            b -= (Jc * wc[:, None]).T @ rc
+        A, b, _ = system
         info = A.copy()
         if it == iterations:
             break
-        A += DAMPING * np.trace(A) / 6 * np.eye(6)
-        try:
-            x = np.linalg.solve(A, b)
-        except np.linalg.LinAlgError:
+        x = solve_damped(A, b)
+        if x is None:
             break
-        ang = np.linalg.norm(x[:3])
-        D = np.eye(4)
-        if ang > 0:
-            D[:3, :3] = rotation(x[:3] / ang, ang)
-        D[:3, 3] = x[3:]
-        T = D @ T
-        if ang < CONVERGED_ROT and np.linalg.norm(x[3:]) < CONVERGED_TRANS:
+        T = twist_to_transform(x) @ T
+        if np.linalg.norm(x[:3]) < CONVERGED_ROT and np.linalg.norm(x[3:]) < CONVERGED_TRANS:
             break
-    good, q, t, n, uv = associate(sp, sn, tgt, T, gate)
-    r = np.sum(n[good] * (q[good] - t[good]), axis=1)
-    rmse = float(np.sqrt(np.mean(r**2))) if len(r) else float("inf")
-    H, W = tgt.color_valid.shape
-    uvg = uv[good]
-    cu = np.clip(np.rint(uvg[:, 0]).astype(np.int64), 0, W - 1)
-    cv = np.clip(np.rint(uvg[:, 1]).astype(np.int64), 0, H - 1)
-    cok = sc[good] & tgt.color_valid[cv, cu]
-    crmse = float("nan")
-    if cok.sum() > 0:
-        rc = _bilinear(tgt.intensity, uvg[cok, 0], uvg[cok, 1]) - si[good][cok]
-        crmse = float(np.sqrt(np.mean(np.minimum(np.abs(rc), COLOR_RMSE_CLIP) ** 2)))
-    return ProjectiveResult(T, float(good.sum()) / max(len(sp), 1), rmse, int(good.sum()), it, info, crmse)
+    fitness, rmse, inliers, crmse = alignment_stats(samples, tgt, T, gate)
+    return ProjectiveResult(T, fitness, rmse, inliers, it, info, crmse)

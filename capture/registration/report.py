@@ -70,11 +70,26 @@ def align_gauge(est: list[np.ndarray], gt: list[np.ndarray], gauge: int = 0) -> 
     return [e @ g for e in est]
 
 
-def pose_errors(est: list[np.ndarray], gt: list[np.ndarray], center: np.ndarray, gauge: int = 0) -> dict:
+def fit_gauge(poses: list[np.ndarray], ref: list, mask: list[bool]) -> list[np.ndarray]:
+    """Right-multiply ``poses`` (cam_from_world) by the rigid G that best maps them onto the
+    reference poses where both exist (chordal mean of the rotations, mean of the translations)."""
+    Gs = [invert_rigid(p) @ r for p, r, m in zip(poses, ref, mask) if m and r is not None]
+    if not Gs:
+        return poses
+    U, _, Vt = np.linalg.svd(sum(G[:3, :3] for G in Gs))
+    G = np.eye(4)
+    G[:3, :3] = U @ np.diag([1, 1, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+    G[:3, 3] = np.mean([g[:3, 3] for g in Gs], axis=0)
+    return [p @ G for p in poses]
+
+
+def pose_errors(est: list[np.ndarray], gt: list[np.ndarray], center: np.ndarray, gauge: int | None = 0) -> dict:
     """Rotation (degrees) and translation (metres) errors of ``cam_from_world`` poses after aligning
-    the gauge scan.  Translation error = how far the object centre lands from where ground truth puts
-    it in camera coordinates (independent of the camera distance, unlike camera-centre error)."""
-    al = align_gauge(est, gt, gauge)
+    the gauge scan (``gauge`` index, left out of the figures), or, with ``gauge=None``, after the
+    rigid transform that best fits all poses to the truth (``fit_gauge``).  Translation error = how
+    far the object centre lands from where ground truth puts it in camera coordinates (independent
+    of the camera distance, unlike camera-centre error)."""
+    al = fit_gauge(est, gt, [True] * len(est)) if gauge is None else align_gauge(est, gt, gauge)
     rot, trans = [], []
     for i, (e, t) in enumerate(zip(al, gt)):
         if i == gauge:
@@ -120,6 +135,12 @@ class ScanRecord:
     max_residual_deg: float = float("nan")
     max_residual_m: float = float("nan")
     pairs_ok: int = 0
+    evidence: list = field(default_factory=list)
+    """What placed it: any of "geometry", "colour", "silhouette", "features", "board"."""
+    residuals: dict = field(default_factory=dict)
+    """Per evidence: its residual figures against the scan's neighbours."""
+    angle_sigma_deg: float = float("nan")
+    """Turntable rig: standard deviation of its angle (degrees) from the inverse information."""
 
 
 @dataclass
@@ -131,6 +152,10 @@ class RegistrationReport:
     gauge: str
     object_size_m: float
     thresholds: dict
+    rig: str = "free"
+    """"free" (a pose per scan) or "turntable" (one axis, one angle per scan)."""
+    rig_detection: str = ""
+    """What the nominal poses say about a turntable (``turntable.fit_turntable``)."""
     scans: list[ScanRecord] = field(default_factory=list)
     pairs: list[PairRecord] = field(default_factory=list)
     seconds: dict = field(default_factory=dict)

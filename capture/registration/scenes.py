@@ -134,3 +134,69 @@ def board_set(cameras: list[Camera], spec=None, with_object: bool = True) -> Sca
 
     scans = [raycast_scan(V, F, cam, None, name=cam.name, texture_fn=tex) for cam in cameras]
     return ScanSet(tuple(scans), bounds_from_points(V[4:] if with_object else V, margin=0.02), {"board": str(spec)})
+
+
+# ------------------------------------------------------------------ sensor traits (issue 16)
+#: Metres per unit of a consumer RGB-D sensor's 16-bit depth (RealSense, Kinect, Azure Kinect: mm).
+SENSOR_UNIT_M = 1e-3
+#: z^2 noise: sigma = k z^2 with k in metres at 1 m (structured light / active stereo; about
+#: 1 mm at 0.7 m, the order of a RealSense D4xx at that range).
+SENSOR_SIGMA_AT_1M = 0.002
+#: Fraction of the pixels on a depth edge (a 4-neighbour further by more than
+#: ``SENSOR_EDGE_FRAC`` of depth, or empty) that become flying pixels.
+SENSOR_FLYING_FRACTION = 0.5
+#: A depth step larger than this fraction of depth between 4-neighbours is a depth edge.
+SENSOR_EDGE_FRAC = 0.05
+#: A flying pixel next to empty space trails up to this fraction of its depth behind the surface.
+SENSOR_FLYING_TAIL = 0.15
+
+
+def sensor_depth(depth: np.ndarray, rng: np.random.Generator, unit: float = SENSOR_UNIT_M,
+                 sigma_at_1m: float = SENSOR_SIGMA_AT_1M, flying: float = SENSOR_FLYING_FRACTION) -> np.ndarray:
+    """Exact z-depth (H, W) metres -> what a consumer RGB-D sensor delivers (H, W) float32 metres.
+
+    In order: flying pixels (a random ``flying`` fraction of the pixels on either side of a
+    depth edge takes a depth uniformly between the near and the far side; next to empty space
+    the far side is ``SENSOR_FLYING_TAIL`` of the depth behind, and empty pixels next to the
+    surface can gain such a sample too), z^2 Gaussian noise, then quantisation to ``unit``
+    (the 16-bit integer a sensor writes; 0 = no data).  ``unit`` <= 0 skips the quantisation.
+    """
+    d = np.asarray(depth, dtype=np.float64)
+    valid = d > 0
+    near = np.where(valid, d, np.inf)
+    far = np.where(valid, d, 0.0)
+    nb_min = np.full(d.shape, np.inf)
+    nb_max = np.zeros(d.shape)
+    empty_nb = np.zeros(d.shape, bool)
+    H, W = d.shape
+    pn, pf = np.pad(near, 1, constant_values=np.inf), np.pad(far, 1)
+    pv = np.pad(valid, 1, constant_values=True)  # beyond the image is not empty space
+    for dy, dx in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        sl = (slice(1 + dy, 1 + dy + H), slice(1 + dx, 1 + dx + W))
+        nb_min = np.minimum(nb_min, pn[sl])
+        nb_max = np.maximum(nb_max, pf[sl])
+        empty_nb |= ~pv[sl]
+    lo = np.where(valid, np.minimum(d, nb_min), nb_min)
+    hi = np.where(valid, np.maximum(d, nb_max), 0.0)
+    step = valid & (hi - lo > SENSOR_EDGE_FRAC * lo)
+    rim = valid & empty_nb
+    outside = ~valid & np.isfinite(nb_min)
+    edge = step | rim | outside
+    hi = np.where(rim | outside, np.maximum(hi, lo * (1 + SENSOR_FLYING_TAIL)), hi)
+    fly = edge & (rng.uniform(size=d.shape) < flying)
+    lo_f = np.where(np.isfinite(lo), lo, 0.0)
+    out = np.where(fly, lo_f + rng.uniform(size=d.shape) * (hi - lo_f), d)
+    has = out > 0
+    out = np.where(has, out + rng.standard_normal(d.shape) * sigma_at_1m * out**2, 0.0)
+    if unit > 0:
+        out = np.rint(out / unit) * unit
+    return np.where(has & (out > 0), out, 0.0).astype(np.float32)
+
+
+def with_sensor(scanset: ScanSet, seed: int = 0, **kw) -> ScanSet:
+    """The scan set with :func:`sensor_depth` applied to every scan (seeded per scan)."""
+    from capture.scan import Scan
+
+    scans = tuple(Scan(s.rgb, sensor_depth(s.depth, np.random.default_rng([seed, k]), **kw), s.camera, s.name)
+                  for k, s in enumerate(scanset.scans))
+    return ScanSet(scans, scanset.bounds, {**scanset.metadata, "sensor": {"seed": seed, **kw}})

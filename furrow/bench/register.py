@@ -14,9 +14,18 @@ direction, seeded):
 * ``sfm``: the analytic object with a feature-rich solid texture, 36 views at 320x240 (SfM needs
   a short baseline; used for the ``colmap`` method).
 
+* ``plant`` / ``torus`` / ``furball`` with ``--data DIR``: 36-view 640x480 captures written once
+  by ``furrow synth NAME -o DIR/NAME --depth-format exr`` (made when missing), given a consumer
+  sensor's traits in memory (``--sensor mm``, the default: flying pixels on depth edges, z^2
+  noise, 16-bit millimetre quantisation; ``capture.registration.scenes.sensor_depth``).
+
+``--rigs free,turntable``: the per-scan-pose registration and the turntable prior
+(``turntable_solve``), each on the same perturbed poses.
+
 Errors (``capture.registration.report.pose_errors``): rotation of cam_from_world and
-displacement of the object centre in camera coordinates, after aligning the gauge (first scan),
-over the registered views; flagged views are counted, not scored.
+displacement of the object centre in camera coordinates (mm and % of the object size), after the
+rigid transform that best fits all placed poses to the truth, over the placed views; flagged
+views are counted, not scored.
 """
 
 from __future__ import annotations
@@ -33,10 +42,29 @@ from furrow.bench import OUT_ROOT
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 
-import numpy as np  # noqa: E402
 
 SCENES = ("control", "torus", "plant", "furball", "face", "sfm", "furball-board", "plant-board", "torus-board")
+RIGS = ("free", "turntable")
 METHODS = ("icp", "icp-geom", "colmap", "board")
+
+
+def load_data_scene(name: str, data: Path, views: int, width: int, sensor: str):
+    """A ``furrow synth`` capture under ``data``/NAME (written when missing, exact EXR depth), with
+    the sensor's traits applied: (ScanSet with true poses, true cam_from_world)."""
+    import subprocess
+
+    from capture import io as cio
+    from capture.registration import scenes
+
+    folder = data / name
+    if not (folder / "transforms.json").is_file():
+        height = width * 3 // 4
+        subprocess.run([sys.executable, "-m", "furrow", "synth", name, "-o", str(folder), "--views", str(views),
+                        "--size", f"{width}x{height}", "--depth-format", "exr"], check=True)
+    ss = cio.read_scanset(folder)
+    if sensor == "mm":
+        ss = scenes.with_sensor(ss, seed=0)
+    return ss, [s.camera.cam_from_world for s in ss.scans]
 
 
 def load_scene(name: str, views: int, width: int):
@@ -96,8 +124,20 @@ def with_poses(ss, poses):
                               s.name) for s, p in zip(ss.scans, poses)), ss.bounds, ss.metadata)
 
 
-def run_one(ss, gt, method: str, deg: float, seed: int) -> dict:
-    from capture.registration import icp, perturb, pipeline, report
+def _register(inp, method: str, rig: str, ss):
+    from capture.registration import icp, pipeline
+
+    if method == "icp-geom":
+        return pipeline.register(inp, "icp", "nominal", icp.IcpConfig(color_scale_frac=0.0), rig=rig)
+    if method == "board":
+        return pipeline.register(inp, "board", "nominal", board=ss.metadata.get("board_spec"), rig=rig)
+    if method not in ("icp", "colmap"):
+        raise ValueError(method)
+    return pipeline.register(inp, method, "nominal", rig=rig)
+
+
+def run_one(ss, gt, method: str, deg: float, seed: int, rig: str = "free") -> dict:
+    from capture.registration import perturb, report
 
     c = ss.bounds.mean(axis=0)
     size = ss.size
@@ -105,29 +145,26 @@ def run_one(ss, gt, method: str, deg: float, seed: int) -> dict:
     inp = with_poses(ss, pert)
     t0 = time.perf_counter()
     try:
-        if method == "icp":
-            _, rep, poses = pipeline.register(inp, "icp", "nominal")
-        elif method == "icp-geom":
-            _, rep, poses = pipeline.register(inp, "icp", "nominal", icp.IcpConfig(color_scale_frac=0.0))
-        elif method == "colmap":
-            _, rep, poses = pipeline.register(inp, "colmap", "nominal")
-        elif method == "board":
-            _, rep, poses = pipeline.register(inp, "board", "nominal", board=ss.metadata.get("board_spec"))
-        else:
-            raise ValueError(method)
+        _, rep, poses = _register(inp, method, rig, ss)
     except Exception as e:  # a method that cannot run on a scene is reported, not hidden
-        return {"method": method, "perturb_deg": deg, "failed": f"{type(e).__name__}: {e}",
+        return {"method": method, "rig": rig, "perturb_deg": deg, "failed": f"{type(e).__name__}: {e}",
                 "seconds": time.perf_counter() - t0}
     secs = time.perf_counter() - t0
     reg = [s.registered for s in rep.scans]
     idx = [k for k in range(len(gt)) if reg[k]]
-    e = report.pose_errors([poses[k] for k in idx], [gt[k] for k in idx], c) if len(idx) > 1 else None
-    b = report.pose_errors(pert, gt, c)
-    out = {"method": method, "perturb_deg": deg, "perturb_frac": deg / 100, "seconds": secs,
+    e = report.pose_errors([poses[k] for k in idx], [gt[k] for k in idx], c, gauge=None) if len(idx) > 1 else None
+    b = report.pose_errors(pert, gt, c, gauge=None)
+    evidence: dict = {}
+    for s in rep.scans:
+        for ev in s.evidence:
+            evidence[ev] = evidence.get(ev, 0) + 1
+    out = {"method": method, "rig": rep.rig, "perturb_deg": deg, "perturb_frac": deg / 100, "seconds": secs,
            "n_views": len(gt), "n_registered": len(idx), "flagged": rep.flagged, "size_m": size,
+           "evidence_counts": evidence, "rig_detection": rep.rig_detection,
            "before_rot_median_deg": b["rot_median_deg"], "before_trans_median_frac": b["trans_median_m"] / size}
     if e is not None:
         out.update({"rot_median_deg": e["rot_median_deg"], "rot_max_deg": e["rot_max_deg"],
+                    "trans_median_mm": 1000 * e["trans_median_m"], "trans_max_mm": 1000 * e["trans_max_m"],
                     "trans_median_frac": e["trans_median_m"] / size, "trans_max_frac": e["trans_max_m"] / size})
     return out
 
@@ -152,56 +189,123 @@ def sfm_only(ss, gt, seed: int) -> dict:
             "reprojection_px": r.reprojection_px, "scale_umeyama": r.scale, "scale_depth_ratio": r.depth_ratio_scale}
 
 
-def main(argv: list[str] | None = None) -> int:
+DATA_SCENES = ("plant", "torus", "furball")
+
+
+def _args(argv):
     ap = argparse.ArgumentParser(prog="furrow bench register", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenes", default="control,torus,plant,furball,face", help=f"comma list of {SCENES}")
-    ap.add_argument("--methods", default="icp,icp-geom", help=f"comma list of {METHODS}")
+    ap.add_argument("--scenes", default="plant,torus,furball", help=f"comma list of {SCENES}")
+    ap.add_argument("--methods", default="icp", help=f"comma list of {METHODS}")
+    ap.add_argument("--rigs", default="free,turntable", help=f"comma list of {RIGS}")
     ap.add_argument("--perturb", default="2,5,10", help="rotation degrees (translation = same number in %% of size)")
-    ap.add_argument("--views", type=int, default=12)
-    ap.add_argument("--width", type=int, default=160)
+    ap.add_argument("--views", type=int, default=36)
+    ap.add_argument("--width", type=int, default=640)
+    ap.add_argument("--data", type=Path, default=ROOT / "out" / "data",
+                    help="folder of the plant/torus/furball captures (DIR/NAME, written when missing)")
+    ap.add_argument("--sensor", choices=["mm", "exact"], default="mm",
+                    help="give the captures a consumer sensor's traits (mm) or keep exact depth")
+    ap.add_argument("--frames", default=None, help="use these views of the data captures, e.g. 0::2")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--resume", action="store_true", help="keep the rows of an earlier register.json, run the rest")
     ap.add_argument("--sfm", action="store_true", help="also run SfM alone on every scene (5 degrees)")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "register")
     ap.add_argument("--json", action="store_true")
-    args = ap.parse_args(argv)
-    rows = []
+    return ap.parse_args(argv)
+
+
+def _key(r: dict) -> tuple:
+    return (r["scene"], r["method"], r.get("rig", "free"), float(r["perturb_deg"]))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _args(argv)
+    path = args.out / "register.json"
+    rows = json.loads(path.read_text()) if args.resume and path.is_file() else []
+    done = {_key(r) for r in rows if "failed" not in r}
     degs = [float(x) for x in args.perturb.split(",") if x]
+    args.out.mkdir(parents=True, exist_ok=True)
     for scene in [s for s in args.scenes.split(",") if s]:
         if scene not in SCENES:
             raise SystemExit(f"unknown scene {scene!r}; choose from {SCENES}")
         t0 = time.perf_counter()
-        ss, gt = load_scene(scene, args.views, args.width)
+        if scene in DATA_SCENES and args.width >= 320:
+            ss, gt = load_data_scene(scene, args.data, args.views, args.width, args.sensor)
+            if args.frames:
+                ss = ss.select(args.frames)
+                gt = [s.camera.cam_from_world for s in ss.scans]
+        else:
+            ss, gt = load_scene(scene, args.views, args.width)
         load_s = time.perf_counter() - t0
         for m in [m for m in args.methods.split(",") if m]:
-            for d in degs:
-                r = run_one(ss, gt, m, d, args.seed)
-                r.update(scene=scene, load_seconds=load_s)
-                rows.append(r)
-                if not args.json:
-                    print(_fmt(r), flush=True)
+            for rig in [r for r in args.rigs.split(",") if r]:
+                for d in degs:
+                    if (scene, m, rig, d) in done:
+                        continue
+                    r = run_one(ss, gt, m, d, args.seed, rig)
+                    r.update(scene=scene, rig=rig, load_seconds=load_s, sensor=args.sensor, width=ss.scans[0].camera.width)
+                    rows = [x for x in rows if _key(x) != _key(r)] + [r]
+                    path.write_text(json.dumps(rows, indent=1))
+                    if not args.json:
+                        print(_fmt(r), flush=True)
         if args.sfm:
             r = sfm_only(ss, gt, args.seed)
             r.update(scene=scene)
             rows.append(r)
             if not args.json:
                 print(_fmt(r), flush=True)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "register.json").write_text(json.dumps(rows, indent=1))
+    path.write_text(json.dumps(rows, indent=1))
+    plot(rows, args.out / "register.png")
     if args.json:
         print(json.dumps(rows, indent=1))
     return 0
 
 
+def plot(rows: list[dict], path: Path) -> None:
+    """Median (solid) and max (dashed) rotation error against the perturbation, per scene, one
+    colour per rig; the number of placed views is written at each point."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in rows if "rot_median_deg" in r and "rig" in r]
+    scenes = sorted({r["scene"] for r in rows})
+    if not scenes:
+        return
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 3.6), squeeze=False)
+    for ax, sc in zip(axes[0], scenes):
+        for rig, col in zip(RIGS, ("tab:blue", "tab:orange")):
+            rr = sorted([r for r in rows if r["scene"] == sc and r["rig"] == rig], key=lambda r: r["perturb_deg"])
+            if not rr:
+                continue
+            x = [r["perturb_deg"] for r in rr]
+            ax.plot(x, [r["rot_median_deg"] for r in rr], "o-", color=col, label=f"{rig} median")
+            ax.plot(x, [r["rot_max_deg"] for r in rr], "s--", color=col, alpha=0.6, label=f"{rig} max")
+            for r in rr:
+                ax.annotate(f"{r['n_registered']}/{r['n_views']}", (r["perturb_deg"], r["rot_median_deg"]),
+                            fontsize=7, color=col, textcoords="offset points", xytext=(3, -9))
+        ax.set_yscale("log")
+        ax.set_title(sc)
+        ax.set_xlabel("perturbation (deg and % of size)")
+        ax.set_ylabel("rotation error after registration (deg)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def _fmt(r: dict) -> str:
-    head = f"{r['scene']:8s} {r['method']:9s} {r['perturb_deg']:4.0f}deg"
+    head = f"{r['scene']:8s} {r['method']:9s} {r.get('rig', 'free'):9s} {r['perturb_deg']:4.0f}deg"
     if "failed" in r:
         return f"{head}  FAILED ({r['failed']})  {r['seconds']:.1f}s"
     if "rot_median_deg" not in r:
         return f"{head}  registered {r['n_registered']}/{r['n_views']}  {r['seconds']:.1f}s"
     return (f"{head}  rot med {r['rot_median_deg']:.4f} max {r['rot_max_deg']:.4f} deg   "
-            f"trans med {100 * r['trans_median_frac']:.4f} max {100 * r['trans_max_frac']:.4f} %size   "
-            f"reg {r['n_registered']}/{r['n_views']}  {r['seconds']:.1f}s")
+            f"trans med {r['trans_median_mm']:.3f} mm ({100 * r['trans_median_frac']:.3f} %) "
+            f"max {r['trans_max_mm']:.3f} mm ({100 * r['trans_max_frac']:.3f} %)   "
+            f"placed {r['n_registered']}/{r['n_views']}  {r['seconds']:.0f}s")
 
 
 if __name__ == "__main__":

@@ -32,6 +32,11 @@ def test_cli_register_writes_new_set_and_flags_impostor(tmp_path):
     rep = json.loads((out / "registration.json").read_text())
     assert [Path(f).stem for f in rep["flagged"]] == ["view005"], rep["flagged"]
     assert rep["n_registered"] == 7 and set(rep["thresholds"]) >= {"MIN_FITNESS", "MAX_EDGE_RESIDUAL_DEG"}
+    # rig auto: the ring is a turntable; every placed scan says what placed it and with what residual
+    assert rep["rig"] == "turntable" and "one circle" in rep["rig_detection"]
+    for s in rep["scans"]:
+        assert bool(s["evidence"]) == s["registered"] and (s["registered"] or s["reason"])
+        assert not s["registered"] or "geometry" in s["residuals"]
     got = cio.read_scanset(out)
     assert len(got.scans) == 7
     keep = [k for k in range(8) if k != 5]
