@@ -5,7 +5,9 @@ transforms.json (DESIGN.md "Scan format on disk"): per frame ``file_path``,
 ``fl_x fl_y cx cy w h`` globally or per frame, with pixel centres at i + 0.5 (the reader
 subtracts 0.5, the writer adds it back: all conversions live in ``capture.camera``);
 ``depth_unit_scale_factor`` = metres per stored depth unit (16-bit PNG in mm: 0.001),
-globally or per frame.  Float EXR depth is in metres when no factor is given; a 16-bit PNG
+globally or per frame (read both ways; written once, at the top level, as nerfstudio's
+dataparser takes the scale from its own ``--depth-unit-scale-factor`` option, default 1e-3, and
+ignores per-frame keys: furrow's default millimetre PNG opens there at the right depth).  Float EXR depth is in metres when no factor is given; a 16-bit PNG
 without a factor is an error (unknown units).  Depth is z-depth, 0 = no measurement.
 furrow adds an optional ``furrow`` block: ``{"bounds": [[x,y,z],[x,y,z]], "metadata": {...}}``.
 
@@ -34,11 +36,17 @@ DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 AUTO_BOUNDS_PERCENTILES = (0.5, 99.5)
 #: Margin added around automatic bounds, as a fraction of their diagonal.
 AUTO_BOUNDS_MARGIN = 0.05
-#: Default 16-bit PNG depth unit written by furrow: millimetres.
+#: Default 16-bit PNG depth unit written by furrow: millimetres (RGB-D sensors' z16 unit, and
+#: nerfstudio's default ``--depth-unit-scale-factor``).
 DEFAULT_PNG_DEPTH_UNIT = 0.001
+#: Depth formats of the writers: name -> (file extension, metres per stored unit; None = the
+#: ``png_depth_unit`` argument).  ``png``: 16-bit millimetres (default, range 65.5 m);
+#: ``png-0.1mm``: 16-bit tenths of a millimetre (range 6.5 m, 0.03 mm RMS quantisation);
+#: ``exr``: float32 metres (unit 1).
+DEPTH_FORMATS = {"png": ("png", None), "png-0.1mm": ("png", 1e-4), "exr": ("exr", 1.0)}
 
 __all__ = ["ScanIOError", "read_scanset", "read_cameras", "write_transforms", "write_plain_folder",
-           "FrameCamera", "resolve_transforms"]
+           "FrameCamera", "resolve_transforms", "DEPTH_FORMATS", "depth_format_spec"]
 
 
 @dataclass(frozen=True)
@@ -286,9 +294,21 @@ def atomic_folder(target: Path, overwrite: bool = False):
     return atomic_dir(target)
 
 
-def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, depth_format: str, unit: float) -> None:
+def depth_format_spec(depth_format: str, png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT) -> tuple[str, float]:
+    """(file extension, metres per stored unit) of a :data:`DEPTH_FORMATS` name; ``png_depth_unit``
+    is the unit of plain ``png``.  ValueError naming the choices otherwise."""
+    if depth_format not in DEPTH_FORMATS:
+        raise ValueError(f"depth_format must be one of {', '.join(DEPTH_FORMATS)}, got {depth_format!r}")
+    ext, unit = DEPTH_FORMATS[depth_format]
+    unit = float(png_depth_unit) if unit is None else unit
+    if not (np.isfinite(unit) and unit > 0):
+        raise ValueError(f"PNG depth unit must be a positive number of metres, got {unit}")
+    return ext, unit
+
+
+def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, ext: str, unit: float) -> None:
     write_png(rgb_path, scan.srgb8)
-    if depth_format == "png":
+    if ext == "png":
         write_png(depth_path, depth_to_uint16(scan.depth, unit, str(depth_path)))
     else:
         write_exr(depth_path, scan.depth)
@@ -299,11 +319,12 @@ def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
                      extra_files: dict[str, bytes] | None = None, progress=None) -> Path:
     """Write ``out_dir/transforms.json`` + ``images/`` + ``depth/`` atomically; returns the json path.
 
-    ``depth_format``: ``"png"`` (16-bit, ``png_depth_unit`` metres per unit) or ``"exr"`` (float
-    metres).  ``extra_files``: relative path -> bytes written inside the same atomic folder.
+    ``depth_format``: a :data:`DEPTH_FORMATS` name -- ``"png"`` (16-bit, ``png_depth_unit`` metres
+    per unit, millimetres by default), ``"png-0.1mm"`` or ``"exr"`` (float metres).  The unit is
+    written once, as the top-level ``depth_unit_scale_factor`` (module docstring).
+    ``extra_files``: relative path -> bytes written inside the same atomic folder.
     """
-    if depth_format not in ("png", "exr"):
-        raise ValueError(f"depth_format must be 'png' or 'exr', got {depth_format!r}")
+    ext, unit = depth_format_spec(depth_format, png_depth_unit)
     out_dir = Path(out_dir)
     with atomic_folder(out_dir, overwrite) as tmp:
         frames = []
@@ -311,13 +332,10 @@ def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
         for i, s in (progress(items, "writing scans") if progress else items):
             stem = Path(s.name).stem if s.name else f"frame_{i:04d}"
             rel_rgb = f"images/{stem}.png"
-            rel_depth = f"depth/{stem}.{depth_format}"
-            _write_images(s, tmp / rel_rgb, tmp / rel_depth, depth_format, png_depth_unit)
-            ns = s.camera.to_nerfstudio()
-            frame = {"file_path": rel_rgb, "depth_file_path": rel_depth, **ns}
-            frame["depth_unit_scale_factor"] = png_depth_unit if depth_format == "png" else 1.0
-            frames.append(frame)
-        meta = {"camera_model": "PINHOLE", "frames": frames,
+            rel_depth = f"depth/{stem}.{ext}"
+            _write_images(s, tmp / rel_rgb, tmp / rel_depth, ext, unit)
+            frames.append({"file_path": rel_rgb, "depth_file_path": rel_depth, **s.camera.to_nerfstudio()})
+        meta = {"camera_model": "PINHOLE", "depth_unit_scale_factor": unit, "frames": frames,
                 "furrow": {"bounds": np.asarray(scanset.bounds).tolist(),
                            "metadata": jsonable(scanset.metadata)}}
         (tmp / TRANSFORMS).write_text(json.dumps(meta, indent=1))
@@ -333,8 +351,8 @@ def write_plain_folder(scanset: ScanSet, out_dir: Path, depth_format: str = "exr
     with atomic_folder(out_dir, overwrite) as tmp:
         for i, s in enumerate(scanset.scans):
             stem = Path(s.name).stem if s.name else f"frame_{i:04d}"
-            unit = DEFAULT_PNG_DEPTH_UNIT if depth_format == "png" else 1.0
-            _write_images(s, tmp / "rgb" / f"{stem}.png", tmp / "depth" / f"{stem}.{depth_format}", depth_format, unit)
+            ext, unit = depth_format_spec(depth_format)
+            _write_images(s, tmp / "rgb" / f"{stem}.png", tmp / "depth" / f"{stem}.{ext}", ext, unit)
             cam = {"K": s.camera.K.tolist(), "cam_from_world": s.camera.cam_from_world.tolist(),
                    "width": s.camera.width, "height": s.camera.height, "depth_unit_scale_factor": unit}
             (tmp / "cameras").mkdir(exist_ok=True)

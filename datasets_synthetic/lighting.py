@@ -48,7 +48,13 @@ class LightingConfig:
     shininess: float = 40.0
     """Blinn-Phong exponent of surfaces."""
     hair_shininess: float = 60.0
-    """Kajiya-Kay exponent of strands."""
+    """Kajiya-Kay exponent of strands (``hair_model`` "kajiya-kay")."""
+    hair_model: str = "chiang"
+    """Strand shading: "chiang" (R / TT / TRT lobes, ``datasets_synthetic.hair_shading``) or
+    "kajiya-kay" (the rasteriser's lobe, the generator before 2026-12)."""
+    hair_env_lights: int = 32
+    """Directional lights (median cut, a power of two) standing for the map minus its dominant
+    lights in the "chiang" hair shading."""
     shadows: bool = True
     """Shadow maps for the dominant lights."""
 
@@ -57,6 +63,11 @@ class LightingConfig:
             raise ValueError(f"lighting: lights must be in [0, {MAX_LIGHTS}], got {self.lights}")
         if self.key <= 0:
             raise ValueError(f"lighting: key must be > 0, got {self.key}")
+        if self.hair_model not in ("chiang", "kajiya-kay"):
+            raise ValueError(f"lighting: hair_model must be 'chiang' or 'kajiya-kay', got {self.hair_model!r}")
+        n = self.hair_env_lights
+        if n < 1 or n & (n - 1):
+            raise ValueError(f"lighting: hair_env_lights must be a power of two, got {n}")
 
 
 def resolve_env(name_or_path: str) -> EnvMap:

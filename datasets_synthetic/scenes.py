@@ -7,6 +7,8 @@ at the origin, 0.15-0.3 m across).
 * ``plant``: a terracotta pot with soil, a stem, branches carrying many thin needles in whorls,
   and a few flat (two-sided) leaves on petioles.
 * ``torus``: the smooth control object (tilted, painted with a smooth pattern).
+* ``furrybunny``: fur grown on a real scanned surface (the Stanford Bunny from pymeshlab's test
+  data; ``datasets_synthetic.scanned``, where its licence is noted).
 
 A scene is a :class:`Scene`: the :class:`render.raster.RasterMesh` that is both rendered and
 written as ``gt/mesh.ply``, plus its parameters and statistics (``gt/scene.json``).  The same
@@ -22,6 +24,7 @@ import numpy as np
 from capture.rotations import rotation
 from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, torus,
                                          transformed, tube_sweep)
+from datasets_synthetic.scanned import FurryBunnyParams, build_furrybunny
 from render.raster import RasterMesh, face_normals
 
 #: Golden angle (radians): azimuth step of branches and needle whorls.
@@ -59,8 +62,8 @@ class FurballParams:
 
     body_axes: tuple[float, float, float] = (0.075, 0.062, 0.052)
     """Semi-axes of the ellipsoidal body."""
-    strands: int = 14000
-    """Number of strands (thin tubes)."""
+    strands: int = 20000
+    """Number of strands (thin tubes); 20,000 like the path-traced evaluation fur ball (issue 11)."""
     length: float = 0.030
     """Mean strand length."""
     length_jitter: float = 0.3
@@ -172,13 +175,14 @@ class PlantParams:
     """Height of the stem above the soil."""
     stem_radius: float = 0.0032
     """Stem radius at the soil (tapers to 40% at the top)."""
-    branches: int = 14
+    branches: int = 20
     """Number of needle-bearing branches."""
     branch_length: tuple[float, float] = (0.06, 0.11)
     """Range of branch lengths."""
-    needle_spacing: float = 0.0016
-    """Distance between needle whorls along a branch."""
-    needles_per_whorl: int = 5
+    needle_spacing: float = 0.00115
+    """Distance between needle whorls along a branch (with 20 branches and 6 needles a whorl about
+    6,100-6,300 needles, like the 6,400 needle curves of the path-traced evaluation conifer)."""
+    needles_per_whorl: int = 6
     """Needles in one whorl."""
     needle_length: tuple[float, float] = (0.010, 0.017)
     """Range of needle lengths."""
@@ -371,7 +375,7 @@ def build_torus(seed: int = 0, p: TorusParams = TorusParams()) -> Scene:
 
 #: Scene name -> (builder(seed, params), parameter dataclass).
 SCENES = {"furball": (build_furball, FurballParams), "plant": (build_plant, PlantParams),
-          "torus": (build_torus, TorusParams)}
+          "torus": (build_torus, TorusParams), "furrybunny": (build_furrybunny, FurryBunnyParams)}
 
 
 def build_scene(name: str, seed: int = 0, **overrides) -> Scene:

@@ -4,7 +4,10 @@ On disk (DESIGN.md "Scan format on disk", written by ``capture.io.write_transfor
 ``transforms.json``, ``images/``, ``depth/`` and ``gt/`` with ``gt/mesh.ply`` (exact geometry,
 world metres, +z up), ``gt/scene.json`` (name, seed, bounds, parameters, counts, rig, lighting,
 noise) and, when the poses were perturbed, ``gt/cameras_true.json`` (the unperturbed poses in
-the nerfstudio frame format).  Colour images are rendered with the *true* poses; only the
+the nerfstudio frame format).  Relighting ground truth (``datasets_synthetic.relight``) adds
+``relit/<map>/transforms.json``, ``relit/<map>/images/<name>.png`` (every view rendered again
+under <map> with the same scene, cameras and exposure; depth shared with the capture's depth/)
+and ``relit/<map>/lighting.json``.  Colour images are rendered with the *true* poses; only the
 recorded poses carry the pose noise.
 """
 
@@ -18,23 +21,22 @@ from typing import Callable
 import numpy as np
 
 from capture.camera import Camera
-from capture.io import write_transforms
+from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
 from capture.scan import Scan, ScanSet
 from datasets_synthetic.geometry import ply_bytes
-from datasets_synthetic.lighting import LightingConfig, background, resolve_env, scene_lighting
+from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
+from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
+from datasets_synthetic.pixel_filter import path_tracer_filter
 from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes)
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
+from datasets_synthetic.sensor import SENSORS, SensorModel, apply_sensor
 from render.raster import MeshRasterizer
 
 #: Margin added around the scene's tight bounds for the ScanSet bounds (fraction of the diagonal).
 BOUNDS_MARGIN = 0.05
 #: Reference image width for the hole radii of NoiseConfig (radii scale with width / this).
 HOLE_RADIUS_REF_WIDTH = 640
-#: Metres per unit of the 16-bit PNG depth written by default: 0.1 mm (range 6.5 m), so that the
-#: quantisation (0.03 mm RMS) stays far below a quarter pixel footprint even at 640x480
-#: (about 0.2 mm); 1 mm units would not (0.29 mm RMS).  Recorded as depth_unit_scale_factor.
-PNG_DEPTH_UNIT = 1e-4
 #: The CI-sized capture of ``--small``.
 SMALL_RIG = TurntableRig(views_per_ring=12, width=160, height=120)
 
@@ -53,6 +55,9 @@ class SynthConfig:
     """Environment lighting."""
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     """Noise models (default: none)."""
+    sensor: SensorModel = field(default_factory=lambda: SENSORS["ideal"])
+    """Depth-sensor traits applied after ``noise`` (``datasets_synthetic.sensor``; default exact
+    float depth; ``furrow synth`` defaults to the ``d435`` preset)."""
     supersample: int = 3
     """Colour supersampling factor (per axis); thin strands alias badly without it."""
     background: str = "black"
@@ -61,12 +66,18 @@ class SynthConfig:
     """Overrides of the scene's parameter dataclass (e.g. ``{"strands": 5000}``)."""
     views: tuple[int, ...] | None = None
     """Render only these indices of the rig's views (None = all); noise seeds follow the index."""
+    pixel_filter_px: float = 0.0
+    """Film filter of the colour: a Gaussian of this standard deviation in total, like a path
+    tracer's (``datasets_synthetic.pixel_filter``; ``furrow synth`` defaults to 0.5); 0 = the
+    rasteriser's 1-pixel box."""
 
     def __post_init__(self) -> None:
         if self.background not in ("env", "black"):
             raise ValueError(f"background must be 'env' or 'black', got {self.background!r}")
         if self.supersample < 1:
             raise ValueError(f"supersample must be >= 1, got {self.supersample}")
+        if not 0 <= self.pixel_filter_px <= 4:
+            raise ValueError(f"pixel_filter_px must be in [0, 4], got {self.pixel_filter_px}")
 
 
 @dataclass(frozen=True)
@@ -119,17 +130,21 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         if bad:
             raise ValueError(f"views {bad} out of range for a rig of {len(cams)} views")
         views = [views[i] for i in cfg.views]
+    lc = cfg.lighting
     with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
-        rast.set_mesh(scene.mesh)
-        rast.set_lighting(lighting)
+        hair = prepare_hair(rast, scene.mesh, lighting, ambient_residual(env, lc), lc.hair_model, lc.hair_env_lights,
+                            lc.shadows)
         shadow_info = dict(rast.shadow_info)
         for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
+            if hair is not None:
+                rast.set_emission(vertex_emission(hair, cam.center))
             res = rast.render(cam)
             if cfg.background == "env":
                 bg = background(env, cam, lighting.exposure, cfg.lighting.rotation_deg)
                 rgb = res.color + (1.0 - res.alpha[..., None]) * bg
             else:
                 rgb = res.color
+            rgb = path_tracer_filter(rgb, cfg.pixel_filter_px)
             depth = res.depth
             if nz.grazing_deg > 0:
                 depth = grazing_dropout(cam, depth, res.normal, nz.grazing_deg)
@@ -137,6 +152,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
                 depth = random_holes(depth, _view_rng(cfg.seed, i, 1), nz.holes_fraction, radius)
             if nz.depth_sigma_at_1m > 0:
                 depth = depth_noise(depth, _view_rng(cfg.seed, i, 2), nz.depth_sigma_at_1m)
+            depth = apply_sensor(depth, _view_rng(cfg.seed, i, 4), cfg.sensor)
             rec = cam
             if nz.any_pose:
                 rec = perturb_pose(cam, _view_rng(cfg.seed, i, 3), nz.pose_rot_deg, nz.pose_trans_frac * diag)
@@ -148,10 +164,13 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "name": scene.name, "seed": scene.seed, "generator": "furrow datasets_synthetic",
         "units": "metres, world +z up", "bounds": tight.tolist(), "scanset_bounds": bounds.tolist(),
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
-        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "supersample": cfg.supersample,
+        "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(),
+        "supersample": cfg.supersample, "pixel_filter_px": cfg.pixel_filter_px,
         "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
+        "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
     }
-    meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz)}
+    meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
+            "sensor": cfg.sensor.name}
     true_cams = tuple(c for _, c in views)
     return Capture(ScanSet(tuple(scans), bounds, meta), scene, true_cams, np.stack(clean), np.stack(normals), info)
 
@@ -173,9 +192,13 @@ def gt_files(cap: Capture) -> dict[str, bytes]:
 
 def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: bool = False,
                   extra_files: dict[str, bytes] | None = None, progress: Callable | None = None,
-                  png_depth_unit: float = PNG_DEPTH_UNIT) -> Path:
+                  png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT) -> Path:
     """Write the scan set (transforms.json, images/, depth/) and gt/ atomically; returns
-    the transforms.json path.  PNG depth is stored in units of ``png_depth_unit`` metres."""
+    the transforms.json path.  ``depth_format``: a ``capture.io.DEPTH_FORMATS`` name (``png``:
+    16-bit in units of ``png_depth_unit`` metres, millimetres by default; ``png-0.1mm``; ``exr``).
+    ``extra_files`` (relative path -> bytes) go into the same atomic folder, e.g. the relighting
+    ground truth ``relit/<map>/{transforms.json, images/*.png, lighting.json}`` from
+    ``datasets_synthetic.relight.relit_files``."""
     files = gt_files(cap)
     files.update(extra_files or {})
     return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,

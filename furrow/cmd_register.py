@@ -37,7 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default: that board, lying at z = -0.13 m; use --board-z)")
     p.add_argument("--board-z", type=float, default=None, help="height of the board plane in the world (m)")
     p.add_argument("--keep-flagged", action="store_true", help="keep flagged scans (input poses) in the output")
-    p.add_argument("--depth-format", choices=["png", "exr"], default="png")
+    p.add_argument("--depth-format", choices=["png", "png-0.1mm", "exr"], default="png",
+                   help="depth files: png (16-bit millimetres, default), png-0.1mm, or exr (float metres)")
     p.add_argument("--frames", default=None, help="frame selection, python slices: '0::2', '1,4,7'")
     p.add_argument("--json", action="store_true", help="print the registration report as JSON on stdout")
     p.add_argument("--debug", action="store_true", help="show tracebacks")

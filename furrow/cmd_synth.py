@@ -5,20 +5,43 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-HELP = "synthesise a turntable capture of a procedural scene (furball, plant, torus) with exact ground truth"
+HELP = ("synthesise a turntable capture of a procedural scene (furball, plant, torus, furrybunny) with exact "
+        "ground truth")
 DESCRIPTION = """Render a seeded procedural scene from a turntable rig (world +z up, cameras ringing the z axis,
 looking at the origin) under an environment map, and write a scan set: transforms.json,
-images/ (8-bit sRGB), depth/ (z-depth: 16-bit PNG in 0.1 mm units, or float EXR in metres) and gt/
-(gt/mesh.ply exact geometry in metres, gt/scene.json parameters, gt/cameras_true.json when the
-recorded poses are perturbed).
+images/ (8-bit sRGB), depth/ (z-depth as an RGB-D sensor writes it: 16-bit PNG in millimetres, with
+one top-level "depth_unit_scale_factor": 0.001 in transforms.json, as nerfstudio reads it; or
+--depth-format png-0.1mm / exr) and gt/ (gt/mesh.ply exact geometry in metres, gt/scene.json
+parameters, gt/cameras_true.json when the recorded poses are perturbed).
+
+Colour is reconstructed with a Gaussian film filter of --pixel-filter pixels (default 0.5, the
+default of pbrt-v4 and Mitsuba 3), as a path tracer's images are; 0 keeps the 1-pixel box.
+
+The depth carries the traits of a sensor (--sensor, datasets_synthetic/sensor.py): d435 (default;
+Intel RealSense D435 active stereo: z-squared noise 3.6 mm at 1 m, 1 mm output unit, flying pixels
+on 30 % of the depth-edge pixels), kinect-v1 (structured light: 1.4 mm at 1 m, disparity steps of
+2.9 mm at 1 m), or ideal (exact float depth; then only the file format quantises).
+
+Relighting ground truth: --relight-env MAP (repeatable) renders every view again under MAP with
+the same scene, cameras and exposure, into DIR/relit/MAP/images/NAME.png beside
+DIR/relit/MAP/transforms.json (the capture's cameras; depth from the capture's depth/) and
+DIR/relit/MAP/lighting.json (map, exposure, lights, clipped fraction); MAP is a bundled name or a
+file, its folder the name or the file's stem.
+
+Strands (fur, needles) are shaded with the R / TT / TRT lobes of Chiang et al. 2016 under the
+environment's dominant lights and 32 median-cut lights with shadow maps (--hair chiang, default),
+or with the older Kajiya-Kay lobe (--hair kajiya-kay).
 
 scenes: furball  ellipsoidal body with thousands of thin curved strands (real tube geometry)
         plant    pot, stem, branches with many thin needles, a few flat leaves
         torus    smooth control object
+        furrybunny  fur grown on a real scanned surface (the Stanford Bunny that ships in pymeshlab's
+                 test data; licence noted in datasets_synthetic/scanned.py)
 
 examples:
   furrow synth furball -o out/furball_scan --preview
   furrow synth plant -o out/plant_small --small
+  furrow synth furball -o out/furball_relit --relight-env forest --relight-env sunset
   furrow synth torus -o out/torus_noisy --depth-noise 0.002 --holes 0.02 --grazing 75 \\
       --pose-noise-deg 1 --pose-noise-frac 0.01"""
 
@@ -26,6 +49,10 @@ examples:
 SMALL_VIEWS = 12
 SMALL_SIZE = (160, 120)
 SMALL_STRANDS = 5000
+#: --small: median-cut lights of the hair shading (32 at full size; each costs a shadow map).
+SMALL_HAIR_ENV_LIGHTS = 8
+#: Scenes with a --strands parameter.
+FURRY_SCENES = ("furball", "furrybunny")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -46,22 +73,31 @@ def _floats(text: str) -> tuple[float, ...]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("name", help="scene: furball, plant or torus")
+    p.add_argument("name", help="scene: furball, plant, torus or furrybunny")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder (new, or --overwrite)")
     p.add_argument("--views", type=int, default=None, help="number of views (default 36; --small: 12)")
     p.add_argument("--size", type=_size, default=None, help="image size WIDTHxHEIGHT (default 640x480; --small: 160x120)")
     p.add_argument("--seed", type=int, default=0, help="seed of the geometry and of the noise (default 0)")
     p.add_argument("--small", action="store_true", help="CI-sized capture: 12 views at 160x120")
     p.add_argument("--strands", type=int, default=None,
-                   help="furball: number of strands (default 14000; --small: 5000)")
-    p.add_argument("--elevations", type=_floats, default=(25.0,),
-                   help="ring elevations in degrees, comma-separated (views are split evenly; default 25)")
+                   help="furball / furrybunny: number of strands (default 20000; --small: 5000)")
+    p.add_argument("--elevations", type=_floats, default=(15.0,),
+                   help="ring elevations in degrees, comma-separated (views are split evenly; default 15, the "
+                        "rig of the evaluation captures)")
     p.add_argument("--fov", type=float, default=36.0, help="vertical field of view in degrees (default 36)")
     p.add_argument("--env", default="studio",
                    help="environment: studio, courtyard, forest, sunset, procedural, or a .exr/.hdr path")
     p.add_argument("--env-rotation", type=float, default=0.0, help="rotate the environment about +z (degrees)")
+    p.add_argument("--relight-env", action="append", default=[], metavar="MAP",
+                   help="also render every view under MAP (same scene, cameras, exposure) into relit/MAP/ "
+                        "(repeatable; see above)")
+    p.add_argument("--hair", choices=["chiang", "kajiya-kay"], default="chiang",
+                   help="strand shading: chiang (R/TT/TRT lobes, default) or kajiya-kay (the older lobe)")
     p.add_argument("--lights", type=int, default=3, help="dominant lights casting shadows (0-4, default 3)")
     p.add_argument("--supersample", type=int, default=3, help="colour supersampling per axis (default 3)")
+    p.add_argument("--pixel-filter", type=float, default=0.5, metavar="SIGMA",
+                   help="film filter: Gaussian of SIGMA pixels in total, like a path tracer's (default 0.5, "
+                        "pbrt-v4 / Mitsuba 3); 0 = a 1-pixel box")
     p.add_argument("--background", choices=["env", "black"], default="black",
                    help="what is seen behind the object: black (default, like a masked scan and like furrow render's output) or the environment map")
     p.add_argument("--depth-noise", type=float, default=0.0, metavar="K",
@@ -73,10 +109,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pose-noise-deg", type=float, default=0.0, metavar="D", help="RMS rotation error of the recorded poses")
     p.add_argument("--pose-noise-frac", type=float, default=0.0, metavar="F",
                    help="RMS translation error of the recorded poses, fraction of the object size")
-    p.add_argument("--depth-format", choices=["png", "exr"], default="png",
-                   help="depth files: 16-bit PNG (default) or float EXR in metres")
+    p.add_argument("--sensor", default="d435", choices=["d435", "kinect-v1", "ideal"],
+                   help="depth-sensor traits: z^2 noise, quantisation, flying pixels (default d435; ideal = exact)")
+    p.add_argument("--flying", type=float, default=None, metavar="FRAC",
+                   help="override the sensor's fraction of depth-edge pixels that fly (0 = none)")
+    p.add_argument("--depth-format", choices=["png", "png-0.1mm", "exr"], default="png",
+                   help="depth files: 16-bit PNG in millimetres (default), in 0.1 mm, or float EXR in metres")
     p.add_argument("--png-depth-unit", type=float, default=None, metavar="M",
-                   help="metres per 16-bit PNG depth unit (default 0.0001 = 0.1 mm; 0.001 = millimetres)")
+                   help="metres per unit of --depth-format png (default 0.001 = millimetres)")
     p.add_argument("--board", action="store_true",
                    help="stand the object on a ChArUco board (for `furrow register --method board`); the board "
                         "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, e.g. "
@@ -92,6 +132,7 @@ def build_config(args):
     from datasets_synthetic.noise import NoiseConfig
     from datasets_synthetic.rig import TurntableRig
     from datasets_synthetic.scenes import SCENES
+    from datasets_synthetic.sensor import sensor_preset
     from datasets_synthetic.synth import SynthConfig
 
     if args.name not in SCENES:
@@ -103,33 +144,45 @@ def build_config(args):
         raise ValueError(f"--views {views} must be a positive multiple of the number of rings ({rings})")
     rig = TurntableRig(views_per_ring=views // rings, elevations_deg=tuple(args.elevations), width=w, height=h,
                        fov_y_deg=args.fov)
-    lighting = LightingConfig(env=args.env, lights=args.lights, rotation_deg=args.env_rotation)
+    lighting = LightingConfig(env=args.env, lights=args.lights, rotation_deg=args.env_rotation, hair_model=args.hair,
+                              **({"hair_env_lights": SMALL_HAIR_ENV_LIGHTS} if args.small else {}))
     noise = NoiseConfig(depth_sigma_at_1m=args.depth_noise, grazing_deg=args.grazing, holes_fraction=args.holes,
                         pose_rot_deg=args.pose_noise_deg, pose_trans_frac=args.pose_noise_frac)
+    over = {}
+    if args.flying is not None:
+        over["flying_fraction"] = args.flying
+    sensor = sensor_preset(args.sensor, **over)
     params = {}
-    strands = args.strands if args.strands is not None else (
-        SMALL_STRANDS if args.small and args.name == "furball" else None)
+    furry = args.name in FURRY_SCENES
+    strands = args.strands if args.strands is not None else (SMALL_STRANDS if args.small and furry else None)
     if strands is not None:
-        if args.name != "furball":
-            raise ValueError("--strands applies to the furball only")
+        if not furry:
+            raise ValueError(f"--strands applies to {' and '.join(FURRY_SCENES)} only")
         if strands < 1:
             raise ValueError(f"--strands must be >= 1, got {strands}")
         params["strands"] = strands
-    return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise,
-                       supersample=args.supersample, background=args.background, scene_params=params)
+    return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
+                       supersample=args.supersample, background=args.background, scene_params=params,
+                       pixel_filter_px=args.pixel_filter)
 
 
 def run(args, console) -> int:
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.preview import contact_sheet_png_bytes
-    from datasets_synthetic.synth import PNG_DEPTH_UNIT, synthesize, write_capture
+    from datasets_synthetic.relight import map_label, relight_images, relit_files
+    from capture.io import DEFAULT_PNG_DEPTH_UNIT
+    from datasets_synthetic.synth import synthesize, write_capture
     from furrow.console import StageTimer, fail, track
 
     try:
         if args.png_depth_unit is not None and not 0 < args.png_depth_unit <= 0.01:
             raise ValueError(f"--png-depth-unit {args.png_depth_unit} out of range (0, 0.01] metres")
         cfg = build_config(args)
-        resolve_env(cfg.lighting.env)  # fail early on a bad --env
+        for env in (cfg.lighting.env, *args.relight_env):
+            resolve_env(env)  # fail early on a bad --env / --relight-env
+        labels = [map_label(e) for e in args.relight_env]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"--relight-env maps must have distinct names, got {', '.join(labels)}")
     except (ValueError, FileNotFoundError) as e:
         fail(str(e))
         return 2
@@ -150,11 +203,18 @@ def run(args, console) -> int:
     with timer.stage(f"render {cfg.scene} ({cfg.rig.n_views} views, {cfg.rig.width}x{cfg.rig.height})"):
         cap = synthesize(cfg, scene=scene, progress=lambda it, label: track(it, label, total=len(it)))
     extra = {}
+    unit = args.png_depth_unit if args.png_depth_unit is not None else DEFAULT_PNG_DEPTH_UNIT
+    for env in args.relight_env:
+        with timer.stage(f"relight under {map_label(env)}"):
+            images, info = relight_images(cap, cfg, env, progress=lambda it, label: track(it, label, total=len(it)))
+            extra.update(relit_files(cap, images, info, env, args.depth_format, unit))
+        if info["clipped_fraction"] > 0.01:
+            console.print(f"[yellow]relit under {map_label(env)}: {info['clipped_fraction']:.1%} of the foreground "
+                          "clips at white with the capture's exposure[/]", highlight=False)
     if args.preview:
         with timer.stage("contact sheet"):
             extra["preview.png"] = contact_sheet_png_bytes(cap.scanset)
     with timer.stage("write"):
-        unit = args.png_depth_unit if args.png_depth_unit is not None else PNG_DEPTH_UNIT
         path = write_capture(cap, args.out, depth_format=args.depth_format, overwrite=args.overwrite,
                              extra_files=extra, png_depth_unit=unit)
     st = cap.scene.stats

@@ -31,9 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capture.camera import Camera, gl_rows_to_image, look_at
+from capture.camera import Camera, gl_rows_to_image
 from render.gl import program
 from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
+from render.shadow_maps import light_view_projection, shadow_map_visibility  # noqa: F401  (re-exported)
 from render.shading.irradiance import irradiance_texture
 from render.shading.sh import sh9_glsl_uniform
 
@@ -202,15 +203,6 @@ class Lighting:
         object.__setattr__(self, "light_colors", c)
 
 
-def _ortho(half: float, near: float, far: float) -> np.ndarray:
-    P = np.zeros((4, 4))
-    P[0, 0] = P[1, 1] = 1.0 / half
-    P[2, 2] = -2.0 / (far - near)
-    P[2, 3] = -(far + near) / (far - near)
-    P[3, 3] = 1.0
-    return P
-
-
 class MeshRasterizer(GLOwner):
     """Owns the GL programs, buffers and framebuffers of the mesh rasteriser.
 
@@ -235,7 +227,7 @@ class MeshRasterizer(GLOwner):
         self._prog_shaded = None
         self._prog_shadow = None
         self._irr_tex = None
-        self._vbo = self._ibo = self._vis_vbo = None
+        self._vbo = self._ibo = self._vis_vbo = self._emit_vbo = None
         self._vaos: dict[str, object] = {}
         self._mesh: RasterMesh | None = None
         self._lighting: Lighting | None = None
@@ -249,9 +241,9 @@ class MeshRasterizer(GLOwner):
         return self._mesh
 
     def _free_mesh(self) -> None:
-        self.free(*self._vaos.values(), self._vbo, self._ibo, self._vis_vbo)
+        self.free(*self._vaos.values(), self._vbo, self._ibo, self._vis_vbo, self._emit_vbo)
         self._vaos.clear()
-        self._vbo = self._ibo = self._vis_vbo = None
+        self._vbo = self._ibo = self._vis_vbo = self._emit_vbo = None
 
     def _check(self) -> None:
         self.check_alive()
@@ -272,6 +264,7 @@ class MeshRasterizer(GLOwner):
         self._vbo = self.own(self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes()))
         self._ibo = self.own(self.ctx.buffer(mesh.faces.tobytes()))
         self._vis_vbo = self.own(self.ctx.buffer(np.ones((V, MAX_LIGHTS), np.float32).tobytes()))
+        self._emit_vbo = self.own(self.ctx.buffer(np.zeros((V, 3), np.float32).tobytes()))
         self._mesh = mesh
         self._has_normals = mesh.normals is not None
         if self._lighting is not None:
@@ -286,6 +279,8 @@ class MeshRasterizer(GLOwner):
             content = [(self._vbo, fmt, *names)]
             if "in_vis" in prog:
                 content.append((self._vis_vbo, "4f", "in_vis"))
+            if "in_emit" in prog:
+                content.append((self._emit_vbo, "3f", "in_emit"))
             self._vaos[kind] = self.own(self.ctx.vertex_array(prog, content, index_buffer=self._ibo,
                                                               index_element_size=4))
         return self._vaos[kind]
@@ -312,35 +307,59 @@ class MeshRasterizer(GLOwner):
             self._build_shadows()
 
     def _build_shadows(self) -> None:
-        """Per-vertex light visibility: one orthographic depth map per light covering the mesh's
-        bounding sphere, rendered here, read back and looked up for every vertex
-        (:func:`shadow_map_visibility`).  The lights are fixed in the world, so this is done once
-        per mesh and lighting, not per view."""
+        """Per-vertex visibility of the lighting's lights (:meth:`light_visibility`).  The lights
+        are fixed in the world, so this is done once per mesh and lighting, not per view."""
         lt = self._lighting
         V = len(self._mesh.vertices)
         vis = np.ones((V, MAX_LIGHTS), np.float32)
         self.shadow_info = {}
         if lt is not None and lt.shadows and len(lt.light_dirs):
+            k = len(lt.light_dirs)
+            vis[:, :k] = self.light_visibility(lt.light_dirs)
             b = self._mesh.bounds
-            centre = 0.5 * (b[0] + b[1])
             radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
-            ctx = self.ctx
-            vao = self._vao("shadow")
-            tgt = self.target(SHADOW_MAP_SIZE, SHADOW_MAP_SIZE, colours=())
-            for i, d in enumerate(lt.light_dirs.astype(np.float64)):
-                vp = light_view_projection(d, centre, radius)
-                tgt.fbo.use()
-                tgt.fbo.clear(depth=1.0)
-                ctx.enable(ctx.DEPTH_TEST)
-                ctx.disable(ctx.CULL_FACE)
-                self._prog_shadow["u_mvp"].write(mat4_bytes(vp))
-                vao.render()
-                vis[:, i] = shadow_map_visibility(self._mesh.vertices, tgt.read_depth(), vp, d,
-                                                  SHADOW_BIAS_TEXELS * 2 * radius / SHADOW_MAP_SIZE)
             self.shadow_info = {"map_size": SHADOW_MAP_SIZE, "texel_m": 2 * radius / SHADOW_MAP_SIZE,
-                                "mean_visibility": vis[:, : len(lt.light_dirs)].mean(0).tolist()}
+                                "mean_visibility": vis[:, :k].mean(0).tolist()}
         self._vis_vbo.write(vis.tobytes())
         self.vertex_visibility = vis[:, : len(lt.light_dirs)].copy() if lt is not None else vis[:, :0].copy()
+
+    def light_visibility(self, dirs, points: np.ndarray | None = None, map_size: int = SHADOW_MAP_SIZE) -> np.ndarray:
+        """(N, n) float32 visibility of n directional lights (``dirs`` (n, 3) towards the lights)
+        at ``points`` (N, 3; default every vertex of the mesh): one orthographic depth map per
+        light covering the mesh's bounding sphere, rendered here, read back and looked up for
+        every point (:func:`shadow_map_visibility`)."""
+        self._check()
+        if self._prog_shadow is None:
+            self._prog_shadow = self.own(program(self.ctx, "raster_shadow_vert.glsl", "raster_shadow_frag.glsl"))
+        pts = self._mesh.vertices if points is None else np.asarray(points, np.float64)
+        dirs = np.asarray(dirs, np.float64).reshape(-1, 3)
+        vis = np.ones((len(pts), len(dirs)), np.float32)
+        b = self._mesh.bounds
+        centre = 0.5 * (b[0] + b[1])
+        radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
+        ctx = self.ctx
+        vao = self._vao("shadow")
+        tgt = self.target(map_size, map_size, colours=())
+        for i, d in enumerate(dirs):
+            vp = light_view_projection(d, centre, radius)
+            tgt.fbo.use()
+            tgt.fbo.clear(depth=1.0)
+            ctx.enable(ctx.DEPTH_TEST)
+            ctx.disable(ctx.CULL_FACE)
+            self._prog_shadow["u_mvp"].write(mat4_bytes(vp))
+            vao.render()
+            vis[:, i] = shadow_map_visibility(pts, tgt.read_depth(), vp, d, SHADOW_BIAS_TEXELS * 2 * radius / map_size)
+        return vis
+
+    def set_emission(self, emission: np.ndarray | None) -> None:
+        """Per-vertex radiance (V, 3) added to the shaded colour before exposure (None = 0): for
+        shading computed outside the rasteriser, e.g. the hair lobes of ``datasets_synthetic``."""
+        self._check()
+        V = len(self._mesh.vertices)
+        e = np.zeros((V, 3), np.float32) if emission is None else np.ascontiguousarray(emission, np.float32)
+        if e.shape != (V, 3) or not np.all(np.isfinite(e)):
+            raise RasterError(f"emission must be finite ({V}, 3), got {e.shape}")
+        self._emit_vbo.write(e.tobytes())
 
     # ------------------------------------------------------------------ render
     def planes(self, camera: Camera) -> tuple[float, float]:
@@ -423,49 +442,6 @@ def shaded_defines(ambient: str) -> dict:
     """Constants of raster_shaded_frag.glsl, shared with its numpy twin (render.raster_reference)."""
     return {"MAX_LIGHTS": MAX_LIGHTS, "AMBIENT_TABLE": int(ambient == "table"),
             "HAIR_TANGENT_SQ": f"{HAIR_TANGENT_SQ:.9e}"}
-
-
-def light_view_projection(direction, centre, radius: float) -> np.ndarray:
-    """(4, 4) world -> clip matrix of an orthographic light looking along ``-direction``
-    (``direction`` points towards the light) at a sphere (``centre``, ``radius``)."""
-    d = np.asarray(direction, np.float64)
-    up = (0.0, 0.0, 1.0) if abs(d[2]) < 0.95 else (1.0, 0.0, 0.0)
-    cam = Camera(np.eye(3), look_at(np.asarray(centre) + 2 * radius * d, centre, up), 1, 1)
-    return _ortho(radius, radius, 3 * radius) @ cam.gl_view()
-
-
-def shadow_map_visibility(points: np.ndarray, depth: np.ndarray, light_vp: np.ndarray, direction,
-                          bias_m: float) -> np.ndarray:
-    """(N,) float32 fraction of a directional light reaching ``points`` (N, 3) world.
-
-    ``depth``: (S, S) window depth [0, 1] of the light's depth map as read back from GL (row 0
-    = bottom, indexed with GL texture coordinates, so no row flip); ``light_vp`` its world ->
-    clip matrix.  Each point is moved ``bias_m`` towards the light, then compared with the map by
-    four bilinear taps half a texel apart (a smooth 3 x 3-texel percentage-closer filter).
-    Points outside the map are lit.
-    """
-    S = depth.shape[0]
-    p = np.asarray(points, np.float64) + bias_m * np.asarray(direction, np.float64)
-    q = p @ light_vp[:3, :3].T + light_vp[:3, 3]
-    w = p @ light_vp[3, :3] + light_vp[3, 3]
-    ndc = q / w[:, None]
-    ref = ndc[:, 2] * 0.5 + 0.5
-    x = (ndc[:, 0] * 0.5 + 0.5) * S - 0.5
-    y = (ndc[:, 1] * 0.5 + 0.5) * S - 0.5
-    inside = (np.abs(ndc) <= 1).all(axis=1)
-    vis = np.zeros(len(p))
-    taps = (-0.5, 0.5)
-    for dy in taps:
-        for dx in taps:
-            xs, ys = x + dx, y + dy
-            x0, y0 = np.floor(xs).astype(np.int64), np.floor(ys).astype(np.int64)
-            fx, fy = xs - x0, ys - y0
-            for ox, oy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
-                xi = np.clip(x0 + ox, 0, S - 1)
-                yi = np.clip(y0 + oy, 0, S - 1)
-                vis += wgt * (ref <= depth[yi, xi])
-    vis /= len(taps) ** 2
-    return np.where(inside, vis, 1.0).astype(np.float32)
 
 
 # ---------------------------------------------------------------------------------- reference

@@ -10,6 +10,7 @@ in vec3 in_tangent;
 in float in_occl;
 in float in_spec;
 in vec4 in_vis;      // per-vertex visibility of the (up to 4) shadowing lights
+in vec3 in_emit;     // per-vertex radiance added by the shaded mode (MeshRasterizer.set_emission)
 
 out vec3 v_world;
 out vec3 v_color;
@@ -18,6 +19,7 @@ out vec3 v_tangent;
 out float v_occl;
 out float v_spec;
 out vec4 v_vis;
+out vec3 v_emit;
 out float v_eyez;
 
 void main() {
@@ -30,5 +32,6 @@ void main() {
     v_occl = in_occl;
     v_spec = in_spec;
     v_vis = in_vis;
+    v_emit = in_emit;
     gl_Position = u_proj * e;
 }

@@ -21,6 +21,7 @@ uniform float u_exposure;
 uniform float u_shininess;
 uniform float u_hair_shininess;
 in vec4 v_vis;                          // light visibility from the shadow maps, per vertex
+in vec3 v_emit;                         // radiance shaded outside (MeshRasterizer.set_emission), 0 by default
 
 const float PI = 3.14159265358979323846;
 
@@ -51,6 +52,6 @@ void main() {
         irradiance += u_light_col[i] * (vis * cos_d);
         specular += u_light_col[i] * (vis * lobe);
     }
-    vec3 radiance = v_color / PI * irradiance + v_spec * specular;
+    vec3 radiance = v_color / PI * irradiance + v_spec * specular + v_emit;
     raster_write(u_exposure * radiance, N);
 }

@@ -26,7 +26,7 @@ def sphere_scanset(n=3, w=40, h=30, radius=0.1, seed=0) -> ScanSet:
     return ScanSet(tuple(scans), np.array([[-0.2] * 3, [0.2] * 3]), {"scene": "sphere"})
 
 
-@pytest.mark.parametrize("fmt, tol", [("exr", 0.0), ("png", 0.0005)])
+@pytest.mark.parametrize("fmt, tol", [("exr", 0.0), ("png", 0.0005), ("png-0.1mm", 0.00005)])
 def test_transforms_round_trip(tmp_path, fmt, tol):
     ss = sphere_scanset()
     write_transforms(ss, tmp_path / "scan", depth_format=fmt)
@@ -145,9 +145,9 @@ def test_nonrigid_pose_named(scan_dir):
 
 
 def test_unknown_units_named(scan_dir):
-    def drop(m):
-        for f in m["frames"]:
-            f.pop("depth_unit_scale_factor")
+    def drop(m):  # the writer puts the unit at the top level only (nerfstudio-style)
+        m.pop("depth_unit_scale_factor")
+        assert not any("depth_unit_scale_factor" in f for f in m["frames"])
     _edit(scan_dir, drop)
     with pytest.raises(ScanIOError, match=r"f000.png: integer depth image but no depth_unit_scale_factor: unknown units"):
         read_scanset(scan_dir)
@@ -168,7 +168,7 @@ def test_distortion_rejected(scan_dir):
 def test_exr_depth_without_factor_is_metres(tmp_path):
     ss = sphere_scanset(n=2)
     write_transforms(ss, tmp_path / "s", depth_format="exr")
-    _edit(tmp_path / "s", lambda m: [f.pop("depth_unit_scale_factor") for f in m["frames"]])
+    _edit(tmp_path / "s", lambda m: m.pop("depth_unit_scale_factor"))
     back = read_scanset(tmp_path / "s")
     assert np.array_equal(back.scans[0].depth, ss.scans[0].depth)
 

@@ -16,7 +16,8 @@ from datasets_synthetic.synth import SynthConfig, synthesize, write_capture
 TINY = TurntableRig(views_per_ring=12, width=96, height=72)
 
 
-@pytest.mark.parametrize("name,over", [("furball", {"strands": 1500}), ("plant", {}), ("torus", {})])
+@pytest.mark.parametrize("name,over", [("furball", {"strands": 1500}), ("plant", {}), ("torus", {}),
+                                       ("furrybunny", {"strands": 1500})])
 def test_scenes_are_deterministic_by_seed(name, over):
     a, b, c = build_scene(name, 7, **over), build_scene(name, 7, **over), build_scene(name, 8, **over)
     for f in ("vertices", "faces", "colors", "normals", "occlusion"):

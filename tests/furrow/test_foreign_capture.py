@@ -13,7 +13,7 @@ import numpy as np
 from furrow.cli import main
 
 #: Largest allowed difference of held-out PSNR (dB) between the two layouts of one capture: the grids
-#: differ (bounds from depth instead of furrow.bounds, mm instead of 0.1 mm depth), nothing else.
+#: differ (bounds from depth instead of furrow.bounds), nothing else.
 SAME_CAPTURE_DB = 0.75
 
 
@@ -31,7 +31,7 @@ def foreign_copy(src: Path, dst: Path) -> None:
         name = Path(f["file_path"]).name
         shutil.copy(src / f["file_path"], dst / "images" / name)
         raw = cv2.imread(str(src / f["depth_file_path"]), cv2.IMREAD_UNCHANGED).astype(np.float64)
-        metres = raw * f["depth_unit_scale_factor"]
+        metres = raw * f.get("depth_unit_scale_factor", meta["depth_unit_scale_factor"])
         cv2.imwrite(str(dst / "depth" / name), np.round(metres / 0.001).astype(np.uint16))
         frames.append({"file_path": f"images/{name}", "depth_file_path": f"depth/{name}",
                        "transform_matrix": (T @ np.asarray(f["transform_matrix"])).tolist()})
