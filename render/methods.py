@@ -125,6 +125,7 @@ METHODS: dict[str, str] = {
     "microfacet": "render.microfacet:MicrofacetRenderer",
     "mesh-vdtm": "render.vdtm:VdtmRenderer",
     "mesh-colour": "render.vdtm:MeshColourRenderer",
+    "points": "render.points:PointsRenderer",
 }
 
 

@@ -93,13 +93,19 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
     assert main(["eval", str(tmp_path / "scans"), "--holdout", "2", "--geometry", "gt", "--l-max", "32",
                  "--json", str(out_json), "-o", str(tmp_path / "ev")]) == 0
     res = json.loads(out_json.read_text())
-    for key in ("microfacet", "mesh_vdtm"):
-        for k in ("psnr", "ssim", "psnr_masked", "ms_per_frame"):
+    for key in ("microfacet", "points", "mesh_vdtm", "mesh_colour"):
+        for k in ("psnr", "ssim", "psnr_masked", "ssim_masked", "sharpness", "ms_per_frame"):
             assert np.isfinite(res[key][k]), (key, k)
         assert len(res[key]["views"]) == 6
+    assert 0.3 < res["points"]["sharpness"] < 3.0
     assert res["held"] == [1, 3, 5, 7, 9, 11] and res["geometry"] == "gt"
     assert res["supersample"] == 2 and res["refine"] == 2  # the defaults, recorded
-    assert len(list((tmp_path / "ev" / "side_by_side").glob("*.png"))) == 6
+    assert json.loads((tmp_path / "ev" / "eval.json").read_text()) == res
+    sheets = sorted((tmp_path / "ev" / "side_by_side").glob("*.png"))
+    assert len(sheets) == 6
+    # reference | microfacet | points | mesh-vdtm over their error maps
+    sheet = read_color(sheets[0])
+    assert sheet.shape == (2 * cams[0].height, 4 * cams[0].width, 3)
     # kept views are 60 degrees apart here: only check the renders are far better than nothing
     from render import metrics
 
