@@ -56,7 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"S x S samples per pixel for every method (default {DEFAULT_SUPERSAMPLE}; 1 = off)")
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
-    p.add_argument("--max-views", type=int, default=None, help="evaluate at most this many held-out views (evenly spaced)")
+    p.add_argument("--max-views", type=int, default=None,
+                   help="evaluate at most this many held-out views (evenly spaced)")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -65,8 +66,7 @@ def run(args, console) -> int:
 
     from capture.io import read_scanset
     from furrow.console import StageTimer, track
-    from render.evaluate import (ERROR_GAIN, EVAL_METHODS, SHEET_METHODS, build_eval_model, evaluate, holdout_split,
-                                 result_key)
+    from render import evaluate as ev
     from render.gl import gl_context
 
     options = render_options(args)
@@ -75,14 +75,15 @@ def run(args, console) -> int:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
     with timer.stage("read scans"):
         ss = read_scanset(args.scans)
-    split = holdout_split(ss, args.holdout, args.max_views)
+    split = ev.holdout_split(ss, args.holdout, args.max_views)
     if not split.held:
-        raise ValueError(f"{args.scans}: {len(ss.scans)} frames leave nothing to hold out with --holdout {args.holdout}")
+        raise ValueError(f"{args.scans}: {len(ss.scans)} frames leave nothing to hold out "
+                         f"with --holdout {args.holdout}")
     with timer.stage(f"build model from {len(split.kept_idx)} frames"):
-        model, used = build_eval_model(split.kept, args.scans, args.geometry, args.l_max)
+        model, used = ev.build_eval_model(split.kept, args.scans, args.geometry, args.l_max)
     out_dir = args.out or Path("out") / "eval" / Path(args.scans).resolve().name
-    with gl_context() as ctx, timer.stage(f"render {len(split.held)} held-out views x {len(EVAL_METHODS)} methods"):
-        res = evaluate(ctx, model, split.held, options, EVAL_METHODS, out_dir, track)
+    with gl_context() as ctx, timer.stage(f"render {len(split.held)} held-out views x {len(ev.EVAL_METHODS)} methods"):
+        res = ev.evaluate(ctx, model, split.held, options, ev.EVAL_METHODS, out_dir, track)
     held_idx = split.held_idx
     res.update({"scans": str(args.scans), "holdout": args.holdout, "kept": split.kept_idx, "held": held_idx,
                 "geometry": used, "tolerance_px": options.tolerance_px, "supersample": options.supersample,
@@ -93,14 +94,15 @@ def run(args, console) -> int:
     for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "sharpness", "holes %", "largest hole px",
               "ms/frame", "CPU ms", "facets"):
         t.add_column(c, justify="right")
-    for k in map(result_key, EVAL_METHODS):
+    for k in map(ev.result_key, ev.EVAL_METHODS):
         r = res[k]
         t.add_row(k, f"{r['psnr']:.2f}", f"{r['ssim']:.3f}", f"{r['psnr_masked']:.2f}", f"{r['ssim_masked']:.3f}",
-                  f"{r['sharpness']:.2f}", f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}", f"{r['ms_per_frame']:.1f}",
-                  f"{r['cpu_ms_per_frame']:.1f}", f"{r['facets']:.0f}")
+                  f"{r['sharpness']:.2f}", f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}",
+                  f"{r['ms_per_frame']:.1f}", f"{r['cpu_ms_per_frame']:.1f}", f"{r['facets']:.0f}")
     console.print(t)
-    sheet = " | ".join(m for m in EVAL_METHODS if m in SHEET_METHODS)
-    console.print(f"side-by-side sheets (reference | {sheet}; below: {ERROR_GAIN:g} x error): {out_dir / 'side_by_side'}")
+    sheet = " | ".join(m for m in ev.EVAL_METHODS if m in ev.SHEET_METHODS)
+    console.print(f"side-by-side sheets (reference | {sheet}; below: {ev.ERROR_GAIN:g} x error): "
+                  f"{out_dir / 'side_by_side'}")
     for path in [out_dir / "eval.json"] + ([args.json] if args.json else []):
         write_json(path, res)
         console.print(f"[green]wrote[/] {path}")

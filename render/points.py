@@ -18,7 +18,7 @@ import numpy as np
 from capture.camera import Camera
 from render import points_reference as pr
 from render.frame import Frame, FrameStats
-from render.methods import RenderOptions, Renderer
+from render.methods import Renderer, RenderOptions
 
 
 class PointsRenderer(Renderer):
@@ -44,7 +44,7 @@ class PointsRenderer(Renderer):
         self.clouds = pr.back_project(self.cameras, rgb, depth)
 
     @classmethod
-    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> "PointsRenderer":
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> PointsRenderer:
         """Splatter of a volume.model.Model's RGBz images (its kept views and their depth)."""
         return cls(ctx, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras, model.bounds, options)
 

@@ -11,8 +11,8 @@ from capture.imageio import read_color
 from capture.scan import to_uint8_srgb
 from furrow.cli import main
 from render.methods import METHODS, method_class
-from tests.conftest import image_diff_stats
 from tests import scenes as scene
+from tests.conftest import image_diff_stats
 from tests.furrow.test_cmd_render import _transforms
 from volume.model import save_model
 

@@ -12,8 +12,8 @@ from render.antialias import box_resolve
 from render.frame import Frame
 from render.methods import METHODS, RenderOptions, create_renderer, method_class, unused_options
 from render.owner import NEAR_FRACTION_INSIDE, mat4_bytes, near_far
-from tests.conftest import assert_images_close
 from tests import scenes as scene
+from tests.conftest import assert_images_close
 
 
 @pytest.fixture(scope="module")
