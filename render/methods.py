@@ -126,6 +126,7 @@ METHODS: dict[str, str] = {
     "mesh-vdtm": "render.vdtm:VdtmRenderer",
     "mesh-colour": "render.vdtm:MeshColourRenderer",
     "points": "render.points:PointsRenderer",
+    "gather": "render.gather:GatherRenderer",
 }
 
 
