@@ -139,10 +139,12 @@ def gather(eye: Camera, depth: np.ndarray, views, weights, cfg: GatherConfig) ->
 
 
 def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray,
-                 cfg: GatherConfig = GatherConfig()):
+                 cfg: GatherConfig | None = None):
     """The gather method's frame for ``eye`` (module docstring): (rgb (H, W, 3) float32 linear
     over black, coverage (H, W) float32 0/1, depth (H, W) float32 z-depth, 0 = empty, points
-    splatted).  ``clouds``: ``points_reference.back_project`` of (cameras, rgb, depth)."""
+    splatted).  ``clouds``: ``points_reference.back_project`` of (cameras, rgb, depth); ``cfg``
+    default GatherConfig()."""
+    cfg = cfg or GatherConfig()
     idx, ang = pr.nearest_views(eye, cameras, centre, max(cfg.k_depth, cfg.k_blend))
     z, n = front_depth(eye, [clouds[i] for i in idx[: cfg.k_depth]], cfg.splat_px)
     blend = idx[: cfg.k_blend]

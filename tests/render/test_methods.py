@@ -100,7 +100,7 @@ def test_options_change_per_frame_without_reupload(gl_ctx, model):
 
 
 def test_registry_and_options():
-    assert set(METHODS) == {"microfacet", "mesh-vdtm", "mesh-colour", "points"}
+    assert set(METHODS) == {"microfacet", "mesh-vdtm", "mesh-colour", "points", "gather"}
     for name in METHODS:
         assert method_class(name).name == name
     with pytest.raises(ValueError, match="unknown rendering method"):
