@@ -9,8 +9,9 @@ RGBz texture array.  Per frame only uniforms change:
    side ``splat_px`` into an R32F target with MIN blending: the nearest z-depth per pixel
    (exactly the z-buffer of the twin; no depth buffer is involved);
 2. ``gather_frag.glsl`` over a full-screen triangle: per pixel with a depth, the point is
-   projected into the ``k_blend`` nearest cameras, their colours interpolated bilinearly
-   (four texel fetches, so the twin is exact) and blended with (1 / angle) x soft visibility.
+   projected into the ``k_blend`` nearest cameras, their colours resampled (Catmull-Rom:
+   16 texel fetches, no hardware filtering, so the twin is exact) and blended with
+   (1 / angle) x soft visibility.
 
 One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
 colours are interpolated from the photos, whose own area sampling already anti-aliases strand
@@ -39,7 +40,8 @@ Z_EMPTY = 1e30
 def shader_defines(cfg: gr.GatherConfig) -> dict:
     """Constants of gather_frag.glsl, one source with the numpy twin."""
     return {"K_BLEND": cfg.k_blend, "VIS_SIGMA": f"{cfg.vis_sigma_m:.9e}", "VIS_FLOOR": f"{cfg.vis_floor:.9e}",
-            "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}"}
+            "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "RESAMPLE_CUBIC": int(cfg.resample == "cubic"),
+            "CUBIC_A": f"{gr.CUBIC_A:.9e}"}
 
 
 class GatherRenderer(Renderer):

@@ -1,8 +1,9 @@
 #version 430
 // Pass 2 of the gather method (full-screen triangle): the pixel's point at its splatted depth,
-// its colour gathered from the K_BLEND nearest kept views, bilinear, weighted by
-// (1 / angle) x soft visibility.  Twin: render/gather_reference.py gather / sample_view.
-// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY.
+// its colour gathered from the K_BLEND nearest kept views (Catmull-Rom bicubic when
+// RESAMPLE_CUBIC, else bilinear), weighted by (1 / angle) x soft visibility.
+// Twin: render/gather_reference.py gather / sample_view / cubic / bilinear.
+// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A.
 #include "framebuffer_row.glsl"
 uniform sampler2D front_z;       // pass 1 (framebuffer rows), Z_EMPTY where no splat landed
 uniform sampler2DArray rgbz;     // layer i: linear rgb + z-depth (m, 0 = none) of kept view i
@@ -20,6 +21,33 @@ layout(location = 0) out vec4 out_colour;
 
 vec3 texel(int l, int x, int y, ivec2 size) {
     return texelFetch(rgbz, ivec3(clamp(x, 0, size.x - 1), clamp(y, 0, size.y - 1), l), 0).rgb;
+}
+
+// Keys cubic weights of the taps at -1, 0, 1, 2 from floor(x), t = x - floor(x).
+vec4 cubic_weights(float t) {
+    float t2 = t * t, t3 = t2 * t;
+    return vec4(CUBIC_A * (t3 - 2.0 * t2 + t), (CUBIC_A + 2.0) * t3 - (CUBIC_A + 3.0) * t2 + 1.0,
+                -(CUBIC_A + 2.0) * t3 + (2.0 * CUBIC_A + 3.0) * t2 - CUBIC_A * t, CUBIC_A * (t2 - t3));
+}
+
+// Colour of layer l resampled at uv (OpenCV pixels), taps clamped to the border.
+vec3 resample(int l, vec2 uv, ivec2 size) {
+    vec2 f0 = floor(uv);
+    vec2 f = uv - f0;
+    int x0 = int(f0.x), y0 = int(f0.y);
+#if RESAMPLE_CUBIC
+    vec4 wx = cubic_weights(f.x), wy = cubic_weights(f.y);
+    vec3 acc = vec3(0.0);
+    for (int j = 0; j < 4; ++j) {
+        vec3 row = wx.x * texel(l, x0 - 1, y0 + j - 1, size) + wx.y * texel(l, x0, y0 + j - 1, size)
+                 + wx.z * texel(l, x0 + 1, y0 + j - 1, size) + wx.w * texel(l, x0 + 2, y0 + j - 1, size);
+        acc += wy[j] * row;
+    }
+    return max(acc, vec3(0.0));
+#else
+    return mix(mix(texel(l, x0, y0, size), texel(l, x0 + 1, y0, size), f.x),
+               mix(texel(l, x0, y0 + 1, size), texel(l, x0 + 1, y0 + 1, size), f.x), f.y);
+#endif
 }
 
 void main() {
@@ -40,11 +68,7 @@ void main() {
         if (uv.x < -0.5 || uv.y < -0.5 || uv.x > float(size.x) - 0.5 || uv.y > float(size.y) - 0.5) continue;
         ivec2 ij = clamp(ivec2(floor(uv + 0.5)), ivec2(0), size - 1);
         float d = texelFetch(rgbz, ivec3(ij, layer[j]), 0).a;
-        vec2 f0 = floor(uv);
-        vec2 f = uv - f0;
-        int x0 = int(f0.x), y0 = int(f0.y);
-        vec3 col = mix(mix(texel(layer[j], x0, y0, size), texel(layer[j], x0 + 1, y0, size), f.x),
-                       mix(texel(layer[j], x0, y0 + 1, size), texel(layer[j], x0 + 1, y0 + 1, size), f.x), f.y);
+        vec3 col = resample(layer[j], uv, size);
         float e = (d - pc.z) / VIS_SIGMA;
         float vis = max(d > 0.0 ? exp(-0.5 * e * e) : 0.0, VIS_FLOOR);
         float w = weight[j] * vis;

@@ -42,11 +42,15 @@ def _with_rgbz(model, rgbz):
                  model.bounds)
 
 
-@pytest.mark.parametrize("i,phase", [(2, 17.0), (7, 10.0), (4, 3.0)])
-def test_gpu_matches_numpy_twin(gl_ctx, model, i, phase):
+@pytest.mark.parametrize("i,phase,resample", [(2, 17.0, "cubic"), (7, 10.0, "cubic"), (4, 3.0, "cubic"),
+                                               (7, 10.0, "linear")])
+def test_gpu_matches_numpy_twin(gl_ctx, model, i, phase, resample):
+    from render.gather import GatherRenderer
+
     eye = scene.ring_cameras(12, phase_deg=phase, elevations=(12,))[i]
-    rgb, cov, depth, n = _twin(eye, model)
-    with create_renderer("gather", gl_ctx, model) as r:
+    cfg = gr.GatherConfig(resample=resample)
+    rgb, cov, depth, n = _twin(eye, model, cfg)
+    with GatherRenderer.from_model(gl_ctx, model, config=cfg) as r:
         fr = r.render(eye)
     assert fr.stats.facets == n > 0 and fr.stats.supersample == 1
     both = (fr.coverage > 0) & (cov > 0)
@@ -79,6 +83,20 @@ def test_bilinear_by_hand():
     np.testing.assert_allclose(out, [4 * 0.5 + 1.25, 0.0, 11.0, 4.0, 11.0])  # linear inside, clamped outside
 
 
+def test_cubic_is_catmull_rom():
+    """Keys' cubic with a = -0.5 interpolates the texels and reproduces quadratics exactly
+    (away from the clamped border); its weights sum to 1."""
+    y, x = np.mgrid[0:8, 0:9].astype(np.float64)
+    img = (0.5 * x * x - 0.3 * x * y + 2.0 * y + 1.0)[..., None]
+    rng = np.random.default_rng(0)
+    uv = rng.uniform(1.0, 6.0, (50, 2))
+    np.testing.assert_allclose(gr.cubic(img, uv)[:, 0], 0.5 * uv[:, 0] ** 2 - 0.3 * uv[:, 0] * uv[:, 1]
+                               + 2.0 * uv[:, 1] + 1.0, atol=1e-9)
+    grid = np.array([[3.0, 4.0], [0.0, 0.0], [8.0, 7.0]])
+    np.testing.assert_allclose(gr.cubic(img, grid)[:, 0], img[[4, 0, 7], [3, 0, 8], 0])
+    np.testing.assert_allclose(gr.cubic_weights(rng.uniform(0, 1, 20)).sum(-1), 1.0)
+
+
 def test_soft_visibility_by_hand():
     d = np.array([0.5, 0.503, 0.5, 0.0, 0.5])
     z = np.array([0.5, 0.5, 0.6, 0.5, 0.5])
@@ -88,7 +106,7 @@ def test_soft_visibility_by_hand():
 
 
 def test_config_is_validated():
-    for bad in (dict(k_blend=0), dict(splat_px=1.5), dict(vis_sigma_m=0.0), dict(vis_floor=1.5)):
+    for bad in (dict(k_blend=0), dict(splat_px=1.5), dict(vis_sigma_m=0.0), dict(vis_floor=1.5), dict(resample="x")):
         with pytest.raises(ValueError):
             gr.GatherConfig(**bad)
 
