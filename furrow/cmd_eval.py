@@ -1,6 +1,6 @@
-"""``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method (the
-microfacet renderer, the plain point splatter, the fixed-mesh VDTM baseline and the vertex-colour
-floor; METHODS §1.8, the paper's Fig. 11)."""
+"""``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method (gather,
+the default; the microfacet renderer; the plain point splatter; the fixed-mesh VDTM baseline and
+the vertex-colour floor; METHODS §1.8, the paper's Fig. 11)."""
 
 from __future__ import annotations
 
@@ -13,22 +13,25 @@ from render.methods import DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, MICROFACET
 
 HELP = "held-out evaluation: build a model from every K-th frame, render the others with every method"
 DESCRIPTION = """Build a model from the frames i % K == 0 of a scan set, render every other frame with every
-method: the microfacet renderer, the plain RGB-D point splatter (`points`: 4 nearest kept views,
-2x2 splats, colours within 4 mm of the front averaged by 1/angle; one sample per pixel), the
-fixed-mesh VDTM baseline (same cameras, same selection and blending as the microfacets: they
-differ only in geometry) and the mesh's vertex colours (the floor).  Report per view and mean
-PSNR and SSIM (8-bit sRGB, scikit-image) over the full image and inside the union of the
-reference and rendered foregrounds (their non-black 8-bit pixels: the captures are over
-black), the sharpness ratio there (RMS of the Laplacian of the grey image, rendering over
+method: gather (the default of `furrow render`: the splatted depth of the 2 nearest kept views,
+colours resampled from them with soft visibility), the microfacet renderer, the plain RGB-D point
+splatter (`points`: 4 nearest kept views, 2x2 splats, colours within 4 mm of the front averaged
+by 1/angle), the fixed-mesh VDTM baseline (same cameras, same selection and blending as the
+microfacets: they differ only in geometry) and the mesh's vertex colours (the floor).  Report
+per view and mean PSNR and SSIM (8-bit sRGB, scikit-image) over the full image and inside the
+union of the reference and rendered foregrounds (their non-black 8-bit pixels: the captures are
+over black), the sharpness ratio there (RMS of the Laplacian of the grey image, rendering over
 reference: 1 = as crisp as the photo; PSNR rewards blur, so read the two together), the hole
 fraction inside the object, ms per frame and facet count.
-Every method is drawn with the same --supersample S x S samples per pixel (default 2: the
-references are area-sampled photographs or path-traced images); the microfacets
-parallax-correct their colours along the eye ray (--refine, default 2 steps; 0 = the paper).
-Writes DIR/side_by_side/VIEW.png (top: reference | microfacet | points | mesh-vdtm; bottom: 4 x
-the absolute error of each) and DIR/eval.json, and with --json FILE the numbers there too (keys
-`microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, each with psnr, ssim, psnr_masked,
-ssim_masked, sharpness, ms_per_frame, ... and the per-view records).
+The microfacets and the mesh baselines are drawn with --supersample S x S samples per pixel
+(default 2: the references are area-sampled photographs or path-traced images); gather and
+points draw one sample per pixel whatever S (gather resamples the photos, whose own area
+sampling is kept).  The microfacets parallax-correct their colours along the eye ray
+(--refine, default 2 steps; 0 = the paper).
+Writes DIR/side_by_side/VIEW.png (top: reference | gather | microfacet | points | mesh-vdtm;
+bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
+there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, each with psnr,
+ssim, psnr_masked, ssim_masked, sharpness, ms_per_frame, ... and the per-view records).
 
 --geometry: `model` builds the model with the volume stage (volume.build.build_model, the
 same as `furrow model`);

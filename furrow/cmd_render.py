@@ -8,21 +8,27 @@ from pathlib import Path
 
 import numpy as np
 
-from render.methods import (DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, METHODS, MICROFACET_MODES, RenderOptions,
-                            unused_options)
+from render.methods import (DEFAULT_METHOD, DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, METHODS, MICROFACET_MODES,
+                            RenderOptions, unused_options)
 
-HELP = "render a model with view-dependent microfacet billboards (or the fixed-mesh baseline)"
-DESCRIPTION = """Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
+HELP = "render a model from new cameras (gather by default; microfacets, point splatting, mesh baselines)"
+DESCRIPTION = f"""Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
 PNG per selected frame, named after the frame's file_path basename, black background,
-8-bit sRGB.  METHODS §1.2-1.7: the pyramid level and slice spacing follow the screen-space
-tolerance E (--tolerance, pixels; the paper's default 8).  Every method (render.methods) is
-drawn with --supersample S x S samples per pixel and can be composited with --env; a flag the
-chosen method does not use (--tolerance, --level, --refine, --mode are the microfacets') is an
-error.
+8-bit sRGB.  Methods (--method, render.methods):
+  gather       (default) the z-buffer of the 2 nearest kept views' RGB-D points in 2 x 2 splats,
+               colours resampled (Catmull-Rom) from those 2 views with (1 / angle) x soft
+               visibility; one sample per pixel (the photos' own anti-aliasing is kept)
+  microfacet   view-dependent microfacet billboards (METHODS §1.2-1.7): the pyramid level and
+               slice spacing follow the screen-space tolerance E (--tolerance, pixels; the
+               paper's default 8), --supersample S x S samples per pixel (default
+               {DEFAULT_SUPERSAMPLE}), --refine, --level, --mode
+  points       the plain RGB-D point splatter (4 nearest views, 2 x 2 splats, 4 mm, 1 / angle)
+  mesh-vdtm    the fixed-mesh baseline (--supersample); mesh-colour: per-vertex colour floor
+Every method can be composited with --env; a flag the chosen method does not use is an error.
 
 examples:
   furrow render out/fur_model --cameras out/furball/transforms.json -o out/renders
-  furrow render out/fur_model --cameras out/furball --frames 1::2 --tolerance 4 -o out/r4
+  furrow render out/fur_model --cameras out/furball --frames 1::2 --method microfacet --tolerance 4 -o out/r4
   furrow render out/fur_model --cameras out/furball --orbit 72 -o out/orbit
   furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline"""
 
@@ -36,8 +42,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cameras", type=Path, required=True, help="transforms.json (or a folder holding one) with the cameras")
     p.add_argument("--frames", default=None, help="frames to render, python slice style: '1::2', '3', '0,4,8' (default all)")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
-    p.add_argument("--method", choices=list(METHODS), default="microfacet",
-                   help="microfacet (default), mesh-vdtm (fixed-mesh baseline) or mesh-colour (per-vertex colour floor)")
+    p.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
+                   help=f"rendering method (default {DEFAULT_METHOD}; see above)")
     p.add_argument("--tolerance", type=float, default=None,
                    help=f"screen-space tolerance E in pixels (default {DEFAULT_TOLERANCE_PX:g})")
     p.add_argument("--level", type=int, default=None, help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
