@@ -64,10 +64,10 @@ def test_render_cli_errors(tmp_path):
 def test_eval_summary_means():
     from render.evaluate import summarise
 
-    views = [{"psnr": 20.0, "ssim": 0.5, "psnr_masked": 10.0, "ssim_masked": 0.2, "sharpness": 0.9, "hole_fraction": 0.1,
-              "largest_hole": 3, "ms": 10.0, "cpu_ms": 5.0, "facets": 100},
-             {"psnr": 30.0, "ssim": 0.7, "psnr_masked": 14.0, "ssim_masked": 0.4, "sharpness": 1.1, "hole_fraction": 0.3,
-              "largest_hole": 9, "ms": 30.0, "cpu_ms": 7.0, "facets": 300}]
+    views = [{"psnr": 20.0, "ssim": 0.5, "psnr_masked": 10.0, "ssim_masked": 0.2, "sharpness": 0.9,
+              "hole_fraction": 0.1, "largest_hole": 3, "ms": 10.0, "cpu_ms": 5.0, "facets": 100},
+             {"psnr": 30.0, "ssim": 0.7, "psnr_masked": 14.0, "ssim_masked": 0.4, "sharpness": 1.1,
+              "hole_fraction": 0.3, "largest_hole": 9, "ms": 30.0, "cpu_ms": 7.0, "facets": 300}]
     s = summarise(views)
     assert s["psnr"] == 25.0 and s["psnr_masked"] == 12.0 and s["ms_per_frame"] == 20.0 and s["cpu_ms_per_frame"] == 6.0
     assert s["largest_hole"] == 9 and np.isclose(s["hole_fraction"], 0.2) and np.isclose(s["sharpness"], 1.0)
