@@ -2,7 +2,7 @@
 every pixel of the new view a depth, and its colour is gathered from the two nearest kept
 views with soft visibility (the GLSL is ``render/shaders/gather_*.glsl``).
 
-Per frame, for an eye E (docs/methods.md "gather"; measured in README "Novel views"):
+Per frame, for an eye E (docs/methods.md §1.9; measured in README "Novel views"):
 
 1. **Depth** (:func:`front_depth`): the points of the ``k_depth`` kept cameras nearest to E in
    viewing angle (``render.points_reference.nearest_views``) are splatted into E in

@@ -1,4 +1,5 @@
-"""Numpy reference of the plain RGB-D point splatter (issue 11's baseline, the ``points`` method).
+"""Numpy reference of the plain RGB-D point splatter (issue 11's baseline, the ``points`` method;
+docs/methods.md §1.9).
 
 Every pixel of every kept view that has a depth is back-projected to a coloured world point
 (:func:`back_project`).  For a new view the ``N_VIEWS`` kept cameras nearest in viewing angle
