@@ -7,9 +7,16 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+
+
+def _file_mode(base: int = 0o666) -> int:
+    """The mode a new file (``base`` 0666) or folder (0777) gets from ``open()`` / ``mkdir()``: less the umask."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return base & ~mask
 
 
 @contextmanager
@@ -24,6 +31,7 @@ def atomic_write(path) -> Iterator[Path]:
     tmp = Path(name)
     try:
         yield tmp
+        os.chmod(tmp, _file_mode())  # mkstemp makes 0600; the result gets a normal file's mode
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -40,6 +48,7 @@ def atomic_dir(target) -> Iterator[Path]:
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=parent))
     try:
         yield tmp
+        os.chmod(tmp, _file_mode(0o777))  # mkdtemp makes 0700; the result gets a normal folder's mode
         if target.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=parent))
             os.rmdir(old)

@@ -142,3 +142,17 @@ def depth_to_uint16(depth_m: np.ndarray, unit: float, name: str) -> np.ndarray:
     if q.max(initial=0) > 65535:
         raise ScanIOError(f"{name}: depth {d.max():.3f} m does not fit 16-bit PNG at {unit} m per unit; use EXR")
     return q.astype(np.uint16)
+
+
+def read_confidence(path: Path) -> np.ndarray:
+    """Confidence map -> (H, W) uint8: an 8-bit single-channel PNG / TIFF (ARKit levels 0-2 or 0-255)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScanIOError(f"{path}: confidence file not found")
+    c = _cv2().imread(str(path), _cv2().IMREAD_UNCHANGED)
+    if c is None:
+        raise ScanIOError(f"{path}: not a readable confidence image (corrupt or unsupported format)")
+    if c.ndim != 2 or c.dtype != np.uint8:
+        raise ScanIOError(f"{path}: confidence must be an 8-bit single-channel image, got {c.dtype} "
+                          f"with shape {c.shape}")
+    return c

@@ -11,6 +11,12 @@ ignores per-frame keys: furrow's default millimetre PNG opens there at the right
 without a factor is an error (unknown units).  Depth is z-depth, 0 = no measurement.
 furrow adds an optional ``furrow`` block: ``{"bounds": [[x,y,z],[x,y,z]], "metadata": {...}}``.
 
+Phone and RGB-D captures as they come (Polycam, Record3D, ARKit): colour may be JPEG; a depth map
+smaller than its colour image over the same field of view (e.g. 256x192 beside 1920x1440) is
+resampled to the colour camera edge-aware (``capture.resample``; logged on logger ``furrow`` and
+noted in the metadata); an optional per-frame ``confidence_file_path`` (plain folder:
+``confidence/NAME.png``), 8-bit at the depth's size, removes low-confidence depth before that.
+
 Plain folder layout: ``rgb/NAME.png``, ``depth/NAME.png|.exr``, ``cameras/NAME.json`` with
 ``K`` (OpenCV, pixel centres at integers), ``cam_from_world`` (OpenCV 4x4), ``width``,
 ``height`` and ``depth_unit_scale_factor``.
@@ -19,6 +25,7 @@ Plain folder layout: ``rgb/NAME.png``, ``depth/NAME.png|.exr``, ``cameras/NAME.j
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +33,15 @@ import numpy as np
 
 from capture.atomic import atomic_dir
 from capture.camera import Camera, CameraError
-from capture.imageio import ScanIOError, depth_to_uint16, read_color, read_depth_raw, write_exr, write_png
+from capture.imageio import (
+    ScanIOError,
+    depth_to_uint16,
+    read_color,
+    read_confidence,
+    read_depth_raw,
+    write_exr,
+    write_png,
+)
 from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, to_uint8_srgb
 
 TRANSFORMS = "transforms.json"
@@ -57,6 +72,7 @@ class FrameCamera:
     file_path: str
     depth_file_path: str | None
     depth_unit_scale_factor: float | None
+    confidence_file_path: str | None = None
 
 
 def resolve_transforms(path: Path) -> Path:
@@ -74,9 +90,9 @@ def resolve_transforms(path: Path) -> Path:
 
 def _load_json(path: Path) -> dict:
     try:
-        data = json.loads(Path(path).read_text())
-    except json.JSONDecodeError as e:
-        raise ScanIOError(f"{path}: invalid JSON ({e})") from None
+        data = json.loads(Path(path).read_bytes())
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
+        raise ScanIOError(f"{path}: invalid JSON ({type(e).__name__}: {str(e)[:120]})") from None
     except OSError as e:
         raise ScanIOError(f"{path}: cannot read ({e.strerror})") from None
     if not isinstance(data, dict):
@@ -96,22 +112,18 @@ def read_cameras(path: Path) -> list[FrameCamera]:
         where = f"{tj} frame {i}"
         if not isinstance(fr, dict) or "file_path" not in fr:
             raise ScanIOError(f"{where}: missing 'file_path'")
-        where = f"{tj} frame {i} ({fr['file_path']})"
+        paths = {k: _path_field(fr, k, where) for k in ("file_path", "depth_file_path", "confidence_file_path")}
+        where = f"{tj} frame {i} ({paths['file_path']})"
 
         def get(key, _fr=fr, _where=where):
             v = _fr.get(key, meta.get(key))
             if v is None:
                 raise ScanIOError(f"{_where}: missing intrinsic '{key}' (per frame or global)")
-            try:
-                v = float(v)
-            except (TypeError, ValueError):
-                raise ScanIOError(f"{_where}: intrinsic '{key}' is not a number: {v!r}") from None
-            if not np.isfinite(v):
-                raise ScanIOError(f"{_where}: intrinsic '{key}' is not finite")
-            return v
+            return _finite(v, f"intrinsic '{key}'", _where)
 
         for k in DISTORTION_KEYS:
-            if abs(float(fr.get(k, meta.get(k, 0.0)) or 0.0)) > 0:
+            v = fr.get(k, meta.get(k))
+            if v is not None and _finite(v, f"lens distortion '{k}'", where) != 0:
                 raise ScanIOError(f"{where}: lens distortion '{k}' is non-zero; furrow needs undistorted "
                                   "pinhole images (undistort them first, e.g. with COLMAP image_undistorter)")
         if "transform_matrix" not in fr:
@@ -122,20 +134,53 @@ def read_cameras(path: Path) -> list[FrameCamera]:
             raise ScanIOError(f"{where}: 'transform_matrix' is not a 4x4 number matrix") from None
         try:
             cam = Camera.from_nerfstudio(tm, get("fl_x"), get("fl_y"), get("cx"), get("cy"),
-                                         int(get("w")), int(get("h")), name=str(fr["file_path"]))
+                                         _pixels(get("w"), "w", where), _pixels(get("h"), "h", where),
+                                         name=paths["file_path"])
         except CameraError as e:
             raise ScanIOError(f"{where}: {e}") from None
         unit = fr.get("depth_unit_scale_factor", meta.get("depth_unit_scale_factor"))
         if unit is not None:
-            try:
-                unit = float(unit)
-            except (TypeError, ValueError):
-                raise ScanIOError(f"{where}: depth_unit_scale_factor {unit!r} is not a number") from None
-            if not (np.isfinite(unit) and unit > 0):
+            unit = _finite(unit, "depth_unit_scale_factor", where)
+            if unit <= 0:
                 raise ScanIOError(f"{where}: depth_unit_scale_factor must be a positive number (metres per "
                                   f"depth unit), got {unit}")
-        out.append(FrameCamera(cam, str(fr["file_path"]), fr.get("depth_file_path"), unit))
+        out.append(FrameCamera(cam, paths["file_path"], paths["depth_file_path"], unit, paths["confidence_file_path"]))
     return out
+
+
+def _path_field(fr: dict, key: str, where: str) -> str | None:
+    """A frame's relative / absolute file path: a non-empty string, or None when absent (file_path is required)."""
+    v = fr.get(key)
+    if v is None and key != "file_path":
+        return None
+    if not isinstance(v, str) or not v.strip() or "\0" in v:
+        raise ScanIOError(f"{where}: '{key}' must be a non-empty file path string, got {v!r}")
+    return v
+
+
+def _finite(v, what: str, where: str) -> float:
+    """A finite JSON number (or numeric string); bools, lists, objects, NaN and inf are errors naming ``what``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+        raise ScanIOError(f"{where}: {what} is not a number: {v!r}")
+    try:
+        v = float(v)
+    except (ValueError, OverflowError):
+        raise ScanIOError(f"{where}: {what} is not a number: {v!r}") from None
+    if not np.isfinite(v):
+        raise ScanIOError(f"{where}: {what} is not finite")
+    return v
+
+
+#: Largest image side accepted from a camera description (pixels).
+MAX_IMAGE_SIDE = 65536
+
+
+def _pixels(v: float, key: str, where: str) -> int:
+    """An image size: a whole number of pixels in 1..MAX_IMAGE_SIDE."""
+    if v != int(v) or not 1 <= v <= MAX_IMAGE_SIDE:
+        raise ScanIOError(f"{where}: image size '{key}' must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
+                          f"got {v!r}")
+    return int(v)
 
 
 def _resolve_image(base: Path, rel: str, what: str, where: str) -> Path:
@@ -162,7 +207,26 @@ def _depth_metres(raw: np.ndarray, unit: float | None, path: Path) -> np.ndarray
     return d.astype(np.float32)
 
 
-def _load_scan(cam: Camera, rgb_path: Path, depth_path: Path | None, unit: float | None, name: str) -> Scan:
+def _confidence_masked(depth: np.ndarray, conf_path: Path, depth_path: Path) -> np.ndarray:
+    """Depth with low-confidence samples removed (capture.resample.confidence_mask)."""
+    from capture.resample import ResampleError, confidence_mask
+
+    conf = read_confidence(conf_path)
+    if conf.shape != depth.shape:
+        raise ScanIOError(f"{conf_path}: confidence is {conf.shape[1]}x{conf.shape[0]} but its depth {depth_path.name} "
+                          f"is {depth.shape[1]}x{depth.shape[0]}")
+    try:
+        return np.where(confidence_mask(conf), depth, 0.0).astype(np.float32)
+    except ResampleError as e:
+        raise ScanIOError(f"{conf_path}: {e}") from None
+
+
+def _load_scan(cam: Camera, rgb_path: Path, depth_path: Path | None, unit: float | None, name: str,
+               conf_path: Path | None = None, notes: list | None = None) -> Scan:
+    """One scan; a depth map smaller than the colour camera is resampled to it edge-aware
+    (capture.resample; the statistics are appended to ``notes``)."""
+    from capture.resample import ResampleError, guide_from_colour, upsample_depth
+
     rgb = read_color(rgb_path)
     if rgb.shape[:2] != (cam.height, cam.width):
         raise ScanIOError(f"{rgb_path}: image is {rgb.shape[1]}x{rgb.shape[0]} but its camera says "
@@ -170,11 +234,19 @@ def _load_scan(cam: Camera, rgb_path: Path, depth_path: Path | None, unit: float
     if depth_path is None:
         depth = np.zeros((cam.height, cam.width), np.float32)
     else:
-        raw = read_depth_raw(depth_path)
-        if raw.shape != (cam.height, cam.width):
-            raise ScanIOError(f"{depth_path}: depth is {raw.shape[1]}x{raw.shape[0]} but the colour image and "
-                              f"camera are {cam.width}x{cam.height}")
-        depth = _depth_metres(raw, unit, depth_path)
+        depth = _depth_metres(read_depth_raw(depth_path), unit, depth_path)
+        if conf_path is not None:
+            depth = _confidence_masked(depth, conf_path, depth_path)
+        if depth.shape != (cam.height, cam.width):
+            if depth.shape[0] > cam.height or depth.shape[1] > cam.width:
+                raise ScanIOError(f"{depth_path}: depth is {depth.shape[1]}x{depth.shape[0]}, larger than the colour "
+                                  f"image and camera ({cam.width}x{cam.height}); resize the depth to the colour")
+            try:
+                depth, stats = upsample_depth(depth, guide_from_colour(rgb))
+            except ResampleError as e:
+                raise ScanIOError(f"{depth_path}: {e}") from None
+            if notes is not None:
+                notes.append(stats)
         if not np.any(depth > 0):
             raise ScanIOError(f"{depth_path}: depth is all zero (no measurement at all)")
     try:
@@ -183,15 +255,36 @@ def _load_scan(cam: Camera, rgb_path: Path, depth_path: Path | None, unit: float
         raise ScanIOError(f"{rgb_path}: {e}") from None
 
 
-def auto_bounds(scans) -> np.ndarray:
-    """Robust (2, 3) bounds from the back-projected depth of every scan."""
+def log_resampled(notes: list, metadata: dict) -> None:
+    """Say in the log (logger ``furrow``) and in the scan set's metadata that depth was resampled."""
+    if not notes:
+        return
+    from capture.resample import describe
+
+    line = describe(notes)
+    logging.getLogger("furrow.capture").info(line)
+    metadata["depth_resampled"] = line
+
+
+def auto_bounds(scans, where: str = "") -> np.ndarray:
+    """Robust (2, 3) bounds from the back-projected depth of every scan; ``where`` (the scan set's
+    file or folder) prefixes the error when there are none."""
+    prefix = f"{where}: " if where else ""
     pts = [s.points() for s in scans]
     pts = np.concatenate([p for p in pts if len(p)]) if any(len(p) for p in pts) else np.zeros((0, 3))
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
     if len(pts) == 0:
-        raise ScanIOError("cannot derive object bounds: no scan has depth; give \"furrow\": {\"bounds\": ...}")
-    lo = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0)
-    hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1], axis=0)
-    return bounds_from_points(np.stack([lo, hi]), AUTO_BOUNDS_MARGIN)
+        raise ScanIOError(f"{prefix}cannot derive object bounds: no scan has depth; "
+                          "give \"furrow\": {\"bounds\": ...}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        lo = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0)
+        hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1], axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        b = bounds_from_points(np.stack([lo, hi]), AUTO_BOUNDS_MARGIN)
+    if not (np.all(np.isfinite(b)) and np.all(b[1] > b[0])):
+        raise ScanIOError(f"{prefix}cannot derive object bounds from the depth: the back-projected points span "
+                          f"{np.stack([lo, hi]).tolist()} (camera poses or depth out of range?)")
+    return b
 
 
 def _read_bounds(block, where: str):
@@ -214,22 +307,27 @@ def read_transforms(path: Path, frames: str | None = None, progress=None) -> Sca
     meta = _load_json(tj)
     cams = read_cameras(tj)
     idx = select_indices(frames, len(cams))
-    scans = []
+    scans, notes = [], []
     it = progress(idx, "reading scans") if progress else idx
     for i in it:
         fc = cams[i]
         where = f"{tj} frame {i}"
         rgb_path = _resolve_image(tj.parent, fc.file_path, "colour image", where)
-        depth_path = None
+        depth_path = conf_path = None
         if fc.depth_file_path is not None:
             depth_path = _resolve_image(tj.parent, fc.depth_file_path, "depth file", where)
-        scans.append(_load_scan(fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor, fc.file_path))
+        if fc.confidence_file_path is not None:
+            conf_path = _resolve_image(tj.parent, fc.confidence_file_path, "confidence file", where)
+        scans.append(_load_scan(fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor, fc.file_path,
+                                conf_path, notes))
     fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
     bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
     if bounds is None:
-        bounds = auto_bounds(scans)
-    md = dict(fblock.get("metadata", {}))
+        bounds = auto_bounds(scans, str(tj))
+    md = fblock.get("metadata", {})
+    md = dict(md) if isinstance(md, dict) else {}
     md.update(source=str(tj), format="transforms.json")
+    log_resampled(notes, md)
     if frames:
         md["frames"] = frames
     return ScanSet(tuple(scans), bounds, md)
@@ -245,24 +343,32 @@ def read_plain_folder(folder: Path, frames: str | None = None, progress=None) ->
     if not files:
         raise ScanIOError(f"{cam_dir}: no camera JSON files")
     idx = select_indices(frames, len(files))
-    scans = []
+    scans, notes = [], []
     for i in (progress(idx, "reading scans") if progress else idx):
         cj = files[i]
         c = _load_json(cj)
         try:
             cam = Camera(np.asarray(c["K"], float), np.asarray(c["cam_from_world"], float),
-                         int(c["width"]), int(c["height"]), name=cj.stem)
+                         _pixels(_finite(c["width"], "width", str(cj)), "width", str(cj)),
+                         _pixels(_finite(c["height"], "height", str(cj)), "height", str(cj)), name=cj.stem)
         except KeyError as e:
             raise ScanIOError(f"{cj}: missing key {e}") from None
         except (CameraError, TypeError, ValueError) as e:
             raise ScanIOError(f"{cj}: {e}") from None
         rgb_path = _resolve_image(folder / "rgb", cj.stem, "colour image", str(cj))
         depth_path = _resolve_image(folder / "depth", cj.stem, "depth file", str(cj))
+        conf_path = _resolve_image(folder / "confidence", cj.stem, "confidence file", str(cj)) \
+            if (folder / "confidence").is_dir() else None
         unit = c.get("depth_unit_scale_factor")
-        scans.append(_load_scan(cam, rgb_path, depth_path, None if unit is None else float(unit), cj.stem))
+        if unit is not None and _finite(unit, "depth_unit_scale_factor", str(cj)) <= 0:
+            raise ScanIOError(f"{cj}: depth_unit_scale_factor must be a positive number of metres, got {unit!r}")
+        scans.append(_load_scan(cam, rgb_path, depth_path, None if unit is None else float(unit), cj.stem,
+                                conf_path, notes))
     bj = folder / "bounds.json"
-    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else auto_bounds(scans)
-    return ScanSet(tuple(scans), bounds, {"source": str(folder), "format": "plain-folder"})
+    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else auto_bounds(scans, str(folder))
+    md = {"source": str(folder), "format": "plain-folder"}
+    log_resampled(notes, md)
+    return ScanSet(tuple(scans), bounds, md)
 
 
 def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSet:
@@ -278,6 +384,8 @@ def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSe
 
                 units = path / "depth_units.json"
                 unit = _load_json(units).get("depth_unit_scale_factor") if units.is_file() else None
+                if unit is not None and (unit := _finite(unit, "depth_unit_scale_factor", str(units))) <= 0:
+                    raise ScanIOError(f"{units}: depth_unit_scale_factor must be a positive number of metres")
                 depth = path / "depth" if (path / "depth").is_dir() else None
                 return read_colmap(model, path / "images", depth, unit, frames)
         raise ScanIOError(f"{path}: neither a {TRANSFORMS}, a plain folder layout (cameras/, rgb/, depth/) "

@@ -14,7 +14,7 @@ import sys
 from furrow.console import console, fail
 
 #: Command names in the order ``--help`` lists them.
-COMMANDS = ["synth", "register", "model", "render", "eval", "bench"]
+COMMANDS = ["synth", "register", "model", "render", "eval", "export", "batch", "bench"]
 
 
 def _load(name: str):

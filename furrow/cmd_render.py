@@ -8,8 +8,15 @@ from pathlib import Path
 
 import numpy as np
 
-from render.methods import (DEFAULT_METHOD, DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, METHODS, MICROFACET_MODES,
-                            RenderOptions, unused_options)
+from render.methods import (
+    DEFAULT_METHOD,
+    DEFAULT_SUPERSAMPLE,
+    DEFAULT_TOLERANCE_PX,
+    METHODS,
+    MICROFACET_MODES,
+    RenderOptions,
+    unused_options,
+)
 
 HELP = "render a model from new cameras (gather by default; microfacets, point splatting, mesh baselines)"
 DESCRIPTION = f"""Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
@@ -30,8 +37,11 @@ examples:
   furrow render out/fur_model --cameras out/furball/transforms.json -o out/renders
   furrow render out/fur_model --cameras out/furball --frames 1::2 --method microfacet --tolerance 4 -o out/r4
   furrow render out/fur_model --cameras out/furball --orbit 72 -o out/orbit
+  furrow render out/fur_model --cameras out/furball --orbit 120 --video out/orbit.mp4 --fps 30
   furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline"""
 
+#: Frames per second of --video.
+DEFAULT_FPS = 24.0
 #: Command-line flag -> the RenderOptions field it sets.
 OPTION_FLAGS = {"tolerance": "tolerance_px", "level": "level", "supersample": "supersample", "refine": "refine",
                 "mode": "mode"}
@@ -39,17 +49,25 @@ OPTION_FLAGS = {"tolerance": "tolerance_px", "level": "level", "supersample": "s
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("model", type=Path, help="model folder written by `furrow model`")
-    p.add_argument("--cameras", type=Path, required=True, help="transforms.json (or a folder holding one) with the cameras")
-    p.add_argument("--frames", default=None, help="frames to render, python slice style: '1::2', '3', '0,4,8' (default all)")
-    p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    p.add_argument("--cameras", type=Path, required=True,
+                   help="transforms.json (or a folder holding one) with the cameras")
+    p.add_argument("--frames", default=None,
+                   help="frames to render, python slice style: '1::2', '3', '0,4,8' (default all)")
+    p.add_argument("-o", "--out", type=Path, default=None,
+                   help="output folder for the PNG frames and render_stats.json (required unless --video is given)")
+    p.add_argument("--video", type=Path, default=None, metavar="OUT.mp4",
+                   help="also (or, without -o, only) write the frames as an H.264 MP4 (render.video.write_mp4)")
+    p.add_argument("--fps", type=float, default=DEFAULT_FPS,
+                   help=f"frames per second of --video (default {DEFAULT_FPS:g})")
     p.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
                    help=f"rendering method (default {DEFAULT_METHOD}; see above)")
     p.add_argument("--tolerance", type=float, default=None,
                    help=f"screen-space tolerance E in pixels (default {DEFAULT_TOLERANCE_PX:g})")
-    p.add_argument("--level", type=int, default=None, help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
+    p.add_argument("--level", type=int, default=None,
+                   help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
     p.add_argument("--supersample", type=int, default=None, metavar="S",
-                   help=f"anti-aliasing: S x S samples per pixel, box-resolved (default {DEFAULT_SUPERSAMPLE}; 1 = off, "
-                        "about S^2 x the fill cost)")
+                   help=f"anti-aliasing: S x S samples per pixel, box-resolved (default {DEFAULT_SUPERSAMPLE}; "
+                        "1 = off, about S^2 x the fill cost)")
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="microfacet parallax correction: steps along the eye ray to each camera's depth "
                         "(default 2; 0 = the paper's colour at the slice point)")
@@ -144,6 +162,10 @@ def run(args, console) -> int:
     from render.methods import create_renderer
     from volume.model import load_model
 
+    if args.out is None and args.video is None:
+        raise ValueError("give -o DIR for PNG frames and/or --video OUT.mp4")
+    if args.video is not None and args.video.suffix.lower() != ".mp4":
+        raise ValueError(f"--video {args.video}: write an .mp4 file")
     options = render_options(args)
     if (args.ground or args.exposure != 1.0 or args.no_glare) and not args.env:
         raise ValueError("--ground, --exposure and --no-glare need --env MAP")
@@ -159,7 +181,8 @@ def run(args, console) -> int:
         from capture.orbit import estimate_up
 
         up = estimate_up(inputs)
-    args.out.mkdir(parents=True, exist_ok=True)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
     stats = []
     with gl_context() as ctx, ExitStack() as owned:
         r = owned.enter_context(create_renderer(args.method, ctx, model, options))
@@ -170,17 +193,34 @@ def run(args, console) -> int:
             compositor = owned.enter_context(Compositor(ctx))
         if views:  # warm-up: llvmpipe compiles shaders on the first draw
             r.render(views[0][0], read=False)
-        with timer.stage(f"render {len(views)} frames ({args.method})"):
+
+        def frames():
             for cam, name in track(views, "rendering", total=len(views)):
                 fr = r.render(cam)
-                img = fr.rgb if compositor is None else composite(ctx, fr, cam, env, args, model, up, compositor)
-                write_png(args.out / name, to_uint8_srgb(img))
+                img = to_uint8_srgb(fr.rgb if compositor is None else
+                                    composite(ctx, fr, cam, env, args, model, up, compositor))
+                if args.out is not None:
+                    write_png(args.out / name, img)
                 stats.append({"file": name, **fr.stats.record()})
-    (args.out / "render_stats.json").write_text(json.dumps({"method": args.method, "tolerance_px": options.tolerance_px,
-                                                            "supersample": options.supersample, "frames": stats},
-                                                           indent=1))
+                yield img
+
+        with timer.stage(f"render {len(views)} frames ({args.method})"):
+            if args.video is not None:
+                from render.video import write_mp4
+
+                write_mp4(frames(), args.video, args.fps)
+            else:
+                for _ in frames():
+                    pass
+    record = {"method": args.method, "tolerance_px": options.tolerance_px, "supersample": options.supersample,
+              "frames": stats}
+    if args.out is not None:
+        (args.out / "render_stats.json").write_text(json.dumps(record, indent=1))
+    if args.video is not None:
+        console.print(f"[green]wrote[/] {len(stats)} frames to {args.video} (H.264, {args.fps:g} fps)", highlight=False)
     ms = [s["ms"] for s in stats]
-    console.print(f"[green]wrote[/] {len(stats)} images to {args.out}  (mean {np.mean(ms):.1f} ms/frame, "
+    console.print(f"[green]rendered[/] {len(stats)} frames{f' to {args.out}' if args.out else ''}  (mean "
+                  f"{np.mean(ms):.1f} ms/frame, "
                   f"mean facets {np.mean([s['facets'] for s in stats]):.0f})")
     console.print(timer.table())
     return 0

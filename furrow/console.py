@@ -3,19 +3,34 @@
 from __future__ import annotations
 
 import contextlib
+import sys
 import time
-from typing import Iterable, Iterator, TypeVar
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
-import sys
-
 #: Width used when stderr is not a terminal (logs, CI): wide enough for the result tables.
 LOG_WIDTH = 140
 console = Console(stderr=True, width=None if sys.stderr.isatty() else LOG_WIDTH)
 T = TypeVar("T")
+
+
+def _library_log() -> None:
+    """Messages the libraries log on logger ``furrow`` (e.g. depth resampled to the colour camera) go to the console."""
+    import logging
+
+    from rich.logging import RichHandler
+
+    log = logging.getLogger("furrow")
+    if not any(isinstance(h, RichHandler) for h in log.handlers):
+        log.addHandler(RichHandler(console=console, show_time=False, show_path=False, markup=False))
+        log.setLevel(logging.INFO)
+
+
+_library_log()
 
 
 def fail(msg: str) -> None:

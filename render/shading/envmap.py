@@ -34,6 +34,14 @@ BUNDLED_DIR = Path(__file__).resolve().parents[2] / "datasets_synthetic" / "envm
 BUNDLED_NAMES = ("courtyard", "forest", "studio", "sunset")
 
 
+class EnvMapError(ValueError):
+    """An environment-map file is missing, unreadable or not a 2:1 equirect HDR image; the message names it."""
+
+
+class EnvMapNotFound(EnvMapError, FileNotFoundError):
+    """The environment-map file does not exist."""
+
+
 @dataclass(frozen=True)
 class EnvMap:
     """Linear HDR environment radiance.
@@ -84,7 +92,7 @@ class EnvMap:
         """Bilinear radiance lookup (wrap in u, clamp in v). dirs (..., 3) -> (..., 3) float64."""
         return sample_equirect(self.data, dir_to_uv(dirs))
 
-    def rotated(self, angle_z: float) -> "EnvMap":
+    def rotated(self, angle_z: float) -> EnvMap:
         """The environment turned by ``angle_z`` radians about +z (right-handed):
         ``rotated(a).sample(Rz(a) @ d) == sample(d)``. Exact for multiples of 2 pi / W, linear
         interpolation between columns otherwise."""
@@ -98,7 +106,7 @@ class EnvMap:
         out = d[:, x0 % w] * (1 - f) + d[:, (x0 + 1) % w] * f
         return EnvMap(out.astype(np.float32), self.name)
 
-    def resized(self, h: int) -> "EnvMap":
+    def resized(self, h: int) -> EnvMap:
         """Area-correct resampling to (h, 2h): each new pixel is the solid-angle-weighted mean of
         the old radiance it overlaps, so the total power (sum of L * Omega) is preserved."""
         h = int(h)
@@ -248,10 +256,10 @@ def bundled_envmap(name: str) -> EnvMap:
 
 def load_envmap(path) -> EnvMap:
     """Read an equirect HDR map (.exr: ``capture.imageio.read_exr_rgb``, .hdr/.pic Radiance RGBE).
-    The image must be 2:1; errors name the file."""
+    The image must be 2:1; every failure is an :class:`EnvMapError` naming the file."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"environment map {path} not found")
+        raise EnvMapNotFound(f"environment map {path} not found")
     ext = path.suffix.lower()
     try:
         if ext == ".exr":
@@ -261,13 +269,13 @@ def load_envmap(path) -> EnvMap:
             data = read_rgbe(path)
         else:
             raise ValueError(f"unsupported extension {ext!r} (use .exr or .hdr)")
-    except (ValueError, OSError, KeyError, RuntimeError) as e:  # OpenEXR raises RuntimeError
-        raise ValueError(f"cannot read environment map {path}: {e}") from e
-    if data.ndim != 3 or data.shape[1] != 2 * data.shape[0]:
-        raise ValueError(f"environment map {path}: expected a 2:1 equirect image, got "
-                         f"{data.shape[1]}x{data.shape[0]}")
+    except (ValueError, OSError, KeyError, RuntimeError, MemoryError) as e:  # OpenEXR raises RuntimeError
+        raise EnvMapError(f"cannot read environment map {path}: {e}") from None
+    if data.ndim != 3 or data.shape[0] < 1 or data.shape[1] != 2 * data.shape[0]:
+        raise EnvMapError(f"environment map {path}: expected a 2:1 equirect image, got "
+                          f"{data.shape[1]}x{data.shape[0]}")
     if not np.all(np.isfinite(data)):
-        raise ValueError(f"environment map {path}: contains NaN or inf")
+        raise EnvMapError(f"environment map {path}: contains NaN or inf")
     return EnvMap(np.maximum(data, 0).astype(np.float32), path.stem)
 
 

@@ -46,6 +46,12 @@ def read_rgbe(path) -> np.ndarray:
         raise ValueError(f"{path}: unsupported resolution line (only '-Y H +X W')")
     h, w = int(m.group(1)), int(m.group(2))
     buf = np.frombuffer(raw, np.uint8, offset=pos)
+    # fewest bytes h x w pixels can take: run-length scanlines (4-byte header, runs of <= 127 per
+    # channel, 2 bytes each) or flat 4-byte pixels -- checked before allocating h x w x 4 bytes
+    least = h * min(4 * w, 4 + 8 * -(-w // 127))
+    if h < 1 or w < 1 or buf.size < least:
+        raise ValueError(f"{path}: header says {w}x{h} pixels but only {buf.size} bytes of pixel data follow "
+                         f"(truncated or corrupt)")
     rgbe = np.empty((h, w, 4), np.uint8)
     i = 0
     for y in range(h):

@@ -95,3 +95,26 @@ def test_atomic_dir_replaces_on_success_and_keeps_old_on_failure(tmp_path):
         (tmp / "b.txt").write_text("v3")
     assert sorted(q.name for q in out.iterdir()) == ["b.txt"]
     assert [q.name for q in tmp_path.iterdir()] == ["model"]
+
+
+def test_written_file_gets_a_normal_files_mode(tmp_path):
+    """mkstemp creates 0600 files: the renamed result must be readable like any file the process creates."""
+    import os
+
+    from capture.atomic import atomic_write
+
+    with atomic_write(tmp_path / "a.txt") as tmp:
+        tmp.write_text("x")
+    (tmp_path / "b.txt").write_text("x")
+    assert os.stat(tmp_path / "a.txt").st_mode & 0o777 == os.stat(tmp_path / "b.txt").st_mode & 0o777
+
+
+def test_built_folder_gets_a_normal_folders_mode(tmp_path):
+    import os
+
+    from capture.atomic import atomic_dir
+
+    with atomic_dir(tmp_path / "d") as tmp:
+        (tmp / "f").write_text("x")
+    (tmp_path / "e").mkdir()
+    assert os.stat(tmp_path / "d").st_mode & 0o777 == os.stat(tmp_path / "e").st_mode & 0o777
