@@ -17,8 +17,10 @@ Per scan set, with the frames i % 2 == 0 kept and the others held out (as ``furr
   masked SSIM and the sharpness ratio (RMS Laplacian of the rendering over the reference's,
   inside the union of foregrounds).  Unseen captures: fur ball 20.50 dB / 0.43 / 1.26, conifer
   23.55 / 0.61 / 1.44, furry bunny 20.43 / 0.49 / 1.41.
-* with ``--eval DIR`` (one per scan set: a ``furrow eval -o DIR`` folder with ``eval.json``, or the
-  file given to ``--json``): its microfacet masked PSNR / SSIM beside these.
+* with ``--eval FILE`` (one per scan set: the ``furrow eval --json`` file): its microfacet masked
+  PSNR / SSIM / hole fraction beside these; with ``--sheets DIR`` (the ``furrow eval -o DIR``
+  folder): the microfacet sharpness ratio from its side-by-side sheets (reference | microfacet |
+  baseline | error).
 
 This numpy splatter is here to measure data, not to render; the renderer's ``points`` method is
 the product's.
@@ -144,8 +146,25 @@ def capture_stats(path: Path) -> dict:
     return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
 
 
+def sheet_sharpness(folder: Path) -> dict:
+    """Mean sharpness ratio of the microfacet and baseline panels of ``furrow eval``'s side-by-side
+    sheets (4 panels of equal width) against the reference panel, inside the union of foregrounds."""
+    import cv2
+
+    from render.metrics import foreground
+
+    ratios = {"microfacet_sharp_ratio": [], "vdtm_sharp_ratio": []}
+    for f in sorted((Path(folder) / "side_by_side").glob("*.png")):
+        im = cv2.imread(str(f))[..., ::-1]
+        w = im.shape[1] // 4
+        ref, mf, base = im[:, :w], im[:, w:2 * w], im[:, 2 * w:3 * w]
+        for key, pred in (("microfacet_sharp_ratio", mf), ("vdtm_sharp_ratio", base)):
+            union = foreground(ref) | foreground(pred)
+            ratios[key].append(laplacian_rms(pred, union) / laplacian_rms(ref, union))
+    return {k: float(np.mean(v)) for k, v in ratios.items() if v}
+
+
 def _eval_numbers(p: Path) -> dict:
-    p = p / "eval.json" if p.is_dir() else p
     if not p.is_file():
         return {}
     e = json.loads(p.read_text())
@@ -159,6 +178,7 @@ def main(argv: list[str]) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scans", nargs="*", type=Path, help="scan sets (transforms.json folders)")
     ap.add_argument("--eval", nargs="*", type=Path, default=[], help="furrow eval JSON per scan set (same order)")
+    ap.add_argument("--sheets", nargs="*", type=Path, default=[], help="furrow eval -o folder per scan set (same order)")
     ap.add_argument("--json", type=Path, default=None, help="write the table as JSON")
     args = ap.parse_args(argv)
     if not args.scans:
@@ -169,6 +189,8 @@ def main(argv: list[str]) -> int:
         st = capture_stats(p)
         if i < len(args.eval):
             st.update(_eval_numbers(args.eval[i]))
+        if i < len(args.sheets):
+            st.update(sheet_sharpness(args.sheets[i]))
         table[str(p)] = st
     keys = list(next(iter(table.values())).keys())
     print("capture".ljust(34) + "".join(k[:12].rjust(13) for k in keys))
