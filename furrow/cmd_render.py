@@ -23,7 +23,7 @@ DESCRIPTION = f"""Render a furrow model (from `furrow model`) from the cameras o
 PNG per selected frame, named after the frame's file_path basename, black background,
 8-bit sRGB.  Methods (--method, render.methods):
   gather       (default) the z-buffer of the 2 nearest kept views' RGB-D points in 2 x 2 splats,
-               colours resampled (Catmull-Rom) from those 2 views with (1 / angle) x soft
+               colours resampled (bilinear) from those 2 views with (1 / angle) x soft
                visibility; one sample per pixel (the photos' own anti-aliasing is kept)
   microfacet   view-dependent microfacet billboards (METHODS §1.2-1.7): the pyramid level and
                slice spacing follow the screen-space tolerance E (--tolerance, pixels; the

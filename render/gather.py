@@ -9,9 +9,9 @@ RGBz texture array.  Per frame only uniforms change:
    side ``splat_px`` into an R32F target with MIN blending: the nearest z-depth per pixel
    (exactly the z-buffer of the twin; no depth buffer is involved);
 2. ``gather_frag.glsl`` over a full-screen triangle: per pixel with a depth, the point is
-   projected into the ``k_blend`` nearest cameras, their colours resampled (Catmull-Rom:
-   16 texel fetches, no hardware filtering, so the twin is exact) and blended with
-   (1 / angle) x soft visibility.
+   projected into the ``k_blend`` nearest cameras, their colours resampled (bilinear, or
+   Catmull-Rom bicubic: 4 or 16 texel fetches, no hardware filtering, so the twin is exact) and
+   blended with (1 / angle) x soft visibility.
 
 One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
 colours are interpolated from the photos, whose own area sampling already anti-aliases strand
