@@ -1,5 +1,6 @@
-"""``furrow eval SCANS --holdout K``: held-out evaluation of the microfacet renderer against the
-fixed-mesh VDTM baseline (METHODS §1.8, the paper's Fig. 11)."""
+"""``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method (gather,
+the default; the microfacet renderer; the plain point splatter; the fixed-mesh VDTM baseline and
+the vertex-colour floor; METHODS §1.8, the paper's Fig. 11)."""
 
 from __future__ import annotations
 
@@ -10,18 +11,27 @@ from pathlib import Path
 from render.evaluate import GEOMETRIES
 from render.methods import DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, MICROFACET_MODES
 
-HELP = "held-out evaluation: build a model from every K-th frame, render the others with both methods"
-DESCRIPTION = """Build a model from the frames i % K == 0 of a scan set, render every other frame with the
-microfacet renderer and with the fixed-mesh VDTM baseline (same cameras, same selection and
-blending: they differ only in geometry), and report per view and mean PSNR and SSIM (8-bit
-sRGB, scikit-image) over the full image and inside the union of the reference and rendered
-foregrounds, the hole fraction inside the object, ms per frame and facet count.
-Every method is drawn with the same --supersample S x S samples per pixel (default 2: the
-references are area-sampled photographs or path-traced images); the microfacets
-parallax-correct their colours along the eye ray (--refine, default 2 steps; 0 = the paper).
-Writes DIR/side_by_side/*.png (reference | microfacet | baseline | 4 x |microfacet - reference|)
-and, with --json, the numbers (keys `microfacet` and `mesh_vdtm`, each with psnr, ssim,
-psnr_masked, ms_per_frame, ...; `mesh_colour` is the per-vertex colour floor).
+HELP = "held-out evaluation: build a model from every K-th frame, render the others with every method"
+DESCRIPTION = """Build a model from the frames i % K == 0 of a scan set, render every other frame with every
+method: gather (the default of `furrow render`: the splatted depth of the 2 nearest kept views,
+colours resampled from them with soft visibility), the microfacet renderer, the plain RGB-D point
+splatter (`points`: 4 nearest kept views, 2x2 splats, colours within 4 mm of the front averaged
+by 1/angle), the fixed-mesh VDTM baseline (same cameras, same selection and blending as the
+microfacets: they differ only in geometry) and the mesh's vertex colours (the floor).  Report
+per view and mean PSNR and SSIM (8-bit sRGB, scikit-image) over the full image and inside the
+union of the reference and rendered foregrounds (their non-black 8-bit pixels: the captures are
+over black), the sharpness ratio there (RMS of the Laplacian of the grey image, rendering over
+reference: 1 = as crisp as the photo; PSNR rewards blur, so read the two together), the hole
+fraction inside the object, ms per frame and facet count.
+The microfacets and the mesh baselines are drawn with --supersample S x S samples per pixel
+(default 2: the references are area-sampled photographs or path-traced images); gather and
+points draw one sample per pixel whatever S (gather resamples the photos, whose own area
+sampling is kept).  The microfacets parallax-correct their colours along the eye ray
+(--refine, default 2 steps; 0 = the paper).
+Writes DIR/side_by_side/VIEW.png (top: reference | gather | microfacet | points | mesh-vdtm;
+bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
+there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, each with psnr,
+ssim, psnr_masked, ssim_masked, sharpness, ms_per_frame, ... and the per-view records).
 
 --geometry: `model` builds the model with the volume stage (volume.build.build_model, the
 same as `furrow model`);
@@ -38,7 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--holdout", type=int, required=True, metavar="K",
                    help="keep frames with i %% K == 0 for the model, evaluate on the others (K >= 2)")
     p.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the numbers as JSON")
-    p.add_argument("-o", "--out", type=Path, default=None, help="folder for side-by-side PNGs (default out/eval/NAME)")
+    p.add_argument("-o", "--out", type=Path, default=None,
+                   help="folder for the side-by-side sheets and eval.json (default out/eval/NAME)")
     p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE_PX,
                    help=f"microfacet screen-space tolerance E, pixels (default {DEFAULT_TOLERANCE_PX:g})")
     p.add_argument("--geometry", choices=GEOMETRIES, default="auto", help="where the model's geometry comes from")
@@ -48,7 +59,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"S x S samples per pixel for every method (default {DEFAULT_SUPERSAMPLE}; 1 = off)")
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
-    p.add_argument("--max-views", type=int, default=None, help="evaluate at most this many held-out views (evenly spaced)")
+    p.add_argument("--max-views", type=int, default=None,
+                   help="evaluate at most this many held-out views (evenly spaced)")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -57,7 +69,7 @@ def run(args, console) -> int:
 
     from capture.io import read_scanset
     from furrow.console import StageTimer, track
-    from render.evaluate import ERROR_GAIN, EVAL_METHODS, build_eval_model, evaluate, holdout_split, result_key
+    from render import evaluate as ev
     from render.gl import gl_context
 
     options = render_options(args)
@@ -66,14 +78,15 @@ def run(args, console) -> int:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
     with timer.stage("read scans"):
         ss = read_scanset(args.scans)
-    split = holdout_split(ss, args.holdout, args.max_views)
+    split = ev.holdout_split(ss, args.holdout, args.max_views)
     if not split.held:
-        raise ValueError(f"{args.scans}: {len(ss.scans)} frames leave nothing to hold out with --holdout {args.holdout}")
+        raise ValueError(f"{args.scans}: {len(ss.scans)} frames leave nothing to hold out "
+                         f"with --holdout {args.holdout}")
     with timer.stage(f"build model from {len(split.kept_idx)} frames"):
-        model, used = build_eval_model(split.kept, args.scans, args.geometry, args.l_max)
+        model, used = ev.build_eval_model(split.kept, args.scans, args.geometry, args.l_max)
     out_dir = args.out or Path("out") / "eval" / Path(args.scans).resolve().name
-    with gl_context() as ctx, timer.stage(f"render {len(split.held)} held-out views x {len(EVAL_METHODS)} methods"):
-        res = evaluate(ctx, model, split.held, options, EVAL_METHODS, out_dir, track)
+    with gl_context() as ctx, timer.stage(f"render {len(split.held)} held-out views x {len(ev.EVAL_METHODS)} methods"):
+        res = ev.evaluate(ctx, model, split.held, options, ev.EVAL_METHODS, out_dir, track)
     held_idx = split.held_idx
     res.update({"scans": str(args.scans), "holdout": args.holdout, "kept": split.kept_idx, "held": held_idx,
                 "geometry": used, "tolerance_px": options.tolerance_px, "supersample": options.supersample,
@@ -81,23 +94,31 @@ def run(args, console) -> int:
                 "surface_voxels": [len(lv.surface) for lv in model.pyramid.levels]})
     t = Table(title=f"held-out evaluation ({len(held_idx)} views, geometry: {used}, E = {options.tolerance_px:g} px, "
                     f"{options.supersample}x{options.supersample} samples/pixel)")
-    for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "holes %", "largest hole px", "ms/frame",
-              "CPU ms", "facets"):
+    for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "sharpness", "holes %", "largest hole px",
+              "ms/frame", "CPU ms", "facets"):
         t.add_column(c, justify="right")
-    for k in map(result_key, EVAL_METHODS):
+    for k in map(ev.result_key, ev.EVAL_METHODS):
         r = res[k]
         t.add_row(k, f"{r['psnr']:.2f}", f"{r['ssim']:.3f}", f"{r['psnr_masked']:.2f}", f"{r['ssim_masked']:.3f}",
-                  f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}", f"{r['ms_per_frame']:.1f}",
-                  f"{r['cpu_ms_per_frame']:.1f}", f"{r['facets']:.0f}")
+                  f"{r['sharpness']:.2f}", f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}",
+                  f"{r['ms_per_frame']:.1f}", f"{r['cpu_ms_per_frame']:.1f}", f"{r['facets']:.0f}")
     console.print(t)
-    console.print(f"side-by-side images (reference | {EVAL_METHODS[0]} | {EVAL_METHODS[1]} | {ERROR_GAIN:g} x error): "
+    sheet = " | ".join(m for m in ev.EVAL_METHODS if m in ev.SHEET_METHODS)
+    console.print(f"side-by-side sheets (reference | {sheet}; below: {ev.ERROR_GAIN:g} x error): "
                   f"{out_dir / 'side_by_side'}")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(res, indent=1))
-        console.print(f"[green]wrote[/] {args.json}")
+    for path in [out_dir / "eval.json"] + ([args.json] if args.json else []):
+        write_json(path, res)
+        console.print(f"[green]wrote[/] {path}")
     console.print(timer.table())
     return 0
+
+
+def write_json(path: Path, data: dict) -> None:
+    """``data`` as indented JSON at ``path``, written atomically."""
+    from capture.atomic import atomic_write
+
+    with atomic_write(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=1))
 
 
 def render_options(args):

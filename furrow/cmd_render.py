@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from render.methods import (
+    DEFAULT_METHOD,
     DEFAULT_SUPERSAMPLE,
     DEFAULT_TOLERANCE_PX,
     METHODS,
@@ -17,18 +18,24 @@ from render.methods import (
     unused_options,
 )
 
-HELP = "render a model with view-dependent microfacet billboards (or the fixed-mesh baseline)"
-DESCRIPTION = """Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
+HELP = "render a model from new cameras (gather by default; microfacets, point splatting, mesh baselines)"
+DESCRIPTION = f"""Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
 PNG per selected frame, named after the frame's file_path basename, black background,
-8-bit sRGB.  METHODS §1.2-1.7: the pyramid level and slice spacing follow the screen-space
-tolerance E (--tolerance, pixels; the paper's default 8).  Every method (render.methods) is
-drawn with --supersample S x S samples per pixel and can be composited with --env; a flag the
-chosen method does not use (--tolerance, --level, --refine, --mode are the microfacets') is an
-error.
+8-bit sRGB.  Methods (--method, render.methods):
+  gather       (default) the z-buffer of the 2 nearest kept views' RGB-D points in 2 x 2 splats,
+               colours resampled (bilinear) from those 2 views with (1 / angle) x soft
+               visibility; one sample per pixel (the photos' own anti-aliasing is kept)
+  microfacet   view-dependent microfacet billboards (METHODS §1.2-1.7): the pyramid level and
+               slice spacing follow the screen-space tolerance E (--tolerance, pixels; the
+               paper's default 8), --supersample S x S samples per pixel (default
+               {DEFAULT_SUPERSAMPLE}), --refine, --level, --mode
+  points       the plain RGB-D point splatter (4 nearest views, 2 x 2 splats, 4 mm, 1 / angle)
+  mesh-vdtm    the fixed-mesh baseline (--supersample); mesh-colour: per-vertex colour floor
+Every method can be composited with --env; a flag the chosen method does not use is an error.
 
 examples:
   furrow render out/fur_model --cameras out/furball/transforms.json -o out/renders
-  furrow render out/fur_model --cameras out/furball --frames 1::2 --tolerance 4 -o out/r4
+  furrow render out/fur_model --cameras out/furball --frames 1::2 --method microfacet --tolerance 4 -o out/r4
   furrow render out/fur_model --cameras out/furball --orbit 72 -o out/orbit
   furrow render out/fur_model --cameras out/furball --orbit 120 --video out/orbit.mp4 --fps 30
   furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline
@@ -54,9 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also (or, without -o, only) write the frames as an H.264 MP4 (render.video.write_mp4)")
     p.add_argument("--fps", type=float, default=DEFAULT_FPS,
                    help=f"frames per second of --video (default {DEFAULT_FPS:g})")
-    p.add_argument("--method", choices=list(METHODS), default="microfacet",
-                   help="microfacet (default), mesh-vdtm (fixed-mesh baseline) or mesh-colour "
-                        "(per-vertex colour floor)")
+    p.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
+                   help=f"rendering method (default {DEFAULT_METHOD}; see above)")
     p.add_argument("--tolerance", type=float, default=None,
                    help=f"screen-space tolerance E in pixels (default {DEFAULT_TOLERANCE_PX:g})")
     p.add_argument("--level", type=int, default=None,

@@ -17,11 +17,15 @@ import numpy as np
 from render import metrics
 from render.methods import RenderOptions, create_renderer
 
-#: Methods ``furrow eval`` draws, in the order of its table; the first two fill the side-by-side
-#: sheets.
-EVAL_METHODS = ("microfacet", "mesh-vdtm", "mesh-colour")
-#: Amplification of the error panel of the side-by-side sheets.
+#: Methods ``furrow eval`` draws, in the order of its table.
+EVAL_METHODS = ("gather", "microfacet", "points", "mesh-vdtm", "mesh-colour")
+#: Methods of the side-by-side sheets (those among the evaluated ones, in this order).
+SHEET_METHODS = ("gather", "microfacet", "points", "mesh-vdtm")
+#: Amplification of the error panels of the side-by-side sheets.
 ERROR_GAIN = 4.0
+#: Label text of the sheets: OpenCV Hershey font scale per 480 image rows, and its colour.
+LABEL_SCALE = 0.6
+LABEL_COLOUR = (255, 255, 0)
 #: Where the evaluated model's geometry comes from (build_eval_model).
 GEOMETRIES = ("auto", "model", "gt")
 
@@ -32,8 +36,10 @@ def result_key(method: str) -> str:
 
 
 def reference_foreground(scan) -> np.ndarray:
-    """(H, W) bool foreground of a reference view: measured depth or any non-black 8-bit pixel."""
-    return (scan.depth > 0) | (scan.srgb8.max(axis=-1) > 0)
+    """(H, W) bool foreground of a reference view: its non-black 8-bit pixels (the captures are
+    over black).  The depth is not used: a scorer outside the project sees only the PNGs, and a
+    sensor's flying pixels put depth on the black background beside every silhouette."""
+    return metrics.foreground(scan.srgb8)
 
 
 class HoldOut(NamedTuple):
@@ -102,7 +108,8 @@ def build_eval_model(kept, scans_path: Path, geometry: str, l_max: int):
 def summarise(views: list[dict]) -> dict:
     """Means over the per-view records (ms, cpu_ms -> ms_per_frame, cpu_ms_per_frame), the largest
     hole over all views, and the records themselves under ``views``."""
-    keys = ("psnr", "ssim", "psnr_masked", "ssim_masked", "hole_fraction", "largest_hole", "ms", "cpu_ms", "facets")
+    keys = ("psnr", "ssim", "psnr_masked", "ssim_masked", "sharpness", "hole_fraction", "largest_hole", "ms", "cpu_ms",
+            "facets")
     out = {k: float(np.nanmean([v.get(k, np.nan) for v in views])) for k in keys}
     out["ms_per_frame"] = out.pop("ms")
     out["cpu_ms_per_frame"] = out.pop("cpu_ms")
@@ -112,28 +119,52 @@ def summarise(views: list[dict]) -> dict:
 
 
 def score_view(scan, frame) -> dict:
-    """Scores of one rendered frame against its reference scan (render.metrics.compare) and
-    the frame's stats record."""
-    m = metrics.compare(scan.srgb8, frame.rgb, reference_foreground(scan), frame.alpha)
+    """Scores of one rendered frame against its reference scan (render.metrics.compare: 8-bit
+    sRGB, masked scores inside the union of the non-black pixels of the reference and of the
+    rendering as ``furrow render`` writes it) and the frame's stats record."""
+    m = metrics.compare(scan.srgb8, metrics.as_srgb8(frame.rgb), reference_foreground(scan))
     m.update(frame.stats.record())
     return m
 
 
-def write_side_by_side(path: Path, reference: np.ndarray, frames: list) -> None:
-    """Sheet reference | frames[0] | frames[1] | ERROR_GAIN x |frames[0] - reference| (8-bit sRGB)."""
-    from capture.imageio import write_png
-    from capture.scan import to_uint8_srgb
+def _labelled(img: np.ndarray, text: str) -> np.ndarray:
+    import cv2
 
-    imgs = [to_uint8_srgb(f.rgb) for f in frames]
-    err = np.clip(np.abs(imgs[0].astype(np.float32) - reference.astype(np.float32)) * ERROR_GAIN, 0, 255)
-    write_png(path, np.concatenate([reference, *imgs, err.astype(np.uint8)], 1))
+    out = np.ascontiguousarray(img)
+    rows = img.shape[0] / 480
+    cv2.putText(out, text, (4, max(int(18 * rows), 8)), cv2.FONT_HERSHEY_SIMPLEX, LABEL_SCALE * rows, LABEL_COLOUR, 1,
+                cv2.LINE_AA)
+    return out
+
+
+def side_by_side(reference: np.ndarray, images: dict) -> np.ndarray:
+    """(2 H, (1 + n) W, 3) uint8 sheet: top row the reference and the n renderings (8-bit sRGB,
+    ``images`` name -> image), bottom row under each rendering ERROR_GAIN x its absolute error
+    (under the reference: black).  Every panel is labelled."""
+    ref = np.asarray(reference, np.uint8)
+    top = [_labelled(ref.copy(), "reference")]
+    bottom = [np.zeros_like(ref)]
+    for name, img in images.items():
+        im = metrics.as_srgb8(img)
+        err = np.clip(np.abs(im.astype(np.float32) - ref.astype(np.float32)) * ERROR_GAIN, 0, 255).astype(np.uint8)
+        top.append(_labelled(im.copy(), name))
+        bottom.append(_labelled(err, f"{ERROR_GAIN:g} x |{name} - reference|"))
+    return np.concatenate([np.concatenate(top, 1), np.concatenate(bottom, 1)], 0)
+
+
+def write_side_by_side(path: Path, reference: np.ndarray, images: dict) -> None:
+    """Write :func:`side_by_side` as a PNG (atomic)."""
+    from capture.imageio import write_png
+
+    write_png(path, side_by_side(reference, images))
 
 
 def evaluate(ctx, model, held, options: RenderOptions | None = None, methods=EVAL_METHODS,
              out_dir: Path | None = None, progress=None) -> dict:
     """Render every held-out scan with every method in ``methods``, all with the same
     ``options``; per method (key result_key(name)) the per-view scores and their means
-    (summarise).  With ``out_dir``: out_dir/side_by_side/VIEW.png sheets of the first two methods."""
+    (summarise).  With ``out_dir``: out_dir/side_by_side/VIEW.png sheets (side_by_side) of the
+    SHEET_METHODS among ``methods``."""
     from contextlib import ExitStack
 
     options = options if options is not None else RenderOptions()
@@ -148,5 +179,6 @@ def evaluate(ctx, model, held, options: RenderOptions | None = None, methods=EVA
             for m, fr in zip(methods, frames):
                 res[result_key(m)].append({**score_view(scan, fr), "view": name})
             if out_dir is not None:
-                write_side_by_side(out_dir / "side_by_side" / (Path(name).stem + ".png"), scan.srgb8, frames[:2])
+                sheet = {m: fr.rgb for m, fr in zip(methods, frames) if m in SHEET_METHODS}
+                write_side_by_side(out_dir / "side_by_side" / (Path(name).stem + ".png"), scan.srgb8, sheet)
     return {k: summarise(v) for k, v in res.items()}

@@ -127,12 +127,19 @@ class Renderer(GLOwner):
         raise NotImplementedError
 
 
+#: The method of ``furrow render`` when none is named, first in ``furrow eval``: splatted depth
+#: with colours gathered from the two nearest views (render/gather.py), 3-4 dB above the point
+#: splatter and the microfacets on held-out fur and plants (README "Novel views").
+DEFAULT_METHOD = "gather"
+
 #: name -> "module:Renderer class" (imported on first use, so that importing the registry
 #: compiles and uploads nothing).
 METHODS: dict[str, str] = {
     "microfacet": "render.microfacet:MicrofacetRenderer",
     "mesh-vdtm": "render.vdtm:VdtmRenderer",
     "mesh-colour": "render.vdtm:MeshColourRenderer",
+    "points": "render.points:PointsRenderer",
+    "gather": "render.gather:GatherRenderer",
 }
 
 

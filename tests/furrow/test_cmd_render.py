@@ -52,9 +52,11 @@ def test_render_cli_errors(tmp_path):
     save_model(scene.build_model(cams), tmp_path / "model")
     tj = _transforms(cams, tmp_path / "transforms.json")
     base = ["render", str(tmp_path / "model"), "--cameras", str(tj), "-o", str(tmp_path / "r")]
-    assert main(base + ["--supersample", "0"]) == 1
-    assert main(base + ["--supersample", "9"]) == 1
-    assert main(base + ["--refine", "-1"]) == 1
+    mf = ["--method", "microfacet"]
+    assert main(base + mf + ["--supersample", "0"]) == 1
+    assert main(base + mf + ["--supersample", "9"]) == 1
+    assert main(base + mf + ["--refine", "-1"]) == 1
+    assert main(base + ["--supersample", "2"]) == 1  # the default method (gather) draws one sample
     assert main(base + ["--method", "mesh-vdtm", "--refine", "1"]) == 1
     assert not (tmp_path / "r").exists()  # nothing written on bad arguments
 
@@ -62,13 +64,13 @@ def test_render_cli_errors(tmp_path):
 def test_eval_summary_means():
     from render.evaluate import summarise
 
-    views = [{"psnr": 20.0, "ssim": 0.5, "psnr_masked": 10.0, "ssim_masked": 0.2, "hole_fraction": 0.1,
-              "largest_hole": 3, "ms": 10.0, "cpu_ms": 5.0, "facets": 100},
-             {"psnr": 30.0, "ssim": 0.7, "psnr_masked": 14.0, "ssim_masked": 0.4, "hole_fraction": 0.3,
-              "largest_hole": 9, "ms": 30.0, "cpu_ms": 7.0, "facets": 300}]
+    views = [{"psnr": 20.0, "ssim": 0.5, "psnr_masked": 10.0, "ssim_masked": 0.2, "sharpness": 0.9,
+              "hole_fraction": 0.1, "largest_hole": 3, "ms": 10.0, "cpu_ms": 5.0, "facets": 100},
+             {"psnr": 30.0, "ssim": 0.7, "psnr_masked": 14.0, "ssim_masked": 0.4, "sharpness": 1.1,
+              "hole_fraction": 0.3, "largest_hole": 9, "ms": 30.0, "cpu_ms": 7.0, "facets": 300}]
     s = summarise(views)
     assert s["psnr"] == 25.0 and s["psnr_masked"] == 12.0 and s["ms_per_frame"] == 20.0 and s["cpu_ms_per_frame"] == 6.0
-    assert s["largest_hole"] == 9 and np.isclose(s["hole_fraction"], 0.2)
+    assert s["largest_hole"] == 9 and np.isclose(s["hole_fraction"], 0.2) and np.isclose(s["sharpness"], 1.0)
 
 
 def test_eval_cli_on_analytic_scan_set(tmp_path):
@@ -93,13 +95,19 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
     assert main(["eval", str(tmp_path / "scans"), "--holdout", "2", "--geometry", "gt", "--l-max", "32",
                  "--json", str(out_json), "-o", str(tmp_path / "ev")]) == 0
     res = json.loads(out_json.read_text())
-    for key in ("microfacet", "mesh_vdtm"):
-        for k in ("psnr", "ssim", "psnr_masked", "ms_per_frame"):
+    for key in ("gather", "microfacet", "points", "mesh_vdtm", "mesh_colour"):
+        for k in ("psnr", "ssim", "psnr_masked", "ssim_masked", "sharpness", "ms_per_frame"):
             assert np.isfinite(res[key][k]), (key, k)
         assert len(res[key]["views"]) == 6
+    assert 0.3 < res["points"]["sharpness"] < 3.0
     assert res["held"] == [1, 3, 5, 7, 9, 11] and res["geometry"] == "gt"
     assert res["supersample"] == 2 and res["refine"] == 2  # the defaults, recorded
-    assert len(list((tmp_path / "ev" / "side_by_side").glob("*.png"))) == 6
+    assert json.loads((tmp_path / "ev" / "eval.json").read_text()) == res
+    sheets = sorted((tmp_path / "ev" / "side_by_side").glob("*.png"))
+    assert len(sheets) == 6
+    # reference | gather | microfacet | points | mesh-vdtm over their error maps
+    sheet = read_color(sheets[0])
+    assert sheet.shape == (2 * cams[0].height, 5 * cams[0].width, 3)
     # kept views are 60 degrees apart here: only check the renders are far better than nothing
     from render import metrics
 

@@ -12,8 +12,8 @@ from render.antialias import box_resolve
 from render.frame import Frame
 from render.methods import METHODS, RenderOptions, create_renderer, method_class, unused_options
 from render.owner import NEAR_FRACTION_INSIDE, mat4_bytes, near_far
-from tests.conftest import assert_images_close
 from tests import scenes as scene
+from tests.conftest import assert_images_close
 
 
 @pytest.fixture(scope="module")
@@ -49,10 +49,11 @@ def test_every_method_returns_a_frame(gl_ctx, model, name):
         r.render(eye)
 
 
-@pytest.mark.parametrize("name", list(METHODS))
+@pytest.mark.parametrize("name", [m for m in METHODS if "supersample" in method_class(m).uses])
 def test_supersampled_frame_is_resolve_of_its_samples(gl_ctx, model, name):
-    """Every method goes through the one GPU resolve: the frame equals the numpy box resolve of
-    the samples it drew (colour mean, nearest depth)."""
+    """Every method that supersamples goes through the one GPU resolve: the frame equals the
+    numpy box resolve of the samples it drew (colour mean, nearest depth).  (``points`` draws one
+    sample per pixel whatever the options: tests/render/test_points.py.)"""
     eye = _eye(5)
     with create_renderer(name, gl_ctx, model) as r:
         fr = r.render(eye, supersample=2)
@@ -101,13 +102,14 @@ def test_options_change_per_frame_without_reupload(gl_ctx, model):
 
 
 def test_registry_and_options():
-    assert set(METHODS) == {"microfacet", "mesh-vdtm", "mesh-colour"}
+    assert set(METHODS) == {"microfacet", "mesh-vdtm", "mesh-colour", "points", "gather"}
     for name in METHODS:
         assert method_class(name).name == name
     with pytest.raises(ValueError, match="unknown rendering method"):
         method_class("nope")
     assert unused_options("mesh-vdtm", ["refine", "supersample", "tolerance_px"]) == ["refine", "tolerance_px"]
     assert unused_options("microfacet", ["refine", "supersample", "level", "mode"]) == []
+    assert unused_options("points", ["supersample", "refine"]) == ["supersample", "refine"]
     for bad in (dict(supersample=0), dict(refine=-1), dict(refine=9), dict(mode="x"), dict(tolerance_px=0.0),
                 dict(spacing=-1.0)):
         with pytest.raises(ValueError):
