@@ -179,7 +179,7 @@ class Camera:
         """Approximate side (metres) of one pixel at z-depth ``depth`` (mean of fx, fy)."""
         return float(depth) * 2.0 / (self.K[0, 0] + self.K[1, 1])
 
-    def scaled(self, factor: float) -> "Camera":
+    def scaled(self, factor: float) -> Camera:
         """The same camera for an image resized by ``factor`` (pixel centres handled exactly)."""
         K = self.K.copy()
         K[0, 0] *= factor
@@ -205,7 +205,7 @@ class Camera:
     @staticmethod
     def from_nerfstudio(
         transform_matrix, fl_x: float, fl_y: float, cx: float, cy: float, w: int, h: int, name: str = ""
-    ) -> "Camera":
+    ) -> Camera:
         """Inverse of :meth:`to_nerfstudio` (nerfstudio cx, cy have centres at i + 0.5)."""
         c2w_gl = check_rigid(transform_matrix, f"camera {name!r}" if name else "transform_matrix")
         c2w_cv = c2w_gl @ CV_TO_GL
@@ -287,17 +287,17 @@ def gl_from_cv_axes() -> np.ndarray:
     return CV_TO_GL[:3, :3].copy()
 
 
-def image_right(camera: "Camera") -> np.ndarray:
+def image_right(camera: Camera) -> np.ndarray:
     """(3,) unit world direction of increasing image column u (the camera's +x)."""
     return camera.cam_from_world[0, :3].copy()
 
 
-def image_up(camera: "Camera") -> np.ndarray:
+def image_up(camera: Camera) -> np.ndarray:
     """(3,) unit world direction that points up in the image (the camera's -y: OpenCV rows go down)."""
     return -camera.cam_from_world[_IMAGE_DOWN_ROW, :3]
 
 
-def image_axes(camera: "Camera") -> tuple[np.ndarray, np.ndarray]:
+def image_axes(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """(right, up): :func:`image_right` and :func:`image_up`."""
     return image_right(camera), image_up(camera)
 

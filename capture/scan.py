@@ -134,7 +134,7 @@ class ScanSet:
         """Diagonal of the bounds in metres (the object's size)."""
         return float(np.linalg.norm(self.bounds[1] - self.bounds[0]))
 
-    def select(self, spec: str | None) -> "ScanSet":
+    def select(self, spec: str | None) -> ScanSet:
         """Frames chosen python-slice style: ``"0::2"``, ``"3"``, ``"1,4,7"``, ``":10"``."""
         idx = select_indices(spec, len(self.scans))
         return ScanSet(tuple(self.scans[i] for i in idx), self.bounds, {**self.metadata, "frames": spec})

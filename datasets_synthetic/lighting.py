@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from capture.camera import Camera
-from render.raster import Lighting, MAX_LIGHTS
+from render.raster import MAX_LIGHTS, Lighting
 from render.shading.envmap import BUNDLED_NAMES, EnvMap, bundled_envmap, load_envmap, procedural_sky
-from render.shading.lights import LUMA, dominant_lights, env_minus_lights
 from render.shading.irradiance import irradiance_lookup, irradiance_table
+from render.shading.lights import LUMA, dominant_lights, env_minus_lights
 from render.shading.sh import irradiance_brute, sh9_irradiance, sh9_project
 
 #: Rows of the environment copy used to find lights and project SH (area-correct resample).

@@ -21,17 +21,17 @@ On disk, beside the capture (``write_capture(..., extra_files=relit_files(...))`
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from capture.io import depth_format_spec
 from capture.scan import to_uint8_srgb
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
-from datasets_synthetic.pixel_filter import path_tracer_filter
 from datasets_synthetic.lighting import ambient_residual, background, resolve_env, scene_lighting
+from datasets_synthetic.pixel_filter import path_tracer_filter
 from render.raster import MeshRasterizer
 
 #: Linear radiance at or above this (after exposure) is white in 8-bit sRGB (counted as clipped).

@@ -22,8 +22,17 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from capture.rotations import rotation
-from datasets_synthetic.geometry import (_perpendicular, _unit, ellipsoid, grid_faces, lathe, merge, torus,
-                                         transformed, tube_sweep)
+from datasets_synthetic.geometry import (
+    _perpendicular,
+    _unit,
+    ellipsoid,
+    grid_faces,
+    lathe,
+    merge,
+    torus,
+    transformed,
+    tube_sweep,
+)
 from datasets_synthetic.scanned import FurryBunnyParams, build_furrybunny
 from render.raster import RasterMesh, face_normals
 

@@ -14,9 +14,9 @@ recorded poses carry the pose noise.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -26,8 +26,8 @@ from capture.scan import Scan, ScanSet
 from datasets_synthetic.geometry import ply_bytes
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
+from datasets_synthetic.noise import NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes
 from datasets_synthetic.pixel_filter import path_tracer_filter
-from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes)
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
 from datasets_synthetic.sensor import SENSORS, SensorModel, apply_sensor

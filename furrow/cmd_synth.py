@@ -167,10 +167,10 @@ def build_config(args):
 
 
 def run(args, console) -> int:
+    from capture.io import DEFAULT_PNG_DEPTH_UNIT
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.preview import contact_sheet_png_bytes
     from datasets_synthetic.relight import map_label, relight_images, relit_files
-    from capture.io import DEFAULT_PNG_DEPTH_UNIT
     from datasets_synthetic.synth import synthesize, write_capture
     from furrow.console import StageTimer, fail, track
 

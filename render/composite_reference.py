@@ -9,6 +9,7 @@ from capture.camera import Camera
 from render.ground_shadow import GroundPlane, ratio_lookup
 from render.shading.envmap import EnvMap
 
+
 def pixel_world_dirs(camera: Camera) -> np.ndarray:
     """(H, W, 3) world direction (not unit) of every pixel centre: R^T K^-1 (u, v, 1)."""
     return camera.pixel_rays(camera.pixel_grid()) @ camera.cam_from_world[:3, :3]

@@ -81,13 +81,13 @@ class Frame:
         return self.rgb.shape[1], self.rgb.shape[0]
 
     @classmethod
-    def empty(cls, width: int, height: int, stats: FrameStats) -> "Frame":
+    def empty(cls, width: int, height: int, stats: FrameStats) -> Frame:
         """A frame with nothing read back (timing-only renders): black, uncovered, no depth."""
         return cls(np.zeros((height, width, 3), np.float32), np.zeros((height, width), np.float32),
                    np.zeros((height, width), np.float32), stats)
 
     @classmethod
-    def from_gl(cls, rgba: np.ndarray, depth01: np.ndarray, near: float, far: float, stats: FrameStats) -> "Frame":
+    def from_gl(cls, rgba: np.ndarray, depth01: np.ndarray, near: float, far: float, stats: FrameStats) -> Frame:
         """Frame from a resolved read-back in framebuffer row order (render.owner.GLOwner.read_frame):
         (H, W, 4) colour with the coverage in alpha, (H, W) window depth in [0, 1] of the
         projection with planes ``near`` / ``far``."""

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import contextlib
 import re
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 #: OpenGL version required: 4.3 core (geometry shaders, texture arrays, SSBOs).

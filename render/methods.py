@@ -86,7 +86,7 @@ class RenderOptions:
         """``refine`` with None resolved to the default DEPTH_REFINE."""
         return DEPTH_REFINE if self.refine is None else int(self.refine)
 
-    def changed(self, **changes) -> "RenderOptions":
+    def changed(self, **changes) -> RenderOptions:
         """A copy with the given fields replaced (validated)."""
         return dataclasses.replace(self, **changes) if changes else self
 
@@ -107,7 +107,7 @@ class Renderer(GLOwner):
         self.options = options if options is not None else RenderOptions()
 
     @classmethod
-    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> "Renderer":
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> Renderer:
         """The renderer of a ``volume.model.Model`` with default ``options``."""
         raise NotImplementedError
 

@@ -132,26 +132,6 @@ def largest_interior_hole(reference_fg: np.ndarray, rendered_fg: np.ndarray, ero
     return int(np.bincount(lab.ravel())[1:].max())
 
 
-#: Luma weights of the grey image of the sharpness figure (Rec. 601, on 8-bit sRGB values).
-GREY_WEIGHTS = (0.299, 0.587, 0.114)
-
-
-def laplacian_rms(img: np.ndarray, mask: np.ndarray) -> float:
-    """RMS of the Laplacian (scipy.ndimage.laplace, 5-point) of the grey 8-bit sRGB image inside
-    ``mask`` (H, W); NaN for an empty mask."""
-    from scipy import ndimage
-
-    grey = as_srgb8(img).astype(np.float64) @ np.asarray(GREY_WEIGHTS)
-    m = np.asarray(mask, bool)
-    return float(np.sqrt(np.mean(ndimage.laplace(grey)[m] ** 2))) if m.any() else float("nan")
-
-
-def sharpness_ratio(rendered: np.ndarray, reference: np.ndarray, mask: np.ndarray) -> float:
-    """Sharpness of a rendering against its reference: RMS of the Laplacian of the grey image inside
-    ``mask``, rendering over reference (1 = as sharp; below 1 blurrier, above 1 noisier)."""
-    return laplacian_rms(rendered, mask) / laplacian_rms(reference, mask)
-
-
 def compare(reference: np.ndarray, rendered: np.ndarray, ref_fg: np.ndarray | None = None,
             rendered_fg: np.ndarray | None = None) -> dict:
     """All scores of one view: psnr, ssim (full), psnr_masked, ssim_masked and sharpness (the

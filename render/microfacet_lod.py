@@ -9,8 +9,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
-from render.microfacet_geometry import (K_BLEND, MAX_SLICES, PHI_EPS, SLAB_COVER, SLICE_SIDE_FACTOR, WEIGHT_EPS,
-                                        camera_angles, select_cameras)
+from render.microfacet_geometry import (
+    K_BLEND,
+    MAX_SLICES,
+    PHI_EPS,
+    SLAB_COVER,
+    SLICE_SIDE_FACTOR,
+    WEIGHT_EPS,
+    camera_angles,
+    select_cameras,
+)
 
 #: Paper default screen-space tolerance E in pixels (§1.7).
 DEFAULT_TOLERANCE_PX = 8.0

@@ -34,9 +34,9 @@ import numpy as np
 from capture.camera import Camera, gl_rows_to_image
 from render.gl import program
 from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
-from render.shadow_maps import light_view_projection, shadow_map_visibility  # noqa: F401  (re-exported)
 from render.shading.irradiance import irradiance_texture
 from render.shading.sh import sh9_glsl_uniform
+from render.shadow_maps import light_view_projection, shadow_map_visibility
 
 #: Near plane of the numpy reference rasteriser (metres; render.raster_reference).
 MIN_NEAR = 1e-3

@@ -20,7 +20,7 @@ from capture.camera import Camera
 from render import microfacet_geometry as mg
 from render.frame import Frame, FrameStats
 from render.gl import program
-from render.methods import RenderOptions, Renderer
+from render.methods import Renderer, RenderOptions
 from render.microfacet import camera_block, rgbz_array, shader_defines
 from render.owner import FrameTimer, mat4_bytes, near_far
 
@@ -65,7 +65,7 @@ class VdtmRenderer(Renderer):
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
 
     @classmethod
-    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> "VdtmRenderer":
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> VdtmRenderer:
         """Baseline from a Model.  Visibility is tested against the mesh's own depth in every
         camera (a fixed-mesh VDTM knows only its mesh): the model's RGBz depth keeps every
         measured sample for the microfacets (volume.rgbz), fur fringe included, which would
@@ -147,7 +147,7 @@ class MeshColourRenderer(Renderer):
         self.rasterizer.set_mesh(RasterMesh(vertices, faces, cols))
 
     @classmethod
-    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> "MeshColourRenderer":
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> MeshColourRenderer:
         return cls(ctx, model.mesh_vertices, model.mesh_faces, model.mesh_colors, options)
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:

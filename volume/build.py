@@ -67,7 +67,7 @@ class ModelConfig:
             raise ValueError(f"--sdf must be one of {METHODS}, got {self.sdf!r}")
 
     @classmethod
-    def reference(cls, **kw) -> "ModelConfig":
+    def reference(cls, **kw) -> ModelConfig:
         """The pipeline before the build-only-what-is-needed changes: numpy fusion passes, mesh
         marched on the finest level and decimated by pymeshlab, every fused level completed,
         RGBz geometry depth ray cast by Open3D."""

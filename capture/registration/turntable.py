@@ -102,7 +102,7 @@ class Turntable:
         """Axis offsets (2 + 2, zero here: the update is relative) followed by every angle."""
         return np.concatenate([np.zeros(4), self.angles])
 
-    def updated(self, dx: np.ndarray, scale: float) -> "Turntable":
+    def updated(self, dx: np.ndarray, scale: float) -> Turntable:
         """The model moved by ``dx`` = (axis tilt (2, radians), axis shift (2, in units of
         ``scale`` metres), angle changes (N))."""
         B = _perp_basis(self.axis)

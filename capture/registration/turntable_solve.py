@@ -193,7 +193,7 @@ class PairSet:
     opposite: list
 
 
-def pair_set(model: Turntable, active: list[int], cfg: "TurntableConfig") -> PairSet:
+def pair_set(model: Turntable, active: list[int], cfg: TurntableConfig) -> PairSet:
     return PairSet(ring_pairs(model, active, cfg.pair_max_deg), opposite_pairs(model, active, SILHOUETTE_OPPOSITE_DEG))
 
 

@@ -25,8 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from furrow.bench import OUT_ROOT
-
-
 from furrow.bench._common import save_figure
 
 SUPERSAMPLES = (1, 2, 4)
@@ -110,12 +108,11 @@ def bench_composite(ctx, W, H, env_name, out_dir: Path):
     from capture.scan import to_uint8_srgb
     from render.composite import composite_frame
     from render.shading.envmap import bundled_envmap
+    from render.shading.glare import GlareConfig
     from render.shading.irradiance import irradiance_lookup, irradiance_table
     from render.shading.sg_fit import fit_env_sg
-    from volume.model import SphereSet
-
     from render.tonemap import TONE_WHITE
-    from render.shading.glare import GlareConfig
+    from volume.model import SphereSet
 
     PICTURE_GLARE = GlareConfig(display_max=TONE_WHITE, **PICTURE_GLARE_SETTINGS)
     env = bundled_envmap(env_name)

@@ -34,8 +34,6 @@ from pathlib import Path
 import numpy as np
 
 from furrow.bench import OUT_ROOT
-
-
 from furrow.bench._common import print_result, save_figure
 
 #: Smoothness bins (lambda) of the error table.

@@ -22,7 +22,6 @@ import json
 import sys
 from pathlib import Path
 
-
 #: The method whose level-of-detail the cap limits.
 METHOD = "microfacet"
 

@@ -201,7 +201,7 @@ def _args(argv):
     ap.add_argument("--perturb", default="2,5,10", help="rotation degrees (translation = same number in %% of size)")
     ap.add_argument("--views", type=int, default=36)
     ap.add_argument("--width", type=int, default=640)
-    ap.add_argument("--data", type=Path, default=ROOT / "out" / "data",
+    ap.add_argument("--data", type=Path, default=OUT_ROOT / "data",
                     help="folder of the plant/torus/furball captures (DIR/NAME, written when missing)")
     ap.add_argument("--sensor", choices=["mm", "exact"], default="mm",
                     help="give the captures a consumer sensor's traits (mm) or keep exact depth")

@@ -93,7 +93,7 @@ def score(refs, imgs, frames) -> dict:
         union = reference_foreground(ref) | fr.alpha
         ps.append(metrics.psnr(ref.srgb8, img, union))
         ss.append(metrics.ssim(ref.srgb8, img, union))
-        sh.append(metrics.sharpness_ratio(img, ref.srgb8, union))
+        sh.append(metrics.sharpness_ratio(ref.srgb8, img, union))
     return {"psnr_masked": float(np.mean(ps)), "ssim_masked": float(np.mean(ss)), "sharpness": float(np.mean(sh))}
 
 

@@ -34,8 +34,6 @@ from pathlib import Path
 import numpy as np
 
 from furrow.bench import OUT_ROOT
-
-
 from furrow.bench._common import print_result, save_figure
 
 SECTIONS = ("irradiance", "msem", "sphere", "sg", "prefilter", "ssdf")
@@ -146,8 +144,15 @@ def bench_sphere(quick: bool, map_name: str) -> list[dict]:
 
 def bench_sg(quick: bool, map_name: str) -> dict:
     from render.shading.envmap import bundled_envmap
-    from render.shading.sg import (fh_exact, fh_fit, fh_printed_001, fh_printed_004, fit_cosine_lobe,
-                                   sg_hemi_integral, sg_irradiance)
+    from render.shading.sg import (
+        fh_exact,
+        fh_fit,
+        fh_printed_001,
+        fh_printed_004,
+        fit_cosine_lobe,
+        sg_hemi_integral,
+        sg_irradiance,
+    )
     from render.shading.sg_fit import fit_env_sg
     from render.shading.sh import irradiance_brute
 
@@ -193,8 +198,13 @@ def bench_ssdf(quick: bool) -> list[dict]:
     import open3d as o3d
 
     from render.shading.sg import fh_fit, sg_hemi_integral
-    from render.shading.ssdf import (fibonacci_directions, raycast_visibility, sg_visible_integral_raycast,
-                                     ssdf_ground, ssdf_spheres)
+    from render.shading.ssdf import (
+        fibonacci_directions,
+        raycast_visibility,
+        sg_visible_integral_raycast,
+        ssdf_ground,
+        ssdf_spheres,
+    )
 
     R, r, z0 = 0.1, 0.03, 0.06  # torus lying flat, raised z0 above the ground
     m = o3d.geometry.TriangleMesh.create_torus(torus_radius=R, tube_radius=r, radial_resolution=120,

@@ -37,8 +37,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.shading.envmap import (EnvMap, dir_to_uv, nearest_pixel, pixel_centre_azimuth, pixel_centre_polar,
-                                   pixel_solid_angles, sample_equirect)
+from render.shading.envmap import (
+    EnvMap,
+    dir_to_uv,
+    nearest_pixel,
+    pixel_centre_azimuth,
+    pixel_centre_polar,
+    pixel_solid_angles,
+    sample_equirect,
+)
 from render.shading.lights import LUMA
 
 #: Intensity resolution I of Eq. 11-13 (8-bit display: 256 levels).

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from capture.camera import (CV_TO_GL, Camera, CameraError, gl_ndc_depth_to_z, gl_rows_to_image, look_at, make_K)
+from capture.camera import CV_TO_GL, Camera, CameraError, gl_ndc_depth_to_z, gl_rows_to_image, look_at, make_K
 
 TOL = 1e-9
 

@@ -7,9 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
+from capture.imageio import ScanIOError
 from capture.io import write_plain_folder
 from capture.io_colmap import read_colmap
-from capture.imageio import ScanIOError
 from tests.capture.test_io import sphere_scanset
 
 

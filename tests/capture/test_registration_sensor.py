@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capture.camera import Camera, look_at, make_K
+from capture.camera import Camera, make_K
 from capture.registration import icp as ICP
 from capture.registration import points as P
 from capture.registration import projective as PR

@@ -8,8 +8,13 @@ import pytest
 
 from capture.camera import Camera, look_at, make_K
 from datasets_synthetic.geometry import merge, tube_sweep
-from datasets_synthetic.hair_shading import (hair_lighting, strand_points, strand_radiance, vertex_emission,
-                                             without_strand_shading)
+from datasets_synthetic.hair_shading import (
+    hair_lighting,
+    strand_points,
+    strand_radiance,
+    vertex_emission,
+    without_strand_shading,
+)
 from render.raster import Lighting, MeshRasterizer, RasterMesh
 from render.shading.envmap import bundled_envmap
 from render.shading.hair import HairParams, fibre_angles, fibre_scattering, sigma_a_from_colour

@@ -7,8 +7,15 @@ import pytest
 from scipy import ndimage
 
 from capture.camera import Camera, look_at, make_K
-from datasets_synthetic.noise import (NoiseConfig, depth_noise, grazing_dropout, hole_mask, perturb_pose, pose_error,
-                                      random_holes)
+from datasets_synthetic.noise import (
+    NoiseConfig,
+    depth_noise,
+    grazing_dropout,
+    hole_mask,
+    perturb_pose,
+    pose_error,
+    random_holes,
+)
 
 #: Relative tolerance on measured standard deviations / RMS values (sampling error is ~1-3%).
 STAT_RTOL = 0.06

@@ -5,8 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_synthetic.sensor import (SENSORS, SensorModel, apply_sensor, discontinuity_mask, flying_pixels,
-                                       quantise_disparity, quantise_unit, sensor_preset)
+from datasets_synthetic.sensor import (
+    SENSORS,
+    SensorModel,
+    apply_sensor,
+    discontinuity_mask,
+    flying_pixels,
+    quantise_disparity,
+    quantise_unit,
+    sensor_preset,
+)
 
 #: Relative tolerance on measured rates / standard deviations (sampling error ~1-3 %).
 STAT_RTOL = 0.08

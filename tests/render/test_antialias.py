@@ -12,9 +12,8 @@ from render.methods import RenderOptions
 from render.microfacet import MicrofacetRenderer
 from render.owner import near_far
 from render.vdtm import VdtmRenderer
-from tests.conftest import assert_images_close
 from tests import scenes as scene
-
+from tests.conftest import assert_images_close
 
 #: Mean colour error on the silhouette pixels with 2x2 samples must be below this share of the
 #: error with 1 sample (measured: microfacets 0.209 -> 0.157, i.e. 0.75; mesh VDTM 0.129 -> 0.031).

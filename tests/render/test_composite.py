@@ -11,12 +11,17 @@ import pytest
 from capture.camera import Camera, look_at, make_K
 from render.composite import Compositor, composite_frame, normals_from_depth
 from render.composite_reference import composite_reference, raycast_sphere
-from render.ground_shadow import (GroundPlane, ground_from_spheres, ratio_lookup, shadow_ratio, shadow_ratio_raycast,
-                                  spheres_mesh)
-from render.tonemap import TONE_WHITE, display_white, tonemap
-from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky, SUN_DIR
+from render.ground_shadow import (
+    GroundPlane,
+    ground_from_spheres,
+    ratio_lookup,
+    shadow_ratio,
+    shadow_ratio_raycast,
+    spheres_mesh,
+)
+from render.shading.envmap import SUN_DIR, EnvMap, bundled_envmap, procedural_sky
 from render.shading.sg import sg_mixture_eval
-from tests.conftest import assert_images_close
+from render.tonemap import TONE_WHITE, display_white, tonemap
 from volume.model import SphereSet
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])

@@ -7,12 +7,20 @@ import numpy as np
 import pytest
 
 from render.shading.brdf import blinn_phong_normalized
-from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky
+from render.shading.envmap import bundled_envmap, procedural_sky
 from render.shading.glare import GlareConfig
-from render.shading.glare_maps import (GlareSources, LightSources, glare_sources, light_reflection_map,
-                                       light_source_map, light_sources, make_streaks,
-                                       rasterize_streaks_reference, remove_excess, specular_parameter_map,
-                                       streak_energy_on_screen)
+from render.shading.glare_maps import (
+    LightSources,
+    glare_sources,
+    light_reflection_map,
+    light_source_map,
+    light_sources,
+    make_streaks,
+    rasterize_streaks_reference,
+    remove_excess,
+    specular_parameter_map,
+    streak_energy_on_screen,
+)
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: GL (float32 vertices, float32 blending) vs the numpy twin, relative to the image's peak:

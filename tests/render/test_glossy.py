@@ -9,8 +9,13 @@ from scipy import ndimage
 
 from capture.camera import Camera, look_at, make_K
 from render.glossy import GlossyMesh, GlossyRenderer, load_teapot_patches, utah_teapot, uv_sphere
-from render.glossy_reference import (glossy_msem_reference, glossy_phong_reference, glossy_pixels,
-                                     phong_reference, sample_smoothness_map)
+from render.glossy_reference import (
+    glossy_msem_reference,
+    glossy_phong_reference,
+    glossy_pixels,
+    phong_reference,
+    sample_smoothness_map,
+)
 from render.raster import RasterError
 from render.shading.envmap import EnvMap, bundled_envmap
 from render.shading.msem import msem_build, white_level

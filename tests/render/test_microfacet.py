@@ -13,8 +13,8 @@ from render import microfacet_lod as mlod
 from render.methods import RenderOptions
 from render.microfacet import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
 from render.microfacet_reference import reference_render
-from tests.conftest import assert_images_close, image_diff_stats
 from tests import scenes as scene
+from tests.conftest import assert_images_close, image_diff_stats
 
 #: One sample per pixel: the numpy twins shade pixel centres.
 ONE = RenderOptions(supersample=1)

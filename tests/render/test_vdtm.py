@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from capture.scan import to_uint8_srgb
+from render.methods import RenderOptions
 from render.raster import RasterMesh
 from render.raster_reference import rasterize_reference
-from render.methods import RenderOptions
 from render.vdtm import MeshColourRenderer, VdtmRenderer, vdtm_reference
-from tests.conftest import assert_images_close, image_diff_stats
 from tests import scenes as scene
+from tests.conftest import assert_images_close, image_diff_stats
 
 #: Share of pixels allowed to differ between the GL rasteriser and the numpy one (edges,
 #: texel-boundary ties) and the colour tolerance per value.

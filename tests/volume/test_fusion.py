@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.scenes import (furball_scene, make_scanset, scan_ring, sphere_scene, torus_scene)
+from tests.scenes import furball_scene, make_scanset, scan_ring, sphere_scene, torus_scene
 from volume.fusion import FusionConfig, fuse_consensus, scan_maps
 from volume.grid import cube_for_bounds, voxel_centers
 from volume.metrics import sdf_scores

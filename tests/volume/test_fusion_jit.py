@@ -15,12 +15,24 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tests.scenes import furball_scene, make_scanset, scan_ring as ring_cameras
+from tests.scenes import furball_scene, make_scanset
+from tests.scenes import scan_ring as ring_cameras
 from volume.completion import complete_sdf
-from volume.fusion import (NEAR_SLACK, PROJ_FACTOR, FusionConfig, _centers_of, carve_field, carve_votes, completed,
-                           consensus_band, fuse_consensus, gather_samples, scan_maps)
-from volume.fusion_reference import consensus_reference
+from volume.fusion import (
+    NEAR_SLACK,
+    PROJ_FACTOR,
+    FusionConfig,
+    _centers_of,
+    carve_field,
+    carve_votes,
+    completed,
+    consensus_band,
+    fuse_consensus,
+    gather_samples,
+    scan_maps,
+)
 from volume.fusion_jit import consensus_jit, pack_maps
+from volume.fusion_reference import consensus_reference
 from volume.grid import cube_for_bounds
 from volume.pyramid import discontinuity_fraction
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from capture.camera import Camera, make_K
-from tests.scenes import scan_ring as ring_cameras, sphere_scene
+from tests.scenes import scan_ring as ring_cameras
+from tests.scenes import sphere_scene
 from tests.volume.test_parts import _level
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes
 from volume.mesh_depth import mesh_depth

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from capture.camera import Camera, look_at, make_K
-from volume.model import (ModelError, Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet, load_model,
-                          save_model)
+from volume.model import Model, ModelError, RgbzImages, SdfLevel, SdfPyramid, SphereSet, load_model, save_model
 
 
 def _cams(n=3, w=8, h=6):

@@ -7,9 +7,15 @@ import pytest
 
 from tests.scenes import furball_scene, make_scanset, scan_ring, sphere_scene
 from volume.build import ModelConfig, fuse_levels
-from volume.grid import cube_for_bounds, voxel_centers
-from volume.pyramid import (LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction, discontinuity_mask,
-                            surface_voxels)
+from volume.grid import voxel_centers
+from volume.pyramid import (
+    LoptConfig,
+    build_pyramid,
+    choose_l_opt,
+    discontinuity_fraction,
+    discontinuity_mask,
+    surface_voxels,
+)
 
 
 def _sphere_sdf(L, r=0.3):

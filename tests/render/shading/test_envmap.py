@@ -5,8 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from render.shading.envmap import (BUNDLED_NAMES, EnvMap, bundled_envmap, dir_to_uv, load_envmap,
-                                   pixel_solid_angles, procedural_sky, save_envmap, uv_to_dir)
+from render.shading.envmap import (
+    BUNDLED_NAMES,
+    EnvMap,
+    bundled_envmap,
+    dir_to_uv,
+    load_envmap,
+    pixel_solid_angles,
+    procedural_sky,
+    save_envmap,
+    uv_to_dir,
+)
 
 
 def _rand_dirs(n, seed=0):

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from render.shading.glare import (GlareConfig, bright_pixels, eyelash_factor, n_g, streak_energy, streak_shape,
-                                  streak_triangles)
+from render.shading.glare import (
+    GlareConfig,
+    bright_pixels,
+    eyelash_factor,
+    n_g,
+    streak_energy,
+    streak_shape,
+    streak_triangles,
+)
 
 
 def test_shape_rules():

@@ -5,8 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from render.shading.hair import (HairParams, attenuation, back_albedo, fibre_angles, fibre_radiance,
-                                 fibre_scattering, log_i0e, scattering, sigma_a_from_colour)
+from render.shading.hair import (
+    HairParams,
+    attenuation,
+    back_albedo,
+    fibre_angles,
+    fibre_radiance,
+    fibre_scattering,
+    log_i0e,
+    scattering,
+    sigma_a_from_colour,
+)
 
 #: Furnace / normalisation tolerance of the midpoint quadrature below (measured ~1e-6).
 FURNACE_TOL = 1e-4
@@ -80,7 +89,7 @@ def test_tt_lobe_sends_light_forward():
 def test_fast_radiance_equals_the_reference_sum():
     rng = np.random.default_rng(1)
     N, L = 400, 6
-    unit = lambda a: a / np.linalg.norm(a, axis=-1, keepdims=True)  # noqa: E731
+    unit = lambda a: a / np.linalg.norm(a, axis=-1, keepdims=True)
     T, wo, d = unit(rng.normal(size=(N, 3))), unit(rng.normal(size=(N, 3))), unit(rng.normal(size=(L, 3)))
     P, vis = rng.uniform(0.1, 2, (L, 3)), rng.uniform(0, 1, (N, L))
     sa = sigma_a_from_colour(rng.uniform(0.03, 0.8, (N, 3)))

@@ -7,10 +7,17 @@ import numpy as np
 import pytest
 
 from render.shading.envmap import BUNDLED_NAMES, EnvMap, bundled_envmap
-from render.shading.irradiance import (irradiance_lookup, irradiance_table, irradiance_table_brute,
-                                       irradiance_texture)
-from render.shading.sh import (cosine_lobe_coefficients, irradiance_brute, sh9_glsl_uniform,
-                               sh9_irradiance, sh9_project, sh_basis, sh_irradiance, sh_project)
+from render.shading.irradiance import irradiance_lookup, irradiance_table, irradiance_table_brute, irradiance_texture
+from render.shading.sh import (
+    cosine_lobe_coefficients,
+    irradiance_brute,
+    sh9_glsl_uniform,
+    sh9_irradiance,
+    sh9_project,
+    sh_basis,
+    sh_irradiance,
+    sh_project,
+)
 from tests.render.shading.glsl_harness import eval_glsl
 
 #: issue 2: irradiance within 1% relative, per channel, over 100 random normals.

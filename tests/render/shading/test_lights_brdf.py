@@ -5,11 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from render.shading.brdf import (blinn_phong_energy, blinn_phong_normalized, blinn_phong_raw_energy,
-                                 half_vector)
+from render.shading.brdf import blinn_phong_energy, blinn_phong_normalized, blinn_phong_raw_energy, half_vector
 from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky
-from render.shading.lights import (LIGHT_MAX_RADIUS, _extract, dominant_lights, env_minus_lights,
-                                   lights_irradiance)
+from render.shading.lights import LIGHT_MAX_RADIUS, _extract, dominant_lights, env_minus_lights, lights_irradiance
 from render.shading.sh import irradiance_brute
 from tests.render.shading.glsl_harness import eval_glsl
 

@@ -7,8 +7,16 @@ import numpy as np
 import pytest
 
 from render.shading.envmap import EnvMap, bundled_envmap, procedural_sky
-from render.shading.msem import (MSEM_INTENSITY_LEVELS, convolve_phong, msem_brute, msem_build,
-                                 msem_lambda, msem_lookup, msem_texture, white_level)
+from render.shading.msem import (
+    MSEM_INTENSITY_LEVELS,
+    convolve_phong,
+    msem_brute,
+    msem_build,
+    msem_lambda,
+    msem_lookup,
+    msem_texture,
+    white_level,
+)
 from tests.render.shading.glsl_harness import eval_glsl
 
 

@@ -6,10 +6,19 @@ import numpy as np
 import pytest
 
 from render.shading.envmap import EnvMap, bundled_envmap
-from render.shading.projections import (DOME_TABLE2, cubemap_from_equirect, dome_frequency_for_width,
-                                        dome_from_equirect, dome_solid_angles, equirect_from_cubemap,
-                                        equirect_from_fisheye, equirect_from_mirror_ball, fisheye_from_equirect,
-                                        geodesic_dome, mirror_ball_from_equirect)
+from render.shading.projections import (
+    DOME_TABLE2,
+    cubemap_from_equirect,
+    dome_frequency_for_width,
+    dome_from_equirect,
+    dome_solid_angles,
+    equirect_from_cubemap,
+    equirect_from_fisheye,
+    equirect_from_mirror_ball,
+    fisheye_from_equirect,
+    geodesic_dome,
+    mirror_ball_from_equirect,
+)
 
 
 @pytest.mark.parametrize("width", [64, 128, 256, 512])

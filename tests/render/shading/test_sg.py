@@ -9,9 +9,22 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from render.shading.envmap import EnvMap
-from render.shading.sg import (COS_LOBE_LAMBDA, COS_LOBE_MU, fh_exact, fh_fit, fh_printed_001,
-                               fh_quad, fit_cosine_lobe, sg_eval, sg_hemi_integral,
-                               sg_inner_product, sg_integral, sg_irradiance, sg_product, warp_ndf_sg)
+from render.shading.sg import (
+    COS_LOBE_LAMBDA,
+    COS_LOBE_MU,
+    fh_exact,
+    fh_fit,
+    fh_printed_001,
+    fh_quad,
+    fit_cosine_lobe,
+    sg_eval,
+    sg_hemi_integral,
+    sg_inner_product,
+    sg_integral,
+    sg_irradiance,
+    sg_product,
+    warp_ndf_sg,
+)
 from tests.render.shading.glsl_harness import eval_glsl
 
 #: our fitted f_h vs the exact integral, in units of f_h(pi/2, lambda) (measured max 1.4e-3)

@@ -6,8 +6,15 @@ import numpy as np
 import pytest
 
 from render.shading.sg import fh_fit, sg_hemi_integral
-from render.shading.ssdf import (SSDF_MAX, fibonacci_directions, raycast_visibility, sg_visible_integral_raycast,
-                                 ssdf_from_visibility, ssdf_ground, ssdf_spheres)
+from render.shading.ssdf import (
+    SSDF_MAX,
+    fibonacci_directions,
+    raycast_visibility,
+    sg_visible_integral_raycast,
+    ssdf_from_visibility,
+    ssdf_ground,
+    ssdf_spheres,
+)
 from tests.render.shading.glsl_harness import eval_glsl
 
 
