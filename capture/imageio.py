@@ -85,7 +85,7 @@ class _Chan:
 
 def read_exr(path: Path) -> np.ndarray:
     """EXR -> float32 (H, W) or (H, W, C): the first of the channel sets RGB, RGBA, separate
-    R G B, then one of Z, Y, depth, D, R, V, or the only channel. OpenEXR package (PITFALLS)."""
+    R G B, then one of Z, Y, depth, D, R, V, or the only channel. OpenEXR package (docs/pitfalls.md)."""
     import OpenEXR
 
     try:

@@ -1,6 +1,6 @@
 """Scan sets on disk: nerfstudio ``transforms.json`` (the default) and a plain folder layout.
 
-transforms.json (DESIGN.md "Scan format on disk"): per frame ``file_path``,
+transforms.json (docs/design.md "Scan format on disk"): per frame ``file_path``,
 ``depth_file_path``, ``transform_matrix`` (camera-to-world, OpenGL axes); intrinsics
 ``fl_x fl_y cx cy w h`` globally or per frame, with pixel centres at i + 0.5 (the reader
 subtracts 0.5, the writer adds it back: all conversions live in ``capture.camera``);

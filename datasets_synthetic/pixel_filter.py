@@ -6,7 +6,7 @@ Path tracers reconstruct pixels with a wider, smooth filter: pbrt-v4's default `
 Cycles' default is a 1.5-px-wide Blackman-Harris.  Evaluation captures that come from a path
 tracer are therefore softer than our box-filtered images (measured: the point splatter's
 sharpness ratio on our fur ball rises from 0.87 to 1.21 under this filter, the unseen path-traced
-fur ball's is 1.26; bench/synth_realism.py).
+fur ball's is 1.26; furrow/bench/synth_realism.py).
 
 :func:`path_tracer_filter` convolves the box-filtered pixels with the discrete Gaussian kernel
 (Lindeberg's e^-t I_n(t), whose variance is exactly t even below a pixel, where a sampled Gaussian

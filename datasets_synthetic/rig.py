@@ -1,6 +1,6 @@
 """Turntable capture rig: rings of cameras around the world z axis looking at the origin.
 
-Like the paper's capture (METHODS §1 "Input": 36 scans every 10 degrees on a turntable, 640x480),
+Like the paper's capture (docs/methods.md §1 "Input": 36 scans every 10 degrees on a turntable, 640x480),
 the default is one ring of 36 views at 10 degree steps.  Cameras are pinhole, OpenCV
 convention, principal point at the image centre ((W - 1) / 2, (H - 1) / 2), built with
 ``capture.camera.look_at`` (world +z appears up in every image).

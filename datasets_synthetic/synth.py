@@ -1,6 +1,6 @@
 """Synthetic turntable captures: render a scene from a rig, add noise, write the scan set + gt/.
 
-On disk (DESIGN.md "Scan format on disk", written by ``capture.io.write_transforms``):
+On disk (docs/design.md "Scan format on disk", written by ``capture.io.write_transforms``):
 ``transforms.json``, ``images/``, ``depth/`` and ``gt/`` with ``gt/mesh.ply`` (exact geometry,
 world metres, +z up), ``gt/scene.json`` (name, seed, bounds, parameters, counts, rig, lighting,
 noise) and, when the poses were perturbed, ``gt/cameras_true.json`` (the unperturbed poses in

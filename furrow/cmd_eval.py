@@ -1,6 +1,6 @@
 """``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method (gather,
 the default; the microfacet renderer; the plain point splatter; the fixed-mesh VDTM baseline and
-the vertex-colour floor; METHODS §1.8, the paper's Fig. 11)."""
+the vertex-colour floor; docs/methods.md §1.8, the paper's Fig. 11)."""
 
 from __future__ import annotations
 

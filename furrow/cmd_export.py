@@ -14,7 +14,7 @@ non-metallic material; the PLY files hold 8-bit sRGB colours, as viewers expect.
   --mesh     the baseline mesh with per-vertex colour, .glb (binary glTF) or .ply
   --points   the coloured points of every kept view (the model's RGBz images), fused on a grid of
              --point-voxel metres (default half the finest pyramid voxel; 0 = every point)
-  --spheres  the occluder sphere set (METHODS §3): one PLY vertex per sphere, x y z + radius
+  --spheres  the occluder sphere set (docs/methods.md §3): one PLY vertex per sphere, x y z + radius
 
 examples:
   furrow export out/furball_model --mesh out/furball.glb

@@ -11,9 +11,9 @@ from pathlib import Path
 HELP = "build the model (SDF pyramid up to L_opt, RGBz images, occluder spheres, mesh) from a scan set"
 DESCRIPTION = """Fuse the depth maps of a posed scan set into signed distance volumes (consensus fusion in
 the spirit of Wheeler-Sato-Ikeuchi, or Open3D's TSDF as the peer), choose the resolution L_opt
-by the paper's Eq. 1 (METHODS §1.1), keep every power-of-two level up to it with its surface
-voxels, project the geometry into every camera as cleaned RGBz images (METHODS §1.4), fit an
-occluder sphere set to an error target (METHODS §3) and extract a decimated mesh for the
+by the paper's Eq. 1 (docs/methods.md §1.1), keep every power-of-two level up to it with its surface
+voxels, project the geometry into every camera as cleaned RGBz images (docs/methods.md §1.4), fit an
+occluder sphere set to an error target (docs/methods.md §3) and extract a decimated mesh for the
 baseline renderer (marched on --mesh-level).  The finest level's distance transforms are done
 only when something uses that level.  The closing table gives wall and CPU seconds and peak
 resident memory per stage.  The model folder is written atomically (temporary folder + rename).

@@ -25,7 +25,7 @@ PNG per selected frame, named after the frame's file_path basename, black backgr
   gather       (default) the z-buffer of the 2 nearest kept views' RGB-D points in 2 x 2 splats,
                colours resampled (bilinear) from those 2 views with (1 / angle) x soft
                visibility; one sample per pixel (the photos' own anti-aliasing is kept)
-  microfacet   view-dependent microfacet billboards (METHODS §1.2-1.7): the pyramid level and
+  microfacet   view-dependent microfacet billboards (docs/methods.md §1.2-1.7): the pyramid level and
                slice spacing follow the screen-space tolerance E (--tolerance, pixels; the
                paper's default 8), --supersample S x S samples per pixel (default
                {DEFAULT_SUPERSAMPLE}), --refine, --level, --mode
@@ -78,7 +78,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orbit", type=int, default=None, metavar="N",
                    help="instead of the given frames: a turntable of N frames around the rig's up axis (estimated "
                         "from the cameras) at their mean distance and height, with the first camera's intrinsics")
-    g = p.add_argument_group("environment compositing (METHODS §3-§4)")
+    g = p.add_argument_group("environment compositing (docs/methods.md §3-§4)")
     g.add_argument("--env", default=None, metavar="MAP",
                    help="composite the object into an HDR environment: a .exr/.hdr equirect map or a bundled name "
                         "(studio, courtyard, forest, sunset); background from the map, tone mapped")
@@ -145,7 +145,7 @@ def load_env(args):
 
 
 def composite(ctx, frame, cam, env, args, model, up, compositor) -> np.ndarray:
-    """The frame composited into the environment (METHODS §3-§4)."""
+    """The frame composited into the environment (docs/methods.md §3-§4)."""
     from render.composite import composite_frame
 
     # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled

@@ -1,4 +1,4 @@
-"""Compositing a captured object into an environment (METHODS §3 seed 004 Eq. 16-17, §4 glare).
+"""Compositing a captured object into an environment (docs/methods.md §3 seed 004 Eq. 16-17, §4 glare).
 
 Pipeline of :func:`composite_frame` (GL; numpy twins beside every pass):
 

@@ -1,4 +1,4 @@
-"""The GL owner of the compositing passes (METHODS §3, §4): shadow-ratio grid
+"""The GL owner of the compositing passes (docs/methods.md §3, §4): shadow-ratio grid
 (``composite_shadow_frag.glsl``, twin ``render.ground_shadow.shadow_ratio``) and the composite of an
 object over its environment (``composite_frag.glsl``, twin
 ``render.composite_reference.composite_reference``)."""

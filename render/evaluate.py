@@ -1,7 +1,7 @@
-"""Held-out evaluation (METHODS §1.8, the paper's Fig. 11): build a model from every K-th frame
+"""Held-out evaluation (docs/methods.md §1.8, the paper's Fig. 11): build a model from every K-th frame
 of a scan set, render the other frames with every method and score them against the photos.
 
-Used by ``furrow eval``, ``bench/lopt.py`` and ``bench/render.py``.  Every method is drawn
+Used by ``furrow eval``, ``furrow/bench/lopt.py`` and ``furrow/bench/render.py``.  Every method is drawn
 through the one registry (``render.methods``) with the same options, so the methods differ only
 in how they draw.
 """

@@ -1,7 +1,7 @@
 """Headless OpenGL: one explicit moderngl context, and the shader loader.
 
 The context is always passed explicitly (no global context).  On machines without a GPU
-this is Mesa's llvmpipe through EGL (shared/PITFALLS.md).  Shaders live in
+this is Mesa's llvmpipe through EGL (docs/pitfalls.md).  Shaders live in
 ``render/shaders/*.glsl`` and may ``#include "other.glsl"`` (resolved relative to that
 folder, each file at most once, recursion detected).  Constants a shader shares with its numpy
 twin are injected as ``#define``s from Python: by the program's owner (``defines=``, e.g.

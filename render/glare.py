@@ -1,4 +1,4 @@
-"""GL glare layer (METHODS §4; seed 002 §3.5): streak pairs drawn as additive triangle fans.
+"""GL glare layer (docs/methods.md §4; seed 002 §3.5): streak pairs drawn as additive triangle fans.
 
 :class:`GlareLayer` owns the GL objects (programs, the 6-vertex fan template, instance buffer,
 float32 framebuffers). Each pair (``render.shading.glare_maps.Streaks``) is one instance of a

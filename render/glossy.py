@@ -1,5 +1,5 @@
 """Glossy mesh renderer: Phong reflection with non-uniform roughness from the multi-scale
-environment map (METHODS §2, seed 000 §3.3; issue 6 item 2).
+environment map (docs/methods.md §2, seed 000 §3.3; issue 6 item 2).
 
 Per pixel: the reflection r of the view about the (interpolated, eye-facing) normal and the
 smoothness lambda in [0, 1] (the thesis' per-vertex "roughness" coordinate: 1 = mirror, 0 = the

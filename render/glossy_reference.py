@@ -1,4 +1,4 @@
-"""Slow references of the glossy mesh renderer (render/glossy.py; METHODS §2).
+"""Slow references of the glossy mesh renderer (render/glossy.py; docs/methods.md §2).
 
 * :func:`glossy_pixels` -- the numpy rasteriser (``render.raster_reference.interpolate_reference``)
   at the pixel centres: per-pixel eye-facing normal, view vector, reflection vector and

@@ -1,4 +1,4 @@
-"""The ground shadow of a captured object (METHODS §3, seed 004 Eq. 16-17): the ground plane, the
+"""The ground shadow of a captured object (docs/methods.md §3, seed 004 Eq. 16-17): the ground plane, the
 shadow ratio of its points (numpy reference of ``composite_shadow_frag.glsl``), a ray-cast reference
 and the bilinear lookup of the ratio grid.
 

@@ -5,7 +5,7 @@ scans (signed distance fusion).  To measure the renderers on their own, this mod
 model whose *voxels* come from the ground-truth mesh (``gt/mesh.ply`` of a synthetic set):
 
 * surface voxels of every level = voxels whose centre lies within half a voxel diagonal of
-  the mesh (METHODS §1.1 step 2 with the exact unsigned distance; Open3D RaycastingScene),
+  the mesh (docs/methods.md §1.1 step 2 with the exact unsigned distance; Open3D RaycastingScene),
   found coarse-to-fine (a child can only be a surface voxel if its parent is);
 * RGBz = the scans' own colour and depth (as the paper: the range image of each view), with
   the depth extended to colour-only fringe pixels (:func:`fill_fringe_depth`);
@@ -35,7 +35,7 @@ FRINGE_RADIUS_PX = 4.0
 
 def fill_fringe_depth(srgb8: np.ndarray, depth: np.ndarray, radius: float = FRINGE_RADIUS_PX) -> np.ndarray:
     """(H, W) depth where every non-black pixel without depth within ``radius`` px of a measured
-    pixel gets that nearest measured depth (the RGBz cleaning of METHODS §1.4 for a
+    pixel gets that nearest measured depth (the RGBz cleaning of docs/methods.md §1.4 for a
     supersampled capture whose colour covers more pixels than its single-sample depth)."""
     from scipy import ndimage
 

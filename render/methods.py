@@ -34,7 +34,7 @@ from render.owner import GLOwner
 DEFAULT_SUPERSAMPLE = 2
 #: Slice generation paths of the microfacet renderer (render.microfacet).
 MICROFACET_MODES = ("instanced", "geometry")
-#: Most parallax-correction steps accepted (render quality saturates after 2: bench/render.py).
+#: Most parallax-correction steps accepted (render quality saturates after 2: furrow/bench/render.py).
 MAX_REFINE = 4
 
 
@@ -44,7 +44,7 @@ class RenderOptions:
     does not list in ``Renderer.uses``."""
 
     #: Screen-space tolerance E in output pixels: picks the pyramid level and slice spacing
-    #: (METHODS §1.7, Eq. 10-11).
+    #: (docs/methods.md §1.7, Eq. 10-11).
     tolerance_px: float = DEFAULT_TOLERANCE_PX
     #: S x S samples per pixel, box-resolved on the GPU (render.antialias); 1 = off.
     supersample: int = DEFAULT_SUPERSAMPLE
@@ -57,7 +57,7 @@ class RenderOptions:
     spacing: float | None = None
     #: Microfacet slice generation: "instanced" (compute + instancing) or "geometry" (geometry shader).
     mode: str = "instanced"
-    #: Draw the same microfacet squares untextured: the bare fill-cost reference of bench/render.py.
+    #: Draw the same microfacet squares untextured: the bare fill-cost reference of furrow/bench/render.py.
     fill_only: bool = False
     #: A debug output instead of the colour (methods that list "debug" in ``uses``): "camera" (the
     #: dominant input camera's index + 1 per pixel) or "rejections" (1 kept, 2 rejected by Eq. 2)

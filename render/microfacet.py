@@ -1,4 +1,4 @@
-"""View-dependent microfacet billboards on the GPU (METHODS §1.2-§1.7).
+"""View-dependent microfacet billboards on the GPU (docs/methods.md §1.2-§1.7).
 
 All surface voxel centres of every pyramid level (each in 6 axis-sorted orders), the input
 cameras and the RGBz texture array are uploaded once; per frame only uniforms change (plus

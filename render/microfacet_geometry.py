@@ -1,4 +1,4 @@
-"""Numpy twin of the microfacet renderer's geometry (METHODS §1.2-§1.7).
+"""Numpy twin of the microfacet renderer's geometry (docs/methods.md §1.2-§1.7).
 
 Everything the shaders compute is written here once more in plain float64 numpy, so that
 tests can compare the GPU output with an obviously-correct reference:
@@ -6,12 +6,12 @@ tests can compare the GPU output with an obviously-correct reference:
 * the slice spacing l and pyramid level from the screen-space tolerance E (Eq. 8-11) are in
   ``render/microfacet_lod.py``: they run on the CPU once per frame and reach the GPU as uniforms.
 * :func:`slice_distances`: slices perpendicular to the ray eye -> voxel centre, at distances
-  n*l from the eye, only where their clip slab meets the voxel, at least one (METHODS §1.2);
+  n*l from the eye, only where their clip slab meets the voxel, at least one (docs/methods.md §1.2);
   :func:`slice_half_extents`: the quad that covers the voxel seen from the eye.
 * :func:`select_cameras`: per voxel, input cameras in increasing angle phi whose image holds
   the voxel's footprint; the nearest ``K_BLEND`` are blended with unstructured-lumigraph
-  weights (Buehler et al. 2001), the next ones are per-fragment fallbacks (METHODS §1.3).
-* :func:`eq2_pass`: the RGBz depth clip |d - D| < l/2 (Eq. 2, METHODS §1.4);
+  weights (Buehler et al. 2001), the next ones are per-fragment fallbacks (docs/methods.md §1.3).
+* :func:`eq2_pass`: the RGBz depth clip |d - D| < l/2 (Eq. 2, docs/methods.md §1.4);
   :func:`classify` / :func:`shade_fragments`: why a camera rejects (occluded, saw through,
   unsure), the weighted vote of the blend cameras and the per-fragment fallback.
 The brute-force ray caster of whole frames built from these is ``render/microfacet_reference.py``.
@@ -191,7 +191,7 @@ def ulr_weights(phi_sorted: np.ndarray, n_valid: np.ndarray) -> np.ndarray:
 
 def select_cameras(centers: np.ndarray, footprint_radius: float, eye_pos: np.ndarray, cameras):
     """Per voxel: candidate cameras by increasing phi among those whose image holds the
-    footprint, and the blend weights of the first K_BLEND (METHODS §1.3).
+    footprint, and the blend weights of the first K_BLEND (docs/methods.md §1.3).
 
     Returns:
         idx: (N, K_CAND) int64 camera indices in increasing phi, -1 past the valid ones.

@@ -1,4 +1,4 @@
-"""Level of detail of the microfacet renderer (METHODS §1.7, Eq. 8-11): the slice spacing l and
+"""Level of detail of the microfacet renderer (docs/methods.md §1.7, Eq. 8-11): the slice spacing l and
 the pyramid level from the screen-space tolerance E.  Run on the CPU once per frame; the result
 reaches the GPU as uniforms (render.microfacet)."""
 
@@ -59,7 +59,7 @@ def min_spacing(w: float) -> float:
 
 @dataclass(frozen=True)
 class Lod:
-    """The per-frame level-of-detail choice (METHODS §1.7).
+    """The per-frame level-of-detail choice (docs/methods.md §1.7).
 
     Attributes:
         level: index into the pyramid levels (coarse -> fine).

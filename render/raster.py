@@ -1,7 +1,7 @@
 """Triangle-mesh rasteriser: colour, z-depth (metres), world normals and coverage.
 
 Used by ``datasets_synthetic`` to render exact ground truth and later as the fixed-mesh
-baseline renderer (DESIGN.md "render/").  The GL path (:class:`MeshRasterizer`) has a slow,
+baseline renderer (docs/design.md "render/").  The GL path (:class:`MeshRasterizer`) has a slow,
 obviously-correct numpy twin (``render.raster_reference``: per-pixel barycentric rasterisation
 and the same shading in numpy through ``render.shading``) and tests comparing them (tests/render/test_raster.py).
 
@@ -21,7 +21,7 @@ per-vertex ambient occlusion -- from the exact irradiance table (``render.shadin
 ``env_irradiance`` of ``render/shaders/shading_envmap.glsl``, within ~1% of the brute-force integral)
 or, when the Lighting has only SH9 coefficients, from SH9 (``render/shaders/sh9.glsl``) -- plus K
 directional lights with shadow-map visibility baked per vertex, Lambert diffuse and an
-energy-preserving Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, METHODS §4 Eq. 4); strands (vertices
+energy-preserving Blinn-Phong lobe (``render/shaders/shading_brdf.glsl``, docs/methods.md §4 Eq. 4); strands (vertices
 with a tangent) use Kajiya-Kay: the lobe is evaluated on sin(T, H) and diffuse on sin(T, L).
 """
 

@@ -3,7 +3,7 @@
 The VDTM renderer draws the model's extracted mesh and textures every fragment from the input
 RGBz images with the *same* camera selection and unstructured-lumigraph weights as the
 microfacet renderer (``microfacet_common.glsl``), so the two differ only in geometry (the
-paper's "conventional method", METHODS §1.8 Fig. 11).  A camera textures a fragment when it
+paper's "conventional method", docs/methods.md §1.8 Fig. 11).  A camera textures a fragment when it
 sees it: |d - D| < ``vis_tol`` (default: the finest voxel size).  Fragments no candidate sees
 keep the mesh's vertex colour (black when the model has none).
 

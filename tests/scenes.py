@@ -290,7 +290,7 @@ def _cube(scene: Scene) -> tuple[np.ndarray, float]:
 
 
 def surface_pyramid(resolutions=(4, 8, 16, 32), empty: tuple[int, ...] = (), scene: Scene | None = None) -> SdfPyramid:
-    """Surface voxels |sdf| <= half a voxel diagonal (METHODS §1.1) on every level; levels in
+    """Surface voxels |sdf| <= half a voxel diagonal (docs/methods.md §1.1) on every level; levels in
     ``empty`` get none.  Default scene: :func:`spheres_scene`."""
     scene = spheres_scene() if scene is None else scene
     origin, extent = _cube(scene)

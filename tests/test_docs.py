@@ -56,8 +56,6 @@ def test_docs_pages_exist_and_have_the_numbered_sections():
     assert {"1", "2", "3", "4", "5"} | {f"1.{i}" for i in range(1, 9)} <= heads, sorted(heads)
 
 
-@pytest.mark.xfail(strict=True, reason="passes once the lead has run `scripts/repoint_citations.py --write` "
-                                       "after merging; then remove this marker")
 def test_no_citation_outside_the_repository():
     bad = [f"{name}:{i}: {line.strip()}" for name, text in _sources().items()
            for i, line in enumerate(text.splitlines(), 1) if OUTSIDE.search(line)]

@@ -1,4 +1,4 @@
-"""Scan set -> Model: fusion of every pyramid level, L_opt, spheres, mesh, RGBz (METHODS §1.1, §1.4, §3).
+"""Scan set -> Model: fusion of every pyramid level, L_opt, spheres, mesh, RGBz (docs/methods.md §1.1, §1.4, §3).
 
 Levels are fused coarse to fine (each level's pass 1 only near the coarser level's surface,
 see volume.fusion.carve_field) for every power of two from ``min_res`` to ``max_res``; Eq. 1
@@ -12,7 +12,7 @@ is therefore deferred and done only when something uses that level's values: the
 (L_opt = max_res), the mesh (``MeshConfig.level``) or the spheres (level min(max_res, 64)).  Spheres, mesh and the RGBz geometry depth describe the solid, not the
 billboard LOD: they use their own levels even when Eq. 1 keeps coarser levels only.
 ``ModelConfig.reference()`` is the former pipeline (mesh on the finest level, pymeshlab
-decimation, every level completed), kept for the side-by-side benchmark (bench/model.py).
+decimation, every level completed), kept for the side-by-side benchmark (furrow/bench/model.py).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from volume.spheres import fit_spheres
 from volume.tsdf import fuse_tsdf
 
 #: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
-#: of the occluder (METHODS §3: tens to hundreds of spheres).
+#: of the occluder (docs/methods.md §3: tens to hundreds of spheres).
 SPHERE_LEVEL = 64
 METHODS = ("consensus", "tsdf")
 
@@ -46,15 +46,15 @@ class ModelConfig:
     sdf: str = "consensus"
     """Fusion method: 'consensus' (Wheeler-Sato-Ikeuchi style) or 'tsdf' (Open3D peer)."""
     lopt: LoptConfig = field(default_factory=LoptConfig)
-    """L_opt search (max_res, alpha, t; METHODS §1.1 Eq. 1)."""
+    """L_opt search (max_res, alpha, t; docs/methods.md §1.1 Eq. 1)."""
     fusion: FusionConfig = field(default_factory=FusionConfig)
     """Fusion parameters."""
     sphere_error: float = 0.2
-    """Target 1 - volume IoU of the occluder sphere set (METHODS §3)."""
+    """Target 1 - volume IoU of the occluder sphere set (docs/methods.md §3)."""
     mesh: MeshConfig = field(default_factory=MeshConfig)
     """Mesh extraction."""
     rgbz: RgbzConfig = field(default_factory=RgbzConfig)
-    """RGBz preparation (METHODS §1.4)."""
+    """RGBz preparation (docs/methods.md §1.4)."""
     measured_voxels: bool = True
     """Voxels holding measured depth points of >= 2 scans are surface voxels too (volume.pyramid)."""
     keep_values: bool = True

@@ -1,4 +1,4 @@
-"""Step 5 of the fusion (volume.fusion, METHODS §1.1): a band of fused distances and a sign field
+"""Step 5 of the fusion (volume.fusion, docs/methods.md §1.1): a band of fused distances and a sign field
 completed into a signed distance volume that is finite everywhere (exact Euclidean distance
 transforms of the sign field)."""
 

@@ -1,4 +1,4 @@
-"""Signed distance volumes from posed range scans (METHODS §1.1 step 1).
+"""Signed distance volumes from posed range scans (docs/methods.md §1.1 step 1).
 
 Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised over voxels:
 
@@ -62,7 +62,7 @@ BACKENDS = ("numba", "numpy")
 
 @dataclass(frozen=True)
 class FusionConfig:
-    """Parameters of the consensus fusion (METHODS §1.1; Wheeler-Sato-Ikeuchi 1998)."""
+    """Parameters of the consensus fusion (docs/methods.md §1.1; Wheeler-Sato-Ikeuchi 1998)."""
 
     trunc_voxels: float = 3.0
     """Half-width of the band of measured distances, in voxels."""
@@ -339,7 +339,7 @@ def carve_field(maps: list[ScanMaps], origin, w: float, L: int, cfg: FusionConfi
 
 
 def carve_sign(free, nodata, occ, seen, cfg: FusionConfig, n_scans: int) -> np.ndarray:
-    """True where the votes say outside (METHODS §1.1; step 4 of the module docstring).
+    """True where the votes say outside (docs/methods.md §1.1; step 4 of the module docstring).
 
     Measured free space is strong evidence: ``carve_quorum`` views (capped by the views that
     contain x) carve.  No-return pixels are weak (they include holes): they count with the

@@ -1,4 +1,4 @@
-"""Compiled (numba) kernels of the consensus fusion's two passes (METHODS §1.1; volume.fusion).
+"""Compiled (numba) kernels of the consensus fusion's two passes (docs/methods.md §1.1; volume.fusion).
 
 The vectorised numpy passes of :mod:`volume.fusion` evaluate every (voxel, scan) pair with
 some thirty array operations and every pair of samples of a band voxel (S^2 per voxel, most

@@ -1,4 +1,4 @@
-"""The slow, obviously-correct twin of the consensus fusion's pass 2 (volume.fusion, METHODS §1.1):
+"""The slow, obviously-correct twin of the consensus fusion's pass 2 (volume.fusion, docs/methods.md §1.1):
 one voxel and one pair of samples at a time, in float64.  The vectorised numpy pass
 (volume.fusion.consensus_from_samples) and the numba pass (volume.fusion_jit) are tested
 against it (tests/volume/test_fusion.py, tests/volume/test_fusion_jit.py)."""

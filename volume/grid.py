@@ -1,4 +1,4 @@
-"""The voxel cube shared by every level of the pyramid (METHODS §1.1).
+"""The voxel cube shared by every level of the pyramid (docs/methods.md §1.1).
 
 A level of resolution L covers the cube ``origin + [0, L*w]^3``; voxel (i, j, k) (x, y, z
 order) has its centre at ``origin + (ijk + 0.5) * w``.  All levels share origin and extent,

@@ -7,7 +7,7 @@ the 256^3 surface had 1.2M that took 20 s of CPU to decimate), cleaned with pyme
 ``fast`` = Fast-Quadric-Mesh-Simplification (the ``fast-simplification`` package, about 15x
 faster), ``pymeshlab`` = pymeshlab's quadric edge collapse, the reference it is tested
 against (tests/volume/test_mesh.py).  pymeshlab's OpenMP threads collapse on a busy 2-core
-machine (PITFALLS), so the wait policy is set to passive before it is imported.
+machine (docs/pitfalls.md), so the wait policy is set to passive before it is imported.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Accuracy of a signed distance volume against ground truth (tests and `furrow bench model`).
 
 * surface-voxel precision / recall / F1: both sets use the same rule, |d| <= half the voxel
-  diagonal (METHODS §1.1 step 2), on the same grid;
+  diagonal (docs/methods.md §1.1 step 2), on the same grid;
 * sign accuracy over the voxels within ``band_voxels`` voxels of the true surface (far voxels
   are trivially right and would hide the differences);
 * mean |d - d_gt| over voxels within one voxel of the true surface, in voxels.

@@ -1,6 +1,6 @@
 """The Model bundle: signed distance pyramid, RGBz images, occluder spheres and mesh.
 
-This is the one data model passed from ``volume`` to ``render`` (METHODS §1.1, §1.4, §3).
+This is the one data model passed from ``volume`` to ``render`` (docs/methods.md §1.1, §1.4, §3).
 Every type is a frozen dataclass validated on construction; arrays are made read-only.
 
 On disk a model is a folder::
@@ -70,14 +70,14 @@ def _is_pow2(n: int) -> bool:
 # ---------------------------------------------------------------------------- types
 @dataclass(frozen=True)
 class SdfLevel:
-    """One level of the signed distance pyramid: a cube of L^3 voxels (METHODS §1.1).
+    """One level of the signed distance pyramid: a cube of L^3 voxels (docs/methods.md §1.1).
 
     Attributes:
         resolution: L, voxels per side (a power of two inside a pyramid).
         origin: (3,) float64 world position (metres) of the cube's minimum corner.
         voxel_size: w, voxel edge length in metres; the cube spans origin + [0, L*w]^3.
         surface: (N, 3) int32 voxel indices (i, j, k) in x, y, z order of the surface
-            voxels, |signed distance| <= half a voxel diagonal (METHODS §1.1 step 2).
+            voxels, |signed distance| <= half a voxel diagonal (docs/methods.md §1.1 step 2).
         values: (L, L, L) float32 signed distance in metres at voxel centres, indexed
             [i, j, k] (x, y, z), positive outside; or None when not kept.
     """
@@ -131,7 +131,7 @@ class SdfLevel:
 
 @dataclass(frozen=True)
 class SdfPyramid:
-    """Signed distance levels, coarse -> fine, every power of two up to ``l_opt`` (METHODS §1.1, §1.7).
+    """Signed distance levels, coarse -> fine, every power of two up to ``l_opt`` (docs/methods.md §1.1, §1.7).
 
     Attributes:
         levels: SdfLevel tuple, strictly increasing power-of-two resolutions, all spanning
@@ -173,7 +173,7 @@ class SdfPyramid:
 
 @dataclass(frozen=True)
 class SphereSet:
-    """Occluder approximation by spheres (METHODS §3).
+    """Occluder approximation by spheres (docs/methods.md §3).
 
     Attributes:
         centers: (N, 3) float64 world centres in metres.
@@ -202,7 +202,7 @@ class SphereSet:
 
 @dataclass(frozen=True)
 class RgbzImages:
-    """Per-camera colour + geometry depth (METHODS §1.4, the paper's RGBz images).
+    """Per-camera colour + geometry depth (docs/methods.md §1.4, the paper's RGBz images).
 
     Attributes:
         rgb: (N, H, W, 3) linear colour, stored as float16 (RGBZ_STORAGE; float32 or float16 given).
@@ -294,9 +294,9 @@ class Model:
     """Everything the renderers need, built by ``furrow model``.
 
     Attributes:
-        pyramid: signed distance levels and their surface voxels (METHODS §1.1).
-        rgbz: RGBz images, one per input camera (METHODS §1.4).
-        spheres: occluder sphere set (METHODS §3).
+        pyramid: signed distance levels and their surface voxels (docs/methods.md §1.1).
+        rgbz: RGBz images, one per input camera (docs/methods.md §1.4).
+        spheres: occluder sphere set (docs/methods.md §3).
         mesh_vertices: (V, 3) float32 world positions (metres) of the baseline mesh.
         mesh_faces: (F, 3) int32 vertex indices, counter-clockwise seen from outside.
         mesh_colors: (V, 3) float32 linear vertex colours, or None.

@@ -1,4 +1,4 @@
-"""The resolution choice L_opt (METHODS §1.1, Eq. 1) and the LOD pyramid (METHODS §1.7).
+"""The resolution choice L_opt (docs/methods.md §1.1, Eq. 1) and the LOD pyramid (docs/methods.md §1.7).
 
 Eq. 1: with N_i = number of voxels whose signed distance differs from a face neighbour's by
 more than alpha * w, stop at the first resolution L (from L_max halving down) with
@@ -14,7 +14,7 @@ samples, confirmed by a quorum or not), comparing only pairs of voxels that both
 measurement, and dividing by L^3 as the paper does.  For the TSDF peer the measured field is
 its own band.  The pyramid stores the consensus field.
 
-Reading of the loop (METHODS §1.1, kept as the paper states it, measured 2026-11-22).  Flagged
+Reading of the loop (docs/methods.md §1.1, kept as the paper states it, measured 2026-11-22).  Flagged
 voxels lie on the surface, so N_i grows like L^2 and N_i / L^3 falls roughly like 1/L: the
 fraction is higher at every coarser level and the loop either keeps L_max or runs to the
 coarsest level.  Demo fur ball (18 of 36 views, 320x240): N_i/L^3 = 0.24, 0.16, 0.088, 0.050,
@@ -28,9 +28,9 @@ with E = 1 px) favours the coarse levels on fur and plant at 320x240 (fur 21.36 
 picks 8^3 on both sizes whatever L_opt is.  So L_opt = 8 on fur is what Eq. 1 says and costs
 no measured PSNR at the default tolerance; it only caps the finest level a small E could use.
 
-Surface voxels (METHODS §1.1 step 2): |signed distance| <= half a voxel diagonal, plus
+Surface voxels (docs/methods.md §1.1 step 2): |signed distance| <= half a voxel diagonal, plus
 (with measured points) every voxel that contains measured depth points of at least
-MEASURED_MIN_VIEWS scans.  Slices are only generated in surface voxels (METHODS §1.2) and the
+MEASURED_MIN_VIEWS scans.  Slices are only generated in surface voxels (docs/methods.md §1.2) and the
 RGBz depth keeps every measured sample (volume.rgbz), so without these voxels the measured
 fuzz outside the consensus surface (fur fringe, needles) would have depth but no slice to
 land on.  Requiring two scans keeps isolated flyers out.
@@ -44,7 +44,7 @@ import numpy as np
 
 from volume.model import SdfLevel, SdfPyramid
 
-#: Surface-voxel threshold as a fraction of the voxel diagonal (METHODS §1.1: "about half").
+#: Surface-voxel threshold as a fraction of the voxel diagonal (docs/methods.md §1.1: "about half").
 SURFACE_DIAGONAL_FRACTION = 0.5
 #: A voxel holding measured depth points of at least this many scans is a surface voxel too.
 MEASURED_MIN_VIEWS = 2
@@ -54,7 +54,7 @@ MIN_RESOLUTION = 8
 
 @dataclass(frozen=True)
 class LoptConfig:
-    """Parameters of the L_opt search (METHODS §1.1, paper values as defaults)."""
+    """Parameters of the L_opt search (docs/methods.md §1.1, paper values as defaults)."""
 
     max_res: int = 256
     """L_max: the resolution the search starts from (a power of two)."""
@@ -73,7 +73,7 @@ class LoptConfig:
         if self.min_res > self.max_res:
             raise ValueError(f"min_res {self.min_res} > max_res {self.max_res}")
         if self.alpha < 1:
-            raise ValueError(f"--alpha must be >= 1 (METHODS §1.1), got {self.alpha}")
+            raise ValueError(f"--alpha must be >= 1 (docs/methods.md §1.1), got {self.alpha}")
         if not 0 <= self.t <= 1:
             raise ValueError(f"--t must be in [0, 1], got {self.t}")
 
@@ -109,7 +109,7 @@ def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float, vali
 
 
 def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float, valid: np.ndarray | None = None) -> float:
-    """N_i / L^3 of Eq. 1 (METHODS §1.1 step iii); ``valid`` as in :func:`discontinuity_mask`."""
+    """N_i / L^3 of Eq. 1 (docs/methods.md §1.1 step iii); ``valid`` as in :func:`discontinuity_mask`."""
     v = np.asarray(values)
     return float(discontinuity_mask(v, voxel_size, alpha, valid).sum()) / v.size
 
@@ -117,7 +117,7 @@ def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float, 
 def choose_l_opt(fractions: dict[int, float], t: float) -> int:
     """Eq. 1: from the finest resolution down, the first whose fraction is <= t; else the coarsest.
 
-    The paper's loop as METHODS §1.1 states it (see the module docstring for what it does on fur)."""
+    The paper's loop as docs/methods.md §1.1 states it (see the module docstring for what it does on fur)."""
     res = sorted(fractions, reverse=True)
     for L in res:
         if fractions[L] <= t:
@@ -126,7 +126,7 @@ def choose_l_opt(fractions: dict[int, float], t: float) -> int:
 
 
 def surface_voxels(values: np.ndarray, voxel_size: float) -> np.ndarray:
-    """(N, 3) int32 indices (i, j, k) with |d| <= half the voxel diagonal (METHODS §1.1 step 2)."""
+    """(N, 3) int32 indices (i, j, k) with |d| <= half the voxel diagonal (docs/methods.md §1.1 step 2)."""
     thr = SURFACE_DIAGONAL_FRACTION * np.sqrt(3.0) * voxel_size
     return np.argwhere(np.abs(values) <= thr).astype(np.int32)
 

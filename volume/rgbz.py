@@ -1,4 +1,4 @@
-"""RGBz images (METHODS §1.4): the geometry's z-depth in every camera, cleaned.
+"""RGBz images (docs/methods.md §1.4): the geometry's z-depth in every camera, cleaned.
 
 For each input camera:
 1. **geometry depth**: the model's mesh in the camera, z-buffer rasterised at the pixel
@@ -7,7 +7,7 @@ For each input camera:
    ``RgbzConfig.mesh_depth = "raycast"``);
 2. **combine with the measured depth** (``keep_measured``, default): every measured depth
    sample is kept and the geometry depth fills only the pixels nothing was measured at.  In
-   the paper the RGBz depth *is* the range image taken with the colour image (METHODS §1.4,
+   the paper the RGBz depth *is* the range image taken with the colour image (docs/methods.md §1.4,
    §1.1 "Input"); on fur and plants the fused surface lies inside the fuzz, so replacing the
    measured fringe by it (or dropping fringe pixels with no geometry hit) makes Eq. 2 discard
    exactly the texels the method is for (measured on the demo fur ball: holes and an eroded
@@ -35,7 +35,7 @@ from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
 
 @dataclass(frozen=True)
 class RgbzConfig:
-    """RGBz preparation parameters (METHODS §1.4)."""
+    """RGBz preparation parameters (docs/methods.md §1.4)."""
 
     agree_voxels: float = 2.0
     """Measured and geometry depth agree within this many finest-level voxels."""

@@ -1,4 +1,4 @@
-"""Occluder sphere sets from the signed distance volume (METHODS §3).
+"""Occluder sphere sets from the signed distance volume (docs/methods.md §3).
 
 Greedy maximal-ball cover: every interior voxel (d < 0) is a candidate sphere with its centre
 at the voxel centre and radius -d + RADIUS_PAD_VOXELS * w (about the largest ball there that

@@ -1,6 +1,6 @@
-"""The runnable peer of the consensus fusion: Open3D's TSDF integration (METHODS §1.1).
+"""The runnable peer of the consensus fusion: Open3D's TSDF integration (docs/methods.md §1.1).
 
-Open3D 0.19.0 ``UniformTSDFVolume`` (PITFALLS: 0.20's ScalableTSDFVolume returns empty
+Open3D 0.19.0 ``UniformTSDFVolume`` (docs/pitfalls.md: 0.20's ScalableTSDFVolume returns empty
 meshes) integrates every depth map with its projective distance D - z, truncated to
 ``trunc`` and averaged with unit weights.  Its band (voxels with weight > 0 and |tsdf| < 1)
 gives the values near the surface; everything else gets its sign from the same space-carving

@@ -1,4 +1,4 @@
-"""Geometric registration of range scans with Open3D (DESIGN "capture/", issue 4).
+"""Geometric registration of range scans with Open3D (docs/design.md "capture/", issue 4).
 
 Pipeline (multiway registration):
 

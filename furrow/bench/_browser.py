@@ -1,5 +1,5 @@
 """Driving ``furrow view`` in a real headless browser: Debian's chromium through Playwright
-(shared PITFALLS "Added after the first release": Playwright's own browser download cannot work
+(shared docs/pitfalls.md "Added after the first release": Playwright's own browser download cannot work
 here; SwiftShader gives the page WebGL).  Used by the viewer's tests and ``furrow bench view``."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``furrow bench ambient``: the ambient (diffuse) term of the synthetic ground-truth renderer
-against the brute-force irradiance integral (datasets_synthetic/lighting.py, METHODS §2-§3).
+against the brute-force irradiance integral (datasets_synthetic/lighting.py, docs/methods.md §2-§3).
 
 The synthetic renderer lights a scene with K dominant lights (shadow-mapped) plus the diffuse
 irradiance of the environment minus those lights.  Before 2026-11-22 that residual was lit by its

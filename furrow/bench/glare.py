@@ -1,4 +1,4 @@
-"""``furrow bench glare``: glare cost and energy (METHODS §4) and the composite into an environment.
+"""``furrow bench glare``: glare cost and energy (docs/methods.md §4) and the composite into an environment.
 
 1. Frame cost against the number of bright pixels (the paper: "glare cost is proportional to the
    number of bright pixels"): N random highlights in a W x H frame, for the streak layer's

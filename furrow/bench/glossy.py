@@ -1,5 +1,5 @@
 """``furrow bench glossy``: glossy sphere and Utah teapot with non-uniform roughness rendered with
-the multi-scale environment map (render/glossy.py, METHODS §2) against the per-pixel brute-force
+the multi-scale environment map (render/glossy.py, docs/methods.md §2) against the per-pixel brute-force
 Phong reference (render/glossy_reference.py) -- the thesis' Table 5 (and Table 6: frame time).
 
 For each object (sphere, teapot) and roughness mode (``vertex``: smoothness lambda interpolated

@@ -1,4 +1,4 @@
-"""``furrow bench lopt``: held-out PSNR against the L_opt cap (METHODS §1.1 Eq. 1, §1.7).
+"""``furrow bench lopt``: held-out PSNR against the L_opt cap (docs/methods.md §1.1 Eq. 1, §1.7).
 
 Builds the model once from the frames i % 2 == 0 with every level kept (volume.build, Eq. 1's
 choice overridden), then for every cap L truncates the pyramid to the levels <= L and renders

@@ -173,7 +173,7 @@ def run_target(scans: Path) -> dict:
 
 
 def run_spheres(name: str, scans: Path, targets: list[float], res: int = 64) -> list[dict]:
-    """Sphere count and achieved 1 - IoU for a sweep of error targets (METHODS §3)."""
+    """Sphere count and achieved 1 - IoU for a sweep of error targets (docs/methods.md §3)."""
     from capture.io import read_scanset
     from volume.build import ModelConfig, fuse_levels
     from volume.model import SdfLevel

@@ -1,4 +1,4 @@
-"""``furrow bench render``: speed against error of the microfacet renderer (METHODS §1.7-1.8).
+"""``furrow bench render``: speed against error of the microfacet renderer (docs/methods.md §1.7-1.8).
 
 The paper's Table 1 (facets and frame rate per volume resolution) reproduced and extended with
 held-out error: for every pyramid level (forced) and for the tolerance E in {2, 4, 8, 16} px

@@ -1,4 +1,4 @@
-"""``furrow bench shading``: speed against error of the environment-shading module (METHODS §2-§4).
+"""``furrow bench shading``: speed against error of the environment-shading module (docs/methods.md §2-§4).
 
 Sections (each a table; plots under -o):
   irradiance  SH9 and the exact irradiance table vs the full-resolution brute-force integral

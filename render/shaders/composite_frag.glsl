@@ -1,9 +1,9 @@
 #version 430
 // Composite of a captured object (RGB + z-depth) over the environment seen by the camera, with the
-// object's shadow ratio on the ground plane (METHODS §3, seed 004 Eq. 16-17), times the exposure.
+// object's shadow ratio on the ground plane (docs/methods.md §3, seed 004 Eq. 16-17), times the exposure.
 // Twin of render.composite_reference.composite_reference. Each fragment shades the image pixel (u, v) (OpenCV
 // centres) that framebuffer_row.glsl's image_pixel gives (read back with gl_rows_to_image).
-// Object pixels may get the light-reflection map added (METHODS §4, seed 002 §3.3; twin:
+// Object pixels may get the light-reflection map added (docs/methods.md §4, seed 002 §3.3; twin:
 // render.shading.glare_maps.light_reflection_map): sum_j k_s E_j (n + 2) / (8 pi) cos^n(N.H_j), N.L_j > 0,
 // with the view direction V = -normalize(ray) (independent of the depth).
 #include "framebuffer_row.glsl"

@@ -1,5 +1,5 @@
 #version 430
-// Ground shadow ratio (METHODS §3; seed 004 Eq. 16-17) on a grid of the ground plane z = u_plane_z:
+// Ground shadow ratio (docs/methods.md §3; seed 004 Eq. 16-17) on a grid of the ground plane z = u_plane_z:
 // ratio = sum_k mu'_k f_h(min(SSDF_spheres, SSDF_ground), lambda'_k) / sum_k mu'_k f_h(SSDF_ground, lambda'_k)
 // with (axis', lambda', mu') = lighting SG k times the clamped-cosine SG at the up normal.
 // Twin of render.ground_shadow.shadow_ratio. Grid texel (i, j) = framebuffer pixel (i, j) (a data grid:

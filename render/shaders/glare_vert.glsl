@@ -1,5 +1,5 @@
 #version 430
-// Glare streak pairs (METHODS §4, seed 002 §3.5) as instanced triangle fans of 4 triangles:
+// Glare streak pairs (docs/methods.md §4, seed 002 §3.5) as instanced triangle fans of 4 triangles:
 // template vertex in_corner = (a, b, weight): centre (0, 0, 1), then the rim (+-1, 0, 0), (0, +-1, 0);
 // position = centre + a L axis + b (W / 2) perp (OpenCV pixels, v down), colour = c * weight
 // (centre c, rim black, interpolated). Twin: render.shading.glare_maps.rasterize_streaks_reference.

@@ -1,4 +1,4 @@
-// Shared by the microfacet and VDTM shaders: input cameras, camera selection (METHODS §1.3),
+// Shared by the microfacet and VDTM shaders: input cameras, camera selection (docs/methods.md §1.3),
 // slice placement (§1.2) and the RGBz clip (Eq. 2, §1.4).  Numpy twin: render/microfacet_geometry.py.
 // Defines expected: K_BLEND, K_CAND, MAX_SLICES, PHI_EPS, WEIGHT_EPS, ULR_THRESHOLD_FACTOR.
 
@@ -82,7 +82,7 @@ void select_cameras(vec3 p, float r, out int cand[K_CAND], out float wts[K_BLEND
     for (int j = 0; j < K_BLEND; ++j) wts[j] = s > 0.0 ? wts[j] / s : 0.0;
 }
 
-// Slice numbers [lo, hi] of the voxel at c (METHODS §1.2); hi < lo: none.
+// Slice numbers [lo, hi] of the voxel at c (docs/methods.md §1.2); hi < lo: none.
 void slice_range(vec3 c, out int lo, out int hi) {
     vec3 d = c - eye_pos;
     float sc = length(d);

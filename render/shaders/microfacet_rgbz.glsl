@@ -1,4 +1,4 @@
-// RGBz lookup, Eq. 2 and the blend (METHODS §1.3-1.4).
+// RGBz lookup, Eq. 2 and the blend (docs/methods.md §1.3-1.4).
 // Twin: microfacet_geometry.sample_rgbz / classify / shade_fragments.
 uniform sampler2DArray rgbz;   // layer i: rgb linear + z-depth (m, 0 = none) of camera i
 #ifdef DEPTH_ONLY

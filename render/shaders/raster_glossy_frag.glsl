@@ -1,6 +1,6 @@
 #version 430
 // Glossy mesh renderer (render/glossy.py): Phong reflection with non-uniform roughness from the
-// multi-scale environment map, one trilinear 3-D texture fetch per pixel (METHODS §2 §3.3):
+// multi-scale environment map, one trilinear 3-D texture fetch per pixel (docs/methods.md §2 §3.3):
 // L = k_r F(r, lambda), r the reflection of the view about the normal, lambda the smoothness per
 // vertex (interpolated) or per texel (u_smooth_map, bilinear). Numpy twin: render/glossy_reference.py.
 #include "shading_msem.glsl"

@@ -5,7 +5,7 @@ uniform mat4 u_proj;   // camera.gl_projection(near, far)
 
 in vec3 in_pos;
 in vec3 in_normal;
-in float in_smooth;    // MSEM smoothness lambda per vertex (METHODS §2 Eq. 6), [0, 1]
+in float in_smooth;    // MSEM smoothness lambda per vertex (docs/methods.md §2 Eq. 6), [0, 1]
 in vec2 in_uv;         // texture coordinates of the per-texel smoothness map
 
 out vec3 v_world;

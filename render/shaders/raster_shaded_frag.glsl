@@ -2,7 +2,7 @@
 // Shaded mesh rasteriser (render/raster.py, Lighting): ambient irradiance of the environment
 // (minus its dominant lights) x per-vertex occlusion -- the exact irradiance table
 // (env_irradiance, shading_envmap.glsl) when AMBIENT_TABLE is 1, else SH9 (sh9.glsl) -- plus MAX_LIGHTS directional lights whose
-// shadow-map visibility is baked per vertex (render/raster.py shadow_map_visibility); Lambert diffuse and the energy-preserving Blinn-Phong lobe (METHODS §4 Eq. 4)
+// shadow-map visibility is baked per vertex (render/raster.py shadow_map_visibility); Lambert diffuse and the energy-preserving Blinn-Phong lobe (docs/methods.md §4 Eq. 4)
 // from shading_brdf.glsl.  Strands (non-zero tangent) use Kajiya-Kay: diffuse sin(T, L) and the
 // lobe evaluated on sin(T, H).
 #include "raster_common.glsl"

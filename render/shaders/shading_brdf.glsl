@@ -1,4 +1,4 @@
-// Energy-preserving Blinn-Phong (METHODS §4 Eq. 4). Twin of render/shading/brdf.py.
+// Energy-preserving Blinn-Phong (docs/methods.md §4 Eq. 4). Twin of render/shading/brdf.py.
 #ifndef FURROW_SHADING_BRDF_GLSL
 #define FURROW_SHADING_BRDF_GLSL
 // (n + 2) / (8 pi) * cos^n(alpha) for cos_alpha > 0, else 0 (underflows to 0, never NaN).

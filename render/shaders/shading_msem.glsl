@@ -1,4 +1,4 @@
-// Multi-scale environment map lookup (METHODS §2 §3.3). Twin of render/shading/msem.py
+// Multi-scale environment map lookup (docs/methods.md §2 §3.3). Twin of render/shading/msem.py
 // msem_lookup: t = r * smoothness, texture coordinate (t + 1) / 2, trilinear (LINEAR, clamp).
 // The texture comes from render.shading.msem.msem_texture (voxel [i, j, k] = x, y, z).
 #ifndef FURROW_SHADING_MSEM_GLSL

@@ -1,4 +1,4 @@
-// Spherical Gaussians (METHODS §3). Twin of render/shading/sg.py (same formulas, float32).
+// Spherical Gaussians (docs/methods.md §3). Twin of render/shading/sg.py (same formulas, float32).
 // G(i) = mu * exp(lambda * (i.p - 1)); 1 - i.p is computed as |i - p|^2 / 2.
 #ifndef FURROW_SHADING_SG_GLSL
 #define FURROW_SHADING_SG_GLSL

@@ -1,4 +1,4 @@
-// SSDF visibility from a set of spheres (METHODS §3, seed 001 Algorithm 1). Twin of
+// SSDF visibility from a set of spheres (docs/methods.md §3, seed 001 Algorithm 1). Twin of
 // render/shading/ssdf.py (ssdf_spheres, ssdf_ground). Spheres: an SSBO of vec4 (xyz centre, w
 // radius) at binding SSDF_SPHERE_BINDING (default 5), count u_ssdf_count.
 #ifndef FURROW_SHADING_SSDF_GLSL

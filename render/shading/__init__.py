@@ -1,4 +1,4 @@
-"""Environment shading shared by every module (DESIGN.md; METHODS §2-§4).
+"""Environment shading shared by every module (docs/design.md; docs/methods.md §2-§4).
 
 - envmap: EnvMap, the one equirect direction <-> pixel mapping, EXR/HDR I/O, bundled maps
 - sh: real SH, SH9 irradiance (GLSL twin sh9.glsl)

@@ -1,4 +1,4 @@
-"""Energy-preserving Blinn-Phong (METHODS §4, Kakimoto et al. Eq. 1-5).
+"""Energy-preserving Blinn-Phong (docs/methods.md §4, Kakimoto et al. Eq. 1-5).
 
 Blinn's highlight I_s = k_s I_l (N.H)^n loses energy as n grows: with the light along the
 normal (L = N) and H the half vector of L and the view V, the highlight integrated over all view

@@ -1,5 +1,5 @@
 """Environment maps: linear HDR radiance on an equirectangular grid, and THE one
-direction <-> pixel mapping of the whole project (DESIGN.md "EnvMap"; METHODS §2, §3).
+direction <-> pixel mapping of the whole project (docs/design.md "EnvMap"; docs/methods.md §2, §3).
 
 Convention (world +z up, same as Blender's world equirect, so the bundled studio lights look
 the way Blender shows them and the image is not mirrored when seen from inside the sphere):

@@ -1,4 +1,4 @@
-"""Glare streaks for highlights brighter than the display (METHODS §4, seed 002 Eq. 6-12).
+"""Glare streaks for highlights brighter than the display (docs/methods.md §4, seed 002 Eq. 6-12).
 
 Each bright pixel spawns ``n_dirs`` pairs of opposite streaks. A pair is a thin rhombus with
 half-length L_s along the streak direction and width W_s across (area L_s W_s: two streaks of

@@ -1,4 +1,4 @@
-"""Glare maps (METHODS §4 §3.2-3.3; seed 002) and the numpy twin of the streak rasteriser.
+"""Glare maps (docs/methods.md §4 §3.2-3.3; seed 002) and the numpy twin of the streak rasteriser.
 
 The streak geometry itself (Eq. 6-12, eyelash table, triangle fans, energy) lives in
 ``render.shading.glare`` (written by the shading helper) and is called from here, not copied.
@@ -39,7 +39,7 @@ from render.shading.envmap import EnvMap
 from render.shading.lights import LUMA
 
 #: Light-source map default: sources are texels of at least this luminance (the exposure set to
-#: the highlights, METHODS §4); the bundled maps' skies stay below ~20, their suns are 50-2000.
+#: the highlights, docs/methods.md §4); the bundled maps' skies stay below ~20, their suns are 50-2000.
 LIGHT_SOURCE_THRESHOLD = 40.0
 #: Height of the resampled map the sources are listed from (power preserving).
 LIGHT_SOURCE_HEIGHT = 128

@@ -1,5 +1,5 @@
 """Dominant light sources of an environment map (for shadow maps of the synthetic renderer and
-for the light-source map of glare, METHODS §4 §3.2), and the environment with them removed.
+for the light-source map of glare, docs/methods.md §4 §3.2), and the environment with them removed.
 
 A light is a compact region of pixels much brighter than its surroundings. It is removed from
 the map by replacing its pixels with the surrounding background level ("fill"), so

@@ -1,4 +1,4 @@
-"""Multi-scale environment map (MSEM) for non-uniform roughness (METHODS §2, seed 000).
+"""Multi-scale environment map (MSEM) for non-uniform roughness (docs/methods.md §2, seed 000).
 
 A cube of s^3 RGB voxels. Voxel t (centre in (-1, 1)^3, index (i, j, k) = (x, y, z)) holds the
 normalised Phong convolution of the environment around the direction t^ = t / |t| with the

@@ -1,5 +1,5 @@
 """A sequence of multi-scale environment maps built offline and streamed frame by frame
-(METHODS §2 §4.4: an omnidirectional video -> one MSEM per frame, streamed from disk while
+(docs/methods.md §2 §4.4: an omnidirectional video -> one MSEM per frame, streamed from disk while
 rendering). Frames are stored as float16 .npy volumes (memory-mapped on read) and uploaded into
 one reused 3-D texture."""
 

@@ -1,4 +1,4 @@
-"""Other environment layouts <-> the equirect EnvMap: geodesic domes (METHODS §2 §3.4, Table 2),
+"""Other environment layouts <-> the equirect EnvMap: geodesic domes (docs/methods.md §2 §3.4, Table 2),
 cube maps, the angular fisheye of an upward camera (seed 004: 185 degrees) and a mirror-ball
 light probe. All conversions sample the source bilinearly at the target's pixel directions
 (resample the source to about the target's resolution first when shrinking a lot).
@@ -19,7 +19,7 @@ import numpy as np
 
 from render.shading.envmap import EnvMap
 
-#: METHODS §2 Table 2: equirect width -> geodesic dome vertices (frequency nu = 9 W / 64).
+#: docs/methods.md §2 Table 2: equirect width -> geodesic dome vertices (frequency nu = 9 W / 64).
 DOME_TABLE2 = {512: 51842, 256: 12962, 128: 3242, 64: 812}
 
 

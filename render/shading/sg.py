@@ -1,16 +1,16 @@
-"""Spherical Gaussians (METHODS §3; seed 001 Eq. 6, 11-18; seed 004 Eq. 3, A.1-A.2).
+"""Spherical Gaussians (docs/methods.md §3; seed 001 Eq. 6, 11-18; seed 004 Eq. 3, A.1-A.2).
 
     G(i; p, lambda, mu) = mu * exp(lambda * (i.p - 1)),  p unit axis, lambda >= 0, mu RGB.
 
 Everything is float64 and written so that nothing overflows or loses the hard cases of
-METHODS §5: lambda from 1e-3 to 1e5 (the exponent lambda (i.p - 1) is always <= 0; 1 - i.p is
+docs/methods.md §5: lambda from 1e-3 to 1e5 (the exponent lambda (i.p - 1) is always <= 0; 1 - i.p is
 computed as |i - p|^2 / 2), antipodal product axes (|p_m| -> 0, the product is then a constant),
 lambda -> 0 (integrals use expm1).
 
-Visibility (SSDF, METHODS §3): f_h(theta_d, lambda) = integral of G(i; p, lambda, 1) over the
+Visibility (SSDF, docs/methods.md §3): f_h(theta_d, lambda) = integral of G(i; p, lambda, 1) over the
 visible side of a great circle at signed angular distance theta_d from the axis
 (theta_d = pi/2: the hemisphere centred on p; theta_d = -pi/2: the opposite one). The printed
-fits of seeds 001 / 004 have typos (METHODS §3), so we compute f_h exactly (:func:`fh_exact`,
+fits of seeds 001 / 004 have typos (docs/methods.md §3), so we compute f_h exactly (:func:`fh_exact`,
 vectorised quadrature, checked against scipy.quad) and fit our own table (:func:`fh_fit`,
 bilinear in (warped theta_d, log10 lambda), GLSL twin in ``shading_sg.glsl``); the printed fits
 are kept (:func:`fh_printed_001`, :func:`fh_printed_004`) only to measure how wrong they are.
@@ -249,7 +249,7 @@ def fh_fit(theta_d, lam) -> np.ndarray:
 
 
 def fh_printed_001(theta_d, lam) -> np.ndarray:
-    """Seed 001 Eq. 14 as printed (for comparison only; METHODS §3 warns about its signs)."""
+    """Seed 001 Eq. 14 as printed (for comparison only; docs/methods.md §3 warns about its signs)."""
     lam = np.asarray(lam, np.float64)
     k = 0.0079 * (lam / 10) ** 2 - 0.9088 * (lam / 10) + 0.79119
     with np.errstate(over="ignore"):

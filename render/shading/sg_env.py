@@ -1,4 +1,4 @@
-"""Prefiltered environment for SG specular integrals (METHODS §3; seed 001 / 004):
+"""Prefiltered environment for SG specular integrals (docs/methods.md §3; seed 001 / 004):
 
     Gamma(p, lambda) = integral G(i; p, lambda, 1) L(i) di
 

@@ -1,4 +1,4 @@
-"""Fit an environment map with K spherical Gaussians (METHODS §3; seed 004: L-BFGS-B).
+"""Fit an environment map with K spherical Gaussians (docs/methods.md §3; seed 004: L-BFGS-B).
 
 Loss: solid-angle-weighted squared radiance error over the sphere, relative to the map's
 energy, ``sum Omega |sum_k G_k - L|^2 / sum Omega |L|^2`` on the map area-resampled to

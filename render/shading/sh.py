@@ -15,7 +15,7 @@ with A_0 = pi, A_1 = 2 pi / 3, A_l = 0 for odd l > 1, and for even l
 A_l = 2 pi (-1)^(l/2 - 1) / ((l + 2)(l - 1)) * l! / (2^l ((l/2)!)^2).
 
 SH9 (lmax 2) is smooth and cheap but cannot follow a small bright source across the terminator
-of the cosine lobe; the measured errors are in ``bench/shading.py`` and the tests. For <= 1%
+of the cosine lobe; the measured errors are in ``furrow/bench/shading.py`` and the tests. For <= 1%
 accuracy use :mod:`render.shading.irradiance` (dominant lights + SH of the remainder).
 GLSL twin: ``render/shaders/sh9.glsl`` (``u_sh9[9]`` holds ``A_l * L_lm``, i.e. the output of
 :func:`sh9_glsl_uniform`).

@@ -1,5 +1,5 @@
 """Visibility as a spherical signed distance function (SSDF) from a set of spheres
-(METHODS §3; seed 001 §4.4 Algorithm 1), its analytic ground plane, and the ray-cast reference.
+(docs/methods.md §3; seed 001 §4.4 Algorithm 1), its analytic ground plane, and the ray-cast reference.
 
 SSDF(x, zeta): + angle from direction zeta to the nearest occluded direction when zeta is
 visible from x, - angle to the nearest visible direction when occluded; capped at pi/2 (the

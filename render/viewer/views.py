@@ -1,7 +1,7 @@
 """The pictures a viewer client can ask for, drawn on the GL thread from one rendered Frame.
 
 * "colour": the frame as 8-bit sRGB over black, or composited into an environment map
-  (:func:`composite_env`, METHODS §3-§4) with exposure, ground shadow, glare and map rotation;
+  (:func:`composite_env`, docs/methods.md §3-§4) with exposure, ground shadow, glare and map rotation;
 * "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
 * "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
   pixel shows it), for methods whose FrameStats report a ``level``;

@@ -1,4 +1,4 @@
-"""Glare (METHODS §4): light-source / light-reflection / specular maps, streak pairs, the GL
+"""Glare (docs/methods.md §4): light-source / light-reflection / specular maps, streak pairs, the GL
 fan layer (render/glare.py) vs its numpy twin, and streak energy conservation."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Glossy mesh renderer (render/glossy.py): GL vs its numpy twin, the Phong reference against
-closed forms, and the MSEM render against the brute-force Phong reference (METHODS §2)."""
+closed forms, and the MSEM render against the brute-force Phong reference (docs/methods.md §2)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Microfacet renderer: Eq. 10/11 and slice placement by hand, GPU vs numpy twin, input-pose
-reproduction and the hard cases of issue 5 (METHODS §1.2-§1.7)."""
+reproduction and the hard cases of issue 5 (docs/methods.md §1.2-§1.7)."""
 
 from __future__ import annotations
 

@@ -125,7 +125,7 @@ def test_smooth_normals_and_supersampling(gl_ctx, ss):
 
 
 def test_half_pixel_shift_is_caught(rast):
-    """The comparison must see a half-pixel error in the principal point (DESIGN.md)."""
+    """The comparison must see a half-pixel error in the principal point (docs/design.md)."""
     mesh = _scene()
     rast.set_mesh(mesh)
     ref = rasterize_reference(mesh, _camera())

@@ -1,4 +1,4 @@
-"""Consensus fusion and the Open3D TSDF peer on analytic scenes with exact depth (METHODS §1.1)."""
+"""Consensus fusion and the Open3D TSDF peer on analytic scenes with exact depth (docs/methods.md §1.1)."""
 
 from __future__ import annotations
 

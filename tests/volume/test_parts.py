@@ -1,4 +1,4 @@
-"""Sphere sets (METHODS §3), marching-cubes mesh, vertex colour and RGBz images (METHODS §1.4)."""
+"""Sphere sets (docs/methods.md §3), marching-cubes mesh, vertex colour and RGBz images (docs/methods.md §1.4)."""
 
 from __future__ import annotations
 
@@ -151,7 +151,7 @@ def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):
 
 
 def test_rgbz_keeps_measured_fringe_and_geometry_fills_the_rest():
-    """METHODS §1.4: the RGBz depth is the measured range image; the geometry depth only fills
+    """docs/methods.md §1.4: the RGBz depth is the measured range image; the geometry depth only fills
     unmeasured pixels.  A fringe measured ~2-3 cm outside the sphere (no geometry hit there, far
     from the surface) is kept by default and dropped by the former agreement rule."""
     scene, lv, v, f = _sphere_mesh()

@@ -1,4 +1,4 @@
-"""Eq. 1 (L_opt), surface voxels and the pyramid (METHODS §1.1, §1.7)."""
+"""Eq. 1 (L_opt), surface voxels and the pyramid (docs/methods.md §1.1, §1.7)."""
 
 from __future__ import annotations
 

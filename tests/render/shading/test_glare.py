@@ -1,4 +1,4 @@
-"""Glare streaks (METHODS §4, Eq. 6-12): shape rules and energy conservation through GL."""
+"""Glare streaks (docs/methods.md §4, Eq. 6-12): shape rules and energy conservation through GL."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Dominant lights (power-exact extraction) and the energy-preserving Blinn-Phong (METHODS §4)."""
+"""Dominant lights (power-exact extraction) and the energy-preserving Blinn-Phong (docs/methods.md §4)."""
 
 from __future__ import annotations
 

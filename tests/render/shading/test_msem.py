@@ -1,4 +1,4 @@
-"""Multi-scale environment map (METHODS §2): g(|t|), the fast build vs the brute force, and the
+"""Multi-scale environment map (docs/methods.md §2): g(|t|), the fast build vs the brute force, and the
 GLSL 3-D texture twin. Errors are in 1/256 of the map's white level (msem.white_level)."""
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def test_constant_map_gives_constant_msem():
 
 
 # maps whose highlights stay within ~10x white; a sun hundreds of times brighter than white
-# breaks the mean-below-1/256 target near it (bench/shading.py reports it), see msem.py
+# breaks the mean-below-1/256 target near it (furrow/bench/shading.py reports it), see msem.py
 @pytest.mark.parametrize("name", ["courtyard", "forest"])
 def test_fast_build_vs_brute_force(name):
     env = procedural_sky(64) if name == "procedural" else bundled_envmap(name).resized(64)

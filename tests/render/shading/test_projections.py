@@ -1,4 +1,4 @@
-"""Geodesic domes (METHODS §2 Table 2), cube maps, fisheye and mirror-ball layouts."""
+"""Geodesic domes (docs/methods.md §2 Table 2), cube maps, fisheye and mirror-ball layouts."""
 
 from __future__ import annotations
 

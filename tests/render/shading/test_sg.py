@@ -1,5 +1,5 @@
-"""Spherical Gaussians (METHODS §3) against numerical integration, over the hard cases of
-METHODS §5 (hypothesis: lambda 1e-3..1e5, antipodal axes, no NaN or inf)."""
+"""Spherical Gaussians (docs/methods.md §3) against numerical integration, over the hard cases of
+docs/methods.md §5 (hypothesis: lambda 1e-3..1e5, antipodal axes, no NaN or inf)."""
 
 from __future__ import annotations
 
@@ -126,7 +126,7 @@ def test_fh_fit_no_nan_and_accurate(td, lam):
 
 
 def test_printed_fit_001_is_wrong_as_printed():
-    # as printed (METHODS §3 warns): k(lambda) > 0 for lambda < ~8.8, so f_h DEcreases as more of
+    # as printed (docs/methods.md §3 warns): k(lambda) > 0 for lambda < ~8.8, so f_h DEcreases as more of
     # the lobe becomes visible (wrong trend, error > 20% of f_h(pi/2)); for sharp lobes the trend
     # is right but the slope is off (error > 10x our fit's). Ours stays within FH_FIT_TOL.
     td = np.linspace(-1.5, 1.5, 31)

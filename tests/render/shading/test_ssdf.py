@@ -1,4 +1,4 @@
-"""SSDF from spheres (METHODS §3, Algorithm 1) vs ray-cast visibility, hard cases, GLSL twin."""
+"""SSDF from spheres (docs/methods.md §3, Algorithm 1) vs ray-cast visibility, hard cases, GLSL twin."""
 
 from __future__ import annotations
 
