@@ -17,7 +17,7 @@ def consensus_reference(d, nrm, cw, ok, fr, n_see, cfg: FusionConfig, w: float):
     out = (np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64), np.zeros(M, bool),
            np.zeros(M, np.float32))
     for m in range(M):
-        def agrees(i, j):
+        def agrees(i, j, m=m):  # bind this voxel (B023); only called within this iteration
             if not (ok[m, i] and ok[m, j]):
                 return False
             pi = -float(d[m, i]) * nrm[m, i].astype(np.float64)  # nearest points relative to x

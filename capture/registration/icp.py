@@ -259,7 +259,7 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
             cands.append((PR.projective_icp(dj.frame, di.frame, T, gate0, 0).fitness, start, T))
         cands.sort(key=lambda c: -c[0])
         results = []
-        for _, start, T in cands[: cfg.fine_candidates]:
+        for _, _start, T in cands[: cfg.fine_candidates]:
             T, fit, rmse, info, crmse = fine_align(di.frame, dj.frame, T, cfg, size)
             corr = R.transform_delta(T, init, center_j)
             results.append(PairResult(i, j, T, fit, rmse, info, "icp", classify(fit, rmse, corr, size, crmse),

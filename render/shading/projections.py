@@ -191,7 +191,7 @@ def _bilinear(img, px, py):
             + img[y0 + 1, x0] * (1 - fx) * fy + img[y0 + 1, x0 + 1] * fx * fy)
 
 
-def mirror_ball_from_equirect(env: EnvMap, size: int, cam_to_world=np.eye(3)) -> np.ndarray:
+def mirror_ball_from_equirect(env: EnvMap, size: int, cam_to_world=None) -> np.ndarray:
     """(size, size, 3) orthographic image of a mirror ball reflecting ``env``; outside 0."""
     c = (np.arange(size) + 0.5) / size * 2 - 1
     X, Y = np.meshgrid(c, -c)  # camera x right, y up
@@ -200,18 +200,22 @@ def mirror_ball_from_equirect(env: EnvMap, size: int, cam_to_world=np.eye(3)) ->
     n = np.stack([X, Y, nz], -1)
     view = np.array([0.0, 0.0, 1.0])
     refl = 2 * nz[..., None] * n - view
+    if cam_to_world is None:
+        cam_to_world = np.eye(3)
     d = refl @ np.asarray(cam_to_world, np.float64).T
     out = env.sample(d)
     out[r2 > 1] = 0
     return out.astype(np.float32)
 
 
-def equirect_from_mirror_ball(img, h: int, cam_to_world=np.eye(3), name: str = "mirrorball") -> EnvMap:
+def equirect_from_mirror_ball(img, h: int, cam_to_world=None, name: str = "mirrorball") -> EnvMap:
     """EnvMap (h, 2h) from a mirror-ball image (see module conventions). The direction straight
     behind the ball maps to its rim and is the least reliable."""
     img = np.asarray(img, np.float64)
     S = img.shape[0]
     d = EnvMap(np.zeros((h, 2 * h, 3), np.float32)).pixel_directions()
+    if cam_to_world is None:
+        cam_to_world = np.eye(3)
     dc = d @ np.asarray(cam_to_world, np.float64)  # world -> camera (rows of R^T)
     n = dc + np.array([0.0, 0.0, 1.0])
     nn = np.linalg.norm(n, axis=-1, keepdims=True)

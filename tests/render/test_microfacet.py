@@ -59,7 +59,7 @@ def test_eq11_level_by_hand():
     assert mlod.eq11_level(0.016, 0.0, ws) == 2
     assert mlod.eq11_level(0.1, 0.0, ws) == 0  # coarser than every level
     assert mlod.eq11_level(0.001, 0.0, ws) == 3  # finer than every level
-    c = np.cos(np.radians(60))  # 0.5: intervals halve
+    # cos(60 deg) = 0.5: intervals halve
     assert mlod.eq11_level(0.01, np.radians(60), ws) == 1  # 0.008 < 0.01 <= 0.016
 
 

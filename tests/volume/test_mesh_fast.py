@@ -30,7 +30,7 @@ def test_triangle_depth_is_the_plane_depth_at_pixel_centres():
         uv = tri[:, :2] / tri[:, 2:] * 50.0 + [19.5, 14.5]
         g = cam.pixel_grid()
 
-        def side(a, b):
+        def side(a, b, g=g):
             return (b[0] - a[0]) * (g[..., 1] - a[1]) - (b[1] - a[1]) * (g[..., 0] - a[0])
 
         s = np.stack([side(uv[0], uv[1]), side(uv[1], uv[2]), side(uv[2], uv[0])])

@@ -55,7 +55,7 @@ def test_cosine_lobe_coefficients_vs_numeric_legendre():
     for l in range(9):
         c = np.zeros(l + 1)
         c[l] = 1
-        num = 2 * np.pi * quad(lambda t: t * legendre.legval(t, c), 0, 1, epsabs=1e-14)[0]
+        num = 2 * np.pi * quad(lambda t, c=c: t * legendre.legval(t, c), 0, 1, epsabs=1e-14)[0]
         np.testing.assert_allclose(a[l], num, atol=1e-12)
 
 

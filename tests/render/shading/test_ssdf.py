@@ -31,7 +31,6 @@ def test_single_sphere_matches_raycast():
     rng = np.random.default_rng(0)
     P = np.c_[rng.uniform(-0.3, 0.3, (30, 2)), rng.uniform(0.0, 0.3, 30)]
     P = P[np.linalg.norm(P - c, axis=1) > r + 0.02]
-    N = np.tile([0, 0, 1.0], (len(P), 1))
     D = fibonacci_directions(12000)
     axes = fibonacci_directions(40)
     vis = raycast_visibility(V, F, P[:12], D)
