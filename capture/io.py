@@ -7,7 +7,8 @@ subtracts 0.5, the writer adds it back: all conversions live in ``capture.camera
 ``depth_unit_scale_factor`` = metres per stored depth unit (16-bit PNG in mm: 0.001),
 globally or per frame (read both ways; written once, at the top level, as nerfstudio's
 dataparser takes the scale from its own ``--depth-unit-scale-factor`` option, default 1e-3, and
-ignores per-frame keys: furrow's default millimetre PNG opens there at the right depth).  Float EXR depth is in metres when no factor is given; a 16-bit PNG
+ignores per-frame keys: furrow's default millimetre PNG opens there at the right depth).
+Float EXR depth is in metres when no factor is given; a 16-bit PNG
 without a factor is an error (unknown units).  Depth is z-depth, 0 = no measurement.
 furrow adds an optional ``furrow`` block: ``{"bounds": [[x,y,z],[x,y,z]], "metadata": {...}}``.
 

@@ -5,7 +5,8 @@ shadow maps in the rasteriser, and the remainder, whose diffuse irradiance is it
 irradiance table (``render.shading.irradiance``: within ~1% of the brute-force integral, looked
 up by ``env_irradiance`` in the shaded raster mode) attenuated by the per-vertex ambient
 occlusion.  (Until 2026-11-22 the remainder was lit by its SH9 projection, which is off by up to
-tens of percent on real maps: :func:`ambient_accuracy` measures both against brute force.)  The two add back to the environment's full power.  The lights
+tens of percent on real maps: :func:`ambient_accuracy` measures both against brute force.)
+The two add back to the environment's full power.  The lights
 are fixed in the world (the object stands still, the cameras circle it), so every view sees
 the same lighting.
 """

@@ -256,8 +256,8 @@ def _plant_pot(p: PlantParams, rng) -> tuple[list, float]:
     rb, rt, h = p.pot_radius_bottom, p.pot_radius_top, p.pot_height
     lip = 0.004
     soil_z = z0 + h - 0.010
-    prof = np.array([[0.0, z0], [rb * 0.6, z0], [rb, z0], [rb, z0 + 0.004], [rt, z0 + h - 0.014], [rt + lip, z0 + h - 0.013],
-                     [rt + lip, z0 + h], [rt - 0.002, z0 + h], [rt - 0.004, soil_z]])
+    prof = np.array([[0.0, z0], [rb * 0.6, z0], [rb, z0], [rb, z0 + 0.004], [rt, z0 + h - 0.014],
+                     [rt + lip, z0 + h - 0.013], [rt + lip, z0 + h], [rt - 0.002, z0 + h], [rt - 0.004, soil_z]])
     terracotta = np.array([0.42, 0.15, 0.07])
     pot_cols = np.tile(terracotta, (len(prof), 1)) * np.array([0.8, 0.9, 1, 1, 1, 1.05, 1.05, 1.0, 0.6])[:, None]
     pot = lathe(prof, 96, pot_cols, occlusion=np.array([1, 1, 1, 1, 1, 1, 1, 0.9, 0.5]), specular=0.05)

@@ -41,18 +41,21 @@ def _pow2(text: str) -> int:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scans", type=Path, help="scan set: transforms.json, a folder holding one, or a plain folder")
-    p.add_argument("-o", "--out", type=Path, required=True, help="model folder to write (an existing model is replaced only with --overwrite)")
+    p.add_argument("-o", "--out", type=Path, required=True,
+                   help="model folder to write (an existing model is replaced only with --overwrite)")
     p.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, python-slice style: 0::2, 3, 1,4,7")
     p.add_argument("--max-res", type=_pow2, default=256, help="L_max: finest resolution tried (default 256)")
     p.add_argument("--alpha", type=float, default=1.5, help="Eq. 1 tolerance alpha >= 1 (default 1.5)")
     p.add_argument("--t", type=float, default=0.01, help="Eq. 1 threshold t on N_i / L^3 (default 0.01)")
-    p.add_argument("--sdf", choices=["consensus", "tsdf"], default="consensus", help="fusion method (default consensus)")
+    p.add_argument("--sdf", choices=["consensus", "tsdf"], default="consensus",
+                   help="fusion method (default consensus)")
     p.add_argument("--sphere-error", type=float, default=0.2, metavar="E",
                    help="target 1 - volume IoU of the occluder sphere set (default 0.2)")
     p.add_argument("--quorum", type=int, default=3,
                    help="consensus: scans that must agree for a depth sample to count (default 3; use 1-2 "
                         "when each surface point is seen by fewer views)")
-    p.add_argument("--mesh-faces", type=int, default=60000, help="decimate the mesh to this many triangles (default 60000)")
+    p.add_argument("--mesh-faces", type=int, default=60000,
+                   help="decimate the mesh to this many triangles (default 60000)")
     p.add_argument("--mesh-level", type=_pow2, default=128,
                    help="fused level the baseline mesh is marched on (default 128, capped at --max-res)")
     p.add_argument("--reference-pipeline", action="store_true",
@@ -85,7 +88,8 @@ def run(args, console) -> int:
     from volume.model import save_model
     from volume.pyramid import LoptConfig
 
-    kw = dict(sdf=args.sdf, lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res)),
+    kw = dict(sdf=args.sdf,
+              lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res)),
               fusion=FusionConfig(quorum=args.quorum), sphere_error=args.sphere_error)
     if args.reference_pipeline:
         cfg = ModelConfig.reference(**kw)
@@ -128,7 +132,8 @@ def run(args, console) -> int:
         console.print(f"RGBz hole fraction per view (min / mean / max over {len(h)} views): before "
                       f"{min(hb):.4f} / {sum(hb) / len(hb):.4f} / {max(hb):.4f}, after closing "
                       f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
-    console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  surface voxels {summary['surface_voxels']}  "
+    console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
+                  f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
     if args.json:
         print(json.dumps(summary))

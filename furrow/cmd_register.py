@@ -37,7 +37,8 @@ EXIT_FLAGGED = 3
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scans", type=Path, help="input scan set (transforms.json, its folder, or a plain folder)")
-    p.add_argument("-o", "--out", type=Path, required=True, help="output folder (must not exist, must not be the input)")
+    p.add_argument("-o", "--out", type=Path, required=True,
+                   help="output folder (must not exist, must not be the input)")
     p.add_argument("--method", choices=["auto", "icp", "colmap", "board"], default="auto")
     p.add_argument("--init", choices=["nominal", "none"], default="nominal",
                    help="start from the input poses (nominal) or from nothing (global registration)")

@@ -76,7 +76,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", help="scene: furball, plant, torus or furrybunny")
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder (new, or --overwrite)")
     p.add_argument("--views", type=int, default=None, help="number of views (default 36; --small: 12)")
-    p.add_argument("--size", type=_size, default=None, help="image size WIDTHxHEIGHT (default 640x480; --small: 160x120)")
+    p.add_argument("--size", type=_size, default=None,
+                   help="image size WIDTHxHEIGHT (default 640x480; --small: 160x120)")
     p.add_argument("--seed", type=int, default=0, help="seed of the geometry and of the noise (default 0)")
     p.add_argument("--small", action="store_true", help="CI-sized capture: 12 views at 160x120")
     p.add_argument("--strands", type=int, default=None,
@@ -99,14 +100,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="film filter: Gaussian of SIGMA pixels in total, like a path tracer's (default 0.5, "
                         "pbrt-v4 / Mitsuba 3); 0 = a 1-pixel box")
     p.add_argument("--background", choices=["env", "black"], default="black",
-                   help="what is seen behind the object: black (default, like a masked scan and like furrow render's output) or the environment map")
+                   help="what is seen behind the object: black (default, like a masked scan and like "
+                        "furrow render's output) or the environment map")
     p.add_argument("--depth-noise", type=float, default=0.0, metavar="K",
                    help="depth noise sigma = K z^2 (metres of sigma at 1 m; e.g. 0.002)")
     p.add_argument("--holes", type=float, default=0.0, metavar="FRAC",
                    help="fraction of each depth image covered by random hole blobs (e.g. 0.02)")
     p.add_argument("--grazing", type=float, default=0.0, metavar="DEG",
                    help="drop depth seen more than DEG degrees from the surface normal (e.g. 75)")
-    p.add_argument("--pose-noise-deg", type=float, default=0.0, metavar="D", help="RMS rotation error of the recorded poses")
+    p.add_argument("--pose-noise-deg", type=float, default=0.0, metavar="D",
+                   help="RMS rotation error of the recorded poses")
     p.add_argument("--pose-noise-frac", type=float, default=0.0, metavar="F",
                    help="RMS translation error of the recorded poses, fraction of the object size")
     p.add_argument("--sensor", default="d435", choices=["d435", "kinect-v1", "ideal"],
@@ -119,8 +122,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="metres per unit of --depth-format png (default 0.001 = millimetres)")
     p.add_argument("--board", action="store_true",
                    help="stand the object on a ChArUco board (for `furrow register --method board`); the board "
-                        "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, e.g. "
-                        "--elevations 50 --size 480x360")
+                        "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, "
+                        "e.g. --elevations 50 --size 480x360")
     p.add_argument("--preview", action="store_true", help="also write DIR/preview.png (colour + depth contact sheet)")
     p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
     p.add_argument("--debug", action="store_true", help="show tracebacks")

@@ -101,6 +101,7 @@ class StageTimer:
         t.add_column("peak MiB", justify="right")
         for k, v in self.seconds.items():
             t.add_row(k, f"{v:.2f}", f"{self.cpu_seconds.get(k, 0.0):.2f}", f"{self.peak_mb.get(k, 0.0):.0f}")
-        t.add_row("[bold]total", f"[bold]{sum(self.seconds.values()):.2f}", f"[bold]{sum(self.cpu_seconds.values()):.2f}",
+        t.add_row("[bold]total", f"[bold]{sum(self.seconds.values()):.2f}",
+                  f"[bold]{sum(self.cpu_seconds.values()):.2f}",
                   f"[bold]{max(self.peak_mb.values(), default=0.0):.0f}")
         return t

@@ -44,7 +44,8 @@ def composite_reference(rgb, depth, camera: Camera, env: EnvMap, exposure: float
         from render.shading.glare_maps import light_reflection_map
 
         view = -d / np.linalg.norm(d, axis=-1, keepdims=True)
-        rgb = rgb + light_reflection_map(normals, view, np.where((np.asarray(depth) > 0)[..., None], spec, 0.0), sources)
+        rgb = rgb + light_reflection_map(normals, view, np.where((np.asarray(depth) > 0)[..., None], spec, 0.0),
+                                         sources)
     col = env.sample(d)
     if ground is not None and ratio_grid is not None:
         eye = camera.center

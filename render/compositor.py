@@ -157,7 +157,8 @@ class Compositor(GLOwner):
             src[:, 0, :3] = sources.dirs
             src[:, 1, :3] = sources.irradiance
         else:
-            nrm, sp, src = np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 2), np.float32), np.zeros((1, 2, 4), np.float32)
+            nrm, sp, src = (np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 2), np.float32),
+                            np.zeros((1, 2, 4), np.float32))
         t_nrm = ctx.texture(nrm.shape[1::-1], 3, nrm.tobytes(), dtype="f4")
         t_sp = ctx.texture(sp.shape[1::-1], 2, sp.tobytes(), dtype="f4")
         t_src = ctx.buffer(src.tobytes())

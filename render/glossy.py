@@ -159,7 +159,8 @@ class GlossyRenderer(GLOwner):
         self._vao = self.own(self.ctx.vertex_array(self._prog, [(self._vbo, fmt, *names)],
                                                    index_buffer=self._ibo, index_element_size=4))
         m = mesh.smoothness_map if mesh.smoothness_map is not None else np.zeros((1, 1), np.float32)
-        self._map = self.own(self.ctx.texture((m.shape[1], m.shape[0]), 1, np.ascontiguousarray(m).tobytes(), dtype="f4"))
+        self._map = self.own(self.ctx.texture((m.shape[1], m.shape[0]), 1, np.ascontiguousarray(m).tobytes(),
+                                              dtype="f4"))
         self._map.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._map.repeat_x, self._map.repeat_y = True, False
         self._mesh = mesh
@@ -193,7 +194,8 @@ class GlossyRenderer(GLOwner):
         col = gl_rows_to_image(tgt.read_colour(0))
         aux = gl_rows_to_image(tgt.read_colour(1))
         mask = aux[..., 3] > 0.5
-        return GlossyResult(color=np.ascontiguousarray(col[..., :3]), smoothness=np.where(mask, aux[..., 0], 0).astype(np.float32),
+        return GlossyResult(color=np.ascontiguousarray(col[..., :3]),
+                            smoothness=np.where(mask, aux[..., 0], 0).astype(np.float32),
                             depth=np.where(mask, aux[..., 1], 0).astype(np.float32), mask=mask)
 
 

@@ -53,7 +53,8 @@ class GroundPlane:
         if not np.isfinite(self.height) or not np.all(np.isfinite(c)):
             raise ValueError("GroundPlane: height and centre must be finite")
         if not self.half_size > 0 or int(self.resolution) < 2:
-            raise ValueError(f"GroundPlane: half_size > 0 and resolution >= 2 (got {self.half_size}, {self.resolution})")
+            raise ValueError(f"GroundPlane: half_size > 0 and resolution >= 2 "
+                             f"(got {self.half_size}, {self.resolution})")
 
     @property
     def origin(self) -> np.ndarray:
@@ -100,7 +101,8 @@ def shadow_ratio(points, spheres, fit, plane_z: float) -> np.ndarray:
     p, lam, mu = _cosine_products(fit)
     tg = ssdf_ground(p)  # (K,)
     up = np.broadcast_to([0.0, 0.0, 1.0], x.shape)
-    ts = ssdf_spheres(x, up, p, spheres.centers, spheres.radii) if len(spheres) else np.full((len(x), len(lam)), np.pi / 2)
+    ts = (ssdf_spheres(x, up, p, spheres.centers, spheres.radii) if len(spheres)
+          else np.full((len(x), len(lam)), np.pi / 2))
     occ = fh_fit(combine_ssdf(ts, tg[None]), lam[None]) @ mu  # (P, 3)
     un = fh_fit(tg, lam) @ mu  # (3,)
     return np.where(un > 0, occ / np.where(un > 0, un, 1.0), 1.0)

@@ -58,7 +58,8 @@ def surface_pyramid(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
     if l_max & (l_max - 1) or l_min & (l_min - 1) or l_min > l_max:
         raise ValueError(f"levels must be powers of two with l_min <= l_max, got {l_min}, {l_max}")
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(np.asarray(vertices, np.float32)), o3d.core.Tensor(np.asarray(faces, np.uint32)))
+    scene.add_triangles(o3d.core.Tensor(np.asarray(vertices, np.float32)),
+                        o3d.core.Tensor(np.asarray(faces, np.uint32)))
     levels = []
     L = l_min
     cand = np.stack(np.meshgrid(*[np.arange(L)] * 3, indexing="ij"), -1).reshape(-1, 3)

@@ -433,7 +433,8 @@ class MeshRasterizer(GLOwner):
         color, alpha = gl_rows_to_image(block[..., :3]), gl_rows_to_image(block[..., 3])
         dep, nor = gl_rows_to_image(dep), gl_rows_to_image(nor)
         mask = dep > 0
-        return RasterResult(color=np.ascontiguousarray(color, np.float32), depth=np.where(mask, dep, 0).astype(np.float32),
+        return RasterResult(color=np.ascontiguousarray(color, np.float32),
+                            depth=np.where(mask, dep, 0).astype(np.float32),
                             normal=np.where(mask[..., None], nor, 0).astype(np.float32), mask=mask,
                             alpha=np.clip(alpha, 0, 1).astype(np.float32))
 

@@ -130,7 +130,8 @@ def shade_reference(mesh: RasterMesh, camera: Camera, lighting: Lighting, visibi
         nl = np.maximum(N @ L, 0)
         cos_d = np.where(hair, np.sqrt(np.maximum(0, 1 - tl * tl)), nl)
         lobe = np.where(hair, blinn_phong_normalized(np.sqrt(np.maximum(0, 1 - th * th)), lighting.hair_shininess),
-                        np.where(nl > 0, blinn_phong_normalized(np.maximum(np.sum(N * Hv, -1), 0), lighting.shininess), 0))
+                        np.where(nl > 0,
+                                 blinn_phong_normalized(np.maximum(np.sum(N * Hv, -1), 0), lighting.shininess), 0))
         c = lighting.light_colors[i].astype(np.float64)
         irr += c * (vis[:, i] * cos_d)[:, None]
         specular += c * (vis[:, i] * lobe)[:, None]

@@ -53,7 +53,8 @@ def shadow_map_visibility(points: np.ndarray, depth: np.ndarray, light_vp: np.nd
             xs, ys = x + dx, y + dy
             x0, y0 = np.floor(xs).astype(np.int64), np.floor(ys).astype(np.int64)
             fx, fy = xs - x0, ys - y0
-            for ox, oy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+            for ox, oy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
+                                (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
                 xi = np.clip(x0 + ox, 0, S - 1)
                 yi = np.clip(y0 + oy, 0, S - 1)
                 vis += wgt * (ref <= depth[yi, xi])

@@ -9,7 +9,8 @@ the result equals the paper's top-down loop.
 Only what a consumer needs is built.  Eq. 1 reads the *measured* field, which fusion gives
 before its distance-transform completion; the finest level's completion (most of its cost)
 is therefore deferred and done only when something uses that level's values: the pyramid
-(L_opt = max_res), the mesh (``MeshConfig.level``) or the spheres (level min(max_res, 64)).  Spheres, mesh and the RGBz geometry depth describe the solid, not the
+(L_opt = max_res), the mesh (``MeshConfig.level``) or the spheres (level min(max_res, 64)).
+Spheres, mesh and the RGBz geometry depth describe the solid, not the
 billboard LOD: they use their own levels even when Eq. 1 keeps coarser levels only.
 ``ModelConfig.reference()`` is the former pipeline (mesh on the finest level, pymeshlab
 decimation, every level completed), kept for the side-by-side benchmark (furrow/bench/model.py).
@@ -139,8 +140,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
                                 keep_values=False, points=points)
     params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
-              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels, "sphere_level": sphere_res,
-              "mesh_level": mesh_res,
+              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels,
+              "sphere_level": sphere_res, "mesh_level": mesh_res,
               "eq1_fraction": {str(L): v for L, v in frac.items()},
               "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],

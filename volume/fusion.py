@@ -8,8 +8,8 @@ Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised ove
 2. **Pass 1, every voxel x, every scan** (streamed, O(voxels) memory): project x to its
    nearest pixel; with measured depth D and the voxel's z-depth z, count
    ``free`` (D - z > agree: the scan saw through x), ``nodata`` (x projects onto a pixel with
-   no return, and none within SILHOUETTE_PX), ``occluded`` (z - D > trunc) and ``near`` (a valid surface sample within trunc:
-   point-to-plane distance d = n . (x - p) of the pixel's point p and normal n).
+   no return, and none within SILHOUETTE_PX), ``occluded`` (z - D > trunc) and ``near`` (a valid surface sample
+   within trunc: point-to-plane distance d = n . (x - p) of the pixel's point p and normal n).
 3. **Pass 2, voxels with a near sample** (the band, chunked): every scan's sample
    (d_i, n_i) is compared with every other's; samples i, j *agree* when their normals are
    within ``agree_normal_deg`` and the nearest points on their tangent planes,
@@ -21,9 +21,8 @@ Consensus fusion in the spirit of Wheeler, Sato & Ikeuchi (1998), vectorised ove
    A voxel with samples but no consensus whose nearest (unconfirmed) cluster of samples puts
    it in front of the surface is outside; unconfirmed samples never make a voxel inside.
 4. **Sign elsewhere** (space carving with votes, :func:`carve_sign`): x is outside when
-   free >= min(carve_quorum, #scans that see x), or free + nodata >= carve_ratio * occluded; voxels fewer than min(carve_quorum, #scans) scans contain are
-   outside; the rest (hidden behind the
-   surface in every view) are inside.
+   free >= min(carve_quorum, #scans that see x), or free + nodata >= carve_ratio * occluded; voxels fewer than
+   min(carve_quorum, #scans) scans contain are outside; the rest (hidden behind the surface in every view) are inside.
 5. **Completion** (:func:`volume.completion.complete_sdf`): outside the consensus band the distance is the
    Euclidean distance transform of the sign field, so it is finite everywhere.
 

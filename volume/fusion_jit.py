@@ -283,6 +283,7 @@ def consensus_jit(pm: PackedMaps, flat: np.ndarray, origin, w: float, L: int, n_
     has_c, value, support = np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64)
     has1, value1 = np.zeros(M, bool), np.zeros(M, np.float32)
     pass2_consensus(np.asarray(flat, np.int64), np.asarray(origin, np.float64), float(w), int(L),
-                    np.asarray(n_see, np.int64), pm.pixel, pm.P, pm.start, pm.W, pm.H, float(trunc), float(proj_factor), float(agree_d), math.cos(math.radians(agree_normal_deg)),
+                    np.asarray(n_see, np.int64), pm.pixel, pm.P, pm.start, pm.W, pm.H,
+                    float(trunc), float(proj_factor), float(agree_d), math.cos(math.radians(agree_normal_deg)),
                     int(quorum), has_c, value, support, has1, value1)
     return has_c, value, support, has1, value1

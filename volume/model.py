@@ -109,7 +109,8 @@ class SdfLevel:
         if values is not None:
             values = np.asarray(values)
             if values.shape != (L, L, L) or values.dtype != np.float32:
-                raise ModelError(f"SdfLevel {L}: values must be ({L},{L},{L}) float32, got {values.shape} {values.dtype}")
+                raise ModelError(f"SdfLevel {L}: values must be ({L},{L},{L}) float32, "
+                                 f"got {values.shape} {values.dtype}")
             if not np.all(np.isfinite(values)):
                 raise ModelError(f"SdfLevel {L}: values contain NaN or inf")
             values = _ro(values)
@@ -340,7 +341,8 @@ class Model:
         if c is not None:
             c = np.asarray(c)
             if c.shape != v.shape or c.dtype != np.float32 or not np.all(np.isfinite(c)):
-                raise ModelError(f"Model: mesh_colors must be finite ({len(v)}, 3) float32 or None, got {c.shape} {c.dtype}")
+                raise ModelError(f"Model: mesh_colors must be finite ({len(v)}, 3) float32 or None, "
+                                 f"got {c.shape} {c.dtype}")
             c = _ro(c)
         b = np.asarray(self.bounds, dtype=np.float64)
         if b.shape != (2, 3) or not np.all(np.isfinite(b)) or np.any(b[1] <= b[0]):
@@ -446,7 +448,8 @@ def load_model(folder) -> Model:
     except (OSError, ValueError) as e:
         raise ModelError(f"{mj}: not valid JSON ({e})") from None
     if not isinstance(meta, dict) or meta.get("schema") != SCHEMA:
-        raise ModelError(f"{mj}: not a furrow model (schema {meta.get('schema') if isinstance(meta, dict) else None!r})")
+        raise ModelError(f"{mj}: not a furrow model "
+                         f"(schema {meta.get('schema') if isinstance(meta, dict) else None!r})")
     if meta.get("version") != SCHEMA_VERSION:
         raise ModelError(f"{mj}: model version {meta.get('version')!r} is not supported (this furrow reads version "
                          f"{SCHEMA_VERSION}); rebuild it with `furrow model`")

@@ -87,7 +87,8 @@ class LoptConfig:
         return out
 
 
-def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float, valid: np.ndarray | None = None) -> np.ndarray:
+def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float,
+                       valid: np.ndarray | None = None) -> np.ndarray:
     """(L, L, L) bool: voxels whose value differs from a face neighbour's by > alpha * w.
 
     With ``valid`` (L, L, L) bool, only pairs of two valid voxels are compared.
@@ -108,7 +109,8 @@ def discontinuity_mask(values: np.ndarray, voxel_size: float, alpha: float, vali
     return flag
 
 
-def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float, valid: np.ndarray | None = None) -> float:
+def discontinuity_fraction(values: np.ndarray, voxel_size: float, alpha: float,
+                           valid: np.ndarray | None = None) -> float:
     """N_i / L^3 of Eq. 1 (docs/methods.md §1.1 step iii); ``valid`` as in :func:`discontinuity_mask`."""
     v = np.asarray(values)
     return float(discontinuity_mask(v, voxel_size, alpha, valid).sum()) / v.size

@@ -165,7 +165,8 @@ def match(a: Features, b: Features) -> np.ndarray:
     ba = bf.knnMatch(b.descriptors, a.descriptors, k=1)
     back = {m[0].queryIdx: m[0].trainIdx for m in ba if m}
     out = [(m[0].queryIdx, m[0].trainIdx) for m in ab
-           if len(m) == 2 and m[0].distance < FEATURE_RATIO * m[1].distance and back.get(m[0].trainIdx) == m[0].queryIdx]
+           if len(m) == 2 and m[0].distance < FEATURE_RATIO * m[1].distance
+           and back.get(m[0].trainIdx) == m[0].queryIdx]
     return np.array(out, dtype=np.int64).reshape(-1, 2)
 
 

@@ -178,7 +178,8 @@ def classify(fitness: float, rmse: float, correction: tuple[float, float] | None
              color_rmse: float = float("nan")) -> str:
     """Status of a pair result against the thresholds of ``report.py`` (``color_rmse`` is
     checked when finite, i.e. when the colour term is on)."""
-    if correction is not None and (correction[0] > R.MAX_CORRECTION_DEG or correction[1] > R.MAX_CORRECTION_FRAC * size):
+    if correction is not None and (correction[0] > R.MAX_CORRECTION_DEG
+                                   or correction[1] > R.MAX_CORRECTION_FRAC * size):
         return "diverged"
     if fitness < R.MIN_FITNESS:
         return "low_fitness"
@@ -339,7 +340,8 @@ def register_icp(scanset: ScanSet, cfg: IcpConfig = IcpConfig(), use_init: bool 
     size = scanset.size
     center_w = scanset.bounds.mean(axis=0)
     voxels = _levels(cfg, size)
-    poses_in = [np.asarray(p, dtype=np.float64) for p in (init_poses or [s.camera.cam_from_world for s in scanset.scans])]
+    poses_in = [np.asarray(p, dtype=np.float64)
+                for p in (init_poses or [s.camera.cam_from_world for s in scanset.scans])]
     secs: dict[str, float] = {}
     data = [prepare(s, voxels, cfg) for s in scanset.scans]
     secs["clouds"] = time.perf_counter() - t0

@@ -135,7 +135,8 @@ def _register_free(scanset, method, init, cfg, board, notes):
     return out, used, by_board
 
 
-def _free_evidence(rep: R.RegistrationReport, out: ICP.IcpOutcome, cfg: ICP.IcpConfig, used: str, by_board: set) -> None:
+def _free_evidence(rep: R.RegistrationReport, out: ICP.IcpOutcome, cfg: ICP.IcpConfig, used: str,
+                   by_board: set) -> None:
     """Per scan: the evidence that placed it in the free rig, and its residual figures."""
     for k, rec in enumerate(rep.scans):
         if not rec.registered:

@@ -56,7 +56,8 @@ class CloudError(ValueError):
     """A scan cannot be turned into a usable point cloud; the message names it."""
 
 
-def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True, far_side_only: bool = False) -> np.ndarray:
+def edge_mask(depth: np.ndarray, edge_frac: float, keep_silhouettes: bool = True,
+              far_side_only: bool = False) -> np.ndarray:
     """(H, W) bool: valid pixels with no *valid* 4-neighbour more than ``edge_frac * depth`` away
     in depth (mixed pixels at depth discontinuities).  With ``keep_silhouettes`` pixels next to
     "no data" are kept, so one-pixel needles and strands in front of empty space survive;

@@ -113,7 +113,8 @@ def board_set(cameras: list[Camera], spec=None, with_object: bool = True) -> Sca
     w, h = spec.size_m
     z = spec.z_m
     m = BOARD_MARGIN_M  # white paper around the printed board
-    pv = np.array([[-w / 2 - m, -h / 2 - m, z], [w / 2 + m, -h / 2 - m, z], [w / 2 + m, h / 2 + m, z], [-w / 2 - m, h / 2 + m, z]])
+    pv = np.array([[-w / 2 - m, -h / 2 - m, z], [w / 2 + m, -h / 2 - m, z],
+                   [w / 2 + m, h / 2 + m, z], [-w / 2 - m, h / 2 + m, z]])
     pf = np.array([[0, 1, 2], [0, 2, 3]])
     parts_v, parts_f = [pv], [pf]
     if with_object:

@@ -346,7 +346,8 @@ def _view_residuals(model, views, matches, pairs, k, gate, size) -> dict:
     if outside:
         d = np.concatenate(outside)
         out["silhouette"] = {"outside_frac": float(np.mean(d > SILHOUETTE_OUTSIDE_PX)) if len(d) else 1.0,
-                             "rms_px": float(np.sqrt(np.mean(np.minimum(d, EV.SILHOUETTE_CLIP_PX) ** 2))) if len(d) else 0.0}
+                             "rms_px": float(np.sqrt(np.mean(np.minimum(d, EV.SILHOUETTE_CLIP_PX) ** 2)))
+                                       if len(d) else 0.0}
     if feat:
         r = np.concatenate(feat)
         inl = r[r < FEATURE_INLIER_PX]

@@ -47,10 +47,12 @@ def main(argv: list[str]) -> int:
     from furrow.console import console
 
     t = Table(title=f"ambient irradiance of env minus {a.lights} lights vs brute force ({a.normals} normals)")
-    for c in ("map", "SH9 mean rel", "SH9 max rel", "SH9 max/peak", "table mean rel", "table max rel", "table max/peak"):
+    for c in ("map", "SH9 mean rel", "SH9 max rel", "SH9 max/peak",
+              "table mean rel", "table max rel", "table max/peak"):
         t.add_column(c)
     for r in rows:
-        t.add_row(r["env"], *(f"{100 * r[k][m]:.2f}%" for k in ("sh9", "table") for m in ("mean_rel", "max_rel", "max_of_peak")))
+        t.add_row(r["env"], *(f"{100 * r[k][m]:.2f}%" for k in ("sh9", "table")
+                              for m in ("mean_rel", "max_rel", "max_of_peak")))
     console.print(t)
     t = Table(title="rendered sphere, ambient only: |GL - brute force| in 1/255 of linear radiance")
     for c in ("map", "SH9 mean", "SH9 max", "table mean", "table max", "pixels"):
@@ -84,7 +86,8 @@ def _sphere_image_error(name: str, lights: int) -> dict:
     albedo = 0.8
     mesh = RasterMesh(v, f, np.full((len(v), 3), albedo), normals=n)
     W = H = 96
-    cam = Camera(make_K(2.5 * W, 2.5 * W, (W - 1) / 2, (H - 1) / 2), look_at(np.array([0.3, -0.3, 0.2]), (0, 0, 0)), W, H)
+    cam = Camera(make_K(2.5 * W, 2.5 * W, (W - 1) / 2, (H - 1) / 2),
+                 look_at(np.array([0.3, -0.3, 0.2]), (0, 0, 0)), W, H)
     amb = replace(lt, light_colors=np.zeros_like(lt.light_colors))
     out = {}
     ctx = create_context()

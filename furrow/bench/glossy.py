@@ -189,7 +189,8 @@ def _print_tables(res: dict) -> None:
         t.add_column(c)
     for r in res["bins"]:
         t.add_row(r["object"], r["mode"], r["smoothness"], r["phong_exp"], str(r["pixels"]),
-                  f"{r['mean_err_gated_256']:.2f}", f"{r['mean_err_ungated_256']:.2f}", f"{r['median_err_gated_256']:.2f}")
+                  f"{r['mean_err_gated_256']:.2f}", f"{r['mean_err_ungated_256']:.2f}",
+                  f"{r['median_err_gated_256']:.2f}")
     console.print(t)
     f = Table(title=f"frame time at {FRAME_W}x{FRAME_H} (llvmpipe) vs the reference (thesis Table 6: {PAPER_TABLE6})")
     for c in ("object/mode", "triangles", "draw ms", "draw+readback ms", "reference s (pixels)"):

@@ -12,8 +12,8 @@ mesh, RGBz) on the 36-view 640x480 fur ball to a 128^3 pyramid: the issue's targ
 
 ``--speed`` times ``furrow model`` at the defaults on the 640x480 captures with millimetre
 16-bit PNG depth (``furball-mm``, ``plant-mm``; 18 kept views = frames 0::2, and all 36), each
-run in a fresh process (after one untimed warm-up run of this tree: numba compiles once): wall and CPU seconds (the child's
-rusage) and peak resident memory (its ru_maxrss), medians of ``--repeats`` runs, with the stage
+run in a fresh process (after one untimed warm-up run of this tree: numba compiles once): wall and CPU
+seconds (the child's rusage) and peak resident memory (its ru_maxrss), medians of ``--repeats`` runs, with the stage
 table of ``--json``.  ``--before``
 names what the current tree is compared with, run interleaved with it (so a ratio compares
 runs made side by side): ``reference`` = ``furrow model --reference-pipeline`` of this tree
@@ -255,8 +255,8 @@ def run_speed(scene: str, scans: Path, views: list[int], repeats: int, before: s
                 if rep < 0:
                     continue
                 runs[name].append(r)
-                print(f"speed {scene} {n} views {name} run {rep + 1}: {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
-                      f"{r['peak_mb']:.0f} MiB", flush=True)
+                print(f"speed {scene} {n} views {name} run {rep + 1}: {r['wall_s']:.1f} s wall, "
+                      f"{r['cpu_s']:.1f} s CPU, {r['peak_mb']:.0f} MiB", flush=True)
         for name, rr in runs.items():
             med = {k: float(np.median([r[k] for r in rr])) for k in ("wall_s", "cpu_s", "peak_mb")}
             stages = {k: float(np.median([r["summary"]["seconds"].get(k, np.nan) for r in rr]))

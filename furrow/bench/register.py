@@ -243,7 +243,8 @@ def main(argv: list[str] | None = None) -> int:
                     if (scene, m, rig, d) in done:
                         continue
                     r = run_one(ss, gt, m, d, args.seed, rig)
-                    r.update(scene=scene, rig=rig, load_seconds=load_s, sensor=args.sensor, width=ss.scans[0].camera.width)
+                    r.update(scene=scene, rig=rig, load_seconds=load_s, sensor=args.sensor,
+                             width=ss.scans[0].camera.width)
                     rows = [x for x in rows if _key(x) != _key(r)] + [r]
                     path.write_text(json.dumps(rows, indent=1))
                     if not args.json:

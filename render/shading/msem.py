@@ -276,8 +276,8 @@ def msem_build(env: EnvMap, s: int, th: float = 0.001, levels: int | None = None
     ``levels`` radius shells (default max(9, s // 8 + 1)), each tabulated on a grid of at most
     ``max_height`` rows (default MSEM_MAX_HEIGHT); sharp voxels near radiance edges are then
     replaced by the direct sum (see MSEM_DIRECT_MAX_ROWS; ``range_tol=None``: every sharp voxel
-    direct; ``range_tol=inf``: none, table only). Corner voxels beyond rho_max, which no lookup with |t| <= 1 reaches, hold the
-    bilinear source radiance."""
+    direct; ``range_tol=inf``: none, table only). Corner voxels beyond rho_max, which no lookup with |t| <= 1
+    reaches, hold the bilinear source radiance."""
     t0 = time.perf_counter()
     s = int(s)
     M = max(2, int(levels) if levels else max(9, s // 8 + 1))

@@ -65,7 +65,8 @@ class MsemStream:
         if i != self.current:
             vol = np.load(self.paths[i], mmap_mode="r")
             if vol.shape != (self.size,) * 3 + (3,):
-                raise ValueError(f"MsemStream: {self.paths[i]} has shape {vol.shape}, expected {(self.size,) * 3 + (3,)}")
+                raise ValueError(f"MsemStream: {self.paths[i]} has shape {vol.shape}, "
+                                 f"expected {(self.size,) * 3 + (3,)}")
             self.texture.write(np.ascontiguousarray(np.transpose(vol, (2, 1, 0, 3)), np.float16).tobytes())
             self.current = i
         return self.texture

@@ -226,5 +226,5 @@ def equirect_from_mirror_ball(img, h: int, cam_to_world=None, name: str = "mirro
 
 
 __all__ = ["DOME_TABLE2", "geodesic_dome", "dome_frequency_for_width", "dome_solid_angles", "dome_from_equirect",
-           "spherical_triangle_areas", "cubemap_from_equirect", "equirect_from_cubemap", "sample_cubemap", "fisheye_from_equirect",
-           "equirect_from_fisheye", "mirror_ball_from_equirect", "equirect_from_mirror_ball"]
+           "spherical_triangle_areas", "cubemap_from_equirect", "equirect_from_cubemap", "sample_cubemap",
+           "fisheye_from_equirect", "equirect_from_fisheye", "mirror_ball_from_equirect", "equirect_from_mirror_ball"]

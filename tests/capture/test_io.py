@@ -147,7 +147,8 @@ def test_unknown_units_named(scan_dir):
         m.pop("depth_unit_scale_factor")
         assert not any("depth_unit_scale_factor" in f for f in m["frames"])
     _edit(scan_dir, drop)
-    with pytest.raises(ScanIOError, match=r"f000.png: integer depth image but no depth_unit_scale_factor: unknown units"):
+    with pytest.raises(ScanIOError,
+                       match=r"f000.png: integer depth image but no depth_unit_scale_factor: unknown units"):
         read_scanset(scan_dir)
 
 

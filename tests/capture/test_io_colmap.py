@@ -19,7 +19,8 @@ def _write_colmap(ss, folder):
     rec = pycolmap.Reconstruction()
     for i, s in enumerate(ss.scans):
         K = s.camera.K
-        cam = pycolmap.Camera.create_from_model_name(i + 1, "PINHOLE", float(K[0, 0]), s.camera.width, s.camera.height) \
+        cam = pycolmap.Camera.create_from_model_name(i + 1, "PINHOLE", float(K[0, 0]), s.camera.width,
+                                                     s.camera.height) \
             if hasattr(pycolmap.Camera, "create_from_model_name") else None
         cam.params = [K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5]   # COLMAP centres at +0.5
         rec.add_camera_with_trivial_rig(cam)

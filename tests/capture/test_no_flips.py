@@ -50,7 +50,8 @@ PATTERNS = {
     "image rows reversed": r"(?:\)|\b" + _IMAGE + r")\s*\[\s*::\s*-1\s*[\],]",
     "np.flipud / np.flip(axis=0)": r"\bnp\.flipud\(|\bnp\.flip\([^)]*axis\s*=\s*0",
     "HALF_PIXEL": r"\bHALF_PIXEL\b",
-    "principal point +-0.5": r"(?:\[\s*[01]\s*,\s*2\s*\]|principal_point_[xy]|center[xy]|centre[xy]|\bc[xy]\b)[\"'\]]*\s*" + _HALF,
+    "principal point +-0.5": r"(?:\[\s*[01]\s*,\s*2\s*\]|principal_point_[xy]|"
+                             r"center[xy]|centre[xy]|\bc[xy]\b)[\"'\]]*\s*" + _HALF,
     "pixel coordinates +-0.5": r"\b(?:xs|ys|us|vs|iu|iv)\s*" + _HALF + r"|\bxy\s*\[\s*\d\s*\]\s*" + _HALF,
     "rounding a shifted coordinate": r"\b(?:rint|round)\([^()]*" + _HALF + r"\s*\)",
     "pixel centre to normalised coordinates": _HALF + r"\s*\)\s*/\s*" + _SIZE,

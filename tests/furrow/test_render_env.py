@@ -20,7 +20,8 @@ def test_render_env_object_over_background(tmp_path):
     model = scene.build_model(cams)
     save_model(model, tmp_path / "model")
     tj = _transforms(cams, tmp_path / "transforms.json")
-    assert main(["render", str(tmp_path / "model"), "--cameras", str(tj), "--frames", "4", "-o", str(tmp_path / "plain")]) == 0
+    assert main(["render", str(tmp_path / "model"), "--cameras", str(tj), "--frames", "4",
+                 "-o", str(tmp_path / "plain")]) == 0
     assert main(["render", str(tmp_path / "model"), "--cameras", str(tj), "--frames", "4", "-o", str(tmp_path / "env"),
                  "--env", "sunset", "--no-glare"]) == 0
     plain = read_color(tmp_path / "plain" / "cam_004.png")

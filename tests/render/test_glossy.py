@@ -195,7 +195,8 @@ def test_bench_glossy_smoke(tmp_path, capsys):
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     alls = [r for r in res["bins"] if r["smoothness"] == "all"]
-    assert {(r["object"], r["mode"]) for r in alls} == {(o, m) for o in ("sphere", "teapot") for m in ("vertex", "texel")}
+    assert {(r["object"], r["mode"]) for r in alls} == {(o, m) for o in ("sphere", "teapot")
+                                                        for m in ("vertex", "texel")}
     assert all(r["pixels"] > 100 and np.isfinite(r["mean_err_gated_256"]) for r in alls)
     for name in ("side_by_side_vertex.png", "side_by_side_texel.png", "glossy_error_vs_smoothness.png"):
         assert (tmp_path / name).is_file()

@@ -35,7 +35,8 @@ def _scene() -> RasterMesh:
     """Overlapping boxes, a slanted quad with smooth normals and a tilted triangle, 0.2 m wide."""
     parts = [_box((0.0, 0.0, 0.0), (0.08, 0.06, 0.05), 1), _box((0.04, -0.05, 0.03), (0.05, 0.05, 0.05), 2)]
     quad = np.array([[-0.1, 0.05, -0.06], [0.02, 0.09, -0.06], [0.02, 0.06, 0.08], [-0.1, 0.02, 0.08]])
-    parts.append((quad, np.array([[0, 1, 2], [0, 2, 3]]), np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], float)))
+    parts.append((quad, np.array([[0, 1, 2], [0, 2, 3]]),
+                  np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], float)))
     tri = np.array([[-0.09, -0.09, -0.04], [-0.02, -0.1, 0.0], [-0.06, -0.04, 0.07]])
     parts.append((tri, np.array([[0, 1, 2]]), np.array([[0.9, 0.5, 0.1], [0.2, 0.8, 0.3], [0.4, 0.4, 0.9]])))
     verts, faces, cols, off = [], [], [], 0
@@ -48,7 +49,8 @@ def _scene() -> RasterMesh:
 
 
 def _smooth_sphere(n=24) -> RasterMesh:
-    th, ph = np.meshgrid(np.linspace(0.15, np.pi - 0.15, n), np.linspace(0, 2 * np.pi, 2 * n, endpoint=False), indexing="ij")
+    th, ph = np.meshgrid(np.linspace(0.15, np.pi - 0.15, n),
+                         np.linspace(0, 2 * np.pi, 2 * n, endpoint=False), indexing="ij")
     d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1).reshape(-1, 3)
     faces = []
     for i in range(n - 1):

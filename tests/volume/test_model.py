@@ -109,7 +109,8 @@ def test_validation_errors():
     with pytest.raises(ModelError, match="l_opt"):
         SdfPyramid((SdfLevel(4, np.zeros(3), 1.0, np.zeros((0, 3))),), 8)
     with pytest.raises(ModelError, match="different cube"):
-        SdfPyramid((SdfLevel(4, np.zeros(3), 1.0, np.zeros((0, 3))), SdfLevel(8, np.zeros(3), 1.0, np.zeros((0, 3)))), 8)
+        SdfPyramid((SdfLevel(4, np.zeros(3), 1.0, np.zeros((0, 3))),
+                    SdfLevel(8, np.zeros(3), 1.0, np.zeros((0, 3)))), 8)
     with pytest.raises(ModelError, match="outside"):
         SdfLevel(4, np.zeros(3), 1.0, np.array([[0, 0, 4]]))
     with pytest.raises(ModelError, match="float32"):

@@ -29,14 +29,15 @@ def eval_glsl(ctx, includes: list[str], expr: str, inputs: np.ndarray, uniforms:
     h = -(-n // w)
     pad = np.zeros((w * h, 4), np.float32)
     pad[:n] = x
-    src = "#version 430\n" + "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items()) + "".join(load_shader(i) for i in includes) + prelude + f"""
+    src = ("#version 430\n" + "".join(f"#define {k} {v}\n" for k, v in (defines or {}).items())
+           + "".join(load_shader(i) for i in includes) + prelude + f"""
 uniform sampler2D u_in;
 out vec4 o_val;
 void main() {{
     vec4 x = texelFetch(u_in, ivec2(gl_FragCoord.xy), 0);
     o_val = {expr};
 }}
-"""
+""")
     prog = ctx.program(vertex_shader=_VERT, fragment_shader=src)
     tin = ctx.texture((w, h), 4, pad.tobytes(), dtype="f4")
     tout = ctx.texture((w, h), 4, dtype="f4")

@@ -117,7 +117,9 @@ def test_ssdf_glsl_twin(gl_ctx):
     zt = gl_ctx.texture((n, 1), 4, np.c_[Z, np.zeros(n)].astype(np.float32).tobytes(), dtype="f4")
     try:
         out = eval_glsl(gl_ctx, ["shading_ssdf.glsl"],
-                        "vec4(ssdf_from_spheres(x.xyz, u_n, texelFetch(u_z, ivec2(int(gl_FragCoord.x) + 256 * int(gl_FragCoord.y), 0), 0).xyz), ssdf_ground(x.xyz), 0.0, 1.0)",
+                        "vec4(ssdf_from_spheres(x.xyz, u_n, "
+                        "texelFetch(u_z, ivec2(int(gl_FragCoord.x) + 256 * int(gl_FragCoord.y), 0), 0).xyz), "
+                        "ssdf_ground(x.xyz), 0.0, 1.0)",
                         P.astype(np.float32), textures={"u_z": zt},
                         uniforms={"u_ssdf_count": S, "u_n": tuple(normal)},
                         prelude="uniform sampler2D u_z;\nuniform vec3 u_n;\n")
