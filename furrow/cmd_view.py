@@ -7,6 +7,8 @@ import signal
 import threading
 from pathlib import Path
 
+from render.methods import DEFAULT_METHOD
+
 HELP = "interactive web viewer: renders the model on this machine, shows it in a browser (viser)"
 DESCRIPTION = """Serve a furrow model to web browsers: the server renders every frame with furrow's own
 renderers (any method of the registry) and the browser shows it (viser).  While the camera moves,
@@ -31,7 +33,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stats", type=Path, default=None, metavar="FILE",
                    help="on exit, write every frame sent as JSON {\"frames\": [{t, ms, width, height, moving, method, "
                         "...}]}")
-    p.add_argument("--method", default="microfacet", help="initial rendering method (any registered name)")
+    p.add_argument("--method", default=DEFAULT_METHOD,
+                   help=f"initial rendering method (any registered name; default {DEFAULT_METHOD}, as furrow render)")
     p.add_argument("--env", default=None, metavar="MAP",
                    help="initial environment map: a bundled name or a .exr/.hdr file (default: none, black)")
     p.add_argument("--ground", action="store_true", help="with --env: start with the ground shadow on")

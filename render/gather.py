@@ -104,6 +104,7 @@ class GatherRenderer(Renderer):
         ctx.enable_only(ctx.BLEND)
         ctx.blend_func = ctx.ONE, ctx.ONE
         ctx.blend_equation = ctx.MIN
+        prev_point_size = ctx.point_size
         ctx.point_size = float(self.cfg.splat_px)
         p = self.depth_prog
         p["view_proj"].write(mat4_bytes(eye.gl_projection(near, far) @ eye.gl_view()))
@@ -111,6 +112,8 @@ class GatherRenderer(Renderer):
         for i in cams:
             if self.counts[i]:
                 self.depth_vao.render(ctx.POINTS, vertices=int(self.counts[i]), first=int(self.first[i]))
+        # the context may be shared (tests, the viewer): leave its state as found
+        ctx.point_size = prev_point_size
         ctx.blend_equation = ctx.FUNC_ADD
         ctx.disable(ctx.BLEND)
         return tgt

@@ -151,6 +151,13 @@ def method_class(name: str) -> type[Renderer]:
     return getattr(importlib.import_module(module), cls)
 
 
+def samples_per_pixel_side(name: str, options: RenderOptions | None = None) -> int:
+    """S of the S x S samples per pixel that method ``name`` draws a full frame with: the options'
+    supersample where the method reads it, else 1 (one sample per pixel)."""
+    options = options or RenderOptions()
+    return int(options.supersample) if "supersample" in method_class(name).uses else 1
+
+
 def create_renderer(name: str, ctx, model, options: RenderOptions | None = None) -> Renderer:
     """The ``name`` method's renderer of ``model`` on ``ctx`` (release it, or use ``with``)."""
     return method_class(name).from_model(ctx, model, options)

@@ -36,6 +36,7 @@ import numpy as np
 
 from furrow.bench import OUT_ROOT
 from furrow.bench._common import print_result
+from render.methods import DEFAULT_METHOD, samples_per_pixel_side
 
 #: The capture the issue names: 18 views of a 640x480 fur scan.
 VIEWS, SIZE = 18, (640, 480)
@@ -131,7 +132,7 @@ def drive_browser(model_dir: Path, drag_s: float, repeats: int, out: Path) -> li
             browser = B.launch(p)
             page = browser.new_page(viewport={"width": SIZE[0], "height": SIZE[1]})
             page.goto(B.view_url(vp.url, cam0.center, c, image_up(cam0)))
-            B.wait_still(page, *SIZE, 2)
+            B.wait_still(page, *SIZE, samples_per_pixel_side(DEFAULT_METHOD))
             B.hide_overlays(page)
             for _ in range(repeats):
                 B.drag(page, drag_s, SIZE[0] / 2, SIZE[1] / 2)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-from render.methods import RenderOptions
+from render.methods import DEFAULT_METHOD, RenderOptions
 
 #: Debug views computed from any method's Frame ("colour" is the normal picture).
 FRAME_VIEWS = ("colour", "depth", "level")
@@ -43,8 +43,8 @@ class EnvSettings:
 class ViewSettings:
     """One client's choices (the GUI's state)."""
 
-    #: Registry name of the rendering method (render.methods.METHODS).
-    method: str = "microfacet"
+    #: Registry name of the rendering method (render.methods.METHODS); the CLI's default.
+    method: str = DEFAULT_METHOD
     #: Per-frame options of the full frame (moving frames use one sample per pixel).
     options: RenderOptions = field(default_factory=RenderOptions)
     #: Cap on the full frame's height in lines (the canvas aspect is kept).

@@ -148,7 +148,8 @@ def test_unknown_units_named(scan_dir):
         assert not any("depth_unit_scale_factor" in f for f in m["frames"])
     _edit(scan_dir, drop)
     with pytest.raises(ScanIOError,
-                       match=r"f000.png: integer depth image but no depth_unit_scale_factor: unknown units"):
+                       match=r"f000.png: integer depth image but no depth_unit_scale_factor in "
+                             r"\S*transforms.json: unknown units"):
         read_scanset(scan_dir)
 
 

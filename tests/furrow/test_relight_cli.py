@@ -47,7 +47,8 @@ def test_bad_capture_map_fails_before_the_build(relightable, tmp_path, capsys):
 
 def test_render_relight(relightable, tmp_path, capsys):
     scans, lit, plain = relightable
-    base = ["render", str(lit), "--cameras", str(scans), "--frames", "1", "--supersample", "1"]
+    base = ["render", str(lit), "--cameras", str(scans), "--frames", "1", "--method", "microfacet",
+            "--supersample", "1"]
     assert main(base + ["-o", str(tmp_path / "a")]) == 0
     assert main(base + ["--relight", "sunset", "-o", str(tmp_path / "b")]) == 0
     assert main(base + ["--relight", "sunset", "--relight-visibility", "--relight-kernel", "lambert",
@@ -61,6 +62,13 @@ def test_render_relight(relightable, tmp_path, capsys):
     assert (c.max(-1) > 0).mean() > 0.95  # composited over the map
     st = json.loads((tmp_path / "b" / "render_stats.json").read_text())
     assert st["frames"][0]["relight_ms"] > 0
+    # the default method (gather) relights the same way: same silhouette, lit differently
+    dflt = ["render", str(lit), "--cameras", str(scans), "--frames", "1"]
+    assert main(dflt + ["-o", str(tmp_path / "ga")]) == 0
+    assert main(dflt + ["--relight", "sunset", "-o", str(tmp_path / "gb")]) == 0
+    ga, gb = (read_color(tmp_path / d / "cam_001.png") for d in ("ga", "gb"))
+    gobj = ga.max(-1) > 0
+    assert np.array_equal(gb.max(-1) > 0, gobj) and np.abs(ga.astype(int) - gb.astype(int))[gobj].mean() > 3
     capsys.readouterr()
     assert main(base + ["--relight", "studio", "--env", "sunset", "-o", str(tmp_path / "d")]) == 1
     assert "one map lights everything" in " ".join(capsys.readouterr().err.split())

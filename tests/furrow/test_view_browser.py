@@ -31,6 +31,7 @@ from capture.camera import Camera, look_at, make_K
 from capture.imageio import read_color
 from furrow.bench import _browser as B
 from furrow.cli import main
+from render.methods import DEFAULT_METHOD, samples_per_pixel_side
 from tests import scenes as scene
 from volume.model import save_model
 
@@ -60,6 +61,8 @@ DRAG_FPS = 30.0
 #: A full-size moving frame must have fitted the budget within this factor (timing noise).
 BUDGET_SLACK = 1.5
 SETTLE_S = 10.0
+#: Samples per pixel side of the viewer's full frame at its default method.
+STILL_S = samples_per_pixel_side(DEFAULT_METHOD)
 
 
 def _skip_reason() -> str | None:
@@ -113,10 +116,10 @@ def snap_to_frustum(browser, url: str, model_dir: Path, path: Path) -> np.ndarra
     uv, _ = page_cam.project(cam.center + FRUSTUM_SCALE * float(np.linalg.norm(b[1] - b[0])) * cam.forward)
     page = browser.new_page(viewport={"width": W, "height": H})
     page.goto(B.view_url(url, README_EYE_FACTOR * EYE, TARGET, UP))
-    n = B.wait_still(page, W, H, 2)
+    n = B.wait_still(page, W, H, STILL_S)
     B.wait_opaque(page)
     page.mouse.click(float(uv[0]), float(uv[1]))
-    B.wait_still(page, W, H, 2, after=n)
+    B.wait_still(page, W, H, STILL_S, after=n)
     B.hide_overlays(page)
     time.sleep(0.5)
     page.screenshot(path=str(path))
@@ -128,7 +131,7 @@ def readme_shot(browser, url: str, path: str) -> None:
     """The README picture: the panel and the capture frustums around the object, from further out."""
     page = browser.new_page(viewport={"width": W, "height": H})
     page.goto(B.view_url(url, README_EYE_FACTOR * EYE, TARGET, UP))
-    B.wait_still(page, W, H, 2)
+    B.wait_still(page, W, H, STILL_S)
     page.add_style_tag(content="[class*='Notification'] { visibility: hidden !important; }")
     B.wait_opaque(page)
     page.screenshot(path=path, quality=README_JPEG_QUALITY, type="jpeg")
@@ -155,7 +158,7 @@ def test_view_in_a_real_browser(model_dir, tmp_path):
             browser = B.launch(p)
             page = browser.new_page(viewport={"width": W, "height": H})
             page.goto(B.view_url(vp.url, EYE, TARGET, UP))
-            B.wait_still(page, W, H, 2)
+            B.wait_still(page, W, H, STILL_S)
             readme = os.environ.get("FURROW_README_SHOT")
             if readme:
                 readme_shot(browser, vp.url, readme)
@@ -208,7 +211,7 @@ def test_view_in_a_real_browser(model_dir, tmp_path):
     frames = json.loads(stats.read_text())["frames"]
     first = frames[0]["client"]
     mine = [f for f in frames if f["client"] == first]
-    assert {f["method"] for f in mine} == {"microfacet"}
+    assert {f["method"] for f in mine} == {DEFAULT_METHOD}
     still = [f for f in mine if not f["moving"]]
     assert still and (still[0]["width"], still[0]["height"]) == (W, H)
     # the drag: reduced frames kept coming, then a full-size frame after the stop
