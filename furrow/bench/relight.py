@@ -3,7 +3,8 @@
 Each CAPTURE is a synthetic scan set with relighting truth (``furrow synth ... --env A
 --relight-env B``: DIR/relit/B/), lit by map A (``--capture-env``, default: read from the relit
 truth's metadata).  The frames i % 2 == 0 build the model (as ``furrow eval --holdout 2``, capture
-lighting A stored), the others are held out and rendered once with the microfacets; then, for
+lighting A stored), the others are held out and rendered once (``--method``, default furrow
+render's); then, for
 every relit map B, against the truth under B (masked PSNR / SSIM on 8-bit sRGB inside the union
 of the foregrounds, sharpness = RMS Laplacian of the rendering over the reference's,
 ``render.metrics``):
@@ -33,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from furrow.bench import OUT_ROOT
+from render.methods import DEFAULT_METHOD, METHODS
 
 #: Gain of a pair that relighting must beat by this much masked PSNR (issue 15), dB.
 TARGET_DB = 2.0
@@ -97,7 +99,8 @@ def score(refs, imgs, frames) -> dict:
     return {"psnr_masked": float(np.mean(ps)), "ssim_masked": float(np.mean(ss)), "sharpness": float(np.mean(sh))}
 
 
-def prepare(scans: Path, capture_env: str, max_views: int | None, map_dir: Path | None = None):
+def prepare(scans: Path, capture_env: str, max_views: int | None, map_dir: Path | None = None,
+            method: str = DEFAULT_METHOD):
     """(model with capture lighting, held-out scans, their frames, median render ms / cpu ms)."""
     import dataclasses
 
@@ -113,7 +116,7 @@ def prepare(scans: Path, capture_env: str, max_views: int | None, map_dir: Path 
     up = estimate_up([s.camera for s in split.kept.scans])
     model = dataclasses.replace(model, capture_env=CaptureLighting(find_map(capture_env, map_dir).data, up, 0.0,
                                                                    capture_env))
-    with gl_context() as ctx, create_renderer("microfacet", ctx, model) as r:
+    with gl_context() as ctx, create_renderer(method, ctx, model) as r:
         r.render(split.held[0].camera, read=False)
         frames = [r.render(s.camera) for s in split.held]
     return model, split, frames
@@ -172,12 +175,12 @@ def _oracle(rel, refs, held, frames, g) -> tuple[dict, dict]:
 
 
 def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path,
-                  map_dir: Path | None = None) -> dict:
+                  map_dir: Path | None = None, method: str = DEFAULT_METHOD) -> dict:
     from render.gl import gl_context
 
     cap = capture_env or capture_map(scans)
-    model, split, frames = prepare(scans, cap, max_views, map_dir)
-    res = {"scans": str(scans), "capture_env": cap, "held": split.held_idx,
+    model, split, frames = prepare(scans, cap, max_views, map_dir, method)
+    res = {"scans": str(scans), "capture_env": cap, "method": method, "held": split.held_idx,
            "capture": score(split.held, [f.rgb for f in frames], frames),
            "render_ms": float(np.median([f.stats.ms for f in frames])),
            "render_cpu_ms": float(np.median([f.stats.cpu_ms for f in frames])), "pairs": []}
@@ -234,13 +237,16 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--map-dir", type=Path, default=None,
                     help="folder of NAME.exr / NAME.hdr maps for capture / relit names that are not bundled")
     ap.add_argument("--max-views", type=int, default=None, help="at most this many held-out views per capture")
+    ap.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
+                    help=f"rendering method of the held-out views (default {DEFAULT_METHOD}, as furrow render)")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "relight")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     configs = {v: parse_variant(v) for v in a.variants.split(",")}
     a.out.mkdir(parents=True, exist_ok=True)
     res = {"variants": list(configs), "target_db": TARGET_DB,
-           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir) for c in a.captures]}
+           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir, a.method)
+                         for c in a.captures]}
     first = res["variants"][0]
     res["met"] = all(p[first]["gain_over_single_db"] >= TARGET_DB for c in res["captures"] for p in c["pairs"])
     (a.out / "relight.json").write_text(json.dumps(res, indent=1, default=float))
