@@ -167,10 +167,13 @@ def global_init(src, tgt, voxel: float, seed: int = 0) -> np.ndarray:
     for c in (src, tgt):
         feats.append(reg.compute_fpfh_feature(c, o3d.geometry.KDTreeSearchParamHybrid(radius=5 * voxel, max_nn=100)))
     dist = 1.5 * voxel
-    res = reg.registration_ransac_based_on_feature_matching(
-        src, tgt, feats[0], feats[1], True, dist, reg.TransformationEstimationPointToPoint(False), 3,
-        [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9), reg.CorrespondenceCheckerBasedOnDistance(dist)],
-        reg.RANSACConvergenceCriteria(100000, 0.999))
+    # Open3D warns on every pair whose mutual filter leaves few matches and then falls back to all
+    # matches (as wanted here); the pair's fitness is judged by classify(), not by that warning
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        res = reg.registration_ransac_based_on_feature_matching(
+            src, tgt, feats[0], feats[1], True, dist, reg.TransformationEstimationPointToPoint(False), 3,
+            [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9), reg.CorrespondenceCheckerBasedOnDistance(dist)],
+            reg.RANSACConvergenceCriteria(100000, 0.999))
     return np.asarray(res.transformation)
 
 
