@@ -101,8 +101,24 @@ def build_controls(gui, initial: ViewSettings, env_names, methods) -> Controls:
         progress = gui.add_progress_bar(0.0, visible=False)
     readout = gui.add_markdown("waiting for the first frame")
     note = gui.add_markdown("", visible=False)
-    return Controls(method, tol, ss, refine, max_lines, env_map, exposure, ground, glare, rotation, view, cameras,
-                    readout, note, screenshot, export_kind, export_frames, export_fps, export, progress)
+    controls = Controls(method, tol, ss, refine, max_lines, env_map, exposure, ground, glare, rotation, view,
+                        cameras, readout, note, screenshot, export_kind, export_frames, export_fps, export, progress)
+    sync_option_controls(controls)
+    return controls
+
+
+#: The per-frame option controls and the RenderOptions field each one sets.
+OPTION_CONTROLS = (("tolerance", "tolerance_px"), ("supersample", "supersample"), ("refine", "refine"))
+
+
+def sync_option_controls(controls) -> None:
+    """Grey out the option controls that the chosen method does not read
+    (render.methods.unused_options), so that a slider never looks as if it did nothing."""
+    from render.methods import unused_options
+
+    unused = set(unused_options(controls.method.value, [f for _, f in OPTION_CONTROLS]))
+    for attr, field_name in OPTION_CONTROLS:
+        getattr(controls, attr).disabled = field_name in unused
 
 
 def on_settings_change(controls: Controls, apply: Callable[[ViewSettings], None],
@@ -110,6 +126,7 @@ def on_settings_change(controls: Controls, apply: Callable[[ViewSettings], None]
     """Call ``apply(settings)`` whenever a render control changes (``report(msg)`` when the
     combination is invalid)."""
     def changed(_event) -> None:
+        sync_option_controls(controls)
         try:
             apply(controls.settings())
         except ValueError as e:

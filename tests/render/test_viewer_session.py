@@ -194,3 +194,19 @@ def test_transport_quality():
     assert transport_quality("full", ss2) == FULL_JPEG_QUALITY   # a PNG follows
     assert transport_quality("full", ss1) is None                # the last still frame: PNG
     assert transport_quality("refine", ss2) is None
+
+
+@pytest.mark.parametrize("method,greyed", [("gather", {"tolerance", "supersample", "refine"}),
+                                           ("microfacet", set()), ("points", {"tolerance", "supersample", "refine"})])
+def test_option_controls_follow_the_method(method, greyed):
+    """The panel greys out the sliders a method ignores (its ``uses``), and only those."""
+    from render.methods import method_class
+    from render.viewer import gui
+
+    handle = lambda value=None: SimpleNamespace(value=value, disabled=None)
+    controls = SimpleNamespace(method=handle(method), tolerance=handle(), supersample=handle(), refine=handle())
+    gui.sync_option_controls(controls)
+    got = {attr for attr, _ in gui.OPTION_CONTROLS if getattr(controls, attr).disabled}
+    uses = method_class(method).uses
+    assert got == {attr for attr, f in gui.OPTION_CONTROLS if f not in uses}
+    assert got == greyed
