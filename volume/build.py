@@ -19,6 +19,7 @@ decimation, every level completed), kept for the side-by-side benchmark (furrow/
 from __future__ import annotations
 
 import contextlib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -33,6 +34,9 @@ from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuit
 from volume.rgbz import RgbzConfig, build_rgbz
 from volume.spheres import fit_spheres
 from volume.tsdf import fuse_tsdf
+
+#: Threads that compute the scans' depth normals and plane offsets (volume.fusion.scan_maps).
+NORMAL_THREADS = 2
 
 #: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
 #: of the occluder (docs/methods.md §3: tens to hundreds of spheres).
@@ -78,6 +82,19 @@ class ModelConfig:
         return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, **kw)
 
 
+def _release_free_memory() -> None:
+    """Hand the heap memory freed by the normal threads back to the system (glibc keeps a worker
+    thread's arena otherwise: measured +200-350 MiB of peak resident memory in the fusion after
+    it); a no-op where the C library has no malloc_trim."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
 def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False):
     """Fuse every level min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction}).
 
@@ -85,10 +102,14 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, d
     stage = stage or (lambda name: contextlib.nullcontext())
     origin, extent = cube_for_bounds(scanset.bounds)
     fuse = fuse_consensus if cfg.sdf == "consensus" else fuse_tsdf
-    with stage("depth normals"):
-        it = scanset.scans
-        maps = prepare_maps([scan_maps(s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
-                             for s in (progress(it, "normals") if progress else it)], cfg.fusion.backend)
+    with stage("depth normals"), ThreadPoolExecutor(NORMAL_THREADS) as pool:
+        # numpy and OpenCV release the GIL in these whole-image operations: measured on 18 views of
+        # a 640x480 capture, 1.5 s on one thread, 0.8-1.0 s on two (quiet 2-core machine)
+        futures = [pool.submit(scan_maps, s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
+                   for s in scanset.scans]
+        maps = prepare_maps([f.result() for f in (progress(futures, "normals") if progress else futures)],
+                            cfg.fusion.backend)
+    _release_free_memory()
     fused, frac = {}, {}
     coarse = None
     for L in cfg.lopt.resolutions:
