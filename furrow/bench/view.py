@@ -8,7 +8,8 @@ own frame log (render.viewer.session.FrameLog, as ``furrow view --stats`` writes
 * while dragging: frames per second sent and their height (lines); target >= 10 fps at >= 240
   lines;
 * after each stop: seconds from the last camera change to the full 640x480 frame (one sample
-  per pixel, JPEG), and to the supersampled one (PNG); target <= 0.5 s for the full frame;
+  per pixel, JPEG), and to the supersampled one (PNG; "-" for a method that reads no
+  supersampling, whose full frame is the last, sent as PNG); target <= 0.5 s for the full frame;
 * a cost table: wall and process-CPU milliseconds of a whole frame (draw, read back, encode) at
   fixed sizes, side by side: the CPU figures do not grow with the machine's other load.
 
@@ -218,6 +219,11 @@ def summarise(frames: list[dict]) -> dict:
     return {"drags": rows, "median": med}
 
 
+def _secs(x: float) -> str:
+    """Seconds with 3 decimals, or "-" where there was no such frame (NaN)."""
+    return "-" if np.isnan(x) else f"{x:.3f}"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="furrow bench view", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -251,7 +257,7 @@ def main(argv=None) -> int:
               f"{'supersampled s':>15}")
         for i, d in enumerate(r["drags"]):
             print(f"{i:>4} {d['fps']:>6.1f} {d['lines']:>6.0f} {d['moving_ms']:>9.1f} {d['moving_cpu_ms']:>7.1f} "
-                  f"{d['full_s']:>7.3f} {d['full_cpu_ms']:>7.1f} {d['refined_s']:>15.3f}")
+                  f"{d['full_s']:>7.3f} {d['full_cpu_ms']:>7.1f} {_secs(d['refined_s']):>15}")
         print("whole-frame cost (draw, read back, encode), medians over orbit views:")
         print(f"{'size':>9} {'samples':>7} {'format':>7} {'wall ms':>8} {'CPU ms':>7} {'fps if CPU-bound':>17}")
         for c in r["costs"]:

@@ -214,7 +214,7 @@ class Viewer:
     def _render_full(self, session: Session, cam, settings: ViewSettings) -> np.ndarray:
         from render.viewer.views import draw
 
-        drawn = self.worker.submit(lambda scene: draw(scene, cam, settings, settings.options.supersample))
+        drawn = self.worker.submit(lambda scene: draw(scene, cam, settings, settings.still_samples))
         return drawn.result(JOB_TIMEOUT_S).image
 
     def screenshot(self, client, session: Session, note) -> Path | None:

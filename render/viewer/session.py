@@ -57,7 +57,7 @@ def transport_quality(kind: str, settings: ViewSettings) -> int | None:
     """JPEG quality a frame of ``kind`` is sent with, or None for PNG (the last still frame)."""
     if kind == "moving":
         return MOVING_JPEG_QUALITY
-    if kind == "full" and settings.options.supersample > 1:
+    if kind == "full" and settings.still_samples > 1:
         return FULL_JPEG_QUALITY
     return None
 
@@ -188,7 +188,7 @@ class Session:
         with self._cond:
             while not self._stopped:
                 act = next_action(self.clock(), self._version, self._last_change, self._moving_done,
-                                  self._full_done, self._refined_done, self._settings.options.supersample > 1,
+                                  self._full_done, self._refined_done, self._settings.still_samples > 1,
                                   self.cfg)
                 if act.kind != "wait" and self._camera is not None:
                     return act.kind, self._version
@@ -208,7 +208,7 @@ class Session:
                 return None  # stale still frame: dropped unrun
             full = cam.full_size(settings.max_lines)
             size = frame_size(full, scale) if kind == "moving" else full
-            ss = settings.options.supersample if kind == "refine" else 1
+            ss = settings.still_samples if kind == "refine" else 1
             return v, scale, settings, draw(scene, cam.camera(*size), settings, ss)
 
         return job
@@ -261,7 +261,7 @@ class Session:
                 rec["since_change_s"] = round(sent - self._last_change, 4)
                 rec["refined"] = kind == "refine"
                 self._moving_done = self._full_done = version
-                if kind == "refine" or drawn.stats.supersample == settings.options.supersample:
+                if kind == "refine" or drawn.stats.supersample == settings.still_samples:
                     self._refined_done = version
         if drawn.note:
             self.on_note(drawn.note)

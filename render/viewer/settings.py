@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-from render.methods import DEFAULT_METHOD, RenderOptions
+from render.methods import DEFAULT_METHOD, RenderOptions, samples_per_pixel_side
 
 #: Debug views computed from any method's Frame ("colour" is the normal picture).
 FRAME_VIEWS = ("colour", "depth", "level")
@@ -58,6 +58,12 @@ class ViewSettings:
             raise ValueError(f"unknown view {self.view!r}; use one of {', '.join(VIEWS)}")
         if int(self.max_lines) < 16:
             raise ValueError(f"max_lines must be >= 16, got {self.max_lines}")
+
+    @property
+    def still_samples(self) -> int:
+        """S of the S x S samples per pixel of the method's still frame: options.supersample where
+        the method reads it, else 1 (then the full frame is the last one, no supersampled pass)."""
+        return samples_per_pixel_side(self.method, self.options)
 
     def changed(self, **changes) -> ViewSettings:
         """A copy with fields replaced; ``options`` / ``env`` may be given as dicts of field changes."""

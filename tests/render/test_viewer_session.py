@@ -82,9 +82,13 @@ def fake_draw(monkeypatch):
     return drawn
 
 
-def run_session(moves, cfg, settle_s=1.0, interval_s=1 / 60):
-    worker, log, sent = FakeWorker(), FrameLog(), []
-    s = Session(worker, lambda img, q: sent.append((img.shape, q)), ViewSettings(), cfg, log).start()
+#: Settings of a method that reads the supersampling option (its still frame is refined).
+SUPERSAMPLED = ViewSettings(method="microfacet")
+
+
+def run_session(moves, cfg, settle_s=1.0, interval_s=1 / 60, settings=SUPERSAMPLED, sent=None):
+    worker, log, sent = FakeWorker(), FrameLog(), [] if sent is None else sent
+    s = Session(worker, lambda img, q: sent.append((img.shape, q)), settings, cfg, log).start()
     for i in range(moves):
         s.update_camera(view(i))
         time.sleep(interval_s)
@@ -110,6 +114,17 @@ def test_moving_then_full_then_supersampled(fake_draw):
     assert still[1]["refined"] and not still[0]["refined"]
 
 
+def test_one_sample_method_sends_its_full_frame_once_as_png(fake_draw):
+    """gather reads no supersampling option: the full frame after the stop is the last one (PNG),
+    not drawn again as a 'supersampled' frame that would be the same picture."""
+    cfg = AdaptiveConfig(target_fps=40.0, still_s=0.2)
+    sent = []
+    frames, _, _ = run_session(20, cfg, settings=ViewSettings(method="gather"), sent=sent)
+    still = [f for f in frames if not f["moving"]]
+    assert [(f["width"], f["height"], f["supersample"], f["refined"]) for f in still] == [(*FULL, 1, False)]
+    assert sent[-1] == ((FULL[1], FULL[0], 3), None)
+
+
 def test_cheap_frames_grow_to_full_size(fake_draw):
     cfg = AdaptiveConfig(target_fps=5.0)                          # 200 ms budget: everything fits
     frames, _, _ = run_session(40, cfg)
@@ -121,7 +136,7 @@ def test_stale_full_frame_is_dropped_and_latest_camera_drawn(fake_draw):
     frame shows the newest camera, not the ones queued meanwhile."""
     cfg = AdaptiveConfig(still_s=0.05)
     worker, log, sent = FakeWorker(), FrameLog(), []
-    s = Session(worker, lambda img, q: sent.append(q), ViewSettings(), cfg, log).start()
+    s = Session(worker, lambda img, q: sent.append(q), SUPERSAMPLED, cfg, log).start()
     s.update_camera(view(0))
     while not any(ss == 2 for _, ss in fake_draw):                # wait for the supersampled frame to start
         time.sleep(0.005)
@@ -189,11 +204,12 @@ def test_full_size_cap():
 def test_transport_quality():
     from render.viewer.session import FULL_JPEG_QUALITY, MOVING_JPEG_QUALITY, transport_quality
 
-    ss2, ss1 = ViewSettings(), ViewSettings().changed(options={"supersample": 1})
+    ss2, ss1 = SUPERSAMPLED, SUPERSAMPLED.changed(options={"supersample": 1})
     assert transport_quality("moving", ss2) == MOVING_JPEG_QUALITY
     assert transport_quality("full", ss2) == FULL_JPEG_QUALITY   # a PNG follows
     assert transport_quality("full", ss1) is None                # the last still frame: PNG
     assert transport_quality("refine", ss2) is None
+    assert transport_quality("full", ViewSettings(method="gather")) is None  # one sample: nothing follows
 
 
 @pytest.mark.parametrize("method,greyed", [("gather", {"tolerance", "supersample", "refine"}),
