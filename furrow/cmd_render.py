@@ -137,10 +137,9 @@ def load_env(args):
     """The environment map of --env (rotated by --env-rotation), or None."""
     if not args.env:
         return None
-    from render.shading.envmap import bundled_envmap, load_envmap
+    from render.shading.envmap import named_envmap
 
-    p = Path(args.env)
-    env = load_envmap(p) if p.suffix.lower() in (".exr", ".hdr") else bundled_envmap(args.env)
+    env = named_envmap(args.env)
     return env.rotated(np.radians(args.env_rotation)) if args.env_rotation else env
 
 

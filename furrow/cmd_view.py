@@ -46,15 +46,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def settings_from_args(args):
     """The initial ViewSettings and the environment maps offered (bad names fail here)."""
     from render.methods import METHODS
-    from render.shading.envmap import BUNDLED_NAMES
+    from render.shading.envmap import BUNDLED_NAMES, named_envmap
     from render.viewer.settings import EnvSettings, ViewSettings
-    from render.viewer.views import load_env
 
     if args.method not in METHODS:
         raise ValueError(f"unknown method {args.method!r}; use one of {', '.join(METHODS)}")
     names = list(BUNDLED_NAMES)
     if args.env is not None:
-        load_env(args.env)  # a missing file or unknown name fails now, in one line
+        named_envmap(args.env)  # a missing file or unknown name fails now, in one line
         if args.env not in names:
             names.append(args.env)
     elif args.ground:

@@ -46,7 +46,7 @@ def open_relighter(args, ctx, model, stack):
     import numpy as np
 
     from render.relight import RelightConfig, Relighter
-    from render.shading.capture_env import named_envmap
+    from render.shading.envmap import named_envmap
 
     env = named_envmap(name)
     if args.env_rotation:

@@ -77,7 +77,7 @@ def capture_map(scans: Path) -> str:
 
 def find_map(name: str, map_dir: Path | None):
     """The EnvMap called ``name``: MAP_DIR/name.exr or .hdr when given and present, else a bundled map."""
-    from render.shading.capture_env import named_envmap
+    from render.shading.envmap import named_envmap
 
     for ext in (".exr", ".hdr"):
         if map_dir is not None and (map_dir / f"{name}{ext}").is_file():

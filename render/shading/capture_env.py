@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from render.shading.envmap import BUNDLED_NAMES, EnvMap, bundled_envmap, load_envmap
+from render.shading.envmap import HDR_EXTENSIONS, EnvMap, named_envmap
 
 #: Rows of the equirect map made from a fisheye or mirror-ball photo.
 PHOTO_ENV_HEIGHT = 256
@@ -29,8 +29,6 @@ FISHEYE_FOV_DEG = 185.0
 #: Mirror-ball camera axes (columns: camera x right, y up, z towards the viewer) in the map's frame:
 #: a level camera looking along +x, so x_cam = -y, y_cam = +z, z_cam = -x.
 MIRROR_BALL_CAM_TO_WORLD = np.array([[0.0, 0.0, -1.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-#: Extensions read as HDR images.
-HDR_EXTENSIONS = (".exr", ".hdr", ".pic", ".rgbe")
 
 
 def read_hdr_image(path) -> np.ndarray:
@@ -51,17 +49,6 @@ def read_hdr_image(path) -> np.ndarray:
     if data.ndim != 3 or data.shape[2] != 3 or not np.all(np.isfinite(data)):
         raise ValueError(f"{path}: expected a finite RGB image, got {data.shape}")
     return np.maximum(data, 0).astype(np.float32)
-
-
-def named_envmap(name_or_path: str) -> EnvMap:
-    """A bundled map (:data:`BUNDLED_NAMES`) or an equirect .exr / .hdr file."""
-    p = Path(name_or_path)
-    if name_or_path in BUNDLED_NAMES and p.suffix == "":
-        return bundled_envmap(name_or_path)
-    if p.suffix.lower() in HDR_EXTENSIONS:
-        return load_envmap(p)
-    raise ValueError(f"unknown environment map {name_or_path!r}: use a .exr/.hdr file or one of "
-                     f"{', '.join(BUNDLED_NAMES)}")
 
 
 def capture_envmap(env: str | None = None, fisheye=None, mirrorball=None, height: int = PHOTO_ENV_HEIGHT,

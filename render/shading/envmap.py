@@ -254,6 +254,22 @@ def bundled_envmap(name: str) -> EnvMap:
     return load_envmap(path)
 
 
+#: File extensions read as HDR images (.exr, Radiance RGBE).
+HDR_EXTENSIONS = (".exr", ".hdr", ".pic", ".rgbe")
+
+
+def named_envmap(name_or_path: str) -> EnvMap:
+    """A bundled map (:data:`BUNDLED_NAMES`) or an equirect .exr / .hdr file: the one reading of an
+    ``--env MAP`` / ``--relight MAP`` argument (an unknown name is a ValueError naming it)."""
+    p = Path(name_or_path)
+    if name_or_path in BUNDLED_NAMES and p.suffix == "":
+        return bundled_envmap(name_or_path)
+    if p.suffix.lower() in HDR_EXTENSIONS:
+        return load_envmap(p)
+    raise ValueError(f"unknown environment map {name_or_path!r}: use a .exr/.hdr file or one of "
+                     f"{', '.join(BUNDLED_NAMES)}")
+
+
 def load_envmap(path) -> EnvMap:
     """Read an equirect HDR map (.exr: ``capture.imageio.read_exr_rgb``, .hdr/.pic Radiance RGBE).
     The image must be 2:1; every failure is an :class:`EnvMapError` naming the file."""

@@ -77,9 +77,9 @@ class GLScene(GLOwner):
         about its up axis (cached: the compositor re-uploads only a new map)."""
         key = (name, float(rotation_deg))
         if key not in self._envs:
-            from render.viewer.views import load_env
+            from render.shading.envmap import named_envmap
 
-            env = load_env(name)
+            env = named_envmap(name)
             self._envs[key] = env.rotated(np.radians(rotation_deg)) if rotation_deg else env
         return self._envs[key]
 

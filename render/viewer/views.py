@@ -43,16 +43,6 @@ class Drawn:
     note: str = ""
 
 
-def load_env(name: str):
-    """An environment map by bundled name or .exr/.hdr path (errors name what is missing)."""
-    from pathlib import Path
-
-    from render.shading.envmap import bundled_envmap, load_envmap
-
-    p = Path(name)
-    return load_envmap(p) if p.suffix.lower() in (".exr", ".hdr") else bundled_envmap(name)
-
-
 def make_compositor(ctx):
     """The environment compositor GL owner (render.compositor.Compositor)."""
     from render.compositor import Compositor
