@@ -45,12 +45,17 @@ class Scan:
             NaN / inf are accepted on input and replaced by 0 (no measurement).
         camera: the camera (OpenCV convention) with matching width / height.
         name: identifier, usually the colour file's path relative to the scan set.
+        alpha: optional (H, W) float32 straight alpha matte in [0, 1] of the object (1 = opaque
+            object, 0 = background; partial on fringe pixels of strands and needles), from the
+            capture (``mask_path``, an RGBA image) or estimated (the matting stage); None = not
+            known (then "has object depth" is the only mask).
     """
 
     rgb: np.ndarray
     depth: np.ndarray
     camera: Camera
     name: str = ""
+    alpha: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         label = f"scan {self.name!r}" if self.name else "scan"
@@ -67,6 +72,13 @@ class Scan:
             raise ScanError(f"{label}: depth is {depth.shape[::-1]} (WxH) but the camera is {W}x{H}")
         depth = depth.astype(np.float32, copy=True)
         depth[~np.isfinite(depth) | (depth < 0)] = 0.0
+        if self.alpha is not None:
+            alpha = np.asarray(self.alpha)
+            if alpha.shape != (H, W):
+                raise ScanError(f"{label}: alpha matte is {alpha.shape[::-1]} (WxH) but the camera is {W}x{H}")
+            alpha = np.clip(np.nan_to_num(alpha.astype(np.float32), nan=0.0), 0.0, 1.0)
+            alpha.setflags(write=False)
+            object.__setattr__(self, "alpha", alpha)
         rgb = rgb.copy()
         rgb.setflags(write=False)
         depth.setflags(write=False)

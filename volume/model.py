@@ -10,7 +10,8 @@ On disk a model is a folder::
                      see Camera.to_nerfstudio), levels, spheres / mesh counts,
                      every parameter used, input provenance
       pyramid.npz    level_<L>_surface (N,3) int32, level_<L>_values (L,L,L) float32 (optional)
-      rgbz.npz       rgb (N,H,W,3) float16 linear, depth (N,H,W) float16 metres (float32 read too)
+      rgbz.npz       rgb (N,H,W,3) float16 linear, depth (N,H,W) float16 metres (float32 read too),
+                     alpha (N,H,W) float16 straight matte (optional)
       spheres.npz    centers (N,3) float64, radii (N,) float64
       mesh.npz       vertices (V,3) float32, faces (F,3) int32, colors (V,3) float32 (optional)
       capture_env.npz  radiance (H,2H,3) float32 linear: the capture's lighting (optional; only
@@ -210,11 +211,14 @@ class RgbzImages:
         depth: (N, H, W) z-depth (metres, along the optical axis) of the geometry projected
             into each camera, 0 = no geometry; stored as float16 (float32 or float16 given).
         cameras: N cameras (OpenCV convention), all of size W x H.
+        alpha: optional (N, H, W) straight alpha matte of the object per camera in [0, 1]
+            (stored as RGBZ_STORAGE); None = binary (has geometry depth = opaque).
     """
 
     rgb: np.ndarray
     depth: np.ndarray
     cameras: tuple[Camera, ...]
+    alpha: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         cams = tuple(self.cameras)
@@ -239,6 +243,15 @@ class RgbzImages:
         if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
             raise ModelError("RgbzImages: depth must be finite and >= 0 (0 = no geometry)")
         rgb, depth = rgb.reshape(n, H, W, 3), depth.reshape(n, H, W)
+        if self.alpha is not None:
+            alpha = np.asarray(self.alpha)
+            if alpha.shape != depth.shape:
+                raise ModelError(f"RgbzImages: alpha must be {depth.shape}, got {alpha.shape}")
+            if not np.all(np.isfinite(alpha)) or (alpha.size and (alpha.min() < 0 or alpha.max() > 1)):
+                raise ModelError("RgbzImages: alpha must be finite and in [0, 1]")
+            alpha = alpha.astype(RGBZ_STORAGE)
+            alpha.setflags(write=False)
+            object.__setattr__(self, "alpha", alpha)
         rgb.setflags(write=False)
         depth.setflags(write=False)
         object.__setattr__(self, "rgb", rgb)
@@ -382,7 +395,10 @@ def save_model(model: Model, folder) -> Path:
             if lv.values is not None:
                 arrays[f"level_{lv.resolution}_values"] = lv.values
         np.savez(tmp / "pyramid.npz", **arrays)
-        np.savez(tmp / "rgbz.npz", rgb=model.rgbz.rgb, depth=model.rgbz.depth)
+        rgbz = {"rgb": model.rgbz.rgb, "depth": model.rgbz.depth}
+        if model.rgbz.alpha is not None:
+            rgbz["alpha"] = model.rgbz.alpha
+        np.savez(tmp / "rgbz.npz", **rgbz)
         np.savez(tmp / "spheres.npz", centers=model.spheres.centers, radii=model.spheres.radii)
         mesh = {"vertices": model.mesh_vertices, "faces": model.mesh_faces}
         if model.mesh_colors is not None:
@@ -479,7 +495,7 @@ def load_model(folder) -> Model:
         if cap is not None:
             capture_env = CaptureLighting(_npz(folder, CAPTURE_ENV_FILE)["radiance"], np.array(cap["up"], np.float64),
                                           float(cap.get("rotation_deg", 0.0)), str(cap.get("source", "")))
-        return Model(pyramid=pyramid, rgbz=RgbzImages(rz["rgb"], rz["depth"], cams),
+        return Model(pyramid=pyramid, rgbz=RgbzImages(rz["rgb"], rz["depth"], cams, rz.get("alpha")),
                      spheres=SphereSet(sp["centers"], sp["radii"]), mesh_vertices=me["vertices"],
                      mesh_faces=me["faces"], mesh_colors=me.get("colors"), bounds=np.array(meta["bounds"]),
                      params=meta.get("params", {}), provenance=meta.get("provenance", {}),
