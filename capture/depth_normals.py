@@ -4,7 +4,7 @@ the normal. Where a neighbour is missing (no depth, a depth edge) the rules belo
 is used by the stage named.
 
 * ``"central"``: p[i+1] - p[i-1], only where both neighbours have depth (compositing's normals
-  for the light-reflection map, ``render.composite``);
+  for the light-reflection map, ``render.composite.pipeline``);
 * ``"smaller_step"``: the one-sided difference on the side with the smaller depth (z) step, so a
   1-2 pixel wide strand keeps a normal (signed-distance fusion, ``volume.fusion``);
 * ``"average"``: the mean of the two one-sided differences where both are usable, else the usable

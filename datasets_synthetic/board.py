@@ -17,7 +17,7 @@ from capture.registration.board import BoardSpec
 from capture.scan import srgb_to_linear
 from datasets_synthetic.geometry import merge
 from datasets_synthetic.scenes import Scene
-from render.raster import RasterMesh
+from render.mesh.raster.gl import RasterMesh
 
 #: White paper around the printed pattern (metres).
 PAPER_MARGIN_M = 0.04

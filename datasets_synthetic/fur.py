@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from datasets_synthetic.geometry import _perpendicular, _unit, tube_sweep
-from render.raster import RasterMesh
+from render.mesh.raster.gl import RasterMesh
 
 #: Strand points closer than this to the body surface (or inside it) are pushed out to it (metres).
 SKIN_CLEARANCE_M = 3e-4

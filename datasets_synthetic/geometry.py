@@ -1,6 +1,6 @@
 """Procedural triangle-mesh building blocks for the synthetic scenes (world metres, +z up).
 
-Every builder returns a :class:`render.raster.RasterMesh` (vertices, faces, linear albedo,
+Every builder returns a :class:`render.mesh.raster.gl.RasterMesh` (vertices, faces, linear albedo,
 unit normals, strand tangents, ambient occlusion, specular strength), so a scene is the
 concatenation (:func:`merge`) of exact geometry that is both rendered and written as the
 ground truth (``gt/mesh.ply``).
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.atomic import atomic_write
-from render.raster import RasterMesh
+from render.mesh.raster.gl import RasterMesh
 
 #: Below this length a direction is treated as degenerate (metres or unitless).
 EPS = 1e-12

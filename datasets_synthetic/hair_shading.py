@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.raster import SHADOW_MAP_SIZE, Lighting, RasterMesh
+from render.mesh.raster.gl import SHADOW_MAP_SIZE, Lighting, RasterMesh
 from render.shading.envmap import EnvMap
 from render.shading.hair import HairParams, back_albedo, fibre_radiance, sigma_a_from_colour
 from render.shading.median_cut import median_cut_lights

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.camera import Camera
-from render.raster import MAX_LIGHTS, Lighting
+from render.mesh.raster.gl import MAX_LIGHTS, Lighting
 from render.shading.envmap import BUNDLED_NAMES, EnvMap, bundled_envmap, load_envmap, procedural_sky
 from render.shading.irradiance import irradiance_lookup, irradiance_table
 from render.shading.lights import LUMA, dominant_lights, env_minus_lights

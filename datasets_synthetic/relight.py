@@ -32,7 +32,7 @@ from capture.scan import to_uint8_srgb
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import ambient_residual, background, resolve_env, scene_lighting
 from datasets_synthetic.pixel_filter import path_tracer_filter
-from render.raster import MeshRasterizer
+from render.mesh.raster.gl import MeshRasterizer
 
 #: Linear radiance at or above this (after exposure) is white in 8-bit sRGB (counted as clipped).
 CLIP_LEVEL = 1.0

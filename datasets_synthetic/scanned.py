@@ -27,7 +27,7 @@ import numpy as np
 
 from datasets_synthetic.fur import FurParams, grow_strands, push_outside, sample_surface, strand_tubes
 from datasets_synthetic.geometry import _unit, merge
-from render.raster import RasterMesh
+from render.mesh.raster.gl import RasterMesh
 
 #: Where the mesh lies inside the installed pymeshlab package.
 BUNNY_PACKAGE = "pymeshlab"

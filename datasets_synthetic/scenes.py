@@ -10,7 +10,7 @@ at the origin, 0.15-0.3 m across).
 * ``furrybunny``: fur grown on a real scanned surface (the Stanford Bunny from pymeshlab's test
   data; ``datasets_synthetic.scanned``, where its licence is noted).
 
-A scene is a :class:`Scene`: the :class:`render.raster.RasterMesh` that is both rendered and
+A scene is a :class:`Scene`: the :class:`render.mesh.raster.gl.RasterMesh` that is both rendered and
 written as ``gt/mesh.ply``, plus its parameters and statistics (``gt/scene.json``).  The same
 name, parameters and seed always give the same mesh, bit for bit.
 """
@@ -34,7 +34,7 @@ from datasets_synthetic.geometry import (
     tube_sweep,
 )
 from datasets_synthetic.scanned import FurryBunnyParams, build_furrybunny
-from render.raster import RasterMesh, face_normals
+from render.mesh.raster.gl import RasterMesh, face_normals
 
 #: Golden angle (radians): azimuth step of branches and needle whorls.
 GOLDEN = np.pi * (3 - np.sqrt(5))

@@ -31,7 +31,7 @@ from datasets_synthetic.pixel_filter import path_tracer_filter
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
 from datasets_synthetic.sensor import SENSORS, SensorModel, apply_sensor
-from render.raster import MeshRasterizer
+from render.mesh.raster.gl import MeshRasterizer
 
 #: Margin added around the scene's tight bounds for the ScanSet bounds (fraction of the diagonal).
 BOUNDS_MARGIN = 0.05

@@ -6,7 +6,7 @@ turntable, as ``furrow render --orbit --video``) -- and writes into ``out``:
 
     out/model/       the model (volume.model.save_model: temporary folder + rename)
     out/eval.json    held-out scores (atomic)
-    out/orbit.mp4    the orbit video (render.video.write_mp4: atomic)
+    out/orbit.mp4    the orbit video (render.composite.video.write_mp4: atomic)
     out/done.json    the capture's record, written last: its presence marks the capture complete
 
 ``run_batch`` submits one Ray task per capture (``@ray.remote(max_calls=1)``: the worker process
@@ -124,9 +124,9 @@ def _orbit(model, scanset, out: Path, cfg: CaptureConfig) -> int:
 
     from capture.orbit import orbit_cameras
     from capture.scan import to_uint8_srgb
+    from render.composite.video import write_mp4
     from render.gl import gl_context
     from render.methods import create_renderer
-    from render.video import write_mp4
 
     cams = orbit_cameras(scanset.cameras, cfg.orbit_frames, center=np.asarray(model.bounds).mean(axis=0))
     with gl_context() as ctx, create_renderer(cfg.method, ctx, model) as r:

@@ -58,7 +58,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", type=Path, default=None,
                    help="output folder for the PNG frames and render_stats.json (required unless --video is given)")
     p.add_argument("--video", type=Path, default=None, metavar="OUT.mp4",
-                   help="also (or, without -o, only) write the frames as an H.264 MP4 (render.video.write_mp4)")
+                   help="also (or, without -o, only) write the frames as an H.264 MP4 "
+                        "(render.composite.video.write_mp4)")
     p.add_argument("--fps", type=float, default=DEFAULT_FPS,
                    help=f"frames per second of --video (default {DEFAULT_FPS:g})")
     p.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
@@ -145,7 +146,7 @@ def load_env(args):
 
 def composite(ctx, frame, cam, env, args, model, up, compositor) -> np.ndarray:
     """The frame composited into the environment (docs/methods.md §3-§4)."""
-    from render.composite import composite_frame
+    from render.composite.pipeline import composite_frame
 
     # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
     # edge pixels (their samples were averaged with black)
@@ -194,7 +195,7 @@ def run(args, console) -> int:
         relighter = open_relighter(args, ctx, model, owned)  # None without --relight
         compositor = None
         if env is not None:
-            from render.composite import Compositor
+            from render.composite.pipeline import Compositor
 
             compositor = owned.enter_context(Compositor(ctx))
         if views:  # warm-up: llvmpipe compiles shaders on the first draw
@@ -215,7 +216,7 @@ def run(args, console) -> int:
 
         with timer.stage(f"render {len(views)} frames ({args.method})"):
             if args.video is not None:
-                from render.video import write_mp4
+                from render.composite.video import write_mp4
 
                 write_mp4(frames(), args.video, args.fps)
             else:

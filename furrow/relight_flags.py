@@ -1,5 +1,5 @@
 """The ``--relight`` flags of ``furrow render`` (issue 15), kept apart from cmd_render.py: parse
-them, and open the relighter (``render.relight.Relighter``) the frames go through."""
+them, and open the relighter (``render.relight.gl.Relighter``) the frames go through."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def open_relighter(args, ctx, model, stack):
         return None
     import numpy as np
 
-    from render.relight import RelightConfig, Relighter
+    from render.relight.gl import RelightConfig, Relighter
     from render.shading.envmap import named_envmap
 
     env = named_envmap(name)

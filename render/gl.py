@@ -1,11 +1,18 @@
 """Headless OpenGL: one explicit moderngl context, and the shader loader.
 
 The context is always passed explicitly (no global context).  On machines without a GPU
-this is Mesa's llvmpipe through EGL (docs/pitfalls.md).  Shaders live in
-``render/shaders/*.glsl`` and may ``#include "other.glsl"`` (resolved relative to that
-folder, each file at most once, recursion detected).  Constants a shader shares with its numpy
+this is Mesa's llvmpipe through EGL (docs/pitfalls.md).
+
+Shaders live beside the code that draws with them: ``render/<folder>/shaders/*.glsl`` for a
+method or pass (``render/gather/shaders/``, ``render/microfacet/shaders/``, ...) and
+``render/shaders/*.glsl`` for what several folders share (the environment-shading formulas,
+the anti-aliasing resolve, the framebuffer row flip).  One rule finds a shader, whether a
+program names it or another shader ``#include``s it: **by its file name, which is unique in the
+render package** -- first in ``render/shaders/``, then in every ``render/**/shaders/`` folder
+(:func:`shader_path`; two files of one name are an error).  Each file is included at most once
+and recursion is detected.  Constants a shader shares with its numpy
 twin are injected as ``#define``s from Python: by the program's owner (``defines=``, e.g.
-``render.microfacet.shader_defines``) or, for an include used by several owners, wherever the
+``render.microfacet.gl.shader_defines``) or, for an include used by several owners, wherever the
 file is expanded (:data:`TWIN_CONSTANTS`).
 """
 
@@ -16,7 +23,10 @@ import re
 from collections.abc import Iterator
 from pathlib import Path
 
-SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+#: The render package; every ``shaders/`` folder below it holds shaders (docs/design.md, the layout rule).
+RENDER_DIR = Path(__file__).resolve().parent
+#: The shaders shared by several folders (looked up first).
+SHADER_DIR = RENDER_DIR / "shaders"
 #: OpenGL version required: 4.3 core (geometry shaders, texture arrays, SSBOs).
 GL_REQUIRE = 430
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$')
@@ -67,9 +77,40 @@ def gl_context(require: int = GL_REQUIRE) -> Iterator:
         ctx.release()
 
 
+def shader_index(root: Path = RENDER_DIR) -> dict[str, Path]:
+    """File name -> path of every shader in a ``shaders/`` folder below ``root`` (except the shared
+    ``render/shaders/``, which :func:`shader_path` looks in first); a name used twice is an error."""
+    index: dict[str, Path] = {}
+    for path in sorted(root.glob("**/shaders/*.glsl")):
+        if path.parent == SHADER_DIR:
+            continue
+        if path.name in index:
+            raise ValueError(f"shader name {path.name} is used twice: {index[path.name]} and {path} "
+                             "(shader file names are unique in the render package)")
+        index[path.name] = path
+    return index
+
+
+def shader_path(name: str) -> Path:
+    """Where the shader ``name`` (a file name) lives: ``render/shaders/NAME`` if there, else the one
+    ``render/**/shaders/NAME``; FileNotFoundError when neither exists."""
+    shared = SHADER_DIR / name
+    if shared.is_file():
+        return shared
+    global _INDEX
+    if _INDEX is None:
+        _INDEX = shader_index()
+    if name not in _INDEX:
+        raise FileNotFoundError(f"shader {name} not found in {SHADER_DIR} or any render/**/shaders/ folder")
+    return _INDEX[name]
+
+
+_INDEX: dict[str, Path] | None = None
+
+
 def load_shader(name: str, defines: dict[str, object] | None = None) -> str:
-    """Source of ``render/shaders/NAME`` with ``#include`` resolved and ``defines`` injected
-    after the ``#version`` line (or at the top if none)."""
+    """Source of the shader file ``NAME`` (found by :func:`shader_path`) with ``#include`` resolved and
+    ``defines`` injected after the ``#version`` line (or at the top if none)."""
     text = _expand(name, seen=set(), stack=())
     if defines:
         block = "".join(f"#define {k} {v}\n" for k, v in defines.items())
@@ -84,10 +125,11 @@ def load_shader(name: str, defines: dict[str, object] | None = None) -> str:
 def _expand(name: str, seen: set[str], stack: tuple[str, ...]) -> str:
     if name in stack:
         raise ValueError(f"shader #include cycle: {' -> '.join(stack + (name,))}")
-    path = SHADER_DIR / name
-    if not path.is_file():
+    try:
+        path = shader_path(name)
+    except FileNotFoundError as e:
         where = f" (included from {stack[-1]})" if stack else ""
-        raise FileNotFoundError(f"shader {path} not found{where}")
+        raise FileNotFoundError(f"{e}{where}") from None
     if name in seen:
         return ""
     seen.add(name)
@@ -106,7 +148,7 @@ def _expand(name: str, seen: set[str], stack: tuple[str, ...]) -> str:
 
 def program(ctx, vertex: str, fragment: str | None = None, geometry: str | None = None,
             defines: dict[str, object] | None = None, **kw):
-    """Build a program from shader file names in ``render/shaders``."""
+    """Build a program from shader file names (found by :func:`shader_path`)."""
     src = {"vertex_shader": load_shader(vertex, defines)}
     if fragment:
         src["fragment_shader"] = load_shader(fragment, defines)

@@ -25,14 +25,14 @@ from typing import ClassVar
 from capture.camera import Camera
 from render.antialias import check_factor
 from render.frame import Frame
-from render.microfacet_geometry import DEBUG_OUTPUTS, DEPTH_REFINE
-from render.microfacet_lod import DEFAULT_TOLERANCE_PX
+from render.microfacet.geometry import DEBUG_OUTPUTS, DEPTH_REFINE
+from render.microfacet.lod import DEFAULT_TOLERANCE_PX
 from render.owner import GLOwner
 
 #: Samples per pixel and axis of every method unless told otherwise (render.antialias; README
 #: "Where the design moved": the references are area-sampled photographs or path-traced images).
 DEFAULT_SUPERSAMPLE = 2
-#: Slice generation paths of the microfacet renderer (render.microfacet).
+#: Slice generation paths of the microfacet renderer (render.microfacet.gl).
 MICROFACET_MODES = ("instanced", "geometry")
 #: Most parallax-correction steps accepted (render quality saturates after 2: furrow/bench/render.py).
 MAX_REFINE = 4
@@ -61,7 +61,7 @@ class RenderOptions:
     fill_only: bool = False
     #: A debug output instead of the colour (methods that list "debug" in ``uses``): "camera" (the
     #: dominant input camera's index + 1 per pixel) or "rejections" (1 kept, 2 rejected by Eq. 2)
-    #: in the red channel (render.microfacet_geometry.debug_codes); needs supersample 1.
+    #: in the red channel (render.microfacet.geometry.debug_codes); needs supersample 1.
     debug: str | None = None
 
     def __post_init__(self) -> None:
@@ -128,18 +128,18 @@ class Renderer(GLOwner):
 
 
 #: The method of ``furrow render`` when none is named, first in ``furrow eval``: splatted depth
-#: with colours gathered from the two nearest views (render/gather.py), 3-4 dB above the point
+#: with colours gathered from the two nearest views (render/gather/gl.py), 3-4 dB above the point
 #: splatter and the microfacets on held-out fur and plants (README "Novel views").
 DEFAULT_METHOD = "gather"
 
 #: name -> "module:Renderer class" (imported on first use, so that importing the registry
 #: compiles and uploads nothing).
 METHODS: dict[str, str] = {
-    "microfacet": "render.microfacet:MicrofacetRenderer",
-    "mesh-vdtm": "render.vdtm:VdtmRenderer",
-    "mesh-colour": "render.vdtm:MeshColourRenderer",
-    "points": "render.points:PointsRenderer",
-    "gather": "render.gather:GatherRenderer",
+    "microfacet": "render.microfacet.gl:MicrofacetRenderer",
+    "mesh-vdtm": "render.mesh.gl:VdtmRenderer",
+    "mesh-colour": "render.mesh.gl:MeshColourRenderer",
+    "points": "render.points.gl:PointsRenderer",
+    "gather": "render.gather.gl:GatherRenderer",
 }
 
 

@@ -10,8 +10,7 @@ On disk a model is a folder::
                      see Camera.to_nerfstudio), levels, spheres / mesh counts,
                      every parameter used, input provenance
       pyramid.npz    level_<L>_surface (N,3) int32, level_<L>_values (L,L,L) float32 (optional)
-      rgbz.npz       rgb (N,H,W,3) float16 linear, depth (N,H,W) float16 metres (float32 read too),
-                     alpha (N,H,W) float16 straight matte (optional)
+      rgbz.npz       rgb (N,H,W,3) float16 linear, depth (N,H,W) float16 metres, alpha (N,H,W) optional
       spheres.npz    centers (N,3) float64, radii (N,) float64
       mesh.npz       vertices (V,3) float32, faces (F,3) int32, colors (V,3) float32 (optional)
       capture_env.npz  radiance (H,2H,3) float32 linear: the capture's lighting (optional; only
@@ -47,8 +46,7 @@ EXTENT_RTOL = 1e-6
 RGBZ_STORAGE = np.float16
 #: The array files of a model folder.
 ARRAY_FILES = ("pyramid.npz", "rgbz.npz", "spheres.npz", "mesh.npz")
-#: The optional file holding the capture lighting (CaptureLighting); models written before it
-#: existed lack it and load with ``capture_env=None``.
+#: The optional file of the capture lighting (CaptureLighting); older models load with capture_env=None.
 CAPTURE_ENV_FILE = "capture_env.npz"
 #: Tolerance on |up| = 1 of a CaptureLighting.
 UP_NORM_TOL = 1e-6
@@ -211,8 +209,7 @@ class RgbzImages:
         depth: (N, H, W) z-depth (metres, along the optical axis) of the geometry projected
             into each camera, 0 = no geometry; stored as float16 (float32 or float16 given).
         cameras: N cameras (OpenCV convention), all of size W x H.
-        alpha: optional (N, H, W) straight alpha matte of the object per camera in [0, 1]
-            (stored as RGBZ_STORAGE); None = binary (has geometry depth = opaque).
+        alpha: optional (N, H, W) straight matte in [0, 1] per camera; None = depth > 0 is opaque.
     """
 
     rgb: np.ndarray
@@ -244,12 +241,9 @@ class RgbzImages:
             raise ModelError("RgbzImages: depth must be finite and >= 0 (0 = no geometry)")
         rgb, depth = rgb.reshape(n, H, W, 3), depth.reshape(n, H, W)
         if self.alpha is not None:
-            alpha = np.asarray(self.alpha)
-            if alpha.shape != depth.shape:
-                raise ModelError(f"RgbzImages: alpha must be {depth.shape}, got {alpha.shape}")
-            if not np.all(np.isfinite(alpha)) or (alpha.size and (alpha.min() < 0 or alpha.max() > 1)):
-                raise ModelError("RgbzImages: alpha must be finite and in [0, 1]")
-            alpha = alpha.astype(RGBZ_STORAGE)
+            alpha = np.asarray(self.alpha).astype(RGBZ_STORAGE)
+            if alpha.shape != depth.shape or not np.all((alpha >= 0) & (alpha <= 1)):
+                raise ModelError(f"RgbzImages: alpha must be {depth.shape} in [0, 1], got {alpha.shape}")
             alpha.setflags(write=False)
             object.__setattr__(self, "alpha", alpha)
         rgb.setflags(write=False)
@@ -395,10 +389,8 @@ def save_model(model: Model, folder) -> Path:
             if lv.values is not None:
                 arrays[f"level_{lv.resolution}_values"] = lv.values
         np.savez(tmp / "pyramid.npz", **arrays)
-        rgbz = {"rgb": model.rgbz.rgb, "depth": model.rgbz.depth}
-        if model.rgbz.alpha is not None:
-            rgbz["alpha"] = model.rgbz.alpha
-        np.savez(tmp / "rgbz.npz", **rgbz)
+        alpha = {} if model.rgbz.alpha is None else {"alpha": model.rgbz.alpha}
+        np.savez(tmp / "rgbz.npz", rgb=model.rgbz.rgb, depth=model.rgbz.depth, **alpha)
         np.savez(tmp / "spheres.npz", centers=model.spheres.centers, radii=model.spheres.radii)
         mesh = {"vertices": model.mesh_vertices, "faces": model.mesh_faces}
         if model.mesh_colors is not None:

@@ -74,8 +74,8 @@ def _sphere_image_error(name: str, lights: int) -> dict:
     from capture.camera import Camera, look_at, make_K
     from datasets_synthetic.lighting import LightingConfig, ambient_residual, resolve_env, scene_lighting
     from render.gl import create_context
-    from render.glossy import uv_sphere
-    from render.raster import MeshRasterizer, RasterMesh
+    from render.mesh.glossy.gl import uv_sphere
+    from render.mesh.raster.gl import MeshRasterizer, RasterMesh
     from render.shading.sh import irradiance_brute
 
     env = resolve_env(name)

@@ -47,7 +47,7 @@ def _sources(n, W, H, n_exp, seed=0):
 
 
 def bench_cost(ctx, W, H, counts, n_exp=100.0):
-    from render.glare import GlareLayer
+    from render.composite.glare_layer import GlareLayer
     from render.shading.glare import GlareConfig
     from render.shading.glare_maps import make_streaks, streak_energy_on_screen
 
@@ -76,7 +76,7 @@ def bench_cost(ctx, W, H, counts, n_exp=100.0):
 
 def bench_energy_thin(ctx, W, H):
     """Energy error of pairs away from the border, for exponents giving wide .. 1 px pairs."""
-    from render.glare import GlareLayer
+    from render.composite.glare_layer import GlareLayer
     from render.shading.glare import GlareConfig
     from render.shading.glare_maps import glare_sources, make_streaks
 
@@ -97,8 +97,8 @@ def bench_energy_thin(ctx, W, H):
 
 
 def sphere_scene(camera, centre, radius, albedo):
-    """Analytic sphere: depth and normals (render.composite_reference.raycast_sphere)."""
-    from render.composite_reference import raycast_sphere
+    """Analytic sphere: depth and normals (render.composite.reference.raycast_sphere)."""
+    from render.composite.reference import raycast_sphere
 
     return raycast_sphere(camera, centre, radius)
 
@@ -106,12 +106,12 @@ def sphere_scene(camera, centre, radius, albedo):
 def bench_composite(ctx, W, H, env_name, out_dir: Path):
     from capture.camera import Camera, look_at, make_K
     from capture.scan import to_uint8_srgb
-    from render.composite import composite_frame
+    from render.composite.pipeline import composite_frame
+    from render.composite.tonemap import TONE_WHITE
     from render.shading.envmap import bundled_envmap
     from render.shading.glare import GlareConfig
     from render.shading.irradiance import irradiance_lookup, irradiance_table
     from render.shading.sg_fit import fit_env_sg
-    from render.tonemap import TONE_WHITE
     from volume.model import SphereSet
 
     PICTURE_GLARE = GlareConfig(display_max=TONE_WHITE, **PICTURE_GLARE_SETTINGS)
@@ -137,7 +137,7 @@ def bench_composite(ctx, W, H, env_name, out_dir: Path):
     spec[obj] = (0.6, 800.0)
     spheres = SphereSet(centre[None], np.array([radius]))
     results = {}
-    from render.composite import Compositor
+    from render.composite.pipeline import Compositor
 
     comp = Compositor(ctx)  # reused: programs, environment, light sources and shadow grid set up once
     for glare in (False, True):
@@ -169,7 +169,7 @@ def composite_captured(ctx, model_dir: Path, scans: Path, view: int, env_name: s
 
     from capture.io import read_scanset
     from capture.scan import to_uint8_srgb
-    from render.composite import composite_frame
+    from render.composite.pipeline import composite_frame
     from render.shading.envmap import bundled_envmap
     from volume.model import load_model
 

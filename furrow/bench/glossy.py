@@ -1,6 +1,6 @@
 """``furrow bench glossy``: glossy sphere and Utah teapot with non-uniform roughness rendered with
-the multi-scale environment map (render/glossy.py, docs/methods.md §2) against the per-pixel brute-force
-Phong reference (render/glossy_reference.py) -- the thesis' Table 5 (and Table 6: frame time).
+the multi-scale environment map (render/mesh/glossy/gl.py, docs/methods.md §2) against the per-pixel brute-force
+Phong reference (render/mesh/glossy/reference.py) -- the thesis' Table 5 (and Table 6: frame time).
 
 For each object (sphere, teapot) and roughness mode (``vertex``: smoothness lambda interpolated
 from the vertices, a gradient over the height; ``texel``: a smoothness texture of five bands,
@@ -60,7 +60,7 @@ def _camera(W: int, H: int, which: str):
 
 
 def _meshes(quick: bool) -> dict:
-    from render.glossy import GlossyMesh, utah_teapot, uv_sphere
+    from render.mesh.glossy.gl import GlossyMesh, utah_teapot, uv_sphere
 
     out = {}
     band = np.repeat(np.array(BAND_LEVELS)[:, None], 8, 0).repeat(32, 1).astype(np.float32)
@@ -94,8 +94,8 @@ def run(quick: bool, map_name: str, s: int, ref_height: int, W: int, H: int, out
     import imageio.v3 as iio
 
     from render.gl import create_context
-    from render.glossy import GlossyRenderer
-    from render.glossy_reference import glossy_phong_reference_pair, glossy_pixels
+    from render.mesh.glossy.gl import GlossyRenderer
+    from render.mesh.glossy.reference import glossy_phong_reference_pair, glossy_pixels
     from render.shading.envmap import bundled_envmap
     from render.shading.msem import msem_build, msem_lambda, white_level
 

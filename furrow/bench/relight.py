@@ -11,7 +11,7 @@ of the foregrounds, sharpness = RMS Laplacian of the rendering over the referenc
 
 * ``unrelit``: the render as is (lit by A);
 * ``gain``: the render times one RGB gain, the mean radiance of B over A in linear light;
-* ``relit``: ``render.relight.Relighter`` (the configuration given; ``--variants`` adds others);
+* ``relit``: ``render.relight.gl.Relighter`` (the configuration given; ``--variants`` adds others);
 * ``capture``: the same render against its own truth under A (the ceiling of any relighting);
 * ``oracle``: the truth under A instead of the render (its pixels with render depth relit by the
   first variant, the others times the single gain), against the truth under B: the relighting's
@@ -41,10 +41,10 @@ TARGET_DB = 2.0
 
 
 def parse_variant(text: str):
-    """``KERNEL[:vis|:novis][:fwd=BETA][:g=G][:s=SMOOTH][:res=L]`` -> render.relight.RelightConfig
+    """``KERNEL[:vis|:novis][:fwd=BETA][:g=G][:s=SMOOTH][:res=L]`` -> render.relight.gl.RelightConfig
     (vis / novis: with / without the sphere set's visibility; fwd: the scattering weight, 0 =
     view-independent; g: its phase asymmetry; s: orientation smoothing; res: volume resolution)."""
-    from render.relight import RelightConfig
+    from render.relight.gl import RelightConfig
 
     kernel, *flags = text.split(":")
     kw = {"kernel": kernel}
@@ -128,7 +128,7 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
     from capture.imageio import write_png
     from capture.io import read_scanset
     from capture.scan import to_uint8_srgb
-    from render.relight import Relighter
+    from render.relight.gl import Relighter
 
     truth = read_scanset(scans / "relit" / relit)
     refs = [truth.scans[i] for i in split.held_idx]

@@ -39,7 +39,7 @@ TOLERANCES = (2.0, 4.0, 8.0, 16.0)
 #: Frames of the pipeline comparison: (name, RenderOptions changes); level -1 = the finest.
 PIPELINE_FRAMES = (("E=8, 1x1", {"supersample": 1}), ("E=8, 2x2", {"supersample": 2}),
                    ("finest level, 1x1", {"supersample": 1, "level": -1}))
-#: The two pipelines: renderer attributes (render.microfacet.MicrofacetRenderer cull / prepass).
+#: The two pipelines: renderer attributes (render.microfacet.gl.MicrofacetRenderer cull / prepass).
 PIPELINES = {"reference": {"cull": False, "prepass": False}, "fast": {"cull": True, "prepass": True}}
 #: The method measured, the baseline beside it (render.methods registry names).
 METHOD, BASELINE = "microfacet", "mesh-vdtm"

@@ -17,7 +17,7 @@ Sections (each a table; plots under -o):
   prefilter   the prefiltered SG pyramid Gamma(p, lambda) (half-octave levels) vs the brute-force
               sum: relative error at and between levels, build time.
 Glare cost / energy and the compositing shadow ratio are measured by ``furrow bench glare``
-(render/glare.py, render/composite.py).
+(render/composite/glare_layer.py, render/composite/pipeline.py).
 
     furrow bench shading [--quick] [--map courtyard] [--sections msem,sg,...] [-o DIR] [--json]
 
@@ -104,7 +104,7 @@ def bench_msem(quick: bool, map_name: str, samples: int) -> list[dict]:
 def bench_sphere(quick: bool, map_name: str) -> list[dict]:
     """Glossy sphere, smoothness 0.05..1 left to right, orthographic view along +y."""
     from render.shading.envmap import bundled_envmap
-    from render.shading.msem import _phong_weights, msem_build, msem_lambda, msem_lookup, white_level
+    from render.shading.msem import phong_weights, msem_build, msem_lambda, msem_lookup, white_level
 
     env = bundled_envmap(map_name).resized(128 if quick else 256)
     s = 64 if quick else 128
@@ -128,7 +128,7 @@ def bench_sphere(quick: bool, map_name: str) -> list[dict]:
     ref_gate = np.empty_like(got)
     for a in range(0, len(r), 128):
         c = r[a:a + 128] @ d.T
-        w = _phong_weights(c, lam[a:a + 128, None]) * om
+        w = phong_weights(c, lam[a:a + 128, None]) * om
         ref[a:a + 128] = (w @ L) / w.sum(1, keepdims=True)
         wg = w * ((n[a:a + 128] @ d.T) >= 0)
         ref_gate[a:a + 128] = (wg @ L) / np.maximum(wg.sum(1, keepdims=True), 1e-300)

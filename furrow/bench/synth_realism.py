@@ -11,7 +11,7 @@ Per scan set, with the frames i % 2 == 0 kept and the others held out (as ``furr
   depth, looked up in the 1 / 2 / 4 kept views nearest in viewing angle with a strict 4 mm
   visibility test, finds no visible match (unseen captures: fur ball 60/39/23 %, conifer
   48/31/21 %);
-* ``points``: the plain RGB-D point splatter of issue 11 (render.points_reference, the ``points``
+* ``points``: the plain RGB-D point splatter of issue 11 (render.points.reference, the ``points``
   method, on the kept scans' own depth: back-project every kept pixel; for a held-out view take
   the 4 kept cameras nearest in viewing angle, z-buffer their points in 2 x 2 splats, average the
   colours within 4 mm of the front, weighted by 1 / angle): masked PSNR, masked SSIM and the
@@ -41,7 +41,7 @@ def miss_fractions(held, kept_scans, centre) -> dict:
     """Fraction of the held-out view's depth pixels with no visible match in the n nearest kept views."""
     pts, _ = held.camera.depth_to_points(held.depth)
     out = {}
-    from render.points_reference import nearest_views
+    from render.points.reference import nearest_views
 
     order, _ = nearest_views(held.camera, [s.camera for s in kept_scans], centre, max(MISS_VIEWS))
     seen = np.zeros(len(pts), bool)
@@ -60,8 +60,8 @@ def miss_fractions(held, kept_scans, centre) -> dict:
 
 def capture_stats(path: Path) -> dict:
     from capture.io import read_scanset
-    from render import points_reference as pr
     from render.metrics import as_srgb8, foreground, grey, laplacian_rms, psnr, sharpness_ratio, ssim
+    from render.points import reference as pr
 
     ss = read_scanset(path)
     kept = [s for i, s in enumerate(ss.scans) if i % 2 == 0]

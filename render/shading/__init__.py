@@ -11,5 +11,5 @@
 - msem, msem_video: multi-scale environment map (GLSL twin shading_msem.glsl), per-frame
   build + streaming into one 3-D texture
 - ssdf: SSDF visibility from spheres + ground plane, ray-cast reference (GLSL twin shading_ssdf.glsl)
-- glare: glare streak shape and energy (Eq. 6-12; drawn by render/glare.py)
+- glare: glare streak shape and energy (Eq. 6-12; drawn by render/composite/glare_layer.py)
 """

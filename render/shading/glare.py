@@ -9,8 +9,8 @@ maximum times the pixel area): the frame's total light is unchanged (energy-pres
 
 This module is the shape and energy (numpy). Drawing (instanced additive fans in moderngl, with
 supersampling for sub-pixel widths), the light-source / light-reflection / specular-parameter
-maps and the compositing live in render/glare.py, render/shading/glare_maps.py and
-render/composite.py (the compositing helper's), which call these functions.
+maps and the compositing live in render/composite/glare_layer.py, render/shading/glare_maps.py and
+render/composite/pipeline.py (the compositing helper's), which call these functions.
 
 Shape (Eq. 7-12), with I = k_s I_l the highlight intensity and n the Blinn exponent:
     L_s = k_length * I (n + 2) / (8 pi)   (Eq. 7, proportional to the normalised peak, Eq. 4)

@@ -15,14 +15,14 @@ This module adds what compositing needs:
   N.L_j > 0 (render.shading.brdf).
 * :func:`glare_sources`: bright pixels of a display-scaled image (OpenCV pixel centres).
 * :func:`make_streaks`: the streak pairs of the bright pixels as parameters (centre, axis,
-  half-length L, width W, centre colour c) for the instanced GL fans of ``render/glare.py``;
+  half-length L, width W, centre colour c) for the instanced GL fans of ``render/composite/glare_layer.py``;
   shape from render.shading.glare (``streak_shape`` Eq. 7-12, ``streak_directions``,
   ``eyelash_factor``). A pair is a rhombus with half-diagonals L (along) and W / 2 (across),
   value ``c max(0, 1 - |s| / L - 2 |t| / W)`` (the fan of 4 triangles, centre c, rim 0), holding
   c L W / 3; c = 3 e / (L W) for its share e of the pixel's excess.
   Widths below MIN_STREAK_WIDTH are raised to it (energy kept through c): sampled at pixel
   centres, sub-pixel fans put the whole peak c on the centre pixel (measured 4x too much light
-  for W ~ 0.2 px), so the GL pass also supersamples (render/glare.py).
+  for W ~ 0.2 px), so the GL pass also supersamples (render/composite/glare_layer.py).
 * :func:`rasterize_streaks_reference`: numpy twin of the GL pass (tent at the sub-sample
   centres, box average), and :func:`streak_energy_on_screen` (analytic light inside the window).
 """
@@ -202,7 +202,7 @@ def _extent(streaks: Streaks, m: int):
 
 
 def rasterize_streaks_reference(streaks: Streaks, width: int, height: int, supersample: int = 1) -> np.ndarray:
-    """(H, W, 3) float64 numpy twin of render.glare.GlareLayer: every pair's tent evaluated at the
+    """(H, W, 3) float64 numpy twin of render.composite.glare_layer.GlareLayer: every pair's tent evaluated at the
     s x s sub-sample centres of each pixel (``capture.camera.resample_pixel_coords``), summed,
     box-averaged."""
     s = int(supersample)

@@ -76,7 +76,7 @@ def voxel_centres(s: int) -> np.ndarray:
     return np.stack(np.meshgrid(c, c, c, indexing="ij"), -1)
 
 
-def _phong_weights(cosang, lam):
+def phong_weights(cosang, lam):
     """max(0, c)^Lambda, elementwise, no underflow warnings; Lambda = 0 gives the gate."""
     with np.errstate(divide="ignore", under="ignore", invalid="ignore"):
         return np.where(cosang > 0, np.exp(lam * np.log(np.where(cosang > 0, cosang, 1.0))), 0.0)
@@ -120,7 +120,7 @@ def convolve_phong(src: EnvMap, lam: float, th: float = 0.0) -> np.ndarray:
         alpha, cos_min = np.pi / 2, 0.0
 
     def kernel(c):
-        k = _phong_weights(c, lam)
+        k = phong_weights(c, lam)
         return np.where(c >= cos_min, k, 0.0) if cos_min > 0 else k
 
     return convolve_zonal(src, kernel, alpha, normalise=True)

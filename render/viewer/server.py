@@ -250,8 +250,8 @@ class Viewer:
 
     def export(self, client, session: Session, controls, note) -> Path | None:
         """Render an export offline at full quality (progress bar in the client's GUI), write the
-        MP4 under out_dir (render.video.write_mp4) and send it as a download."""
-        from render.video import write_mp4
+        MP4 under out_dir (render.composite.video.write_mp4) and send it as a download."""
+        from render.composite.video import write_mp4
 
         if session.camera is None:
             return None

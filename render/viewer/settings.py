@@ -21,7 +21,7 @@ MAX_LINES_CHOICES = (240, 360, 480, 720, 1080)
 
 @dataclass(frozen=True)
 class EnvSettings:
-    """Environment compositing of the picture (docs/methods.md §3-§4; render.composite)."""
+    """Environment compositing of the picture (docs/methods.md §3-§4; render.composite.pipeline)."""
 
     #: Environment map: a bundled name or a .exr/.hdr path; None = black background, no compositing.
     map: str | None = None

@@ -7,7 +7,7 @@
   pixel shows it), for methods whose FrameStats report a ``level``;
 * "camera" / "rejections": drawn by the renderer itself (RenderOptions.debug): per pixel the
   index + 1 of the dominant input camera, or 1 for a kept and 2 for an Eq. 2-rejected slice
-  fragment (render.microfacet); shown through fixed palettes.
+  fragment (render.microfacet.gl); shown through fixed palettes.
 
 Methods are looked up by name and never branched on: a view a method cannot give is reported
 (``Drawn.note``) and the colour picture is shown instead.
@@ -44,16 +44,16 @@ class Drawn:
 
 
 def make_compositor(ctx):
-    """The environment compositor GL owner (render.compositor.Compositor)."""
-    from render.compositor import Compositor
+    """The environment compositor GL owner (render.composite.gl.Compositor)."""
+    from render.composite.gl import Compositor
 
     return Compositor(ctx)
 
 
 def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, spheres, up, compositor) -> np.ndarray:
     """``frame`` (render.frame.Frame) composited into ``env``: (H, W, 3) float32 display-referred
-    linear colour in [0, 1] (render.composite.composite_frame)."""
-    from render.composite import composite_frame
+    linear colour in [0, 1] (render.composite.pipeline.composite_frame)."""
+    from render.composite.pipeline import composite_frame
 
     # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
     # edge pixels (their samples were averaged with black)

@@ -88,7 +88,7 @@ def test_dense_nearest_neighbour_distance(torus_exr):
     """The literal statistic: nearest neighbour in a cloud of the adjacent view sampled 4x
     denser (same camera scaled, Camera.scaled) stays below a quarter footprint."""
     from render.gl import gl_context
-    from render.raster import MeshRasterizer
+    from render.mesh.raster.gl import MeshRasterizer
 
     cap, ss = torus_exr
     a = ss.scans[0]

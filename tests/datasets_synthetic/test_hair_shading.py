@@ -15,7 +15,7 @@ from datasets_synthetic.hair_shading import (
     vertex_emission,
     without_strand_shading,
 )
-from render.raster import Lighting, MeshRasterizer, RasterMesh
+from render.mesh.raster.gl import Lighting, MeshRasterizer, RasterMesh
 from render.shading.envmap import bundled_envmap
 from render.shading.hair import HairParams, fibre_angles, fibre_scattering, sigma_a_from_colour
 

@@ -117,7 +117,7 @@ def test_fur_shadow_visibility_matches_raycasting():
 
     from datasets_synthetic.lighting import LightingConfig, resolve_env, scene_lighting
     from render.gl import gl_context
-    from render.raster import SHADOW_BIAS_TEXELS, SHADOW_BOX_MARGIN, SHADOW_MAP_SIZE, MeshRasterizer
+    from render.mesh.raster.gl import SHADOW_BIAS_TEXELS, SHADOW_BOX_MARGIN, SHADOW_MAP_SIZE, MeshRasterizer
 
     mesh = build_scene("furball", 0, strands=1500).mesh
     lt, _ = scene_lighting(resolve_env("studio"), LightingConfig())

@@ -7,7 +7,7 @@ import numpy as np
 from capture.imageio import read_color
 from capture.scan import to_uint8_srgb
 from furrow.cli import main
-from render.composite import tonemap
+from render.composite.pipeline import tonemap
 from render.shading.envmap import bundled_envmap
 from tests import scenes as scene
 from tests.conftest import image_diff_stats
@@ -38,7 +38,7 @@ def test_render_env_object_over_background(tmp_path):
     dirs = cam.pixel_rays(cam.pixel_grid()) @ cam.world_from_cam[:3, :3].T
     dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
     from capture.orbit import estimate_up
-    from render.composite import rotation_to_z
+    from render.composite.pipeline import rotation_to_z
 
     R = rotation_to_z(estimate_up(cams))
     expect = to_uint8_srgb(tonemap(bundled_envmap("sunset").sample(dirs @ R.T)))

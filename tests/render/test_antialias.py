@@ -8,10 +8,10 @@ import pytest
 
 from capture.camera import gl_ndc_depth_to_z, gl_rows_to_image
 from render.antialias import box_resolve, check_factor
+from render.mesh.gl import VdtmRenderer
 from render.methods import RenderOptions
-from render.microfacet import MicrofacetRenderer
+from render.microfacet.gl import MicrofacetRenderer
 from render.owner import near_far
-from render.vdtm import VdtmRenderer
 from tests import scenes as scene
 from tests.conftest import assert_images_close
 

@@ -88,7 +88,7 @@ def test_twin_constants_come_from_python(tmp_path, monkeypatch):
 
 
 def test_hair_threshold_comes_from_python():
-    from render.raster import HAIR_TANGENT_SQ, shaded_defines
+    from render.mesh.raster.gl import HAIR_TANGENT_SQ, shaded_defines
 
     assert float(shaded_defines("table")["HAIR_TANGENT_SQ"]) == HAIR_TANGENT_SQ
-    assert "> HAIR_TANGENT_SQ" in (rgl.SHADER_DIR / "raster_shaded_frag.glsl").read_text()
+    assert "> HAIR_TANGENT_SQ" in (rgl.shader_path("raster_shaded_frag.glsl")).read_text()

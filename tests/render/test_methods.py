@@ -53,7 +53,7 @@ def test_every_method_returns_a_frame(gl_ctx, model, name):
 def test_supersampled_frame_is_resolve_of_its_samples(gl_ctx, model, name):
     """Every method that supersamples goes through the one GPU resolve: the frame equals the
     numpy box resolve of the samples it drew (colour mean, nearest depth).  (``points`` draws one
-    sample per pixel whatever the options: tests/render/test_points.py.)"""
+    sample per pixel whatever the options: tests/render/points/test_points.py.)"""
     eye = _eye(5)
     with create_renderer(name, gl_ctx, model) as r:
         fr = r.render(eye, supersample=2)

@@ -1,0 +1,167 @@
+"""The ``gather`` rendering method on the GPU: splatted depth, colours gathered from the two
+nearest kept views with soft visibility (the algorithm and its numpy twin:
+``render/gather/reference.py``).
+
+Uploaded once: every kept view's RGB-D points (one vertex buffer, a range per camera) and the
+RGBz texture array.  Per frame only uniforms change:
+
+1. ``gather_depth_*.glsl``: the points of the ``k_depth`` nearest cameras drawn as GL points of
+   side ``splat_px`` into an R32F target with MIN blending: the nearest z-depth per pixel
+   (exactly the z-buffer of the twin; no depth buffer is involved);
+2. ``gather_frag.glsl`` over a full-screen triangle: per pixel with a depth, the point is
+   projected into the ``k_blend`` nearest cameras, their colours resampled (bilinear, or
+   Catmull-Rom bicubic: 4 or 16 texel fetches, no hardware filtering, so the twin is exact) and
+   blended with (1 / angle) x soft visibility.
+
+One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
+colours are interpolated from the photos, whose own area sampling already anti-aliases strand
+fringes and silhouettes; a 2 x 2 box on top blurs (sharpness 0.65 on the fur ball, README).
+GL clips a point whose centre lies outside the eye's frustum, so splats reaching into the
+image from beyond its border or from outside the near / far planes of the object box are
+dropped (the twin keeps their inside pixels); nothing else differs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from capture.camera import Camera, gl_rows_to_image
+from render.frame import Frame, FrameStats
+from render.gather import reference as gr
+from render.gl import program
+from render.methods import Renderer, RenderOptions
+from render.owner import FrameTimer, mat4_bytes, near_far
+from render.points import reference as pr
+
+#: Cleared value of the depth target: "no splat here" (metres; any real depth is far below).
+Z_EMPTY = 1e30
+
+
+def shader_defines(cfg: gr.GatherConfig) -> dict:
+    """Constants of gather_frag.glsl, one source with the numpy twin."""
+    return {"K_BLEND": cfg.k_blend, "VIS_SIGMA": f"{cfg.vis_sigma_m:.9e}", "VIS_FLOOR": f"{cfg.vis_floor:.9e}",
+            "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "RESAMPLE_CUBIC": int(cfg.resample == "cubic"),
+            "CUBIC_A": f"{gr.CUBIC_A:.9e}"}
+
+
+class GatherRenderer(Renderer):
+    """Owns the GPU buffers and programs of the gather method for one model.
+
+    Args:
+        ctx: moderngl context.
+        rgb, depth, cameras: the kept views (volume.model.RgbzImages fields).
+        bounds: (2, 3) object box: the centre where viewing angles are measured, near / far.
+        options: default per-frame options (none is read).
+        config: the method's constants (gather_reference.GatherConfig).
+    """
+
+    name = "gather"
+    uses = frozenset()
+
+    def __init__(self, ctx, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
+                 config: gr.GatherConfig | None = None):
+        super().__init__(ctx, options)
+        self.cfg = config or gr.GatherConfig()
+        self.cameras = tuple(cameras)
+        if not self.cameras:
+            raise ValueError("gather renderer: the model has no input camera")
+        self.bounds = np.asarray(bounds, np.float64)
+        self.centre = self.bounds.mean(axis=0)
+        clouds = pr.back_project(self.cameras, rgb, depth)
+        counts = [len(c.points) for c in clouds]
+        self.first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+        self.counts = np.asarray(counts, int)
+        pts = np.concatenate([c.points for c in clouds]) if sum(counts) else np.zeros((1, 3))
+        self.vbo = self.own(ctx.buffer(np.ascontiguousarray(pts, np.float32).tobytes()))
+        texels = np.concatenate([np.asarray(rgb, np.float32), np.asarray(depth, np.float32)[..., None]], -1)
+        n, H, W = texels.shape[:3]
+        self.tex = self.own(ctx.texture_array((W, H, n), 4, np.ascontiguousarray(texels).tobytes(), dtype="f4"))
+        self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
+        self.depth_vao = self.own(ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")]))
+        self.prog = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl", defines=shader_defines(self.cfg)))
+        self.vao = self.own(ctx.vertex_array(self.prog, []))
+
+    @classmethod
+    def from_model(cls, ctx, model, options: RenderOptions | None = None,
+                   config: gr.GatherConfig | None = None) -> GatherRenderer:
+        """Renderer of a volume.model.Model's RGBz images (its kept views and their depth)."""
+        return cls(ctx, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras, model.bounds, options, config)
+
+    def views(self, eye: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(depth cameras, blend cameras, blend weights 1 / angle) of a frame: the nearest in
+        viewing angle (render.points.reference.nearest_views)."""
+        cfg = self.cfg
+        idx, ang = pr.nearest_views(eye, self.cameras, self.centre, max(cfg.k_depth, cfg.k_blend))
+        return idx[: cfg.k_depth], idx[: cfg.k_blend], 1.0 / np.maximum(ang[: cfg.k_blend], pr.ANGLE_EPS)
+
+    def _depth_pass(self, eye: Camera, cams, near: float, far: float):
+        ctx = self.ctx
+        tgt = self.target(eye.width, eye.height, colours=(1,), depth=False)
+        tgt.fbo.use()
+        ctx.viewport = (0, 0, eye.width, eye.height)
+        tgt.fbo.clear(Z_EMPTY, Z_EMPTY, Z_EMPTY, Z_EMPTY)
+        ctx.enable_only(ctx.BLEND)
+        ctx.blend_func = ctx.ONE, ctx.ONE
+        ctx.blend_equation = ctx.MIN
+        prev_point_size = ctx.point_size
+        ctx.point_size = float(self.cfg.splat_px)
+        p = self.depth_prog
+        p["view_proj"].write(mat4_bytes(eye.gl_projection(near, far) @ eye.gl_view()))
+        p["eye_z_row"].value = tuple(float(x) for x in eye.cam_from_world[2])
+        for i in cams:
+            if self.counts[i]:
+                self.depth_vao.render(ctx.POINTS, vertices=int(self.counts[i]), first=int(self.first[i]))
+        # the context may be shared (tests, the viewer): leave its state as found
+        ctx.point_size = prev_point_size
+        ctx.blend_equation = ctx.FUNC_ADD
+        ctx.disable(ctx.BLEND)
+        return tgt
+
+    def _gather_pass(self, eye: Camera, zt, blend, weights):
+        ctx = self.ctx
+        K = self.cfg.k_blend
+        tgt = self.target(eye.width, eye.height, colours=(4,), depth=False)
+        tgt.fbo.use()
+        ctx.viewport = (0, 0, eye.width, eye.height)
+        tgt.fbo.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
+        zt.colours[0].use(0)
+        self.tex.use(1)
+        p = self.prog
+        p["front_z"].value = 0
+        p["rgbz"].value = 1
+        p["height"].value = eye.height
+        p["eye_intr"].value = (eye.K[0, 0], eye.K[1, 1], eye.K[0, 2], eye.K[1, 2])
+        p["eye_skew"].value = float(eye.K[0, 1])
+        p["eye_rot"].write(np.ascontiguousarray(eye.world_from_cam[:3, :3].T, np.float32).tobytes())
+        p["eye_center"].value = tuple(float(x) for x in eye.center)
+        cfw = np.zeros((K, 4, 4), np.float32)
+        intr = np.zeros((K, 4), np.float32)
+        skew, layer, w = np.zeros(K, np.float32), np.zeros(K, np.int32), np.zeros(K, np.float32)
+        for j, (i, wj) in enumerate(zip(blend, weights)):
+            c = self.cameras[i]
+            cfw[j] = c.cam_from_world.T  # column-major mat4
+            intr[j] = (c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2])
+            skew[j], layer[j], w[j] = c.K[0, 1], i, wj
+        p["cfw"].write(cfw.tobytes())
+        p["intr"].write(intr.tobytes())
+        p["skew"].write(skew.tobytes())
+        p["layer"].write(layer.tobytes())
+        p["weight"].write(w.tobytes())
+        self.vao.render(ctx.TRIANGLES, vertices=3)
+        return tgt
+
+    def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
+        depth_cams, blend, weights = self.views(eye)
+        near, far = near_far(eye, self.bounds)
+        with FrameTimer(self.ctx) as t:
+            zt = self._depth_pass(eye, depth_cams, near, far)
+            ct = self._gather_pass(eye, zt, blend, weights)
+        stats = FrameStats(t.ms, t.cpu_ms, int(self.counts[depth_cams].sum()), 1)
+        if not read:
+            return Frame.empty(eye.width, eye.height, stats)
+        rgba = gl_rows_to_image(ct.read_colour(0))
+        z = gl_rows_to_image(zt.read_colour(0))
+        drawn = rgba[..., 3] > 0
+        return Frame(rgba[..., :3], drawn.astype(np.float32), np.where(drawn, z, 0.0), stats)

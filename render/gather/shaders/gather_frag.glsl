@@ -1,0 +1,80 @@
+#version 430
+// Pass 2 of the gather method (full-screen triangle): the pixel's point at its splatted depth,
+// its colour gathered from the K_BLEND nearest kept views (Catmull-Rom bicubic when
+// RESAMPLE_CUBIC, else bilinear), weighted by (1 / angle) x soft visibility.
+// Twin: render/gather/reference.py gather / sample_view / cubic / bilinear.
+// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A.
+#include "framebuffer_row.glsl"
+uniform sampler2D front_z;       // pass 1 (framebuffer rows), Z_EMPTY where no splat landed
+uniform sampler2DArray rgbz;     // layer i: linear rgb + z-depth (m, 0 = none) of kept view i
+uniform int height;              // eye image height (pixels)
+uniform vec4 eye_intr;           // fx, fy, cx, cy of the eye (OpenCV)
+uniform float eye_skew;
+uniform mat3 eye_rot;            // world_from_cam rotation of the eye
+uniform vec3 eye_center;
+uniform mat4 cfw[K_BLEND];       // cam_from_world of the blend cameras
+uniform vec4 intr[K_BLEND];      // fx, fy, cx, cy
+uniform float skew[K_BLEND];
+uniform int layer[K_BLEND];      // their RGBz layers
+uniform float weight[K_BLEND];   // 1 / angle; 0 = unused slot
+layout(location = 0) out vec4 out_colour;
+
+vec3 texel(int l, int x, int y, ivec2 size) {
+    return texelFetch(rgbz, ivec3(clamp(x, 0, size.x - 1), clamp(y, 0, size.y - 1), l), 0).rgb;
+}
+
+// Keys cubic weights of the taps at -1, 0, 1, 2 from floor(x), t = x - floor(x).
+vec4 cubic_weights(float t) {
+    float t2 = t * t, t3 = t2 * t;
+    return vec4(CUBIC_A * (t3 - 2.0 * t2 + t), (CUBIC_A + 2.0) * t3 - (CUBIC_A + 3.0) * t2 + 1.0,
+                -(CUBIC_A + 2.0) * t3 + (2.0 * CUBIC_A + 3.0) * t2 - CUBIC_A * t, CUBIC_A * (t2 - t3));
+}
+
+// Colour of layer l resampled at uv (OpenCV pixels), taps clamped to the border.
+vec3 resample(int l, vec2 uv, ivec2 size) {
+    vec2 f0 = floor(uv);
+    vec2 f = uv - f0;
+    int x0 = int(f0.x), y0 = int(f0.y);
+#if RESAMPLE_CUBIC
+    vec4 wx = cubic_weights(f.x), wy = cubic_weights(f.y);
+    vec3 acc = vec3(0.0);
+    for (int j = 0; j < 4; ++j) {
+        vec3 row = wx.x * texel(l, x0 - 1, y0 + j - 1, size) + wx.y * texel(l, x0, y0 + j - 1, size)
+                 + wx.z * texel(l, x0 + 1, y0 + j - 1, size) + wx.w * texel(l, x0 + 2, y0 + j - 1, size);
+        acc += wy[j] * row;
+    }
+    return max(acc, vec3(0.0));
+#else
+    return mix(mix(texel(l, x0, y0, size), texel(l, x0 + 1, y0, size), f.x),
+               mix(texel(l, x0, y0 + 1, size), texel(l, x0 + 1, y0 + 1, size), f.x), f.y);
+#endif
+}
+
+void main() {
+    float z = texelFetch(front_z, ivec2(gl_FragCoord.xy), 0).r;
+    if (!(z < Z_EMPTY)) discard;
+    ivec2 pix = image_pixel(gl_FragCoord.xy, height);
+    float yn = (float(pix.y) - eye_intr.w) / eye_intr.y;
+    float xn = (float(pix.x) - eye_intr.z - eye_skew * yn) / eye_intr.x;
+    vec3 X = eye_center + eye_rot * (vec3(xn, yn, 1.0) * z);
+    ivec2 size = textureSize(rgbz, 0).xy;
+    vec3 acc = vec3(0.0);
+    float wsum = 0.0;
+    for (int j = 0; j < K_BLEND; ++j) {
+        if (!(weight[j] > 0.0)) continue;
+        vec3 pc = (cfw[j] * vec4(X, 1.0)).xyz;
+        if (!(pc.z > 0.0)) continue;
+        vec2 uv = vec2(intr[j].x * pc.x / pc.z + skew[j] * pc.y / pc.z + intr[j].z, intr[j].y * pc.y / pc.z + intr[j].w);
+        if (uv.x < -0.5 || uv.y < -0.5 || uv.x > float(size.x) - 0.5 || uv.y > float(size.y) - 0.5) continue;
+        ivec2 ij = clamp(ivec2(floor(uv + 0.5)), ivec2(0), size - 1);
+        float d = texelFetch(rgbz, ivec3(ij, layer[j]), 0).a;
+        vec3 col = resample(layer[j], uv, size);
+        float e = (d - pc.z) / VIS_SIGMA;
+        float vis = max(d > 0.0 ? exp(-0.5 * e * e) : 0.0, VIS_FLOOR);
+        float w = weight[j] * vis;
+        acc += w * col;
+        wsum += w;
+    }
+    if (!(wsum > 0.0)) discard;
+    out_colour = vec4(acc / wsum, 1.0);
+}

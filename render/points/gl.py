@@ -1,0 +1,57 @@
+"""The plain RGB-D point splatter of issue 11 as a rendering method (``points`` in render.methods).
+
+Every kept pixel with a depth is a coloured world point; a frame splats the points of the
+``N_VIEWS`` kept cameras nearest in viewing angle with a z-buffer in 2 x 2-pixel splats and
+averages the colours within 4 mm of the front depth, weighted by 1 / angle
+(``render/points/reference.py`` holds the algorithm, in vectorised numpy).  It is the baseline
+every evaluation shows beside the microfacets: one sample per pixel whatever
+``RenderOptions.supersample`` says (it reads no option), so it is exactly the splatter the issue
+measured.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from capture.camera import Camera
+from render.frame import Frame, FrameStats
+from render.methods import Renderer, RenderOptions
+from render.points import reference as pr
+
+
+class PointsRenderer(Renderer):
+    """The point splatter of one model (numpy; owns no GL object).
+
+    Args:
+        ctx: moderngl context (unused: the interface of every method).
+        rgb, depth, cameras: the kept views (volume.model.RgbzImages fields: (N, H, W, 3) linear,
+            (N, H, W) z-depth metres, 0 = none).
+        bounds: (2, 3) object box; its centre is where viewing angles are measured.
+        options: default per-frame options (none is read).
+    """
+
+    name = "points"
+    uses = frozenset()
+
+    def __init__(self, ctx, rgb, depth, cameras, bounds, options: RenderOptions | None = None):
+        super().__init__(ctx, options)
+        self.cameras = tuple(cameras)
+        if not self.cameras:
+            raise ValueError("points renderer: the model has no input camera")
+        self.centre = np.asarray(bounds, np.float64).mean(axis=0)
+        self.clouds = pr.back_project(self.cameras, rgb, depth)
+
+    @classmethod
+    def from_model(cls, ctx, model, options: RenderOptions | None = None) -> PointsRenderer:
+        """Splatter of a volume.model.Model's RGBz images (its kept views and their depth)."""
+        return cls(ctx, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras, model.bounds, options)
+
+    def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
+        t0, c0 = time.perf_counter(), time.process_time()
+        rgb, cov, depth, n = pr.points_frame(eye, self.clouds, self.cameras, self.centre)
+        stats = FrameStats((time.perf_counter() - t0) * 1e3, (time.process_time() - c0) * 1e3, n, 1)
+        if not read:
+            return Frame.empty(eye.width, eye.height, stats)
+        return Frame(rgb, cov, depth, stats)
