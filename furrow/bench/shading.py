@@ -104,7 +104,7 @@ def bench_msem(quick: bool, map_name: str, samples: int) -> list[dict]:
 def bench_sphere(quick: bool, map_name: str) -> list[dict]:
     """Glossy sphere, smoothness 0.05..1 left to right, orthographic view along +y."""
     from render.shading.envmap import bundled_envmap
-    from render.shading.msem import phong_weights, msem_build, msem_lambda, msem_lookup, white_level
+    from render.shading.msem import msem_build, msem_lambda, msem_lookup, phong_weights, white_level
 
     env = bundled_envmap(map_name).resized(128 if quick else 256)
     s = 64 if quick else 128
