@@ -150,7 +150,7 @@ def composite(ctx, frame, cam, env, args, model, up, compositor) -> np.ndarray:
 
     # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
     # edge pixels (their samples were averaged with black)
-    cov = frame.coverage
+    cov = frame.alpha
     obj = np.where(cov[..., None] > 0, frame.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
     return composite_frame(ctx, obj.astype(np.float32), frame.depth, cam, env,
                            spheres=model.spheres if args.ground else None, ground=None if args.ground else False,

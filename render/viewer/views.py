@@ -57,7 +57,7 @@ def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, sp
 
     # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
     # edge pixels (their samples were averaged with black)
-    cov = frame.coverage
+    cov = frame.alpha
     obj = np.where(cov[..., None] > 0, frame.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
     return composite_frame(ctx, obj.astype(np.float32), frame.depth, camera, env,
                            spheres=spheres if env_settings.ground else None,
@@ -103,7 +103,7 @@ def code_image(codes: np.ndarray, colours: np.ndarray) -> np.ndarray:
 def frame_codes(frame) -> np.ndarray:
     """(H, W) int codes a renderer wrote for a debug view (red channel, one sample per pixel;
     0 where nothing was drawn)."""
-    return np.where(frame.coverage > 0, np.rint(frame.rgb[..., 0]), 0).astype(np.int64)
+    return np.where(frame.alpha > 0, np.rint(frame.rgb[..., 0]), 0).astype(np.int64)
 
 
 def colour_image(scene, frame, camera: Camera, env_settings: EnvSettings) -> np.ndarray:
@@ -140,7 +140,7 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
             img, note = colour_image(scene, frame, camera, settings.env), \
                 f"method {settings.method!r} draws no pyramid level"
         else:
-            img = code_image(np.where(frame.coverage > 0, level + 1, 0), palette(16))
+            img = code_image(np.where(frame.alpha > 0, level + 1, 0), palette(16))
     elif view == "camera":
         img = code_image(frame_codes(frame), palette(20))
     else:

@@ -105,7 +105,7 @@ def test_points_renderer_is_the_reference(gl_ctx, model):
     with create_renderer("points", gl_ctx, model, RenderOptions(supersample=2)) as r:
         fr = r.render(eye)
     np.testing.assert_array_equal(fr.rgb, rgb)
-    np.testing.assert_array_equal(fr.coverage, cov)
+    np.testing.assert_array_equal(fr.alpha, cov)
     np.testing.assert_array_equal(fr.depth, depth)
     assert fr.stats.facets == n > 0 and fr.stats.supersample == 1  # one sample whatever the options say
 
@@ -122,16 +122,16 @@ def test_points_hard_cases(gl_ctx, model):
     eye = scene.ring_cameras(12, phase_deg=10)[0]
     with create_renderer("points", gl_ctx, m1) as r:
         fr = r.render(eye)
-        assert fr.alpha.sum() > 100 and np.all(np.isfinite(fr.rgb))
+        assert fr.mask.sum() > 100 and np.all(np.isfinite(fr.rgb))
         inside = Camera(eye.K, look_at(centre, centre + np.array([0.3, 0.0, 0.0])), eye.width, eye.height)
         fi = r.render(inside)
         assert np.all(np.isfinite(fi.rgb)) and np.all(fi.depth >= 0)
         top = Camera(eye.K, look_at(centre + np.array([0, 0, 0.45]), centre, (0.0, 1.0, 0.0)), eye.width, eye.height)
         ft = r.render(top)
-        assert ft.alpha.any() and np.all(np.isfinite(ft.rgb))
+        assert ft.mask.any() and np.all(np.isfinite(ft.rgb))
     empty = RgbzImages(model.rgbz.rgb, np.zeros_like(model.rgbz.depth), cams)
     m0 = Model(model.pyramid, empty, model.spheres, model.mesh_vertices, model.mesh_faces, model.mesh_colors,
                model.bounds)
     with create_renderer("points", gl_ctx, m0) as r:
         fe = r.render(eye)
-        assert not fe.alpha.any() and fe.stats.facets == 0
+        assert not fe.mask.any() and fe.stats.facets == 0
