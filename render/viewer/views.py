@@ -1,7 +1,7 @@
 """The pictures a viewer client can ask for, drawn on the GL thread from one rendered Frame.
 
-* "colour": the frame as 8-bit sRGB over black, or composited into an environment map
-  (:func:`composite_env`, docs/methods.md §3-§4) with exposure, ground shadow, glare and map rotation;
+* "colour": the frame as 8-bit sRGB over black (premultiplied colour), or composited with its matte into an
+  environment map (:func:`composite_env`, docs/methods.md §3-§4) with exposure, ground shadow, glare, rotation;
 * "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
 * "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
   pixel shows it), for methods whose FrameStats report a ``level``;
@@ -51,15 +51,12 @@ def make_compositor(ctx):
 
 
 def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, spheres, up, compositor) -> np.ndarray:
-    """``frame`` (render.frame.Frame) composited into ``env``: (H, W, 3) float32 display-referred
-    linear colour in [0, 1] (render.composite.pipeline.composite_frame)."""
+    """``frame`` (render.frame.Frame) composited into ``env`` with its matte (premultiplied +
+    (1 - alpha) background, linear light): (H, W, 3) float32 display-referred linear colour in
+    [0, 1] (render.composite.pipeline.composite_frame)."""
     from render.composite.pipeline import composite_frame
 
-    # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
-    # edge pixels (their samples were averaged with black)
-    cov = frame.alpha
-    obj = np.where(cov[..., None] > 0, frame.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
-    return composite_frame(ctx, obj.astype(np.float32), frame.depth, camera, env,
+    return composite_frame(ctx, frame.rgb, frame.depth, camera, env, alpha=frame.alpha,
                            spheres=spheres if env_settings.ground else None,
                            ground=None if env_settings.ground else False, exposure=env_settings.exposure,
                            glare=env_settings.glare, up=up, compositor=compositor)
