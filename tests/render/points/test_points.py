@@ -135,3 +135,27 @@ def test_points_hard_cases(gl_ctx, model):
     with create_renderer("points", gl_ctx, m0) as r:
         fe = r.render(eye)
         assert not fe.mask.any() and fe.stats.facets == 0
+
+
+def test_points_carry_the_matte(gl_ctx, model):
+    """With a matte: the method is its reference with premultiplied colour + alpha; a constant
+    matte 0.5 halves the colour and gives alpha 0.5 wherever a point lands (straight colour kept)."""
+    eye = scene.ring_cameras(12, phase_deg=17, elevations=(12,))[2]
+    cams, centre = model.rgbz.cameras, model.bounds.mean(0)
+    matte = scene.soft_matte(model.rgbz.depth)
+    ma = scene.with_alpha(model, matte)
+    clouds = pr.back_project(cams, model.rgbz.rgb, model.rgbz.depth, ma.rgbz.alpha)
+    rgb, a, depth, n = pr.points_frame(eye, clouds, cams, centre)
+    with create_renderer("points", gl_ctx, ma) as r:
+        fr = r.render(eye)
+    np.testing.assert_array_equal(fr.rgb, rgb)
+    np.testing.assert_array_equal(fr.alpha, a)
+    np.testing.assert_array_equal(fr.depth, depth)
+    assert np.mean((a > 0) & (a < 0.99)) > 0.05
+    rgb0, a0, d0, _ = pr.points_frame(eye, pr.back_project(cams, model.rgbz.rgb, model.rgbz.depth), cams, centre)
+    half = np.where(model.rgbz.depth > 0, 0.5, 0.0)
+    rgb1, a1, d1, _ = pr.points_frame(eye, pr.back_project(cams, model.rgbz.rgb, model.rgbz.depth, half), cams, centre)
+    np.testing.assert_array_equal(a1 > 0, a0 > 0)
+    np.testing.assert_allclose(a1[a0 > 0], 0.5, atol=1e-6)
+    np.testing.assert_allclose(rgb1, 0.5 * rgb0, atol=1e-6)
+    np.testing.assert_array_equal(d1, d0)
