@@ -164,7 +164,8 @@ def score_view(scan, frame) -> dict:
     return m
 
 
-def _labelled(img: np.ndarray, text: str) -> np.ndarray:
+def labelled(img: np.ndarray, text: str) -> np.ndarray:
+    """``img`` (H, W, 3) uint8 with ``text`` written in its top-left corner (LABEL_COLOUR)."""
     import cv2
 
     out = np.ascontiguousarray(img)
@@ -179,13 +180,13 @@ def side_by_side(reference: np.ndarray, images: dict) -> np.ndarray:
     ``images`` name -> image), bottom row under each rendering ERROR_GAIN x its absolute error
     (under the reference: black).  Every panel is labelled."""
     ref = np.asarray(reference, np.uint8)
-    top = [_labelled(ref.copy(), "reference")]
+    top = [labelled(ref.copy(), "reference")]
     bottom = [np.zeros_like(ref)]
     for name, img in images.items():
         im = metrics.as_srgb8(img)
         err = np.clip(np.abs(im.astype(np.float32) - ref.astype(np.float32)) * ERROR_GAIN, 0, 255).astype(np.uint8)
-        top.append(_labelled(im.copy(), name))
-        bottom.append(_labelled(err, f"{ERROR_GAIN:g} x |{name} - reference|"))
+        top.append(labelled(im.copy(), name))
+        bottom.append(labelled(err, f"{ERROR_GAIN:g} x |{name} - reference|"))
     return np.concatenate([np.concatenate(top, 1), np.concatenate(bottom, 1)], 0)
 
 

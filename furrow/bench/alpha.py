@@ -94,7 +94,7 @@ def picture(ctx, variants: dict, scan, env_name: str, path: Path) -> None:
     from capture.imageio import write_png
     from capture.scan import to_uint8_srgb
     from render.composite.pipeline import composite_frame
-    from render.evaluate import _labelled
+    from render.evaluate import labelled
     from render.methods import create_renderer
     from render.shading.envmap import named_envmap
 
@@ -114,7 +114,7 @@ def picture(ctx, variants: dict, scan, env_name: str, path: Path) -> None:
     cy, cx = (ys.min() + ys.max()) / 2, (xs.min() + xs.max()) / 2
     y0, x0 = int(max(cy - side / 2, 0)), int(max(cx - side / 2, 0))
     y1, x1 = int(min(cy + side / 2, H)), int(min(cx + side / 2, W))
-    tiles = [_labelled(to_uint8_srgb(img[y0:y1, x0:x1]), label) for label, img in panels]
+    tiles = [labelled(to_uint8_srgb(img[y0:y1, x0:x1]), label) for label, img in panels]
     write_png(path, np.concatenate(tiles, 1))
 
 

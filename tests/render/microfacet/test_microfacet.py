@@ -150,6 +150,33 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
         r.release()
 
 
+@pytest.mark.parametrize("mode,cull,prepass", [("instanced", True, True), ("geometry", False, False)])
+def test_alpha_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
+    """With a matte: premultiplied colour + alpha through Eq. 2, the vote, the fallback and the
+    parallax refinement on the GPU as in the twin; the frame's alpha is the blended view alpha."""
+    from render.microfacet.rgbz_textures import twin_colours
+
+    ma = scene.with_alpha(model, scene.soft_matte(model.rgbz.depth))
+    r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
+                           model.bounds, RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass,
+                           alpha=ma.rgbz.alpha)
+    try:
+        eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
+        fr = r.render(eye, tolerance_px=2.0, level=2)
+        lv = model.pyramid.levels[2]
+        depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
+        img, alive, _ = reference_render(eye, lv.centers(), lv.voxel_size, fr.stats.spacing, model.rgbz.cameras,
+                                         twin_colours(model.rgbz.rgb, ma.rgbz.alpha), depth, model.bounds)
+        assert img.shape[-1] == 4 and np.mean(alive & (img[..., 3] > 0.05) & (img[..., 3] < 0.95)) > 0.02
+        assert np.mean(alive != (fr.depth > 0)) <= TWIN_OUTLIER_FRAC
+        assert_images_close(fr.rgb, img[..., :3].astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
+                            outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} rgb with alpha vs twin")
+        assert_images_close(fr.alpha[..., None], img[..., 3:].astype(np.float32), mean_tol=TWIN_MEAN_TOL,
+                            max_tol=TWIN_MAX_TOL, outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} alpha vs twin")
+    finally:
+        r.release()
+
+
 def test_geometry_shader_equals_instanced(gl_ctx, model, renderer):
     g = MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(mode="geometry", supersample=1))
     try:
