@@ -74,17 +74,28 @@ def models(kept, scene, l_max: int):
     return replace(m, rgbz=RgbzImages(photos, r.depth, r.cameras)), m
 
 
-def measure(ctx, model, held, method: str, repeat: int) -> dict:
-    """Mean scores over ``held`` and the median frame time of ``repeat`` draws per view."""
+def measure(ctx, variants: dict, held, method: str, repeat: int) -> dict:
+    """Per variant (name -> model): mean scores over ``held`` and the median frame time of
+    ``repeat`` draws per view, the variants' draws interleaved so that they share the machine's load."""
+    from contextlib import ExitStack
+
     from render.evaluate import score_view
     from render.methods import create_renderer
 
-    with create_renderer(method, ctx, model) as r:
-        r.render(held[0].camera, read=False)
-        ms = [r.render(s.camera, read=False).stats.ms for _ in range(repeat) for s in held]
-        rows = [score_view(s, r.render(s.camera)) for s in held]
-    out = {k: float(np.mean([x[k] for x in rows])) for k in SCORES}
-    out["ms"] = float(np.median(ms))
+    out = {}
+    with ExitStack() as stack:
+        rs = {v: stack.enter_context(create_renderer(method, ctx, m)) for v, m in variants.items()}
+        ms = {v: [] for v in rs}
+        for r in rs.values():
+            r.render(held[0].camera, read=False)
+        for _ in range(repeat):
+            for s in held:
+                for v, r in rs.items():
+                    ms[v].append(r.render(s.camera, read=False).stats.ms)
+        for v, r in rs.items():
+            rows = [score_view(s, r.render(s.camera)) for s in held]
+            out[v] = {k: float(np.mean([x[k] for x in rows])) for k in SCORES}
+            out[v]["ms"] = float(np.median(ms[v]))
     return out
 
 
@@ -162,8 +173,8 @@ def main(argv: list[str]) -> int:
         split = holdout_split(ss, 2)
         binary, matte = models(split.kept, scene, args.l_max)
         with gl_context() as ctx:
-            res["scenes"][name] = {v: measure(ctx, m, split.held, args.method, args.repeat)
-                                   for v, m in (("no matte", binary), ("true matte", matte))}
+            res["scenes"][name] = measure(ctx, {"no matte": binary, "true matte": matte}, split.held, args.method,
+                                          args.repeat)
             if args.picture is not None and i == 0:
                 picture(ctx, {"binary mask (no matte)": binary, "soft alpha (true matte)": matte},
                         split.held[len(split.held) // 4], args.map, args.picture)
