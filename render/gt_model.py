@@ -34,6 +34,9 @@ FRINGE_RADIUS_PX = 4.0
 #: Smallest matte value the straight colour is recovered at (photo / alpha); below, 8-bit
 #: quantisation of the photo makes the quotient noise.
 MATTE_MIN_ALPHA = 1.0 / 64
+#: Largest mean linear value outside the matte of photos over black: an 8-bit matte leaves strand
+#: tips below half a step (alpha < 0.002) outside it, far darker than any room behind an object.
+OVER_BLACK_MEAN = 1e-3
 
 
 def fill_fringe_depth(srgb8: np.ndarray, depth: np.ndarray, radius: float = FRINGE_RADIUS_PX) -> np.ndarray:
@@ -93,13 +96,17 @@ def tsdf_mesh(scanset: ScanSet, origin: np.ndarray, extent: float, resolution: i
 
 def rgb_and_matte(scans) -> tuple[np.ndarray, np.ndarray | None]:
     """(N, H, W, 3) float32 linear colour of the scans and their (N, H, W) matte when every scan has
-    one (capture.scan.Scan.alpha), else None.  With a matte the colour is the straight foreground
-    colour: the photos are taken as over black (premultiplied, as the synthetic captures are made),
-    so it is photo / alpha where alpha >= MATTE_MIN_ALPHA (below, the photo: too dark to divide)."""
+    one (capture.scan.Scan.alpha) and the photos are over black (their mean linear value outside
+    the matte at most OVER_BLACK_MEAN), else None (a photo over a room needs the foreground colour the
+    model stage estimates).  With a matte the colour is the straight foreground colour: photo / alpha
+    where alpha >= MATTE_MIN_ALPHA (below, the photo: too dark to divide)."""
     rgb = np.stack([s.linear_rgb for s in scans]).astype(np.float32)
     if any(s.alpha is None for s in scans):
         return rgb, None
     alpha = np.stack([s.alpha for s in scans]).astype(np.float32)
+    outside = rgb[alpha <= 0]
+    if outside.size and float(outside.mean()) > OVER_BLACK_MEAN:
+        return rgb, None
     a = alpha[..., None]
     straight = np.where(a >= MATTE_MIN_ALPHA, rgb / np.maximum(a, MATTE_MIN_ALPHA), rgb)
     return straight.astype(np.float32), alpha

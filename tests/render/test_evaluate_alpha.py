@@ -51,3 +51,19 @@ def test_gather_with_the_matte_scores_the_composite(gl_ctx):
     assert s["alpha_mse"] < 0.5 * b["alpha_mse"], (s["alpha_mse"], b["alpha_mse"])
     assert s["psnr_white"] > b["psnr_white"] + 3.0, (s["psnr_white"], b["psnr_white"])
     assert s["psnr_masked"] > b["psnr_masked"] - 0.5
+
+
+def test_gt_model_takes_the_matte_of_over_black_photos_only():
+    """render.gt_model.rgb_and_matte: straight colour = photo / alpha for photos over black; a photo
+    with something behind the object gives no matte (the model stage estimates that foreground)."""
+    from render.gt_model import rgb_and_matte
+
+    cams = scene.ring_cameras(4)
+    scans = [_held(c)[0] for c in cams]
+    rgb, a = rgb_and_matte(scans)
+    straight = [scene.render_rgbz(c)[0] for c in cams]
+    inner = a > 0.2
+    np.testing.assert_allclose(rgb[inner], np.stack(straight)[inner], atol=1e-5)
+    room = [Scan(s.rgb + (1 - s.alpha[..., None]) * 0.3, s.depth, s.camera, name=s.name, alpha=s.alpha) for s in scans]
+    assert rgb_and_matte(room)[1] is None
+    assert rgb_and_matte([Scan(s.rgb, s.depth, s.camera, name=s.name) for s in scans])[1] is None
