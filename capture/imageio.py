@@ -126,10 +126,10 @@ def write_exr(path: Path, data: np.ndarray) -> None:
 
 
 def write_png(path: Path, img: np.ndarray) -> None:
-    """Write uint8 RGB (H, W, 3), uint8 gray or uint16 gray (H, W) PNG atomically."""
+    """Write uint8 RGB (H, W, 3) or RGBA (H, W, 4), uint8 gray or uint16 gray (H, W) PNG atomically."""
     img = np.asarray(img)
     if img.ndim == 3:
-        img = np.ascontiguousarray(img[..., ::-1])  # RGB -> BGR
+        img = np.ascontiguousarray(img[..., [2, 1, 0, 3][: img.shape[2]]])  # RGB(A) -> BGR(A)
     with atomic_write(path) as tmp:
         if not _cv2().imwrite(str(tmp), img):
             raise ScanIOError(f"{path}: could not write PNG")

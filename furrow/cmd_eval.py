@@ -22,7 +22,13 @@ per view and mean PSNR and SSIM (8-bit sRGB, scikit-image) over the full image a
 union of the reference and rendered foregrounds (their non-black 8-bit pixels: the captures are
 over black), the sharpness ratio there (RMS of the Laplacian of the grey image, rendering over
 reference: 1 = as crisp as the photo; PSNR rewards blur, so read the two together), the hole
-fraction inside the object, ms per frame and facet count.
+fraction inside the object, ms per frame and facet count.  Renderings are scored over black
+(premultiplied colour in linear light, what a path tracer's coverage gives).  When the held-out
+scans carry a true matte (Scan.alpha, from mask_path), the frames are also composited with their
+own alpha over a white (sRGB 235) and a dark (sRGB 24) backdrop and scored against the true
+composite (photo + (1 - true alpha) x backdrop; PSNR white / PSNR dark), and their alpha against
+the true matte (alpha MSE inside the union of the foregrounds; SAD = sum |error| / 1000);
+without a matte these are skipped with a note.
 The microfacets and the mesh baselines are drawn with --supersample S x S samples per pixel
 (default 2: the references are area-sampled photographs or path-traced images); gather and
 points draw one sample per pixel whatever S (gather resamples the photos, whose own area
@@ -31,7 +37,8 @@ sampling is kept).  The microfacets parallax-correct their colours along the eye
 Writes DIR/side_by_side/VIEW.png (top: reference | gather | microfacet | points | mesh-vdtm;
 bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
 there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, each with psnr,
-ssim, psnr_masked, ssim_masked, sharpness, ms_per_frame, ... and the per-view records).
+ssim, psnr_masked, ssim_masked, sharpness, psnr_white, psnr_dark, alpha_mse, alpha_sad,
+ms_per_frame, ... and the per-view records).
 
 --geometry: `model` builds the model with the volume stage (volume.build.build_model, the
 same as `furrow model`);
@@ -103,6 +110,7 @@ def run(args, console) -> int:
                   f"{r['sharpness']:.2f}", f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}",
                   f"{r['ms_per_frame']:.1f}", f"{r['cpu_ms_per_frame']:.1f}", f"{r['facets']:.0f}")
     console.print(t)
+    print_composite_table(console, res, ev)
     sheet = " | ".join(m for m in ev.EVAL_METHODS if m in ev.SHEET_METHODS)
     console.print(f"side-by-side sheets (reference | {sheet}; below: {ev.ERROR_GAIN:g} x error): "
                   f"{out_dir / 'side_by_side'}")
@@ -111,6 +119,28 @@ def run(args, console) -> int:
         console.print(f"[green]wrote[/] {path}")
     console.print(timer.table())
     return 0
+
+
+def print_composite_table(console, res: dict, ev) -> None:
+    """The composite scores (render.evaluate.composite_scores) per method, or a note when the
+    held-out scans have no true matte."""
+    import numpy as np
+    from rich.table import Table
+
+    keys = list(map(ev.result_key, ev.EVAL_METHODS))
+    if not any(np.isfinite(res[k]["alpha_mse"]) for k in keys):
+        console.print("composite scores skipped: the held-out scans carry no true matte (mask_path / Scan.alpha)")
+        return
+    bd = ev.COMPOSITE_BACKDROPS
+    t = Table(title="composites against the true composite (linear light, held-out true matte)")
+    for c in ("method", f"PSNR over white ({bd['white']})", f"PSNR over dark ({bd['dark']})", "alpha MSE",
+              "alpha SAD / 1000"):
+        t.add_column(c, justify="right")
+    for k in keys:
+        r = res[k]
+        t.add_row(k, *(f"{r[c]:{f}}" for c, f in (("psnr_white", ".2f"), ("psnr_dark", ".2f"), ("alpha_mse", ".4f"),
+                                                  ("alpha_sad", ".2f"))))
+    console.print(t)
 
 
 def write_json(path: Path, data: dict) -> None:

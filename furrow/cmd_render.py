@@ -20,8 +20,11 @@ from render.methods import (
 
 HELP = "render a model from new cameras (gather by default; microfacets, point splatting, mesh baselines)"
 DESCRIPTION = f"""Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
-PNG per selected frame, named after the frame's file_path basename, black background,
-8-bit sRGB.  Methods (--method, render.methods):
+PNG per selected frame, named after the frame's file_path basename: 8-bit sRGB RGBA with the
+object's soft alpha (straight colour, as PNG stores it), or flattened RGB over --background
+COLOUR|MAP or composited into --env MAP (linear light: premultiplied + (1 - alpha) background).
+--video writes the flattened frames (over black unless --background / --env say otherwise).
+Methods (--method, render.methods):
   gather       (default) the z-buffer of the 2 nearest kept views' RGB-D points in 2 x 2 splats,
                colours resampled (bilinear) from those 2 views with (1 / angle) x soft
                visibility; one sample per pixel (the photos' own anti-aliasing is kept)
@@ -40,7 +43,9 @@ examples:
   furrow render out/fur_model --cameras out/furball --orbit 120 --video out/orbit.mp4 --fps 30
   furrow render out/fur_model --cameras out/furball --method mesh-vdtm -o out/baseline
   furrow render out/fur_model --cameras out/furball --relight sunset -o out/relit
-  furrow render out/fur_model --cameras out/furball --relight --env sunset --ground -o out/relit_env"""
+  furrow render out/fur_model --cameras out/furball --relight --env sunset --ground -o out/relit_env
+  furrow render out/fur_model --cameras out/furball --background white -o out/on_white
+  furrow render out/fur_model --cameras out/furball --background 235,235,235 -o out/product"""
 
 #: Frames per second of --video.
 DEFAULT_FPS = 24.0
@@ -79,6 +84,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orbit", type=int, default=None, metavar="N",
                    help="instead of the given frames: a turntable of N frames around the rig's up axis (estimated "
                         "from the cameras) at their mean distance and height, with the first camera's intrinsics")
+    p.add_argument("--background", default=None, metavar="COLOUR|MAP",
+                   help="flatten the output over a background in linear light (premultiplied + (1 - alpha) B): a "
+                        "colour name or #hex (white, #ebebeb), an sRGB triple (235,235,235 or 0.92,0.92,0.92), or an "
+                        "environment map (bundled name or .exr/.hdr; seen from the camera, not tone mapped). Without "
+                        "it (and without --env) the PNGs are RGBA with straight alpha")
     g = p.add_argument_group("environment compositing (docs/methods.md §3-§4)")
     g.add_argument("--env", default=None, metavar="MAP",
                    help="composite the object into an HDR environment: a .exr/.hdr equirect map or a bundled name "
@@ -144,24 +154,46 @@ def load_env(args):
     return env.rotated(np.radians(args.env_rotation)) if args.env_rotation else env
 
 
+def load_background(args):
+    """The --background (render.composite.background.Background) or None; an error with --env."""
+    if args.background is None:
+        return None
+    if args.env:
+        raise ValueError("--background and --env both give the background: choose one")
+    from render.composite.background import parse_background
+
+    return parse_background(args.background)
+
+
 def composite(ctx, frame, cam, env, args, model, up, compositor) -> np.ndarray:
-    """The frame composited into the environment (docs/methods.md §3-§4)."""
+    """The frame composited into the environment with its matte (docs/methods.md §3-§4)."""
     from render.composite.pipeline import composite_frame
 
-    # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
-    # edge pixels (their samples were averaged with black)
-    cov = frame.coverage
-    obj = np.where(cov[..., None] > 0, frame.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
-    return composite_frame(ctx, obj.astype(np.float32), frame.depth, cam, env,
+    return composite_frame(ctx, frame.rgb, frame.depth, cam, env, alpha=frame.alpha,
                            spheres=model.spheres if args.ground else None, ground=None if args.ground else False,
                            exposure=args.exposure, glare=not args.no_glare, up=up, compositor=compositor)
+
+
+def output_images(frame, cam, background, up, composite_env) -> tuple[np.ndarray, np.ndarray]:
+    """(PNG image, video frame) of a rendered frame: --env composite (``composite_env()``), or the
+    frame over --background, both RGB; else RGBA straight alpha for the PNG and over black for
+    the video (render.composite.background)."""
+    from capture.scan import to_uint8_srgb
+    from render.composite.background import background_image, flatten, rgba8
+
+    if composite_env is not None:
+        img = to_uint8_srgb(composite_env())
+        return img, img
+    if background is not None:
+        img = to_uint8_srgb(np.clip(flatten(frame.rgb, frame.alpha, background_image(background, cam, up)), 0, 1))
+        return img, img
+    return rgba8(frame.rgb, frame.alpha), to_uint8_srgb(frame.rgb)
 
 
 def run(args, console) -> int:
     from contextlib import ExitStack
 
     from capture.imageio import write_png
-    from capture.scan import to_uint8_srgb
     from furrow.console import StageTimer, track
     from furrow.relight_flags import open_relighter
     from render.gl import gl_context
@@ -175,6 +207,7 @@ def run(args, console) -> int:
     options = render_options(args)
     if (args.ground or args.exposure != 1.0 or args.no_glare) and not args.env:
         raise ValueError("--ground, --exposure and --no-glare need --env MAP")
+    background = load_background(args)
     timer = StageTimer()
     with timer.stage("load model"):
         model = load_model(args.model)
@@ -183,7 +216,7 @@ def run(args, console) -> int:
         options = options.changed(level=level_index(model, args.level))
     env = load_env(args)
     up = None
-    if env is not None:
+    if env is not None or (background is not None and background.env is not None):
         from capture.orbit import estimate_up
 
         up = estimate_up(inputs)
@@ -206,13 +239,14 @@ def run(args, console) -> int:
                 fr = r.render(cam)
                 if relighter is not None:
                     fr = relighter.apply(fr, cam)
-                img = to_uint8_srgb(fr.rgb if compositor is None else
-                                    composite(ctx, fr, cam, env, args, model, up, compositor))
+                comp = None if compositor is None else (
+                    lambda fr=fr, cam=cam: composite(ctx, fr, cam, env, args, model, up, compositor))
+                png, video_frame = output_images(fr, cam, background, up, comp)
                 if args.out is not None:
-                    write_png(args.out / name, img)
+                    write_png(args.out / name, png)
                 stats.append({"file": name, **fr.stats.record(),
                               **({"relight_ms": relighter.last_ms} if relighter is not None else {})})
-                yield img
+                yield video_frame
 
         with timer.stage(f"render {len(views)} frames ({args.method})"):
             if args.video is not None:

@@ -28,6 +28,13 @@ LABEL_SCALE = 0.6
 LABEL_COLOUR = (255, 255, 0)
 #: Where the evaluated model's geometry comes from (build_eval_model).
 GEOMETRIES = ("auto", "model", "gt")
+#: Backdrops of the composite scores (8-bit sRGB grey): a product photo's white and a dark one.
+COMPOSITE_BACKDROPS = {"white": 235, "dark": 24}
+#: Matting convention: SAD is reported in thousands of pixels (sum of |alpha error| / 1000).
+SAD_UNIT = 1000.0
+#: Per-view scores averaged by summarise (composite ones are NaN where the scan has no matte).
+SUMMARY_KEYS = ("psnr", "ssim", "psnr_masked", "ssim_masked", "sharpness", "hole_fraction", "largest_hole", "ms",
+                "cpu_ms", "facets", "psnr_white", "psnr_dark", "alpha_mse", "alpha_sad")
 
 
 def result_key(method: str) -> str:
@@ -108,9 +115,10 @@ def build_eval_model(kept, scans_path: Path, geometry: str, l_max: int):
 def summarise(views: list[dict]) -> dict:
     """Means over the per-view records (ms, cpu_ms -> ms_per_frame, cpu_ms_per_frame), the largest
     hole over all views, and the records themselves under ``views``."""
-    keys = ("psnr", "ssim", "psnr_masked", "ssim_masked", "sharpness", "hole_fraction", "largest_hole", "ms", "cpu_ms",
-            "facets")
-    out = {k: float(np.nanmean([v.get(k, np.nan) for v in views])) for k in keys}
+    out = {}
+    for k in SUMMARY_KEYS:
+        vals = np.array([v.get(k, np.nan) for v in views], np.float64)
+        out[k] = float(np.nanmean(vals)) if np.isfinite(vals).any() else float("nan")
     out["ms_per_frame"] = out.pop("ms")
     out["cpu_ms_per_frame"] = out.pop("cpu_ms")
     out["largest_hole"] = float(np.max([v["largest_hole"] for v in views]))
@@ -118,16 +126,46 @@ def summarise(views: list[dict]) -> dict:
     return out
 
 
+def composite_scores(scan, frame) -> dict:
+    """Scores of the frame composited with its matte against the true composite, when the scan
+    has a true matte (``scan.alpha``; else {}): the held-out photo is over black (premultiplied, as
+    the evaluation captures are made), so its composite over a backdrop B is photo + (1 - alpha) B
+    in linear light, and the frame's is rgb + (1 - frame.alpha) B (render.frame.Frame.over).
+    psnr_white / psnr_dark: PSNR (8-bit sRGB) over COMPOSITE_BACKDROPS inside the union of the
+    true matte's, the photo's and the frame's foreground; alpha_mse: mean squared alpha error
+    there; alpha_sad: sum of |alpha error| over the image / SAD_UNIT."""
+    if scan.alpha is None:
+        return {}
+    from capture.scan import srgb_to_linear
+
+    true_a = np.asarray(scan.alpha, np.float64)
+    photo = scan.linear_rgb.astype(np.float64)
+    region = (true_a > 0) | reference_foreground(scan) | frame.mask
+    out = {}
+    for name, grey in COMPOSITE_BACKDROPS.items():
+        B = float(srgb_to_linear(np.float64(grey / 255.0)))
+        want = photo + (1.0 - true_a)[..., None] * B
+        out[f"psnr_{name}"] = metrics.psnr(np.clip(want, 0, None), np.clip(frame.over(B), 0, None), region)
+    err = np.asarray(frame.alpha, np.float64) - true_a
+    out["alpha_mse"] = float(np.mean(err[region] ** 2)) if region.any() else float("nan")
+    out["alpha_sad"] = float(np.abs(err).sum() / SAD_UNIT)
+    return out
+
+
 def score_view(scan, frame) -> dict:
     """Scores of one rendered frame against its reference scan (render.metrics.compare: 8-bit
     sRGB, masked scores inside the union of the non-black pixels of the reference and of the
-    rendering as ``furrow render`` writes it) and the frame's stats record."""
+    rendering over black, i.e. its premultiplied colour, as ``furrow render --background black``
+    writes it), the composite scores (:func:`composite_scores`, with a true matte) and the frame's
+    stats record."""
     m = metrics.compare(scan.srgb8, metrics.as_srgb8(frame.rgb), reference_foreground(scan))
+    m.update(composite_scores(scan, frame))
     m.update(frame.stats.record())
     return m
 
 
-def _labelled(img: np.ndarray, text: str) -> np.ndarray:
+def labelled(img: np.ndarray, text: str) -> np.ndarray:
+    """``img`` (H, W, 3) uint8 with ``text`` written in its top-left corner (LABEL_COLOUR)."""
     import cv2
 
     out = np.ascontiguousarray(img)
@@ -142,13 +180,13 @@ def side_by_side(reference: np.ndarray, images: dict) -> np.ndarray:
     ``images`` name -> image), bottom row under each rendering ERROR_GAIN x its absolute error
     (under the reference: black).  Every panel is labelled."""
     ref = np.asarray(reference, np.uint8)
-    top = [_labelled(ref.copy(), "reference")]
+    top = [labelled(ref.copy(), "reference")]
     bottom = [np.zeros_like(ref)]
     for name, img in images.items():
         im = metrics.as_srgb8(img)
         err = np.clip(np.abs(im.astype(np.float32) - ref.astype(np.float32)) * ERROR_GAIN, 0, 255).astype(np.uint8)
-        top.append(_labelled(im.copy(), name))
-        bottom.append(_labelled(err, f"{ERROR_GAIN:g} x |{name} - reference|"))
+        top.append(labelled(im.copy(), name))
+        bottom.append(labelled(err, f"{ERROR_GAIN:g} x |{name} - reference|"))
     return np.concatenate([np.concatenate(top, 1), np.concatenate(bottom, 1)], 0)
 
 

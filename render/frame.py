@@ -1,4 +1,4 @@
-"""What every renderer returns: one :class:`Frame` (rgb, coverage, depth, stats).
+"""What every renderer returns: one :class:`Frame` (rgb, alpha, depth, stats).
 
 Clients (``furrow render``, ``furrow eval``, the benchmarks, the viewer, batch) read only these
 fields, whatever the method (``render.methods``).  A method with more to report subclasses
@@ -12,6 +12,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import gl_ndc_depth_to_z, gl_rows_to_image
+
+
+def straight_colour(premult: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 straight colour of a premultiplied one: premult / alpha where alpha > 0,
+    else 0."""
+    a = np.asarray(alpha, np.float32)[..., None]
+    return np.where(a > 0, np.asarray(premult, np.float32) / np.maximum(a, np.float32(1e-12)), 0.0).astype(np.float32)
+
+
+def composite_over(premult: np.ndarray, alpha: np.ndarray, background) -> np.ndarray:
+    """(H, W, 3) float32 ``premult + (1 - alpha) background`` in linear light (Porter-Duff over;
+    ``background`` a (3,) colour or an (H, W, 3) image)."""
+    bg = np.asarray(background, np.float32)
+    return (np.asarray(premult, np.float32) + (1.0 - np.asarray(alpha, np.float32))[..., None] * bg).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -44,36 +58,49 @@ class Frame:
     """One rendered frame (image rows top first).
 
     Attributes:
-        rgb: (H, W, 3) float32 linear colour, premultiplied over black (black = nothing drawn;
-            with supersampling the mean over the pixel's samples).
-        coverage: (H, W) float32 in [0, 1], the share of the pixel's samples drawn (0 or 1
-            with one sample).
+        rgb: (H, W, 3) float32 linear colour, PREMULTIPLIED by ``alpha`` (i.e. the frame over
+            black; black = nothing drawn; with supersampling the mean over the pixel's samples).
+        alpha: (H, W) float32 in [0, 1], the soft matte: the share of the pixel's samples drawn
+            times the opacity the method gives them (a model with a matte, volume.model.RgbzImages
+            .alpha, gives fringe pixels a partial alpha; without one a single-sample frame is 0 / 1).
         depth: (H, W) float32 z-depth in metres of the nearest drawn sample, 0 where nothing
             was drawn.
         stats: the frame's cost (:class:`FrameStats` or a method's subclass).
+
+    Compositing over a background B (linear, same units) is ``rgb + (1 - alpha) B``
+    (:meth:`over`); the straight colour PNG stores is ``rgb / alpha`` (:meth:`straight`).
     """
 
     rgb: np.ndarray
-    coverage: np.ndarray
+    alpha: np.ndarray
     depth: np.ndarray
     stats: FrameStats
 
     def __post_init__(self) -> None:
         rgb = np.ascontiguousarray(self.rgb, dtype=np.float32)
-        cov = np.ascontiguousarray(self.coverage, dtype=np.float32)
+        cov = np.ascontiguousarray(self.alpha, dtype=np.float32)
         dep = np.ascontiguousarray(self.depth, dtype=np.float32)
         if rgb.ndim != 3 or rgb.shape[2] != 3:
             raise ValueError(f"frame rgb must be (H, W, 3), got {rgb.shape}")
         if cov.shape != rgb.shape[:2] or dep.shape != rgb.shape[:2]:
-            raise ValueError(f"frame coverage {cov.shape} and depth {dep.shape} must be {rgb.shape[:2]}")
+            raise ValueError(f"frame alpha {cov.shape} and depth {dep.shape} must be {rgb.shape[:2]}")
         object.__setattr__(self, "rgb", rgb)
-        object.__setattr__(self, "coverage", cov)
+        object.__setattr__(self, "alpha", cov)
         object.__setattr__(self, "depth", dep)
 
     @property
-    def alpha(self) -> np.ndarray:
-        """(H, W) bool foreground: any sample drawn."""
-        return self.coverage > 0
+    def mask(self) -> np.ndarray:
+        """(H, W) bool foreground: alpha > 0 (something drawn)."""
+        return self.alpha > 0
+
+    def straight(self) -> np.ndarray:
+        """(H, W, 3) float32 straight (un-premultiplied) colour: rgb / alpha, 0 where alpha = 0."""
+        return straight_colour(self.rgb, self.alpha)
+
+    def over(self, background) -> np.ndarray:
+        """(H, W, 3) float32 the frame composited over ``background`` (a linear (3,) colour or an
+        (H, W, 3) image): rgb + (1 - alpha) background."""
+        return composite_over(self.rgb, self.alpha, background)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -89,10 +116,10 @@ class Frame:
     @classmethod
     def from_gl(cls, rgba: np.ndarray, depth01: np.ndarray, near: float, far: float, stats: FrameStats) -> Frame:
         """Frame from a resolved read-back in framebuffer row order (render.owner.GLOwner.read_frame):
-        (H, W, 4) colour with the coverage in alpha, (H, W) window depth in [0, 1] of the
+        (H, W, 4) premultiplied colour with the alpha in alpha, (H, W) window depth in [0, 1] of the
         projection with planes ``near`` / ``far``."""
         img = gl_rows_to_image(rgba)
-        coverage = img[..., 3]
+        alpha = img[..., 3]
         depth = gl_ndc_depth_to_z(gl_rows_to_image(depth01), near, far).astype(np.float32)
-        depth[coverage <= 0] = 0.0
-        return cls(img[..., :3], coverage, depth, stats)
+        depth[alpha <= 0] = 0.0
+        return cls(img[..., :3], alpha, depth, stats)

@@ -31,6 +31,12 @@ TSDF_TRUNC_VOXELS = 3.0
 #: holes) within this many pixels of a measured depth take the nearest measured depth (2 px left
 #: 24 isolated strand-tip pixels black on the 200x150 fur ball: input-pose PSNR 34.1 dB).
 FRINGE_RADIUS_PX = 4.0
+#: Smallest matte value the straight colour is recovered at (photo / alpha); below, 8-bit
+#: quantisation of the photo makes the quotient noise.
+MATTE_MIN_ALPHA = 1.0 / 64
+#: Largest mean linear value outside the matte of photos over black: an 8-bit matte leaves strand
+#: tips below half a step (alpha < 0.002) outside it, far darker than any room behind an object.
+OVER_BLACK_MEAN = 1e-3
 
 
 def fill_fringe_depth(srgb8: np.ndarray, depth: np.ndarray, radius: float = FRINGE_RADIUS_PX) -> np.ndarray:
@@ -88,15 +94,33 @@ def tsdf_mesh(scanset: ScanSet, origin: np.ndarray, extent: float, resolution: i
     return v, f, c.astype(np.float32)
 
 
+def rgb_and_matte(scans) -> tuple[np.ndarray, np.ndarray | None]:
+    """(N, H, W, 3) float32 linear colour of the scans and their (N, H, W) matte when every scan has
+    one (capture.scan.Scan.alpha) and the photos are over black (their mean linear value outside
+    the matte at most OVER_BLACK_MEAN), else None (a photo over a room needs the foreground colour the
+    model stage estimates).  With a matte the colour is the straight foreground colour: photo / alpha
+    where alpha >= MATTE_MIN_ALPHA (below, the photo: too dark to divide)."""
+    rgb = np.stack([s.linear_rgb for s in scans]).astype(np.float32)
+    if any(s.alpha is None for s in scans):
+        return rgb, None
+    alpha = np.stack([s.alpha for s in scans]).astype(np.float32)
+    outside = rgb[alpha <= 0]
+    if outside.size and float(outside.mean()) > OVER_BLACK_MEAN:
+        return rgb, None
+    a = alpha[..., None]
+    straight = np.where(a >= MATTE_MIN_ALPHA, rgb / np.maximum(a, MATTE_MIN_ALPHA), rgb)
+    return straight.astype(np.float32), alpha
+
+
 def model_from_geometry(scanset: ScanSet, vertices: np.ndarray, faces: np.ndarray, l_max: int = 128,
                         l_min: int = L_MIN, provenance: dict | None = None) -> Model:
     """The Model of ``scanset`` with voxels from the exact mesh (module docstring)."""
     origin, extent = cube_for_bounds(scanset.bounds)
     pyr = surface_pyramid(vertices, faces, origin, extent, l_max, l_min)
-    rgb = np.stack([s.linear_rgb for s in scanset.scans]).astype(np.float32)
+    rgb, alpha = rgb_and_matte(scanset.scans)
     depth = np.stack([fill_fringe_depth(s.srgb8, s.depth) for s in scanset.scans]).astype(np.float32)
     mv, mf, mc = tsdf_mesh(scanset, origin, extent, l_max)
-    return Model(pyramid=pyr, rgbz=RgbzImages(rgb, depth, tuple(scanset.cameras)),
+    return Model(pyramid=pyr, rgbz=RgbzImages(rgb, depth, tuple(scanset.cameras), alpha),
                  spheres=SphereSet(np.zeros((0, 3)), np.zeros(0)), mesh_vertices=mv, mesh_faces=mf, mesh_colors=mc,
                  bounds=scanset.bounds, params={"geometry": "ground-truth mesh", "l_max": l_max, "l_min": l_min,
                                                 "baseline_mesh": f"open3d TSDF {l_max}^3"},

@@ -327,3 +327,26 @@ def build_model(cameras, resolutions=(4, 8, 16, 32), empty=()) -> Model:
                  rgbz=RgbzImages(np.stack(rgb), np.stack(depth), tuple(cameras)),
                  spheres=SphereSet(SPHERES[:, :3], SPHERES[:, 3]), mesh_vertices=v, mesh_faces=f,
                  mesh_colors=colour_at(v).astype(np.float32), bounds=BOUNDS, params={}, provenance={"scene": "spheres"})
+
+
+def soft_matte(depth: np.ndarray, ramp_px: float = 3.0, seed: int | None = 0) -> np.ndarray:
+    """(N, H, W) float32 seeded soft matte over (N, H, W) z-depth: 0 where there is no depth, inside a
+    ramp to 1 over ``ramp_px`` pixels from the silhouette times (with a ``seed``) a random opacity
+    in [0.6, 1] per pixel (fur-like partial pixels everywhere), so every alpha path has fractional
+    values to carry; ``seed=None``: the ramp alone (about the same matte from every view)."""
+    from scipy.ndimage import distance_transform_edt
+
+    rng = np.random.default_rng(seed)
+    out = np.zeros(np.shape(depth), np.float32)
+    for i, d in enumerate(np.asarray(depth)):
+        ramp = np.clip(distance_transform_edt(d > 0) / ramp_px, 0.0, 1.0)
+        out[i] = ramp * (1.0 if seed is None else rng.uniform(0.6, 1.0, d.shape))
+    return out
+
+
+def with_alpha(model: Model, alpha: np.ndarray | None) -> Model:
+    """``model`` with its RGBz images carrying the straight matte ``alpha`` (N, H, W) (or none)."""
+    from dataclasses import replace
+
+    r = model.rgbz
+    return replace(model, rgbz=RgbzImages(r.rgb, r.depth, r.cameras, alpha))

@@ -92,7 +92,7 @@ def score(refs, imgs, frames) -> dict:
 
     ps, ss, sh = [], [], []
     for ref, img, fr in zip(refs, imgs, frames):
-        union = reference_foreground(ref) | fr.alpha
+        union = reference_foreground(ref) | fr.mask
         ps.append(metrics.psnr(ref.srgb8, img, union))
         ss.append(metrics.ssim(ref.srgb8, img, union))
         sh.append(metrics.sharpness_ratio(ref.srgb8, img, union))
@@ -168,7 +168,7 @@ def _oracle(rel, refs, held, frames, g) -> tuple[dict, dict]:
     relit, gained = [], []
     for s, f in zip(held, frames):
         t = s.linear_rgb.astype(np.float32)
-        out = rel.apply(Frame(t, f.coverage, f.depth, f.stats), s.camera).rgb
+        out = rel.apply(Frame(t, f.alpha, f.depth, f.stats), s.camera).rgb
         gained.append(t * g.astype(np.float32))
         relit.append(np.where((f.depth > 0)[..., None], out, gained[-1]))
     return score(refs, relit, frames), score(refs, gained, frames)

@@ -7,5 +7,7 @@
 - ``ground_shadow.py``: the ground plane and the shadow ratio from the sphere set (numpy reference);
 - ``glare_layer.py``: the GL glare layer (streaks as additive fans; numpy maths in ``render.shading.glare``);
 - ``tonemap.py``: HDR -> display; ``video.py``: the one MP4 writer;
+- ``background.py``: what ``furrow render`` writes from a frame's soft alpha: RGBA PNG (straight
+  alpha) or the frame flattened over ``--background COLOUR|MAP`` (premult + (1 - alpha) B, linear);
 - ``shaders/``: ``composite_*.glsl``, ``glare_*.glsl``.
 """

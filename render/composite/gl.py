@@ -22,6 +22,18 @@ def _set(prog, name, value):
         prog[name].value = value
 
 
+def premultiplied_rgba(rgb, depth, alpha, H: int, W: int) -> np.ndarray:
+    """(H, W, 4) float32 premultiplied colour + alpha of an object: without ``alpha`` the straight
+    ``rgb`` over the binary mask depth > 0; with one, ``rgb`` is already premultiplied by it."""
+    rgb = np.asarray(rgb, np.float32).reshape(H, W, 3)
+    if alpha is None:
+        a = (np.nan_to_num(np.asarray(depth, np.float32).reshape(H, W)) > 0).astype(np.float32)
+        rgb = rgb * a[..., None]
+    else:
+        a = np.clip(np.asarray(alpha, np.float32).reshape(H, W), 0.0, 1.0)
+    return np.concatenate([rgb, a[..., None]], -1)
+
+
 class Compositor(GLOwner):
     """Owns the GL objects of the compositing passes (programs, environment / fh / ratio
     textures). Context passed in; ``release()`` (or ``with``) frees them."""
@@ -132,9 +144,11 @@ class Compositor(GLOwner):
         return grid
 
     def composite(self, rgb, depth, camera: Camera, env: EnvMap, exposure: float = 1.0,
-                  ground: GroundPlane | None = None, normals=None, spec=None, sources=None) -> np.ndarray:
+                  ground: GroundPlane | None = None, normals=None, spec=None, sources=None, alpha=None) -> np.ndarray:
         """(H, W, 3) float32 HDR composite, exposure applied (twin:
-        ``render.composite.reference.composite_reference``). The ground shadow uses the last
+        ``render.composite.reference.composite_reference``): ``rgb`` straight over the object
+        (depth > 0) without ``alpha``; with an (H, W) matte ``alpha``, ``rgb`` is premultiplied and
+        the result premult + (1 - alpha) background (render.frame.Frame). The ground shadow uses the last
         :meth:`shadow_grid` (none if ``ground`` is None). With
         ``normals`` (H, W, 3) world, ``spec`` (H, W, 2) and light ``sources``
         (render.shading.glare_maps.LightSources) the light-reflection map is added to the object."""
@@ -142,11 +156,9 @@ class Compositor(GLOwner):
 
         ctx = self.ctx
         H, W = camera.height, camera.width
-        rgb = np.ascontiguousarray(np.asarray(rgb, np.float32).reshape(H, W, 3))
-        dep = np.ascontiguousarray(np.asarray(depth, np.float32).reshape(H, W))
+        rgba = np.ascontiguousarray(premultiplied_rgba(rgb, depth, alpha, H, W))
         self.set_env(env)
-        t_rgb = ctx.texture((W, H), 3, rgb.tobytes(), dtype="f4")
-        t_dep = ctx.texture((W, H), 1, dep.tobytes(), dtype="f4")
+        t_rgb = ctx.texture((W, H), 4, rgba.tobytes(), dtype="f4")
         out = ctx.texture((W, H), 4, dtype="f4")
         fbo = ctx.framebuffer(color_attachments=[out])
         lrm = spec is not None and sources is not None and len(sources.dirs) > 0
@@ -172,10 +184,9 @@ class Compositor(GLOwner):
             p = self._comp
             self._env.use(0)
             t_rgb.use(1)
-            t_dep.use(2)
             use_ground = ground is not None and self._ratio is not None
             (self._ratio if use_ground else self._dummy_ratio).use(3)
-            for name, unit in (("u_env", 0), ("u_rgb", 1), ("u_depth", 2), ("u_ratio", 3)):
+            for name, unit in (("u_env", 0), ("u_rgb", 1), ("u_ratio", 3)):
                 _set(p, name, unit)
             ray = camera.cam_from_world[:3, :3].T @ np.linalg.inv(camera.K)
             _set(p, "u_ray", tuple(ray.T.reshape(-1)))  # column-major
@@ -193,6 +204,6 @@ class Compositor(GLOwner):
             self._vao_c.render(moderngl.TRIANGLES, vertices=3)
             img = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(H, W, 4)[..., :3]
         finally:
-            for o in (fbo, out, t_rgb, t_dep, t_nrm, t_sp, t_src):
+            for o in (fbo, out, t_rgb, t_nrm, t_sp, t_src):
                 o.release()
         return gl_rows_to_image(img).copy()

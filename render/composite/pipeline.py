@@ -9,8 +9,9 @@ Pipeline of :func:`composite_frame` (GL; numpy twins beside every pass):
    irradiance with the object to that without it, from the sphere set's SSDF under an SG fit of
    the environment, on a grid around the object, multiplied onto the background pixels whose ray
    meets the ground.
-3. **Object** pixels (depth > 0) replace the background; optionally with the light-reflection map
-   (``render.shading.glare_maps``) of a specular-parameter map added.
+3. **Object** over the background with its matte: premult + (1 - alpha) background in linear
+   light (without a matte the object pixels, depth > 0, replace it); optionally with the
+   light-reflection map (``render.shading.glare_maps``) of a specular-parameter map added.
 4. **Exposure** (a linear factor), **glare** (``render.shading.glare``: the excess above the
    display white becomes streaks, energy kept) and **tone mapping** (``render.composite.tonemap``).
 
@@ -96,10 +97,14 @@ def _ground_plane(ground, spheres) -> GroundPlane | None:
 def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres=None, ground=None,
                     exposure: float = 1.0, glare: bool = True, specular=None, normals=None, up=(0.0, 0.0, 1.0),
                     tone: str = "reinhard", white: float = TONE_WHITE, output: str = "display",
-                    sg_fit=None, glare_config=None, stats: dict | None = None, compositor=None) -> np.ndarray:
+                    sg_fit=None, glare_config=None, stats: dict | None = None, compositor=None,
+                    alpha=None) -> np.ndarray:
     """Composite a captured object into an environment (see the module doc).
 
-    rgb_linear (H, W, 3) linear object colour; depth (H, W) z-depth in metres, 0 = empty;
+    rgb_linear (H, W, 3) linear object colour: straight over the object (depth > 0) without
+    ``alpha``; with an (H, W) soft matte ``alpha`` in [0, 1] premultiplied by it (a
+    render.frame.Frame's rgb and alpha), composited as premult + (1 - alpha) background;
+    depth (H, W) z-depth in metres, 0 = empty;
     camera: the view (its size must match); env: the environment (its +z is up).
     up: the capture world's up direction: the world is turned so that ``up`` is the environment's
         +z (cameras, spheres, normals rotated by :func:`rotation_to_z`); the ground plane is
@@ -147,7 +152,7 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
             comp.shadow_grid(spheres, sg_fit, gp)
             st["shadow_ms"] = 1e3 * (time.perf_counter() - t1)
         t1 = time.perf_counter()
-        hdr = comp.composite(rgb, dep, camera, env, exposure, gp, nrm, spec, sources).astype(np.float64)
+        hdr = comp.composite(rgb, dep, camera, env, exposure, gp, nrm, spec, sources, alpha=alpha).astype(np.float64)
         st["composite_ms"] = 1e3 * (time.perf_counter() - t1)
         if glare:
             hdr = apply_glare_gl(ctx, hdr, display_white(tone, white), spec=specular, config=glare_config, stats=st,

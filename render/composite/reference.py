@@ -34,18 +34,24 @@ def raycast_sphere(camera: Camera, centre, radius: float) -> tuple[np.ndarray, n
 
 def composite_reference(rgb, depth, camera: Camera, env: EnvMap, exposure: float = 1.0,
                         ground: GroundPlane | None = None, ratio_grid=None, normals=None, spec=None,
-                        sources=None) -> np.ndarray:
-    """(H, W, 3) float64 numpy twin of composite_frag.glsl: exposure x (object where depth > 0,
-    plus its light-reflection map when normals / spec / sources are given; else the environment
-    in the pixel's direction, times the ground shadow ratio)."""
+                        sources=None, alpha=None) -> np.ndarray:
+    """(H, W, 3) float64 numpy twin of composite_frag.glsl: exposure x (premult object + alpha x its
+    light-reflection map when normals / spec / sources are given, + (1 - alpha) x the environment
+    in the pixel's direction, times the ground shadow ratio).  Without ``alpha``: ``rgb`` straight,
+    alpha = depth > 0; with it, ``rgb`` premultiplied (render.composite.gl.premultiplied_rgba)."""
+    from render.composite.gl import premultiplied_rgba
+
+    H, W = camera.height, camera.width
+    rgba = premultiplied_rgba(rgb, depth, alpha, H, W).astype(np.float64)
+    rgb, a = rgba[..., :3], rgba[..., 3:]
     d = pixel_world_dirs(camera)
     rgb = np.asarray(rgb, np.float64)
     if spec is not None and sources is not None:
         from render.shading.glare_maps import light_reflection_map
 
         view = -d / np.linalg.norm(d, axis=-1, keepdims=True)
-        rgb = rgb + light_reflection_map(normals, view, np.where((np.asarray(depth) > 0)[..., None], spec, 0.0),
-                                         sources)
+        rgb = rgb + a * light_reflection_map(normals, view, np.where((np.asarray(depth) > 0)[..., None], spec, 0.0),
+                                             sources)
     col = env.sample(d)
     if ground is not None and ratio_grid is not None:
         eye = camera.center
@@ -53,6 +59,4 @@ def composite_reference(rgb, depth, camera: Camera, env: EnvMap, exposure: float
         t = np.where(hit, (ground.height - eye[2]) / np.where(hit, d[..., 2], -1.0), 0.0)
         xy = eye[:2] + t[..., None] * d[..., :2]
         col = np.where(hit[..., None], col * ratio_lookup(ratio_grid, ground, xy), col)
-    obj = np.asarray(depth) > 0
-    col = np.where(obj[..., None], np.asarray(rgb, np.float64), col)
-    return exposure * col
+    return exposure * (rgb + (1.0 - a) * col)

@@ -37,11 +37,11 @@ from render.points import reference as pr
 Z_EMPTY = 1e30
 
 
-def shader_defines(cfg: gr.GatherConfig) -> dict:
+def shader_defines(cfg: gr.GatherConfig, has_alpha: bool = False) -> dict:
     """Constants of gather_frag.glsl, one source with the numpy twin."""
     return {"K_BLEND": cfg.k_blend, "VIS_SIGMA": f"{cfg.vis_sigma_m:.9e}", "VIS_FLOOR": f"{cfg.vis_floor:.9e}",
             "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "RESAMPLE_CUBIC": int(cfg.resample == "cubic"),
-            "CUBIC_A": f"{gr.CUBIC_A:.9e}"}
+            "CUBIC_A": f"{gr.CUBIC_A:.9e}", "HAS_ALPHA": int(has_alpha)}
 
 
 class GatherRenderer(Renderer):
@@ -50,6 +50,8 @@ class GatherRenderer(Renderer):
     Args:
         ctx: moderngl context.
         rgb, depth, cameras: the kept views (volume.model.RgbzImages fields).
+        alpha: their (N, H, W) straight matte (RgbzImages.alpha) or None (opaque where depth > 0):
+            with one, the colours are blended premultiplied and the frame gets the blended alpha.
         bounds: (2, 3) object box: the centre where viewing angles are measured, near / far.
         options: default per-frame options (none is read).
         config: the method's constants (gather_reference.GatherConfig).
@@ -59,7 +61,7 @@ class GatherRenderer(Renderer):
     uses = frozenset()
 
     def __init__(self, ctx, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
-                 config: gr.GatherConfig | None = None):
+                 config: gr.GatherConfig | None = None, alpha=None):
         super().__init__(ctx, options)
         self.cfg = config or gr.GatherConfig()
         self.cameras = tuple(cameras)
@@ -77,16 +79,23 @@ class GatherRenderer(Renderer):
         n, H, W = texels.shape[:3]
         self.tex = self.own(ctx.texture_array((W, H, n), 4, np.ascontiguousarray(texels).tobytes(), dtype="f4"))
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.alpha_tex = None
+        if alpha is not None:  # premultiplied colour + alpha, resampled like the colour
+            pm = np.ascontiguousarray(gr.premultiply(np.asarray(rgb, np.float32), alpha), np.float32)
+            self.alpha_tex = self.own(ctx.texture_array((W, H, n), 4, pm.tobytes(), dtype="f4"))
+            self.alpha_tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
         self.depth_vao = self.own(ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")]))
-        self.prog = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl", defines=shader_defines(self.cfg)))
+        self.prog = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl",
+                                     defines=shader_defines(self.cfg, alpha is not None)))
         self.vao = self.own(ctx.vertex_array(self.prog, []))
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None,
                    config: gr.GatherConfig | None = None) -> GatherRenderer:
         """Renderer of a volume.model.Model's RGBz images (its kept views and their depth)."""
-        return cls(ctx, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras, model.bounds, options, config)
+        r = model.rgbz
+        return cls(ctx, r.rgb, r.depth, r.cameras, model.bounds, options, config, alpha=r.alpha)
 
     def views(self, eye: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(depth cameras, blend cameras, blend weights 1 / angle) of a frame: the nearest in
@@ -131,6 +140,9 @@ class GatherRenderer(Renderer):
         p = self.prog
         p["front_z"].value = 0
         p["rgbz"].value = 1
+        if self.alpha_tex is not None:
+            self.alpha_tex.use(2)
+            p["rgba"].value = 2
         p["height"].value = eye.height
         p["eye_intr"].value = (eye.K[0, 0], eye.K[1, 1], eye.K[0, 2], eye.K[1, 2])
         p["eye_skew"].value = float(eye.K[0, 1])
@@ -164,4 +176,4 @@ class GatherRenderer(Renderer):
         rgba = gl_rows_to_image(ct.read_colour(0))
         z = gl_rows_to_image(zt.read_colour(0))
         drawn = rgba[..., 3] > 0
-        return Frame(rgba[..., :3], drawn.astype(np.float32), np.where(drawn, z, 0.0), stats)
+        return Frame(rgba[..., :3], rgba[..., 3], np.where(drawn, z, 0.0), stats)

@@ -19,6 +19,13 @@ Per frame, for an eye E (docs/methods.md §1.9; measured in README "Novel views"
    (23-60 % of fur at 20-degree spacing, issue 11) get the consensus of the two views instead
    of the one view's occluder.  A pixel that no blend camera's image contains is left empty.
 
+**Alpha** (a model with a matte, ``volume.model.RgbzImages.alpha``): the views' colours are
+premultiplied by their alpha (:func:`premultiply`) and the alpha is resampled with the same
+filter, both blended with the same weights and divided by the weight sum: a fringe pixel gets a
+partial alpha and the strand's colour, not the background.  A pixel whose blended alpha is 0 is
+left empty.  Without a matte every drawn pixel is opaque and the colour is exactly the blend of
+the straight colours.
+
 Eye on a kept camera: that camera takes (almost) all the weight (1 / angle) and its resampled
 colour at its own pixel centres is the photo.  One camera: it is the only blend camera.  An
 empty model (no depth anywhere): an empty frame.
@@ -134,9 +141,18 @@ def cubic(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return np.maximum(out, 0.0)
 
 
+def premultiply(rgb: np.ndarray, alpha: np.ndarray | None) -> np.ndarray:
+    """(..., 3) colour, or with a matte ``alpha`` (...) the (..., 4) premultiplied colour + alpha
+    the views are resampled from (float32, as the GPU stores them)."""
+    if alpha is None:
+        return np.asarray(rgb)
+    a = np.asarray(alpha, np.float32)[..., None]
+    return np.concatenate([np.asarray(rgb, np.float32) * a, a], -1)
+
+
 def sample_view(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndarray, resample: str = "linear"):
-    """What camera ``cam`` saw at world ``points`` (N, 3): (colour (N, 3) resampled (:func:`cubic`
-    or :func:`bilinear`), depth d (N,)
+    """What camera ``cam`` saw at world ``points`` (N, 3): (colour (N, C) resampled (:func:`cubic`
+    or :func:`bilinear`) from ``rgb`` (H, W, C): 3 straight or 4 premultiplied + alpha channels, depth d (N,)
     at the nearest texel, the points' own z-depth z (N,), inside (N,) bool: in front of the camera
     and within its image, [-0.5, W - 0.5] x [-0.5, H - 0.5])."""
     uv, z = cam.project(points)
@@ -159,11 +175,14 @@ def visibility(d: np.ndarray, z: np.ndarray, inside: np.ndarray, sigma: float, f
 
 def gather(eye: Camera, depth: np.ndarray, views, weights, cfg: GatherConfig) -> tuple[np.ndarray, np.ndarray]:
     """Colours of the pixels of ``eye`` with ``depth`` > 0 gathered from ``views`` ((camera,
-    rgb (H, W, 3), depth (H, W)) per blend camera) with per-camera ``weights`` (1 / angle):
-    (rgb (H, W, 3) float64 linear, drawn (H, W) bool: some blend camera's image contains it)."""
+    rgb (H, W, C), depth (H, W)) per blend camera; C = 3 straight colour, or 4 = premultiplied
+    colour + alpha, :func:`premultiply`) with per-camera ``weights`` (1 / angle): (rgb (H, W, 3)
+    float64 linear premultiplied, alpha (H, W) float64 in [0, 1]: 1 where some blend camera's
+    image contains the point without a matte, the blended alpha with one)."""
     m = depth > 0
     X = eye.unproject(eye.pixel_grid()[m], depth[m])
-    acc = np.zeros((len(X), 3))
+    C = np.asarray(views[0][1]).shape[-1] if len(views) else 3
+    acc = np.zeros((len(X), C))
     wsum = np.zeros(len(X))
     for (cam, rgb, dep), w in zip(views, weights):
         col, d, z, inside = sample_view(cam, rgb, dep, X, cfg.resample)
@@ -171,23 +190,26 @@ def gather(eye: Camera, depth: np.ndarray, views, weights, cfg: GatherConfig) ->
         acc += v[:, None] * col
         wsum += v
     drawn = wsum > 0
+    blend = np.where(drawn[:, None], acc / np.where(drawn, wsum, 1.0)[:, None], 0.0)
     out = np.zeros(depth.shape + (3,))
-    out[m] = np.where(drawn[:, None], acc / np.where(drawn, wsum, 1.0)[:, None], 0.0)
-    mask = np.zeros(depth.shape, bool)
-    mask[m] = drawn
-    return out, mask
+    alpha = np.zeros(depth.shape)
+    out[m] = blend[:, :3]
+    alpha[m] = np.minimum(blend[:, 3], 1.0) if C == 4 else drawn
+    return out, alpha
 
 
 def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray,
-                 cfg: GatherConfig | None = None):
+                 cfg: GatherConfig | None = None, alpha: np.ndarray | None = None):
     """The gather method's frame for ``eye`` (module docstring): (rgb (H, W, 3) float32 linear
-    over black, coverage (H, W) float32 0/1, depth (H, W) float32 z-depth, 0 = empty, points
-    splatted).  ``clouds``: ``points_reference.back_project`` of (cameras, rgb, depth); ``cfg``
-    default GatherConfig()."""
+    premultiplied (over black), alpha (H, W) float32 in [0, 1] (0 / 1 without a matte), depth
+    (H, W) float32 z-depth, 0 = empty, points splatted).  ``clouds``:
+    ``points_reference.back_project`` of (cameras, rgb, depth); ``alpha``: the views' (N, H, W)
+    straight matte or None; ``cfg`` default GatherConfig()."""
     cfg = cfg or GatherConfig()
     idx, ang = pr.nearest_views(eye, cameras, centre, max(cfg.k_depth, cfg.k_blend))
     z, n = front_depth(eye, [clouds[i] for i in idx[: cfg.k_depth]], cfg.splat_px)
     blend = idx[: cfg.k_blend]
     w = 1.0 / np.maximum(ang[: cfg.k_blend], pr.ANGLE_EPS)
-    col, drawn = gather(eye, z, [(cameras[i], rgb[i], depth[i]) for i in blend], w, cfg)
-    return (col.astype(np.float32), drawn.astype(np.float32), np.where(drawn, z, 0.0).astype(np.float32), n)
+    views = [(cameras[i], premultiply(rgb[i], None if alpha is None else alpha[i]), depth[i]) for i in blend]
+    col, a = gather(eye, z, views, w, cfg)
+    return (col.astype(np.float32), a.astype(np.float32), np.where(a > 0, z, 0.0).astype(np.float32), n)

@@ -20,7 +20,8 @@ from capture.camera import Camera
 from render.frame import Frame, FrameStats
 from render.gl import program
 from render.methods import Renderer, RenderOptions
-from render.microfacet.gl import camera_block, rgbz_array, shader_defines
+from render.microfacet.gl import camera_block, shader_defines
+from render.microfacet.rgbz_textures import matte_texture, rgbz_array
 from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Visibility tolerance of a camera for a mesh fragment, in finest-level voxel sizes.
@@ -37,12 +38,14 @@ class VdtmRenderer(Renderer):
         bounds: (2, 3) object box (near/far).
         vis_tol: visibility tolerance |d - D| in metres.
         options: default per-frame options (this method reads ``supersample``).
+        alpha: the views' (N, H, W) matte (RgbzImages.alpha) or None: with one, the blend carries
+            premultiplied colour + alpha (render.microfacet.rgbz_textures) and the frame its alpha.
     """
 
     name = "mesh-vdtm"
 
     def __init__(self, ctx, vertices, faces, colors, rgb, depth, cameras, bounds, vis_tol: float,
-                 options: RenderOptions | None = None):
+                 options: RenderOptions | None = None, alpha=None):
         super().__init__(ctx, options)
         self.cameras = tuple(cameras)
         self.bounds = np.asarray(bounds, np.float64)
@@ -53,11 +56,13 @@ class VdtmRenderer(Renderer):
         self.n_faces = int(len(faces))
         self.vbo = self.own(ctx.buffer(np.concatenate([v, col], 1).astype(np.float32).tobytes()))
         self.ibo = self.own(ctx.buffer(np.asarray(faces, np.int32).tobytes()))
-        self.prog = self.own(program(ctx, "vdtm_vert.glsl", "vdtm_frag.glsl", defines=shader_defines()))
+        self.prog = self.own(program(ctx, "vdtm_vert.glsl", "vdtm_frag.glsl",
+                                     defines=shader_defines(has_alpha=alpha is not None)))
         self.vao = self.own(ctx.vertex_array(self.prog, [(self.vbo, "3f 3f", "in_pos", "in_color")],
                                              index_buffer=self.ibo, index_element_size=4))
         self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
-        texels = rgbz_array(rgb, depth)
+        texels = rgbz_array(rgb, depth, alpha)
+        self.matte = None if alpha is None else self.own(matte_texture(ctx, alpha))
         n, H, W = texels.shape[:3]
         self.tex_size = (W, H)
         self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4"))
@@ -74,7 +79,7 @@ class VdtmRenderer(Renderer):
         w = model.pyramid.levels[-1].voxel_size
         depth = raycast_depth(model.mesh_vertices, model.mesh_faces, model.rgbz.cameras)
         return cls(ctx, model.mesh_vertices, model.mesh_faces, model.mesh_colors, model.rgbz.rgb, depth,
-                   model.rgbz.cameras, model.bounds, VIS_TOL_VOXELS * w, options)
+                   model.rgbz.cameras, model.bounds, VIS_TOL_VOXELS * w, options, alpha=model.rgbz.alpha)
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         """One frame (Renderer.render) with ``options.supersample`` samples per pixel and axis."""
@@ -89,6 +94,9 @@ class VdtmRenderer(Renderer):
                 p[k].value = val
         if "rgbz" in p:
             p["rgbz"].value = 0
+        if self.matte is not None:
+            p["matte"].value = 3
+            self.matte.use(3)
         if "tex_size" in p:
             p["tex_size"].value = self.tex_size
         self.cam_buf.bind_to_storage_buffer(0)

@@ -14,13 +14,15 @@ def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, ca
                    rgbz_depth: np.ndarray, vis_tol: float) -> np.ndarray:
     """Numpy twin of vdtm_frag.glsl for the pixels where ``depth`` (H, W, z-depth of the mesh
     in ``eye``, e.g. from render.mesh.raster.gl.rasterize_reference) is > 0; ``vertex_colour`` (H, W, 3)
-    is the interpolated vertex colour there.  Returns (H, W, 3) linear colour."""
+    is the interpolated vertex colour there.  ``rgb`` (N, H, W, C): C = 4 with a matte
+    (premultiplied colour + alpha; the vertex colour is opaque).  Returns (H, W, C) linear colour."""
     mask = depth > 0
     pts = eye.unproject(eye.pixel_grid()[mask], depth[mask])
     idx, w = mg.select_cameras(pts, 0.0, eye.center, cameras)
     N = len(pts)
     vis = np.zeros((N, mg.K_CAND), bool)
-    cols = np.zeros((N, mg.K_CAND, 3))
+    C = np.shape(rgb)[-1]
+    cols = np.zeros((N, mg.K_CAND, C))
     for k in range(mg.K_CAND):
         for c in np.unique(idx[:, k][idx[:, k] >= 0]):
             m = idx[:, k] == c
@@ -32,7 +34,10 @@ def vdtm_reference(eye: Camera, depth: np.ndarray, vertex_colour: np.ndarray, ca
     blend = (wb[:, :, None] * cols[:, : mg.K_BLEND]).sum(1) / np.where(wsum > 0, wsum, 1)[:, None]
     first = np.argmax(vis, axis=1)
     fcol = cols[np.arange(N), first]
-    out = np.where((wsum > mg.WEIGHT_EPS)[:, None], blend, np.where(vis.any(1)[:, None], fcol, vertex_colour[mask]))
-    img = np.zeros(depth.shape + (3,))
+    vcol = vertex_colour[mask]
+    if C == 4:
+        vcol = np.concatenate([vcol, np.ones((len(vcol), 1))], 1)
+    out = np.where((wsum > mg.WEIGHT_EPS)[:, None], blend, np.where(vis.any(1)[:, None], fcol, vcol))
+    img = np.zeros(depth.shape + (C,))
     img[mask] = out
     return img

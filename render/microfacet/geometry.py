@@ -263,8 +263,9 @@ ALPHA_VOTE = 0.5
 def sample_rgbz(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndarray):
     """Nearest-texel RGBz lookup of world points in one camera.
 
-    Returns (colour (N, 3), d (N,) stored depth, D (N,) the points' own z-depth, inside (N,)
-    bool: in front of the camera and inside the image).
+    Returns (colour (N, C) of ``rgb`` (H, W, C): 3 colours, or 4 = premultiplied colour + alpha
+    with a matte (render.microfacet.rgbz_textures.twin_colours), d (N,) stored depth, D (N,) the
+    points' own z-depth, inside (N,) bool: in front of the camera and inside the image).
     """
     uv, D = cam.project(points)
     with np.errstate(invalid="ignore"):
@@ -353,7 +354,8 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
     "any": blend the passing blend cameras; if none passes, the first passing remaining candidate.
     With ``eye_pos`` given, passing colours are parallax-corrected (:func:`refine_colours`,
     ``refine`` steps, default DEPTH_REFINE).
-    Returns (colour (N, 3), alive (N,) bool); dead fragments are discarded.  With ``with_source``
+    ``rgb`` (N_cams, H, W, C): C = 4 carries premultiplied colour + alpha through the same rules.
+    Returns (colour (N, C), alive (N,) bool); dead fragments are discarded.  With ``with_source``
     also (N,) the dominant camera of each alive fragment: the passing blend camera of largest
     weight (first of equals), or the fallback candidate that decided; -1 for dead ones.
     """
@@ -361,7 +363,7 @@ def shade_fragments(points: np.ndarray, cand: np.ndarray, weights: np.ndarray, s
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {FALLBACK_RULES}")
     N = len(points)
     status = np.zeros((N, K_CAND), np.int64)
-    cols = np.zeros((N, K_CAND, 3))
+    cols = np.zeros((N, K_CAND, np.shape(rgb)[-1]))
     for k in range(K_CAND):
         ci = cand[:, k]
         for c in np.unique(ci[ci >= 0]):

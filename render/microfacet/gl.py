@@ -33,6 +33,7 @@ from render.methods import Renderer, RenderOptions
 from render.microfacet import cull as mcull
 from render.microfacet import geometry as mg
 from render.microfacet import lod as mlod
+from render.microfacet.rgbz_textures import RGBZ_DTYPE, matte_texture, rgbz_array
 from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Compute work-group size of microfacet_select.glsl.
@@ -52,13 +53,12 @@ PREPASS = True
 #: (covering_surfaces): the plant's top vanished from a fused 8^3 level (volume.build), whose
 #: surface voxels ended 7.6 cm below the plant's tip.
 COARSE_COVERS_FINE = True
-#: Storage of the RGBz texture array: half floats (8 bytes per texel; the fetches are the
-#: fragment cost on llvmpipe).  Depth in half float: 0.24 mm steps at 0.5 m.
-RGBZ_DTYPE = np.float16
+#: RGBZ_DTYPE (render.microfacet.rgbz_textures): half floats (8 bytes per texel; the fetches are
+#: the fragment cost on llvmpipe).  Depth in half float: 0.24 mm steps at 0.5 m.
 
 
 def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: int | None = None,
-                   debug: str | None = None) -> dict:
+                   debug: str | None = None, has_alpha: bool = False) -> dict:
     """Constants shared by the GLSL and the numpy twin (one source: microfacet_geometry)."""
     if rule not in mg.FALLBACK_RULES:
         raise ValueError(f"unknown fallback rule {rule!r}; use one of {mg.FALLBACK_RULES}")
@@ -96,6 +96,7 @@ def shader_defines(rule: str = "vote", n_fallback: int | None = None, refine: in
         "TOL_MARGIN_ABS": f"{mcull.TOL_MARGIN_ABS:.9e}",
         "MAX_TILES": mcull.MAX_TILES,
         "MAX_PYR_LEVELS": MAX_PYR_LEVELS,
+        "HAS_ALPHA": int(has_alpha),
     }
 
 
@@ -118,11 +119,6 @@ def eye_projections(cameras, eye_pos: np.ndarray) -> bytes:
     for i, c in enumerate(cameras):
         out[i, :3] = mg.project_h(c, np.asarray(eye_pos, np.float64)[None])[0]
     return out.tobytes()
-
-
-def rgbz_array(rgb: np.ndarray, depth: np.ndarray) -> np.ndarray:
-    """(N, H, W, 4) float32 RGBz texels: linear rgb + z-depth in metres (0 = none)."""
-    return np.concatenate([np.asarray(rgb, np.float32), np.asarray(depth, np.float32)[..., None]], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -186,7 +182,7 @@ class MicrofacetRenderer(Renderer):
 
     def __init__(self, ctx, levels, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
                  rule: str = "vote", n_fallback: int | None = None, cull: bool = CULL,
-                 tile_px: float = mcull.TILE_PX, prepass: bool = PREPASS):
+                 tile_px: float = mcull.TILE_PX, prepass: bool = PREPASS, alpha=None):
         super().__init__(ctx, options)
         self.levels = tuple(levels)
         self.surfaces = covering_surfaces(self.levels)
@@ -220,7 +216,8 @@ class MicrofacetRenderer(Renderer):
         self._last_order = None
         self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
         self.eye_buf = self.own(ctx.buffer(reserve=16 * max(len(self.cameras), 1)))
-        texels = rgbz_array(rgb, depth)
+        texels = rgbz_array(rgb, depth, alpha)
+        self.matte = None if alpha is None else self.own(matte_texture(ctx, alpha))
         n, H, W = texels.shape[:3]
         self.tex_size = (W, H)
         self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.astype(RGBZ_DTYPE).tobytes(), dtype="f2"))
@@ -251,9 +248,10 @@ class MicrofacetRenderer(Renderer):
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None, rule: str = "vote",
                    n_fallback: int | None = None) -> MicrofacetRenderer:
-        """Renderer for a volume.model.Model."""
-        return cls(ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                   model.bounds, options, rule, n_fallback)
+        """Renderer for a volume.model.Model (with its matte, RgbzImages.alpha, when it has one)."""
+        r = model.rgbz
+        return cls(ctx, model.pyramid.levels, r.rgb, r.depth, r.cameras, model.bounds, options, rule, n_fallback,
+                   alpha=r.alpha)
 
     def level_centers(self, level: int) -> np.ndarray:
         """(N, 3) world centres of the voxels drawn on ``level`` (see covering_surfaces)."""
@@ -268,7 +266,7 @@ class MicrofacetRenderer(Renderer):
         key = (kind, refine if refines else 0, debug if kind in ("draw", "geometry") else None)  # ... or debug
         if key not in self._programs:
             ctx = self.ctx
-            d = shader_defines(self.rule, self.n_fallback, key[1], key[2])
+            d = shader_defines(self.rule, self.n_fallback, key[1], key[2], self.matte is not None)
             if kind in ("select", "select_all"):
                 d = {**d, "CULL": int(kind == "select")}
                 self._programs[key] = (self.own(ctx.compute_shader(load_shader("microfacet_select.glsl", d))), None)
@@ -317,7 +315,7 @@ class MicrofacetRenderer(Renderer):
                 prog[k].value = v
         if "view_proj" in prog:
             prog["view_proj"].write(mat4_bytes(view_proj))
-        for name, unit in (("rgbz", 0), ("zdepth", 1), ("records", 2)):
+        for name, unit in (("rgbz", 0), ("zdepth", 1), ("records", 2), ("matte", 3)):
             if name in prog:
                 prog[name].value = unit
         for name, value in (("tex_size", self.tex_size), ("depth_size", self.tex_size)):
@@ -337,6 +335,8 @@ class MicrofacetRenderer(Renderer):
         self.voxel_bufs[lev][axis].bind_to_storage_buffer(1)
         self._last_order = self.orders[lev][axis]
         self.tex.use(0)
+        if self.matte is not None:
+            self.matte.use(3)
         if options.mode == "geometry" and not options.fill_only:
             prog, vao = self._program("geometry", options.refine_steps, options.debug)
             self._uniforms(prog, eye, lev, spacing, near, view_proj)

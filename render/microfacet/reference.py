@@ -22,7 +22,11 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
     codes in its red channel instead (microfacet_geometry.debug_codes); for "rejections" every
     pixel a slice covers is alive, rejected fragments behind all kept ones.
 
-    Returns (image (H, W, 3) linear, alive (H, W) bool, slices (voxel, n)).
+    ``rgb`` (N, H, W, C): C = 4 with a matte (premultiplied colour + alpha,
+    render.microfacet.rgbz_textures.twin_colours): the image then holds the premultiplied colour
+    and the fragment's alpha in its channel 3.
+
+    Returns (image (H, W, C) linear, alive (H, W) bool, slices (voxel, n)).
     """
     near, _ = near_far(eye, bounds)
     eye_pos = eye.center
@@ -35,7 +39,8 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
     rays = rays @ eye.world_from_cam[:3, :3].T  # world directions with eye-z = 1
     ha_all, hb_all = mg.slice_half_extents(centers[vox], w, eye_pos, v[vox], a[vox], b[vox], n * spacing)
     best_z = np.full(H * W, np.inf)
-    img = np.zeros((H * W, 3))
+    C = np.shape(rgb)[-1]
+    img = np.zeros((H * W, C))
     rejected = np.zeros(H * W, bool)
     for j, nn, ha, hb in zip(vox, n, ha_all, hb_all):
         s = nn * spacing
@@ -67,4 +72,4 @@ def reference_render(eye: Camera, centers: np.ndarray, w: float, spacing: float,
     if debug == "rejections":
         img[rejected & ~alive, 0] = mg.DEBUG_REJECTED
         alive |= rejected
-    return img.reshape(H, W, 3), alive.reshape(H, W), (vox, n)
+    return img.reshape(H, W, C), alive.reshape(H, W), (vox, n)

@@ -30,23 +30,26 @@ class PointsRenderer(Renderer):
             (N, H, W) z-depth metres, 0 = none).
         bounds: (2, 3) object box; its centre is where viewing angles are measured.
         options: default per-frame options (none is read).
+        alpha: the views' (N, H, W) straight matte (RgbzImages.alpha) or None: with one, the points
+            carry premultiplied colour + alpha and the frame the averaged alpha.
     """
 
     name = "points"
     uses = frozenset()
 
-    def __init__(self, ctx, rgb, depth, cameras, bounds, options: RenderOptions | None = None):
+    def __init__(self, ctx, rgb, depth, cameras, bounds, options: RenderOptions | None = None, alpha=None):
         super().__init__(ctx, options)
         self.cameras = tuple(cameras)
         if not self.cameras:
             raise ValueError("points renderer: the model has no input camera")
         self.centre = np.asarray(bounds, np.float64).mean(axis=0)
-        self.clouds = pr.back_project(self.cameras, rgb, depth)
+        self.clouds = pr.back_project(self.cameras, rgb, depth, alpha)
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None) -> PointsRenderer:
         """Splatter of a volume.model.Model's RGBz images (its kept views and their depth)."""
-        return cls(ctx, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras, model.bounds, options)
+        r = model.rgbz
+        return cls(ctx, r.rgb, r.depth, r.cameras, model.bounds, options, alpha=r.alpha)
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         t0, c0 = time.perf_counter(), time.process_time()

@@ -9,6 +9,10 @@ camera centres) are taken; their points are projected into the view with a z-buf
 that land on it within ``VIS_TOL_M`` of its front depth, each weighted by 1 / angle of its
 camera (:func:`splat`).  Nothing else: no filtering, no fill, one sample per pixel.
 
+With a matte (``volume.model.RgbzImages.alpha``) every point carries its premultiplied colour and
+its alpha, averaged alike: the frame's colour is premultiplied and its alpha the points' mean
+alpha (without one, 1 wherever a point lands).
+
 A splat of side s centred on the projection (u, v) (OpenCV pixel centres) covers the pixels
 whose centre lies in [u - s/2, u + s/2) x [v - s/2, v + s/2): for s = 2 the 2 x 2 pixels
 nearest to the point (the rule of GL point sprites).
@@ -35,19 +39,24 @@ ANGLE_EPS = 1e-3
 
 class Cloud(NamedTuple):
     """The coloured points of one kept view: ``points`` (N, 3) float64 world metres,
-    ``colours`` (N, 3) float32 linear rgb."""
+    ``colours`` (N, 3) float32 linear rgb, or (N, 4) premultiplied rgb + alpha with a matte."""
 
     points: np.ndarray
     colours: np.ndarray
 
 
-def back_project(cameras, rgb: np.ndarray, depth: np.ndarray) -> list[Cloud]:
+def back_project(cameras, rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray | None = None) -> list[Cloud]:
     """One Cloud per camera: every pixel with depth > 0 of ``depth`` (N, H, W, metres) with its
-    colour in ``rgb`` (N, H, W, 3 linear)."""
+    colour in ``rgb`` (N, H, W, 3 linear), premultiplied by ``alpha`` (N, H, W) and with the alpha
+    appended when a matte is given."""
     out = []
-    for cam, c, d in zip(cameras, rgb, depth):
+    for i, (cam, c, d) in enumerate(zip(cameras, rgb, depth)):
         pts, mask = cam.depth_to_points(d)
-        out.append(Cloud(pts, np.asarray(c, np.float32)[mask]))
+        col = np.asarray(c, np.float32)[mask]
+        if alpha is not None:
+            a = np.asarray(alpha[i], np.float32)[mask][:, None]
+            col = np.concatenate([col * a, a], 1)
+        out.append(Cloud(pts, col))
     return out
 
 
@@ -92,8 +101,9 @@ def splat_pixels(uv: np.ndarray, width: int, height: int, side: int = SPLAT_PX):
 
 def splat(eye: Camera, clouds, weights, side: int = SPLAT_PX, tol: float = VIS_TOL_M):
     """The splatter's frame for ``eye`` from ``clouds`` (Cloud per camera) with one weight per
-    cloud: (rgb (H, W, 3) float32 linear over black, coverage (H, W) float32 0/1, depth (H, W)
-    float32 front z-depth, 0 where empty, splatted point count)."""
+    cloud: (rgb (H, W, 3) float32 linear premultiplied (over black), alpha (H, W) float32 (0 / 1
+    without a matte, the points' mean alpha with one), depth (H, W) float32 front z-depth, 0 where
+    empty, splatted point count)."""
     W, H = eye.width, eye.height
     pix, zs, cols, wts = [], [], [], []
     n_pts = 0
@@ -109,19 +119,21 @@ def splat(eye: Camera, clouds, weights, side: int = SPLAT_PX, tol: float = VIS_T
             zs.append(z[j])
             cols.append(cl.colours[j])
             wts.append(np.full(len(j), float(w)))
-    rgb = np.zeros((H * W, 3))
+    C = next((cl.colours.shape[1] for cl in clouds if len(cl.colours)), 3)
+    rgb = np.zeros((H * W, C))
     front_z = np.full(H * W, np.inf)
     if pix:
         pix, zs, cols, wts = (np.concatenate(a) for a in (pix, zs, cols, wts))
         np.minimum.at(front_z, pix, zs)
         near = zs < front_z[pix] + tol
         wsum = np.bincount(pix[near], wts[near], H * W)
-        for k in range(3):
+        for k in range(C):
             rgb[:, k] = np.bincount(pix[near], wts[near] * cols[near, k], H * W)
         rgb /= np.where(wsum > 0, wsum, 1.0)[:, None]
     covered = np.isfinite(front_z)
-    depth = np.where(covered, front_z, 0.0)
-    return (rgb.reshape(H, W, 3).astype(np.float32), covered.reshape(H, W).astype(np.float32),
+    alpha = np.minimum(rgb[:, 3], 1.0) if C == 4 else covered
+    depth = np.where(alpha > 0, front_z, 0.0)
+    return (rgb[:, :3].reshape(H, W, 3).astype(np.float32), alpha.reshape(H, W).astype(np.float32),
             depth.reshape(H, W).astype(np.float32), n_pts)
 
 

@@ -1,7 +1,7 @@
 """The pictures a viewer client can ask for, drawn on the GL thread from one rendered Frame.
 
-* "colour": the frame as 8-bit sRGB over black, or composited into an environment map
-  (:func:`composite_env`, docs/methods.md §3-§4) with exposure, ground shadow, glare and map rotation;
+* "colour": the frame as 8-bit sRGB over black (premultiplied colour), or composited with its matte into an
+  environment map (:func:`composite_env`, docs/methods.md §3-§4) with exposure, ground shadow, glare, rotation;
 * "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
 * "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
   pixel shows it), for methods whose FrameStats report a ``level``;
@@ -51,15 +51,12 @@ def make_compositor(ctx):
 
 
 def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, spheres, up, compositor) -> np.ndarray:
-    """``frame`` (render.frame.Frame) composited into ``env``: (H, W, 3) float32 display-referred
-    linear colour in [0, 1] (render.composite.pipeline.composite_frame)."""
+    """``frame`` (render.frame.Frame) composited into ``env`` with its matte (premultiplied +
+    (1 - alpha) background, linear light): (H, W, 3) float32 display-referred linear colour in
+    [0, 1] (render.composite.pipeline.composite_frame)."""
     from render.composite.pipeline import composite_frame
 
-    # the compositor takes a binary object mask (depth > 0): un-premultiply the supersampled
-    # edge pixels (their samples were averaged with black)
-    cov = frame.coverage
-    obj = np.where(cov[..., None] > 0, frame.rgb / np.maximum(cov, 1e-6)[..., None], 0.0)
-    return composite_frame(ctx, obj.astype(np.float32), frame.depth, camera, env,
+    return composite_frame(ctx, frame.rgb, frame.depth, camera, env, alpha=frame.alpha,
                            spheres=spheres if env_settings.ground else None,
                            ground=None if env_settings.ground else False, exposure=env_settings.exposure,
                            glare=env_settings.glare, up=up, compositor=compositor)
@@ -103,7 +100,7 @@ def code_image(codes: np.ndarray, colours: np.ndarray) -> np.ndarray:
 def frame_codes(frame) -> np.ndarray:
     """(H, W) int codes a renderer wrote for a debug view (red channel, one sample per pixel;
     0 where nothing was drawn)."""
-    return np.where(frame.coverage > 0, np.rint(frame.rgb[..., 0]), 0).astype(np.int64)
+    return np.where(frame.alpha > 0, np.rint(frame.rgb[..., 0]), 0).astype(np.int64)
 
 
 def colour_image(scene, frame, camera: Camera, env_settings: EnvSettings) -> np.ndarray:
@@ -140,7 +137,7 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
             img, note = colour_image(scene, frame, camera, settings.env), \
                 f"method {settings.method!r} draws no pyramid level"
         else:
-            img = code_image(np.where(frame.coverage > 0, level + 1, 0), palette(16))
+            img = code_image(np.where(frame.alpha > 0, level + 1, 0), palette(16))
     elif view == "camera":
         img = code_image(frame_codes(frame), palette(20))
     else:

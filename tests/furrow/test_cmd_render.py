@@ -116,3 +116,31 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
         ref = to_uint8_srgb(scans[i].rgb)
         black.append(metrics.psnr(ref, np.zeros_like(ref), ref.max(-1) > 0))
     assert res["microfacet"]["psnr_masked"] > np.mean(black) + 3.0, (res["microfacet"]["psnr_masked"], black)
+
+
+def test_render_cli_writes_rgba_and_flattens_over_background(tmp_path):
+    """With a matte in the model: RGBA PNG (straight alpha, partial at the fringe); --background
+    white writes the same frame flattened over white in linear light; --background and --env clash."""
+    import cv2
+
+    from capture.scan import srgb_to_linear
+    from render.composite.background import unpack_rgba8
+
+    cams = scene.ring_cameras(12)
+    model = scene.build_model(cams)
+    model = scene.with_alpha(model, scene.soft_matte(model.rgbz.depth))
+    save_model(model, tmp_path / "model")
+    tj = _transforms(cams, tmp_path / "transforms.json")
+    base = ["render", str(tmp_path / "model"), "--cameras", str(tj), "--frames", "4"]
+    assert main(base + ["-o", str(tmp_path / "rgba")]) == 0
+    rgba = cv2.imread(str(tmp_path / "rgba" / "cam_004.png"), cv2.IMREAD_UNCHANGED)[..., [2, 1, 0, 3]]
+    a = rgba[..., 3]
+    assert np.mean((a > 0) & (a < 255)) > 0.02 and (a == 255).any() and (a == 0).any()
+    assert main(base + ["--background", "white", "-o", str(tmp_path / "white")]) == 0
+    white = read_color(tmp_path / "white" / "cam_004.png")
+    pm, al = unpack_rgba8(rgba)
+    want = pm + (1 - al[..., None])  # over white, linear
+    got = srgb_to_linear(white / 255.0)
+    assert np.abs(got - want).max() < 0.02
+    assert main(base + ["--background", "white", "--env", "studio", "-o", str(tmp_path / "x")]) == 1
+    assert main(base + ["--background", "nowhere", "-o", str(tmp_path / "y")]) == 1

@@ -37,14 +37,14 @@ def test_gpu_resolve_matches_twin(gl_ctx, model, factor):
         assert big_c.shape[:2] == (eye.height * factor, eye.width * factor)
         col, d01 = box_resolve(gl_rows_to_image(big_c), gl_rows_to_image(big_d), factor)
         np.testing.assert_allclose(fr.rgb, col[..., :3], atol=1e-6)
-        np.testing.assert_allclose(fr.coverage, col[..., 3], atol=1e-6)
-        assert np.array_equal(fr.alpha, col[..., 3] > 0)
+        np.testing.assert_allclose(fr.alpha, col[..., 3], atol=1e-6)
+        assert np.array_equal(fr.mask, col[..., 3] > 0)
         near, far = near_far(eye, model.bounds)
         z = gl_ndc_depth_to_z(d01, near, far)
-        np.testing.assert_allclose(fr.depth[fr.alpha], z[fr.alpha], rtol=1e-5)
-        assert np.all(fr.depth[~fr.alpha] == 0)
+        np.testing.assert_allclose(fr.depth[fr.mask], z[fr.mask], rtol=1e-5)
+        assert np.all(fr.depth[~fr.mask] == 0)
         # partial coverage exists only at edges: the interior is fully covered
-        assert 0 < np.mean((fr.coverage > 0) & (fr.coverage < 1)) < 0.2
+        assert 0 < np.mean((fr.alpha > 0) & (fr.alpha < 1)) < 0.2
     finally:
         r.release()
 

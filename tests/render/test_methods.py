@@ -32,17 +32,17 @@ def test_every_method_returns_a_frame(gl_ctx, model, name):
         assert r.name == name and r.alive
         fr = r.render(eye)
         assert isinstance(fr, Frame) and fr.size == (eye.width, eye.height)
-        assert fr.rgb.dtype == fr.coverage.dtype == fr.depth.dtype == np.float32
-        assert fr.alpha.sum() > 200, "the scene fills a good part of the view"
-        assert set(np.unique(fr.coverage)) <= {0.0, 1.0}  # one sample: drawn or not
-        assert np.all(fr.depth[~fr.alpha] == 0) and np.all(fr.rgb[~fr.alpha] == 0)
+        assert fr.rgb.dtype == fr.alpha.dtype == fr.depth.dtype == np.float32
+        assert fr.mask.sum() > 200, "the scene fills a good part of the view"
+        assert set(np.unique(fr.alpha)) <= {0.0, 1.0}  # one sample: drawn or not
+        assert np.all(fr.depth[~fr.mask] == 0) and np.all(fr.rgb[~fr.mask] == 0)
         # depth of the drawn pixels: on the object (within the scene's bounding spheres' depth range)
         near, far = near_far(eye, scene.BOUNDS)
-        assert np.all((fr.depth[fr.alpha] > near) & (fr.depth[fr.alpha] < far))
+        assert np.all((fr.depth[fr.mask] > near) & (fr.depth[fr.mask] < far))
         st = fr.stats.record()
         assert st["facets"] > 0 and st["supersample"] == 1 and st["ms"] > 0
         empty = r.render(eye, read=False)
-        assert not empty.alpha.any() and empty.stats.facets == fr.stats.facets
+        assert not empty.mask.any() and empty.stats.facets == fr.stats.facets
     assert not r.alive
     r.release()  # idempotent
     with pytest.raises(RuntimeError, match="release"):
@@ -63,10 +63,10 @@ def test_supersampled_frame_is_resolve_of_its_samples(gl_ctx, model, name):
         near, far = owner.planes(eye) if owner is not r else near_far(eye, model.bounds)
     col, d01 = box_resolve(gl_rows_to_image(big_c), gl_rows_to_image(big_d), 2)
     np.testing.assert_allclose(fr.rgb, col[..., :3], atol=1e-6)
-    np.testing.assert_allclose(fr.coverage, col[..., 3], atol=1e-6)
-    assert 0 < np.mean((fr.coverage > 0) & (fr.coverage < 1)) < 0.2  # fractional only at edges
+    np.testing.assert_allclose(fr.alpha, col[..., 3], atol=1e-6)
+    assert 0 < np.mean((fr.alpha > 0) & (fr.alpha < 1)) < 0.2  # fractional only at edges
     z = gl_ndc_depth_to_z(d01, near, far)
-    np.testing.assert_allclose(fr.depth[fr.alpha], z[fr.alpha], rtol=1e-5)
+    np.testing.assert_allclose(fr.depth[fr.mask], z[fr.mask], rtol=1e-5)
 
 
 def test_mesh_colour_honours_supersample(gl_ctx, model):
@@ -78,7 +78,7 @@ def test_mesh_colour_honours_supersample(gl_ctx, model):
     H, W = eye.height, eye.width
     ref = big.rgb.reshape(H, 2, W, 2, 3).mean(axis=(1, 3))
     assert_images_close(a.rgb, ref, mean_tol=1e-6, max_tol=1e-5, what="mesh-colour supersampled vs averaged")
-    np.testing.assert_allclose(a.coverage, big.coverage.reshape(H, 2, W, 2).mean(axis=(1, 3)), atol=1e-6)
+    np.testing.assert_allclose(a.alpha, big.alpha.reshape(H, 2, W, 2).mean(axis=(1, 3)), atol=1e-6)
     assert a.stats.supersample == 2
 
 

@@ -2,11 +2,21 @@
 // Pass 2 of the gather method (full-screen triangle): the pixel's point at its splatted depth,
 // its colour gathered from the K_BLEND nearest kept views (Catmull-Rom bicubic when
 // RESAMPLE_CUBIC, else bilinear), weighted by (1 / angle) x soft visibility.
+// With HAS_ALPHA (a model with a matte) the colour resampled is premultiplied rgb + alpha (COL =
+// vec4), blended with the same weights; without, the straight rgb (COL = vec3) and alpha 1.
 // Twin: render/gather/reference.py gather / sample_view / cubic / bilinear.
-// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A.
+// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A, HAS_ALPHA.
 #include "framebuffer_row.glsl"
 uniform sampler2D front_z;       // pass 1 (framebuffer rows), Z_EMPTY where no splat landed
 uniform sampler2DArray rgbz;     // layer i: linear rgb + z-depth (m, 0 = none) of kept view i
+#if HAS_ALPHA
+uniform sampler2DArray rgba;     // layer i: linear rgb x alpha + alpha of kept view i
+#define COL vec4
+#define FETCH_COL(c) texelFetch(rgba, c, 0)
+#else
+#define COL vec3
+#define FETCH_COL(c) texelFetch(rgbz, c, 0).rgb
+#endif
 uniform int height;              // eye image height (pixels)
 uniform vec4 eye_intr;           // fx, fy, cx, cy of the eye (OpenCV)
 uniform float eye_skew;
@@ -19,8 +29,8 @@ uniform int layer[K_BLEND];      // their RGBz layers
 uniform float weight[K_BLEND];   // 1 / angle; 0 = unused slot
 layout(location = 0) out vec4 out_colour;
 
-vec3 texel(int l, int x, int y, ivec2 size) {
-    return texelFetch(rgbz, ivec3(clamp(x, 0, size.x - 1), clamp(y, 0, size.y - 1), l), 0).rgb;
+COL texel(int l, int x, int y, ivec2 size) {
+    return FETCH_COL(ivec3(clamp(x, 0, size.x - 1), clamp(y, 0, size.y - 1), l));
 }
 
 // Keys cubic weights of the taps at -1, 0, 1, 2 from floor(x), t = x - floor(x).
@@ -31,19 +41,19 @@ vec4 cubic_weights(float t) {
 }
 
 // Colour of layer l resampled at uv (OpenCV pixels), taps clamped to the border.
-vec3 resample(int l, vec2 uv, ivec2 size) {
+COL resample(int l, vec2 uv, ivec2 size) {
     vec2 f0 = floor(uv);
     vec2 f = uv - f0;
     int x0 = int(f0.x), y0 = int(f0.y);
 #if RESAMPLE_CUBIC
     vec4 wx = cubic_weights(f.x), wy = cubic_weights(f.y);
-    vec3 acc = vec3(0.0);
+    COL acc = COL(0.0);
     for (int j = 0; j < 4; ++j) {
-        vec3 row = wx.x * texel(l, x0 - 1, y0 + j - 1, size) + wx.y * texel(l, x0, y0 + j - 1, size)
+        COL row = wx.x * texel(l, x0 - 1, y0 + j - 1, size) + wx.y * texel(l, x0, y0 + j - 1, size)
                  + wx.z * texel(l, x0 + 1, y0 + j - 1, size) + wx.w * texel(l, x0 + 2, y0 + j - 1, size);
         acc += wy[j] * row;
     }
-    return max(acc, vec3(0.0));
+    return max(acc, COL(0.0));
 #else
     return mix(mix(texel(l, x0, y0, size), texel(l, x0 + 1, y0, size), f.x),
                mix(texel(l, x0, y0 + 1, size), texel(l, x0 + 1, y0 + 1, size), f.x), f.y);
@@ -58,7 +68,7 @@ void main() {
     float xn = (float(pix.x) - eye_intr.z - eye_skew * yn) / eye_intr.x;
     vec3 X = eye_center + eye_rot * (vec3(xn, yn, 1.0) * z);
     ivec2 size = textureSize(rgbz, 0).xy;
-    vec3 acc = vec3(0.0);
+    COL acc = COL(0.0);
     float wsum = 0.0;
     for (int j = 0; j < K_BLEND; ++j) {
         if (!(weight[j] > 0.0)) continue;
@@ -68,7 +78,7 @@ void main() {
         if (uv.x < -0.5 || uv.y < -0.5 || uv.x > float(size.x) - 0.5 || uv.y > float(size.y) - 0.5) continue;
         ivec2 ij = clamp(ivec2(floor(uv + 0.5)), ivec2(0), size - 1);
         float d = texelFetch(rgbz, ivec3(ij, layer[j]), 0).a;
-        vec3 col = resample(layer[j], uv, size);
+        COL col = resample(layer[j], uv, size);
         float e = (d - pc.z) / VIS_SIGMA;
         float vis = max(d > 0.0 ? exp(-0.5 * e * e) : 0.0, VIS_FLOOR);
         float w = weight[j] * vis;
@@ -76,5 +86,9 @@ void main() {
         wsum += w;
     }
     if (!(wsum > 0.0)) discard;
+#if HAS_ALPHA
+    out_colour = vec4(acc.rgb / wsum, min(acc.a / wsum, 1.0));
+#else
     out_colour = vec4(acc / wsum, 1.0);
+#endif
 }

@@ -13,20 +13,20 @@ void main() {
     int cand[K_CAND];
     float w[K_BLEND];
     select_cameras(v_world, 0.0, cand, w);
-    vec3 acc = vec3(0.0);
+    COL acc = COL(0.0);
     float wsum = 0.0;
-    vec3 col = v_color;
+    COL col = COL_OPAQUE(v_color);  // the vertex colour is opaque
     bool found = false;
     for (int k = 0; k < K_BLEND; ++k) {
         if (cand[k] < 0) break;
-        vec3 c;
+        COL c;
         if (rgbz_lookup(cand[k], v_world, vis_tol, c) == PASS) { acc += w[k] * c; wsum += w[k]; }
     }
     if (wsum > WEIGHT_EPS) { col = acc / wsum; found = true; }
     for (int k = 0; k < K_CAND && !found; ++k) {
         if (cand[k] < 0) break;
-        vec3 c;
+        COL c;
         if (rgbz_lookup(cand[k], v_world, vis_tol, c) == PASS) { col = c; found = true; }
     }
-    frag = vec4(col, 1.0);
+    frag = COL_RGBA(col);
 }

@@ -27,8 +27,8 @@ void main() {
         pr[j] = cand[j] >= 0 ? cam_project_h(cand[j], p) : vec3(0.0);
         e[j] = cand[j] >= 0 ? eye_h[cand[j]].xyz : vec3(0.0);
     }
-    vec3 col;
+    COL col;
     int src;
     shade(pr[0], pr[1], pr[2], pr[3], pr[4], pr[5], e, r.c03, r.c45.xy, r.weights.xyz, 0.5 * spacing, col, src);
-    frag = vec4(col, 1.0);
+    frag = COL_RGBA(col);
 }

@@ -10,7 +10,7 @@ out vec4 frag;
 // fragment; 2 = 1 for a drawn fragment, 2 for one that Eq. 2 / the vote rejects, the rejected
 // ones pushed behind everything drawn (DEBUG_BACK_DEPTH) so they show only where nothing passed.
 void main() {
-    vec3 col;
+    COL col;
     int src;
     bool drawn = shade_fragment(col, src);
 #if DEBUG_VIEW == 2
@@ -22,7 +22,7 @@ void main() {
 #if DEBUG_VIEW == 1
     frag = vec4(float(src + 1), 0.0, 0.0, 1.0);
 #else
-    frag = vec4(col, 1.0);
+    frag = COL_RGBA(col);
 #endif
 #endif
 }

@@ -6,7 +6,7 @@ flat in ivec2 v_c45;
 flat in vec3 v_w;
 flat in vec3 v_eye_proj[N_PROJ];
 
-bool shade_fragment(out vec3 col, out int src) {
+bool shade_fragment(out COL col, out int src) {
     vec3 p[K_CAND], e[K_CAND];
     for (int j = 0; j < K_CAND; ++j) {
         p[j] = j < N_PROJ ? v_proj[min(j, N_PROJ - 1)] : vec3(0.0);

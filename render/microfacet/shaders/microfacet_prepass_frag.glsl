@@ -11,7 +11,7 @@ flat in int v_id;
 out float record;
 
 void main() {
-    vec3 col;
+    COL col;
     int src;
     if (!shade_fragment(col, src))
         discard;

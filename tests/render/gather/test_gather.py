@@ -53,9 +53,9 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, i, phase, resample):
     with GatherRenderer.from_model(gl_ctx, model, config=cfg) as r:
         fr = r.render(eye)
     assert fr.stats.facets == n > 0 and fr.stats.supersample == 1
-    both = (fr.coverage > 0) & (cov > 0)
+    both = (fr.alpha > 0) & (cov > 0)
     assert cov.sum() > 500
-    assert np.mean((fr.coverage > 0) != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
+    assert np.mean((fr.alpha > 0) != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
     same = both & (np.abs(fr.depth - depth) <= DEPTH_RTOL * depth)
     assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
     np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL)
@@ -120,7 +120,7 @@ def test_gather_hard_cases(gl_ctx, model):
     with create_renderer("gather", gl_ctx, m1) as r:
         fr = r.render(eye)
         rgb, cov, _, _ = _twin(eye, m1)
-        assert fr.alpha.sum() > 100 and np.mean(fr.alpha != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
+        assert fr.mask.sum() > 100 and np.mean(fr.mask != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
         inside = Camera(eye.K, look_at(centre, centre + np.array([0.3, 0.0, 0.0])), eye.width, eye.height)
         fi = r.render(inside)
         assert np.all(np.isfinite(fi.rgb)) and np.all(fi.depth >= 0)
@@ -128,11 +128,11 @@ def test_gather_hard_cases(gl_ctx, model):
         top = Camera(eye.K, look_at(centre + np.array([0, 0, 0.45]), centre, (0.0, 1.0, 0.0)), eye.width, eye.height)
         ft = r.render(top)
         rgb, cov, _, _ = _twin(top, model)
-        assert ft.alpha.any() and np.mean(ft.alpha != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
+        assert ft.mask.any() and np.mean(ft.mask != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
     m0 = _with_rgbz(model, RgbzImages(model.rgbz.rgb, np.zeros_like(model.rgbz.depth), cams))
     with create_renderer("gather", gl_ctx, m0) as r:
         fe = r.render(eye)
-        assert not fe.alpha.any() and fe.stats.facets == 0
+        assert not fe.mask.any() and fe.stats.facets == 0
 
 
 def test_shared_context_state_is_left_as_found(gl_ctx, model):
@@ -145,3 +145,70 @@ def test_shared_context_state_is_left_as_found(gl_ctx, model):
     with GatherRenderer.from_model(gl_ctx, model) as r:
         r.render(eye)
     assert gl_ctx.point_size == before
+
+
+@pytest.fixture(scope="module")
+def alpha_model(model):
+    return scene.with_alpha(model, scene.soft_matte(model.rgbz.depth))
+
+
+@pytest.mark.parametrize("i,phase,resample", [(2, 17.0, "cubic"), (7, 10.0, "linear")])
+def test_alpha_gpu_matches_numpy_twin(gl_ctx, alpha_model, i, phase, resample):
+    """With a matte: premultiplied colour and alpha blended alike on the GPU and in the twin."""
+    from render.gather.gl import GatherRenderer
+
+    m = alpha_model
+    eye = scene.ring_cameras(12, phase_deg=phase, elevations=(12,))[i]
+    cfg = gr.GatherConfig(resample=resample)
+    clouds = pr.back_project(m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth)
+    rgb, a, depth, n = gr.gather_frame(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg,
+                                       alpha=m.rgbz.alpha)
+    with GatherRenderer.from_model(gl_ctx, m, config=cfg) as r:
+        fr = r.render(eye)
+    assert np.mean((a > 0) & (a < 0.999)) > 0.05, "the matte gives partial pixels"
+    assert np.mean(fr.mask != (a > 0)) <= COVERAGE_MISMATCH_FRAC
+    both = fr.mask & (a > 0)
+    same = both & (np.abs(fr.depth - depth) <= DEPTH_RTOL * depth)
+    assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
+    np.testing.assert_allclose(fr.alpha[same], a[same], atol=COLOUR_TOL)
+    np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL)
+
+
+def test_alpha_blends_premultiplied_colour(model):
+    """Twin by hand: a fringe pixel keeps the views' foreground colour (premult / alpha = straight
+    colour of the views when they agree), not black; an opaque matte gives the matte-less frame."""
+    eye = scene.ring_cameras(12, phase_deg=10.0, elevations=(12,))[7]
+    clouds = pr.back_project(model.rgbz.cameras, model.rgbz.rgb, model.rgbz.depth)
+    args = (eye, clouds, model.rgbz.cameras, model.rgbz.rgb, model.rgbz.depth, model.bounds.mean(0))
+    rgb0, a0, d0, _ = gr.gather_frame(*args)
+    half = np.where(model.rgbz.depth > 0, 0.5, 0.0).astype(np.float32)
+    rgb1, a1, d1, _ = gr.gather_frame(*args, alpha=half)
+    ones = (model.rgbz.depth > 0).astype(np.float32)
+    rgb2, a2, _, _ = gr.gather_frame(*args, alpha=ones)
+    inner = (a0 > 0) & (np.abs(a1 - 0.5) < 1e-6)  # all taps inside the matte
+    assert inner.mean() > 0.05
+    # a constant matte 0.5: alpha 0.5 wherever the blend cameras measured depth, the straight colour unchanged
+    np.testing.assert_allclose(rgb1[inner] / a1[inner, None], rgb0[inner], atol=1e-5)
+    assert np.all(a1[(a0 > 0) & (d1 > 0)] <= 0.5 + 1e-6)
+    assert set(np.unique(a0)) <= {0.0, 1.0}
+    np.testing.assert_allclose(rgb2, rgb0, atol=1e-5)
+
+
+def test_no_matte_is_the_opaque_path(gl_ctx, model):
+    """alpha None: the shader without HAS_ALPHA (the path of the matte-less method), a 0 / 1 alpha;
+    a matte of ones on the depth gives the same colour wherever its taps all lie on the depth
+    (elsewhere the taps off the object now count as transparent, not as their colour); over black
+    both frames are the same everywhere (the matte is 0 where the photos are black)."""
+    eye = scene.ring_cameras(12, phase_deg=10.0, elevations=(12,))[7]
+    ones = scene.with_alpha(model, (model.rgbz.depth > 0).astype(np.float32))
+    with create_renderer("gather", gl_ctx, model) as r, create_renderer("gather", gl_ctx, ones) as r1:
+        assert r.alpha_tex is None and r1.alpha_tex is not None
+        fr, f1 = r.render(eye), r1.render(eye)
+    assert set(np.unique(fr.alpha)) <= {0.0, 1.0}
+    assert not np.any(f1.mask & ~fr.mask)
+    full = f1.alpha > 1 - 1e-6
+    assert full.sum() > 0.5 * fr.mask.sum()  # 96 x 72: edges and views seeing past the object are many
+    np.testing.assert_allclose(f1.rgb[full], fr.rgb[full], atol=1e-5)
+    black = model.rgbz.depth == 0
+    assert np.all(model.rgbz.rgb[black] == 0), "the test scene's photos are black off the object"
+    np.testing.assert_allclose(f1.rgb[f1.mask], fr.rgb[f1.mask], atol=1e-5)

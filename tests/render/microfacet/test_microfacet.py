@@ -115,7 +115,7 @@ def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
         eye = scene.ring_cameras(12, phase_deg=19, elevations=(8,))[3]
         fr = r.render(eye, tolerance_px=4.0, level=2)
         img, alive, _ = _twin(model, eye, 2, fr.stats.spacing, rule, n_fallback)
-        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+        assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                             outlier_frac=TWIN_OUTLIER_FRAC, what=f"{rule}/{n_fallback} vs twin")
     finally:
@@ -143,9 +143,36 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
             np.testing.assert_array_equal(rec["cand"], idx[rec["voxel"]])
             np.testing.assert_allclose(rec["weights"], w[rec["voxel"]], atol=WEIGHT_TOL)
             np.testing.assert_allclose(rec["s"], rec["n"] * fr.stats.spacing, rtol=1e-6)
-        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+        assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                             outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} vs twin")
+    finally:
+        r.release()
+
+
+@pytest.mark.parametrize("mode,cull,prepass", [("instanced", True, True), ("geometry", False, False)])
+def test_alpha_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
+    """With a matte: premultiplied colour + alpha through Eq. 2, the vote, the fallback and the
+    parallax refinement on the GPU as in the twin; the frame's alpha is the blended view alpha."""
+    from render.microfacet.rgbz_textures import twin_colours
+
+    ma = scene.with_alpha(model, scene.soft_matte(model.rgbz.depth))
+    r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
+                           model.bounds, RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass,
+                           alpha=ma.rgbz.alpha)
+    try:
+        eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
+        fr = r.render(eye, tolerance_px=2.0, level=2)
+        lv = model.pyramid.levels[2]
+        depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
+        img, alive, _ = reference_render(eye, lv.centers(), lv.voxel_size, fr.stats.spacing, model.rgbz.cameras,
+                                         twin_colours(model.rgbz.rgb, ma.rgbz.alpha), depth, model.bounds)
+        assert img.shape[-1] == 4 and np.mean(alive & (img[..., 3] > 0.05) & (img[..., 3] < 0.95)) > 0.02
+        assert np.mean(alive != (fr.depth > 0)) <= TWIN_OUTLIER_FRAC
+        assert_images_close(fr.rgb, img[..., :3].astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
+                            outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} rgb with alpha vs twin")
+        assert_images_close(fr.alpha[..., None], img[..., 3:].astype(np.float32), mean_tol=TWIN_MEAN_TOL,
+                            max_tol=TWIN_MAX_TOL, outlier_frac=TWIN_OUTLIER_FRAC, what=f"{mode} alpha vs twin")
     finally:
         r.release()
 
@@ -157,7 +184,7 @@ def test_geometry_shader_equals_instanced(gl_ctx, model, renderer):
         a = renderer.render(eye, tolerance_px=4.0)
         b = g.render(eye, tolerance_px=4.0)
         assert (a.stats.level, a.stats.facets) == (b.stats.level, b.stats.facets)
-        assert np.mean(a.alpha != b.alpha) <= TWIN_OUTLIER_FRAC
+        assert np.mean(a.mask != b.mask) <= TWIN_OUTLIER_FRAC
         assert_images_close(a.rgb, b.rgb, mean_tol=1e-4, max_tol=1e-3, outlier_frac=TWIN_OUTLIER_FRAC)
     finally:
         g.release()
@@ -174,12 +201,12 @@ def test_input_pose_reproduces_input(renderer, model, tolerance):
         cam = model.rgbz.cameras[i]
         fr = renderer.render(cam, tolerance_px=tolerance)
         ref = to_uint8_srgb(model.rgbz.rgb[i])
-        mask = (model.rgbz.depth[i] > 0) | fr.alpha
+        mask = (model.rgbz.depth[i] > 0) | fr.mask
         st = image_diff_stats(to_uint8_srgb(fr.rgb), ref, mask)
         assert st["psnr"] > INPUT_POSE_MIN_PSNR, st
         for lev in range(len(model.pyramid.levels)):  # every level, not only the automatic one
             fl = renderer.render(cam, tolerance_px=tolerance, level=lev)
-            st = image_diff_stats(to_uint8_srgb(fl.rgb), ref, (model.rgbz.depth[i] > 0) | fl.alpha)
+            st = image_diff_stats(to_uint8_srgb(fl.rgb), ref, (model.rgbz.depth[i] > 0) | fl.mask)
             assert st["psnr"] > INPUT_POSE_MIN_PSNR, (lev, st)
 
 
@@ -190,13 +217,13 @@ def test_one_camera_only(gl_ctx):
     r = MicrofacetRenderer.from_model(gl_ctx, m, ONE)
     try:
         fr = r.render(cams[0], tolerance_px=8.0)
-        st = image_diff_stats(to_uint8_srgb(fr.rgb), to_uint8_srgb(m.rgbz.rgb[0]), (m.rgbz.depth[0] > 0) | fr.alpha)
+        st = image_diff_stats(to_uint8_srgb(fr.rgb), to_uint8_srgb(m.rgbz.rgb[0]), (m.rgbz.depth[0] > 0) | fr.mask)
         assert st["psnr"] > INPUT_POSE_MIN_PSNR
         eye = scene.ring_cameras(12, phase_deg=10)[0]
         fr = r.render(eye, tolerance_px=8.0)
-        assert np.all(np.isfinite(fr.rgb)) and fr.alpha.any()
+        assert np.all(np.isfinite(fr.rgb)) and fr.mask.any()
         img, alive, _ = _twin(m, eye, fr.stats.level, fr.stats.spacing)
-        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+        assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
     finally:
         r.release()
 
@@ -208,9 +235,9 @@ def test_eye_inside_bounds(renderer, model):
     eye = Camera(K, look_at([0.11, -0.09, 0.1], [0.0, 0.0, 0.0]), 96, 72)
     assert np.all(eye.center > model.bounds[0]) and np.all(eye.center < model.bounds[1])
     fr = renderer.render(eye, tolerance_px=4.0, level=2)
-    assert np.all(np.isfinite(fr.rgb)) and fr.alpha.any()
+    assert np.all(np.isfinite(fr.rgb)) and fr.mask.any()
     img, alive, _ = _twin(model, eye, 2, fr.stats.spacing)
-    assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+    assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
     assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                         outlier_frac=TWIN_OUTLIER_FRAC)
 
@@ -240,7 +267,7 @@ def test_grazing_view(renderer, model):
     assert fr.stats.spacing >= mlod.min_spacing(w) * (1 - 1e-9)
     assert fr.stats.facets <= mg.MAX_SLICES * len(model.pyramid.levels[fr.stats.level].surface)
     img, alive, _ = _twin(model, eye, fr.stats.level, fr.stats.spacing)
-    assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+    assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
     assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                         outlier_frac=TWIN_OUTLIER_FRAC)
 
@@ -282,7 +309,7 @@ def test_empty_level(gl_ctx):
     try:
         for level in (None, 0, 3):
             fr = r.render(cams[2], tolerance_px=8.0, level=level)
-            assert fr.stats.level == -1 and fr.stats.facets == 0 and not fr.alpha.any() and not fr.rgb.any()
+            assert fr.stats.level == -1 and fr.stats.facets == 0 and not fr.mask.any() and not fr.rgb.any()
     finally:
         r.release()
 
@@ -298,7 +325,7 @@ def test_frame_depth_is_within_half_a_slice_of_the_surface(renderer, model):
     assert both.sum() > 0.8 * (true > 0).sum()
     err = np.abs(fr.depth[both] - true[both])
     assert np.quantile(err, 0.95) <= 0.5 * fr.stats.spacing + 1e-6, (np.quantile(err, 0.95), fr.stats.spacing)
-    assert np.all(fr.depth[~fr.alpha] == 0)
+    assert np.all(fr.depth[~fr.mask] == 0)
 
 
 # ------------------------------------------------------------------ parallax correction
@@ -320,10 +347,10 @@ def test_refinement_matches_twin_and_reduces_parallax(gl_ctx, model):
         finally:
             r.release()
         img, alive, _ = _twin(model, eye, 1, fr.stats.spacing, refine=refine)
-        assert np.mean(alive != fr.alpha) <= TWIN_OUTLIER_FRAC
+        assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
                             outlier_frac=TWIN_OUTLIER_FRAC, what=f"refine={refine} vs twin")
-        mask = (exact_depth > 0) & fr.alpha
+        mask = (exact_depth > 0) & fr.mask
         psnr[refine] = image_diff_stats(to_uint8_srgb(fr.rgb), to_uint8_srgb(exact), mask)["psnr"]
     assert psnr[2] >= psnr[0] + REFINE_MIN_GAIN_DB, psnr
 

@@ -41,20 +41,20 @@ def test_debug_outputs_match_the_twin(gl_ctx, model, mode):
         rej = r.render(eye, tolerance_px=2.0, level=2, debug="rejections")
         spacing = colour.stats.spacing
         # the camera view draws exactly the colour view's pixels, each with a camera index + 1
-        assert np.array_equal(cams.alpha, colour.alpha)
+        assert np.array_equal(cams.mask, colour.mask)
         codes = np.rint(cams.rgb[..., 0]).astype(int)
-        assert codes[cams.alpha].min() >= 1 and codes[cams.alpha].max() <= len(model.rgbz.cameras)
-        assert len(np.unique(codes[cams.alpha])) >= 2
+        assert codes[cams.mask].min() >= 1 and codes[cams.mask].max() <= len(model.rgbz.cameras)
+        assert len(np.unique(codes[cams.mask])) >= 2
         img, alive, _ = twin(model, eye, 2, spacing, "camera")
-        differ = (codes != np.rint(img[..., 0]).astype(int)) | (alive != cams.alpha)
+        differ = (codes != np.rint(img[..., 0]).astype(int)) | (alive != cams.mask)
         assert differ.mean() <= OUTLIER_FRAC, differ.mean()
         # rejections: kept where the colour view draws, rejected-only pixels around them
         rc = np.rint(rej.rgb[..., 0]).astype(int)
-        assert set(np.unique(rc[rej.alpha])) <= {DEBUG_KEPT, DEBUG_REJECTED}
-        assert np.mean((rc == DEBUG_KEPT) != colour.alpha) <= OUTLIER_FRAC
-        assert (rc == DEBUG_REJECTED).sum() > 0.05 * colour.alpha.sum()   # Eq. 2 carves a visible share
+        assert set(np.unique(rc[rej.mask])) <= {DEBUG_KEPT, DEBUG_REJECTED}
+        assert np.mean((rc == DEBUG_KEPT) != colour.mask) <= OUTLIER_FRAC
+        assert (rc == DEBUG_REJECTED).sum() > 0.05 * colour.mask.sum()   # Eq. 2 carves a visible share
         img, alive, _ = twin(model, eye, 2, spacing, "rejections")
-        differ = (rc != np.rint(img[..., 0]).astype(int)) | (alive != rej.alpha)
+        differ = (rc != np.rint(img[..., 0]).astype(int)) | (alive != rej.mask)
         assert differ.mean() <= OUTLIER_FRAC, differ.mean()
         # the colour output is unchanged by having drawn the debug ones
         again = r.render(eye, tolerance_px=2.0, level=2)

@@ -48,7 +48,7 @@ def test_furball_input_pose(gl_ctx, furball):
             fg = reference_foreground(scan)
             for level in [None, *range(len(model.pyramid.levels))]:
                 fr = r.render(scan.camera, tolerance_px=8.0, level=level)
-                p = metrics.psnr(scan.srgb8, fr.rgb, fg | fr.alpha)
+                p = metrics.psnr(scan.srgb8, fr.rgb, fg | fr.mask)
                 measured.append(p)
                 assert p > FURBALL_INPUT_POSE_MIN_PSNR, (i, level, fr.stats.resolution, p)
     finally:
@@ -77,7 +77,7 @@ def test_furball_between_cameras_beats_vertex_colour_floor(gl_ctx, furball):
             a = r.render(scan.camera, tolerance_px=8.0)
             b = c.render(scan.camera)
             assert metrics.psnr(scan.srgb8, a.rgb) > metrics.psnr(scan.srgb8, b.rgb)
-            assert metrics.hole_fraction(fg, a.alpha) < 0.2
+            assert metrics.hole_fraction(fg, a.mask) < 0.2
     finally:
         r.release()
         c.release()

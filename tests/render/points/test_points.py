@@ -105,7 +105,7 @@ def test_points_renderer_is_the_reference(gl_ctx, model):
     with create_renderer("points", gl_ctx, model, RenderOptions(supersample=2)) as r:
         fr = r.render(eye)
     np.testing.assert_array_equal(fr.rgb, rgb)
-    np.testing.assert_array_equal(fr.coverage, cov)
+    np.testing.assert_array_equal(fr.alpha, cov)
     np.testing.assert_array_equal(fr.depth, depth)
     assert fr.stats.facets == n > 0 and fr.stats.supersample == 1  # one sample whatever the options say
 
@@ -122,16 +122,40 @@ def test_points_hard_cases(gl_ctx, model):
     eye = scene.ring_cameras(12, phase_deg=10)[0]
     with create_renderer("points", gl_ctx, m1) as r:
         fr = r.render(eye)
-        assert fr.alpha.sum() > 100 and np.all(np.isfinite(fr.rgb))
+        assert fr.mask.sum() > 100 and np.all(np.isfinite(fr.rgb))
         inside = Camera(eye.K, look_at(centre, centre + np.array([0.3, 0.0, 0.0])), eye.width, eye.height)
         fi = r.render(inside)
         assert np.all(np.isfinite(fi.rgb)) and np.all(fi.depth >= 0)
         top = Camera(eye.K, look_at(centre + np.array([0, 0, 0.45]), centre, (0.0, 1.0, 0.0)), eye.width, eye.height)
         ft = r.render(top)
-        assert ft.alpha.any() and np.all(np.isfinite(ft.rgb))
+        assert ft.mask.any() and np.all(np.isfinite(ft.rgb))
     empty = RgbzImages(model.rgbz.rgb, np.zeros_like(model.rgbz.depth), cams)
     m0 = Model(model.pyramid, empty, model.spheres, model.mesh_vertices, model.mesh_faces, model.mesh_colors,
                model.bounds)
     with create_renderer("points", gl_ctx, m0) as r:
         fe = r.render(eye)
-        assert not fe.alpha.any() and fe.stats.facets == 0
+        assert not fe.mask.any() and fe.stats.facets == 0
+
+
+def test_points_carry_the_matte(gl_ctx, model):
+    """With a matte: the method is its reference with premultiplied colour + alpha; a constant
+    matte 0.5 halves the colour and gives alpha 0.5 wherever a point lands (straight colour kept)."""
+    eye = scene.ring_cameras(12, phase_deg=17, elevations=(12,))[2]
+    cams, centre = model.rgbz.cameras, model.bounds.mean(0)
+    matte = scene.soft_matte(model.rgbz.depth)
+    ma = scene.with_alpha(model, matte)
+    clouds = pr.back_project(cams, model.rgbz.rgb, model.rgbz.depth, ma.rgbz.alpha)
+    rgb, a, depth, n = pr.points_frame(eye, clouds, cams, centre)
+    with create_renderer("points", gl_ctx, ma) as r:
+        fr = r.render(eye)
+    np.testing.assert_array_equal(fr.rgb, rgb)
+    np.testing.assert_array_equal(fr.alpha, a)
+    np.testing.assert_array_equal(fr.depth, depth)
+    assert np.mean((a > 0) & (a < 0.99)) > 0.05
+    rgb0, a0, d0, _ = pr.points_frame(eye, pr.back_project(cams, model.rgbz.rgb, model.rgbz.depth), cams, centre)
+    half = np.where(model.rgbz.depth > 0, 0.5, 0.0)
+    rgb1, a1, d1, _ = pr.points_frame(eye, pr.back_project(cams, model.rgbz.rgb, model.rgbz.depth, half), cams, centre)
+    np.testing.assert_array_equal(a1 > 0, a0 > 0)
+    np.testing.assert_allclose(a1[a0 > 0], 0.5, atol=1e-6)
+    np.testing.assert_allclose(rgb1, 0.5 * rgb0, atol=1e-6)
+    np.testing.assert_array_equal(d1, d0)

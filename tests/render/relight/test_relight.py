@@ -60,7 +60,7 @@ def test_twins(gl_ctx, model):
                                **cfg.gain_kwargs())
         np.testing.assert_allclose(out.rgb, want, rtol=APPLY_RTOL, atol=1e-6)
         np.testing.assert_array_equal(out.rgb[dep == 0], fr.rgb[dep == 0])  # no depth: unchanged
-        assert out.coverage is fr.coverage or np.array_equal(out.coverage, fr.coverage)
+        assert out.alpha is fr.alpha or np.array_equal(out.alpha, fr.alpha)
 
 
 def test_lambertian_object_relit_like_the_rasteriser(gl_ctx, model):

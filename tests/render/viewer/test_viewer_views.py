@@ -81,3 +81,27 @@ def test_level_and_debug_views_of_a_method_that_gives_them(cam):
     assert lev.image[0, 0].tolist() == list(views.EMPTY_RGB)
     views.draw(scene, cam, ViewSettings(view="camera"), 2)
     assert r.asked[-1].debug == "camera" and r.asked[-1].supersample == 1
+
+
+@pytest.mark.gl
+def test_composite_env_uses_the_frames_matte(gl_ctx):
+    """The viewer composites with the frame's soft alpha: a half-transparent red square over a flat
+    map equals the analytic composite 0.5 red + 0.5 map drawn as an opaque object through the same
+    compositor and tone map (no glare)."""
+    from render.composite.pipeline import composite_frame
+    from render.shading.envmap import EnvMap
+    from render.viewer.settings import EnvSettings
+
+    cam = Camera(make_K(20.0, 20.0, 7.5, 7.5), look_at([0, -1, 0], [0, 0, 0]), 16, 16)
+    a = np.zeros((16, 16), np.float32)
+    a[4:12, 4:12] = 0.5
+    rgb = a[..., None] * np.array([1.0, 0.0, 0.0], np.float32)
+    fr = Frame(rgb, a, np.where(a > 0, 1.0, 0.0).astype(np.float32), FrameStats(0, 0, 0, 1))
+    B = np.array([0.2, 0.4, 0.6], np.float32)
+    env = EnvMap(np.broadcast_to(B, (8, 16, 3)).copy(), "flat")
+    with views.make_compositor(gl_ctx) as comp:
+        got = views.composite_env(gl_ctx, fr, cam, env, EnvSettings(map="flat", glare=False), None, (0, 0, 1), comp)
+        want = composite_frame(gl_ctx, rgb + (1 - a[..., None]) * B, np.ones((16, 16)), cam, env, glare=False,
+                               ground=False)  # the analytic composite, drawn as an opaque object
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    assert abs(got[8, 8, 0] - got[0, 0, 0]) > 0.05  # the square shows
