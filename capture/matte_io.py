@@ -3,7 +3,8 @@
 nerfstudio keys a per-frame mask as ``mask_path`` (binary: 0 = not the object).  furrow reads it as
 a soft straight alpha matte: an 8-bit image in 0..255 (a binary 0/1 image is read as 0/1), 16-bit in
 0..65535, the first channel of a colour mask; a colour image with an alpha channel (RGBA PNG)
-supplies its alpha when the frame has no ``mask_path``.  The mask must have the colour image's size.
+supplies its alpha when the frame has no ``mask_path`` (unless it is opaque everywhere).  The mask
+must have the colour image's size.
 The writer stores ``Scan.alpha`` as ``masks/NAME.png`` (8-bit) and keys it in ``mask_path``.
 """
 
@@ -59,8 +60,12 @@ def png_has_alpha(path: Path) -> bool:
 
 
 def rgba_alpha(path: Path) -> np.ndarray | None:
-    """(H, W) float32 alpha of an RGBA / grey-alpha PNG colour image, or None when it has none."""
-    return read_matte(path, _png_shape(path)) if png_has_alpha(path) else None
+    """(H, W) float32 alpha of an RGBA / grey-alpha PNG colour image, or None when it has none or
+    when it is opaque everywhere (an alpha channel that says nothing about the object)."""
+    if not png_has_alpha(path):
+        return None
+    a = read_matte(path, _png_shape(path))
+    return None if a.min() >= 1.0 else a
 
 
 def _png_shape(path: Path) -> tuple[int, int]:
