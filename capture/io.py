@@ -43,6 +43,7 @@ from capture.imageio import (
     write_exr,
     write_png,
 )
+from capture.matte_io import attach_mattes, write_matte
 from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, to_uint8_srgb
 
 TRANSFORMS = "transforms.json"
@@ -310,7 +311,7 @@ def read_transforms(path: Path, frames: str | None = None, progress=None) -> Sca
     meta = _load_json(tj)
     cams = read_cameras(tj)
     idx = select_indices(frames, len(cams))
-    scans, notes = [], []
+    scans, notes, rgb_paths = [], [], []
     it = progress(idx, "reading scans") if progress else idx
     for i in it:
         fc = cams[i]
@@ -323,6 +324,8 @@ def read_transforms(path: Path, frames: str | None = None, progress=None) -> Sca
             conf_path = _resolve_image(tj.parent, fc.confidence_file_path, "confidence file", where)
         scans.append(_load_scan(fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor, fc.file_path,
                                 conf_path, notes, units_from=str(tj)))
+        rgb_paths.append(rgb_path)
+    scans = attach_mattes(scans, meta["frames"], idx, tj.parent, rgb_paths, str(tj))  # mask_path / RGBA alpha
     fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
     bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
     if bounds is None:
@@ -445,7 +448,8 @@ def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
             rel_rgb = f"images/{stem}.png"
             rel_depth = f"depth/{stem}.{ext}"
             _write_images(s, tmp / rel_rgb, tmp / rel_depth, ext, unit)
-            frames.append({"file_path": rel_rgb, "depth_file_path": rel_depth, **s.camera.to_nerfstudio()})
+            frames.append({"file_path": rel_rgb, "depth_file_path": rel_depth, **s.camera.to_nerfstudio(),
+                           **write_matte(s, tmp, stem)})
         meta = {"camera_model": "PINHOLE", "depth_unit_scale_factor": unit, "frames": frames,
                 "furrow": {"bounds": np.asarray(scanset.bounds).tolist(),
                            "metadata": jsonable(scanset.metadata)}}

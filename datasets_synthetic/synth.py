@@ -22,7 +22,8 @@ import numpy as np
 
 from capture.camera import Camera
 from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
-from capture.scan import Scan, ScanSet
+from capture.scan import Scan, ScanSet, select_indices
+from datasets_synthetic.backdrop import SUPPORTS, clutter_background, support_layer, upward_radiance
 from datasets_synthetic.geometry import ply_bytes
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
@@ -37,6 +38,8 @@ from render.mesh.raster.gl import MeshRasterizer
 BOUNDS_MARGIN = 0.05
 #: Reference image width for the hole radii of NoiseConfig (radii scale with width / this).
 HOLE_RADIUS_REF_WIDTH = 640
+#: Backgrounds of SynthConfig.background.
+BACKGROUNDS = ("black", "env", "clutter")
 #: The CI-sized capture of ``--small``.
 SMALL_RIG = TurntableRig(views_per_ring=12, width=160, height=120)
 
@@ -61,7 +64,14 @@ class SynthConfig:
     supersample: int = 3
     """Colour supersampling factor (per axis); thin strands alias badly without it."""
     background: str = "black"
-    """Colour behind the object: 'env' (the environment map) or 'black'."""
+    """What is seen behind the object: 'black', 'env' (the environment map made visible) or
+    'clutter' (a room of coloured boxes, ``datasets_synthetic.backdrop``)."""
+    support: str = "none"
+    """Support under the object, in colour and in depth: 'none', 'disc' (a turntable) or 'table'."""
+    background_frames: str | None = None
+    """Rig views (slice spec, e.g. '0::2') that show the background and the support; the others are
+    over black with the object's depth only, as held-out views of the evaluation captures are
+    (None = every view)."""
     scene_params: dict = field(default_factory=dict)
     """Overrides of the scene's parameter dataclass (e.g. ``{"strands": 5000}``)."""
     views: tuple[int, ...] | None = None
@@ -72,8 +82,10 @@ class SynthConfig:
     rasteriser's 1-pixel box."""
 
     def __post_init__(self) -> None:
-        if self.background not in ("env", "black"):
-            raise ValueError(f"background must be 'env' or 'black', got {self.background!r}")
+        if self.background not in BACKGROUNDS:
+            raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {self.background!r}")
+        if self.support not in SUPPORTS:
+            raise ValueError(f"support must be one of {', '.join(SUPPORTS)}, got {self.support!r}")
         if self.supersample < 1:
             raise ValueError(f"supersample must be >= 1, got {self.supersample}")
         if not 0 <= self.pixel_filter_px <= 4:
@@ -131,6 +143,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
             raise ValueError(f"views {bad} out of range for a rig of {len(cams)} views")
         views = [views[i] for i in cfg.views]
     lc = cfg.lighting
+    shown = set(select_indices(cfg.background_frames, len(cams)))
     with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
         hair = prepare_hair(rast, scene.mesh, lighting, ambient_residual(env, lc), lc.hair_model, lc.hair_env_lights,
                             lc.shadows)
@@ -139,13 +152,10 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
             if hair is not None:
                 rast.set_emission(vertex_emission(hair, cam.center))
             res = rast.render(cam)
-            if cfg.background == "env":
-                bg = background(env, cam, lighting.exposure, cfg.lighting.rotation_deg)
-                rgb = res.color + (1.0 - res.alpha[..., None]) * bg
-            else:
-                rgb = res.color
+            rgb, depth = _surroundings(cfg, env, lighting.exposure, cam, res, scene, i in shown)
             rgb = path_tracer_filter(rgb, cfg.pixel_filter_px)
-            depth = res.depth
+            # the object's true matte: its supersampled coverage under the same film filter as the colour
+            matte = path_tracer_filter(res.alpha[..., None], cfg.pixel_filter_px)[..., 0]
             if nz.grazing_deg > 0:
                 depth = grazing_dropout(cam, depth, res.normal, nz.grazing_deg)
             if nz.holes_fraction > 0:
@@ -157,7 +167,8 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
             if nz.any_pose:
                 rec = perturb_pose(cam, _view_rng(cfg.seed, i, 3), nz.pose_rot_deg, nz.pose_trans_frac * diag)
             recorded.append(rec)
-            scans.append(Scan(np.clip(rgb, 0, None).astype(np.float32), depth, rec, name=f"{cam.name}.png"))
+            scans.append(Scan(np.clip(rgb, 0, None).astype(np.float32), depth, rec, name=f"{cam.name}.png",
+                              alpha=np.clip(matte, 0.0, 1.0)))
             clean.append(res.depth)
             normals.append(res.normal)
     info = {
@@ -166,13 +177,48 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
         "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(),
         "supersample": cfg.supersample, "pixel_filter_px": cfg.pixel_filter_px,
-        "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
+        "background": cfg.background, "support": _support_info(cfg, scene),
+        "background_frames": cfg.background_frames, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
         "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
             "sensor": cfg.sensor.name}
     true_cams = tuple(c for _, c in views)
+    if cfg.support != "none":  # a real capture has no bounds: a reader derives them from the depth, support included
+        from capture.io import auto_bounds
+
+        bounds = auto_bounds(scans)
     return Capture(ScanSet(tuple(scans), bounds, meta), scene, true_cams, np.stack(clean), np.stack(normals), info)
+
+
+def _support_info(cfg: SynthConfig, scene: Scene) -> dict:
+    """gt/scene.json's record of the support: kind, plane (world +z up, z = z0) and radius."""
+    v = scene.mesh.vertices
+    return {"kind": cfg.support, "plane_normal": [0.0, 0.0, 1.0], "z0": float(v[:, 2].min()),
+            "object_radius": float(np.hypot(v[:, 0], v[:, 1]).max())}
+
+
+def _surroundings(cfg: SynthConfig, env, exposure: float, cam: Camera, res, scene: Scene, shown: bool):
+    """(linear colour (H, W, 3), z-depth (H, W)) of one view: the object over the support over the
+    background (``datasets_synthetic.backdrop``; the support also in the depth) on views that show
+    them, the object over black with its own depth on the others."""
+    if not shown or (cfg.background == "black" and cfg.support == "none"):
+        return res.color, res.depth
+    a = res.alpha[..., None]
+    if cfg.background == "env":
+        bg = background(env, cam, exposure, cfg.lighting.rotation_deg)
+    elif cfg.background == "clutter":
+        bg = clutter_background(cam, upward_radiance(env, exposure), cfg.seed)
+    else:
+        bg = np.zeros_like(res.color)
+    depth = res.depth
+    if cfg.support != "none":
+        info = _support_info(cfg, scene)
+        s_col, s_cov, s_depth = support_layer(cam, cfg.support, info["z0"], info["object_radius"],
+                                              upward_radiance(env, exposure), cfg.supersample)
+        bg = s_col + (1.0 - s_cov[..., None]) * bg
+        depth = np.where(res.depth > 0, res.depth, s_depth).astype(np.float32)
+    return res.color + (1.0 - a) * bg, depth
 
 
 def _cameras_json(cams) -> bytes:

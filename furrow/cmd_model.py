@@ -26,7 +26,14 @@ cannot be relit.
 examples:
   furrow model out/furball_scan -o out/furball_model
   furrow model out/furball_scan -o out/m64 --frames 0::2 --max-res 64 --sdf tsdf --json
-  furrow model out/furball_scan -o out/furball_model --capture-env forest"""
+  furrow model out/furball_scan -o out/furball_model --capture-env forest
+  furrow model out/plant_room -o out/plant_model --matte estimate      (support and room removed, matte estimated)
+
+Before fusion the object is set apart from its surroundings (issue 20): the support plane under
+it (RANSAC in the depth), far depth and clutter outside the region the cameras look at are
+removed from the depth (--keep-support, --no-extent), and each view gets a soft alpha matte
+and the object's colour under it (--matte, --backdrop), stored in the model's RGBz images.
+Both stages print what they did and have a row in the stage table."""
 
 
 def _pow2(text: str) -> int:
@@ -76,7 +83,53 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="turn the capture lighting about the rig's up axis (degrees, as --env-rotation of render)")
     g.add_argument("--capture-env-fov", type=float, default=185.0, metavar="DEG",
                    help="field of view of --capture-env-fisheye (default 185)")
+    g = p.add_argument_group("the object apart from its surroundings (before fusion)")
+    g.add_argument("--keep-support", action="store_true",
+                   help="keep the support plane (table, turntable) the object stands on; by default it is found "
+                        "by RANSAC in the depth and removed with far depth and clutter (capture/extent.py)")
+    g.add_argument("--no-extent", action="store_true",
+                   help="use the depth as captured: no support, far-depth or clutter removal at all")
+    g.add_argument("--matte", choices=["auto", "given", "backdrop", "estimate", "off"], default="auto",
+                   help="soft alpha matte per view and the object's colour under it (capture/matting.py): auto "
+                        "(default: the capture's own matte, mask_path or RGBA alpha; else a plain backdrop, named "
+                        "or detected; else estimated from the depth by closed-form matting), given, backdrop, "
+                        "estimate, or off (the binary depth mask, as before)")
+    g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
+                   help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
+
+
+#: Named backdrop colours of --backdrop (sRGB 0-255).
+BACKDROPS = {"black": (0, 0, 0), "white": (255, 255, 255), "grey": (128, 128, 128), "gray": (128, 128, 128)}
+
+
+def _colour(text: str) -> tuple[float, float, float]:
+    """--backdrop COLOUR -> linear RGB in [0, 1]."""
+    t = text.strip().lower()
+    try:
+        if t in BACKDROPS:
+            c = BACKDROPS[t]
+        elif t.startswith("#") and len(t) == 7:
+            c = tuple(int(t[i:i + 2], 16) for i in (1, 3, 5))
+        else:
+            c = tuple(int(v) for v in t.split(","))
+    except ValueError:
+        c = ()
+    if len(c) != 3 or not all(0 <= v <= 255 for v in c):
+        raise argparse.ArgumentTypeError(f"bad colour {text!r}: use black, white, grey, #rrggbb or r,g,b (0-255)")
+    from capture.scan import srgb_to_linear
+
+    return tuple(float(v) for v in srgb_to_linear([v / 255 for v in c]))
+
+
+def _prepare(args):
+    """PrepareConfig of the extent / matte flags."""
+    from capture.extent import ExtentConfig
+    from capture.matting import MatteConfig
+    from volume.prepare import PrepareConfig
+
+    return PrepareConfig(extent=not args.no_extent, extent_cfg=ExtentConfig(keep_support=args.keep_support),
+                         matte=MatteConfig(mode=args.matte, backdrop=args.backdrop))
 
 
 def run(args, console) -> int:
@@ -90,7 +143,7 @@ def run(args, console) -> int:
 
     kw = dict(sdf=args.sdf,
               lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res)),
-              fusion=FusionConfig(quorum=args.quorum), sphere_error=args.sphere_error)
+              fusion=FusionConfig(quorum=args.quorum), sphere_error=args.sphere_error, prepare=_prepare(args))
     if args.reference_pipeline:
         cfg = ModelConfig.reference(**kw)
         cfg = replace(cfg, mesh=replace(cfg.mesh, target_faces=args.mesh_faces))
@@ -132,6 +185,7 @@ def run(args, console) -> int:
         console.print(f"RGBz hole fraction per view (min / mean / max over {len(h)} views): before "
                       f"{min(hb):.4f} / {sum(hb) / len(hb):.4f} / {max(hb):.4f}, after closing "
                       f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
+    _print_surroundings(console, summary["surroundings"])
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
@@ -161,3 +215,20 @@ def _with_capture_env(model, env, scanset, args):
                               f"{args.capture_env_fisheye or args.capture_env_mirrorball}"
     up = estimate_up([s.camera for s in scanset.scans])
     return dataclasses.replace(model, capture_env=CaptureLighting(env.data, up, args.capture_env_rotation, src))
+
+
+def _print_surroundings(console, rec: dict) -> None:
+    """The extent and matte stages' numbers, one line each."""
+    ex = rec.get("extent")
+    if ex:
+        r = ex["removed_fraction"]
+        plane = "no support plane" if ex["plane"] is None else \
+            (f"support plane n = {ex['plane'][:3]}, d = {ex['plane'][3]:+.4f} m ({ex['plane_inlier_fraction']:.1%} of "
+             f"the focus points){' kept' if ex['kept_support'] else ''}")
+        console.print(f"extent: {plane}; depth removed: support {r['support']:.2%}, far {r['far']:.2%}, "
+                      f"outside {r['outside']:.2%}", highlight=False)
+    m = rec.get("matte", {})
+    if m.get("mode") not in (None, "off"):
+        console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "
+                      f"{m['seconds_per_view_max']:.2f}), unknown {m['unknown_fraction_mean']:.2%}, partial alpha "
+                      f"{m['partial_fraction_mean']:.2%} of the pixels", highlight=False)

@@ -12,7 +12,13 @@ looking at the origin) under an environment map, and write a scan set: transform
 images/ (8-bit sRGB), depth/ (z-depth as an RGB-D sensor writes it: 16-bit PNG in millimetres, with
 one top-level "depth_unit_scale_factor": 0.001 in transforms.json, as nerfstudio reads it; or
 --depth-format png-0.1mm / exr) and gt/ (gt/mesh.ply exact geometry in metres, gt/scene.json
-parameters, gt/cameras_true.json when the recorded poses are perturbed).
+parameters, gt/cameras_true.json when the recorded poses are perturbed) and masks/ (the object's
+true alpha matte, 8-bit, its pixel coverage under the film filter; keyed per frame as mask_path).
+
+Real captures see the room behind the object and the table under it: --background env|clutter
+puts the lighting map or a cluttered room behind the object, --support disc|table a turntable or
+a table top under it (in colour and in depth); --background-frames 0::2 keeps the other views over
+black, as the evaluation captures' held-out views are (furrow eval SCANS --holdout 2).
 
 Colour is reconstructed with a Gaussian film filter of --pixel-filter pixels (default 0.5, the
 default of pbrt-v4 and Mitsuba 3), as a path tracer's images are; 0 keeps the 1-pixel box.
@@ -42,6 +48,7 @@ examples:
   furrow synth furball -o out/furball_scan --preview
   furrow synth plant -o out/plant_small --small
   furrow synth furball -o out/furball_relit --relight-env forest --relight-env sunset
+  furrow synth plant -o out/plant_room --background env --support table --background-frames 0::2
   furrow synth torus -o out/torus_noisy --depth-noise 0.002 --holes 0.02 --grazing 75 \\
       --pose-noise-deg 1 --pose-noise-frac 0.01"""
 
@@ -99,9 +106,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pixel-filter", type=float, default=0.5, metavar="SIGMA",
                    help="film filter: Gaussian of SIGMA pixels in total, like a path tracer's (default 0.5, "
                         "pbrt-v4 / Mitsuba 3); 0 = a 1-pixel box")
-    p.add_argument("--background", choices=["env", "black"], default="black",
+    p.add_argument("--background", choices=["black", "env", "clutter"], default="black",
                    help="what is seen behind the object: black (default, like a masked scan and like "
-                        "furrow render's output) or the environment map")
+                        "furrow render's output), env (the environment map made visible) or clutter (a room of "
+                        "coloured boxes on shelves over a tiled floor, out of the depth sensor's range)")
+    p.add_argument("--support", choices=["none", "disc", "table"], default="none",
+                   help="what the object stands on, in the colour AND in the depth: none (default), disc (a grey "
+                        "turntable 1.6x the object's radius) or table (a 1.2 x 0.8 m wooden table top); with a "
+                        "support the written bounds are derived from the depth, as a reader does for a real capture")
+    p.add_argument("--background-frames", default=None, metavar="SPEC",
+                   help="views that show the background and the support (slice spec, e.g. 0::2); the others are "
+                        "over black with the object's depth only, as held-out views of the evaluation captures "
+                        "(default: every view). The true matte is always written: masks/NAME.png, mask_path")
     p.add_argument("--depth-noise", type=float, default=0.0, metavar="K",
                    help="depth noise sigma = K z^2 (metres of sigma at 1 m; e.g. 0.002)")
     p.add_argument("--holes", type=float, default=0.0, metavar="FRAC",
@@ -165,7 +181,8 @@ def build_config(args):
             raise ValueError(f"--strands must be >= 1, got {strands}")
         params["strands"] = strands
     return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
-                       supersample=args.supersample, background=args.background, scene_params=params,
+                       supersample=args.supersample, background=args.background, support=args.support,
+                       background_frames=args.background_frames, scene_params=params,
                        pixel_filter_px=args.pixel_filter)
 
 

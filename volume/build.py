@@ -30,6 +30,7 @@ from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps,
 from volume.grid import cube_for_bounds
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
 from volume.model import Model, SdfLevel, SdfPyramid
+from volume.prepare import PrepareConfig, prepare_scans
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
 from volume.spheres import fit_spheres
@@ -60,6 +61,8 @@ class ModelConfig:
     """Mesh extraction."""
     rgbz: RgbzConfig = field(default_factory=RgbzConfig)
     """RGBz preparation (docs/methods.md §1.4)."""
+    prepare: PrepareConfig = field(default_factory=PrepareConfig)
+    """The object apart from its surroundings before fusion: extent and matte stages (volume.prepare)."""
     measured_voxels: bool = True
     """Voxels holding measured depth points of >= 2 scans are surface voxels too (volume.pyramid)."""
     keep_values: bool = True
@@ -130,6 +133,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     """
     cfg = cfg or ModelConfig()
     stage = stage or (lambda name: contextlib.nullcontext())
+    scanset, surroundings = prepare_scans(scanset, cfg.prepare, stage, progress)
     origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress, cfg.defer_finest)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     # N_i over the measured voxels (reported only; Eq. 1 divides by L^3, see volume.pyramid)
@@ -164,7 +168,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
               "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels,
               "sphere_level": sphere_res, "mesh_level": mesh_res,
               "eq1_fraction": {str(L): v for L, v in frac.items()},
-              "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
+              "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()},
+              "surroundings": jsonable(surroundings)}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
             "scanset_metadata": jsonable(scanset.metadata), **(provenance or {})}
     bounds = np.asarray(scanset.bounds, np.float64)
@@ -178,6 +183,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "spheres": len(spheres),
         "sphere_error": round(sphere_err, 5),
         "mesh": {"vertices": int(len(verts)), "faces": int(len(faces))},
+        "surroundings": jsonable(surroundings),
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
     }
     return model, summary

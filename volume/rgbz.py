@@ -126,4 +126,5 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
         depth[n] = closed
         stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(closed)})
     rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
-    return RgbzImages(rgb, depth, tuple(cams)), stats
+    alpha = None if any(s.alpha is None for s in scanset.scans) else np.stack([s.alpha for s in scanset.scans])
+    return RgbzImages(rgb, depth, tuple(cams), alpha), stats

@@ -44,7 +44,7 @@ def phone_copy(full: Path, low: Path, dst: Path) -> None:
         bgr = cv2.imread(str(full / f["file_path"]))
         cv2.imwrite(str(dst / "images" / f"{stem}.jpg"), bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
         cv2.imwrite(str(dst / "depth" / f"{stem}.png"), np.round(s.depth / 0.001).astype(np.uint16))
-        frame = {k: v for k, v in f.items() if k != "depth_unit_scale_factor"}
+        frame = {k: v for k, v in f.items() if k not in ("depth_unit_scale_factor", "mask_path")}  # a phone: no matte
         frame.update(file_path=f"images/{stem}.jpg", depth_file_path=f"depth/{stem}.png")
         frames.append(frame)
     out = {k: v for k, v in meta.items() if k not in ("frames", "depth_unit_scale_factor")}

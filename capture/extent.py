@@ -1,0 +1,214 @@
+"""The object's extent from the capture itself: support plane, far depth and clutter out of the depth.
+
+A real capture's depth sees more than the object: the table or turntable it stands on, the wall
+behind it, clutter beside it.  Fused as they are, they become part of the model (issue 20: a table
+top in the depth raised L_opt from 8 to 256).  :func:`remove_surroundings` sets the depth of every
+pixel that is not the object to 0 before fusion, RGBz and every method, and says what it removed:
+
+* **focus region**: the rig looks at one region.  Its centre is the point nearest to every optical
+  axis (``capture.orbit.closest_point_to_axes``); its radius is ``FOCUS_MARGIN`` times what the
+  widest camera sees across its half diagonal at its distance to that centre (the median over the
+  cameras).  Depth outside that sphere is ``far`` (behind the centre along the ray) or ``outside``
+  (walls and clutter beside it).
+* **support**: a plane fitted by RANSAC (Open3D ``segment_plane``, seeded) to the world points in
+  the focus region, accepted only when it is roughly perpendicular to the rig's up axis
+  (``capture.orbit.estimate_up``; within ``PLANE_MAX_TILT_DEG``), holds at least
+  ``SUPPORT_MIN_FRACTION`` of those points, lies under the focus centre and every camera, and has
+  almost nothing (``SUPPORT_MAX_BELOW``) of the rest below it: an object stands on its support.  A
+  flat top of the object itself (the soil in a pot) has the pot's walls below it and is refused.
+  Depth within ``SUPPORT_BAND`` inlier distances above the plane, or anywhere below it, is
+  ``support``.  ``ExtentConfig.keep_support`` keeps it.
+
+A capture with nothing but the object comes out unchanged (no plane passes the tests and every
+point is inside the focus region).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from capture.orbit import closest_point_to_axes, estimate_up
+from capture.scan import Scan, ScanSet, bounds_from_points
+
+#: Removal reasons, in the order they are decided.
+REASONS = ("support", "far", "outside")
+#: Focus-region radius as a multiple of what a camera sees across its half diagonal at the focus centre.
+FOCUS_MARGIN = 1.5
+#: RANSAC inlier distance as a fraction of the focus radius (3.6 mm at a 0.36 m focus radius).
+PLANE_DISTANCE_FRACTION = 0.01
+#: Points within this many inlier distances above the accepted plane are support too (the band
+#: a noisy sensor spreads the table over; the object loses as much of its foot).
+SUPPORT_BAND = 1.5
+#: Largest angle between the support's normal and the rig's up axis (degrees).
+PLANE_MAX_TILT_DEG = 25.0
+#: Least fraction of the focus region's points on the plane for it to be a support.
+SUPPORT_MIN_FRACTION = 0.05
+#: Largest fraction of the other focus-region points allowed below the plane (an object stands on it).
+SUPPORT_MAX_BELOW = 0.02
+#: Planes tried (each refused plane's inliers are set aside before the next fit).
+PLANE_TRIES = 3
+#: Points given to RANSAC (a seeded random subset of the focus region's points).
+RANSAC_POINTS = 60000
+RANSAC_ITERATIONS = 1000
+RANSAC_SEED = 0
+
+
+@dataclass(frozen=True)
+class ExtentConfig:
+    """Settings of :func:`remove_surroundings`."""
+
+    #: Keep the support plane in the depth (``furrow model --keep-support``); far depth and clutter still go.
+    keep_support: bool = False
+    #: Multiple of the camera's half-diagonal view at the focus centre that bounds the focus region.
+    focus_margin: float = FOCUS_MARGIN
+
+    def __post_init__(self) -> None:
+        if not self.focus_margin > 0:
+            raise ValueError(f"focus_margin must be > 0, got {self.focus_margin}")
+
+
+@dataclass(frozen=True)
+class ExtentReport:
+    """What :func:`remove_surroundings` found and removed.
+
+    Attributes:
+        plane: (4,) float64 support plane (n_x, n_y, n_z, d), n . p + d = 0 with unit n pointing up
+            (towards the cameras), metres; None when no support was found (or it was kept).
+        plane_inlier_fraction: fraction of the focus region's points the plane holds (0 without one).
+        focus_center: (3,) world point the rig looks at (metres).
+        focus_radius: radius of the focus region (metres).
+        up: (3,) unit rig up axis.
+        removed: reason -> fraction of all depth pixels of the capture removed for it (``REASONS``).
+        per_view: per scan, reason -> fraction of that scan's depth pixels removed.
+        kept_support: True when the support was found but kept (``keep_support``).
+    """
+
+    plane: np.ndarray | None
+    plane_inlier_fraction: float
+    focus_center: np.ndarray
+    focus_radius: float
+    up: np.ndarray
+    removed: dict = field(default_factory=dict)
+    per_view: tuple = ()
+    kept_support: bool = False
+
+    def record(self) -> dict:
+        """JSON-able summary (model.json params, ``furrow model --json``)."""
+        return {"plane": None if self.plane is None else [round(float(v), 6) for v in self.plane],
+                "plane_inlier_fraction": round(self.plane_inlier_fraction, 5),
+                "kept_support": self.kept_support,
+                "focus_center": [round(float(v), 5) for v in self.focus_center],
+                "focus_radius": round(self.focus_radius, 5), "up": [round(float(v), 5) for v in self.up],
+                "removed_fraction": {k: round(v, 6) for k, v in self.removed.items()},
+                "removed_fraction_total": round(sum(self.removed.values()), 6)}
+
+
+def focus_region(cameras, margin: float = FOCUS_MARGIN) -> tuple[np.ndarray, float]:
+    """(centre (3,), radius) of the region the rig looks at (module docstring)."""
+    center = closest_point_to_axes(cameras)
+    r = []
+    for c in cameras:
+        half_diag = 0.5 * np.hypot(c.width / c.K[0, 0], c.height / c.K[1, 1])
+        r.append(np.linalg.norm(c.center - center) * half_diag)
+    return center, float(margin * np.median(r))
+
+
+def fit_support_plane(points: np.ndarray, up: np.ndarray, center: np.ndarray, cam_centers: np.ndarray,
+                      threshold: float) -> tuple[np.ndarray | None, float]:
+    """(plane (4,) with its normal towards ``up``, inlier fraction) of the support under the focus
+    region's ``points`` (N, 3), or (None, 0.0) when no plane passes the tests of the module docstring."""
+    import open3d as o3d
+
+    pts = np.asarray(points, np.float64)
+    if len(pts) > RANSAC_POINTS:
+        pts = pts[np.random.default_rng(RANSAC_SEED).choice(len(pts), RANSAC_POINTS, replace=False)]
+    n_all = len(pts)
+    rest = pts
+    cos_tilt = np.cos(np.radians(PLANE_MAX_TILT_DEG))
+    for _ in range(PLANE_TRIES):
+        if len(rest) < max(3, SUPPORT_MIN_FRACTION * n_all):
+            break
+        o3d.utility.random.seed(RANSAC_SEED)
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(rest))
+        model, inl = pcd.segment_plane(threshold, 3, RANSAC_ITERATIONS)
+        plane = np.asarray(model, np.float64).ravel()
+        plane /= np.linalg.norm(plane[:3])
+        if plane[:3] @ up < 0:
+            plane = -plane
+        inl = np.asarray(inl, np.int64)
+        h = rest @ plane[:3] + plane[3]
+        others = np.ones(len(rest), bool)
+        others[inl] = False
+        below = np.mean(h[others] < -SUPPORT_BAND * threshold) if others.any() else 0.0
+        if (plane[:3] @ up >= cos_tilt and len(inl) >= SUPPORT_MIN_FRACTION * n_all
+                and center @ plane[:3] + plane[3] > 0 and np.all(cam_centers @ plane[:3] + plane[3] > 0)
+                and below <= SUPPORT_MAX_BELOW):
+            return plane, len(inl) / n_all
+        rest = rest[others]
+    return None, 0.0
+
+
+def _labels(scan: Scan, center: np.ndarray, radius: float, plane: np.ndarray | None, band: float) -> np.ndarray:
+    """(H, W) int8: 0 = kept / no depth, 1 + index in REASONS = removed for that reason."""
+    lab = np.zeros(scan.depth.shape, np.int8)
+    pts, mask = scan.camera.depth_to_points(scan.depth)
+    if not len(pts):
+        return lab
+    out = np.zeros(len(pts), np.int8)
+    if plane is not None:
+        out[pts @ plane[:3] + plane[3] < band] = 1
+    d = np.linalg.norm(pts - center, axis=1)
+    z_center = scan.camera.world_to_cam(center)[2]
+    beyond = (d > radius) & (out == 0)
+    out[beyond] = np.where(scan.depth[mask][beyond] > z_center, 2, 3)
+    lab[mask] = out
+    return lab
+
+
+def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None) -> tuple[ScanSet, ExtentReport]:
+    """``scanset`` with the depth of everything but the object set to 0 (module docstring), its
+    bounds shrunk to the remaining depth (never grown), and the report.  Colour and mattes are kept."""
+    cfg = cfg or ExtentConfig()
+    cams = scanset.cameras
+    up = estimate_up(cams)
+    center, radius = focus_region(cams, cfg.focus_margin)
+    thr = PLANE_DISTANCE_FRACTION * radius
+    pts = [s.points() for s in scanset.scans]
+    allp = np.concatenate([p for p in pts if len(p)] or [np.zeros((0, 3))])
+    focus = allp[np.linalg.norm(allp - center, axis=1) <= radius]
+    plane, frac = fit_support_plane(focus, up, center, np.array([c.center for c in cams]), thr) \
+        if len(focus) >= 3 else (None, 0.0)
+    kept = plane is not None and cfg.keep_support
+    use_plane = None if kept else plane
+    scans, per_view = [], []
+    totals = dict.fromkeys(REASONS, 0)
+    n_valid = 0
+    for s in scanset.scans:
+        lab = _labels(s, center, radius, use_plane, SUPPORT_BAND * thr)
+        nv = int(np.count_nonzero(s.valid))
+        n_valid += nv
+        counts = {r: int(np.count_nonzero(lab == k + 1)) for k, r in enumerate(REASONS)}
+        for r in REASONS:
+            totals[r] += counts[r]
+        per_view.append({r: (counts[r] / nv if nv else 0.0) for r in REASONS})
+        scans.append(s if not lab.any() else Scan(s.rgb, np.where(lab > 0, 0.0, s.depth), s.camera, s.name, s.alpha))
+    removed_any = any(sc is not s for sc, s in zip(scans, scanset.scans, strict=True))
+    out = ScanSet(tuple(scans), _shrunk_bounds(scanset.bounds, scans), scanset.metadata) if removed_any else scanset
+    removed = {r: (totals[r] / n_valid if n_valid else 0.0) for r in REASONS}
+    return out, ExtentReport(plane, frac, center, radius, up, removed, tuple(per_view), kept)
+
+
+def _shrunk_bounds(bounds: np.ndarray, scans) -> np.ndarray:
+    """``bounds`` intersected with the robust box of the scans' remaining depth (capture.io.auto_bounds)."""
+    from capture.io import AUTO_BOUNDS_MARGIN, AUTO_BOUNDS_PERCENTILES
+
+    pts = np.concatenate([p for p in (s.points() for s in scans) if len(p)] or [np.zeros((0, 3))])
+    if len(pts) < 2:
+        return bounds
+    lo, hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0), np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1],
+                                                                                   axis=0)
+    auto = bounds_from_points(np.stack([lo, hi]), AUTO_BOUNDS_MARGIN)
+    b = np.stack([np.maximum(bounds[0], auto[0]), np.minimum(bounds[1], auto[1])])
+    return b if np.all(b[1] > b[0]) else bounds

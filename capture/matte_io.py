@@ -1,0 +1,108 @@
+"""The object's alpha matte on disk: per-frame ``mask_path`` of transforms.json and RGBA colour images.
+
+nerfstudio keys a per-frame mask as ``mask_path`` (binary: 0 = not the object).  furrow reads it as
+a soft straight alpha matte: an 8-bit image in 0..255 (a binary 0/1 image is read as 0/1), 16-bit in
+0..65535, the first channel of a colour mask; a colour image with an alpha channel (RGBA PNG)
+supplies its alpha when the frame has no ``mask_path`` (unless it is opaque everywhere).  The mask
+must have the colour image's size.
+The writer stores ``Scan.alpha`` as ``masks/NAME.png`` (8-bit) and keys it in ``mask_path``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from capture.imageio import ScanIOError, write_png
+from capture.scan import Scan, ScanError
+
+#: Folder of the mattes written beside images/ and depth/.
+MASK_DIR = "masks"
+#: PNG colour types (IHDR byte 25) that carry alpha: grey + alpha and RGBA.
+PNG_ALPHA_TYPES = (4, 6)
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def read_matte(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) float32 alpha in [0, 1] from a mask image (module docstring); ``shape`` = (H, W)."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise ScanIOError(f"{path}: mask not found")
+    m = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if m is None:
+        raise ScanIOError(f"{path}: not a readable mask image (corrupt or unsupported format)")
+    if m.ndim == 3:
+        m = m[..., 3] if m.shape[2] == 4 else m[..., 0]
+    if m.shape != tuple(shape):
+        raise ScanIOError(f"{path}: mask is {m.shape[1]}x{m.shape[0]} but its colour image is {shape[1]}x{shape[0]}")
+    if m.dtype == np.bool_ or (np.issubdtype(m.dtype, np.integer) and m.max(initial=0) <= 1):
+        return m.astype(np.float32)
+    if m.dtype == np.uint8:
+        return m.astype(np.float32) / 255.0
+    if m.dtype == np.uint16:
+        return m.astype(np.float32) / 65535.0
+    if np.issubdtype(m.dtype, np.floating):
+        return np.clip(np.nan_to_num(m.astype(np.float32)), 0.0, 1.0)
+    raise ScanIOError(f"{path}: unsupported mask dtype {m.dtype}")
+
+
+def png_has_alpha(path: Path) -> bool:
+    """True when ``path`` is a PNG whose colour type carries an alpha channel (reads 26 bytes)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(26)
+    except OSError:
+        return False
+    return len(head) == 26 and head[:8] == PNG_SIGNATURE and head[25] in PNG_ALPHA_TYPES
+
+
+def rgba_alpha(path: Path) -> np.ndarray | None:
+    """(H, W) float32 alpha of an RGBA / grey-alpha PNG colour image, or None when it has none or
+    when it is opaque everywhere (an alpha channel that says nothing about the object)."""
+    if not png_has_alpha(path):
+        return None
+    a = read_matte(path, _png_shape(path))
+    return None if a.min() >= 1.0 else a
+
+
+def _png_shape(path: Path) -> tuple[int, int]:
+    with open(path, "rb") as f:
+        head = f.read(24)
+    return int.from_bytes(head[20:24], "big"), int.from_bytes(head[16:20], "big")
+
+
+def attach_mattes(scans: list[Scan], frames: list, idx: list[int], base: Path, rgb_paths: list[Path],
+                  where: str) -> list[Scan]:
+    """``scans`` (frames ``idx`` of the transforms.json ``frames`` list at ``where``, colour files
+    ``rgb_paths``) with ``alpha`` set from each frame's ``mask_path``, else its RGBA colour image."""
+    out = []
+    for s, i, rgb_path in zip(scans, idx, rgb_paths, strict=True):
+        fr = frames[i]
+        rel = fr.get("mask_path") if isinstance(fr, dict) else None
+        if rel is not None and (not isinstance(rel, str) or not rel.strip()):
+            raise ScanIOError(f"{where} frame {i}: 'mask_path' must be a non-empty file path string, got {rel!r}")
+        if rel is not None:
+            p = Path(rel) if Path(rel).is_absolute() else Path(base) / rel
+            alpha = read_matte(p, s.depth.shape)
+        else:
+            alpha = rgba_alpha(rgb_path)
+        if alpha is None:
+            out.append(s)
+            continue
+        try:
+            out.append(Scan(s.rgb, s.depth, s.camera, s.name, alpha))
+        except ScanError as e:
+            raise ScanIOError(f"{where} frame {i}: {e}") from None
+    return out
+
+
+def write_matte(scan: Scan, folder: Path, stem: str) -> dict:
+    """Write ``scan.alpha`` as ``folder/masks/STEM.png`` (8-bit); the frame keys to add ({} without one)."""
+    if scan.alpha is None:
+        return {}
+    rel = f"{MASK_DIR}/{stem}.png"
+    write_png(Path(folder) / rel, np.round(np.clip(scan.alpha, 0, 1) * 255).astype(np.uint8))
+    return {"mask_path": rel}

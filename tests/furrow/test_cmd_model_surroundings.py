@@ -1,0 +1,82 @@
+"""`furrow model` with a table in the depth: --keep-support, --no-extent, --matte, --backdrop (issue 20)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from capture.io import write_transforms
+from capture.scan import Scan, ScanSet
+from furrow.cli import main
+from tests.scenes import make_scanset, ring_cameras, sphere_scene
+from volume.model import load_model
+
+#: The table top: z of the plane (the 7 cm sphere's bottom) and half its size (metres).
+TABLE_Z = -0.07
+TABLE_HALF = 0.4
+
+
+def _with_table(ss: ScanSet) -> ScanSet:
+    """The scans with a table top under the sphere in the depth (nearer surface wins) and in grey colour."""
+    scans = []
+    for s in ss.scans:
+        cam = s.camera
+        d = cam.pixel_rays(cam.pixel_grid()) @ cam.world_from_cam[:3, :3].T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(d[..., 2] < 0, (TABLE_Z - cam.center[2]) / d[..., 2], 0.0)
+        p = cam.center + t[..., None] * d
+        on = (t > 0) & np.all(np.abs(p[..., :2]) < TABLE_HALF, axis=-1)
+        depth = np.where((s.depth > 0) & ((s.depth < t) | ~on), s.depth, np.where(on, t, 0.0)).astype(np.float32)
+        rgb = np.where((on & (depth == t))[..., None], np.uint8(90), s.srgb8)
+        scans.append(Scan(rgb, depth, cam, s.name))
+    pts = np.concatenate([s.points() for s in scans])
+    return ScanSet(tuple(scans), np.stack([pts.min(0) - 0.01, pts.max(0) + 0.01]))
+
+
+@pytest.fixture(scope="module")
+def table_dir(tmp_path_factory):
+    cams = ring_cameras(8, 64, 48, elevations=(15.0, 30.0), fov_deg=32.0)  # all above the table top
+    ss = _with_table(make_scanset(sphere_scene(), cams, noise=0.0005))
+    out = tmp_path_factory.mktemp("scans") / "sphere_table"
+    write_transforms(ss, out)
+    return out
+
+
+def _model(argv, capsys):
+    rc = main(["model", *argv, "--max-res", "32", "--json"])
+    out = capsys.readouterr()
+    return rc, (json.loads(out.out) if rc == 0 else None), out.err
+
+
+def test_table_is_removed_and_kept_on_request(table_dir, tmp_path, capsys):
+    rc, s, err = _model([str(table_dir), "-o", str(tmp_path / "m")], capsys)
+    assert rc == 0, err
+    ex = s["surroundings"]["extent"]
+    assert ex["plane"] is not None and abs(ex["plane"][3] - 0.07) < 0.003 and ex["removed_fraction"]["support"] > 0.2
+    assert "extent" in s["seconds"] and "matte warm-up" in s["seconds"] and "extent: support plane" in err
+    m = load_model(tmp_path / "m")
+    assert np.all(m.bounds[1] - m.bounds[0] < 0.2)  # the sphere's box, not the table's
+    assert m.rgbz.alpha is not None and m.params["surroundings"]["matte"]["mode"] == "auto"
+    rc, kept, err = _model([str(table_dir), "-o", str(tmp_path / "k"), "--keep-support", "--matte", "off"], capsys)
+    assert rc == 0, err
+    assert kept["surroundings"]["extent"]["kept_support"] and kept["surroundings"]["extent"]["removed_fraction"][
+        "support"] == 0.0
+    k = load_model(tmp_path / "k")
+    assert k.rgbz.alpha is None and np.ptp(k.mesh_vertices[:, 0]) > 0.3  # the table is modelled
+    rc, raw, err = _model([str(table_dir), "-o", str(tmp_path / "r"), "--no-extent", "--matte", "off"], capsys)
+    assert rc == 0, err and "extent" not in raw["surroundings"]
+
+
+def test_flags_are_explained_and_checked(table_dir, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["model", "--help"])
+    text = capsys.readouterr().out
+    for flag in ("--keep-support", "--no-extent", "--matte", "--backdrop"):
+        assert flag in text
+    with pytest.raises(SystemExit):
+        main(["model", str(table_dir), "-o", str(tmp_path / "x"), "--backdrop", "mauve"])
+    assert "bad colour 'mauve'" in capsys.readouterr().err
+    rc = main(["model", str(table_dir), "-o", str(tmp_path / "y"), "--matte", "backdrop"])
+    assert rc != 0 and "needs --backdrop" in capsys.readouterr().err
