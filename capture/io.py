@@ -106,8 +106,7 @@ def _load_json(path: Path) -> dict:
 
 
 def read_cameras(path: Path, undistort: str = DEFAULT_UNDISTORT) -> list[FrameCamera]:
-    """Cameras of a transforms.json (file or folder), without reading any image (distorted frames:
-    the pinhole camera they are undistorted to, ``undistort``: capture.lens)."""
+    """Cameras of a transforms.json (file or folder), without reading any image (undistorted: capture.lens)."""
     tj = resolve_transforms(path)
     meta = _load_json(tj)
     frames = meta.get("frames")
