@@ -22,7 +22,9 @@ import numpy as np
 
 from capture.camera import Camera
 from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
+from capture.lens import Lens
 from capture.scan import Scan, ScanSet
+from datasets_synthetic.camera_traits import render_through_lens
 from datasets_synthetic.geometry import ply_bytes
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
@@ -70,6 +72,8 @@ class SynthConfig:
     """Film filter of the colour: a Gaussian of this standard deviation in total, like a path
     tracer's (``datasets_synthetic.pixel_filter``; ``furrow synth`` defaults to 0.5); 0 = the
     rasteriser's 1-pixel box."""
+    lens: Lens | None = None
+    """Lens distortion of every view (datasets_synthetic.camera_traits; None = pinhole)."""
 
     def __post_init__(self) -> None:
         if self.background not in ("env", "black"):
@@ -138,7 +142,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
             if hair is not None:
                 rast.set_emission(vertex_emission(hair, cam.center))
-            res = rast.render(cam)
+            res = rast.render(cam) if cfg.lens is None else render_through_lens(rast, cam, cfg.lens)
             if cfg.background == "env":
                 bg = background(env, cam, lighting.exposure, cfg.lighting.rotation_deg)
                 rgb = res.color + (1.0 - res.alpha[..., None]) * bg
@@ -166,7 +170,8 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "params": scene.params, "stats": scene.stats, "rig": asdict(cfg.rig), "lighting": light_info,
         "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(),
         "supersample": cfg.supersample, "pixel_filter_px": cfg.pixel_filter_px,
-        "background": cfg.background, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
+        "background": cfg.background, "poses_perturbed": nz.any_pose,
+        "lens": cfg.lens.record() if cfg.lens is not None else None, "shadow_maps": shadow_info,
         "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
@@ -201,5 +206,7 @@ def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: b
     ``datasets_synthetic.relight.relit_files``."""
     files = gt_files(cap)
     files.update(extra_files or {})
+    lens = cap.info.get("lens")
+    lens = Lens(lens["model"], tuple(lens["coeffs"]), lens["source"]) if lens else None
     return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,
-                            extra_files=files, progress=progress, png_depth_unit=png_depth_unit)
+                            extra_files=files, progress=progress, png_depth_unit=png_depth_unit, lens=lens)
