@@ -9,7 +9,7 @@ correction ``g_i`` is estimated from what neighbouring views see of the same sur
    depth and projected into each of its nearest views j (by viewing direction); it counts when
    j measures the same depth there (relative ``depth_tol``), both colours are neither dark
    (quantisation dominates the log) nor clipped, the depth is smooth around it in view i (no
-   silhouette edge) and, when a matte is known, both pixels are opaque.
+   silhouette edge, ``edge_tol``) and, when a matte is known, both pixels are opaque.
 2. **Pair ratios.**  For every pair, per channel, a robust location of ``log c_j - log c_i``
    (median, then Huber IRLS steps) and its weight (samples / robust variance): fur, glints and
    occlusion edges are view-dependent outliers, and the median over thousands of samples ignores
@@ -58,9 +58,11 @@ class PhotometricConfig:
     """Largest angle between the viewing directions of a compared pair (degrees)."""
     stride: int = 2
     """Sample every stride-th pixel (each axis) of each view."""
-    depth_tol: float = 0.01
+    depth_tol: float = 0.02
     """Depth agreement of a correspondence, relative to its depth."""
-    min_linear: float = 0.01
+    edge_tol: float = 0.05
+    """A sample's 3x3 depth range must stay within this fraction of its depth (no silhouette edge)."""
+    min_linear: float = 0.004
     """Darkest linear value of a usable sample (every channel)."""
     max_srgb: float = 250 / 255
     """Brightest sRGB value of a usable sample (every channel): brighter may be clipped."""
@@ -76,8 +78,8 @@ class PhotometricConfig:
     def __post_init__(self) -> None:
         if self.neighbours < 1 or self.stride < 1 or self.min_samples < 1:
             raise ValueError("photometric: neighbours, stride and min_samples must be >= 1")
-        if not (0 < self.depth_tol < 1 and 0 < self.min_linear < 1 and 0 < self.max_srgb <= 1):
-            raise ValueError("photometric: depth_tol, min_linear and max_srgb must be in (0, 1)")
+        if not all(0 < v < 1 for v in (self.depth_tol, self.edge_tol, self.min_linear)) or not 0 < self.max_srgb <= 1:
+            raise ValueError("photometric: depth_tol, edge_tol, min_linear and max_srgb must be in (0, 1)")
         if self.affine:
             raise ValueError("photometric: the affine colour model is not implemented (gains only)")
 
@@ -144,7 +146,7 @@ def _usable(scan: Scan, cfg: PhotometricConfig) -> tuple[np.ndarray, np.ndarray]
     d = scan.depth
     hi = cv2.dilate(d, np.ones((3, 3), np.uint8))
     lo = cv2.erode(np.where(d > 0, d, np.inf).astype(np.float32), np.ones((3, 3), np.uint8))
-    ok = (d > 0) & np.isfinite(lo) & (hi - lo <= cfg.depth_tol * d)
+    ok = (d > 0) & np.isfinite(lo) & (hi - lo <= cfg.edge_tol * d)
     ok &= np.all(lin >= cfg.min_linear, axis=2) & np.all(lin <= srgb_to_linear(np.float32(cfg.max_srgb)), axis=2)
     if scan.alpha is not None:
         ok &= scan.alpha >= 1.0 - 1e-3
