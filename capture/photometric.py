@@ -41,6 +41,8 @@ IRLS_STEPS = 6
 #: Floor of a pair's robust standard deviation (log units): keeps one very consistent pair from
 #: dominating the solve.
 SIGMA_FLOOR = 0.01
+#: Automatic sampling stride: one step per this many pixels of the shorter image side.
+AUTO_STRIDE_PX = 240
 #: Systematic error of a pair's ratio (log units: view-dependent shading that does not average
 #: out over its samples), added in quadrature to its statistical error.
 PAIR_BIAS = 0.01
@@ -56,8 +58,9 @@ class PhotometricConfig:
     """Views each view is compared with (nearest by viewing direction)."""
     max_angle_deg: float = 75.0
     """Largest angle between the viewing directions of a compared pair (degrees)."""
-    stride: int = 2
-    """Sample every stride-th pixel (each axis) of each view."""
+    stride: int = 0
+    """Sample every stride-th pixel (each axis) of each view; 0 = one per :data:`AUTO_STRIDE_PX` of
+    the shorter image side (2 at 640x480, 1 for small images)."""
     depth_tol: float = 0.02
     """Depth agreement of a correspondence, relative to its depth."""
     edge_tol: float = 0.05
@@ -76,8 +79,8 @@ class PhotometricConfig:
     """Reserved: only the per-channel gain is estimated (an offset was not worth it, see the report)."""
 
     def __post_init__(self) -> None:
-        if self.neighbours < 1 or self.stride < 1 or self.min_samples < 1:
-            raise ValueError("photometric: neighbours, stride and min_samples must be >= 1")
+        if self.neighbours < 1 or self.stride < 0 or self.min_samples < 1:
+            raise ValueError("photometric: neighbours and min_samples must be >= 1, stride >= 0")
         if not all(0 < v < 1 for v in (self.depth_tol, self.edge_tol, self.min_linear)) or not 0 < self.max_srgb <= 1:
             raise ValueError("photometric: depth_tol, edge_tol, min_linear and max_srgb must be in (0, 1)")
         if self.affine:
@@ -170,8 +173,9 @@ def pair_log_ratios(si: Scan, sj: Scan, prep_i, prep_j, cfg: PhotometricConfig) 
     """(N, 3) ``log c_j - log c_i`` over the correspondences of view i's samples in view j."""
     lin_i, ok_i = prep_i
     lin_j, ok_j = prep_j
-    vv, uu = np.nonzero(ok_i[::cfg.stride, ::cfg.stride])
-    vv, uu = vv * cfg.stride, uu * cfg.stride
+    step = cfg.stride or max(1, min(ok_i.shape) // AUTO_STRIDE_PX)
+    vv, uu = np.nonzero(ok_i[::step, ::step])
+    vv, uu = vv * step, uu * step
     if len(uu) == 0:
         return np.zeros((0, 3))
     uv = np.stack([uu, vv], axis=1).astype(np.float64)

@@ -140,6 +140,9 @@ def run(args, console) -> int:
                       f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
     if summary.get("photometric"):
         console.print(photometric_table(summary["photometric"]))
+        if summary["photometric"]["unaligned"]:
+            console.print(f"[yellow]photometric: {len(summary['photometric']['unaligned'])} views share no usable "
+                          "surface with a neighbour and keep their colour[/]", highlight=False)
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
