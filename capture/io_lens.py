@@ -39,11 +39,16 @@ def frame_lens(fr: dict, meta: dict, where: str) -> Lens | None:
 
 def pinhole_camera(cam: Camera, lens: Lens, undistort: str, where: str) -> Camera:
     """The pinhole camera a distorted ``cam`` is undistorted to (capture.lens.undistorted_camera)."""
+    import cv2
+
     try:
         K, w, h = undistorted_camera(cam.K, lens, cam.width, cam.height, undistort)
         return Camera(K, cam.cam_from_world, w, h, name=cam.name)
     except (LensError, CameraError) as e:
         raise ScanIOError(f"{where}: {e}") from None
+    except cv2.error as e:
+        msg = str(e).strip().splitlines()[-1][:160] if str(e).strip() else "OpenCV error"
+        raise ScanIOError(f"{where}: cannot undistort {lens.source or lens.model} {list(lens.coeffs)}: {msg}") from None
 
 
 def note_undistorted(lenses: list, undistort: str, metadata: dict) -> None:

@@ -45,6 +45,9 @@ DEFAULT_UNDISTORT = "crop"
 #: Edge-aware depth resampling: the four source samples are interpolated only when
 #: (max - min) <= this fraction of min (else the nearest sample is taken).
 DEPTH_AGREE_REL = 0.01
+#: The undistorted focal length must stay within this factor of the distorted one (else the
+#: coefficients are absurd for the image: an error, not a camera of 1e300 pixels).
+MAX_FOCAL_CHANGE = 8.0
 #: Iterations / tolerance of the iterative point undistortion (cv2.undistortPoints with criteria).
 UNDISTORT_ITERATIONS = 100
 UNDISTORT_EPS = 1e-12
@@ -199,12 +202,21 @@ def undistorted_camera(K: np.ndarray, lens: Lens, width: int, height: int,
                        mode: str = DEFAULT_UNDISTORT) -> tuple[np.ndarray, int, int]:
     """(K_new, width, height) of the pinhole camera a distorted one is undistorted to (module
     docstring: ``crop`` = nerfstudio's choice, ``full`` keeps every source pixel)."""
-    import cv2
 
     if mode not in UNDISTORT_MODES:
         raise LensError(f"undistort mode must be one of {', '.join(UNDISTORT_MODES)}, got {mode!r}")
     K = np.asarray(K, np.float64)
-    size = (int(width), int(height))
+    K_new, w, h = _new_camera(K, lens, (int(width), int(height)), mode)
+    ratio = K_new[0, 0] / K[0, 0] if np.all(np.isfinite(K_new)) else np.inf
+    if not 1 / MAX_FOCAL_CHANGE <= ratio <= MAX_FOCAL_CHANGE:
+        raise LensError(f"{lens.source or lens.model} {list(lens.coeffs)}: undistortion changes the focal length "
+                        f"by a factor {ratio:.3g} (distortion too strong for this image size?)")
+    return K_new, w, h
+
+
+def _new_camera(K: np.ndarray, lens: Lens, size: tuple[int, int], mode: str) -> tuple[np.ndarray, int, int]:
+    import cv2
+
     if lens.fisheye:
         balance = 0.0 if mode == "crop" else 1.0
         K_new = cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(K, lens.dist, size, np.eye(3),
