@@ -15,7 +15,7 @@ def test_errors_ignore_the_global_gain_and_split_ev_from_white_balance():
     off = 1.0 / truth
     off[4] *= 2 ** 0.1                                      # one view 0.1 EV too bright, white balance right
     e = errors(off, truth)
-    assert abs(e["ev_max"] - 0.1) < 1e-9 and e["wb_pct_max"] < 1e-9 and e["ev_median"] == 0
+    assert abs(e["ev_max"] - 0.1) < 1e-9 and e["wb_pct_max"] < 1e-9 and e["ev_median"] < 1e-12
     off = 1.0 / truth
     off[2] *= np.exp2([0.05, 0.0, -0.05])                  # a white-balance error only
     e = errors(off, truth)
