@@ -43,6 +43,8 @@ IRLS_STEPS = 6
 SIGMA_FLOOR = 0.01
 #: Automatic sampling stride: one step per this many pixels of the shorter image side.
 AUTO_STRIDE_PX = 240
+#: Ratios (appearance variance / exposure variance) tried by :func:`exposure_part`.
+APPEARANCE_RATIOS = np.logspace(-3, 4, 29)
 #: Systematic error of a pair's ratio (log units: view-dependent shading that does not average
 #: out over its samples), added in quadrature to its statistical error.
 PAIR_BIAS = 0.01
@@ -75,6 +77,10 @@ class PhotometricConfig:
     """Huber threshold in robust standard deviations (pair locations and the joint solve)."""
     reference: str = "median"
     """Gauge: ``median``, ``mean`` or the name of the view whose colour is kept."""
+    appearance_deg: float = 30.0
+    """Correlation angle of view-dependent appearance between viewing directions (degrees), which
+    separates it from per-view exposure (:func:`exposure_part`); 0 = take every difference between
+    views for exposure."""
     affine: bool = False
     """Reserved: only the per-channel gain is estimated (an offset was not worth it, see the report)."""
 
@@ -244,6 +250,36 @@ def solve_gains(n_views: int, edges: list[tuple[int, int, np.ndarray, np.ndarray
     return x, float(np.median(np.abs(A[:E] @ x - d))) if E else 0.0
 
 
+def exposure_part(x: np.ndarray, forward: np.ndarray, corr_deg: float) -> tuple[np.ndarray, float]:
+    """The per-view exposure in log gains ``x`` (V, 3), separated from view-dependent appearance.
+
+    ``x = e + a``: exposure e is independent per view (covariance s_e I); appearance a is
+    correlated between views that look from similar directions (covariance s_a K, K_ij =
+    exp(-angle_ij^2 / 2 corr_deg^2) from the viewing directions ``forward`` (V, 3)).  The ratio
+    s_a / s_e is chosen by maximum likelihood (profiled over s_e, the three channels pooled, the
+    global gain projected out), and e is its posterior mean (Wiener filter).  A capture whose views
+    differ only smoothly with the viewpoint (fur lit from one side) keeps its colours; one whose
+    views jump independently (auto exposure) is corrected.  Returns (e, s_a / s_e)."""
+    n = len(x)
+    if n < 3:
+        return x, 0.0
+    cos = np.clip(forward @ forward.T, -1.0, 1.0)
+    K = np.exp(-np.degrees(np.arccos(cos)) ** 2 / (2 * corr_deg ** 2))
+    Q = np.linalg.svd(np.eye(n) - 1.0 / n, hermitian=True)[0][:, : n - 1]   # basis without the global gain
+    y = Q.T @ x
+    Kq = Q.T @ K @ Q
+    best = None
+    for r in APPEARANCE_RATIOS:
+        M = np.eye(n - 1) + r * Kq
+        sign, logdet = np.linalg.slogdet(M)
+        quad = float(np.sum(y * np.linalg.solve(M, y)))
+        nll = 3 * (n - 1) * np.log(quad / (3 * (n - 1)) + 1e-300) + 3 * logdet
+        if best is None or nll < best[0]:
+            best = (nll, r, M)
+    _, r, M = best
+    return Q @ np.linalg.solve(M, y), float(r)
+
+
 def _connected(n: int, edges) -> np.ndarray:
     """(V,) bool: views joined by at least one edge."""
     seen = np.zeros(n, bool)
@@ -271,6 +307,9 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None) -
         edges.append((i, j, mu, np.sqrt(sigma ** 2 / len(r) + PAIR_BIAS ** 2)))
         samples += len(r)
     x, resid = solve_gains(len(scans), edges, cfg.huber) if edges else (np.zeros((len(scans), 3)), 0.0)
+    ratio = 0.0
+    if cfg.appearance_deg > 0 and edges:
+        x, ratio = exposure_part(x, np.stack([s.camera.forward for s in scans]), cfg.appearance_deg)
     linked = _connected(len(scans), edges)
     x[~linked] = np.nan
     if cfg.reference == "median":
@@ -281,7 +320,7 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None) -
         x = x - x[names.index(cfg.reference)]
     x = np.nan_to_num(x, nan=0.0)
     return PhotometricResult(names, np.exp(x), len(edges), samples, tuple(n for n, k in zip(names, linked) if not k),
-                             cfg.reference, resid)
+                             cfg.reference, resid, {"appearance_to_exposure": ratio})
 
 
 def apply_gains(scans, gains: np.ndarray) -> tuple[Scan, ...]:
