@@ -105,6 +105,7 @@ class PhotometricResult:
         unaligned: names of views with no usable pair (gain 1).
         reference: the gauge used (``median``, ``mean`` or a view name).
         residual: median absolute pair residual after the solve (log units).
+        meta: JSON-able extras (``appearance_to_exposure``: the variance ratio of exposure_part).
     """
 
     names: tuple[str, ...]
@@ -136,6 +137,7 @@ class PhotometricResult:
         """JSON-able record (model.json params / the model report)."""
         return {"reference": self.reference, "pairs": self.pairs, "samples": self.samples,
                 "residual_log": round(float(self.residual), 6), "unaligned": list(self.unaligned),
+                **{k: (round(v, 6) if isinstance(v, float) else v) for k, v in self.meta.items()},
                 "views": [{"name": n, "gain": [round(float(x), 6) for x in g], "ev": round(float(e), 5),
                            "wb": [round(float(x), 5) for x in w]}
                           for n, g, e, w in zip(self.names, self.gains, self.ev, self.white_balance, strict=True)]}

@@ -178,7 +178,8 @@ def photometric_table(rec: dict):
     from rich.table import Table
 
     t = Table(title=f"photometric alignment ({rec['pairs']} view pairs, {rec['samples']} samples, "
-                    f"reference {rec['reference']}, residual {rec['residual_log']:.4f} log)")
+                    f"reference {rec['reference']}, residual {rec['residual_log']:.4f} log, appearance / exposure "
+                    f"variance {rec.get('appearance_to_exposure', 0):.3g})")
     for c in ("view", "EV", "WB r", "WB g", "WB b"):
         t.add_column(c, justify="right")
     for v in rec["views"]:
