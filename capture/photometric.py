@@ -19,6 +19,12 @@ correction ``g_i`` is estimated from what neighbouring views see of the same sur
    global gain no view can tell) is fixed afterwards: ``median`` (default) puts the median view's
    gain of every channel at 1 (the median of the log gains over views, per channel), ``mean``
    the mean, a view name fixes that view.
+4. **Appearance is not exposure.**  Fur and needles look different from different directions
+   (lit and unlit sides, hair lobes): on a fur ball at fixed exposure the solve of step 3 finds
+   "gains" of +-0.5 EV that are real appearance, and applying them cost 0.5 dB held-out.  Exposure
+   jumps independently from view to view; appearance changes smoothly with the viewing direction.
+   :func:`exposure_part` splits the solved log gains into the two by maximum likelihood of their
+   variances and keeps only the independent part (``appearance_deg``; 0 = off).
 
 Views with no usable pair keep gain 1 (and are listed).  Everything is numpy over arrays of the
 scans; :func:`apply_gains` returns the scans with corrected colour (8-bit sRGB stays 8-bit).
