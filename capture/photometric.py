@@ -320,12 +320,14 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None) -
         x, ratio = exposure_part(x, np.stack([s.camera.forward for s in scans]), cfg.appearance_deg)
     linked = _connected(len(scans), edges)
     x[~linked] = np.nan
-    if cfg.reference == "median":
+    if not linked.any():
+        x[:] = 0.0
+    elif cfg.reference == "median":
         x = x - np.nanmedian(x, axis=0)
     elif cfg.reference == "mean":
         x = x - np.nanmean(x, axis=0)
-    else:
-        x = x - x[names.index(cfg.reference)]
+    else:   # a named view that is not linked keeps its colour; so does everything relative to it
+        x = x - np.nan_to_num(x[names.index(cfg.reference)], nan=0.0)
     x = np.nan_to_num(x, nan=0.0)
     return PhotometricResult(names, np.exp(x), len(edges), samples, tuple(n for n, k in zip(names, linked) if not k),
                              cfg.reference, resid, {"appearance_to_exposure": ratio})

@@ -92,3 +92,9 @@ def test_view_dependent_appearance_is_not_taken_for_exposure():
         e, _ = exposure_part(jumps, fwd, 30.0)
         rms.append(np.sqrt(np.mean((e - jumps) ** 2)) / np.sqrt(np.mean(jumps ** 2)))
     assert np.median(rms) < 0.01 and max(rms) < 0.5
+
+
+def test_views_without_a_usable_pair_keep_their_colour():
+    scans = _scans(_views(4, glints=0.0))
+    res = estimate_gains(scans, PhotometricConfig(max_angle_deg=1.0))
+    assert res.pairs == 0 and np.all(res.gains == 1.0) and len(res.unaligned) == 4
