@@ -216,6 +216,8 @@ def run(args, console) -> int:
         cfg = build_config(args)
         for env in (cfg.lighting.env, *args.relight_env):
             resolve_env(env)  # fail early on a bad --env / --relight-env
+        if args.lens and args.relight_env:
+            raise ValueError("--lens and --relight-env together are not supported (the relit views are pinhole)")
         labels = [map_label(e) for e in args.relight_env]
         if len(set(labels)) != len(labels):
             raise ValueError(f"--relight-env maps must have distinct names, got {', '.join(labels)}")
