@@ -10,6 +10,7 @@ dataparser takes the scale from its own ``--depth-unit-scale-factor`` option, de
 ignores per-frame keys: furrow's default millimetre PNG opens there at the right depth).
 Float EXR depth is in metres when no factor is given; a 16-bit PNG
 without a factor is an error (unknown units).  Depth is z-depth, 0 = no measurement.
+Lens distortion (``camera_model`` OPENCV / OPENCV_FISHEYE) is undistorted at read time (capture.lens).
 furrow adds an optional ``furrow`` block: ``{"bounds": [[x,y,z],[x,y,z]], "metadata": {...}}``.
 
 Phone and RGB-D captures as they come (Polycam, Record3D, ARKit): colour may be JPEG; a depth map
@@ -43,12 +44,12 @@ from capture.imageio import (
     write_exr,
     write_png,
 )
+from capture.io_lens import frame_lens, note_undistorted, pinhole_camera
+from capture.lens import DEFAULT_UNDISTORT, Lens, nerfstudio_keys, undistort_scan
 from capture.matte_io import attach_mattes, write_matte
 from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, to_uint8_srgb
 
 TRANSFORMS = "transforms.json"
-#: Distortion keys of nerfstudio; furrow's pinhole model requires them to be zero.
-DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 #: Percentiles of the back-projected depth used for automatic bounds (robust to outliers).
 AUTO_BOUNDS_PERCENTILES = (0.5, 99.5)
 #: Margin added around automatic bounds, as a fraction of their diagonal.
@@ -75,6 +76,9 @@ class FrameCamera:
     depth_file_path: str | None
     depth_unit_scale_factor: float | None
     confidence_file_path: str | None = None
+    #: Lens distortion (capture.lens) and the camera as written; ``camera`` is then the undistorted one.
+    lens: Lens | None = None
+    distorted: Camera | None = None
 
 
 def resolve_transforms(path: Path) -> Path:
@@ -102,8 +106,8 @@ def _load_json(path: Path) -> dict:
     return data
 
 
-def read_cameras(path: Path) -> list[FrameCamera]:
-    """Cameras of a transforms.json (file or folder), without reading any image."""
+def read_cameras(path: Path, undistort: str = DEFAULT_UNDISTORT) -> list[FrameCamera]:
+    """Cameras of a transforms.json (file or folder), without reading any image (undistorted: capture.lens)."""
     tj = resolve_transforms(path)
     meta = _load_json(tj)
     frames = meta.get("frames")
@@ -123,11 +127,6 @@ def read_cameras(path: Path) -> list[FrameCamera]:
                 raise ScanIOError(f"{_where}: missing intrinsic '{key}' (per frame or global)")
             return _finite(v, f"intrinsic '{key}'", _where)
 
-        for k in DISTORTION_KEYS:
-            v = fr.get(k, meta.get(k))
-            if v is not None and _finite(v, f"lens distortion '{k}'", where) != 0:
-                raise ScanIOError(f"{where}: lens distortion '{k}' is non-zero; furrow needs undistorted "
-                                  "pinhole images (undistort them first, e.g. with COLMAP image_undistorter)")
         if "transform_matrix" not in fr:
             raise ScanIOError(f"{where}: missing 'transform_matrix'")
         try:
@@ -140,13 +139,17 @@ def read_cameras(path: Path) -> list[FrameCamera]:
                                          name=paths["file_path"])
         except CameraError as e:
             raise ScanIOError(f"{where}: {e}") from None
+        lens, distorted = frame_lens(fr, meta, where), None
+        if lens is not None:
+            cam, distorted = pinhole_camera(cam, lens, undistort, where), cam
         unit = fr.get("depth_unit_scale_factor", meta.get("depth_unit_scale_factor"))
         if unit is not None:
             unit = _finite(unit, "depth_unit_scale_factor", where)
             if unit <= 0:
                 raise ScanIOError(f"{where}: depth_unit_scale_factor must be a positive number (metres per "
                                   f"depth unit), got {unit}")
-        out.append(FrameCamera(cam, paths["file_path"], paths["depth_file_path"], unit, paths["confidence_file_path"]))
+        out.append(FrameCamera(cam, paths["file_path"], paths["depth_file_path"], unit, paths["confidence_file_path"],
+                               lens, distorted))
     return out
 
 
@@ -303,13 +306,14 @@ def _read_bounds(block, where: str):
     return b
 
 
-def read_transforms(path: Path, frames: str | None = None, progress=None) -> ScanSet:
-    """Read a nerfstudio transforms.json scan set (see module docstring)."""
+def read_transforms(path: Path, frames: str | None = None, progress=None,
+                    undistort: str = DEFAULT_UNDISTORT) -> ScanSet:
+    """Read a nerfstudio transforms.json scan set (module docstring; ``undistort``: capture.lens)."""
     from capture.scan import select_indices
 
     tj = resolve_transforms(path)
     meta = _load_json(tj)
-    cams = read_cameras(tj)
+    cams = read_cameras(tj, undistort)
     idx = select_indices(frames, len(cams))
     scans, notes, rgb_paths = [], [], []
     it = progress(idx, "reading scans") if progress else idx
@@ -322,10 +326,13 @@ def read_transforms(path: Path, frames: str | None = None, progress=None) -> Sca
             depth_path = _resolve_image(tj.parent, fc.depth_file_path, "depth file", where)
         if fc.confidence_file_path is not None:
             conf_path = _resolve_image(tj.parent, fc.confidence_file_path, "confidence file", where)
-        scans.append(_load_scan(fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor, fc.file_path,
-                                conf_path, notes, units_from=str(tj)))
+        scans.append(_load_scan(fc.distorted or fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor,
+                                fc.file_path, conf_path, notes, units_from=str(tj)))
         rgb_paths.append(rgb_path)
-    scans = attach_mattes(scans, meta["frames"], idx, tj.parent, rgb_paths, str(tj))  # mask_path / RGBA alpha
+    # mattes (mask_path / RGBA alpha) are read at the captured size, then undistorted with the colour
+    scans = attach_mattes(scans, meta["frames"], idx, tj.parent, rgb_paths, str(tj))
+    scans = [s if cams[i].lens is None else undistort_scan(s, cams[i].lens, cams[i].distorted.K, cams[i].camera)
+             for s, i in zip(scans, idx, strict=True)]
     fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
     bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
     if bounds is None:
@@ -334,6 +341,7 @@ def read_transforms(path: Path, frames: str | None = None, progress=None) -> Sca
     md = dict(md) if isinstance(md, dict) else {}
     md.update(source=str(tj), format="transforms.json")
     log_resampled(notes, md)
+    note_undistorted([cams[i].lens for i in idx], undistort, md)
     if frames:
         md["frames"] = frames
     return ScanSet(tuple(scans), bounds, md)
@@ -377,7 +385,7 @@ def read_plain_folder(folder: Path, frames: str | None = None, progress=None) ->
     return ScanSet(tuple(scans), bounds, md)
 
 
-def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSet:
+def read_scanset(path: Path, frames: str | None = None, progress=None, undistort: str = DEFAULT_UNDISTORT) -> ScanSet:
     """Read a scan set: transforms.json (file or folder holding one), a plain folder, or a
     COLMAP folder (``sparse/0`` + ``images/`` + optional ``depth/`` and ``depth_units.json``)."""
     path = Path(path)
@@ -393,10 +401,10 @@ def read_scanset(path: Path, frames: str | None = None, progress=None) -> ScanSe
                 if unit is not None and (unit := _finite(unit, "depth_unit_scale_factor", str(units))) <= 0:
                     raise ScanIOError(f"{units}: depth_unit_scale_factor must be a positive number of metres")
                 depth = path / "depth" if (path / "depth").is_dir() else None
-                return read_colmap(model, path / "images", depth, unit, frames)
+                return read_colmap(model, path / "images", depth, unit, frames, undistort)
         raise ScanIOError(f"{path}: neither a {TRANSFORMS}, a plain folder layout (cameras/, rgb/, depth/) "
                           "nor a COLMAP layout (sparse/0/, images/, depth/)")
-    return read_transforms(path, frames, progress)
+    return read_transforms(path, frames, progress, undistort)
 
 
 # --------------------------------------------------------------------------- writing
@@ -430,13 +438,14 @@ def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, ext: str, unit: 
 
 def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
                      png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT, overwrite: bool = False,
-                     extra_files: dict[str, bytes] | None = None, progress=None) -> Path:
+                     extra_files: dict[str, bytes] | None = None, progress=None, lens: Lens | None = None) -> Path:
     """Write ``out_dir/transforms.json`` + ``images/`` + ``depth/`` atomically; returns the json path.
 
     ``depth_format``: a :data:`DEPTH_FORMATS` name -- ``"png"`` (16-bit, ``png_depth_unit`` metres
     per unit, millimetres by default), ``"png-0.1mm"`` or ``"exr"`` (float metres).  The unit is
     written once, as the top-level ``depth_unit_scale_factor`` (module docstring).
-    ``extra_files``: relative path -> bytes written inside the same atomic folder.
+    ``extra_files``: relative path -> bytes written inside the same atomic folder.  ``lens``: the
+    images are distorted by it (written as ``camera_model`` + coefficients, capture.lens).
     """
     ext, unit = depth_format_spec(depth_format, png_depth_unit)
     out_dir = Path(out_dir)
@@ -450,7 +459,7 @@ def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
             _write_images(s, tmp / rel_rgb, tmp / rel_depth, ext, unit)
             frames.append({"file_path": rel_rgb, "depth_file_path": rel_depth, **s.camera.to_nerfstudio(),
                            **write_matte(s, tmp, stem)})
-        meta = {"camera_model": "PINHOLE", "depth_unit_scale_factor": unit, "frames": frames,
+        meta = {**nerfstudio_keys(lens), "depth_unit_scale_factor": unit, "frames": frames,
                 "furrow": {"bounds": np.asarray(scanset.bounds).tolist(),
                            "metadata": jsonable(scanset.metadata)}}
         (tmp / TRANSFORMS).write_text(json.dumps(meta, indent=1))

@@ -5,8 +5,8 @@ colour images are found under ``IMAGES_DIR/<image name>``; depth maps under
 ``DEPTH_DIR/<image name stem>.png|.exr|.npy`` (z-depth; 16-bit PNG needs
 ``depth_unit_scale_factor``).  COLMAP puts the centre of the top-left pixel at (0.5, 0.5),
 like nerfstudio, so half a pixel is subtracted from the principal point (OpenCV centres).
-Only undistorted pinhole models are accepted (SIMPLE_PINHOLE, PINHOLE, or a distortion model
-whose distortion parameters are all zero).
+Pinhole models are read as they are; SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE and FULL_OPENCV
+are undistorted at read time to a pinhole camera (capture.lens; ``undistort``: crop | full).
 """
 
 from __future__ import annotations
@@ -19,11 +19,9 @@ import numpy as np
 from capture.camera import Camera, CameraError, cv_from_corner, make_K
 from capture.imageio import ScanIOError
 from capture.io import _load_scan, auto_bounds, log_resampled
+from capture.io_lens import note_undistorted, pinhole_camera
+from capture.lens import DEFAULT_UNDISTORT, Lens, LensError, colmap_lens, undistort_scan
 from capture.scan import ScanError, ScanSet, select_indices
-
-#: COLMAP models with no distortion.
-PINHOLE_MODELS = {"SIMPLE_PINHOLE", "PINHOLE"}
-
 
 #: Longest a COLMAP model may take to load (seconds).  pycolmap loops forever on some truncated
 #: binary files (found by tests/capture/test_fuzz_readers.py) and aborts the process on others, so
@@ -116,22 +114,28 @@ def load_colmap_model(model_dir: Path, timeout: float | None = None) -> tuple[li
 
 
 def _camera_K(im: ColmapImage, where: str) -> np.ndarray:
-    if im.model not in PINHOLE_MODELS and any(abs(e) > 0 for e in im.distortion):
-        raise ScanIOError(f"{where}: COLMAP camera model {im.model} has non-zero distortion {list(im.distortion)}; "
-                          "undistort first (colmap image_undistorter)")
     return make_K(im.fx, im.fy, cv_from_corner(im.cx), cv_from_corner(im.cy))
 
 
+def _lens(im: ColmapImage, where: str) -> Lens | None:
+    try:
+        return colmap_lens(im.model, im.distortion)
+    except LensError as e:
+        raise ScanIOError(f"{where}: {e}") from None
+
+
 def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None,
-                depth_unit_scale_factor: float | None = None, frames: str | None = None) -> ScanSet:
-    """Read a COLMAP model + images (+ depth maps) into a ScanSet, images sorted by name."""
+                depth_unit_scale_factor: float | None = None, frames: str | None = None,
+                undistort: str = DEFAULT_UNDISTORT) -> ScanSet:
+    """Read a COLMAP model + images (+ depth maps) into a ScanSet, images sorted by name; cameras
+    with lens distortion are undistorted to pinhole ones (capture.lens, ``undistort``)."""
     model_dir = Path(model_dir)
     if not model_dir.is_dir():
         raise ScanIOError(f"{model_dir}: COLMAP model folder not found")
     images, points = load_colmap_model(model_dir)
     if not images:
         raise ScanIOError(f"{model_dir}: COLMAP model has no registered image")
-    scans, notes = [], []
+    scans, notes, lenses = [], [], []
     for i in select_indices(frames, len(images)):
         im = images[i]
         where = f"{model_dir} image {im.name!r}"
@@ -141,6 +145,8 @@ def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None
             camera = Camera(_camera_K(im, where), M, im.width, im.height, name=im.name)
         except CameraError as e:
             raise ScanIOError(f"{where}: {e}") from None
+        lenses.append(lens := _lens(im, where))
+        pinhole = camera if lens is None else pinhole_camera(camera, lens, undistort, where)
         rgb_path = Path(images_dir) / im.name
         if not im.name or not rgb_path.is_file():
             raise ScanIOError(f"{rgb_path}: colour image not found (named in {model_dir})")
@@ -152,13 +158,15 @@ def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None
             if depth_path is None:
                 raise ScanIOError(f"{cands[0]}: depth file not found for COLMAP image {im.name!r}")
         try:
-            scans.append(_load_scan(camera, rgb_path, depth_path, depth_unit_scale_factor, im.name, notes=notes))
+            scan = _load_scan(camera, rgb_path, depth_path, depth_unit_scale_factor, im.name, notes=notes)
+            scans.append(scan if lens is None else undistort_scan(scan, lens, camera.K, pinhole))
         except ScanIOError as e:  # the camera came from the model: name it too
             raise ScanIOError(f"{e} (camera of {where})") from None
     try:
         bounds = auto_bounds(scans, str(model_dir)) if depth_dir is not None else _bounds_from_points(points, model_dir)
         md = {"source": str(model_dir), "format": "colmap"}
         log_resampled(notes, md)
+        note_undistorted(lenses, undistort, md)
         return ScanSet(tuple(scans), bounds, md)
     except ScanError as e:
         raise ScanIOError(f"{model_dir}: {e}") from None

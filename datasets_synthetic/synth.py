@@ -22,8 +22,10 @@ import numpy as np
 
 from capture.camera import Camera
 from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
+from capture.lens import Lens
 from capture.scan import Scan, ScanSet, select_indices
 from datasets_synthetic.backdrop import SUPPORTS, clutter_background, support_layer, upward_radiance
+from datasets_synthetic.camera_traits import render_through_lens
 from datasets_synthetic.geometry import ply_bytes
 from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
@@ -80,12 +82,17 @@ class SynthConfig:
     """Film filter of the colour: a Gaussian of this standard deviation in total, like a path
     tracer's (``datasets_synthetic.pixel_filter``; ``furrow synth`` defaults to 0.5); 0 = the
     rasteriser's 1-pixel box."""
+    lens: Lens | None = None
+    """Lens distortion of every view (datasets_synthetic.camera_traits; None = pinhole)."""
 
     def __post_init__(self) -> None:
         if self.background not in BACKGROUNDS:
             raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {self.background!r}")
         if self.support not in SUPPORTS:
             raise ValueError(f"support must be one of {', '.join(SUPPORTS)}, got {self.support!r}")
+        if self.lens is not None and (self.support != "none" or self.background == "clutter"):
+            raise ValueError("a lens is drawn through the object and the environment only: use it with "
+                             "background black or env and no support")
         if self.supersample < 1:
             raise ValueError(f"supersample must be >= 1, got {self.supersample}")
         if not 0 <= self.pixel_filter_px <= 4:
@@ -151,7 +158,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
             if hair is not None:
                 rast.set_emission(vertex_emission(hair, cam.center))
-            res = rast.render(cam)
+            res = rast.render(cam) if cfg.lens is None else render_through_lens(rast, cam, cfg.lens)
             rgb, depth = _surroundings(cfg, env, lighting.exposure, cam, res, scene, i in shown)
             rgb = path_tracer_filter(rgb, cfg.pixel_filter_px)
             # the object's true matte: its supersampled coverage under the same film filter as the colour
@@ -179,6 +186,7 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "supersample": cfg.supersample, "pixel_filter_px": cfg.pixel_filter_px,
         "background": cfg.background, "support": _support_info(cfg, scene),
         "background_frames": cfg.background_frames, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
+        "lens": cfg.lens.record() if cfg.lens is not None else None,
         "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
@@ -247,5 +255,7 @@ def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: b
     ``datasets_synthetic.relight.relit_files``."""
     files = gt_files(cap)
     files.update(extra_files or {})
+    lens = cap.info.get("lens")
+    lens = Lens(lens["model"], tuple(lens["coeffs"]), lens["source"]) if lens else None
     return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,
-                            extra_files=files, progress=progress, png_depth_unit=png_depth_unit)
+                            extra_files=files, progress=progress, png_depth_unit=png_depth_unit, lens=lens)

@@ -5,6 +5,7 @@ the vertex-colour floor; docs/methods.md §1.8, the paper's Fig. 11)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -68,6 +69,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
     p.add_argument("--max-views", type=int, default=None,
                    help="evaluate at most this many held-out views (evenly spaced)")
+    g = p.add_argument_group("real cameras")
+    g.add_argument("--undistort", choices=["crop", "full"], default="crop",
+                   help="lens-distorted frames are undistorted at read time: 'crop' (default, as nerfstudio) or 'full'")
+    g.add_argument("--no-photometric", action="store_true",
+                   help="build the model without aligning the kept views' exposure and white balance")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -84,7 +90,11 @@ def run(args, console) -> int:
     if args.holdout < 2:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
     with timer.stage("read scans"):
-        ss = read_scanset(args.scans)
+        ss = read_scanset(args.scans, undistort=args.undistort)
+    if args.no_photometric:
+        from volume.photometric import OFF_KEY
+
+        ss = dataclasses.replace(ss, metadata={**ss.metadata, OFF_KEY: "off"})
     split = ev.holdout_split(ss, args.holdout, args.max_views)
     if not split.held:
         raise ValueError(f"{args.scans}: {len(ss.scans)} frames leave nothing to hold out "
@@ -95,6 +105,7 @@ def run(args, console) -> int:
     with gl_context() as ctx, timer.stage(f"render {len(split.held)} held-out views x {len(ev.EVAL_METHODS)} methods"):
         res = ev.evaluate(ctx, model, split.held, options, ev.EVAL_METHODS, out_dir, track)
     held_idx = split.held_idx
+    res.update({"photometric": model.params.get("photometric"), "undistorted": ss.metadata.get("undistorted")})
     res.update({"scans": str(args.scans), "holdout": args.holdout, "kept": split.kept_idx, "held": held_idx,
                 "geometry": used, "tolerance_px": options.tolerance_px, "supersample": options.supersample,
                 "refine": options.refine_steps, "levels": model.pyramid.resolutions,

@@ -18,6 +18,11 @@ baseline renderer (marched on --mesh-level).  The finest level's distance transf
 only when something uses that level.  The closing table gives wall and CPU seconds and peak
 resident memory per stage.  The model folder is written atomically (temporary folder + rename).
 
+Real cameras: frames with lens distortion are undistorted when read (--undistort), and the views'
+exposure and white balance are aligned before fusion (a gain per view and channel in linear light,
+stored in model.json params.photometric and printed as EV and white balance per view;
+--no-photometric turns it off, --photometric-reference picks whose colour is kept).
+
 --capture-env MAP (an equirect .exr/.hdr or a bundled name), --capture-env-fisheye IMG or
 --capture-env-mirrorball IMG stores the lighting the scans were taken under, with the rig's up
 axis, so that `furrow render --relight` can relight the model (issue 15); a model without it
@@ -68,6 +73,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
+    add_camera_arguments(p)
     p.add_argument("--overwrite", action="store_true", help="replace MODEL if it exists (only a furrow model folder)")
     p.add_argument("--json", action="store_true", help="print a machine-readable summary on stdout")
     g = p.add_argument_group("capture lighting (for furrow render --relight)")
@@ -141,7 +147,7 @@ def run(args, console) -> int:
     from volume.model import save_model
     from volume.pyramid import LoptConfig
 
-    kw = dict(sdf=args.sdf,
+    kw = dict(sdf=args.sdf, photometric=photometric_config(args),
               lopt=LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res)),
               fusion=FusionConfig(quorum=args.quorum), sphere_error=args.sphere_error, prepare=_prepare(args))
     if args.reference_pipeline:
@@ -162,7 +168,7 @@ def run(args, console) -> int:
     t0, c0 = time.perf_counter(), time.process_time()
     capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
-        scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d))
+        scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d), undistort=args.undistort)
     model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
                                  provenance={"source": str(args.scans), "frames": args.frames})
     if capture_env is not None:
@@ -186,12 +192,53 @@ def run(args, console) -> int:
                       f"{min(hb):.4f} / {sum(hb) / len(hb):.4f} / {max(hb):.4f}, after closing "
                       f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
     _print_surroundings(console, summary["surroundings"])
+    if summary.get("photometric"):
+        console.print(photometric_table(summary["photometric"]))
+        if summary["photometric"]["unaligned"]:
+            console.print(f"[yellow]photometric: {len(summary['photometric']['unaligned'])} views share no usable "
+                          "surface with a neighbour and keep their colour[/]", highlight=False)
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
     if args.json:
         print(json.dumps(summary))
     return 0
+
+
+def add_camera_arguments(p: argparse.ArgumentParser) -> None:
+    """--undistort, --no-photometric, --photometric-reference (shared with furrow eval)."""
+    g = p.add_argument_group("real cameras: lens distortion and per-view exposure / white balance")
+    g.add_argument("--undistort", choices=["crop", "full"], default="crop",
+                   help="frames with lens distortion (camera_model OPENCV / OPENCV_FISHEYE, COLMAP radial models) "
+                        "are undistorted at read time: 'crop' (default, as nerfstudio: every pixel valid, corners "
+                        "lost) or 'full' (every source pixel kept, black corners without depth)")
+    g.add_argument("--no-photometric", action="store_true",
+                   help="do not align the views' exposure and white balance (default: a per-view, per-channel "
+                        "gain in linear light estimated from what neighbouring views see of the same surface)")
+    g.add_argument("--photometric-reference", default="median", metavar="NAME",
+                   help="whose colour the aligned views keep: 'median' (default: the median view in each channel), "
+                        "'mean', or a view's name")
+
+
+def photometric_config(args):
+    """The PhotometricConfig of the command line, or None with --no-photometric."""
+    from capture.photometric import PhotometricConfig
+
+    return None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference)
+
+
+def photometric_table(rec: dict):
+    """Rich table of the per-view gains of a photometric record (EV and white balance)."""
+    from rich.table import Table
+
+    t = Table(title=f"photometric alignment ({rec['pairs']} view pairs, {rec['samples']} samples, "
+                    f"reference {rec['reference']}, residual {rec['residual_log']:.4f} log, appearance / exposure "
+                    f"variance {rec.get('appearance_to_exposure', 0):.3g})")
+    for c in ("view", "EV", "WB r", "WB g", "WB b"):
+        t.add_column(c, justify="right")
+    for v in rec["views"]:
+        t.add_row(v["name"], f"{v['ev']:+.3f}", *(f"{x:.3f}" for x in v["wb"]))
+    return t
 
 
 def _capture_env(args):

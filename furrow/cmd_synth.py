@@ -140,6 +140,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stand the object on a ChArUco board (for `furrow register --method board`); the board "
                         "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, "
                         "e.g. --elevations 50 --size 480x360")
+    g = p.add_argument_group("real-camera traits (issue 21)")
+    g.add_argument("--auto-exposure", type=float, nargs="?", const=0.35, default=None, metavar="SIGMA_EV",
+                   help="jitter the exposure of the kept views (i %% --exposure-holdout == 0) by 2^N(0, SIGMA_EV) "
+                        "(default 0.35 EV) and their white balance by --white-balance, in linear light before the "
+                        "8-bit sRGB encoding (clipped); held-out views keep the true exposure; the true gains go "
+                        "to gt/exposure.json")
+    g.add_argument("--white-balance", type=float, default=0.06, metavar="SIGMA",
+                   help="with --auto-exposure: per-channel white-balance gains exp(N(0, SIGMA)) (default 0.06)")
+    g.add_argument("--exposure-holdout", type=int, default=2, metavar="K",
+                   help="with --auto-exposure: jitter the views i %% K == 0 only, the ones `furrow eval --holdout K` "
+                        "builds from (default 2; 1 = every view)")
+    g.add_argument("--lens", choices=["opencv", "fisheye"], default=None,
+                   help="render through a distorting lens and write camera_model OPENCV (k1=-0.12 k2=0.03 p1=8e-4 "
+                        "p2=-5e-4) or OPENCV_FISHEYE (k1=0.03 k2=-0.01 k3=0.002 k4=-0.0005) to transforms.json")
     p.add_argument("--preview", action="store_true", help="also write DIR/preview.png (colour + depth contact sheet)")
     p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -183,7 +197,26 @@ def build_config(args):
     return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
                        supersample=args.supersample, background=args.background, support=args.support,
                        background_frames=args.background_frames, scene_params=params,
-                       pixel_filter_px=args.pixel_filter)
+                       pixel_filter_px=args.pixel_filter, lens=_lens(args))
+
+
+def _lens(args):
+    from datasets_synthetic.camera_traits import LENSES
+
+    return LENSES[args.lens] if getattr(args, "lens", None) else None
+
+
+def _auto_exposure(cap, args, cfg):
+    """(capture with the kept views' exposure jittered, gt/exposure.json bytes) for --auto-exposure."""
+    import dataclasses
+
+    from datasets_synthetic.camera_traits import EXPOSURE_FILE, apply_exposure, exposure_gains, exposure_record
+
+    n = len(cap.scanset.scans)
+    gains = exposure_gains(n, args.auto_exposure, args.white_balance, cfg.seed, args.exposure_holdout)
+    rec = exposure_record([s.name for s in cap.scanset.scans], gains, args.auto_exposure, args.white_balance,
+                          args.exposure_holdout)
+    return dataclasses.replace(cap, scanset=apply_exposure(cap.scanset, gains)), {EXPOSURE_FILE: rec}
 
 
 def run(args, console) -> int:
@@ -200,6 +233,8 @@ def run(args, console) -> int:
         cfg = build_config(args)
         for env in (cfg.lighting.env, *args.relight_env):
             resolve_env(env)  # fail early on a bad --env / --relight-env
+        if args.lens and args.relight_env:
+            raise ValueError("--lens and --relight-env together are not supported (the relit views are pinhole)")
         labels = [map_label(e) for e in args.relight_env]
         if len(set(labels)) != len(labels):
             raise ValueError(f"--relight-env maps must have distinct names, got {', '.join(labels)}")
@@ -223,6 +258,9 @@ def run(args, console) -> int:
     with timer.stage(f"render {cfg.scene} ({cfg.rig.n_views} views, {cfg.rig.width}x{cfg.rig.height})"):
         cap = synthesize(cfg, scene=scene, progress=lambda it, label: track(it, label, total=len(it)))
     extra = {}
+    if args.auto_exposure is not None:
+        cap, files = _auto_exposure(cap, args, cfg)
+        extra.update(files)
     unit = args.png_depth_unit if args.png_depth_unit is not None else DEFAULT_PNG_DEPTH_UNIT
     for env in args.relight_env:
         with timer.stage(f"relight under {map_label(env)}"):

@@ -25,11 +25,13 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from capture.io import jsonable
+from capture.photometric import PhotometricConfig
 from capture.scan import ScanSet
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
 from volume.model import Model, SdfLevel, SdfPyramid
+from volume.photometric import align_views
 from volume.prepare import PrepareConfig, prepare_scans
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
@@ -69,6 +71,8 @@ class ModelConfig:
     """Store every level's signed distance values in the model (not only surface voxels)."""
     defer_finest: bool = True
     """Complete the finest fused level's distances only when a consumer needs them (module docstring)."""
+    photometric: PhotometricConfig | None = field(default_factory=PhotometricConfig)
+    """Per-view exposure / white-balance alignment before everything (volume.photometric); None = off."""
 
     def __post_init__(self) -> None:
         if self.sdf not in METHODS:
@@ -133,7 +137,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     """
     cfg = cfg or ModelConfig()
     stage = stage or (lambda name: contextlib.nullcontext())
-    scanset, surroundings = prepare_scans(scanset, cfg.prepare, stage, progress)
+    scanset, surroundings = prepare_scans(scanset, cfg.prepare, stage, progress)  # extent, matte
+    scanset, photometric = align_views(scanset, cfg.photometric, stage, progress)
     origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress, cfg.defer_finest)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     # N_i over the measured voxels (reported only; Eq. 1 divides by L^3, see volume.pyramid)
@@ -169,7 +174,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
               "sphere_level": sphere_res, "mesh_level": mesh_res,
               "eq1_fraction": {str(L): v for L, v in frac.items()},
               "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()},
-              "surroundings": jsonable(surroundings)}
+              "surroundings": jsonable(surroundings), "photometric": photometric}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
             "scanset_metadata": jsonable(scanset.metadata), **(provenance or {})}
     bounds = np.asarray(scanset.bounds, np.float64)
@@ -185,6 +190,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "mesh": {"vertices": int(len(verts)), "faces": int(len(faces))},
         "surroundings": jsonable(surroundings),
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
+        "photometric": photometric,
     }
     return model, summary
 
