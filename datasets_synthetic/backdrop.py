@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.camera import Camera
+from capture.camera import Camera, resample_pixel_coords
 
 #: Supports ``furrow synth --support`` can put under the object.
 SUPPORTS = ("none", "disc", "table")
@@ -65,9 +65,9 @@ def upward_radiance(env, exposure: float, seed: int = 0) -> np.ndarray:
 def _subpixel_rays(camera: Camera, ss: int) -> tuple[np.ndarray, np.ndarray]:
     """World ray origin (3,) and (H, W, ss*ss, 3) unit world directions through ``ss`` x ``ss``
     stratified sub-pixel positions of every pixel."""
-    off = (np.arange(ss) + 0.5) / ss - 0.5
-    oy, ox = np.meshgrid(off, off, indexing="ij")
-    uv = camera.pixel_grid()[:, :, None, :] + np.stack([ox.ravel(), oy.ravel()], -1)[None, None]
+    H, W = camera.height, camera.width
+    fine = resample_pixel_coords(camera.scaled(ss).pixel_grid(), 1.0 / ss)  # (H ss, W ss, 2) sub-pixel centres
+    uv = fine.reshape(H, ss, W, ss, 2).transpose(0, 2, 1, 3, 4).reshape(H, W, ss * ss, 2)
     d = camera.pixel_rays(uv) @ camera.world_from_cam[:3, :3].T
     return camera.center, d / np.linalg.norm(d, axis=-1, keepdims=True)
 
