@@ -162,7 +162,7 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
 
     t0 = time.perf_counter()
     tcfg = tcfg or TS.TurntableConfig()
-    out = TS.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress)
+    out = TS.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress, fit.axis_sigma_deg)
     placed = out.placed
     poses_in = [s.camera.cam_from_world for s in scanset.scans]
     model_poses = [out.model.pose(k) if placed[k] else None for k in range(len(placed))]
@@ -177,6 +177,8 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
                                       residuals=rec.residuals, angle_sigma_deg=rec.sigma_deg))
     notes.append(f"turntable axis {np.round(out.model.axis, 4).tolist()} through "
                  f"{np.round(out.model.point, 4).tolist()}; {sum(placed)}/{len(placed)} views placed")
+    if out.axis_note:
+        notes.append(out.axis_note)
     notes.append("axis placed by " + ", ".join(f"{e} {v:.0%}" for e, v in
                                                sorted(out.axis_evidence.items(), key=lambda x: -x[1])))
     rep.seconds["turntable"] = time.perf_counter() - t0
