@@ -41,6 +41,8 @@ MIN_VIEWS = 6
 MIN_SPAN_DEG = 60.0
 #: Alternations of the mean ring orientation and the view angles.
 ANGLE_ITERATIONS = 3
+#: Neighbouring views (in angle) further apart than this are not paired.
+MAX_GAP_DEG = 75.0
 #: Finite-difference step of the pair-twist Jacobians (radians and metres / object size).
 FD_STEP = 1e-6
 #: The axis prior (issue 22): the ring of nominal poses fixes the axis against the cameras to about
@@ -312,3 +314,34 @@ def axis_prior(model: Turntable, sigma_deg: float | None) -> AxisPrior | None:
         return None
     s = max(sigma_deg, AXIS_PRIOR_FLOOR_DEG)
     return AxisPrior(model, math.radians(s), s * AXIS_SHIFT_FRAC_PER_DEG)
+
+
+def ring_pairs(model: Turntable, active: list[int], max_deg: float) -> list[tuple[int, int]]:
+    """Ordered pairs (target, source) of active views within ``max_deg`` about the axis (or 1.5
+    ring steps, the median gap between neighbouring angles, when wider), and every view with
+    its nearest active neighbour on either side up to ``MAX_GAP_DEG`` (a view left out must not
+    cut the ring in two)."""
+    order = sorted(active, key=lambda k: model.angles[k] % (2 * math.pi))
+    t = np.array([model.angles[k] % (2 * math.pi) for k in order])
+    if len(t) > 1:
+        step = float(np.median(np.diff(np.concatenate([t, t[:1] + 2 * math.pi]))))
+        max_deg = max(max_deg, 1.5 * math.degrees(step))
+
+    def gap(i, j):
+        d = (model.angles[j] - model.angles[i] + math.pi) % (2 * math.pi) - math.pi
+        return abs(math.degrees(d))
+
+    out = {(i, j) for i in active for j in active if i != j and gap(i, j) <= max_deg}
+    for a, b in zip(order, order[1:] + order[:1]):
+        if a != b and gap(a, b) <= MAX_GAP_DEG:
+            out |= {(a, b), (b, a)}
+    return sorted(out)
+
+
+def opposite_pairs(model: Turntable, active: list[int], tol_deg: float) -> list[tuple[int, int]]:
+    """Ordered pairs of active views within ``tol_deg`` of opposite each other (180 degrees)."""
+    def off(i, j):
+        d = (model.angles[j] - model.angles[i]) % (2 * math.pi)
+        return abs(math.degrees(d) - 180.0)
+
+    return [(i, j) for i in active for j in active if i != j and off(i, j) <= tol_deg]
