@@ -220,3 +220,68 @@ def field_sample(field: StrandField, points) -> tuple[np.ndarray, np.ndarray]:
 
     t, lam = principal_direction(volume_sample(tensor_volume(field), field.origin, field.voxel, points))
     return t, np.clip(lam, 0.0, 1.0)
+
+
+#: Strand scores below this are not fitted (those pixels keep the surface transfer anyway).
+FIT_MIN_SCORE = 0.05
+
+
+@dataclass(frozen=True)
+class StrandColour:
+    """What the relighting knows of the strands: their field and, per voxel of the same cube, the fibre
+    colour under the capture light from inverting the strand transfer (``render.shading.hair_transfer``).
+
+    field: the StrandField, its score 0 where the colour fit had too few samples.
+    fit: (L, L, L, 4) float32 (rho rgb, sigma): colour = rho D + sigma R (image units).
+    """
+
+    field: StrandField
+    fit: np.ndarray
+
+    def __post_init__(self) -> None:
+        f = np.asarray(self.fit, np.float32)
+        if f.shape != self.field.score.shape + (4,) or not np.all(np.isfinite(f)) or np.any(f < 0):
+            raise ValueError(f"StrandColour: fit must be finite, >= 0, {self.field.score.shape + (4,)}; got {f.shape}")
+        object.__setattr__(self, "fit", f)
+
+
+def strand_colour(field: StrandField, rgb, depth, cameras, fur_a, alpha=None,
+                  stride: int = PIXEL_STRIDE) -> StrandColour:
+    """Fit rho, sigma per voxel (``render.shading.hair_transfer.fit_strand_colour``) from the capture views'
+    pixels whose strand score is at least :data:`FIT_MIN_SCORE`, with D_A, R_A of the capture lighting
+    ``fur_a`` (kernel "fur") at the pixel's tangent and view; voxels with fewer than MIN_FIT_SAMPLES
+    samples lose their strand score."""
+    from render.shading.hair_transfer import MIN_FIT_SAMPLES, fit_strand_colour, hair_diffuse, hair_specular
+
+    L = field.resolution
+    flats, cols, ds, rs = [], [], [], []
+    for i, cam in enumerate(cameras):
+        dep = np.asarray(depth[i], np.float64)
+        sel = np.zeros(dep.shape, bool)
+        sel[::stride, ::stride] = True
+        sel &= dep > 0
+        if alpha is not None:
+            sel &= np.asarray(alpha[i]) > 0.5
+        vv, uu = np.nonzero(sel)
+        x = cam.unproject(np.stack([uu, vv], -1).astype(np.float64), dep[sel])
+        ijk = np.floor((x - field.origin) / field.voxel).astype(np.int64)
+        t, s = field_sample(field, x)
+        ok = np.all((ijk >= 0) & (ijk < L), axis=1) & (s >= FIT_MIN_SCORE)
+        if not ok.any():
+            continue
+        v = cam.center - x[ok]
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        flats.append((ijk[ok, 0] * L + ijk[ok, 1]) * L + ijk[ok, 2])
+        cols.append(np.asarray(rgb[i], np.float64)[sel][ok])
+        ds.append(hair_diffuse(fur_a, t[ok], v))
+        rs.append(hair_specular(fur_a, t[ok], v))
+    if not flats:
+        return StrandColour(StrandField(field.tangent, np.zeros_like(field.score), field.origin, field.voxel),
+                            np.zeros(field.score.shape + (4,), np.float32))
+    rho, sigma, cnt = fit_strand_colour(np.concatenate(flats), np.concatenate(cols), np.concatenate(ds),
+                                        np.concatenate(rs), L ** 3)
+    good = (cnt >= MIN_FIT_SAMPLES) & (rho.sum(1) > 0)
+    score = np.where(good.reshape(L, L, L), field.score, 0.0)
+    fit = np.concatenate([rho, sigma[:, None]], -1) * good[:, None]
+    return StrandColour(StrandField(field.tangent, score, field.origin, field.voxel),
+                        fit.reshape(L, L, L, 4).astype(np.float32))
