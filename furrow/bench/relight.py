@@ -40,16 +40,30 @@ from render.methods import DEFAULT_METHOD, METHODS
 TARGET_DB = 2.0
 
 
+def variant_turn(text: str) -> float:
+    """The ``:turn=DEG`` of a variant (0 without): the new map handed over turned by DEG about up, the cost
+    of a map given in the wrong orientation (issue 23)."""
+    for f in text.split(":")[1:]:
+        if f.startswith("turn="):
+            return float(f[5:])
+    return 0.0
+
+
 def parse_variant(text: str):
-    """``KERNEL[:vis|:novis][:fwd=BETA][:g=G][:s=SMOOTH][:res=L]`` -> render.relight.gl.RelightConfig
-    (vis / novis: with / without the sphere set's visibility; fwd: the scattering weight, 0 =
-    view-independent; g: its phase asymmetry; s: orientation smoothing; res: volume resolution)."""
+    """``KERNEL[:vis|:novis][:strands|:nostrands][:fwd=BETA][:g=G][:s=SMOOTH][:res=L][:turn=DEG]`` ->
+    render.relight.gl.RelightConfig (vis / novis: with / without the sphere set's visibility; strands /
+    nostrands: with / without the strand transfer; fwd: the scattering weight, 0 = view-independent; g: its
+    phase asymmetry; s: orientation smoothing; res: volume resolution; turn: see :func:`variant_turn`)."""
     from render.relight.gl import RelightConfig
 
     kernel, *flags = text.split(":")
     kw = {"kernel": kernel}
     for f in flags:
-        if f == "novis":
+        if f.startswith("turn="):
+            continue
+        if f in ("strands", "nostrands"):
+            kw["strands"] = f == "strands"
+        elif f == "novis":
             kw["visibility"] = False
         elif f == "vis":
             kw["visibility"] = True
@@ -62,7 +76,8 @@ def parse_variant(text: str):
         elif f.startswith("res="):
             kw["volume_res"] = int(f[4:])
         else:
-            raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'fwd=BETA', 'g=G', 's=SMOOTH', 'res=L'")
+            raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'strands', 'nostrands', 'fwd=BETA', "
+                             "'g=G', 's=SMOOTH', 'res=L', 'turn=DEG'")
     return RelightConfig(**kw)
 
 
@@ -136,7 +151,8 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
     row = {"relit": relit, "views": len(refs), "unrelit": score(refs, [f.rgb for f in frames], frames)}
     relit_imgs = {}
     for name, cfg in configs.items():
-        with Relighter.from_model(ctx, model, env, cfg) as rel:
+        turn = variant_turn(name)
+        with Relighter.from_model(ctx, model, env.rotated(np.radians(turn)) if turn else env, cfg) as rel:
             g = rel.global_gain
             if "gain" not in row:
                 row["gain"] = {**score(refs, [f.rgb * g.astype(np.float32) for f in frames], frames),
@@ -216,14 +232,15 @@ def print_tables(res: dict) -> None:
     console.print(t)
     t = Table(title="frame cost (medians; llvmpipe)")
     for c in ("capture", "render ms", "render CPU ms", *(f"{n} apply ms" for n in names),
-              "setup s (capture, new, volume)"):
+              "setup s (capture, new, volume, strands)"):
         t.add_column(c, justify="right")
     for c in res["captures"]:
         p = c["pairs"][0]
         st = p[names[0]]["setup_s"]
         t.add_row(Path(c["scans"]).name, f"{c['render_ms']:.1f}", f"{c['render_cpu_ms']:.1f}",
                   *(f"{p[n]['apply_ms']:.2f}" for n in names),
-                  f"{st.get('capture', 0):.1f}, {st.get('new', 0):.1f}, {st.get('volume', 0):.1f}")
+                  f"{st.get('capture', 0):.1f}, {st.get('new', 0):.1f}, {st.get('volume', 0):.1f}, "
+                  f"{st.get('strands', 0):.1f}")
     console.print(t)
 
 
