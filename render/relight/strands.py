@@ -50,8 +50,10 @@ MIN_SAMPLES = 12.0
 VOLUME_SMOOTH_VOXELS = 0.7
 #: Resolution of the strand volume (voxels per side of the model's orientation cube).
 STRAND_RES = 48
-#: Every this-many-th pixel (per axis) of each capture view is lifted (cost; the tensor is smooth).
-PIXEL_STRIDE = 2
+#: Every this-many-th pixel (per axis) of each capture view is lifted (cost; the tensor is smooth): None =
+#: one pixel in round(width / STRIDE_WIDTH_PX) per axis (1 at 320 wide, 2 at 640, 4 at 1280).
+PIXEL_STRIDE = None
+STRIDE_WIDTH_PX = 320
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,13 @@ def image_orientation(rgb, mask) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([np.cos(ang), np.sin(ang)], -1), np.where(inner, coh, 0.0)
 
 
+def pixel_stride(cameras, stride: int | None) -> int:
+    """``stride``, or for None one per :data:`STRIDE_WIDTH_PX` of the views' width (at least 1)."""
+    if stride is not None:
+        return max(1, int(stride))
+    return max(1, round(cameras[0].width / STRIDE_WIDTH_PX)) if len(cameras) else 1
+
+
 def plane_normals(camera, uv, t2) -> np.ndarray:
     """(P, 3) world unit normals of the planes through the camera centre that contain the image lines
     through pixels ``uv`` (P, 2) along image directions ``t2`` (P, 2)."""
@@ -122,10 +131,11 @@ def plane_normals(camera, uv, t2) -> np.ndarray:
     return m @ camera.cam_from_world[:3, :3]  # R^T m as rows
 
 
-def accumulate(rgb, depth, cameras, origin, voxel: float, res: int, alpha=None, stride: int = PIXEL_STRIDE):
+def accumulate(rgb, depth, cameras, origin, voxel: float, res: int, alpha=None, stride: int | None = PIXEL_STRIDE):
     """(sums of c m m^T as (L^3, 6) xx xy xz yy yz zz, sums of c (L^3,), pixel counts (L^3,)) over every
     view (step 2 of the module doc); views: ``rgb`` (N, H, W, 3), ``depth`` (N, H, W), N cameras."""
     L = int(res)
+    stride = pixel_stride(cameras, stride)
     tens = np.zeros((L ** 3, 6))
     csum = np.zeros(L ** 3)
     count = np.zeros(L ** 3)
@@ -160,7 +170,7 @@ def _ramp(x, lo: float, hi: float):
 
 
 def strand_field(rgb, depth, cameras, origin, voxel: float, res: int = STRAND_RES, alpha=None,
-                 stride: int = PIXEL_STRIDE) -> StrandField:
+                 stride: int | None = PIXEL_STRIDE) -> StrandField:
     """The strand tangents and scores (module doc) on the cube ``origin`` + [0, res voxel)^3 from the
     capture views (``rgb`` (N, H, W, 3) linear, ``depth`` (N, H, W), N cameras, optional ``alpha``)."""
     from scipy import ndimage
@@ -246,7 +256,7 @@ class StrandColour:
 
 
 def strand_colour(field: StrandField, rgb, depth, cameras, fur_a, alpha=None,
-                  stride: int = PIXEL_STRIDE) -> StrandColour:
+                  stride: int | None = PIXEL_STRIDE) -> StrandColour:
     """Fit rho, sigma per voxel (``render.shading.hair_transfer.fit_strand_colour``) from the capture views'
     pixels whose strand score is at least :data:`FIT_MIN_SCORE`, with D_A, R_A of the capture lighting
     ``fur_a`` (kernel "fur") at the pixel's tangent and view; voxels with fewer than MIN_FIT_SAMPLES
@@ -254,6 +264,7 @@ def strand_colour(field: StrandField, rgb, depth, cameras, fur_a, alpha=None,
     from render.shading.hair_transfer import MIN_FIT_SAMPLES, fit_strand_colour, hair_diffuse, hair_specular
 
     L = field.resolution
+    stride = pixel_stride(cameras, stride)
     flats, cols, ds, rs = [], [], [], []
     for i, cam in enumerate(cameras):
         dep = np.asarray(depth[i], np.float64)
