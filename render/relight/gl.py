@@ -35,7 +35,9 @@ from render.relight.reference import (
     VISIBILITY_BAND_VOXELS,
     VISIBILITY_LIFT_VOXELS,
     orientation_grid,
+    sdf_gradient,
     smoothed,
+    unit_normals,
 )
 from render.relight.strands import POWER_STEPS, STRAND_RES, strand_colour, strand_field, tensor_volume
 from render.shading import hair_transfer as ht
@@ -163,12 +165,13 @@ class Relighter(GLOwner):
         self.setup_seconds: dict = {}
         self.capture = self._lighting(capture_env, "capture")
         self.new = self._lighting(new_env, "new")
-        #: The strands' field and fitted colours (None with config.strands False), the "fur" lightings.
+        #: The strands' field and fitted colours (None with config.strands False), the lightings (A, B) of
+        #: the strand transfer.
         self.strands = None
         self.hair = (None, None)
         self._strand_tex: tuple = ()
         if self.config.strands:
-            self.hair = (ht.fur_lighting(capture_env, self.capture), ht.fur_lighting(new_env, self.new))
+            self.hair = (self.capture, self.new)
             self._build_strands()
         self._upload_tables()
         self._build_volume()
@@ -204,7 +207,8 @@ class Relighter(GLOwner):
         rz, L = self.model.rgbz, int(self.config.strand_res)
         voxel = self.raw.voxel * self.raw.resolution / L
         field = strand_field(rz.rgb, rz.depth, rz.cameras, self.raw.origin, voxel, L, rz.alpha)
-        self.set_strands(strand_colour(field, rz.rgb, rz.depth, rz.cameras, self.hair[0], rz.alpha))
+        normals = lambda x: unit_normals(sdf_gradient(self.smooth, x))
+        self.set_strands(strand_colour(field, rz.rgb, rz.depth, rz.cameras, self.capture, normals, rz.alpha))
         self.setup_seconds["strands"] = time.perf_counter() - t0
 
     def set_strands(self, strands) -> None:
@@ -223,7 +227,7 @@ class Relighter(GLOwner):
         self.check_alive()
         self.new = self._lighting(env, "new")
         if self.config.strands:
-            self.hair = (self.hair[0], ht.fur_lighting(env, self.new))
+            self.hair = (self.capture, self.new)
         self._upload_tables()
         self._build_volume()
 
@@ -236,8 +240,7 @@ class Relighter(GLOwner):
         from render.shading.irradiance import irradiance_texture
 
         self.free(*self._tables)
-        lights = (self.capture, self.new) + (self.hair if self.config.strands else ())
-        self._tables = tuple(self.own(irradiance_texture(self.ctx, lt.table)) for lt in lights)
+        self._tables = tuple(self.own(irradiance_texture(self.ctx, lt.table)) for lt in (self.capture, self.new))
 
     def _bind(self, p, units) -> None:
         from render.gl import set_uniform
@@ -297,13 +300,12 @@ class Relighter(GLOwner):
 
         set_uniform(p, "u_strands", int(self.strands is not None))
         if self.strands is None:  # unused samplers still need a unit of their own type (GL validation)
-            for name, unit in (("u_hair_table_a", 2), ("u_hair_table_b", 2), ("u_strand_t0", 5), ("u_strand_t1", 5),
-                               ("u_strand_fit", 5)):
+            for name, unit in (("u_strand_t0", 5), ("u_strand_t1", 5), ("u_strand_fit", 5)):
                 set_uniform(p, name, unit)
             return
         f = self.strands.field
         for tag, lt in (("a", self.hair[0]), ("b", self.hair[1])):
-            set_uniform(p, f"u_hair_ref_{tag}", tuple(float(v) for v in lt.reference))
+            set_uniform(p, f"u_hair_ref_{tag}", tuple(float(v) for v in ht.hair_reference(lt)))
         set_uniform(p, "u_strand_origin", tuple(float(v) for v in f.origin))
         set_uniform(p, "u_strand_voxel", float(f.voxel))
         set_uniform(p, "u_strand_res", f.resolution)
@@ -330,8 +332,7 @@ class Relighter(GLOwner):
                          ("u_table_b", self._tables[1]), ("u_sdf_smooth", self._sdf_smooth),
                          ("u_share_a", self._share_tex[0]), ("u_share_b", self._share_tex[1])]
                 if self.strands is not None:
-                    units += [("u_hair_table_a", self._tables[2]), ("u_hair_table_b", self._tables[3]),
-                              ("u_strand_t0", self._strand_tex[0]), ("u_strand_t1", self._strand_tex[1]),
+                    units += [("u_strand_t0", self._strand_tex[0]), ("u_strand_t1", self._strand_tex[1]),
                               ("u_strand_fit", self._strand_tex[2])]
                 self._bind(p, units)
                 self._set_strand_uniforms(p)

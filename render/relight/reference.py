@@ -185,8 +185,8 @@ def apply_reference(rgb, depth, camera: Camera, smooth: SdfGrid, shares, a, b, s
     where depth > 0 (the other pixels unchanged: black stays black): orientation = gradient of
     ``smooth`` there, the visible shares sampled from ``shares`` (same placement), the view from the
     point to the camera; ``gain_kw`` to ``render.shading.transfer.relight_gain``.  With ``strands``
-    (``render.relight.strands.StrandColour``) and ``hair`` (the "fur" lightings of A and B): the gain
-    blended towards ``render.shading.hair_transfer.hair_gain`` by the strand score there."""
+    (``render.relight.strands.StrandColour``) and ``hair`` (the lightings (A, B) of the strand transfer): the
+    gain blended towards ``render.shading.hair_transfer.hair_gain`` by the strand score there."""
     from render.shading.transfer import global_gain, relight_gain
 
     out = np.asarray(rgb, np.float64).copy()
@@ -197,15 +197,26 @@ def apply_reference(rgb, depth, camera: Camera, smooth: SdfGrid, shares, a, b, s
         v = camera.center - x
         v /= np.linalg.norm(v, axis=1, keepdims=True)
         sh = volume_sample(shares, smooth.origin, smooth.voxel, x)
-        g = relight_gain(x, sdf_gradient(smooth, x), a, b, views=v, shares=(sh[:, :3], sh[:, 3:]), **gain_kw)
+        grad = sdf_gradient(smooth, x)
+        g = relight_gain(x, grad, a, b, views=v, shares=(sh[:, :3], sh[:, 3:]), **gain_kw)
         if strands is not None:
-            g = _strand_blend(g, x, v, strands, hair, global_gain(a, b), gain_kw)
+            g = _strand_blend(g, x, unit_normals(grad), v, strands, hair, global_gain(a, b), gain_kw)
         out[m] *= g
     return out.astype(np.float32)
 
 
-def _strand_blend(g, x, v, strands, hair, g_global, gain_kw) -> np.ndarray:
-    """(P, 3) the surface gain ``g`` mixed towards the strand gain by the strand score (apply pass)."""
+def unit_normals(grad) -> np.ndarray:
+    """(P, 3) unit SDF gradients, 0 where shorter than ``render.shading.transfer.MIN_GRADIENT``."""
+    from render.shading.transfer import MIN_GRADIENT
+
+    g = np.asarray(grad, np.float64)
+    n = np.linalg.norm(g, axis=1, keepdims=True)
+    return np.where(n > MIN_GRADIENT, g / np.where(n > MIN_GRADIENT, n, 1.0), 0.0)
+
+
+def _strand_blend(g, x, n, v, strands, hair, g_global, gain_kw) -> np.ndarray:
+    """(P, 3) the surface gain ``g`` mixed towards the strand gain by the strand score (apply pass);
+    ``n``: unit shell normals (or 0)."""
     from render.relight.strands import field_sample
     from render.shading.hair_transfer import hair_gain
     from render.shading.transfer import FORWARD_G, MAX_GAIN, REGULARISE
@@ -216,7 +227,7 @@ def _strand_blend(g, x, v, strands, hair, g_global, gain_kw) -> np.ndarray:
     if not on.any():
         return g
     fit = volume_sample(strands.fit, f.origin, f.voxel, x[on])
-    gh = hair_gain(t[on], v[on], fit[:, :3], fit[:, 3], hair[0], hair[1], g_global,
+    gh = hair_gain(t[on], n[on], v[on], fit[:, :3], fit[:, 3], hair[0], hair[1], g_global,
                    regularise=gain_kw.get("regularise", REGULARISE), max_gain=gain_kw.get("max_gain", MAX_GAIN),
                    forward_g=gain_kw.get("forward_g", FORWARD_G))
     w = np.clip(w[on], 0.0, 1.0)[:, None]

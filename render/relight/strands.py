@@ -255,12 +255,13 @@ class StrandColour:
         object.__setattr__(self, "fit", f)
 
 
-def strand_colour(field: StrandField, rgb, depth, cameras, fur_a, alpha=None,
+def strand_colour(field: StrandField, rgb, depth, cameras, light_a, normals_at=None, alpha=None,
                   stride: int | None = PIXEL_STRIDE) -> StrandColour:
     """Fit rho, sigma per voxel (``render.shading.hair_transfer.fit_strand_colour``) from the capture views'
     pixels whose strand score is at least :data:`FIT_MIN_SCORE`, with D_A, R_A of the capture lighting
-    ``fur_a`` (kernel "fur") at the pixel's tangent and view; voxels with fewer than MIN_FIT_SAMPLES
-    samples lose their strand score."""
+    ``light_a`` (``render.shading.transfer.RelightLighting``) at the pixel's tangent, shell normal
+    (``normals_at``: (P, 3) points -> (P, 3) unit normals or 0; None: 0) and view; voxels with fewer than
+    MIN_FIT_SAMPLES samples lose their strand score."""
     from render.shading.hair_transfer import MIN_FIT_SAMPLES, fit_strand_colour, hair_diffuse, hair_specular
 
     L = field.resolution
@@ -284,8 +285,9 @@ def strand_colour(field: StrandField, rgb, depth, cameras, fur_a, alpha=None,
         v /= np.linalg.norm(v, axis=1, keepdims=True)
         flats.append((ijk[ok, 0] * L + ijk[ok, 1]) * L + ijk[ok, 2])
         cols.append(np.asarray(rgb[i], np.float64)[sel][ok])
-        ds.append(hair_diffuse(fur_a, t[ok], v))
-        rs.append(hair_specular(fur_a, t[ok], v))
+        n = np.zeros_like(v) if normals_at is None else normals_at(x[ok])
+        ds.append(hair_diffuse(light_a, t[ok], n, v))
+        rs.append(hair_specular(light_a, t[ok], n, v))
     if not flats:
         return StrandColour(StrandField(field.tangent, np.zeros_like(field.score), field.origin, field.voxel),
                             np.zeros(field.score.shape + (4,), np.float32))

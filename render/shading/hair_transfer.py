@@ -1,18 +1,19 @@
 """Strand transfer of the relighting (issue 23; numpy reference, GLSL twin
-``render/relight/shaders/relight_hair.glsl``): what a fibre with unit tangent T, seen from the unit
-direction v (to the camera), returns of an environment, as two parts the fibre's colour weighs
-differently:
+``render/relight/shaders/relight_hair.glsl``): what a fibre with unit tangent T in a fur shell with
+smoothed normal n, seen from the unit direction v (to the camera), returns of an environment, as two
+parts the fibre's colour weighs differently, with the map's SG lobes (axis p_k, power P_k = mu_k x their
+integral) as lights:
 
-    D(T, v) = E_fur(T) + beta_TT sum_k P_k sin(T, p_k) HG(-v . p_k)       coloured (diffuse + TT)
-    R(T, v) = sum_k P_k exp(-(p_k . T + v . T)^2 / (2 beta_R^2))          white (the R lobe)
+    D(T, n, v) = sum_k P_k W(n . p_k) sin(T, p_k) (1 + beta_TT HG(-v . p_k))          coloured
+    R(T, n, v) = sum_k P_k W(n . p_k) exp(-(p_k . T + v . T)^2 / (2 beta_R^2))        white
 
-* E_fur(T) = integral sin(T, w) L(w) dw: Kajiya-Kay's diffuse term of a strand, exact (the "fur" table
-  of ``render.shading.transfer``, looked up at T: a strand's transfer is even in T);
-* the sums run over the map's SG lobes (axis p_k, power P_k = mu_k x their integral) as lights, as the
-  surface transfer's forward term: HG a Henyey-Greenstein phase (mean 1) for the light fibres transmit
-  forwards (Marschner's TT), and the R lobe's longitudinal Gaussian around the specular cone
-  sin theta_i = -sin theta_o (Marschner et al. 2003; the width of Chiang et al.'s beta_m = 0.3 in
-  ``render.shading.hair``; azimuthally flat, its tilt alpha neglected).
+* sin(T, p): Kajiya-Kay's diffuse term of a strand; HG a Henyey-Greenstein phase (mean 1) for the light
+  fibres transmit forwards (Marschner's TT); the R lobe a longitudinal Gaussian around the specular cone
+  sin theta_i = -sin theta_o (Marschner et al. 2003; width ~ Chiang et al.'s beta_m = 0.3, see
+  ``render.shading.hair``; azimuthally flat, the cuticle tilt neglected);
+* W the wrap kernel max(0, c + 1/2) / (3/2) of the shell's normal: the light the fur ball itself hides
+  (measured: without it, Kajiya-Kay on the tangent alone lit the far side of the fur ball and lost
+  2.6 dB to the surface transfer, docs/relight.md).
 
 A captured strand's colour under lighting A is C = rho D_A + sigma R_A (rho: RGB, the fibre's colour
 including the camera's exposure; sigma: its white specular weight): :func:`fit_strand_colour` inverts
@@ -24,7 +25,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from render.shading.envmap import dir_to_uv, sample_equirect
 from render.shading.sg import sg_integral
 from render.shading.transfer import FORWARD_G, MAX_GAIN, REGULARISE, RelightLighting, henyey_greenstein
 
@@ -46,38 +46,39 @@ def _lobes(lt: RelightLighting):
     return ax, power
 
 
-def fur_lighting(env, lt: RelightLighting) -> RelightLighting:
-    """``lt`` (any kernel, prepared from ``env``) with the "fur" transfer table instead: same SG lobes,
-    same frame, its reference transfer the fur kernel's."""
-    from render.shading.transfer import kernel_integral, transfer_table
-
-    return RelightLighting(transfer_table(env, "fur"), lt.to_env, lt.axes, lt.lams, lt.mus, lt.mean, "fur",
-                           np.asarray(lt.mean) * kernel_integral("fur"))
+def _wrap(c):
+    return np.maximum(c + 0.5, 0.0) / 1.5
 
 
-def hair_diffuse(fur: RelightLighting, tangents, views, forward: float = HAIR_FORWARD,
+def hair_reference(lt: RelightLighting) -> np.ndarray:
+    """(3,) the strand transfer D of a uniform environment of the map's mean radiance (the scale of the
+    regularisation): mean x (integral of the wrap kernel) x (mean of sin over the sphere, pi / 4)."""
+    from render.shading.transfer import kernel_integral
+
+    return np.asarray(lt.mean, np.float64) * kernel_integral("wrap") * (np.pi / 4)
+
+
+def _terms(lt: RelightLighting, tangents, normals, views, forward: float, g: float, beta: float):
+    t = np.asarray(tangents, np.float64).reshape(-1, 3)
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    v = np.asarray(views, np.float64).reshape(-1, 3)
+    ax, power = _lobes(lt)
+    c = t @ ax.T
+    vis = _wrap(n @ ax.T)
+    diff = np.sqrt(np.maximum(1 - np.minimum(c * c, 1), 0)) * (1 + forward * henyey_greenstein(-(v @ ax.T), g))
+    spec = np.exp(-0.5 * ((c + np.sum(t * v, 1, keepdims=True)) / beta) ** 2)
+    return (vis * diff) @ power, (vis * spec) @ power
+
+
+def hair_diffuse(lt: RelightLighting, tangents, normals, views, forward: float = HAIR_FORWARD,
                  g: float = FORWARD_G) -> np.ndarray:
-    """(P, 3) D(T, v) (module doc) of the lighting ``fur`` (kernel "fur") at unit tangents and views (P, 3)."""
-    if fur.kernel != "fur":
-        raise ValueError(f"hair_diffuse needs a lighting with the 'fur' kernel, got {fur.kernel!r}")
-    t = np.asarray(tangents, np.float64).reshape(-1, 3)
-    v = np.asarray(views, np.float64).reshape(-1, 3)
-    d = sample_equirect(np.asarray(fur.table, np.float64), dir_to_uv(t @ np.asarray(fur.to_env).T))
-    if forward:
-        ax, power = _lobes(fur)
-        c = t @ ax.T
-        w = np.sqrt(np.maximum(1 - np.minimum(c * c, 1), 0)) * henyey_greenstein(-(v @ ax.T), g)
-        d = d + forward * (w @ power)
-    return d
+    """(P, 3) D(T, n, v) (module doc) at unit tangents, shell normals (or 0) and views (P, 3)."""
+    return _terms(lt, tangents, normals, views, forward, g, HAIR_BETA_R)[0]
 
 
-def hair_specular(fur: RelightLighting, tangents, views, beta: float = HAIR_BETA_R) -> np.ndarray:
-    """(P, 3) R(T, v) (module doc): the SG lobes through the R lobe's longitudinal Gaussian."""
-    t = np.asarray(tangents, np.float64).reshape(-1, 3)
-    v = np.asarray(views, np.float64).reshape(-1, 3)
-    ax, power = _lobes(fur)
-    x = t @ ax.T + np.sum(t * v, 1, keepdims=True)
-    return np.exp(-0.5 * (x / beta) ** 2) @ power
+def hair_specular(lt: RelightLighting, tangents, normals, views, beta: float = HAIR_BETA_R) -> np.ndarray:
+    """(P, 3) R(T, n, v) (module doc): the SG lobes through the R lobe's longitudinal Gaussian."""
+    return _terms(lt, tangents, normals, views, HAIR_FORWARD, FORWARD_G, beta)[1]
 
 
 def fit_strand_colour(flat, colour, d, r, n_voxels: int, ridge: float = SIGMA_RIDGE):
@@ -104,16 +105,16 @@ def fit_strand_colour(flat, colour, d, r, n_voxels: int, ridge: float = SIGMA_RI
     return rho, sigma, cnt
 
 
-def hair_gain(tangents, views, rho, sigma, fur_a: RelightLighting, fur_b: RelightLighting, g_global,
+def hair_gain(tangents, normals, views, rho, sigma, a: RelightLighting, b: RelightLighting, g_global,
               regularise: float = REGULARISE, max_gain: float = MAX_GAIN, forward_g: float = FORWARD_G) -> np.ndarray:
     """(P, 3) gain from A to B of strands (module doc): (rho D_B + sigma R_B + r rho ref_B) /
     (rho D_A + sigma R_A + r rho ref_A), clamped to [0, max_gain g_global]; g_global where that is 0/0."""
     rho = np.asarray(rho, np.float64).reshape(-1, 3)
     sg = np.asarray(sigma, np.float64).reshape(-1, 1)
-    ta = rho * hair_diffuse(fur_a, tangents, views, g=forward_g) + sg * hair_specular(fur_a, tangents, views)
-    tb = rho * hair_diffuse(fur_b, tangents, views, g=forward_g) + sg * hair_specular(fur_b, tangents, views)
-    den = ta + regularise * (1 + HAIR_FORWARD) * rho * np.asarray(fur_a.reference)
-    num = tb + regularise * (1 + HAIR_FORWARD) * rho * np.asarray(fur_b.reference)
+    da, ra = _terms(a, tangents, normals, views, HAIR_FORWARD, forward_g, HAIR_BETA_R)
+    db, rb = _terms(b, tangents, normals, views, HAIR_FORWARD, forward_g, HAIR_BETA_R)
+    den = rho * da + sg * ra + regularise * rho * hair_reference(a)
+    num = rho * db + sg * rb + regularise * rho * hair_reference(b)
     g = np.broadcast_to(np.asarray(g_global, np.float64), num.shape)
     q = np.where(den > 0, num / np.where(den > 0, den, 1.0), g)
     return np.clip(q, 0.0, max_gain * g)

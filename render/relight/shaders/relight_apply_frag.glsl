@@ -52,7 +52,9 @@ void main() {
             w = clamp(w, 0.0, 1.0);
             if (w > 0.0) {
                 vec4 f = texture(u_strand_fit, ts);
-                gain = mix(gain, hair_gain(tan_, view, f.rgb, f.a), w);
+                float gl = length(g);
+                vec3 n = gl > RELIGHT_MIN_GRADIENT ? g / gl : vec3(0.0);
+                gain = mix(gain, hair_gain(tan_, n, view, f.rgb, f.a), w);
             }
         }
         col *= gain;

@@ -1,10 +1,7 @@
 // Strand transfer of the relighting (issue 23; twins: render/shading/hair_transfer.py hair_gain and
 // render/relight/strands.py principal_direction). Included after relight_common.glsl (its SG lobes,
-// u_to_env, u_global_gain, u_regularise, u_max_gain). Per lighting: the "fur" transfer table (E_fur over
-// tangents, as the surface table) and its reference transfer.
+// u_global_gain, u_regularise, u_max_gain); u_hair_ref_a/b: hair_transfer.hair_reference of A and B.
 // Injected: HAIR_FORWARD, HAIR_BETA_R, STRAND_POWER_STEPS, RELIGHT_FORWARD_G.
-uniform sampler2D u_hair_table_a;
-uniform sampler2D u_hair_table_b;
 uniform vec3 u_hair_ref_a;
 uniform vec3 u_hair_ref_b;
 
@@ -22,31 +19,29 @@ vec3 strand_principal(vec4 t0, vec4 t1, out float lam) {
     return v / max(lam, 1e-30);
 }
 
-// rho D(T, v) + sigma R(T, v) of lighting `which` (0 = A, 1 = B)
-vec3 hair_transfer(int which, vec3 t, vec3 v, vec3 rho, float sigma) {
+// rho D(T, n, v) + sigma R(T, n, v) of lighting `which` (0 = A, 1 = B); n unit or 0
+vec3 hair_transfer(int which, vec3 t, vec3 n, vec3 v, vec3 rho, float sigma) {
     const float g = RELIGHT_FORWARD_G;
-    vec2 uv = env_dir_to_uv(u_to_env * t);
-    vec3 d = which == 0 ? texture(u_hair_table_a, uv).rgb : texture(u_hair_table_b, uv).rgb;
-    vec3 f = vec3(0.0), r = vec3(0.0);
+    vec3 d = vec3(0.0), r = vec3(0.0);
     float tv = dot(t, v);
     for (int k = 0; k < relight_lobe_count(which); ++k) {
         SG l = relight_lobe(which, k);
-        vec3 power = sg_integral(l);
+        vec3 power = sg_integral(l) * (max(dot(n, l.axis) + 0.5, 0.0) / 1.5);
         float c = dot(t, l.axis);
         float s = sqrt(max(1.0 - min(c * c, 1.0), 0.0));
         float cs = -dot(v, l.axis);
         float hg = (1.0 - g * g) / pow(1.0 + g * g - 2.0 * g * cs, 1.5);
-        f += power * (s * hg);
+        d += power * (s * (1.0 + HAIR_FORWARD * hg));
         float x = (c + tv) / HAIR_BETA_R;
         r += power * exp(-0.5 * x * x);
     }
-    return rho * (d + HAIR_FORWARD * f) + sigma * r;
+    return rho * d + sigma * r;
 }
 
-// gain from A to B of a strand with unit tangent t, unit view v, fitted colour rho, specular weight sigma
-vec3 hair_gain(vec3 t, vec3 v, vec3 rho, float sigma) {
-    vec3 den = hair_transfer(0, t, v, rho, sigma) + u_regularise * (1.0 + HAIR_FORWARD) * rho * u_hair_ref_a;
-    vec3 num = hair_transfer(1, t, v, rho, sigma) + u_regularise * (1.0 + HAIR_FORWARD) * rho * u_hair_ref_b;
+// gain from A to B of a strand with unit tangent t, shell normal n, unit view v, fitted colour rho, sigma
+vec3 hair_gain(vec3 t, vec3 n, vec3 v, vec3 rho, float sigma) {
+    vec3 den = hair_transfer(0, t, n, v, rho, sigma) + u_regularise * rho * u_hair_ref_a;
+    vec3 num = hair_transfer(1, t, n, v, rho, sigma) + u_regularise * rho * u_hair_ref_b;
     vec3 q;
     for (int c = 0; c < 3; ++c) q[c] = den[c] > 0.0 ? num[c] / den[c] : u_global_gain[c];
     return clamp(q, vec3(0.0), u_max_gain * u_global_gain);

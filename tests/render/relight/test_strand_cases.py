@@ -15,7 +15,7 @@ from capture.camera import Camera, look_at, make_K
 from render.relight.reference import volume_sample
 from render.relight.strands import field_sample, strand_colour, strand_field
 from render.shading.envmap import EnvMap
-from render.shading.hair_transfer import fur_lighting, hair_diffuse, hair_gain, hair_specular
+from render.shading.hair_transfer import hair_diffuse, hair_gain, hair_specular
 from render.shading.transfer import global_gain, relight_lighting
 
 W, H = 96, 72
@@ -52,7 +52,7 @@ CASES = {
 
 
 def _fur(env):
-    return fur_lighting(env, relight_lighting(env, UP, "wrap", 16))
+    return relight_lighting(env, UP, "wrap", 16)
 
 
 def _camera(az_deg: float) -> Camera:
@@ -74,8 +74,9 @@ def _shoot(cam: Camera, fur):
     v = c - p[inside]
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     tan = np.tile(FIBRE_DIR, (len(v), 1))
+    nrm = np.tile(UP, (len(v), 1))
     col = np.zeros((len(uv), 3))
-    col[inside] = rho * hair_diffuse(fur, tan, v) + SIGMA * hair_specular(fur, tan, v)
+    col[inside] = rho * hair_diffuse(fur, tan, nrm, v) + SIGMA * hair_specular(fur, tan, nrm, v)
     z = np.where(inside, (p - c) @ cam.forward, 0.0)
     return col.reshape(H, W, 3), z.reshape(H, W)
 
@@ -88,7 +89,8 @@ def captured():
     rgb = np.stack([s[0] for s in shots]).astype(np.float32)
     dep = np.stack([s[1] for s in shots]).astype(np.float32)
     field = strand_field(rgb, dep, cams, np.full(3, -0.32), 0.64 / 16, res=16, stride=1)
-    return fur_a, strand_colour(field, rgb, dep, cams, fur_a, stride=1)
+    normals = lambda x: np.tile(UP, (len(x), 1))
+    return fur_a, strand_colour(field, rgb, dep, cams, fur_a, normals, stride=1)
 
 
 def _psnr(a, b, m):
@@ -109,8 +111,8 @@ def test_strands_relit_to_a_hard_map(captured, case):
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     t, w = field_sample(sc.field, x)
     fit = volume_sample(sc.fit, sc.field.origin, sc.field.voxel, x)
-    g = global_gain(relight_lighting(A_MAP, UP, "wrap", 4), relight_lighting(CASES[case], UP, "wrap", 4))
-    gain = hair_gain(t, v, fit[:, :3], fit[:, 3], fur_a, fur_b, g)
+    g = global_gain(fur_a, fur_b)
+    gain = hair_gain(t, np.tile(UP, (len(t), 1)), v, fit[:, :3], fit[:, 3], fur_a, fur_b, g)
     relit = np.zeros_like(col_a)
     relit[m] = col_a[m] * gain
     single = col_a * g
