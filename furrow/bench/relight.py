@@ -50,10 +50,11 @@ def variant_turn(text: str) -> float:
 
 
 def parse_variant(text: str):
-    """``KERNEL[:vis|:novis][:strands|:nostrands][:fwd=BETA][:g=G][:s=SMOOTH][:res=L][:turn=DEG]`` ->
+    """``KERNEL[:vis|:novis][:strands|:nostrands][:fwd=BETA][:g=G][:s=SMOOTH][:res=L][:sres=L][:sw=W][:turn=DEG]`` ->
     render.relight.gl.RelightConfig (vis / novis: with / without the sphere set's visibility; strands /
     nostrands: with / without the strand transfer; fwd: the scattering weight, 0 = view-independent; g: its
-    phase asymmetry; s: orientation smoothing; res: volume resolution; turn: see :func:`variant_turn`)."""
+    phase asymmetry; s: orientation smoothing; res: volume resolution; sres: strand volume resolution; sw:
+    strand weight; turn: see :func:`variant_turn`)."""
     from render.relight.gl import RelightConfig
 
     kernel, *flags = text.split(":")
@@ -73,11 +74,15 @@ def parse_variant(text: str):
             kw["forward_g"] = float(f[2:])
         elif f.startswith("s="):
             kw["smooth"] = float(f[2:])
+        elif f.startswith("sres="):
+            kw["strand_res"] = int(f[5:])
+        elif f.startswith("sw="):
+            kw["strand_weight"] = float(f[3:])
         elif f.startswith("res="):
             kw["volume_res"] = int(f[4:])
         else:
             raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'strands', 'nostrands', 'fwd=BETA', "
-                             "'g=G', 's=SMOOTH', 'res=L', 'turn=DEG'")
+                             "'g=G', 's=SMOOTH', 'res=L', 'sres=L', 'sw=W', 'turn=DEG'")
     return RelightConfig(**kw)
 
 

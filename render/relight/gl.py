@@ -88,12 +88,16 @@ class RelightConfig:
     strands: bool = True
     #: Voxels per side of the strand volume (over the orientation cube).
     strand_res: int = STRAND_RES
+    #: The strand gain's weight is this times the strand score (clamped to 1).
+    strand_weight: float = 1.0
 
     def __post_init__(self) -> None:
         if self.kernel not in rl.KERNELS:
             raise ValueError(f"unknown relighting kernel {self.kernel!r}; use one of {', '.join(rl.KERNELS)}")
         if not 1 <= int(self.sg_lobes) <= MAX_RELIGHT_SG:
             raise ValueError(f"sg_lobes must be 1..{MAX_RELIGHT_SG}, got {self.sg_lobes}")
+        if not self.strand_weight >= 0:
+            raise ValueError(f"strand_weight must be >= 0, got {self.strand_weight}")
         if int(self.strand_res) < 2:
             raise ValueError(f"strand_res must be >= 2, got {self.strand_res}")
         if not (self.regularise >= 0 and self.max_gain > 0 and self.smooth >= 0 and self.volume_res >= 2
@@ -309,6 +313,7 @@ class Relighter(GLOwner):
         set_uniform(p, "u_strand_origin", tuple(float(v) for v in f.origin))
         set_uniform(p, "u_strand_voxel", float(f.voxel))
         set_uniform(p, "u_strand_res", f.resolution)
+        set_uniform(p, "u_strand_weight", float(self.config.strand_weight))
 
     def apply(self, frame: Frame, camera: Camera) -> Frame:
         """Pass 2: the frame relit (module doc); coverage, depth and stats are the frame's

@@ -27,6 +27,7 @@ uniform sampler3D u_strand_fit;   // rho rgb, sigma
 uniform vec3 u_strand_origin;
 uniform float u_strand_voxel;
 uniform int u_strand_res;
+uniform float u_strand_weight;    // the blend weight is this times the strand score, clamped to 1
 out vec4 o_col;
 
 float sdf_at(vec3 x) { return texture(u_sdf_smooth, (x - u_origin) / (u_voxel * float(u_res))).r; }
@@ -49,7 +50,7 @@ void main() {
             vec3 ts = (x - u_strand_origin) / (u_strand_voxel * float(u_strand_res));
             float w;
             vec3 tan_ = strand_principal(texture(u_strand_t0, ts), texture(u_strand_t1, ts), w);
-            w = clamp(w, 0.0, 1.0);
+            w = clamp(u_strand_weight * w, 0.0, 1.0);
             if (w > 0.0) {
                 vec4 f = texture(u_strand_fit, ts);
                 float gl = length(g);
