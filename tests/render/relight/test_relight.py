@@ -49,7 +49,7 @@ def test_twins(gl_ctx, model):
     rng = np.random.default_rng(0)
     dep = np.where(rng.random((72, 96)) < 0.7, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
     fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
-    cfg = RelightConfig(kernel="wrap", volume_res=16, visibility=True)
+    cfg = RelightConfig(kernel="wrap", volume_res=16, visibility=True, strands=True)
     with Relighter(gl_ctx, model, procedural_sky(32), _sun_sky(), cfg) as rel:
         ref = share_volume_reference(rel.raw, rel.smooth, rel.capture, rel.new, model.spheres)
         d = np.abs(ref - rel.share_volume).max(-1)
@@ -83,7 +83,7 @@ def test_strand_twin(gl_ctx, model):
     rng = np.random.default_rng(3)
     dep = np.where(rng.random((72, 96)) < 0.8, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
     fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
-    cfg = RelightConfig(volume_res=16)
+    cfg = RelightConfig(volume_res=16, strands=True)
     red_sun = EnvMap((_sun_sky(sun=(-0.5, 0.6, 0.3)).data * np.array([1.0, 0.3, 0.1], np.float32)), "red")
     with Relighter(gl_ctx, model, _sun_sky(), red_sun, cfg) as rel:
         rel.set_strands(_random_strands(rel, rng))
@@ -124,11 +124,12 @@ def test_lambertian_object_relit_like_the_rasteriser(gl_ctx, model):
     assert p_relit > 38.0 and p_relit > p_gain + 15.0, (p_relit, p_gain)
 
 
-def test_same_map_is_the_identity(gl_ctx, model):
+@pytest.mark.parametrize("strands", [False, True])
+def test_same_map_is_the_identity(gl_ctx, model, strands):
     cam = scene.ring_cameras(8, 64, 48)[0]
     dep = np.full((48, 64), 0.35, np.float32)
     fr = Frame(np.full((48, 64, 3), 0.4, np.float32), np.ones((48, 64), np.float32), dep, FrameStats(0, 0, 0, 1))
-    with Relighter.from_model(gl_ctx, model, procedural_sky(32), RelightConfig(volume_res=16)) as rel:
+    with Relighter.from_model(gl_ctx, model, procedural_sky(32), RelightConfig(volume_res=16, strands=strands)) as rel:
         np.testing.assert_allclose(rel.apply(fr, cam).rgb, fr.rgb, rtol=1e-6)
         rel.set_new_env(_sun_sky())  # the viewer's switch: another map, another result
         assert np.abs(rel.apply(fr, cam).rgb - fr.rgb).max() > 0.05
