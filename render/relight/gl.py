@@ -147,6 +147,7 @@ class Relighter(GLOwner):
                    "RELIGHT_LIFT_VOXELS": f"{VISIBILITY_LIFT_VOXELS:.9e}",
                    "RELIGHT_BAND_VOXELS": f"{VISIBILITY_BAND_VOXELS:.9e}", "SG_FH_TABLE": 1,
                    "HAIR_FORWARD": f"{ht.HAIR_FORWARD:.9e}", "HAIR_BETA_R": f"{ht.HAIR_BETA_R:.9e}",
+                   "HAIR_BETA_D": f"{ht.HAIR_BETA_D:.9e}", "HAIR_FLOOR": f"{ht.HAIR_FLOOR:.9e}",
                    "STRAND_POWER_STEPS": POWER_STEPS}
         self._vol_prog = self.own(program(ctx, "composite_vert.glsl", "relight_volume_frag.glsl", defines=defines))
         self._app_prog = self.own(program(ctx, "composite_vert.glsl", "relight_apply_frag.glsl", defines=defines))

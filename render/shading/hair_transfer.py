@@ -2,18 +2,17 @@
 ``render/relight/shaders/relight_hair.glsl``): what a fibre with unit tangent T in a fur shell with
 smoothed normal n, seen from the unit direction v (to the camera), returns of an environment, as two
 parts the fibre's colour weighs differently, with the map's SG lobes (axis p_k, power P_k = mu_k x their
-integral) as lights:
+integral) as lights and x_k = p_k . T + v . T (0 on the specular cone sin theta_i = -sin theta_o):
 
-    D(T, n, v) = sum_k P_k W(n . p_k) sin(T, p_k) (1 + beta_TT HG(-v . p_k))          coloured
-    R(T, n, v) = sum_k P_k W(n . p_k) exp(-(p_k . T + v . T)^2 / (2 beta_R^2))        white
+    D(T, n, v) = sum_k P_k W(n . p_k) (exp(-x_k^2 / 2 beta_D^2) + floor) (1 + beta_TT HG(-v . p_k))  coloured
+    R(T, n, v) = sum_k P_k W(n . p_k) exp(-x_k^2 / (2 beta_R^2))                                     white
 
-* sin(T, p): Kajiya-Kay's diffuse term of a strand; HG a Henyey-Greenstein phase (mean 1) for the light
-  fibres transmit forwards (Marschner's TT); the R lobe a longitudinal Gaussian around the specular cone
-  sin theta_i = -sin theta_o (Marschner et al. 2003; width ~ Chiang et al.'s beta_m = 0.3, see
-  ``render.shading.hair``; azimuthally flat, the cuticle tilt neglected);
+* the lobes of Marschner et al. 2003 / Chiang et al. 2016 (``render.shading.hair``) all lie near the
+  specular cone: R narrow (beta_R ~ the longitudinal width of beta_m = 0.3) and white; TT and TRT wider
+  and coloured (beta_D), with a floor for the light scattered many times in dense fur; HG a
+  Henyey-Greenstein phase (mean 1) for the forward-transmitted TT; azimuthally flat otherwise;
 * W the wrap kernel max(0, c + 1/2) / (3/2) of the shell's normal: the light the fur ball itself hides
-  (measured: without it, Kajiya-Kay on the tangent alone lit the far side of the fur ball and lost
-  2.6 dB to the surface transfer, docs/relight.md).
+  (measured: Kajiya-Kay's sin(T, p) on the tangent alone lit the far side of the fur ball, docs/relight.md).
 
 A captured strand's colour under lighting A is C = rho D_A + sigma R_A (rho: RGB, the fibre's colour
 including the camera's exposure; sigma: its white specular weight): :func:`fit_strand_colour` inverts
@@ -33,6 +32,10 @@ HAIR_FORWARD = 1.0
 #: Width of the R lobe around the specular cone (in sine units; ~ the longitudinal width of
 #: Chiang et al.'s beta_m = 0.3).
 HAIR_BETA_R = 0.3
+#: Width of the coloured lobes (TT, TRT) around the specular cone, wider than R (sine units), and the
+#: isotropic floor of multiply scattered light under them.
+HAIR_BETA_D = 0.45
+HAIR_FLOOR = 0.25
 #: Ridge weight of the specular weight sigma in the colour fit, relative to the mean R^2 x samples
 #: (keeps sigma near 0 where the views cannot tell R from D).
 SIGMA_RIDGE = 0.05
@@ -65,8 +68,9 @@ def _terms(lt: RelightLighting, tangents, normals, views, forward: float, g: flo
     ax, power = _lobes(lt)
     c = t @ ax.T
     vis = _wrap(n @ ax.T)
-    diff = np.sqrt(np.maximum(1 - np.minimum(c * c, 1), 0)) * (1 + forward * henyey_greenstein(-(v @ ax.T), g))
-    spec = np.exp(-0.5 * ((c + np.sum(t * v, 1, keepdims=True)) / beta) ** 2)
+    x = c + np.sum(t * v, 1, keepdims=True)
+    diff = (np.exp(-0.5 * (x / HAIR_BETA_D) ** 2) + HAIR_FLOOR) * (1 + forward * henyey_greenstein(-(v @ ax.T), g))
+    spec = np.exp(-0.5 * (x / beta) ** 2)
     return (vis * diff) @ power, (vis * spec) @ power
 
 

@@ -1,7 +1,7 @@
 // Strand transfer of the relighting (issue 23; twins: render/shading/hair_transfer.py hair_gain and
 // render/relight/strands.py principal_direction). Included after relight_common.glsl (its SG lobes,
 // u_global_gain, u_regularise, u_max_gain); u_hair_ref_a/b: hair_transfer.hair_reference of A and B.
-// Injected: HAIR_FORWARD, HAIR_BETA_R, STRAND_POWER_STEPS, RELIGHT_FORWARD_G.
+// Injected: HAIR_FORWARD, HAIR_BETA_R, HAIR_BETA_D, HAIR_FLOOR, STRAND_POWER_STEPS, RELIGHT_FORWARD_G.
 uniform vec3 u_hair_ref_a;
 uniform vec3 u_hair_ref_b;
 
@@ -28,10 +28,10 @@ vec3 hair_transfer(int which, vec3 t, vec3 n, vec3 v, vec3 rho, float sigma) {
         SG l = relight_lobe(which, k);
         vec3 power = sg_integral(l) * (max(dot(n, l.axis) + 0.5, 0.0) / 1.5);
         float c = dot(t, l.axis);
-        float s = sqrt(max(1.0 - min(c * c, 1.0), 0.0));
         float cs = -dot(v, l.axis);
         float hg = (1.0 - g * g) / pow(1.0 + g * g - 2.0 * g * cs, 1.5);
-        d += power * (s * (1.0 + HAIR_FORWARD * hg));
+        float xd = (c + tv) / HAIR_BETA_D;
+        d += power * ((exp(-0.5 * xd * xd) + HAIR_FLOOR) * (1.0 + HAIR_FORWARD * hg));
         float x = (c + tv) / HAIR_BETA_R;
         r += power * exp(-0.5 * x * x);
     }

@@ -24,10 +24,9 @@ FIBRE_DIR = np.array([np.cos(np.radians(35)), np.sin(np.radians(35)), 0.0])
 BASE_RHO = np.array([0.6, 0.4, 0.25])
 SIGMA = 0.08
 #: Required: relit PSNR at least this far above the single gain's (dB), and at least this absolute per case
-#: (measured 31.1 / 36.2 / 21.4 dB against the gain's 14.1 / 14.5 / 15.1: one sun on black is the hardest,
-#: its sharp R highlight moves with the few degrees of tangent error).
+#: (measured 29.4 / 34.5 / 33.2 dB against the gain's 11.7 / 13.3 / 11.7).
 MIN_MARGIN_DB = 6.0
-MIN_PSNR_DB = {"direction": 30.0, "coloured": 33.0, "one-sun": 18.0}
+MIN_PSNR_DB = {"direction": 27.0, "coloured": 32.0, "one-sun": 30.0}
 
 
 def _sky(sun, tint=(1.0, 1.0, 1.0), sky=0.3, sun_power=40.0, h=32) -> EnvMap:
