@@ -32,8 +32,9 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
                    help="transfer kernel of the relighting: wrap (default), lambert, fur, half-lambert")
     g.add_argument("--relight-strands", action="store_true",
                    help="strand-aware relighting: strand tangents from the capture views and a fibre transfer where "
-                        "the capture looks like fur or needles (docs/relight.md; measured below the default surface "
-                        "transfer on our fur ball and plant, so off by default); adds seconds of setup")
+                        "the capture looks like fur or needles (docs/relight.md; measured within 0.2 dB of the default "
+                        "surface transfer on our fur ball and plant, no better on the whole, so off by default); adds "
+                        "seconds of setup")
     g.add_argument("--relight-visibility", action="store_true",
                    help="self-visibility from the model's sphere set (SSDF): for concave solids; adds seconds of setup")
 

@@ -85,12 +85,14 @@ class RelightConfig:
     #: Strand-aware transfer (issue 23): tangents and fibre colours from the capture views
     #: (render.relight.strands), the strand gain (render.shading.hair_transfer) where the structure is
     #: strand-like; False: the surface transfer everywhere (issue 15's relighting).  Off by default:
-    #: measured 0.1-0.8 dB below the surface transfer on the fur ball and the plant (docs/relight.md).
+    #: measured within -0.18..+0.22 dB of the surface transfer on the fur ball and the plant, no better on
+    #: the whole (docs/relight.md).
     strands: bool = False
     #: Voxels per side of the strand volume (over the orientation cube).
     strand_res: int = STRAND_RES
-    #: The strand gain's weight is this times the strand score (clamped to 1).
-    strand_weight: float = 1.0
+    #: The strand gain's weight is this times the strand score (clamped to 1): 0.5 measured better than 1
+    #: on all five bench pairs (+0.1 to +0.4 dB; docs/relight.md).
+    strand_weight: float = 0.5
 
     def __post_init__(self) -> None:
         if self.kernel not in rl.KERNELS:

@@ -57,7 +57,8 @@ def test_twins(gl_ctx, model):
         assert np.mean(d > 1e-3) <= SHARE_FLIP_SHARE and d.mean() < 1e-4, (np.mean(d > 1e-3), d.mean())
         out = rel.apply(fr, cam)
         want = apply_reference(fr.rgb, fr.depth, cam, rel.smooth, rel.share_volume, rel.capture, rel.new,
-                               strands=rel.strands, hair=rel.hair, **cfg.gain_kwargs())
+                               strands=rel.strands, hair=rel.hair, strand_weight=cfg.strand_weight,
+                               **cfg.gain_kwargs())
         np.testing.assert_allclose(out.rgb, want, rtol=APPLY_RTOL, atol=1e-6)
         np.testing.assert_array_equal(out.rgb[dep == 0], fr.rgb[dep == 0])  # no depth: unchanged
         assert out.coverage is fr.coverage or np.array_equal(out.coverage, fr.coverage)
@@ -89,7 +90,8 @@ def test_strand_twin(gl_ctx, model):
         rel.set_strands(_random_strands(rel, rng))
         out = rel.apply(fr, cam)
         want = apply_reference(fr.rgb, fr.depth, cam, rel.smooth, rel.share_volume, rel.capture, rel.new,
-                               strands=rel.strands, hair=rel.hair, **cfg.gain_kwargs())
+                               strands=rel.strands, hair=rel.hair, strand_weight=cfg.strand_weight,
+                               **cfg.gain_kwargs())
         surface = apply_reference(fr.rgb, fr.depth, cam, rel.smooth, rel.share_volume, rel.capture, rel.new,
                                   **cfg.gain_kwargs())
     assert np.abs(want - surface).max() > 0.05  # the strand branch does change the result
