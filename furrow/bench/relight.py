@@ -38,6 +38,8 @@ from render.methods import DEFAULT_METHOD, METHODS
 
 #: Gain of a pair that relighting must beat by this much masked PSNR (issue 15), dB.
 TARGET_DB = 2.0
+#: Held-out views timed by --timing-width.
+TIMING_VIEWS = 8
 
 
 def variant_turn(text: str) -> float:
@@ -195,8 +197,32 @@ def _oracle(rel, refs, held, frames, g) -> tuple[dict, dict]:
     return score(refs, relit, frames), score(refs, gained, frames)
 
 
+def frame_cost(ctx, model, split, env, configs: dict, width: int, method: str, views: int = TIMING_VIEWS) -> dict:
+    """Median ms / CPU ms of the render and of each variant's relighting pass with the held-out cameras
+    scaled to ``width`` pixels wide (the issue's 640x480 on a 320x240 capture)."""
+    from render.methods import create_renderer
+    from render.relight.gl import Relighter
+
+    cams = [s.camera.scaled(width / s.camera.width) for s in split.held[:views]]
+    with create_renderer(method, ctx, model) as r:
+        r.render(cams[0])
+        frames = [r.render(c) for c in cams]
+    out = {"size": list(frames[0].size), "render_ms": float(np.median([f.stats.ms for f in frames])),
+           "render_cpu_ms": float(np.median([f.stats.cpu_ms for f in frames]))}
+    for name, cfg in configs.items():
+        with Relighter.from_model(ctx, model, env, cfg) as rel:
+            rel.apply(frames[0], cams[0])
+            ms, cpu = [], []
+            for f, c in zip(frames, cams):
+                rel.apply(f, c)
+                ms.append(rel.last_ms)
+                cpu.append(rel.last_cpu_ms)
+        out[name] = {"apply_ms": float(np.median(ms)), "apply_cpu_ms": float(np.median(cpu))}
+    return out
+
+
 def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path,
-                  map_dir: Path | None = None, method: str = DEFAULT_METHOD) -> dict:
+                  map_dir: Path | None = None, method: str = DEFAULT_METHOD, timing_width: int | None = None) -> dict:
     from render.gl import gl_context
 
     cap = capture_env or capture_map(scans)
@@ -211,6 +237,8 @@ def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views
     with gl_context() as ctx:
         for relit in relits:
             res["pairs"].append(bench_pair(ctx, model, split, frames, scans, relit, configs, out_dir, map_dir))
+        if timing_width:
+            res["timing"] = frame_cost(ctx, model, split, find_map(relits[0], map_dir), configs, timing_width, method)
     return res
 
 
@@ -261,14 +289,17 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--max-views", type=int, default=None, help="at most this many held-out views per capture")
     ap.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
                     help=f"rendering method of the held-out views (default {DEFAULT_METHOD}, as furrow render)")
+    ap.add_argument("--timing-width", type=int, default=None, metavar="W",
+                    help="also time the render and each variant's relighting pass with the held-out cameras scaled to "
+                         "W pixels wide (e.g. 640 on a 320x240 capture; relight.json 'timing')")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "relight")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     configs = {v: parse_variant(v) for v in a.variants.split(",")}
     a.out.mkdir(parents=True, exist_ok=True)
     res = {"variants": list(configs), "target_db": TARGET_DB,
-           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir, a.method)
-                         for c in a.captures]}
+           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir, a.method,
+                                      a.timing_width) for c in a.captures]}
     first = res["variants"][0]
     res["met"] = all(p[first]["gain_over_single_db"] >= TARGET_DB for c in res["captures"] for p in c["pairs"])
     (a.out / "relight.json").write_text(json.dumps(res, indent=1, default=float))
@@ -276,6 +307,12 @@ def main(argv: list[str]) -> int:
         print(json.dumps(res, indent=1, default=float))
         return 0
     print_tables(res)
+    for c in res["captures"]:
+        if "timing" in c:
+            t = c["timing"]
+            parts = [f"{n} {t[n]['apply_ms']:.1f} ms ({t[n]['apply_cpu_ms']:.1f} CPU)" for n in res["variants"]]
+            print(f"{Path(c['scans']).name} at {t['size'][0]}x{t['size'][1]}: render {t['render_ms']:.1f} ms "
+                  f"({t['render_cpu_ms']:.1f} CPU); " + "; ".join(parts))
     print(f"relit beats the single gain by >= {TARGET_DB} dB on every pair: {res['met']}  ({a.out / 'relight.json'})")
     return 0
 
