@@ -113,3 +113,16 @@ def test_wrong_convention_is_a_quarter_turn_off(tmp_path):
 def test_unknown_convention_is_named():
     with pytest.raises(ValueError, match="unknown environment-map convention 'maya'"):
         named_envmap("sunset", "maya")
+
+
+def test_capture_lighting_takes_the_convention(tmp_path):
+    """--capture-env-convention: an equirect capture map is turned into furrow's layout before it is stored;
+    a fisheye / mirror-ball photo has its own layout, so a convention there is an error."""
+    from render.shading.capture_env import capture_envmap
+
+    dirs_of, _ = LAYOUTS["mitsuba"]
+    path = save_envmap(_spot_map(dirs_of(32), (0.3, 0.9, 0.2)), tmp_path / "m.exr")
+    got = capture_envmap(str(path), convention="mitsuba")
+    np.testing.assert_array_equal(got.data, named_envmap(str(path), "mitsuba").data)
+    with pytest.raises(ValueError, match="equirect --capture-env map only"):
+        capture_envmap(fisheye=tmp_path / "fish.exr", convention="mitsuba")
