@@ -85,8 +85,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the scans' lighting as an HDR angular fisheye photo looking up (square, .exr/.hdr)")
     x.add_argument("--capture-env-mirrorball", type=Path, default=None, metavar="IMG",
                    help="the scans' lighting as an HDR mirror-ball photo taken level (square crop, .exr/.hdr)")
-    g.add_argument("--capture-env-rotation", type=float, default=0.0, metavar="DEG",
-                   help="turn the capture lighting about the rig's up axis (degrees, as --env-rotation of render)")
+    from furrow.relight_flags import add_map_orientation_arguments
+
+    add_map_orientation_arguments(g, "the capture lighting (--capture-env*)", prefix="capture-env")
     g.add_argument("--capture-env-fov", type=float, default=185.0, metavar="DEG",
                    help="field of view of --capture-env-fisheye (default 185)")
     g = p.add_argument_group("the object apart from its surroundings (before fusion)")
@@ -248,7 +249,7 @@ def _capture_env(args):
     from render.shading.capture_env import capture_envmap
 
     return capture_envmap(args.capture_env, args.capture_env_fisheye, args.capture_env_mirrorball,
-                          fov_deg=args.capture_env_fov)
+                          fov_deg=args.capture_env_fov, convention=args.capture_env_convention)
 
 
 def _with_capture_env(model, env, scanset, args):
