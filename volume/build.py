@@ -33,10 +33,8 @@ from volume.model import Model, SdfLevel, SdfPyramid
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
 from volume.spheres import fit_spheres
+from volume.stream import NORMAL_THREADS, pack_scans
 from volume.tsdf import fuse_tsdf
-
-#: Threads that compute the scans' depth normals and plane offsets (volume.fusion.scan_maps).
-NORMAL_THREADS = 2
 
 #: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
 #: of the occluder (docs/methods.md §3: tens to hundreds of spheres).
@@ -95,6 +93,20 @@ def _release_free_memory() -> None:
         pass
 
 
+def scan_maps_of(scanset: ScanSet, fcfg: FusionConfig, progress=None):
+    """The fusion's per-scan maps: packed footprint rectangles computed view by view
+    (volume.stream.pack_scans) for the compiled backend; the list of full-frame ScanMaps (the
+    reference) for 'numpy'."""
+    if fcfg.backend == "numba":
+        return pack_scans(scanset.scans, fcfg.max_grazing_deg, fcfg.smooth_sigma_z, NORMAL_THREADS, progress)
+    with ThreadPoolExecutor(NORMAL_THREADS) as pool:
+        # numpy and OpenCV release the GIL in these whole-image operations: measured on 18 views of
+        # a 640x480 capture, 1.5 s on one thread, 0.8-1.0 s on two (quiet 2-core machine)
+        futures = [pool.submit(scan_maps, s, fcfg.max_grazing_deg, fcfg.smooth_sigma_z) for s in scanset.scans]
+        return prepare_maps([f.result() for f in (progress(futures, "normals") if progress else futures)],
+                            fcfg.backend)
+
+
 def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False):
     """Fuse every level min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction}).
 
@@ -102,13 +114,8 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, d
     stage = stage or (lambda name: contextlib.nullcontext())
     origin, extent = cube_for_bounds(scanset.bounds)
     fuse = fuse_consensus if cfg.sdf == "consensus" else fuse_tsdf
-    with stage("depth normals"), ThreadPoolExecutor(NORMAL_THREADS) as pool:
-        # numpy and OpenCV release the GIL in these whole-image operations: measured on 18 views of
-        # a 640x480 capture, 1.5 s on one thread, 0.8-1.0 s on two (quiet 2-core machine)
-        futures = [pool.submit(scan_maps, s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
-                   for s in scanset.scans]
-        maps = prepare_maps([f.result() for f in (progress(futures, "normals") if progress else futures)],
-                            cfg.fusion.backend)
+    with stage("depth normals"):
+        maps = scan_maps_of(scanset, cfg.fusion, progress)
     _release_free_memory()
     fused, frac = {}, {}
     coarse = None
