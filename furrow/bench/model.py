@@ -181,7 +181,7 @@ def run_spheres(name: str, scans: Path, targets: list[float], res: int = 64) -> 
     from volume.spheres import fit_spheres, volume_iou
 
     ss = read_scanset(scans)
-    origin, _, fused, _ = fuse_levels(ss, ModelConfig(lopt=LoptConfig(max_res=res)))
+    origin, _, fused, _, _ = fuse_levels(ss, ModelConfig(lopt=LoptConfig(max_res=res)))
     f = fused[res]
     lv = SdfLevel(res, origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
     rows = []
