@@ -19,7 +19,6 @@ decimation, every level completed), kept for the side-by-side benchmark (furrow/
 from __future__ import annotations
 
 import contextlib
-import itertools
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
 
@@ -30,7 +29,7 @@ from capture.scan import ScanSet
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
-from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
+from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors_views
 from volume.model import Model, SdfLevel, SdfPyramid
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
@@ -187,9 +186,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
                                  (lambda it: progress(it, "rgbz")) if progress else None)
     with stage("mesh colour"):
         # view by view: the decoded frames are never stacked
-        views_a, views_b = itertools.tee(rgbz.view(n) for n in range(len(rgbz)))
-        colors = vertex_colors(verts, faces, rgbz.cameras, (v[0] for v in views_a), (v[1] for v in views_b),
-                               mesh_level.voxel_size) if len(verts) else None
+        colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
+                                     mesh_level.voxel_size) if len(verts) else None
     if not cfg.keep_values:
         pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
                                 keep_values=False, points=points)
