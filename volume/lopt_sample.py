@@ -14,7 +14,8 @@ question is answered from a uniform sample of its candidate voxels instead:
 * the flagged count k of m sampled voxels out of C candidates estimates N_i = C k / m.  A Wilson
   score interval with Z_SCORE standard deviations (binomial; sampling without replacement only
   narrows it) either lies wholly on one side of the threshold t L^3 / C, and the level is decided,
-  or the level is fused in full and decided exactly.
+  or the sample grows (EQ1_GROWTH, up to EQ1_MAX_SAMPLES) and is drawn again; still undecided,
+  the level is fused in full and decided exactly.
 
 So the decision differs from the full fusion's only with the probability of a Z_SCORE-sigma
 event (below 1e-6 at 5 sigma); tests/volume/test_lopt_sample.py compares the two on scenes with
@@ -39,8 +40,12 @@ from volume.fusion import (
     upsample2,
 )
 
-#: Candidate voxels sampled (with their six neighbours: 7x as many voxels evaluated).
+#: Candidate voxels sampled first (with their six neighbours: 7x as many voxels evaluated)...
 EQ1_SAMPLES = 20000
+#: ...then EQ1_GROWTH times more while undecided, up to EQ1_MAX_SAMPLES (a fraction close to t
+#: needs more samples; past that the full fusion decides).
+EQ1_GROWTH = 4
+EQ1_MAX_SAMPLES = 320000
 #: Standard deviations of the Wilson interval that must clear the threshold to decide.
 Z_SCORE = 5.0
 #: Seed of the sample (the decision is reproducible).
@@ -121,15 +126,29 @@ def measured_at(maps, origin, w: float, L: int, cfg: FusionConfig, flat: np.ndar
 
 
 def sampled_eq1(maps, coarse: FusedSdf, origin, extent: float, L: int, cfg: FusionConfig, alpha: float, t: float,
-                n_samples: int = EQ1_SAMPLES, z: float = Z_SCORE, seed: int = SAMPLE_SEED) -> SampledEq1:
-    """Eq. 1 of level L (on the cube origin + [0, extent]^3) from a sample (module docstring);
-    ``coarse`` is the completed level L/2."""
+                n_samples: int = EQ1_SAMPLES, z: float = Z_SCORE, seed: int = SAMPLE_SEED,
+                max_samples: int = EQ1_MAX_SAMPLES) -> SampledEq1:
+    """Eq. 1 of level L (on the cube origin + [0, extent]^3) from samples of ``n_samples``
+    growing to ``max_samples`` while undecided (module docstring); ``coarse`` is the completed level L/2."""
     if coarse.resolution * 2 != L or coarse.values is None:
         raise ValueError("sampled_eq1 needs the completed level L/2 below L")
     maps = prepare_maps(maps, cfg.backend)
     origin = np.asarray(origin, np.float64)
     w = extent / L
     cand = candidates(coarse, cfg.trunc(w))
+    in_cand = np.zeros(L ** 3, bool)
+    in_cand[cand] = True
+    m = int(n_samples)
+    while True:
+        s = _sample_once(maps, cand, in_cand, origin, w, L, cfg, alpha, t, m, z, seed)
+        if s.decided or s.samples >= len(cand) or m >= max_samples:
+            return s
+        m = min(m * EQ1_GROWTH, int(max_samples))
+
+
+def _sample_once(maps, cand, in_cand, origin, w: float, L: int, cfg: FusionConfig, alpha: float, t: float,
+                 n_samples: int, z: float, seed: int) -> SampledEq1:
+    """One draw of ``n_samples`` candidates (``sampled_eq1``)."""
     C = len(cand)
     rng = np.random.default_rng(seed)
     pick = cand if C <= n_samples else np.sort(rng.choice(cand, n_samples, replace=False))
@@ -139,13 +158,7 @@ def sampled_eq1(maps, coarse: FusedSdf, origin, extent: float, L: int, cfg: Fusi
     inside = np.all((nb >= 0) & (nb < L), axis=2)
     nb_flat = np.where(inside, (nb[..., 0] * L + nb[..., 1]) * L + nb[..., 2], 0)
     flat = np.concatenate([pick, nb_flat.reshape(-1)])
-    in_cand = np.zeros(L ** 3, bool)
-    in_cand[cand] = True
-
-    def cand_mask(f):
-        return in_cand[f]
-
-    meas, val = measured_at(maps, origin, w, L, cfg, flat, cand_mask)
+    meas, val = measured_at(maps, origin, w, L, cfg, flat, lambda f: in_cand[f])
     mv, vv = meas[:m], val[:m]
     mn = meas[m:].reshape(m, 6) & inside
     vn = val[m:].reshape(m, 6)
