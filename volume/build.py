@@ -172,7 +172,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
             with stage(f"complete {L}^3"):
                 fused[L] = completed(fused[L], cfg.fusion.backend)
     with stage("pyramid"):
-        points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
+        points = ViewPoints(scanset) if cfg.measured_voxels else None
         pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items() if L <= l_opt}, origin, extent,
                                             l_opt, keep_values=True, points=points)
     with stage("spheres"):
@@ -215,6 +215,20 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
     }
     return model, summary
+
+
+class ViewPoints:
+    """The scans' measured world points, one view at a time (back-projected on each pass, never
+    all held: volume.pyramid.measured_voxels reads them view by view)."""
+
+    def __init__(self, scanset: ScanSet):
+        self.scans = scanset.scans
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def __iter__(self):
+        return (s.points() for s in self.scans)
 
 
 def _level(f, origin) -> SdfLevel:
