@@ -119,3 +119,24 @@ def test_crop_validation():
         RgbzImages.from_crops(_cams(1, 20, 15), [c])
     with pytest.raises(ModelError, match="uint16"):
         RgbzCrop(c.rect, c.srgb, c.depth.astype(np.int32), c.z0, c.dz)
+
+
+def test_fine_level_values_stored_as_half(tmp_path):
+    """Levels above VALUES_FULL_MAX_RES keep their distances as float16 on disk (read back as
+    float32 within half a float16 unit); coarser levels stay exact."""
+    import dataclasses
+
+    from volume.model import VALUES_FULL_MAX_RES, SdfLevel, SdfPyramid
+
+    rng = np.random.default_rng(3)
+    L = 2 * VALUES_FULL_MAX_RES
+    fine = rng.uniform(-0.3, 0.3, (L, L, L)).astype(np.float32)
+    m = make_model()
+    lv = m.pyramid.levels[-1]
+    levels = (*m.pyramid.levels, SdfLevel(L, lv.origin, lv.extent / L, np.zeros((1, 3), np.int32), fine))
+    m = dataclasses.replace(m, pyramid=SdfPyramid(levels, L))
+    back = load_model(save_model(m, tmp_path / "m"))
+    got = back.pyramid.level(L).values
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, fine, rtol=2.0 ** -11, atol=2.0 ** -25)  # float16 subnormals near 0
+    np.testing.assert_array_equal(back.pyramid.level(8).values, m.pyramid.level(8).values)
