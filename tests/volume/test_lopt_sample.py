@@ -11,6 +11,7 @@ import pytest
 from tests.scenes import furball_scene, make_scanset, sphere_scene
 from tests.scenes import ring_cameras as scan_ring
 from volume.build import ModelConfig, fuse_levels
+from volume.lopt_sample import wilson
 from volume.pyramid import LoptConfig, choose_l_opt
 
 CASES = [
@@ -43,3 +44,11 @@ def test_sampled_eq1_matches_full_fusion(scene_fn, top, expect):
         assert frac[L] == ref_frac[L]
         if f.values is not None and ref[L].values is not None:
             np.testing.assert_array_equal(f.values, ref[L].values)
+
+
+def test_wilson_interval():
+    lo, hi = wilson(0, 100, 5.0)
+    assert lo == 0.0 and 0.1 < hi < 0.3
+    lo, hi = wilson(50, 100, 5.0)
+    assert lo < 0.5 < hi and abs((lo + hi) / 2 - 0.5) < 1e-12
+    assert wilson(0, 0, 5.0) == (0.0, 1.0)
