@@ -41,6 +41,10 @@ from volume.tsdf import fuse_tsdf
 #: of the occluder (docs/methods.md §3: tens to hundreds of spheres).
 SPHERE_LEVEL = 64
 METHODS = ("consensus", "tsdf")
+#: Finest level whose signed distances the model stores (the renderers read surface voxels; the
+#: relighting's orientation grid reads <= 32^3): a 256^3 level's values are 64 MB, 20x a
+#: 640x480 capture of 18 frames, and nothing reads them.
+VALUES_MAX_RES = 64
 
 
 @dataclass(frozen=True)
@@ -62,7 +66,9 @@ class ModelConfig:
     measured_voxels: bool = True
     """Voxels holding measured depth points of >= 2 scans are surface voxels too (volume.pyramid)."""
     keep_values: bool = True
-    """Store every level's signed distance values in the model (not only surface voxels)."""
+    """Store the levels' signed distance values in the model (not only surface voxels)..."""
+    values_max_res: int = VALUES_MAX_RES
+    """...up to this resolution (finer levels keep their surface voxels only; module constant)."""
     defer_finest: bool = True
     """Complete the finest fused level's distances only when a consumer needs them (module docstring)."""
     sample_eq1: bool = True
@@ -80,7 +86,8 @@ class ModelConfig:
         mesh = MeshConfig(level=0, decimator="pymeshlab")
         fusion = replace(kw.pop("fusion", FusionConfig()), backend="numpy")
         rgbz = replace(kw.pop("rgbz", RgbzConfig()), mesh_depth="raycast")
-        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, sample_eq1=False, **kw)
+        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, sample_eq1=False,
+                   values_max_res=1 << 30, **kw)
 
 
 def _release_free_memory() -> None:
@@ -191,6 +198,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     if not cfg.keep_values:
         pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
                                 keep_values=False, points=points)
+    pyramid = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
+                               for lv in pyramid.levels), l_opt)
     params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
               "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels,
               "sphere_level": sphere_res, "mesh_level": mesh_res,

@@ -52,3 +52,14 @@ def test_wilson_interval():
     lo, hi = wilson(50, 100, 5.0)
     assert lo < 0.5 < hi and abs((lo + hi) / 2 - 0.5) < 1e-12
     assert wilson(0, 0, 5.0) == (0.0, 1.0)
+
+
+def test_model_keeps_values_up_to_values_max_res():
+    """Levels finer than ModelConfig.values_max_res keep their surface voxels, not their distances."""
+    from volume.build import build_model
+
+    ss = make_scanset(sphere_scene(), scan_ring(8, 64, 48), noise=0.0005)
+    model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=32), values_max_res=16))
+    assert summary["l_opt"] == 32
+    assert [lv.values is not None for lv in model.pyramid.levels] == [True, True, False]
+    assert len(model.pyramid.level(32).surface) > 100
