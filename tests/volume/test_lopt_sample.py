@@ -59,7 +59,7 @@ def test_model_keeps_values_up_to_values_max_res():
     from volume.build import build_model
 
     ss = make_scanset(sphere_scene(), scan_ring(8, 64, 48), noise=0.0005)
-    model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=32), values_max_res=16))
+    model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=32, t=1.0), values_max_res=16))
     assert summary["l_opt"] == 32
     assert [lv.values is not None for lv in model.pyramid.levels] == [True, True, False]
     assert len(model.pyramid.level(32).surface) > 100
