@@ -23,6 +23,7 @@ import numpy as np
 
 from volume.fusion import BILATERAL_DIAMETER, SILHOUETTE_PX, scan_maps
 from volume.fusion_jit import PackedMaps, empty_records, write_records
+from volume.rgbz_store import bbox
 
 #: Pixels of no depth kept around a scan's depth pixels (module docstring: at least the reach
 #: of the bilateral filter, of the no-return flag and of the normals, plus one).
@@ -33,16 +34,8 @@ NORMAL_THREADS = 2
 
 def footprint_rect(mask: np.ndarray, margin: int) -> tuple[int, int, int, int]:
     """(x0, y0, w, h) of the bounding box of ``mask`` (H, W) bool grown by ``margin`` pixels and
-    clipped to the image; (0, 0, 0, 0) when the mask is empty."""
-    m = np.asarray(mask, bool)
-    rows = np.flatnonzero(m.any(axis=1))
-    if not len(rows):
-        return 0, 0, 0, 0
-    cols = np.flatnonzero(m.any(axis=0))
-    H, W = m.shape
-    y0, y1 = max(int(rows[0]) - margin, 0), min(int(rows[-1]) + 1 + margin, H)
-    x0, x1 = max(int(cols[0]) - margin, 0), min(int(cols[-1]) + 1 + margin, W)
-    return x0, y0, x1 - x0, y1 - y0
+    clipped to the image; (0, 0, 0, 0) when the mask is empty (volume.rgbz_store.bbox)."""
+    return bbox(mask, margin)
 
 
 def pack_scans(scans, max_grazing_deg: float, smooth_sigma_z: float, threads: int = NORMAL_THREADS,
