@@ -18,6 +18,12 @@ baseline renderer (marched on --mesh-level).  The finest level's distance transf
 only when something uses that level.  The closing table gives wall and CPU seconds and peak
 resident memory per stage.  The model folder is written atomically (temporary folder + rename).
 
+Only what the scene needs (issue 24): the views are worked one at a time on the object's footprint;
+the RGBz images are stored as per-view crops around the object (8-bit sRGB and alpha, 16-bit
+depth, compressed, read view by view); L_max is judged by Eq. 1 on a sample before it is fused;
+--views drops near-duplicate views and --output-size scales the views to the pixels the object
+will cover (both choices, per view, in --json and model.json).
+
 --capture-env MAP (an equirect .exr/.hdr or a bundled name), --capture-env-fisheye IMG or
 --capture-env-mirrorball IMG stores the lighting the scans were taken under, with the rig's up
 axis, so that `furrow render --relight` can relight the model (issue 15); a model without it
