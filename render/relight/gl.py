@@ -150,7 +150,7 @@ class Relighter(GLOwner):
                    "RELIGHT_BAND_VOXELS": f"{VISIBILITY_BAND_VOXELS:.9e}", "SG_FH_TABLE": 1,
                    "HAIR_FORWARD": f"{ht.HAIR_FORWARD:.9e}", "HAIR_BETA_R": f"{ht.HAIR_BETA_R:.9e}",
                    "HAIR_BETA_D": f"{ht.HAIR_BETA_D:.9e}", "HAIR_FLOOR": f"{ht.HAIR_FLOOR:.9e}",
-                   "STRAND_POWER_STEPS": POWER_STEPS}
+                   "STRAND_POWER_STEPS": POWER_STEPS, "RELIGHT_STRANDS": int(bool(self.config.strands))}
         self._vol_prog = self.own(program(ctx, "composite_vert.glsl", "relight_volume_frag.glsl", defines=defines))
         self._app_prog = self.own(program(ctx, "composite_vert.glsl", "relight_apply_frag.glsl", defines=defines))
         self._vol_vao = self.own(ctx.vertex_array(self._vol_prog, []))
@@ -306,10 +306,7 @@ class Relighter(GLOwner):
     def _set_strand_uniforms(self, p) -> None:
         from render.gl import set_uniform
 
-        set_uniform(p, "u_strands", int(self.strands is not None))
-        if self.strands is None:  # unused samplers still need a unit of their own type (GL validation)
-            for name, unit in (("u_strand_t0", 5), ("u_strand_t1", 5), ("u_strand_fit", 5)):
-                set_uniform(p, name, unit)
+        if self.strands is None:  # RELIGHT_STRANDS 0: the strand branch is compiled out
             return
         f = self.strands.field
         for tag, lt in (("a", self.hair[0]), ("b", self.hair[1])):

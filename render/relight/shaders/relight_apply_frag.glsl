@@ -5,7 +5,8 @@
 // their volumes, the gain of relight_common.glsl -- blended towards the strand gain of
 // relight_hair.glsl by the strand score (issue 23) -- times the colour; pixels without depth unchanged.
 // Each fragment shades the image pixel framebuffer_row.glsl's image_pixel gives (read back with
-// gl_rows_to_image). Injected: as relight_common.glsl and relight_hair.glsl.
+// gl_rows_to_image). Injected: as relight_common.glsl and relight_hair.glsl, and RELIGHT_STRANDS (1: the
+// strand volumes are bound; 0: the surface transfer only, the strand branch compiled out).
 #include "framebuffer_row.glsl"
 #include "relight_common.glsl"
 #include "relight_hair.glsl"
@@ -20,7 +21,6 @@ uniform vec3 u_origin;            // volume min corner (world)
 uniform float u_voxel;            // volume voxel (metres)
 uniform int u_res;
 uniform int u_height;
-uniform int u_strands;            // 1: strand volumes bound (relight_hair.glsl), 0: surface transfer only
 uniform sampler3D u_strand_t0;    // s T T^T: xx xy xz yy (RGBA32F, LINEAR, clamp to edge)
 uniform sampler3D u_strand_t1;    // yz zz
 uniform sampler3D u_strand_fit;   // rho rgb, sigma
@@ -46,7 +46,8 @@ void main() {
         vec3 t = (x - u_origin) / (u_voxel * float(u_res));
         vec3 view = normalize(u_eye - x);
         vec3 gain = relight_gain(g, view, texture(u_share_a, t).rgb, texture(u_share_b, t).rgb);
-        if (u_strands != 0) {
+#if RELIGHT_STRANDS
+        {
             vec3 ts = (x - u_strand_origin) / (u_strand_voxel * float(u_strand_res));
             float w;
             vec3 tan_ = strand_principal(texture(u_strand_t0, ts), texture(u_strand_t1, ts), w);
@@ -58,6 +59,7 @@ void main() {
                 gain = mix(gain, hair_gain(tan_, n, view, f.rgb, f.a), w);
             }
         }
+#endif
         col *= gain;
     }
     o_col = vec4(col, 1.0);
