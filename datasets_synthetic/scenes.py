@@ -99,6 +99,8 @@ class FurballParams:
     """Ambient visibility of the body skin under the fur."""
     specular: float = 0.08
     """Specular strength of the strands (Kajiya-Kay lobe)."""
+    patches: int = 0
+    """Dark and light melanin patches over the coat (``fur_variants.melanin_patches``; 0 = none)."""
 
 
 def _sample_ellipsoid(rng, axes: np.ndarray, n: int) -> np.ndarray:
@@ -158,6 +160,10 @@ def build_furball(seed: int = 0, p: FurballParams = FurballParams()) -> Scene:
     paths = paths * scale[..., None]
     radii = p.root_radius + (p.tip_radius - p.root_radius) * s[None] * np.ones((S, 1))
     base = _coat_colour(rng, surf, axes)
+    if p.patches:
+        from datasets_synthetic.fur_variants import melanin_patches
+
+        base = melanin_patches(seed, surf, axes, base, p.patches)
     shade = 0.65 + 0.5 * s  # roots darker, tips lighter
     colors = np.clip(base[:, None] * shade[None, :, None], 0, 0.95)
     occl = p.root_occlusion + (1 - p.root_occlusion) * s ** 0.8

@@ -23,6 +23,12 @@ exposure and white balance are aligned before fusion (a gain per view and channe
 stored in model.json params.photometric and printed as EV and white balance per view;
 --no-photometric turns it off, --photometric-reference picks whose colour is kept).
 
+Only what the scene needs (issue 24): the views are worked one at a time on the object's footprint;
+the RGBz images are stored as per-view crops around the object (8-bit sRGB and alpha, 16-bit
+depth, compressed, read view by view); L_max is judged by Eq. 1 on a sample before it is fused;
+--views drops near-duplicate views and --output-size scales the views to the pixels the object
+will cover (both choices, per view, in --json and model.json).
+
 --capture-env MAP (an equirect .exr/.hdr or a bundled name), --capture-env-fisheye IMG or
 --capture-env-mirrorball IMG stores the lighting the scans were taken under, with the rig's up
 axis, so that `furrow render --relight` can relight the model (issue 15); a model without it
@@ -51,11 +57,28 @@ def _pow2(text: str) -> int:
     return v
 
 
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not WxH (e.g. 1280x960)") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be positive")
+    return w, h
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scans", type=Path, help="scan set: transforms.json, a folder holding one, or a plain folder")
     p.add_argument("-o", "--out", type=Path, required=True,
                    help="model folder to write (an existing model is replaced only with --overwrite)")
     p.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, python-slice style: 0::2, 3, 1,4,7")
+    p.add_argument("--views", default="auto", metavar="auto|all|N",
+                   help="views kept (volume/views.py): auto drops near-duplicates (direction from the object within "
+                        "2 deg of a kept view at a similar distance), all keeps every view, N keeps the N most spread "
+                        "out; the model report gives every view's reason (default auto)")
+    p.add_argument("--output-size", type=_size, default=None, metavar="WxH",
+                   help="size of the frames you will render: the views are scaled down so the object keeps the "
+                        "pixels it will cover there (never up); default: full resolution")
     p.add_argument("--max-res", type=_pow2, default=256, help="L_max: finest resolution tried (default 256)")
     p.add_argument("--alpha", type=float, default=1.5, help="Eq. 1 tolerance alpha >= 1 (default 1.5)")
     p.add_argument("--t", type=float, default=0.01, help="Eq. 1 threshold t on N_i / L^3 (default 0.01)")
@@ -85,8 +108,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the scans' lighting as an HDR angular fisheye photo looking up (square, .exr/.hdr)")
     x.add_argument("--capture-env-mirrorball", type=Path, default=None, metavar="IMG",
                    help="the scans' lighting as an HDR mirror-ball photo taken level (square crop, .exr/.hdr)")
-    g.add_argument("--capture-env-rotation", type=float, default=0.0, metavar="DEG",
-                   help="turn the capture lighting about the rig's up axis (degrees, as --env-rotation of render)")
+    from furrow.relight_flags import add_map_orientation_arguments
+
+    add_map_orientation_arguments(g, "the capture lighting (--capture-env*)", prefix="capture-env")
     g.add_argument("--capture-env-fov", type=float, default=185.0, metavar="DEG",
                    help="field of view of --capture-env-fisheye (default 185)")
     g = p.add_argument_group("the object apart from its surroundings (before fusion)")
@@ -139,7 +163,8 @@ def _prepare(args):
 
 
 def run(args, console) -> int:
-    from capture.io import read_scanset
+    import dataclasses
+
     from furrow.console import StageTimer, track
     from volume.build import ModelConfig, build_model
     from volume.fusion import FusionConfig
@@ -168,9 +193,14 @@ def run(args, console) -> int:
     t0, c0 = time.perf_counter(), time.process_time()
     capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
-        scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d), undistort=args.undistort)
+        scanset, views = _read_views(args, progress=lambda it, d: track(it, d))
+    res = _working_resolution(scanset, args, timer)
+    scanset = res.pop("scanset")
     model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
                                  provenance={"source": str(args.scans), "frames": args.frames})
+    summary["views"] = views
+    summary["resolution"] = res
+    model = dataclasses.replace(model, params={**model.params, "views": views, "resolution": res})
     if capture_env is not None:
         model = _with_capture_env(model, capture_env, scanset, args)
         summary["capture_env"] = model.capture_env.record()
@@ -197,6 +227,8 @@ def run(args, console) -> int:
         if summary["photometric"]["unaligned"]:
             console.print(f"[yellow]photometric: {len(summary['photometric']['unaligned'])} views share no usable "
                           "surface with a neighbour and keep their colour[/]", highlight=False)
+    console.print(f"views: {views['kept']} of {views['of']} kept (--views {views['mode']}; reasons per view: "
+                  f"--json / model.json); resolution: {res['reason']}", highlight=False)
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
@@ -241,6 +273,47 @@ def photometric_table(rec: dict):
     return t
 
 
+def _read_views(args, progress):
+    """(ScanSet of the kept views, views report): the cameras are read first where the format
+    allows (transforms.json), so dropped views' images are never read."""
+    from capture.io import read_cameras, read_scanset
+    from capture.scan import select_indices
+    from volume.views import select_views
+
+    try:
+        cams = read_cameras(args.scans, args.undistort)
+    except Exception:  # another format: read everything, then choose
+        cams = None
+    if cams is not None:
+        idx = select_indices(args.frames, len(cams))
+        kept, reasons = select_views([cams[i].camera for i in idx], args.views)
+        spec = ",".join(str(idx[k]) for k in kept)
+        scanset = read_scanset(args.scans, spec, progress=progress, undistort=args.undistort)
+        names = [cams[i].file_path for i in idx]
+    else:
+        full = read_scanset(args.scans, args.frames, progress=progress, undistort=args.undistort)
+        kept, reasons = select_views(full.cameras, args.views)
+        scanset = type(full)(tuple(full.scans[k] for k in kept), full.bounds, full.metadata)
+        names = [s.name for s in full.scans]
+    for r in reasons:
+        r["name"] = names[r["view"]]
+    return scanset, {"mode": args.views, "kept": len(kept), "of": len(reasons), "per_view": reasons}
+
+
+def _working_resolution(scanset, args, timer) -> dict:
+    """The working scale from the object's footprint against --output-size; the scaled scans
+    under "scanset" (volume.views)."""
+    from volume.views import footprint_px, scaled_scanset, working_scale
+
+    s, rep = working_scale([footprint_px(x.depth) for x in scanset.scans], args.output_size)
+    if s < 1:
+        with timer.stage("scale views"):
+            scanset = scaled_scanset(scanset, s)
+    c = scanset.scans[0].camera
+    return {**rep, "size": [c.width, c.height], "output_size": list(args.output_size) if args.output_size else None,
+            "scanset": scanset}
+
+
 def _capture_env(args):
     """The EnvMap of the --capture-env* flags, or None."""
     if args.capture_env is None and args.capture_env_fisheye is None and args.capture_env_mirrorball is None:
@@ -248,7 +321,7 @@ def _capture_env(args):
     from render.shading.capture_env import capture_envmap
 
     return capture_envmap(args.capture_env, args.capture_env_fisheye, args.capture_env_mirrorball,
-                          fov_deg=args.capture_env_fov)
+                          fov_deg=args.capture_env_fov, convention=args.capture_env_convention)
 
 
 def _with_capture_env(model, env, scanset, args):

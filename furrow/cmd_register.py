@@ -12,8 +12,18 @@ DESCRIPTION = """Read a scan set, estimate refined camera poses and write a NEW 
 refined transform_matrix and a registration.json report (per-scan fitness, inlier RMSE,
 pose-graph consistency, flagged scans by name).  The input is never written over.
 Scans that cannot be registered are flagged and left out of the output (--keep-flagged
-keeps them with their input poses).  Exit status 0 = all registered, 3 = some flagged,
-1 = error.
+keeps them with their input poses).
+
+Never worse than the input: every view is then judged by an independent check (depth and
+colour consistency with its neighbours, their samples reprojected through the depth) at its
+registered pose and at its nominal (input) pose; it keeps the registered pose when that is
+consistent and better, else its nominal pose when that is consistent, else it is flagged.  The
+report says per view "registered", "kept nominal" or "flagged", why, and both scores
+(--no-check skips the check).
+
+Exit status: 0 = every view placed and at least one improved, 3 = some views flagged,
+4 = nothing could be improved (no view took its registered pose: the output poses are the
+input poses; flagged views, if any, are named), 1 = error.
 
 methods: icp   Open3D coarse ICP + projective point-to-plane ICP + pose graph (loop closure),
                FPFH+RANSAC fallback
@@ -33,6 +43,8 @@ The report (console and registration.json) says per scan which evidence placed i
 
 #: Exit status when the output was written but some scans were flagged.
 EXIT_FLAGGED = 3
+#: Exit status when no view could be improved on its input pose (the output keeps the input poses).
+EXIT_NOT_IMPROVED = 4
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -50,6 +62,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="ChArUco board for --method board/auto, e.g. 7x7:0.05:0.037:DICT_4X4_50 "
                         "(default: that board, lying at z = -0.13 m; use --board-z)")
     p.add_argument("--board-z", type=float, default=None, help="height of the board plane in the world (m)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip the independent check of the registered poses against the nominal ones")
     p.add_argument("--keep-flagged", action="store_true", help="keep flagged scans (input poses) in the output")
     p.add_argument("--depth-format", choices=["png", "png-0.1mm", "exr"], default="png",
                    help="depth files: png (16-bit millimetres, default), png-0.1mm, or exr (float metres)")
@@ -100,13 +114,25 @@ def evidence_table(rep):
     from rich.table import Table
 
     t = Table(title=f"registration ({rep.rig} rig): evidence per scan")
-    for c in ("scan", "placed", "evidence", "angle sigma", "residuals"):
+    for c in ("scan", "status", "evidence", "angle sigma", "check nominal / registered", "residuals / reason"):
         t.add_column(c)
     for s in rep.scans:
         sig = f"{s.angle_sigma_deg:.3f} deg" if math.isfinite(s.angle_sigma_deg) else ""
-        t.add_row(s.name, "yes" if s.registered else "[yellow]flagged[/]", ", ".join(s.evidence), sig,
-                  _residual_text(s) if s.registered else s.reason)
+        status = s.status or ("registered" if s.registered else "flagged")
+        if status == "flagged":
+            status = "[yellow]flagged[/]"
+        text = _residual_text(s) if s.status == "registered" or (s.registered and not s.status) else s.reason
+        t.add_row(s.name, status, ", ".join(s.evidence), sig, _check_text(s.check), text)
     return t
+
+
+def _check_text(check: dict) -> str:
+    """'score (peak?) / score (peak?)' of the independent check's two judgements."""
+    def one(j):
+        if not j:
+            return "-"
+        return f"{j['score']:.3f}" + ("" if j["consistent"] else " [red]x[/]")
+    return f"{one(check.get('nominal'))} / {one(check.get('registered'))}" if check else ""
 
 
 def _same_or_inside(a: Path, b: Path) -> bool:
@@ -133,7 +159,8 @@ def run(args, console) -> int:
     with timer.stage(f"register ({args.method}, init {args.init})"):
         cfg = ICP.IcpConfig(colored=args.colored)
         out, rep, _ = pipeline.register(ss, args.method, args.init, cfg, keep_flagged=args.keep_flagged,
-                                        board=parse_board(args.board, args.board_z), rig=args.rig, progress=track)
+                                        board=parse_board(args.board, args.board_z), rig=args.rig, progress=track,
+                                        check=not args.no_check)
     report = rep.to_json()
     report["input"] = str(args.scans)
     with timer.stage("write"):
@@ -147,9 +174,19 @@ def run(args, console) -> int:
     for note in rep.notes:
         console.print(f"  {note}", highlight=False)
     console.print(f"registered {k}/{n} scans with {rep.method}; wrote {path}", highlight=False)
+    if rep.check:
+        c = rep.check
+        console.print(f"independent check: {c['registered']} registered, {c['kept nominal']} kept nominal, "
+                      f"{c['flagged']} flagged; consistent views {c['consistent_nominal']} at the input poses, "
+                      f"{c['consistent_final']} now", highlight=False)
     for s in rep.scans:
-        if not s.registered:
+        if s.status == "kept nominal":
+            console.print(f"kept nominal {s.name}: {s.reason}", highlight=False)
+        elif not s.registered:
             console.print(f"[yellow]flagged[/] {s.name}: {s.reason}", highlight=False)
     if args.json:
         sys.stdout.write(json.dumps(report, indent=1) + "\n")
+    if rep.check and not rep.check["improved"]:
+        console.print("[yellow]nothing could be improved[/]: every placed view keeps its input pose", highlight=False)
+        return EXIT_NOT_IMPROVED
     return 0 if k == n else EXIT_FLAGGED

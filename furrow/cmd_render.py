@@ -97,7 +97,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="with --env: the object's shadow on a ground plane under it, from its sphere set (SSDF)")
     g.add_argument("--exposure", type=float, default=1.0, help="with --env: linear exposure factor (default 1)")
     g.add_argument("--no-glare", action="store_true", help="with --env: no glare streaks on over-bright pixels")
-    g.add_argument("--env-rotation", type=float, default=0.0, help="with --env: rotate the map about its up axis (deg)")
+    from furrow.relight_flags import add_map_orientation_arguments
+
+    add_map_orientation_arguments(g, "--env and --relight")
     from furrow.relight_flags import add_relight_arguments
 
     add_relight_arguments(p)
@@ -150,8 +152,7 @@ def load_env(args):
         return None
     from render.shading.envmap import named_envmap
 
-    env = named_envmap(args.env)
-    return env.rotated(np.radians(args.env_rotation)) if args.env_rotation else env
+    return named_envmap(args.env, args.env_convention, args.env_rotation)
 
 
 def load_background(args):

@@ -89,6 +89,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--small", action="store_true", help="CI-sized capture: 12 views at 160x120")
     p.add_argument("--strands", type=int, default=None,
                    help="furball / furrybunny: number of strands (default 20000; --small: 5000)")
+    p.add_argument("--curly", action="store_true",
+                   help="furball: the harder fur ball of the registration bench (datasets_synthetic/fur_variants.py "
+                        "CURLY: tight strong curl, longer strands, 14 dark / light melanin patches); --curl, "
+                        "--curl-turns and --patches override its values")
+    p.add_argument("--curl", type=float, default=None, help="furball: amplitude of the strands' helical curl "
+                   "(default 0.3; --curly 0.9)")
+    p.add_argument("--curl-turns", type=float, default=None, help="furball: turns of the curl over a strand "
+                   "(default 0.8; --curly 2.5)")
+    p.add_argument("--patches", type=int, default=None, help="furball: dark and light melanin patches over the coat "
+                   "(default 0; --curly 14)")
     p.add_argument("--elevations", type=_floats, default=(15.0,),
                    help="ring elevations in degrees, comma-separated (views are split evenly; default 15, the "
                         "rig of the evaluation captures)")
@@ -194,6 +204,7 @@ def build_config(args):
         if strands < 1:
             raise ValueError(f"--strands must be >= 1, got {strands}")
         params["strands"] = strands
+    params.update(_fur_variant(args))
     return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
                        supersample=args.supersample, background=args.background, support=args.support,
                        background_frames=args.background_frames, scene_params=params,
@@ -217,6 +228,22 @@ def _auto_exposure(cap, args, cfg):
     rec = exposure_record([s.name for s in cap.scanset.scans], gains, args.auto_exposure, args.white_balance,
                           args.exposure_holdout)
     return dataclasses.replace(cap, scanset=apply_exposure(cap.scanset, gains)), {EXPOSURE_FILE: rec}
+
+
+def _fur_variant(args) -> dict:
+    """Scene overrides of --curly / --curl / --curl-turns / --patches (furball only)."""
+    from datasets_synthetic.fur_variants import CURLY
+
+    over = dict(CURLY) if getattr(args, "curly", False) else {}
+    for flag, key in (("curl", "curl"), ("curl_turns", "curl_turns"), ("patches", "patches")):
+        v = getattr(args, flag, None)
+        if v is not None:
+            over[key] = v
+    if over and args.name != "furball":
+        raise ValueError("--curly, --curl, --curl-turns and --patches apply to the furball only")
+    if over.get("patches", 0) < 0:
+        raise ValueError(f"--patches must be >= 0, got {over['patches']}")
+    return over
 
 
 def run(args, console) -> int:

@@ -38,6 +38,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--env", default=None, metavar="MAP",
                    help="initial environment map: a bundled name or a .exr/.hdr file (default: none, black)")
     p.add_argument("--ground", action="store_true", help="with --env: start with the ground shadow on")
+    from furrow.relight_flags import add_map_orientation_arguments
+
+    add_map_orientation_arguments(p, "the environment maps (--env and the GUI's; the GUI's slider starts here)")
     p.add_argument("--fps", type=float, default=None, help="frames per second to hold while moving (default 12)")
     p.add_argument("--out", type=Path, default=Path("out/view"), help="where screenshots and videos are saved")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -53,12 +56,13 @@ def settings_from_args(args):
         raise ValueError(f"unknown method {args.method!r}; use one of {', '.join(METHODS)}")
     names = list(BUNDLED_NAMES)
     if args.env is not None:
-        named_envmap(args.env)  # a missing file or unknown name fails now, in one line
+        named_envmap(args.env, args.env_convention)  # a missing file or unknown name fails now, in one line
         if args.env not in names:
             names.append(args.env)
     elif args.ground:
         raise ValueError("--ground needs --env MAP")
-    return ViewSettings(method=args.method, env=EnvSettings(map=args.env, ground=args.ground)), names
+    env = EnvSettings(map=args.env, ground=args.ground, rotation_deg=args.env_rotation, convention=args.env_convention)
+    return ViewSettings(method=args.method, env=env), names
 
 
 def run(args, console) -> int:

@@ -9,6 +9,19 @@ import argparse
 SAME_AS_ENV = ""
 
 
+def add_map_orientation_arguments(g, maps: str, prefix: str = "env") -> None:
+    """``--PREFIX-rotation DEG`` and ``--PREFIX-convention NAME`` for the map arguments named in ``maps``: the
+    same two flags (and the same stated orientation) wherever furrow reads an environment map."""
+    from render.shading.envmap import DEFAULT_CONVENTION, ENV_CONVENTIONS, ORIENTATION
+
+    g.add_argument(f"--{prefix}-rotation", type=float, default=0.0, metavar="DEG",
+                   help=f"turn {maps} about the rig's up axis by DEG degrees (right-handed: seen from above, "
+                        f"counter-clockwise); {ORIENTATION}")
+    g.add_argument(f"--{prefix}-convention", choices=list(ENV_CONVENTIONS), default=DEFAULT_CONVENTION,
+                   help=f"layout of the equirect files of {maps} (default {DEFAULT_CONVENTION}; blender is the same; "
+                        "mitsuba: Mitsuba 3's, a quarter turn from furrow's); bundled maps are always furrow's")
+
+
 def add_relight_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("relighting (the model must store its capture lighting: furrow model --capture-env)")
     g.add_argument("--relight", nargs="?", const=SAME_AS_ENV, default=None, metavar="MAP",
@@ -17,6 +30,11 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
                         "ground shadow and the glare (--relight alone then takes the --env map)")
     g.add_argument("--relight-kernel", default=None, metavar="NAME",
                    help="transfer kernel of the relighting: wrap (default), lambert, fur, half-lambert")
+    g.add_argument("--relight-strands", action="store_true",
+                   help="strand-aware relighting: strand tangents from the capture views and a fibre transfer where "
+                        "the capture looks like fur or needles (docs/relight.md; measured within 0.2 dB of the default "
+                        "surface transfer on our fur ball and plant, no better on the whole, so off by default); adds "
+                        "seconds of setup")
     g.add_argument("--relight-visibility", action="store_true",
                    help="self-visibility from the model's sphere set (SSDF): for concave solids; adds seconds of setup")
 
@@ -24,8 +42,8 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
 def relight_map(args) -> str | None:
     """The map name / file to relight to, or None; one map for all (--relight and --env agree)."""
     if args.relight is None:
-        if args.relight_kernel or args.relight_visibility:
-            raise ValueError("--relight-kernel and --relight-visibility need --relight")
+        if args.relight_kernel or args.relight_visibility or args.relight_strands:
+            raise ValueError("--relight-kernel, --relight-visibility and --relight-strands need --relight")
         return None
     if args.relight == SAME_AS_ENV:
         if not args.env:
@@ -39,18 +57,14 @@ def relight_map(args) -> str | None:
 
 def open_relighter(args, ctx, model, stack):
     """The Relighter of --relight entered on ``stack`` (an ExitStack), or None without --relight; the
-    map turned by --env-rotation like the background."""
+    map laid out by --env-convention and turned by --env-rotation like the background."""
     name = relight_map(args)
     if name is None:
         return None
-    import numpy as np
-
     from render.relight.gl import RelightConfig, Relighter
     from render.shading.envmap import named_envmap
 
-    env = named_envmap(name)
-    if args.env_rotation:
-        env = env.rotated(np.radians(args.env_rotation))
+    env = named_envmap(name, args.env_convention, args.env_rotation)
     cfg = RelightConfig(**({"kernel": args.relight_kernel} if args.relight_kernel else {}),
-                        visibility=args.relight_visibility)
+                        visibility=args.relight_visibility, strands=args.relight_strands)
     return stack.enter_context(Relighter.from_model(ctx, model, env, cfg))

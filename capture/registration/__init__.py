@@ -2,7 +2,9 @@
 
 ``points`` (depth -> clouds), ``icp`` (Open3D multiway ICP + pose graph + FPFH fallback),
 ``colmap`` (pycolmap SfM + Umeyama), ``board`` (ChArUco PnP), ``report`` (thresholds,
-errors, registration.json), ``raycast`` (exact reference depth of a mesh), ``perturb``.
+errors, registration.json), ``raycast`` (exact reference depth of a mesh), ``perturb``,
+``check`` / ``verify`` (the independent check of every placed view: registered, kept nominal
+or flagged, never worse than the input; issue 22).
 """
 
 import os as _os

@@ -162,7 +162,7 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
 
     t0 = time.perf_counter()
     tcfg = tcfg or TS.TurntableConfig()
-    out = TS.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress)
+    out = TS.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress, fit.axis_sigma_deg)
     placed = out.placed
     poses_in = [s.camera.cam_from_world for s in scanset.scans]
     model_poses = [out.model.pose(k) if placed[k] else None for k in range(len(placed))]
@@ -177,6 +177,8 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
                                       residuals=rec.residuals, angle_sigma_deg=rec.sigma_deg))
     notes.append(f"turntable axis {np.round(out.model.axis, 4).tolist()} through "
                  f"{np.round(out.model.point, 4).tolist()}; {sum(placed)}/{len(placed)} views placed")
+    if out.axis_note:
+        notes.append(out.axis_note)
     notes.append("axis placed by " + ", ".join(f"{e} {v:.0%}" for e, v in
                                                sorted(out.axis_evidence.items(), key=lambda x: -x[1])))
     rep.seconds["turntable"] = time.perf_counter() - t0
@@ -208,9 +210,37 @@ def choose_rig(scanset: ScanSet, rig: str, method: str, init: str, board=None):
     return fit, "turntable" if auto_ok else "free"
 
 
+def apply_check(scanset: ScanSet, rep: R.RegistrationReport, poses: list[np.ndarray], registered: list[bool],
+                progress=None) -> tuple[list[np.ndarray], list[bool]]:
+    """The independent check (``verify``): per view the registered pose, the nominal (input) one,
+    or flagged; the report's records say which, why, and both judgements."""
+    from capture.registration import check as C
+    from capture.registration import verify as V
+
+    t0 = time.perf_counter()
+    idx = range(len(scanset.scans))
+    views = [C.prepare(scanset.scans[k]) for k in (progress(idx, "independent check") if progress else idx)]
+    nominal = [s.camera.cam_from_world for s in scanset.scans]
+    ver = V.verify(views, nominal, poses, registered, scanset.bounds.mean(axis=0), scanset.size)
+    for rec, v in zip(rep.scans, ver.verdicts):
+        if v.status != V.REGISTERED:
+            rec.evidence = ["nominal pose"] if v.status == V.KEPT else []
+        rec.status, rec.check = v.status, v.to_json()
+        rec.reason = v.reason if v.status != V.REGISTERED else ""
+        if v.status == V.KEPT and not rec.registered:
+            rec.reason = "the registration did not place it; its nominal pose is consistent"
+        rec.registered = v.status != V.FLAGGED
+    rep.check = {"consistent_nominal": ver.consistent_nominal, "consistent_final": ver.consistent_final,
+                 "improved": ver.improved, **{s: sum(v.status == s for v in ver.verdicts)
+                                              for s in (V.REGISTERED, V.KEPT, V.FLAGGED)}}
+    rep.notes.extend(ver.notes)
+    rep.seconds["check"] = time.perf_counter() - t0
+    return ver.poses, ver.placed
+
+
 def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", config: ICP.IcpConfig | None = None,
              keep_flagged: bool = False, board=None, rig: str = "free", turntable_config=None,
-             progress=None) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
+             progress=None, check: bool = True) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
     """Register ``scanset``.
 
     Args:
@@ -219,6 +249,8 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
         rig: ``free`` (a pose per scan), ``turntable`` (one axis, one angle per scan:
             ``turntable_solve``) or ``auto`` (turntable when the nominal poses describe one and
             the method is auto/icp from nominal poses).
+        check: judge every view's registered and nominal pose independently (``verify``) and
+            keep the consistent one (``init="nominal"`` only).
     Returns:
         (registered scan set (flagged scans left out unless ``keep_flagged``), report,
         cam_from_world per input scan (flagged scans keep their input pose)).
@@ -242,6 +274,8 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
             rep.rig_detection = fit.reason
         poses, registered = out.cam_from_world, out.registered
     rep.notes.extend(notes)
+    if check and init == "nominal":
+        poses, registered = apply_check(scanset, rep, poses, registered, progress)
     rep.seconds["total"] = time.perf_counter() - t0
     if not any(registered):
         raise RuntimeError(f"no scan could be placed ({rep.rig} rig): " +

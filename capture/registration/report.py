@@ -141,6 +141,10 @@ class ScanRecord:
     """Per evidence: its residual figures against the scan's neighbours."""
     angle_sigma_deg: float = float("nan")
     """Turntable rig: standard deviation of its angle (degrees) from the inverse information."""
+    status: str = ""
+    """After the independent check (``verify``): "registered", "kept nominal" or "flagged"."""
+    check: dict = field(default_factory=dict)
+    """The independent check's judgements of its nominal and registered pose (``verify.ViewVerdict``)."""
 
 
 @dataclass
@@ -160,6 +164,9 @@ class RegistrationReport:
     pairs: list[PairRecord] = field(default_factory=list)
     seconds: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    check: dict = field(default_factory=dict)
+    """Summary of the independent check: views per status, consistent views at the input poses
+    and in the result, and whether any view was improved."""
 
     @property
     def flagged(self) -> list[str]:

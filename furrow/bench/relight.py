@@ -38,18 +38,35 @@ from render.methods import DEFAULT_METHOD, METHODS
 
 #: Gain of a pair that relighting must beat by this much masked PSNR (issue 15), dB.
 TARGET_DB = 2.0
+#: Held-out views timed by --timing-width.
+TIMING_VIEWS = 8
+
+
+def variant_turn(text: str) -> float:
+    """The ``:turn=DEG`` of a variant (0 without): the new map handed over turned by DEG about up, the cost
+    of a map given in the wrong orientation (issue 23)."""
+    for f in text.split(":")[1:]:
+        if f.startswith("turn="):
+            return float(f[5:])
+    return 0.0
 
 
 def parse_variant(text: str):
-    """``KERNEL[:vis|:novis][:fwd=BETA][:g=G][:s=SMOOTH][:res=L]`` -> render.relight.gl.RelightConfig
-    (vis / novis: with / without the sphere set's visibility; fwd: the scattering weight, 0 =
-    view-independent; g: its phase asymmetry; s: orientation smoothing; res: volume resolution)."""
+    """``KERNEL[:vis|:novis][:strands|:nostrands][:fwd=BETA][:g=G][:s=SMOOTH][:res=L][:sres=L][:sw=W][:turn=DEG]`` ->
+    render.relight.gl.RelightConfig (vis / novis: with / without the sphere set's visibility; strands /
+    nostrands: with / without the strand transfer; fwd: the scattering weight, 0 = view-independent; g: its
+    phase asymmetry; s: orientation smoothing; res: volume resolution; sres: strand volume resolution; sw:
+    strand weight; turn: see :func:`variant_turn`)."""
     from render.relight.gl import RelightConfig
 
     kernel, *flags = text.split(":")
     kw = {"kernel": kernel}
     for f in flags:
-        if f == "novis":
+        if f.startswith("turn="):
+            continue
+        if f in ("strands", "nostrands"):
+            kw["strands"] = f == "strands"
+        elif f == "novis":
             kw["visibility"] = False
         elif f == "vis":
             kw["visibility"] = True
@@ -59,10 +76,15 @@ def parse_variant(text: str):
             kw["forward_g"] = float(f[2:])
         elif f.startswith("s="):
             kw["smooth"] = float(f[2:])
+        elif f.startswith("sres="):
+            kw["strand_res"] = int(f[5:])
+        elif f.startswith("sw="):
+            kw["strand_weight"] = float(f[3:])
         elif f.startswith("res="):
             kw["volume_res"] = int(f[4:])
         else:
-            raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'fwd=BETA', 'g=G', 's=SMOOTH', 'res=L'")
+            raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'strands', 'nostrands', 'fwd=BETA', "
+                             "'g=G', 's=SMOOTH', 'res=L', 'sres=L', 'sw=W', 'turn=DEG'")
     return RelightConfig(**kw)
 
 
@@ -136,7 +158,8 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
     row = {"relit": relit, "views": len(refs), "unrelit": score(refs, [f.rgb for f in frames], frames)}
     relit_imgs = {}
     for name, cfg in configs.items():
-        with Relighter.from_model(ctx, model, env, cfg) as rel:
+        turn = variant_turn(name)
+        with Relighter.from_model(ctx, model, env.rotated(np.radians(turn)) if turn else env, cfg) as rel:
             g = rel.global_gain
             if "gain" not in row:
                 row["gain"] = {**score(refs, [f.rgb * g.astype(np.float32) for f in frames], frames),
@@ -174,8 +197,32 @@ def _oracle(rel, refs, held, frames, g) -> tuple[dict, dict]:
     return score(refs, relit, frames), score(refs, gained, frames)
 
 
+def frame_cost(ctx, model, split, env, configs: dict, width: int, method: str, views: int = TIMING_VIEWS) -> dict:
+    """Median ms / CPU ms of the render and of each variant's relighting pass with the held-out cameras
+    scaled to ``width`` pixels wide (the issue's 640x480 on a 320x240 capture)."""
+    from render.methods import create_renderer
+    from render.relight.gl import Relighter
+
+    cams = [s.camera.scaled(width / s.camera.width) for s in split.held[:views]]
+    with create_renderer(method, ctx, model) as r:
+        r.render(cams[0])
+        frames = [r.render(c) for c in cams]
+    out = {"size": list(frames[0].size), "render_ms": float(np.median([f.stats.ms for f in frames])),
+           "render_cpu_ms": float(np.median([f.stats.cpu_ms for f in frames]))}
+    for name, cfg in configs.items():
+        with Relighter.from_model(ctx, model, env, cfg) as rel:
+            rel.apply(frames[0], cams[0])
+            ms, cpu = [], []
+            for f, c in zip(frames, cams):
+                rel.apply(f, c)
+                ms.append(rel.last_ms)
+                cpu.append(rel.last_cpu_ms)
+        out[name] = {"apply_ms": float(np.median(ms)), "apply_cpu_ms": float(np.median(cpu))}
+    return out
+
+
 def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views, out_dir: Path,
-                  map_dir: Path | None = None, method: str = DEFAULT_METHOD) -> dict:
+                  map_dir: Path | None = None, method: str = DEFAULT_METHOD, timing_width: int | None = None) -> dict:
     from render.gl import gl_context
 
     cap = capture_env or capture_map(scans)
@@ -190,6 +237,8 @@ def bench_capture(scans: Path, capture_env: str | None, configs: dict, max_views
     with gl_context() as ctx:
         for relit in relits:
             res["pairs"].append(bench_pair(ctx, model, split, frames, scans, relit, configs, out_dir, map_dir))
+        if timing_width:
+            res["timing"] = frame_cost(ctx, model, split, find_map(relits[0], map_dir), configs, timing_width, method)
     return res
 
 
@@ -216,14 +265,15 @@ def print_tables(res: dict) -> None:
     console.print(t)
     t = Table(title="frame cost (medians; llvmpipe)")
     for c in ("capture", "render ms", "render CPU ms", *(f"{n} apply ms" for n in names),
-              "setup s (capture, new, volume)"):
+              "setup s (capture, new, volume, strands)"):
         t.add_column(c, justify="right")
     for c in res["captures"]:
         p = c["pairs"][0]
         st = p[names[0]]["setup_s"]
         t.add_row(Path(c["scans"]).name, f"{c['render_ms']:.1f}", f"{c['render_cpu_ms']:.1f}",
                   *(f"{p[n]['apply_ms']:.2f}" for n in names),
-                  f"{st.get('capture', 0):.1f}, {st.get('new', 0):.1f}, {st.get('volume', 0):.1f}")
+                  f"{st.get('capture', 0):.1f}, {st.get('new', 0):.1f}, {st.get('volume', 0):.1f}, "
+                  f"{st.get('strands', 0):.1f}")
     console.print(t)
 
 
@@ -239,14 +289,17 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--max-views", type=int, default=None, help="at most this many held-out views per capture")
     ap.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
                     help=f"rendering method of the held-out views (default {DEFAULT_METHOD}, as furrow render)")
+    ap.add_argument("--timing-width", type=int, default=None, metavar="W",
+                    help="also time the render and each variant's relighting pass with the held-out cameras scaled to "
+                         "W pixels wide (e.g. 640 on a 320x240 capture; relight.json 'timing')")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "relight")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
     configs = {v: parse_variant(v) for v in a.variants.split(",")}
     a.out.mkdir(parents=True, exist_ok=True)
     res = {"variants": list(configs), "target_db": TARGET_DB,
-           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir, a.method)
-                         for c in a.captures]}
+           "captures": [bench_capture(c, a.capture_env, configs, a.max_views, a.out, a.map_dir, a.method,
+                                      a.timing_width) for c in a.captures]}
     first = res["variants"][0]
     res["met"] = all(p[first]["gain_over_single_db"] >= TARGET_DB for c in res["captures"] for p in c["pairs"])
     (a.out / "relight.json").write_text(json.dumps(res, indent=1, default=float))
@@ -254,6 +307,12 @@ def main(argv: list[str]) -> int:
         print(json.dumps(res, indent=1, default=float))
         return 0
     print_tables(res)
+    for c in res["captures"]:
+        if "timing" in c:
+            t = c["timing"]
+            parts = [f"{n} {t[n]['apply_ms']:.1f} ms ({t[n]['apply_cpu_ms']:.1f} CPU)" for n in res["variants"]]
+            print(f"{Path(c['scans']).name} at {t['size'][0]}x{t['size'][1]}: render {t['render_ms']:.1f} ms "
+                  f"({t['render_cpu_ms']:.1f} CPU); " + "; ".join(parts))
     print(f"relit beats the single gain by >= {TARGET_DB} dB on every pair: {res['met']}  ({a.out / 'relight.json'})")
     return 0
 

@@ -179,12 +179,15 @@ def volume_sample(volume, origin, voxel: float, points) -> np.ndarray:
                      for c in range(v.shape[-1])], -1)
 
 
-def apply_reference(rgb, depth, camera: Camera, smooth: SdfGrid, shares, a, b, **gain_kw) -> np.ndarray:
+def apply_reference(rgb, depth, camera: Camera, smooth: SdfGrid, shares, a, b, strands=None, hair=None,
+                    strand_weight: float = 1.0, **gain_kw) -> np.ndarray:
     """(H, W, 3) float32 (module doc, step 2): ``rgb`` times the gain at each pixel's world point
     where depth > 0 (the other pixels unchanged: black stays black): orientation = gradient of
     ``smooth`` there, the visible shares sampled from ``shares`` (same placement), the view from the
-    point to the camera; ``gain_kw`` to ``render.shading.transfer.relight_gain``."""
-    from render.shading.transfer import relight_gain
+    point to the camera; ``gain_kw`` to ``render.shading.transfer.relight_gain``.  With ``strands``
+    (``render.relight.strands.StrandColour``) and ``hair`` (the lightings (A, B) of the strand transfer): the
+    gain blended towards ``render.shading.hair_transfer.hair_gain`` by the strand score there."""
+    from render.shading.transfer import global_gain, relight_gain
 
     out = np.asarray(rgb, np.float64).copy()
     dep = np.asarray(depth, np.float64)
@@ -194,5 +197,40 @@ def apply_reference(rgb, depth, camera: Camera, smooth: SdfGrid, shares, a, b, *
         v = camera.center - x
         v /= np.linalg.norm(v, axis=1, keepdims=True)
         sh = volume_sample(shares, smooth.origin, smooth.voxel, x)
-        out[m] *= relight_gain(x, sdf_gradient(smooth, x), a, b, views=v, shares=(sh[:, :3], sh[:, 3:]), **gain_kw)
+        grad = sdf_gradient(smooth, x)
+        g = relight_gain(x, grad, a, b, views=v, shares=(sh[:, :3], sh[:, 3:]), **gain_kw)
+        if strands is not None:
+            g = _strand_blend(g, x, unit_normals(grad), v, strands, hair, global_gain(a, b), gain_kw, strand_weight)
+        out[m] *= g
     return out.astype(np.float32)
+
+
+def unit_normals(grad) -> np.ndarray:
+    """(P, 3) unit SDF gradients, 0 where shorter than ``render.shading.transfer.MIN_GRADIENT``."""
+    from render.shading.transfer import MIN_GRADIENT
+
+    g = np.asarray(grad, np.float64)
+    n = np.linalg.norm(g, axis=1, keepdims=True)
+    return np.where(n > MIN_GRADIENT, g / np.where(n > MIN_GRADIENT, n, 1.0), 0.0)
+
+
+def _strand_blend(g, x, n, v, strands, hair, g_global, gain_kw, weight: float = 1.0) -> np.ndarray:
+    """(P, 3) the surface gain ``g`` mixed towards the strand gain by ``weight`` x the strand score (apply
+    pass); ``n``: unit shell normals (or 0)."""
+    from render.relight.strands import field_sample
+    from render.shading.hair_transfer import hair_gain
+    from render.shading.transfer import FORWARD_G, MAX_GAIN, REGULARISE
+
+    f = strands.field
+    t, w = field_sample(f, x)
+    on = weight * w > 0
+    if not on.any():
+        return g
+    fit = volume_sample(strands.fit, f.origin, f.voxel, x[on])
+    gh = hair_gain(t[on], n[on], v[on], fit[:, :3], fit[:, 3], hair[0], hair[1], g_global,
+                   regularise=gain_kw.get("regularise", REGULARISE), max_gain=gain_kw.get("max_gain", MAX_GAIN),
+                   forward_g=gain_kw.get("forward_g", FORWARD_G))
+    w = np.clip(weight * w[on], 0.0, 1.0)[:, None]
+    out = np.array(g, np.float64)
+    out[on] = (1 - w) * out[on] + w * gh
+    return out

@@ -52,16 +52,19 @@ def read_hdr_image(path) -> np.ndarray:
 
 
 def capture_envmap(env: str | None = None, fisheye=None, mirrorball=None, height: int = PHOTO_ENV_HEIGHT,
-                   fov_deg: float = FISHEYE_FOV_DEG) -> EnvMap:
-    """The capture lighting from exactly one of ``env`` (equirect file or bundled name), ``fisheye``
-    (an HDR fisheye photo) or ``mirrorball`` (an HDR mirror-ball photo); see the module doc."""
+                   fov_deg: float = FISHEYE_FOV_DEG, convention: str = "furrow") -> EnvMap:
+    """The capture lighting from exactly one of ``env`` (equirect file or bundled name, laid out in
+    ``convention``: ``render.shading.envmap.ENV_CONVENTIONS``), ``fisheye`` (an HDR fisheye photo) or
+    ``mirrorball`` (an HDR mirror-ball photo); see the module doc.  The result is in furrow's layout."""
     from render.shading.projections import equirect_from_fisheye, equirect_from_mirror_ball
 
     given = [x is not None for x in (env, fisheye, mirrorball)]
     if sum(given) != 1:
         raise ValueError("give exactly one capture lighting: an equirect map, a fisheye or a mirror-ball photo")
     if env is not None:
-        return named_envmap(str(env))
+        return named_envmap(str(env), convention)
+    if convention != "furrow":
+        raise ValueError(f"--capture-env-convention {convention} applies to an equirect --capture-env map only")
     path = Path(fisheye if fisheye is not None else mirrorball)
     img = read_hdr_image(path)
     if img.shape[0] != img.shape[1]:

@@ -14,6 +14,19 @@ the way Blender shows them and the image is not mirrored when seen from inside t
   ``v in [i/H, (i+1)/H)``; its centre is ``((j + 0.5)/W, (i + 0.5)/H)``. Row 0 is the top (+z).
   Continuous pixel coordinates are ``x = u W - 0.5``, ``y = v H - 0.5``.
 
+**The stated orientation** (ORIENTATION, repeated in every ``--help`` that takes a map): the map's +z
+is the rig's up (``capture.orbit.estimate_up``), and its other axes are the world's turned by the
+smallest rotation taking +z to that up (``render.shading.transfer.world_to_env``; the world's own axes
+when the rig is level, as in every synthetic capture).  So the middle column (u = 0.5) looks towards
+the capture's +x, u = 0.25 towards +y, and row v at polar angle pi v from up.
+
+Other layouts are read by a *change of axes* applied once when a map is loaded, never by a second
+direction <-> pixel map (:data:`ENV_CONVENTIONS`, :func:`oriented`): ``furrow`` (above), ``blender``
+(the same: Cycles' ``direction_to_equirectangular``, u = 0.5 - atan2(y, x) / 2 pi, v = 1 - acos(z) /
+pi counted from the bottom of Blender's bottom-up images, world +z up) and ``mitsuba`` (Mitsuba 3's
+``envmap`` emitter: dir = (sin 2 pi u sin pi v, cos pi v, -cos 2 pi u sin pi v), +y up, so u = 0.25 faces
++x; with the world's +y as the rig's up that is furrow's layout turned a quarter turn about up).
+
 Radiance is linear float32 RGB (W m^-2 sr^-1 up to an arbitrary scale). Tiny negative values that
 lossy EXR compression (DWAB) leaves are clamped to 0 on load.
 """
@@ -222,6 +235,49 @@ SUN_RADIUS = np.radians(3.0)
 SUN_RADIANCE = np.array([400.0, 360.0, 300.0])
 
 
+# -- layouts ------------------------------------------------------------------------------------
+#: One sentence for ``--help`` and the docs: which pixel faces which direction of the capture.
+ORIENTATION = ("equirect maps: the middle column (u = 0.5) faces the capture's +x and u = 0.25 its +y, the top "
+               "row the rig's up (estimated from the cameras; +x, +y turned level with it), as Blender's world "
+               "mapping; --env-convention mitsuba reads Mitsuba 3's (+y up, u = 0.25 facing +x)")
+
+
+def _turn_about_up(deg: float) -> np.ndarray:
+    a = np.radians(deg)
+    return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+
+
+#: Equirect layouts: Q such that pixel uv of a map in that layout shows the direction Q @ uv_to_dir(uv)
+#: of furrow's map frame (+z = the rig's up).  blender: identity (module doc); mitsuba: Mitsuba's
+#: (b, c, a) for furrow's (a, b, c) at the same uv, taken to +z up by the rotation of +y onto +z
+#: (x, y, z) -> (x, -z, y), i.e. (b, -a, c): a quarter turn clockwise about up.
+ENV_CONVENTIONS = {"furrow": np.eye(3), "blender": np.eye(3), "mitsuba": _turn_about_up(-90.0)}
+#: Layout of a map unless told otherwise.
+DEFAULT_CONVENTION = "furrow"
+#: A change of axes counts as a turn about up when its zz entry is this close to 1.
+_TURN_TOL = 1e-12
+
+
+def convention_axes(convention: str) -> np.ndarray:
+    """(3, 3) change of axes Q of a layout (:data:`ENV_CONVENTIONS`); an unknown name is a ValueError."""
+    if convention not in ENV_CONVENTIONS:
+        raise ValueError(f"unknown environment-map convention {convention!r}; use one of {', '.join(ENV_CONVENTIONS)}")
+    return ENV_CONVENTIONS[convention]
+
+
+def oriented(env: EnvMap, convention: str = DEFAULT_CONVENTION, rotation_deg: float = 0.0) -> EnvMap:
+    """``env`` (laid out in ``convention``) in furrow's layout, then turned by ``rotation_deg`` about up
+    (right-handed, as :meth:`EnvMap.rotated`): the one place a layout or a rotation flag acts.  A turn
+    about up shifts columns (exact for multiples of 360 / W degrees); any other change of axes resamples
+    through :func:`uv_to_dir` / :func:`dir_to_uv`."""
+    q = _turn_about_up(float(rotation_deg)) @ convention_axes(convention)
+    if abs(q[2, 2] - 1.0) < _TURN_TOL:
+        a = float(np.arctan2(q[1, 0], q[0, 0]))
+        return env.rotated(a) if a != 0.0 else env
+    d = env.pixel_directions() @ q  # rows: Q^T e, the direction in the map's own layout
+    return EnvMap(np.maximum(sample_equirect(env.data, dir_to_uv(d)), 0).astype(np.float32), env.name)
+
+
 def procedural_sky(h: int = 64) -> EnvMap:
     """A tiny deterministic fallback environment: blue sky gradient above, brownish ground below,
     a bright sun disc of radius :data:`SUN_RADIUS` at :data:`SUN_DIR` (supersampled 4x4)."""
@@ -258,14 +314,17 @@ def bundled_envmap(name: str) -> EnvMap:
 HDR_EXTENSIONS = (".exr", ".hdr", ".pic", ".rgbe")
 
 
-def named_envmap(name_or_path: str) -> EnvMap:
+def named_envmap(name_or_path: str, convention: str = DEFAULT_CONVENTION, rotation_deg: float = 0.0) -> EnvMap:
     """A bundled map (:data:`BUNDLED_NAMES`) or an equirect .exr / .hdr file: the one reading of an
-    ``--env MAP`` / ``--relight MAP`` argument (an unknown name is a ValueError naming it)."""
+    ``--env MAP`` / ``--relight MAP`` argument (an unknown name is a ValueError naming it), laid out in
+    ``convention`` and turned by ``rotation_deg`` about up (:func:`oriented`; the bundled maps are in
+    furrow's layout whatever ``convention`` says)."""
+    convention_axes(convention)  # an unknown layout fails for bundled maps too
     p = Path(name_or_path)
     if name_or_path in BUNDLED_NAMES and p.suffix == "":
-        return bundled_envmap(name_or_path)
+        return oriented(bundled_envmap(name_or_path), DEFAULT_CONVENTION, rotation_deg)
     if p.suffix.lower() in HDR_EXTENSIONS:
-        return load_envmap(p)
+        return oriented(load_envmap(p), convention, rotation_deg)
     raise ValueError(f"unknown environment map {name_or_path!r}: use a .exr/.hdr file or one of "
                      f"{', '.join(BUNDLED_NAMES)}")
 

@@ -72,15 +72,14 @@ class GLScene(GLOwner):
             self._compositor = self.own(make_compositor(self.ctx))
         return self._compositor
 
-    def envmap(self, name: str, rotation_deg: float = 0.0):
-        """The environment map ``name`` (bundled name or .exr/.hdr path) turned by ``rotation_deg``
-        about its up axis (cached: the compositor re-uploads only a new map)."""
-        key = (name, float(rotation_deg))
+    def envmap(self, name: str, rotation_deg: float = 0.0, convention: str = "furrow"):
+        """The environment map ``name`` (bundled name or .exr/.hdr path, laid out in ``convention``) turned
+        by ``rotation_deg`` about its up axis (cached: the compositor re-uploads only a new map)."""
+        key = (name, float(rotation_deg), convention)
         if key not in self._envs:
             from render.shading.envmap import named_envmap
 
-            env = named_envmap(name)
-            self._envs[key] = env.rotated(np.radians(rotation_deg)) if rotation_deg else env
+            self._envs[key] = named_envmap(name, convention, rotation_deg)
         return self._envs[key]
 
     def rig_up(self) -> np.ndarray:

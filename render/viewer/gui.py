@@ -53,6 +53,8 @@ class Controls:
     export_fps: object
     export: object
     progress: object
+    #: Layout of the file maps (render.shading.envmap.ENV_CONVENTIONS), fixed by the command line.
+    convention: str = "furrow"
 
     def settings(self) -> ViewSettings:
         """The ViewSettings the controls show (raises ValueError on an invalid combination)."""
@@ -63,7 +65,8 @@ class Controls:
                              refine=None if refine < 0 else refine)
         env = EnvSettings(map=None if self.env_map.value == NO_ENV else self.env_map.value,
                           exposure=float(self.exposure.value), ground=bool(self.ground.value),
-                          glare=bool(self.glare.value), rotation_deg=float(self.rotation.value))
+                          glare=bool(self.glare.value), rotation_deg=float(self.rotation.value),
+                          convention=self.convention)
         return ViewSettings(method=self.method.value, options=opts, max_lines=int(self.max_lines.value), env=env,
                             view=self.view.value)
 
@@ -102,7 +105,8 @@ def build_controls(gui, initial: ViewSettings, env_names, methods) -> Controls:
     readout = gui.add_markdown("waiting for the first frame")
     note = gui.add_markdown("", visible=False)
     controls = Controls(method, tol, ss, refine, max_lines, env_map, exposure, ground, glare, rotation, view,
-                        cameras, readout, note, screenshot, export_kind, export_frames, export_fps, export, progress)
+                        cameras, readout, note, screenshot, export_kind, export_frames, export_fps, export, progress,
+                        initial.env.convention)
     sync_option_controls(controls)
     return controls
 

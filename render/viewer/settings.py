@@ -33,6 +33,8 @@ class EnvSettings:
     glare: bool = True
     #: Rotation of the map about its up axis, degrees.
     rotation_deg: float = 0.0
+    #: Layout of a file map (render.shading.envmap.ENV_CONVENTIONS; bundled maps are furrow's).
+    convention: str = "furrow"
 
     def __post_init__(self) -> None:
         if not self.exposure > 0:

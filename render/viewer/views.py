@@ -109,7 +109,7 @@ def colour_image(scene, frame, camera: Camera, env_settings: EnvSettings) -> np.
 
     if env_settings.map is None:
         return to_uint8_srgb(frame.rgb)
-    env = scene.envmap(env_settings.map, env_settings.rotation_deg)
+    env = scene.envmap(env_settings.map, env_settings.rotation_deg, env_settings.convention)
     img = composite_env(scene.ctx, frame, camera, env, env_settings, scene.model.spheres, scene.rig_up(),
                         scene.compositor())
     return to_uint8_srgb(img)

@@ -34,7 +34,9 @@ def test_fit_turntable_reads_the_ring_off_exact_poses():
     assert fit.model.radius == pytest.approx(0.5 * np.cos(np.radians(20)), rel=1e-6)
     for k in range(12):
         rot, disp = R.transform_delta(fit.model.pose(k), gt[k], np.zeros(3))
-        assert rot < 1e-6 and disp < 1e-9
+        # the reference pose is fitted to the ring now (not copied): rotation_angle_deg's acos
+        # resolves no better than sqrt(2 eps) rad = 1.2e-6 degrees
+        assert rot < 1e-5 and disp < 1e-9
         assert np.allclose(fit.model.relative(3, k), gt[3] @ invert_rigid(gt[k]), atol=1e-9)
 
 

@@ -58,3 +58,29 @@ def test_cli_board_option_parses_and_rejects():
         parse_board("7:0.05", None)
     with pytest.raises(ValueError, match="marker_m"):
         parse_board("7x7:0.03:0.05", None)
+
+
+def test_cli_register_exact_poses_exit_4_and_say_kept_nominal(tmp_path, capsys):
+    """Input poses that are already right: nothing can be improved (exit 4, documented in --help),
+    every view says "kept nominal" with both check scores, and the poses come back unchanged."""
+    from capture import io as cio
+    from furrow.cli import main
+    from furrow.cmd_register import DESCRIPTION, EXIT_NOT_IMPROVED
+
+    cams = scenes.ring_cameras(8, width=128, height=96)
+    ss = scenes.render_set(scenes.control_object(), cams)
+    src, out = tmp_path / "in", tmp_path / "out"
+    cio.write_transforms(ss, src, depth_format="exr")
+    assert main(["register", str(src), "-o", str(out), "--method", "icp"]) == EXIT_NOT_IMPROVED == 4
+    assert "4 = nothing could be improved" in DESCRIPTION
+    assert "nothing could be improved" in capsys.readouterr().err  # the console writes to stderr
+    rep = json.loads((out / "registration.json").read_text())
+    assert rep["check"]["kept nominal"] == 8 and rep["check"]["improved"] is False
+    for s in rep["scans"]:
+        assert s["status"] == "kept nominal" and s["reason"]
+        assert {"nominal", "registered"} <= set(s["check"]) and s["check"]["nominal"]["consistent"]
+    got = cio.read_scanset(out)
+    c = ss.bounds.mean(0)
+    for a, b in zip(got.scans, ss.scans):
+        rot, _ = R.transform_delta(a.camera.cam_from_world, b.camera.cam_from_world, c)
+        assert rot < 0.02

@@ -93,12 +93,16 @@ def test_capture_lighting_from_photos(tmp_path):
 
 
 def test_bench_variants_parse():
-    from furrow.bench.relight import parse_variant
+    from furrow.bench.relight import parse_variant, variant_turn
 
     c = parse_variant("lambert:vis:fwd=0:g=0.3:s=0.05:res=16")
     assert (c.kernel, c.visibility, c.forward, c.forward_g, c.smooth, c.volume_res) == ("lambert", True, 0.0, 0.3,
                                                                                         0.05, 16)
     assert parse_variant("wrap").visibility is False
+    s = parse_variant("wrap:strands:sres=24:sw=0.3:turn=90")
+    assert (s.strands, s.strand_res, s.strand_weight) == (True, 24, 0.3)
+    assert variant_turn("wrap:strands:turn=90") == 90.0 and variant_turn("wrap") == 0.0
+    assert parse_variant("wrap:nostrands").strands is False
     with pytest.raises(ValueError, match="flags"):
         parse_variant("wrap:shiny")
     with pytest.raises(ValueError, match="kernel"):

@@ -49,7 +49,7 @@ def test_twins(gl_ctx, model):
     rng = np.random.default_rng(0)
     dep = np.where(rng.random((72, 96)) < 0.7, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
     fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
-    cfg = RelightConfig(kernel="wrap", volume_res=16, visibility=True)
+    cfg = RelightConfig(kernel="wrap", volume_res=16, visibility=True, strands=True)
     with Relighter(gl_ctx, model, procedural_sky(32), _sun_sky(), cfg) as rel:
         ref = share_volume_reference(rel.raw, rel.smooth, rel.capture, rel.new, model.spheres)
         d = np.abs(ref - rel.share_volume).max(-1)
@@ -57,10 +57,45 @@ def test_twins(gl_ctx, model):
         assert np.mean(d > 1e-3) <= SHARE_FLIP_SHARE and d.mean() < 1e-4, (np.mean(d > 1e-3), d.mean())
         out = rel.apply(fr, cam)
         want = apply_reference(fr.rgb, fr.depth, cam, rel.smooth, rel.share_volume, rel.capture, rel.new,
+                               strands=rel.strands, hair=rel.hair, strand_weight=cfg.strand_weight,
                                **cfg.gain_kwargs())
         np.testing.assert_allclose(out.rgb, want, rtol=APPLY_RTOL, atol=1e-6)
         np.testing.assert_array_equal(out.rgb[dep == 0], fr.rgb[dep == 0])  # no depth: unchanged
         assert out.alpha is fr.alpha or np.array_equal(out.alpha, fr.alpha)
+
+
+def _random_strands(rel, rng):
+    """A StrandColour on the relighter's cube with random tangents, scores and fibre colours (the twin
+    must agree wherever the strand gain is blended in, whatever the capture views gave)."""
+    from render.relight.strands import StrandColour, StrandField
+
+    L = 12
+    t = rng.normal(size=(L, L, L, 3))
+    t /= np.linalg.norm(t, axis=-1, keepdims=True)
+    field = StrandField(t, rng.uniform(0, 1, (L, L, L)), rel.raw.origin, rel.raw.voxel * rel.raw.resolution / L)
+    fit = np.concatenate([rng.uniform(0.05, 1, (L, L, L, 3)), rng.uniform(0, 0.3, (L, L, L, 1))], -1)
+    return StrandColour(field, fit.astype(np.float32))
+
+
+def test_strand_twin(gl_ctx, model):
+    """The strand branch of the apply pass (relight_hair.glsl) against its numpy twin, with random strands
+    blended in almost everywhere and maps that differ in direction and colour."""
+    cam = scene.ring_cameras(8, 96, 72)[2]
+    rng = np.random.default_rng(3)
+    dep = np.where(rng.random((72, 96)) < 0.8, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
+    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
+    cfg = RelightConfig(volume_res=16, strands=True)
+    red_sun = EnvMap((_sun_sky(sun=(-0.5, 0.6, 0.3)).data * np.array([1.0, 0.3, 0.1], np.float32)), "red")
+    with Relighter(gl_ctx, model, _sun_sky(), red_sun, cfg) as rel:
+        rel.set_strands(_random_strands(rel, rng))
+        out = rel.apply(fr, cam)
+        want = apply_reference(fr.rgb, fr.depth, cam, rel.smooth, rel.share_volume, rel.capture, rel.new,
+                               strands=rel.strands, hair=rel.hair, strand_weight=cfg.strand_weight,
+                               **cfg.gain_kwargs())
+        surface = apply_reference(fr.rgb, fr.depth, cam, rel.smooth, rel.share_volume, rel.capture, rel.new,
+                                  **cfg.gain_kwargs())
+    assert np.abs(want - surface).max() > 0.05  # the strand branch does change the result
+    np.testing.assert_allclose(out.rgb, want, rtol=APPLY_RTOL, atol=1e-5)
 
 
 def test_lambertian_object_relit_like_the_rasteriser(gl_ctx, model):
@@ -91,11 +126,12 @@ def test_lambertian_object_relit_like_the_rasteriser(gl_ctx, model):
     assert p_relit > 38.0 and p_relit > p_gain + 15.0, (p_relit, p_gain)
 
 
-def test_same_map_is_the_identity(gl_ctx, model):
+@pytest.mark.parametrize("strands", [False, True])
+def test_same_map_is_the_identity(gl_ctx, model, strands):
     cam = scene.ring_cameras(8, 64, 48)[0]
     dep = np.full((48, 64), 0.35, np.float32)
     fr = Frame(np.full((48, 64, 3), 0.4, np.float32), np.ones((48, 64), np.float32), dep, FrameStats(0, 0, 0, 1))
-    with Relighter.from_model(gl_ctx, model, procedural_sky(32), RelightConfig(volume_res=16)) as rel:
+    with Relighter.from_model(gl_ctx, model, procedural_sky(32), RelightConfig(volume_res=16, strands=strands)) as rel:
         np.testing.assert_allclose(rel.apply(fr, cam).rgb, fr.rgb, rtol=1e-6)
         rel.set_new_env(_sun_sky())  # the viewer's switch: another map, another result
         assert np.abs(rel.apply(fr, cam).rgb - fr.rgb).max() > 0.05
