@@ -428,18 +428,28 @@ def depth_format_spec(depth_format: str, png_depth_unit: float = DEFAULT_PNG_DEP
     return ext, unit
 
 
-def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, ext: str, unit: float) -> None:
+def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, ext: str, unit: float, depth_size=None) -> None:
     write_png(rgb_path, scan.srgb8)
+    depth = scan.depth
+    if depth_size is not None:  # a phone's coarser depth map: the nearest pixel centre of each
+        (w, h), (W, H) = depth_size, (scan.camera.width, scan.camera.height)
+        if not (0 < w <= W and 0 < h <= H):
+            raise ScanIOError(f"{depth_path}: depth size {w}x{h} must be within the colour's {W}x{H}")
+        depth = depth[np.minimum(((np.arange(h) + 0.5) * H / h).astype(int), H - 1)[:, None],
+                      np.minimum(((np.arange(w) + 0.5) * W / w).astype(int), W - 1)[None, :]]
     if ext == "png":
-        write_png(depth_path, depth_to_uint16(scan.depth, unit, str(depth_path)))
+        write_png(depth_path, depth_to_uint16(depth, unit, str(depth_path)))
     else:
-        write_exr(depth_path, scan.depth)
+        write_exr(depth_path, depth)
 
 
 def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
                      png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT, overwrite: bool = False,
-                     extra_files: dict[str, bytes] | None = None, progress=None, lens: Lens | None = None) -> Path:
+                     extra_files: dict[str, bytes] | None = None, progress=None, lens: Lens | None = None,
+                     depth_size=None) -> Path:
     """Write ``out_dir/transforms.json`` + ``images/`` + ``depth/`` atomically; returns the json path.
+    ``depth_size`` (w, h): write the depth maps at that smaller size (nearest pixel centre), as a
+    phone's depth sensor gives them; the reader resamples them to the colour (capture.resample).
 
     ``depth_format``: a :data:`DEPTH_FORMATS` name -- ``"png"`` (16-bit, ``png_depth_unit`` metres
     per unit, millimetres by default), ``"png-0.1mm"`` or ``"exr"`` (float metres).  The unit is
@@ -456,7 +466,7 @@ def write_transforms(scanset: ScanSet, out_dir: Path, depth_format: str = "png",
             stem = Path(s.name).stem if s.name else f"frame_{i:04d}"
             rel_rgb = f"images/{stem}.png"
             rel_depth = f"depth/{stem}.{ext}"
-            _write_images(s, tmp / rel_rgb, tmp / rel_depth, ext, unit)
+            _write_images(s, tmp / rel_rgb, tmp / rel_depth, ext, unit, depth_size)
             frames.append({"file_path": rel_rgb, "depth_file_path": rel_depth, **s.camera.to_nerfstudio(),
                            **write_matte(s, tmp, stem)})
         meta = {**nerfstudio_keys(lens), "depth_unit_scale_factor": unit, "frames": frames,

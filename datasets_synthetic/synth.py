@@ -246,7 +246,7 @@ def gt_files(cap: Capture) -> dict[str, bytes]:
 
 def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: bool = False,
                   extra_files: dict[str, bytes] | None = None, progress: Callable | None = None,
-                  png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT) -> Path:
+                  png_depth_unit: float = DEFAULT_PNG_DEPTH_UNIT, depth_size=None) -> Path:
     """Write the scan set (transforms.json, images/, depth/) and gt/ atomically; returns
     the transforms.json path.  ``depth_format``: a ``capture.io.DEPTH_FORMATS`` name (``png``:
     16-bit in units of ``png_depth_unit`` metres, millimetres by default; ``png-0.1mm``; ``exr``).
@@ -258,4 +258,5 @@ def write_capture(cap: Capture, out_dir, depth_format: str = "png", overwrite: b
     lens = cap.info.get("lens")
     lens = Lens(lens["model"], tuple(lens["coeffs"]), lens["source"]) if lens else None
     return write_transforms(cap.scanset, Path(out_dir), depth_format=depth_format, overwrite=overwrite,
-                            extra_files=files, progress=progress, png_depth_unit=png_depth_unit, lens=lens)
+                            extra_files=files, progress=progress, png_depth_unit=png_depth_unit, lens=lens,
+                            depth_size=depth_size)

@@ -138,6 +138,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="RMS rotation error of the recorded poses")
     p.add_argument("--pose-noise-frac", type=float, default=0.0, metavar="F",
                    help="RMS translation error of the recorded poses, fraction of the object size")
+    p.add_argument("--depth-size", type=_size, default=None, metavar="WxH",
+                   help="write the depth maps at this smaller size (nearest pixel), as a phone gives them (e.g. "
+                        "256x192 for 1920x1440 colour); `furrow model` resamples them to the colour")
     p.add_argument("--sensor", default="d435", choices=["d435", "kinect-v1", "ideal"],
                    help="depth-sensor traits: z^2 noise, quantisation, flying pixels (default d435; ideal = exact)")
     p.add_argument("--flying", type=float, default=None, metavar="FRAC",
@@ -301,7 +304,7 @@ def run(args, console) -> int:
             extra["preview.png"] = contact_sheet_png_bytes(cap.scanset)
     with timer.stage("write"):
         path = write_capture(cap, args.out, depth_format=args.depth_format, overwrite=args.overwrite,
-                             extra_files=extra, png_depth_unit=unit)
+                             extra_files=extra, png_depth_unit=unit, depth_size=args.depth_size)
     st = cap.scene.stats
     console.print(f"wrote {path} ({len(cap.scanset)} views, {st['triangles']:,} triangles"
                   + (f", {st['strands']:,} strands" if "strands" in st else "")
