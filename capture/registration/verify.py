@@ -145,6 +145,8 @@ def verify(views: list[C.CheckView], nominal: list[np.ndarray], registered: list
         if not changed:
             break
     poses = [registered[k] if status[k] == REGISTERED else nominal[k] for k in range(n)]
+    if changed:  # the last round changed something: judge the result as it stands
+        final = _judge_all(views, poses, [s != FLAGGED for s in status], centre, size)
     n_nom = sum(j.consistent for j in jn)
     n_fin = sum(status[k] != FLAGGED and final[k] is not None and final[k].consistent for k in range(n))
     notes = []
