@@ -11,6 +11,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
+
 
 def _file_mode(base: int = 0o666) -> int:
     """The mode a new file (``base`` 0666) or folder (0777) gets from ``open()`` / ``mkdir()``: less the umask."""
@@ -59,3 +61,19 @@ def atomic_dir(target) -> Iterator[Path]:
             os.replace(tmp, target)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def jsonable(x):
+    """``x`` made JSON-serialisable: dict keys as strings, tuples as lists, numpy arrays and
+    scalars as Python values, anything else unknown as its ``str``."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    return str(x)

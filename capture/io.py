@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from capture.atomic import atomic_dir
+from capture.atomic import atomic_dir, jsonable
 from capture.camera import Camera, CameraError
 from capture.imageio import (
     ScanIOError,
@@ -47,7 +47,7 @@ from capture.imageio import (
 from capture.io_lens import frame_lens, note_undistorted, pinhole_camera
 from capture.lens import DEFAULT_UNDISTORT, Lens, nerfstudio_keys, undistort_scan
 from capture.matte_io import attach_mattes, write_matte
-from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, to_uint8_srgb
+from capture.scan import Scan, ScanError, ScanSet, bounds_from_points
 
 TRANSFORMS = "transforms.json"
 #: Percentiles of the back-projected depth used for automatic bounds (robust to outliers).
@@ -493,24 +493,3 @@ def write_plain_folder(scanset: ScanSet, out_dir: Path, depth_format: str = "exr
             (tmp / "cameras" / f"{stem}.json").write_text(json.dumps(cam, indent=1))
         (tmp / "bounds.json").write_text(json.dumps({"bounds": np.asarray(scanset.bounds).tolist()}))
     return out_dir
-
-
-def jsonable(x):
-    """``x`` made JSON-serialisable: dict keys as strings, tuples as lists, numpy arrays and
-    scalars as Python values, anything else unknown as its ``str``."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, (str, int, float, bool)) or x is None:
-        return x
-    return str(x)
-
-
-def save_linear_as_srgb_png(path: Path, linear: np.ndarray) -> None:
-    """Convenience: write a linear float image as 8-bit sRGB PNG (atomic)."""
-    write_png(path, to_uint8_srgb(linear))
