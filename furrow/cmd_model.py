@@ -39,11 +39,28 @@ def _pow2(text: str) -> int:
     return v
 
 
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not WxH (e.g. 1280x960)") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be positive")
+    return w, h
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scans", type=Path, help="scan set: transforms.json, a folder holding one, or a plain folder")
     p.add_argument("-o", "--out", type=Path, required=True,
                    help="model folder to write (an existing model is replaced only with --overwrite)")
     p.add_argument("--frames", default=None, metavar="SPEC", help="frames to use, python-slice style: 0::2, 3, 1,4,7")
+    p.add_argument("--views", default="auto", metavar="auto|all|N",
+                   help="views kept (volume/views.py): auto drops near-duplicates (direction from the object within "
+                        "2 deg of a kept view at a similar distance), all keeps every view, N keeps the N most spread "
+                        "out; the model report gives every view's reason (default auto)")
+    p.add_argument("--output-size", type=_size, default=None, metavar="WxH",
+                   help="size of the frames you will render: the views are scaled down so the object keeps the "
+                        "pixels it will cover there (never up); default: full resolution")
     p.add_argument("--max-res", type=_pow2, default=256, help="L_max: finest resolution tried (default 256)")
     p.add_argument("--alpha", type=float, default=1.5, help="Eq. 1 tolerance alpha >= 1 (default 1.5)")
     p.add_argument("--t", type=float, default=0.01, help="Eq. 1 threshold t on N_i / L^3 (default 0.01)")
@@ -80,7 +97,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args, console) -> int:
-    from capture.io import read_scanset
+    import dataclasses
+
     from furrow.console import StageTimer, track
     from volume.build import ModelConfig, build_model
     from volume.fusion import FusionConfig
@@ -109,9 +127,14 @@ def run(args, console) -> int:
     t0, c0 = time.perf_counter(), time.process_time()
     capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
-        scanset = read_scanset(args.scans, args.frames, progress=lambda it, d: track(it, d))
+        scanset, views = _read_views(args, progress=lambda it, d: track(it, d))
+    res = _working_resolution(scanset, args, timer)
+    scanset = res.pop("scanset")
     model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
                                  provenance={"source": str(args.scans), "frames": args.frames})
+    summary["views"] = views
+    summary["resolution"] = res
+    model = dataclasses.replace(model, params={**model.params, "views": views, "resolution": res})
     if capture_env is not None:
         model = _with_capture_env(model, capture_env, scanset, args)
         summary["capture_env"] = model.capture_env.record()
@@ -132,12 +155,55 @@ def run(args, console) -> int:
         console.print(f"RGBz hole fraction per view (min / mean / max over {len(h)} views): before "
                       f"{min(hb):.4f} / {sum(hb) / len(hb):.4f} / {max(hb):.4f}, after closing "
                       f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
+    console.print(f"views: {views['kept']} of {views['of']} kept (--views {views['mode']}; reasons per view: "
+                  f"--json / model.json); resolution: {res['reason']}", highlight=False)
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
     if args.json:
         print(json.dumps(summary))
     return 0
+
+
+def _read_views(args, progress):
+    """(ScanSet of the kept views, views report): the cameras are read first where the format
+    allows (transforms.json), so dropped views' images are never read."""
+    from capture.io import read_cameras, read_scanset
+    from capture.scan import select_indices
+    from volume.views import select_views
+
+    try:
+        cams = read_cameras(args.scans)
+    except Exception:  # another format: read everything, then choose
+        cams = None
+    if cams is not None:
+        idx = select_indices(args.frames, len(cams))
+        kept, reasons = select_views([cams[i].camera for i in idx], args.views)
+        spec = ",".join(str(idx[k]) for k in kept)
+        scanset = read_scanset(args.scans, spec, progress=progress)
+        names = [cams[i].file_path for i in idx]
+    else:
+        full = read_scanset(args.scans, args.frames, progress=progress)
+        kept, reasons = select_views(full.cameras, args.views)
+        scanset = type(full)(tuple(full.scans[k] for k in kept), full.bounds, full.metadata)
+        names = [s.name for s in full.scans]
+    for r in reasons:
+        r["name"] = names[r["view"]]
+    return scanset, {"mode": args.views, "kept": len(kept), "of": len(reasons), "per_view": reasons}
+
+
+def _working_resolution(scanset, args, timer) -> dict:
+    """The working scale from the object's footprint against --output-size; the scaled scans
+    under "scanset" (volume.views)."""
+    from volume.views import footprint_px, scaled_scanset, working_scale
+
+    s, rep = working_scale([footprint_px(x.depth) for x in scanset.scans], args.output_size)
+    if s < 1:
+        with timer.stage("scale views"):
+            scanset = scaled_scanset(scanset, s)
+    c = scanset.scans[0].camera
+    return {**rep, "size": [c.width, c.height], "output_size": list(args.output_size) if args.output_size else None,
+            "scanset": scanset}
 
 
 def _capture_env(args):

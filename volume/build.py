@@ -28,15 +28,14 @@ from capture.io import jsonable
 from capture.scan import ScanSet
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
-from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors
+from volume.lopt_sample import sampled_eq1
+from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors_views
 from volume.model import Model, SdfLevel, SdfPyramid
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
 from volume.spheres import fit_spheres
+from volume.stream import NORMAL_THREADS, pack_scans
 from volume.tsdf import fuse_tsdf
-
-#: Threads that compute the scans' depth normals and plane offsets (volume.fusion.scan_maps).
-NORMAL_THREADS = 2
 
 #: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
 #: of the occluder (docs/methods.md §3: tens to hundreds of spheres).
@@ -66,6 +65,8 @@ class ModelConfig:
     """Store every level's signed distance values in the model (not only surface voxels)."""
     defer_finest: bool = True
     """Complete the finest fused level's distances only when a consumer needs them (module docstring)."""
+    sample_eq1: bool = True
+    """Judge L_max by Eq. 1 on a sample first and fuse it only when Eq. 1 may keep it (volume.lopt_sample)."""
 
     def __post_init__(self) -> None:
         if self.sdf not in METHODS:
@@ -79,7 +80,7 @@ class ModelConfig:
         mesh = MeshConfig(level=0, decimator="pymeshlab")
         fusion = replace(kw.pop("fusion", FusionConfig()), backend="numpy")
         rgbz = replace(kw.pop("rgbz", RgbzConfig()), mesh_depth="raycast")
-        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, **kw)
+        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, sample_eq1=False, **kw)
 
 
 def _release_free_memory() -> None:
@@ -95,30 +96,57 @@ def _release_free_memory() -> None:
         pass
 
 
-def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False):
-    """Fuse every level min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction}).
+def scan_maps_of(scanset: ScanSet, fcfg: FusionConfig, progress=None):
+    """The fusion's per-scan maps: packed footprint rectangles computed view by view
+    (volume.stream.pack_scans) for the compiled backend; the list of full-frame ScanMaps (the
+    reference) for 'numpy'."""
+    if fcfg.backend == "numba":
+        return pack_scans(scanset.scans, fcfg.max_grazing_deg, fcfg.smooth_sigma_z, NORMAL_THREADS, progress)
+    with ThreadPoolExecutor(NORMAL_THREADS) as pool:
+        # numpy and OpenCV release the GIL in these whole-image operations: measured on 18 views of
+        # a 640x480 capture, 1.5 s on one thread, 0.8-1.0 s on two (quiet 2-core machine)
+        futures = [pool.submit(scan_maps, s, fcfg.max_grazing_deg, fcfg.smooth_sigma_z) for s in scanset.scans]
+        return prepare_maps([f.result() for f in (progress(futures, "normals") if progress else futures)],
+                            fcfg.backend)
 
-    ``defer_finest``: the finest level's values are left to volume.fusion.completed."""
+
+def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False,
+                needed_res: int | None = None):
+    """Fuse the levels min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction},
+    {L: SampledEq1}).
+
+    ``defer_finest``: the finest level's values are left to volume.fusion.completed.
+    ``needed_res``: the finest level something other than Eq. 1 reads (mesh, spheres); with
+    ``cfg.sample_eq1`` a finer L_max is first judged on a sample (volume.lopt_sample) and fused
+    only when Eq. 1 may keep it (then its fraction is exact); a skipped level's fraction is the
+    sample's estimate."""
     stage = stage or (lambda name: contextlib.nullcontext())
     origin, extent = cube_for_bounds(scanset.bounds)
     fuse = fuse_consensus if cfg.sdf == "consensus" else fuse_tsdf
-    with stage("depth normals"), ThreadPoolExecutor(NORMAL_THREADS) as pool:
-        # numpy and OpenCV release the GIL in these whole-image operations: measured on 18 views of
-        # a 640x480 capture, 1.5 s on one thread, 0.8-1.0 s on two (quiet 2-core machine)
-        futures = [pool.submit(scan_maps, s, cfg.fusion.max_grazing_deg, cfg.fusion.smooth_sigma_z)
-                   for s in scanset.scans]
-        maps = prepare_maps([f.result() for f in (progress(futures, "normals") if progress else futures)],
-                            cfg.fusion.backend)
+    with stage("depth normals"):
+        maps = scan_maps_of(scanset, cfg.fusion, progress)
     _release_free_memory()
-    fused, frac = {}, {}
+    fused, frac, sampled = {}, {}, {}
     coarse = None
+    top = cfg.lopt.max_res
+    sample_top = (cfg.sample_eq1 and cfg.sdf == "consensus" and needed_res is not None and top > needed_res
+                  and top // 2 >= cfg.lopt.min_res)
     for L in cfg.lopt.resolutions:
+        if L == top and sample_top:
+            with stage(f"Eq. 1 sample {L}^3"):
+                if coarse.values is None:
+                    fused[L // 2] = coarse = completed(coarse, cfg.fusion.backend)
+                s = sampled_eq1(maps, coarse, origin, extent, L, cfg.fusion, cfg.lopt.alpha, cfg.lopt.t)
+                sampled[L] = s
+            if s.decided and not s.passes:
+                frac[L] = s.fraction
+                break
         with stage(f"fuse {cfg.sdf} {L}^3"):
             f = fuse(scanset, origin, extent / L, L, cfg.fusion, maps, coarse=coarse,
                      complete=not (defer_finest and L == cfg.lopt.max_res))
             frac[L] = discontinuity_fraction(f.measured, f.voxel_size, cfg.lopt.alpha, f.measured_mask)
         fused[L] = coarse = f
-    return origin, extent, fused, frac
+    return origin, extent, fused, frac, sampled
 
 
 def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, progress=None,
@@ -130,19 +158,21 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
     """
     cfg = cfg or ModelConfig()
     stage = stage or (lambda name: contextlib.nullcontext())
-    origin, extent, fused, frac = fuse_levels(scanset, cfg, stage, progress, cfg.defer_finest)
+    top = cfg.lopt.max_res
+    mesh_res = top if cfg.mesh.level == 0 else min(cfg.mesh.level, top)
+    sphere_res = min(top, SPHERE_LEVEL)
+    origin, extent, fused, frac, sampled = fuse_levels(scanset, cfg, stage, progress, cfg.defer_finest,
+                                                       max(mesh_res, sphere_res))
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     # N_i over the measured voxels (reported only; Eq. 1 divides by L^3, see volume.pyramid)
     per_measured = {L: (frac[L] * L ** 3 / n if (n := int(np.count_nonzero(f.measured_mask))) else 0.0)
                     for L, f in fused.items() if f.measured_mask is not None}
-    mesh_res = max(fused) if cfg.mesh.level == 0 else min(cfg.mesh.level, max(fused))
-    sphere_res = min(max(fused), SPHERE_LEVEL)
     for L in sorted({mesh_res, sphere_res} | {L for L in fused if L <= l_opt}):
         if fused[L].values is None:
             with stage(f"complete {L}^3"):
                 fused[L] = completed(fused[L], cfg.fusion.backend)
     with stage("pyramid"):
-        points = [s.points() for s in scanset.scans] if cfg.measured_voxels else None
+        points = ViewPoints(scanset) if cfg.measured_voxels else None
         pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items() if L <= l_opt}, origin, extent,
                                             l_opt, keep_values=True, points=points)
     with stage("spheres"):
@@ -155,8 +185,9 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         rgbz, holes = build_rgbz(scanset, verts, faces, mesh_level, cfg.rgbz,
                                  (lambda it: progress(it, "rgbz")) if progress else None)
     with stage("mesh colour"):
-        colors = vertex_colors(verts, faces, rgbz.cameras, rgbz.rgb, rgbz.depth, mesh_level.voxel_size) \
-            if len(verts) else None
+        # view by view: the decoded frames are never stacked
+        colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
+                                     mesh_level.voxel_size) if len(verts) else None
     if not cfg.keep_values:
         pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
                                 keep_values=False, points=points)
@@ -164,6 +195,7 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
               "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels,
               "sphere_level": sphere_res, "mesh_level": mesh_res,
               "eq1_fraction": {str(L): v for L, v in frac.items()},
+              "eq1_sampled": {str(L): v.record() for L, v in sampled.items()},
               "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
     prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
             "scanset_metadata": jsonable(scanset.metadata), **(provenance or {})}
@@ -174,6 +206,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "levels": pyramid.resolutions,
         "surface_voxels": {str(lv.resolution): int(len(lv.surface)) for lv in pyramid.levels},
         "eq1_fraction": {str(L): round(v, 6) for L, v in frac.items()},
+        "eq1_sampled": {str(L): {k: (round(x, 6) if isinstance(x, float) else x) for k, x in v.record().items()}
+                        for L, v in sampled.items()},
         "eq1_flagged_per_measured": {str(L): round(v, 6) for L, v in per_measured.items()},
         "spheres": len(spheres),
         "sphere_error": round(sphere_err, 5),
@@ -181,6 +215,20 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
     }
     return model, summary
+
+
+class ViewPoints:
+    """The scans' measured world points, one view at a time (back-projected on each pass, never
+    all held: volume.pyramid.measured_voxels reads them view by view)."""
+
+    def __init__(self, scanset: ScanSet):
+        self.scans = scanset.scans
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def __iter__(self):
+        return (s.points() for s in self.scans)
 
 
 def _level(f, origin) -> SdfLevel:

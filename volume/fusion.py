@@ -126,17 +126,24 @@ class ScanMaps:
     H: int
 
 
-def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -> ScanMaps:
-    """Normals from depth gradients and the plane offsets of every pixel of ``scan``."""
+def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0, rect=None) -> ScanMaps:
+    """Normals from depth gradients and the plane offsets of every pixel of ``scan``.
+
+    ``rect`` (x0, y0, w, h): only that rectangle of the image (the arrays are its pixels,
+    row-major; ``W``, ``H`` stay the image's); equal to the full map's pixels there when the
+    rectangle keeps BILATERAL_DIAMETER pixels of no depth around every depth (volume.stream)."""
     cam = scan.camera
-    depth = np.asarray(scan.depth, np.float32)
+    x0, y0, rw, rh = (0, 0, cam.width, cam.height) if rect is None else (int(r) for r in rect)
+    depth = np.asarray(scan.depth[y0:y0 + rh, x0:x0 + rw], np.float32)
     valid = depth > 0
     if smooth_sigma_z > 0 and valid.any():
         import cv2
 
         sm = cv2.bilateralFilter(depth, BILATERAL_DIAMETER, float(smooth_sigma_z), BILATERAL_SIGMA_PX)
         depth = np.where(valid, sm, 0).astype(np.float32)
-    rays = cam.pixel_rays(cam.pixel_grid())  # (H, W, 3), z = 1
+    v, u = np.mgrid[y0:y0 + rh, x0:x0 + rw].astype(np.float64)
+    grid = np.stack([u, v], axis=-1)
+    rays = cam.pixel_rays(grid)  # (h, w, 3), z = 1
     pc = rays * depth[..., None].astype(np.float64)
     n, ok = depth_normals(pc, valid, "smaller_step")  # facing the camera
     ray_u = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
@@ -144,7 +151,7 @@ def scan_maps(scan: Scan, max_grazing_deg: float, smooth_sigma_z: float = 0.0) -
     ok &= cosine >= np.cos(np.radians(max_grazing_deg))
     R = cam.cam_from_world[:3, :3]
     nw = n @ R  # camera -> world for row vectors: n_w = R^T n_c
-    pw = cam.unproject(cam.pixel_grid(), depth)
+    pw = cam.unproject(grid, depth)
     off = np.sum(nw * pw, axis=-1)
     nw[~ok] = 0.0
     off[~ok] = 0.0

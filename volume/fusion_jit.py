@@ -10,7 +10,10 @@ tests/volume/test_fusion_jit.py: votes, samples and consensus agree except where
 projection lands within rounding of a pixel edge or a threshold (stated tolerances there).
 
 Scans are packed once per fusion (:func:`pack_maps`): per-pixel arrays concatenated, with
-each scan's first pixel, width and height.
+each scan's first pixel, width and height.  A scan's records may cover only a rectangle of its
+image (``PackedMaps.rect``: the object's footprint plus a margin, volume.stream): a pixel of the
+image outside it reads the shared record VOID_ROW (no depth, a clear no-return), which is what a
+full-frame map holds there when the rectangle keeps every pixel within SILHOUETTE_PX of a depth.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ BLOCK = 4096
 #: Columns of PackedMaps.pixel: one 32-byte record per pixel, so a lookup touches one cache line.
 DEPTH, COSINE, OFFSET, NX, NY, NZ, VOID = range(7)
 RECORD = 8
+#: Row of PackedMaps.pixel read by every pixel outside a scan's rectangle: no depth, void.
+VOID_ROW = 0
 
 
 @dataclass(frozen=True)
@@ -37,10 +42,12 @@ class PackedMaps:
     """Every scan's ScanMaps (volume.fusion) packed into one array of pixel records.
 
     Attributes:
-        pixel: (sum of H*W, RECORD) float32: depth (m), cosine, plane offset (m), world normal
-            (3), void (1.0 = a clear no-return), one row per pixel of each scan in turn.
+        pixel: (1 + sum of w*h, RECORD) float32: depth (m), cosine, plane offset (m), world normal
+            (3), void (1.0 = a clear no-return); row VOID_ROW is the shared empty record, then
+            one row per pixel of each scan's rectangle in turn (row-major).
         P: (S, 3, 4) float32 projections; start: (S,) int64 first row of each scan;
         W, H: (S,) int64 image sizes.
+        rect: (S, 4) int64 (x0, y0, w, h) of each scan's rectangle of records (pixels).
     """
 
     pixel: np.ndarray
@@ -48,6 +55,12 @@ class PackedMaps:
     start: np.ndarray
     W: np.ndarray
     H: np.ndarray
+    rect: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.rect is None:
+            object.__setattr__(self, "rect", np.stack([np.zeros_like(self.W), np.zeros_like(self.W), self.W, self.H],
+                                                      axis=1).reshape(-1, 4).astype(np.int64))
 
     def __len__(self) -> int:
         return len(self.start)
@@ -59,16 +72,27 @@ def pack_maps(maps) -> PackedMaps:
         return maps
     maps = list(maps)
     sizes = np.array([len(m.depth) for m in maps], np.int64)
-    start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64) if maps else np.zeros(0, np.int64)
-    pixel = np.zeros((int(sizes.sum()), RECORD), np.float32)
+    start = 1 + np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64) if maps else np.zeros(0, np.int64)
+    pixel = empty_records(int(sizes.sum()))
     for m, a in zip(maps, start):
-        rows = pixel[a:a + len(m.depth)]
-        rows[:, DEPTH], rows[:, COSINE], rows[:, OFFSET] = m.depth, m.cosine, m.offset
-        rows[:, NX:NZ + 1] = m.normal
-        rows[:, VOID] = m.void
+        write_records(pixel[a:a + len(m.depth)], m)
     P = np.stack([np.asarray(m.P, np.float32) for m in maps]) if maps else np.zeros((0, 3, 4), np.float32)
     return PackedMaps(pixel, np.ascontiguousarray(P), start, np.array([m.W for m in maps], np.int64),
                       np.array([m.H for m in maps], np.int64))
+
+
+def empty_records(n: int) -> np.ndarray:
+    """(1 + n, RECORD) float32 records, zero, with row VOID_ROW the shared void record."""
+    pixel = np.zeros((1 + n, RECORD), np.float32)
+    pixel[VOID_ROW, VOID] = 1.0
+    return pixel
+
+
+def write_records(rows: np.ndarray, m) -> None:
+    """Fill ``rows`` (len(m.depth), RECORD) from a volume.fusion.ScanMaps."""
+    rows[:, DEPTH], rows[:, COSINE], rows[:, OFFSET] = m.depth, m.cosine, m.offset
+    rows[:, NX:NZ + 1] = m.normal
+    rows[:, VOID] = m.void
 
 
 @njit(**JIT_OPTIONS)
@@ -83,23 +107,29 @@ def _center(flat, origin, w, L):
 
 
 @njit(**JIT_OPTIONS)
-def _scan(P, W, H, s):
+def _scan(P, W, H, rect, start, s):
     """Scan s's projection as a tuple (12 float32 entries of P, width and height as float32,
-    width as an integer), hoisted out of the voxel loops."""
+    its rectangle (x0, y0, w, h) and first row as integers), hoisted out of the voxel loops."""
     return ((P[s, 0, 0], P[s, 0, 1], P[s, 0, 2], P[s, 0, 3], P[s, 1, 0], P[s, 1, 1], P[s, 1, 2], P[s, 1, 3],
-             P[s, 2, 0], P[s, 2, 1], P[s, 2, 2], P[s, 2, 3]), np.float32(W[s]), np.float32(H[s]), W[s])
+             P[s, 2, 0], P[s, 2, 1], P[s, 2, 2], P[s, 2, 3]), np.float32(W[s]), np.float32(H[s]),
+            (rect[s, 0], rect[s, 1], rect[s, 2], rect[s, 3]), start[s])
 
 
 @njit(**JIT_OPTIONS)
 def _project(scan, x0, x1, x2):
-    """(pixel index within the scan or -1, z) of a float32 point, as volume.fusion._lookup."""
-    p, Wf, Hf, Wi = scan
+    """(row of the pixel's record, VOID_ROW outside the scan's rectangle, or -1 outside the
+    image; z) of a float32 point, as volume.fusion._lookup."""
+    p, Wf, Hf, r, first = scan
     z = p[8] * x0 + p[9] * x1 + p[10] * x2 + p[11]
     inv = np.float32(1.0) / z
     u = (p[0] * x0 + p[1] * x1 + p[2] * x2 + p[3]) * inv + np.float32(0.5)
     v = (p[4] * x0 + p[5] * x1 + p[6] * x2 + p[7]) * inv + np.float32(0.5)
     if z > 0 and u >= 0 and u < Wf and v >= 0 and v < Hf:
-        return int(v) * Wi + int(u), z
+        iu = int(u) - r[0]
+        iv = int(v) - r[1]
+        if iu < 0 or iv < 0 or iu >= r[2] or iv >= r[3]:
+            return VOID_ROW, z
+        return first + iv * r[2] + iu, z
     return -1, z
 
 
@@ -111,7 +141,7 @@ def _centers(flat, lo, hi, origin, w, L, xs):
 
 
 @njit(**JIT_OPTIONS)
-def pass1_votes(flat, origin, w, L, pixel, P, start, W, H, trunc, free_margin, proj_factor,
+def pass1_votes(flat, origin, w, L, pixel, P, start, W, H, rect, trunc, free_margin, proj_factor,
                 near_slack, free, nodata, occ, seen, near):
     """Pass 1 (volume.fusion.carve_votes) for the voxels ``flat``: adds each scan's votes into
     the uint8 counters (free, nodata, occluded, seen, near), indexed like ``flat``.  Blocks of
@@ -125,12 +155,12 @@ def pass1_votes(flat, origin, w, L, pixel, P, start, W, H, trunc, free_margin, p
         hi = min(len(flat), lo + BLOCK)
         _centers(flat, lo, hi, origin, w, L, xs)
         for s in range(len(start)):
-            scan = _scan(P, W, H, s)
+            scan = _scan(P, W, H, rect, start, s)
             for t in range(lo, hi):
                 px, z = _project(scan, xs[t - lo, 0], xs[t - lo, 1], xs[t - lo, 2])
                 if px < 0:
                     continue
-                rec = pixel[start[s] + px]
+                rec = pixel[px]
                 seen[t] += 1
                 if rec[VOID] > 0:
                     nodata[t] += 1
@@ -148,13 +178,13 @@ def pass1_votes(flat, origin, w, L, pixel, P, start, W, H, trunc, free_margin, p
 
 
 @njit(**JIT_OPTIONS)
-def _sample(x0, x1, x2, scan, first, pixel, tr, lim_proj):
+def _sample(x0, x1, x2, scan, pixel, tr, lim_proj):
     """One scan's refined sample of a voxel (volume.fusion._samples, refine=True):
-    (near, d, n0, n1, n2, cos, sees through); ``first``: the scan's first row of ``pixel``."""
+    (near, d, n0, n1, n2, cos, sees through)."""
     px, z = _project(scan, x0, x1, x2)
     if px < 0:
         return False, np.float32(0), np.float32(0), np.float32(0), np.float32(0), np.float32(0), False
-    rec = pixel[first + px]
+    rec = pixel[px]
     D = rec[DEPTH]
     has = D > 0
     proj = D - z
@@ -166,7 +196,7 @@ def _sample(x0, x1, x2, scan, first, pixel, tr, lim_proj):
     f0, f1, f2 = x0 - d * n0, x1 - d * n1, x2 - d * n2
     px2, _ = _project(scan, f0, f1, f2)
     if px2 >= 0 and cos > 0:
-        r2 = pixel[first + px2]
+        r2 = pixel[px2]
         if r2[COSINE] > 0:
             m0, m1, m2 = r2[NX], r2[NY], r2[NZ]
             d2 = m0 * x0 + m1 * x1 + m2 * x2 - r2[OFFSET]
@@ -193,7 +223,7 @@ def _cluster(c, cnt, d, nrm, cw, cos_n, agree2):
 
 
 @njit(**JIT_OPTIONS)
-def pass2_consensus(flat, origin, w, L, n_see, pixel, P, start, W, H, trunc, proj_factor,
+def pass2_consensus(flat, origin, w, L, n_see, pixel, P, start, W, H, rect, trunc, proj_factor,
                     agree_d, cos_normal, quorum, has_c, value, support, has1, value1):
     """Pass 2 (volume.fusion.consensus_band) for the band voxels ``flat``: fills has_c, value,
     support, has1, value1 (the arrays of volume.fusion.consensus_from_samples).  Samples are
@@ -216,10 +246,9 @@ def pass2_consensus(flat, origin, w, L, n_see, pixel, P, start, W, H, trunc, pro
         cnt[:] = 0
         fr[:] = 0
         for s in range(S):
-            scan = _scan(P, W, H, s)
+            scan = _scan(P, W, H, rect, start, s)
             for b in range(hi - lo):
-                ok, ds, a0, a1, a2, cs, through = _sample(xs[b, 0], xs[b, 1], xs[b, 2], scan, start[s], pixel, tr,
-                                                          lim_proj)
+                ok, ds, a0, a1, a2, cs, through = _sample(xs[b, 0], xs[b, 1], xs[b, 2], scan, pixel, tr, lim_proj)
                 fr[b] += through
                 if ok:
                     k = cnt[b]
@@ -269,7 +298,7 @@ def carve_votes_jit(pm: PackedMaps, origin, w: float, L: int, trunc: float, free
     for s in (progress(chunks) if progress else chunks):
         e = min(n, s + chunk)
         flat = np.arange(s, e, dtype=np.int64) if voxels is None else np.asarray(voxels[s:e], np.int64)
-        pass1_votes(flat, o, float(w), int(L), pm.pixel, pm.P, pm.start, pm.W, pm.H,
+        pass1_votes(flat, o, float(w), int(L), pm.pixel, pm.P, pm.start, pm.W, pm.H, pm.rect,
                     float(trunc), float(free_margin), float(proj_factor), float(near_slack),
                     *(a[s:e] for a in out))
     return tuple(out)
@@ -283,7 +312,7 @@ def consensus_jit(pm: PackedMaps, flat: np.ndarray, origin, w: float, L: int, n_
     has_c, value, support = np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64)
     has1, value1 = np.zeros(M, bool), np.zeros(M, np.float32)
     pass2_consensus(np.asarray(flat, np.int64), np.asarray(origin, np.float64), float(w), int(L),
-                    np.asarray(n_see, np.int64), pm.pixel, pm.P, pm.start, pm.W, pm.H,
+                    np.asarray(n_see, np.int64), pm.pixel, pm.P, pm.start, pm.W, pm.H, pm.rect,
                     float(trunc), float(proj_factor), float(agree_d), math.cos(math.radians(agree_normal_deg)),
                     int(quorum), has_c, value, support, has1, value1)
     return has_c, value, support, has1, value1

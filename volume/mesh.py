@@ -141,6 +141,12 @@ def vertex_colors(verts: np.ndarray, faces: np.ndarray, cameras, images, geom_de
     within COLOR_MAX_ANGLE_DEG; samples are weighted by the cosine.  Unseen vertices get the
     mean colour of the seen ones (grey if none).
     """
+    return vertex_colors_views(verts, faces, cameras, zip(images, geom_depth), voxel_size)
+
+
+def vertex_colors_views(verts: np.ndarray, faces: np.ndarray, cameras, views, voxel_size: float) -> np.ndarray:
+    """:func:`vertex_colors` with ``views`` an iterable of (image (H, W, 3), geometry depth (H, W))
+    per camera, consumed one at a time (a model's views decoded one by one)."""
     V = len(verts)
     acc = np.zeros((V, 3))
     wsum = np.zeros(V)
@@ -149,7 +155,7 @@ def vertex_colors(verts: np.ndarray, faces: np.ndarray, cameras, images, geom_de
     nrm = vertex_normals(verts, faces)
     tol = COLOR_DEPTH_TOL_VOXELS * voxel_size
     cmin = np.cos(np.radians(COLOR_MAX_ANGLE_DEG))
-    for cam, img, gd in zip(cameras, images, geom_depth):
+    for cam, (img, gd) in zip(cameras, views):
         uv, z = cam.project(verts.astype(np.float64))
         with np.errstate(invalid="ignore"):
             u = np.floor(uv[:, 0] + 0.5)

@@ -9,8 +9,12 @@ On disk a model is a folder::
       model.json     schema name + version, units, bounds, cameras (nerfstudio convention,
                      see Camera.to_nerfstudio), levels, spheres / mesh counts,
                      every parameter used, input provenance
-      pyramid.npz    level_<L>_surface (N,3) int32, level_<L>_values (L,L,L) float32 (optional)
-      rgbz.npz       rgb (N,H,W,3) float16 linear, depth (N,H,W) float16 metres, alpha (N,H,W) optional
+      pyramid.npz    level_<L>_surface (N,3) int32, level_<L>_values (L,L,L) float32 (optional;
+                     float16 above VALUES_FULL_MAX_RES), compressed
+      rgbz.npz       compact (version 2, volume.rgbz_store): per view a crop around the object,
+                     8-bit sRGB, 16-bit depth over the view's range, 8-bit alpha, compressed,
+                     read view by view; or dense (version 1): rgb (N,H,W,3) float16 linear,
+                     depth (N,H,W) float16 metres (float32 read too), alpha (N,H,W) float16
       spheres.npz    centers (N,3) float64, radii (N,) float64
       mesh.npz       vertices (V,3) float32, faces (F,3) int32, colors (V,3) float32 (optional)
       capture_env.npz  radiance (H,2H,3) float32 linear: the capture's lighting (optional; only
@@ -33,27 +37,31 @@ import numpy as np
 
 from capture.atomic import atomic_dir
 from capture.camera import Camera
+from volume.rgbz_store import RGBZ_STORAGE, CropFile, ModelError, RgbzImages, is_compact, save_crops
+
+__all__ = ["RGBZ_STORAGE", "ModelError", "RgbzImages", "SdfLevel", "SdfPyramid", "SphereSet", "CaptureLighting",
+           "Model", "save_model", "load_model"]
 
 #: Schema name written into model.json.
 SCHEMA = "furrow.model"
-#: Version of the on-disk layout; load_model refuses any other.
-SCHEMA_VERSION = 1
+#: Version of the on-disk layout written when the RGBz images are compact crops (issue 24).
+SCHEMA_VERSION = 2
+#: Versions load_model reads: 1 (dense float16 rgbz.npz, still written for dense RGBz) and 2.
+READ_VERSIONS = (1, 2)
 #: Relative tolerance when checking that all levels of a pyramid span the same cube.
 EXTENT_RTOL = 1e-6
-#: Storage type of the RGBz images: half floats, what the microfacet renderer uploads anyway.
-#: 11-bit mantissa: every 8-bit sRGB value round-trips exactly; depth to 1/4096 relative
-#: (0.1 mm at 0.4 m, below the 1 mm of a millimetre PNG).
-RGBZ_STORAGE = np.float16
+#: Levels up to this resolution keep their signed distances as float32 in pyramid.npz; finer ones
+#: are stored as float16 (read back as float32: within 2^-11 of the distance, under 0.25 mm for a
+#: cube under 1 m, finer near the surface; 32 MB instead of 64 MB at 256^3 before compression).
+#: Nothing reads the fine levels' values at full precision (relighting reads <= 32^3).
+VALUES_FULL_MAX_RES = 64
 #: The array files of a model folder.
 ARRAY_FILES = ("pyramid.npz", "rgbz.npz", "spheres.npz", "mesh.npz")
-#: The optional file of the capture lighting (CaptureLighting); older models load with capture_env=None.
+#: The optional file holding the capture lighting (CaptureLighting); models written before it
+#: existed lack it and load with ``capture_env=None``.
 CAPTURE_ENV_FILE = "capture_env.npz"
 #: Tolerance on |up| = 1 of a CaptureLighting.
 UP_NORM_TOL = 1e-6
-
-
-class ModelError(ValueError):
-    """An invalid model (in memory or on disk); the message names the field or file."""
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -201,62 +209,6 @@ class SphereSet:
 
 
 @dataclass(frozen=True)
-class RgbzImages:
-    """Per-camera colour + geometry depth (docs/methods.md §1.4, the paper's RGBz images).
-
-    Attributes:
-        rgb: (N, H, W, 3) linear colour, stored as float16 (RGBZ_STORAGE; float32 or float16 given).
-        depth: (N, H, W) z-depth (metres, along the optical axis) of the geometry projected
-            into each camera, 0 = no geometry; stored as float16 (float32 or float16 given).
-        cameras: N cameras (OpenCV convention), all of size W x H.
-        alpha: optional (N, H, W) straight matte in [0, 1] per camera; None = depth > 0 is opaque.
-    """
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    cameras: tuple[Camera, ...]
-    alpha: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        cams = tuple(self.cameras)
-        rgb = np.asarray(self.rgb)
-        depth = np.asarray(self.depth)
-        n = len(cams)
-        if rgb.dtype not in (np.float32, np.float16) or depth.dtype not in (np.float32, np.float16):
-            raise ModelError(f"RgbzImages: rgb and depth must be float32 or float16, got {rgb.dtype}, {depth.dtype}")
-        rgb, depth = rgb.astype(RGBZ_STORAGE), depth.astype(RGBZ_STORAGE)  # own copies
-        if n == 0:
-            if rgb.size or depth.size:
-                raise ModelError("RgbzImages: images given without cameras")
-            H = W = 0
-        else:
-            H, W = cams[0].height, cams[0].width
-            if any((c.height, c.width) != (H, W) for c in cams):
-                raise ModelError("RgbzImages: all cameras must have the same image size")
-        if rgb.shape != (n, H, W, 3) and not (n == 0 and rgb.size == 0):
-            raise ModelError(f"RgbzImages: rgb must be ({n},{H},{W},3), got {rgb.shape}")
-        if depth.shape != (n, H, W) and not (n == 0 and depth.size == 0):
-            raise ModelError(f"RgbzImages: depth must be ({n},{H},{W}), got {depth.shape}")
-        if not np.all(np.isfinite(depth)) or (depth.size and depth.min() < 0):
-            raise ModelError("RgbzImages: depth must be finite and >= 0 (0 = no geometry)")
-        rgb, depth = rgb.reshape(n, H, W, 3), depth.reshape(n, H, W)
-        if self.alpha is not None:
-            alpha = np.asarray(self.alpha).astype(RGBZ_STORAGE)
-            if alpha.shape != depth.shape or not np.all((alpha >= 0) & (alpha <= 1)):
-                raise ModelError(f"RgbzImages: alpha must be {depth.shape} in [0, 1], got {alpha.shape}")
-            alpha.setflags(write=False)
-            object.__setattr__(self, "alpha", alpha)
-        rgb.setflags(write=False)
-        depth.setflags(write=False)
-        object.__setattr__(self, "rgb", rgb)
-        object.__setattr__(self, "depth", depth)
-        object.__setattr__(self, "cameras", cams)
-
-    def __len__(self) -> int:
-        return len(self.cameras)
-
-
-@dataclass(frozen=True)
 class CaptureLighting:
     """The environment the capture was lit by (issue 15): what relighting divides out.
 
@@ -387,10 +339,17 @@ def save_model(model: Model, folder) -> Path:
         for lv in pyr.levels:
             arrays[f"level_{lv.resolution}_surface"] = lv.surface
             if lv.values is not None:
-                arrays[f"level_{lv.resolution}_values"] = lv.values
-        np.savez(tmp / "pyramid.npz", **arrays)
-        alpha = {} if model.rgbz.alpha is None else {"alpha": model.rgbz.alpha}
-        np.savez(tmp / "rgbz.npz", rgb=model.rgbz.rgb, depth=model.rgbz.depth, **alpha)
+                half = lv.resolution > VALUES_FULL_MAX_RES
+                arrays[f"level_{lv.resolution}_values"] = lv.values.astype(np.float16) if half else lv.values
+        np.savez_compressed(tmp / "pyramid.npz", **arrays)
+        if model.rgbz.compact:
+            save_crops(tmp / "rgbz.npz", (model.rgbz.encoded(n) for n in range(len(model.rgbz))),
+                       model.rgbz.has_alpha)
+        else:
+            rgbz = {"rgb": model.rgbz.rgb, "depth": model.rgbz.depth}
+            if model.rgbz.alpha is not None:
+                rgbz["alpha"] = model.rgbz.alpha
+            np.savez(tmp / "rgbz.npz", **rgbz)
         np.savez(tmp / "spheres.npz", centers=model.spheres.centers, radii=model.spheres.radii)
         mesh = {"vertices": model.mesh_vertices, "faces": model.mesh_faces}
         if model.mesh_colors is not None:
@@ -402,8 +361,10 @@ def save_model(model: Model, folder) -> Path:
             files.append(CAPTURE_ENV_FILE)
         meta = {
             "schema": SCHEMA,
-            "version": SCHEMA_VERSION,
-            "units": {"length": "metres", "colour": "linear float16", "depth": "z-depth metres (float16), 0 = none",
+            "version": SCHEMA_VERSION if model.rgbz.compact else 1,
+            "units": {"length": "metres", "colour": "8-bit sRGB crops" if model.rgbz.compact else "linear float16",
+                      "depth": "z-depth metres (16-bit over each view's range)" if model.rgbz.compact else
+                      "z-depth metres (float16), 0 = none",
                       "sdf": "metres, positive outside", "camera_convention": "nerfstudio transform_matrix "
                       "(camera-to-world, OpenGL axes), pixel centres at i + 0.5"},
             "bounds": model.bounds.tolist(),
@@ -439,6 +400,20 @@ def _npz(folder: Path, name: str) -> dict:
         raise ModelError(f"{path}: cannot read ({type(e).__name__}: {e})") from None
 
 
+def _rgbz(path: Path, cams) -> RgbzImages:
+    """The RGBz images of rgbz.npz: a compact file is opened for reading view by view."""
+    if not path.is_file():
+        raise ModelError(f"{path}: missing model file")
+    try:
+        compact = is_compact(path)
+    except Exception as e:
+        raise ModelError(f"{path}: cannot read ({type(e).__name__}: {e})") from None
+    if compact:
+        return RgbzImages.from_crops(cams, CropFile(path))
+    rz = _npz(path.parent, path.name)
+    return RgbzImages(rz["rgb"], rz["depth"], cams, rz.get("alpha"))
+
+
 def load_model(folder) -> Model:
     """Read and validate a model folder written by :func:`save_model`.
 
@@ -458,9 +433,9 @@ def load_model(folder) -> Model:
     if not isinstance(meta, dict) or meta.get("schema") != SCHEMA:
         raise ModelError(f"{mj}: not a furrow model "
                          f"(schema {meta.get('schema') if isinstance(meta, dict) else None!r})")
-    if meta.get("version") != SCHEMA_VERSION:
-        raise ModelError(f"{mj}: model version {meta.get('version')!r} is not supported (this furrow reads version "
-                         f"{SCHEMA_VERSION}); rebuild it with `furrow model`")
+    if meta.get("version") not in READ_VERSIONS:
+        raise ModelError(f"{mj}: model version {meta.get('version')!r} is not supported (this furrow reads versions "
+                         f"{', '.join(map(str, READ_VERSIONS))}); rebuild it with `furrow model`")
     try:
         cams = tuple(Camera.from_nerfstudio(c["transform_matrix"], c["fl_x"], c["fl_y"], c["cx"], c["cy"], c["w"],
                                             c["h"], c.get("name", "")) for c in meta["cameras"])
@@ -475,11 +450,12 @@ def load_model(folder) -> Model:
                 raise ModelError(f"{folder / 'pyramid.npz'}: {key} has {len(pyr[key])} voxels, model.json says "
                                  f"{lvm['surface_voxels']}")
             vals = pyr.get(f"level_{L}_values") if lvm.get("has_values") else None
+            vals = vals.astype(np.float32) if vals is not None and vals.dtype == np.float16 else vals
             if lvm.get("has_values") and vals is None:
                 raise ModelError(f"{folder / 'pyramid.npz'}: missing array level_{L}_values")
             levels.append(SdfLevel(L, np.array(lvm["origin"]), float(lvm["voxel_size"]), pyr[key], vals))
         pyramid = SdfPyramid(tuple(levels), int(meta["l_opt"]))
-        rz = _npz(folder, "rgbz.npz")
+        rgbz = _rgbz(folder / "rgbz.npz", cams)
         sp = _npz(folder, "spheres.npz")
         me = _npz(folder, "mesh.npz")
         cap = meta.get("capture_env")
@@ -487,7 +463,7 @@ def load_model(folder) -> Model:
         if cap is not None:
             capture_env = CaptureLighting(_npz(folder, CAPTURE_ENV_FILE)["radiance"], np.array(cap["up"], np.float64),
                                           float(cap.get("rotation_deg", 0.0)), str(cap.get("source", "")))
-        return Model(pyramid=pyramid, rgbz=RgbzImages(rz["rgb"], rz["depth"], cams, rz.get("alpha")),
+        return Model(pyramid=pyramid, rgbz=rgbz,
                      spheres=SphereSet(sp["centers"], sp["radii"]), mesh_vertices=me["vertices"],
                      mesh_faces=me["faces"], mesh_colors=me.get("colors"), bounds=np.array(meta["bounds"]),
                      params=meta.get("params", {}), provenance=meta.get("provenance", {}),

@@ -19,6 +19,11 @@ For each input camera:
    only empty pixels are written.
 The hole fraction before and after step 3 is reported per view: empty pixels inside the
 object's filled silhouette over the silhouette's area.
+
+Views are done one at a time.  ``RgbzConfig.store = "compact"`` (default) keeps of each view
+only its encoded crop around the object (volume.rgbz_store.RgbzCrop: 8-bit sRGB colour, 16-bit
+depth, 8-bit alpha), so the stage holds the crops plus one frame; "dense" stacks full float16
+frames (the store of every model before issue 24, kept as the reference).
 """
 
 from __future__ import annotations
@@ -31,6 +36,10 @@ from scipy import ndimage
 from capture.raycast import raycast_depth
 from capture.scan import ScanSet
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
+from volume.rgbz_store import RgbzCrop
+
+#: RgbzConfig.store choices.
+STORES = ("compact", "dense")
 
 
 @dataclass(frozen=True)
@@ -46,10 +55,14 @@ class RgbzConfig:
     """Diameter (pixels) of the elliptical closing kernel; 0 disables the closing."""
     mesh_depth: str = "raster"
     """Geometry depth: 'raster' (numba z-buffer, volume.mesh_depth) or 'raycast' (Open3D, the reference)."""
+    store: str = "compact"
+    """'compact': per-view crops, 8-bit colour and alpha, 16-bit depth; 'dense': full float16 frames."""
 
     def __post_init__(self) -> None:
         if self.mesh_depth not in ("raster", "raycast"):
             raise ValueError(f"rgbz mesh_depth must be 'raster' or 'raycast', got {self.mesh_depth!r}")
+        if self.store not in STORES:
+            raise ValueError(f"rgbz store must be one of {STORES}, got {self.store!r}")
 
 
 def sdf_at(level: SdfLevel, points: np.ndarray) -> np.ndarray:
@@ -100,6 +113,15 @@ def combine_depth(measured: np.ndarray, geometry: np.ndarray, cam, level: SdfLev
     return out
 
 
+def geometry_depth(verts: np.ndarray, faces: np.ndarray, cam, mesh_depth: str = "raster") -> np.ndarray:
+    """(H, W) float32 z-depth of the mesh in one camera (step 1 of the module docstring)."""
+    if mesh_depth == "raster":
+        from volume.mesh_depth import mesh_depth as raster
+
+        return raster(verts, faces, [cam])[0]
+    return raycast_depth(verts, faces, [cam])[0]
+
+
 def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: SdfLevel,
                cfg: RgbzConfig | None = None, progress=None) -> tuple[RgbzImages, list[dict]]:
     """RgbzImages for every scan's camera and per-view hole statistics
@@ -109,21 +131,28 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
     sizes = {(c.width, c.height) for c in cams}
     if len(sizes) != 1:
         raise ValueError(f"RGBz images need one image size for all cameras, got {sorted(sizes)}")
-    if cfg.mesh_depth == "raster":
-        from volume.mesh_depth import mesh_depth
-
-        geo = mesh_depth(verts, faces, cams)
-    else:
-        geo = raycast_depth(verts, faces, cams)
     tol = cfg.agree_voxels * level.voxel_size
-    depth = np.zeros(geo.shape, RGBZ_STORAGE)
-    stats = []
+    dense = cfg.store == "dense"
+    W, H = sizes.pop()
+    depth = np.zeros((len(cams), H, W), RGBZ_STORAGE) if dense else None
+    with_alpha = any(s.alpha is not None for s in scanset.scans)
+    crops, stats = [], []
     it = range(len(cams))
     for n in (progress(it) if progress else it):
-        comb = combine_depth(scanset.scans[n].depth, geo[n], cams[n], level, tol, cfg.keep_measured)
+        scan = scanset.scans[n]
+        geo = geometry_depth(verts, faces, cams[n], cfg.mesh_depth)
+        comb = combine_depth(scan.depth, geo, cams[n], level, tol, cfg.keep_measured)
         before = hole_fraction(comb)
         closed = close_holes(comb, cfg.closing_px)
-        depth[n] = closed
-        stats.append({"view": scanset.scans[n].name, "holes_before": before, "holes_after": hole_fraction(closed)})
+        stats.append({"view": scan.name, "holes_before": before, "holes_after": hole_fraction(closed)})
+        alpha = scan.alpha if scan.alpha is not None or not with_alpha else (closed > 0).astype(np.float32)
+        if dense:
+            depth[n] = closed
+        else:
+            crops.append(RgbzCrop.encode(scan.rgb, closed, alpha))
+    if not dense:
+        return RgbzImages.from_crops(cams, crops), stats
     rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
-    return RgbzImages(rgb, depth, tuple(cams)), stats
+    alpha = np.stack([s.alpha if s.alpha is not None else (depth[n] > 0).astype(np.float32)
+                      for n, s in enumerate(scanset.scans)]) if with_alpha else None
+    return RgbzImages(rgb, depth, tuple(cams), alpha), stats

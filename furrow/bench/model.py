@@ -22,6 +22,9 @@ runs made side by side): ``reference`` = ``furrow model --reference-pipeline`` o
 (``furrow eval SCANS --holdout 2``: masked PSNR / SSIM of microfacet and mesh-vdtm; needs
 ``git:REF``).  Targets (issue 12): 18 views of the fur ball < 20 s, of the plant < 10 s.
 
+``--scale`` measures peak memory, time and model size against the number of frames and the frame
+size, with a plot of memory against frames (furrow/bench/_model_scale.py, issue 24).
+
 The ground truth is computed coarse to fine too: the exact distance at a coarse voxel centre
 bounds its children's (1-Lipschitz), so only children that can lie within 3 voxels of the
 surface are evaluated with Open3D's RaycastingScene; the others keep the coarse sign and a
@@ -181,7 +184,7 @@ def run_spheres(name: str, scans: Path, targets: list[float], res: int = 64) -> 
     from volume.spheres import fit_spheres, volume_iou
 
     ss = read_scanset(scans)
-    origin, _, fused, _ = fuse_levels(ss, ModelConfig(lopt=LoptConfig(max_res=res)))
+    origin, _, fused, _, _ = fuse_levels(ss, ModelConfig(lopt=LoptConfig(max_res=res)))
     f = fused[res]
     lv = SdfLevel(res, origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
     rows = []
@@ -363,9 +366,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=3, help="--speed: runs per variant (medians)")
     ap.add_argument("--before", default="reference", help="--speed: reference, git:REF or none")
     ap.add_argument("--eval", action="store_true", help="--speed: also held-out quality of both trees (git:REF)")
+    ap.add_argument("--scale", action="store_true",
+                    help="peak memory, time and model size against frames and frame size (furrow/bench/_model_scale.py;"
+                         " --before git:REF adds that commit's builds)")
+    ap.add_argument("--sizes", default="640x480,1280x960,1920x1440", help="--scale: frame sizes WxH")
+    ap.add_argument("--frame-counts", default="18,36,72,144", help="--scale: frame counts (subsets of the largest)")
+    ap.add_argument("--scale-scans", default=None, metavar="WxH=PATH,...",
+                    help="--scale: use these captures instead of synthesising the plant (one per frame size)")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "model")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON on stdout")
     args = ap.parse_args(argv)
+    if args.scale:
+        from furrow.bench._model_scale import scale_main
+
+        return scale_main(args, _run_child, _tree, ROOT)
     res = [int(r) for r in args.res.split(",") if r]
     if any(r < GT_COARSE or r & (r - 1) for r in res):
         raise SystemExit(f"--res: powers of two >= {GT_COARSE}, got {res}")

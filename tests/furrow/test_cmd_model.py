@@ -168,3 +168,23 @@ def test_synthetic_captures_eq1_fur_drops_torus_keeps(tmp_path, capsys):
         res[name] = json.loads(out)
     assert res["torus"]["l_opt"] == 64, res["torus"]["eq1_fraction"]
     assert res["furball"]["l_opt"] < 64, res["furball"]["eq1_fraction"]
+
+
+def test_model_views_and_output_size(scan_dir, tmp_path, capsys):
+    """--views N keeps N views with a reason per view; --output-size scales the views to the
+    object's footprint in the output; both land in the report and model.json; the RGBz store is
+    compact (crops around the object)."""
+    out = tmp_path / "m3"
+    rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "16", "--views", "4",
+                               "--output-size", "32x24", "--json"], capsys)
+    assert rc == 0, stderr
+    s = json.loads(stdout)
+    assert s["views"]["kept"] == 4 and s["views"]["of"] == 8 and len(s["views"]["per_view"]) == 8
+    assert sum(r["kept"] for r in s["views"]["per_view"]) == 4 and all(r["reason"] for r in s["views"]["per_view"])
+    assert s["resolution"]["scale"] < 1 and s["resolution"]["size"][0] < 64
+    m = load_model(out)
+    assert len(m.rgbz) == 4 and m.rgbz.compact and m.rgbz.cameras[0].width == s["resolution"]["size"][0]
+    assert m.params["views"]["kept"] == 4 and m.params["resolution"]["scale"] == s["resolution"]["scale"]
+    assert "views: 4 of 8 kept" in stderr
+    rc, _, stderr = _run(["model", str(scan_dir), "-o", str(tmp_path / "m4"), "--views", "lots"], capsys)
+    assert rc != 0 and "--views" in stderr

@@ -86,7 +86,7 @@ def test_eq1_smooth_keeps_fur_drops(scene_fn, keeps):
     64^3, the fur ball (strands 1.6 mm thick, 2-4 cm long) drops."""
     ss = make_scanset(scene_fn(), scan_ring(16, 96, 72), noise=0.001, holes=0.03, outliers=0.002)
     cfg = ModelConfig(lopt=LoptConfig(max_res=64))
-    _, _, fused, frac = fuse_levels(ss, cfg)
+    _, _, fused, frac, _ = fuse_levels(ss, cfg)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     if keeps:
         assert l_opt == 64, frac
