@@ -31,6 +31,13 @@ def crop_f16(rgbz, n: int):
     return tuple(int(v) for v in rect), f[0], f[1], f[2]
 
 
+def view_f16(rgbz, n: int):
+    """(rgb (H, W, 3), depth (H, W), alpha (H, W) or None) full frames of view n of ``rgbz`` as
+    float16 values held in float32 arrays: one row of the stacks ``rgbz.rgb`` / ``.depth`` /
+    ``.alpha`` without decoding (or holding) the others."""
+    return tuple(None if a is None else np.asarray(a).astype(TEXEL_DTYPE).astype(np.float32) for a in rgbz.view(n))
+
+
 def layer_size(rects: np.ndarray) -> tuple[int, int]:
     """(w, h) of a texture-array layer holding the largest of ``rects`` (N, 4) (at least 1 x 1)."""
     r = np.asarray(rects, np.int64).reshape(-1, 4)
