@@ -9,8 +9,9 @@ Values are taken as float16 (:func:`crop_f16`): what every dense store holds and
 store's ``rgb`` / ``depth`` / ``alpha`` stacks decode to, so a renderer built from crops sees
 exactly the texels it saw through the full stacks (bit-identical frames; tests/render/gather).
 
-:func:`crop_textures` uploads them as a texture array whose layers are the size of the largest
-crop (layer i: view i's crop at its origin) plus the (N, 4) rectangles: a shader fetches image
+:class:`CropTextures` uploads them as a texture array whose layers are the size of the largest
+crop (layer i: view i's crop at its origin, written when first asked for) plus the (N, 4)
+rectangles: a shader fetches image
 pixel (x, y) of view i at layer texel (x - x0, y - y0) and treats a pixel outside the rectangle
 as empty (``gather_frag.glsl`` ``texel``).
 """
@@ -47,51 +48,50 @@ def layer_size(rects: np.ndarray) -> tuple[int, int]:
 
 
 class CropTextures:
-    """GPU texture arrays of the kept views' crops.
+    """GPU texture arrays of the kept views' crops, each layer written when first asked for
+    (:meth:`load`): a frame uploads only the views it reads (the first frame of a large capture
+    a handful of them), :meth:`load_all` the rest.
 
     Attributes:
         rgbz: RGBA16F array (w, h, N): linear straight rgb + z-depth (metres, 0 = none) of view i's
-            crop at layer i, texel (0, 0) = image pixel (x0, y0); texels beyond the crop undefined.
+            crop at layer i, texel (0, 0) = image pixel (x0, y0); texels beyond the crop (and
+            layers not loaded) undefined: a shader reads only inside ``rects`` of loaded views.
         matte: R16F array of the straight alpha alike, or None (a model without a matte).
         rects: (N, 4) int32 (x0, y0, w, h) of each layer's crop in its W x H image.
-        bytes: bytes uploaded (the texels of the crops).
+        bytes: bytes uploaded so far (the texels of the loaded crops).
     """
 
-    def __init__(self, rgbz, matte, rects: np.ndarray, nbytes: int):
-        self.rgbz, self.matte, self.rects, self.bytes = rgbz, matte, rects, nbytes
+    def __init__(self, ctx, rgbz):
+        self.source = rgbz
+        n_views = len(rgbz)
+        self.rects = np.asarray(rgbz.rects, np.int32).reshape(-1, 4)
+        lw, lh = layer_size(self.rects)
+        self.rgbz = ctx.texture_array((lw, lh, max(n_views, 1)), 4, None, dtype="f2")
+        self.matte = ctx.texture_array((lw, lh, max(n_views, 1)), 1, None, dtype="f2") if rgbz.has_alpha else None
+        for t in (self.rgbz, self.matte):
+            if t is not None:
+                t.filter = (ctx.NEAREST, ctx.NEAREST)
+                t.repeat_x = t.repeat_y = False
+        self.loaded = np.zeros(n_views, bool)
+        self.bytes = 0
+
+    def load(self, n: int):
+        """Decode view n's crop (:func:`crop_f16`), write its layers; returns (rect, rgb, depth,
+        alpha) as decoded (for the caller's own per-view buffers).  Loads it again if asked twice."""
+        rect, rgb, depth, alpha = crop_f16(self.source, n)
+        w, h = rect[2], rect[3]
+        if w * h:
+            texels = np.concatenate([rgb, depth[..., None]], -1).astype(TEXEL_DTYPE)
+            self.rgbz.write(np.ascontiguousarray(texels).tobytes(), viewport=(0, 0, n, w, h, 1))
+            self.bytes += texels.nbytes
+            if self.matte is not None:
+                a = np.ascontiguousarray(np.zeros((h, w)) if alpha is None else alpha, TEXEL_DTYPE)
+                self.matte.write(a.tobytes(), viewport=(0, 0, n, w, h, 1))
+                self.bytes += a.nbytes
+        self.loaded[n] = True
+        return rect, rgb, depth, alpha
 
     def release(self) -> None:
         for t in (self.rgbz, self.matte):
             if t is not None:
                 t.release()
-
-
-def crop_textures(ctx, rgbz, on_view=None) -> CropTextures:
-    """Upload the crops of ``rgbz`` (RgbzImages) view by view (NEAREST, no mipmaps).  ``on_view(n,
-    rect, rgb, depth, alpha)`` (optional) sees each decoded float16 crop once, e.g. to build a point
-    buffer in the same pass."""
-    n_views = len(rgbz)
-    rects = np.asarray(rgbz.rects, np.int32).reshape(-1, 4)
-    lw, lh = layer_size(rects)
-    tex = ctx.texture_array((lw, lh, max(n_views, 1)), 4, None, dtype="f2")
-    matte = ctx.texture_array((lw, lh, max(n_views, 1)), 1, None, dtype="f2") if rgbz.has_alpha else None
-    nbytes = 0
-    for n in range(n_views):
-        rect, rgb, depth, alpha = crop_f16(rgbz, n)
-        w, h = rect[2], rect[3]
-        if on_view is not None:
-            on_view(n, rect, rgb, depth, alpha)
-        if w * h == 0:
-            continue
-        texels = np.concatenate([rgb, depth[..., None]], -1).astype(TEXEL_DTYPE)
-        tex.write(np.ascontiguousarray(texels).tobytes(), viewport=(0, 0, n, w, h, 1))
-        nbytes += texels.nbytes
-        if matte is not None:
-            a = np.ascontiguousarray(np.zeros((h, w)) if alpha is None else alpha, TEXEL_DTYPE)
-            matte.write(a.tobytes(), viewport=(0, 0, n, w, h, 1))
-            nbytes += a.nbytes
-    for t in (tex, matte):
-        if t is not None:
-            t.filter = (ctx.NEAREST, ctx.NEAREST)
-            t.repeat_x = t.repeat_y = False
-    return CropTextures(tex, matte, rects, nbytes)

@@ -2,10 +2,11 @@
 nearest kept views with soft visibility (the algorithm and its numpy twin:
 ``render/gather/reference.py``).
 
-Uploaded once, view by view from the model's crops (render/crops.py, issue 24): every kept view's
-RGB-D points (one vertex buffer, a range per camera) and the RGBz (+ matte) texture arrays of the
-crops only, layers the size of the largest crop, a pixel outside its view's rectangle empty.
-Per frame only uniforms change:
+Uploaded view by view from the model's crops (render/crops.py, issue 24), each view when a frame
+first reads it (``load``; the first frame of a 200-view capture uploads a handful): its RGB-D points
+(a vertex buffer per view) and its layer of the RGBz (+ matte) texture arrays of the crops only,
+layers the size of the largest crop, a pixel outside its view's rectangle empty.  Otherwise per
+frame only uniforms change:
 
 1. ``gather_depth_*.glsl``: the points of the ``k_depth`` nearest cameras drawn as GL points of
    side ``splat_px`` into an R32F target with MIN blending: the nearest z-depth per pixel
@@ -28,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
-from render.crops import crop_textures
+from render.crops import CropTextures
 from render.frame import Frame, FrameStats
 from render.gather import reference as gr
 from render.gl import program
@@ -73,24 +74,37 @@ class GatherRenderer(Renderer):
         self.bounds = np.asarray(bounds, np.float64)
         self.centre = self.bounds.mean(axis=0)
         self.image_size = rgbz.size
-        points = []
-
-        def on_view(n, rect, rgb, depth, alpha):
-            points.append(np.asarray(pr.back_project_crop(self.cameras[n], rect, rgb, depth).points, np.float32))
-
-        self.crops = self.own(crop_textures(ctx, rgbz, on_view))
-        counts = [len(p) for p in points]
-        self.first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-        self.counts = np.asarray(counts, int)
-        pts = np.concatenate(points) if sum(counts) else np.zeros((1, 3), np.float32)
-        self.vbo = self.own(ctx.buffer(np.ascontiguousarray(pts, np.float32).tobytes()))
-        self.uploaded_bytes = self.crops.bytes + pts.nbytes
+        self.crops = self.own(CropTextures(ctx, rgbz))
+        #: per view: points in its vertex buffer, -1 until the view is loaded (:meth:`load`)
+        self.counts = np.full(len(self.cameras), -1, int)
+        self._point_vaos: dict[int, object] = {}
+        self.point_bytes = 0
         has_alpha = self.crops.matte is not None
         self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
-        self.depth_vao = self.own(ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")]))
         self.prog = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl",
                                      defines=shader_defines(self.cfg, has_alpha)))
         self.vao = self.own(ctx.vertex_array(self.prog, []))
+
+    def load(self, views=None) -> None:
+        """Upload the given views (default: every view) not uploaded yet: the crop's texture layers
+        and the view's RGB-D points (its own vertex buffer).  A frame loads the views it reads."""
+        todo = range(len(self.cameras)) if views is None else views
+        for i in todo:
+            i = int(i)
+            if self.counts[i] >= 0:
+                continue
+            rect, rgb, depth, _ = self.crops.load(i)
+            pts = np.ascontiguousarray(pr.back_project_crop(self.cameras[i], rect, rgb, depth).points, np.float32)
+            self.counts[i] = len(pts)
+            if len(pts):
+                vbo = self.own(self.ctx.buffer(pts.tobytes()))
+                self._point_vaos[i] = self.own(self.ctx.vertex_array(self.depth_prog, [(vbo, "3f", "in_pos")]))
+                self.point_bytes += pts.nbytes
+
+    @property
+    def uploaded_bytes(self) -> int:
+        """Bytes uploaded so far: the loaded crops' texels and points."""
+        return self.crops.bytes + self.point_bytes
 
     @property
     def tex(self):
@@ -131,8 +145,8 @@ class GatherRenderer(Renderer):
         p["view_proj"].write(mat4_bytes(eye.gl_projection(near, far) @ eye.gl_view()))
         p["eye_z_row"].value = tuple(float(x) for x in eye.cam_from_world[2])
         for i in cams:
-            if self.counts[i]:
-                self.depth_vao.render(ctx.POINTS, vertices=int(self.counts[i]), first=int(self.first[i]))
+            if self.counts[i] > 0:
+                self._point_vaos[int(i)].render(ctx.POINTS, vertices=int(self.counts[i]))
         # the context may be shared (tests, the viewer): leave its state as found
         ctx.point_size = prev_point_size
         ctx.blend_equation = ctx.FUNC_ADD
@@ -181,6 +195,7 @@ class GatherRenderer(Renderer):
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         depth_cams, blend, weights = self.views(eye)
+        self.load(np.concatenate([depth_cams, blend]))
         near, far = near_far(eye, self.bounds)
         with FrameTimer(self.ctx) as t:
             zt = self._depth_pass(eye, depth_cams, near, far)

@@ -22,6 +22,30 @@ from render.methods import Renderer, RenderOptions
 from render.points import reference as pr
 
 
+class LazyClouds:
+    """The views' clouds (render.points.reference.Cloud), each back-projected from its crop
+    (render.crops.crop_f16) when first asked for: a frame reads only its ``N_VIEWS`` nearest."""
+
+    def __init__(self, rgbz):
+        self._rgbz = rgbz
+        self._cams = tuple(rgbz.cameras)
+        self._clouds: dict[int, pr.Cloud] = {}
+
+    def __len__(self) -> int:
+        return len(self._cams)
+
+    def __getitem__(self, i) -> pr.Cloud:
+        i = int(i)
+        if i not in self._clouds:
+            self._clouds[i] = pr.back_project_crop(self._cams[i], *crop_f16(self._rgbz, i))
+        return self._clouds[i]
+
+    @property
+    def loaded(self) -> int:
+        """Views back-projected so far."""
+        return len(self._clouds)
+
+
 class PointsRenderer(Renderer):
     """The point splatter of one model (numpy; owns no GL object).
 
@@ -43,7 +67,7 @@ class PointsRenderer(Renderer):
         if not self.cameras:
             raise ValueError("points renderer: the model has no input camera")
         self.centre = np.asarray(bounds, np.float64).mean(axis=0)
-        self.clouds = [pr.back_project_crop(self.cameras[n], *crop_f16(rgbz, n)) for n in range(len(rgbz))]
+        self.clouds = LazyClouds(rgbz)
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None) -> PointsRenderer:

@@ -82,3 +82,29 @@ def test_crops_path_matches_numpy_twin(gl_ctx, models, kind):
             assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
             np.testing.assert_allclose(fr.alpha[same], t_a[same], atol=COLOUR_TOL)
             np.testing.assert_allclose(fr.rgb[same], t_rgb[same], atol=COLOUR_TOL)
+
+
+def test_a_frame_uploads_only_the_views_it_reads(gl_ctx, models):
+    """Nothing is uploaded before the first frame; a frame uploads its depth and blend views'
+    crops and points (the first frame of a large capture reads a handful of views); load() the rest."""
+    from render.gather.gl import GatherRenderer
+
+    m = models["alpha"]
+    cfg = gr.GatherConfig()
+    with GatherRenderer.from_model(gl_ctx, m, config=cfg) as r:
+        assert r.uploaded_bytes == 0 and not r.crops.loaded.any()
+        eye = _eye(*EYES[0])
+        depth_cams, blend, _ = r.views(eye)
+        fr = r.render(eye)
+        assert fr.mask.any()
+        want = set(depth_cams) | set(blend)
+        assert set(np.flatnonzero(r.crops.loaded)) == want and len(want) <= cfg.k_depth + cfg.k_blend < len(m.rgbz)
+        rects = m.rgbz.rects
+        texel_bytes = sum(int(rects[i, 2] * rects[i, 3]) * (8 + 2) for i in want)  # RGBA16F + R16F
+        assert r.crops.bytes == texel_bytes
+        r.load()
+        assert r.crops.loaded.all() and np.all(r.counts >= 0)
+        again = r.render(eye)
+    for x, y in ((fr.rgb, again.rgb), (fr.alpha, again.alpha), (fr.depth, again.depth)):
+        np.testing.assert_array_equal(x, y)
+

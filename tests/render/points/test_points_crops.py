@@ -49,3 +49,11 @@ def test_compact_model_renders_the_dense_frames_exactly(gl_ctx, compact_model):
         assert a.mask.sum() > 300
         for x, y in ((a.rgb, b.rgb), (a.alpha, b.alpha), (a.depth, b.depth)):
             np.testing.assert_array_equal(x, y)
+
+
+def test_a_frame_back_projects_only_its_views(gl_ctx, compact_model):
+    eye = scene.ring_cameras(12, phase_deg=10.0, elevations=(12,))[7]
+    with create_renderer("points", gl_ctx, compact_model) as r:
+        assert r.clouds.loaded == 0
+        assert r.render(eye).mask.any()
+        assert r.clouds.loaded == pr.N_VIEWS < len(compact_model.rgbz)
