@@ -10,9 +10,9 @@ store's ``rgb`` / ``depth`` / ``alpha`` stacks decode to, so a renderer built fr
 exactly the texels it saw through the full stacks (bit-identical frames; tests/render/gather).
 
 :class:`CropTextures` uploads them as a texture array whose layers are the size of the largest
-crop (layer i: view i's crop at its origin, written when first asked for) plus the (N, 4)
-rectangles: a shader fetches image
-pixel (x, y) of view i at layer texel (x - x0, y - y0) and treats a pixel outside the rectangle
+crop (a cache of ``RESIDENT_VIEWS`` layers, a view written into one when first asked for) plus
+the (N, 4) rectangles: a shader fetches image pixel (x, y) of view i at texel (x - x0, y - y0) of
+its layer and treats a pixel outside the rectangle
 as empty (``gather_frag.glsl`` ``texel``).
 """
 
@@ -47,49 +47,88 @@ def layer_size(rects: np.ndarray) -> tuple[int, int]:
     return max(int(r[:, 2].max()), 1), max(int(r[:, 3].max()), 1)
 
 
+#: Views resident on the GPU at once (texture-array layers; the least recently used is replaced):
+#: a frame of gather needs k_depth + k_blend (4), so memory is bounded whatever the capture's size.
+RESIDENT_VIEWS = 16
+
+
 class CropTextures:
-    """GPU texture arrays of the kept views' crops, each layer written when first asked for
-    (:meth:`load`): a frame uploads only the views it reads (the first frame of a large capture
-    a handful of them), :meth:`load_all` the rest.
+    """GPU texture arrays of the kept views' crops: a cache of ``RESIDENT_VIEWS`` layers (fewer with
+    fewer views), each view written into a layer when first asked for (:meth:`load`), the least
+    recently used view replaced when all are taken.  A frame uploads only the views it reads (the
+    first frame of a large capture a handful of them), and the memory stays bounded.
 
     Attributes:
-        rgbz: RGBA16F array (w, h, N): linear straight rgb + z-depth (metres, 0 = none) of view i's
-            crop at layer i, texel (0, 0) = image pixel (x0, y0); texels beyond the crop (and
-            layers not loaded) undefined: a shader reads only inside ``rects`` of loaded views.
+        rgbz: RGBA16F array (w, h, layers): linear straight rgb + z-depth (metres, 0 = none) of a
+            resident view's crop, texel (0, 0) = image pixel (x0, y0); texels beyond the crop
+            undefined: a shader reads only inside the view's rect.
         matte: R16F array of the straight alpha alike, or None (a model without a matte).
-        rects: (N, 4) int32 (x0, y0, w, h) of each layer's crop in its W x H image.
-        bytes: bytes uploaded so far (the texels of the loaded crops).
+        rects: (N, 4) int32 (x0, y0, w, h) of each view's crop in its W x H image.
+        layer: (N,) int, the layer holding view i, -1 when it is not resident.
+        bytes: bytes uploaded so far (the texels of the crops written).
     """
 
-    def __init__(self, ctx, rgbz):
+    def __init__(self, ctx, rgbz, capacity: int = RESIDENT_VIEWS):
         self.source = rgbz
         n_views = len(rgbz)
         self.rects = np.asarray(rgbz.rects, np.int32).reshape(-1, 4)
         lw, lh = layer_size(self.rects)
-        self.rgbz = ctx.texture_array((lw, lh, max(n_views, 1)), 4, None, dtype="f2")
-        self.matte = ctx.texture_array((lw, lh, max(n_views, 1)), 1, None, dtype="f2") if rgbz.has_alpha else None
+        self.capacity = max(min(n_views, int(capacity)), 1)
+        self.rgbz = ctx.texture_array((lw, lh, self.capacity), 4, None, dtype="f2")
+        self.matte = ctx.texture_array((lw, lh, self.capacity), 1, None, dtype="f2") if rgbz.has_alpha else None
         for t in (self.rgbz, self.matte):
             if t is not None:
                 t.filter = (ctx.NEAREST, ctx.NEAREST)
                 t.repeat_x = t.repeat_y = False
-        self.loaded = np.zeros(n_views, bool)
+        self.layer = np.full(n_views, -1, int)
+        self._owner = np.full(self.capacity, -1, int)  # view held by each layer
+        self._used = np.zeros(self.capacity, np.int64)  # last use (a counter) of each layer
+        self._clock = 0
         self.bytes = 0
 
-    def load(self, n: int):
-        """Decode view n's crop (:func:`crop_f16`), write its layers; returns (rect, rgb, depth,
-        alpha) as decoded (for the caller's own per-view buffers).  Loads it again if asked twice."""
-        rect, rgb, depth, alpha = crop_f16(self.source, n)
+    @property
+    def loaded(self) -> np.ndarray:
+        """(N,) bool: the views resident now."""
+        return self.layer >= 0
+
+    def load(self, views, on_load=None, on_evict=None) -> None:
+        """Make ``views`` resident (at most ``capacity`` of them): each one not resident is decoded
+        (:func:`crop_f16`) into a free layer or the least recently used one outside ``views``;
+        ``on_evict(n)`` is told of a view replaced, ``on_load(n, rect, rgb, depth, alpha)`` sees
+        each decoded crop (for the caller's per-view buffers)."""
+        views = [int(v) for v in dict.fromkeys(int(v) for v in views)]
+        if len(views) > self.capacity:
+            raise ValueError(f"CropTextures.load: {len(views)} views at once, {self.capacity} layers")
+        self._clock += 1
+        for n in views:  # mark first, so that none of them is replaced by another
+            if self.layer[n] >= 0:
+                self._used[self.layer[n]] = self._clock
+        for n in views:
+            if self.layer[n] >= 0:
+                continue
+            slot = int(np.argmin(self._used))
+            old = self._owner[slot]
+            if old >= 0:
+                self.layer[old] = -1
+                if on_evict is not None:
+                    on_evict(int(old))
+            self._owner[slot], self.layer[n], self._used[slot] = n, slot, self._clock
+            rect, rgb, depth, alpha = crop_f16(self.source, n)
+            self._write(slot, rect, rgb, depth, alpha)
+            if on_load is not None:
+                on_load(n, rect, rgb, depth, alpha)
+
+    def _write(self, slot: int, rect, rgb, depth, alpha) -> None:
         w, h = rect[2], rect[3]
-        if w * h:
-            texels = np.concatenate([rgb, depth[..., None]], -1).astype(TEXEL_DTYPE)
-            self.rgbz.write(np.ascontiguousarray(texels).tobytes(), viewport=(0, 0, n, w, h, 1))
-            self.bytes += texels.nbytes
-            if self.matte is not None:
-                a = np.ascontiguousarray(np.zeros((h, w)) if alpha is None else alpha, TEXEL_DTYPE)
-                self.matte.write(a.tobytes(), viewport=(0, 0, n, w, h, 1))
-                self.bytes += a.nbytes
-        self.loaded[n] = True
-        return rect, rgb, depth, alpha
+        if not w * h:
+            return
+        texels = np.concatenate([rgb, depth[..., None]], -1).astype(TEXEL_DTYPE)
+        self.rgbz.write(np.ascontiguousarray(texels).tobytes(), viewport=(0, 0, slot, w, h, 1))
+        self.bytes += texels.nbytes
+        if self.matte is not None:
+            a = np.ascontiguousarray(np.zeros((h, w)) if alpha is None else alpha, TEXEL_DTYPE)
+            self.matte.write(a.tobytes(), viewport=(0, 0, slot, w, h, 1))
+            self.bytes += a.nbytes
 
     def release(self) -> None:
         for t in (self.rgbz, self.matte):

@@ -5,7 +5,8 @@ nearest kept views with soft visibility (the algorithm and its numpy twin:
 Uploaded view by view from the model's crops (render/crops.py, issue 24), each view when a frame
 first reads it (``load``; the first frame of a 200-view capture uploads a handful): its RGB-D points
 (a vertex buffer per view) and its layer of the RGBz (+ matte) texture arrays of the crops only,
-layers the size of the largest crop, a pixel outside its view's rectangle empty.  Otherwise per
+layers the size of the largest crop, a pixel outside its view's rectangle empty; at most
+``render.crops.RESIDENT_VIEWS`` views are resident, the least recently used replaced.  Otherwise per
 frame only uniforms change:
 
 1. ``gather_depth_*.glsl``: the points of the ``k_depth`` nearest cameras drawn as GL points of
@@ -29,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
-from render.crops import CropTextures
+from render.crops import RESIDENT_VIEWS, CropTextures
 from render.frame import Frame, FrameStats
 from render.gather import reference as gr
 from render.gl import program
@@ -59,13 +60,14 @@ class GatherRenderer(Renderer):
         bounds: (2, 3) object box: the centre where viewing angles are measured, near / far.
         options: default per-frame options (none is read).
         config: the method's constants (gather_reference.GatherConfig).
+        resident: views held on the GPU at once (render.crops.RESIDENT_VIEWS; >= k_depth + k_blend).
     """
 
     name = "gather"
     uses = frozenset()
 
     def __init__(self, ctx, rgbz, bounds, options: RenderOptions | None = None,
-                 config: gr.GatherConfig | None = None):
+                 config: gr.GatherConfig | None = None, resident: int = RESIDENT_VIEWS):
         super().__init__(ctx, options)
         self.cfg = config or gr.GatherConfig()
         self.cameras = tuple(rgbz.cameras)
@@ -74,8 +76,8 @@ class GatherRenderer(Renderer):
         self.bounds = np.asarray(bounds, np.float64)
         self.centre = self.bounds.mean(axis=0)
         self.image_size = rgbz.size
-        self.crops = self.own(CropTextures(ctx, rgbz))
-        #: per view: points in its vertex buffer, -1 until the view is loaded (:meth:`load`)
+        self.crops = self.own(CropTextures(ctx, rgbz, resident))
+        #: per view: points in its vertex buffer, -1 while the view is not resident (:meth:`load`)
         self.counts = np.full(len(self.cameras), -1, int)
         self._point_vaos: dict[int, object] = {}
         self.point_bytes = 0
@@ -86,20 +88,24 @@ class GatherRenderer(Renderer):
         self.vao = self.own(ctx.vertex_array(self.prog, []))
 
     def load(self, views=None) -> None:
-        """Upload the given views (default: every view) not uploaded yet: the crop's texture layers
-        and the view's RGB-D points (its own vertex buffer).  A frame loads the views it reads."""
-        todo = range(len(self.cameras)) if views is None else views
-        for i in todo:
-            i = int(i)
-            if self.counts[i] >= 0:
-                continue
-            rect, rgb, depth, _ = self.crops.load(i)
-            pts = np.ascontiguousarray(pr.back_project_crop(self.cameras[i], rect, rgb, depth).points, np.float32)
-            self.counts[i] = len(pts)
-            if len(pts):
-                vbo = self.own(self.ctx.buffer(pts.tobytes()))
-                self._point_vaos[i] = self.own(self.ctx.vertex_array(self.depth_prog, [(vbo, "3f", "in_pos")]))
-                self.point_bytes += pts.nbytes
+        """Make the given views (default: as many as are resident at once) resident: the crop's
+        texture layer (render.crops.CropTextures, least recently used replaced) and the view's RGB-D
+        points (its own vertex buffer, freed with the layer).  A frame loads the views it reads."""
+        todo = range(self.crops.capacity) if views is None else views
+        self.crops.load(todo, on_load=self._load_points, on_evict=self._drop_points)
+
+    def _load_points(self, i, rect, rgb, depth, alpha) -> None:
+        pts = np.ascontiguousarray(pr.back_project_crop(self.cameras[i], rect, rgb, depth).points, np.float32)
+        self.counts[i] = len(pts)
+        if len(pts):
+            vbo = self.own(self.ctx.buffer(pts.tobytes()))
+            self._point_vaos[i] = (vbo, self.own(self.ctx.vertex_array(self.depth_prog, [(vbo, "3f", "in_pos")])))
+            self.point_bytes += pts.nbytes
+
+    def _drop_points(self, i) -> None:
+        self.counts[i] = -1
+        vbo, vao = self._point_vaos.pop(i, (None, None))
+        self.free(vao, vbo)
 
     @property
     def uploaded_bytes(self) -> int:
@@ -146,7 +152,7 @@ class GatherRenderer(Renderer):
         p["eye_z_row"].value = tuple(float(x) for x in eye.cam_from_world[2])
         for i in cams:
             if self.counts[i] > 0:
-                self._point_vaos[int(i)].render(ctx.POINTS, vertices=int(self.counts[i]))
+                self._point_vaos[int(i)][1].render(ctx.POINTS, vertices=int(self.counts[i]))
         # the context may be shared (tests, the viewer): leave its state as found
         ctx.point_size = prev_point_size
         ctx.blend_equation = ctx.FUNC_ADD
@@ -183,7 +189,7 @@ class GatherRenderer(Renderer):
             c = self.cameras[i]
             cfw[j] = c.cam_from_world.T  # column-major mat4
             intr[j] = (c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2])
-            skew[j], layer[j], w[j], rect[j] = c.K[0, 1], i, wj, self.crops.rects[i]
+            skew[j], layer[j], w[j], rect[j] = c.K[0, 1], self.crops.layer[i], wj, self.crops.rects[i]
         p["rect"].write(rect.tobytes())
         p["cfw"].write(cfw.tobytes())
         p["intr"].write(intr.tobytes())

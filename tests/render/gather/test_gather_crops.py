@@ -108,3 +108,20 @@ def test_a_frame_uploads_only_the_views_it_reads(gl_ctx, models):
     for x, y in ((fr.rgb, again.rgb), (fr.alpha, again.alpha), (fr.depth, again.depth)):
         np.testing.assert_array_equal(x, y)
 
+
+
+def test_a_small_cache_replaces_views_and_keeps_the_frames(gl_ctx, models):
+    """With 4 resident views (a frame's k_depth + k_blend) eyes around the ring replace views in
+    the cache; every frame equals the one of a renderer holding all views."""
+    from render.gather.gl import GatherRenderer
+
+    m = models["alpha"]
+    eyes = [_eye(i, p) for i, p in EYES] + [_eye(*EYES[0])]
+    with GatherRenderer(gl_ctx, m.rgbz, m.bounds, resident=4) as small, GatherRenderer.from_model(gl_ctx, m) as full:
+        assert small.tex.size[2] == 4
+        for eye in eyes:
+            a, b = small.render(eye), full.render(eye)
+            assert small.crops.loaded.sum() <= 4
+            for x, y in ((a.rgb, b.rgb), (a.alpha, b.alpha), (a.depth, b.depth)):
+                np.testing.assert_array_equal(x, y)
+        assert small.crops.bytes > full.crops.bytes, "views were replaced and written again"
