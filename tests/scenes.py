@@ -350,3 +350,23 @@ def with_alpha(model: Model, alpha: np.ndarray | None) -> Model:
 
     r = model.rgbz
     return replace(model, rgbz=RgbzImages(r.rgb, r.depth, r.cameras, alpha))
+
+
+def compact(model: Model, margin: int | None = None) -> Model:
+    """``model`` with its RGBz images in a compact store (volume.rgbz_store.RgbzCrop per view, the
+    object's footprint grown by ``margin`` pixels; default the store's own margin)."""
+    from dataclasses import replace
+
+    from volume.rgbz_store import RgbzCrop
+
+    r = model.rgbz
+    crops = [RgbzCrop.encode(*r.view(n), margin=margin) for n in range(len(r))]
+    return replace(model, rgbz=RgbzImages.from_crops(r.cameras, crops))
+
+
+def densified(model: Model) -> Model:
+    """``model`` with its RGBz images as the dense float16 stacks its store decodes to."""
+    from dataclasses import replace
+
+    r = model.rgbz
+    return replace(model, rgbz=RgbzImages(r.rgb, r.depth, r.cameras, r.alpha))

@@ -2,8 +2,12 @@
 nearest kept views with soft visibility (the algorithm and its numpy twin:
 ``render/gather/reference.py``).
 
-Uploaded once: every kept view's RGB-D points (one vertex buffer, a range per camera) and the
-RGBz texture array.  Per frame only uniforms change:
+Uploaded view by view from the model's crops (render/crops.py, issue 24), each view when a frame
+first reads it (``load``; the first frame of a 200-view capture uploads a handful): its RGB-D points
+(a vertex buffer per view) and its layer of the RGBz (+ matte) texture arrays of the crops only,
+layers the size of the largest crop, a pixel outside its view's rectangle empty; at most
+``render.crops.RESIDENT_VIEWS`` views are resident, the least recently used replaced.  Otherwise per
+frame only uniforms change:
 
 1. ``gather_depth_*.glsl``: the points of the ``k_depth`` nearest cameras drawn as GL points of
    side ``splat_px`` into an R32F target with MIN blending: the nearest z-depth per pixel
@@ -26,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
+from render.crops import RESIDENT_VIEWS, CropTextures
 from render.frame import Frame, FrameStats
 from render.gather import reference as gr
 from render.gl import program
@@ -49,53 +54,80 @@ class GatherRenderer(Renderer):
 
     Args:
         ctx: moderngl context.
-        rgb, depth, cameras: the kept views (volume.model.RgbzImages fields).
-        alpha: their (N, H, W) straight matte (RgbzImages.alpha) or None (opaque where depth > 0):
-            with one, the colours are blended premultiplied and the frame gets the blended alpha.
+        rgbz: the kept views (volume.model.RgbzImages), read through ``rgbz.crop(n)`` one at a
+            time; with a matte (RgbzImages.has_alpha) the colours are blended premultiplied and
+            the frame gets the blended alpha (without one: opaque where depth > 0).
         bounds: (2, 3) object box: the centre where viewing angles are measured, near / far.
         options: default per-frame options (none is read).
         config: the method's constants (gather_reference.GatherConfig).
+        resident: views held on the GPU at once (render.crops.RESIDENT_VIEWS; >= k_depth + k_blend).
     """
 
     name = "gather"
     uses = frozenset()
 
-    def __init__(self, ctx, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
-                 config: gr.GatherConfig | None = None, alpha=None):
+    def __init__(self, ctx, rgbz, bounds, options: RenderOptions | None = None,
+                 config: gr.GatherConfig | None = None, resident: int = RESIDENT_VIEWS):
         super().__init__(ctx, options)
         self.cfg = config or gr.GatherConfig()
-        self.cameras = tuple(cameras)
+        self.cameras = tuple(rgbz.cameras)
         if not self.cameras:
             raise ValueError("gather renderer: the model has no input camera")
         self.bounds = np.asarray(bounds, np.float64)
         self.centre = self.bounds.mean(axis=0)
-        clouds = pr.back_project(self.cameras, rgb, depth)
-        counts = [len(c.points) for c in clouds]
-        self.first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-        self.counts = np.asarray(counts, int)
-        pts = np.concatenate([c.points for c in clouds]) if sum(counts) else np.zeros((1, 3))
-        self.vbo = self.own(ctx.buffer(np.ascontiguousarray(pts, np.float32).tobytes()))
-        texels = np.concatenate([np.asarray(rgb, np.float32), np.asarray(depth, np.float32)[..., None]], -1)
-        n, H, W = texels.shape[:3]
-        self.tex = self.own(ctx.texture_array((W, H, n), 4, np.ascontiguousarray(texels).tobytes(), dtype="f4"))
-        self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
-        self.alpha_tex = None
-        if alpha is not None:  # premultiplied colour + alpha, resampled like the colour
-            pm = np.ascontiguousarray(gr.premultiply(np.asarray(rgb, np.float32), alpha), np.float32)
-            self.alpha_tex = self.own(ctx.texture_array((W, H, n), 4, pm.tobytes(), dtype="f4"))
-            self.alpha_tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.image_size = rgbz.size
+        self.crops = self.own(CropTextures(ctx, rgbz, resident))
+        #: per view: points in its vertex buffer, -1 while the view is not resident (:meth:`load`)
+        self.counts = np.full(len(self.cameras), -1, int)
+        self._point_vaos: dict[int, object] = {}
+        self.point_bytes = 0
+        has_alpha = self.crops.matte is not None
         self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
-        self.depth_vao = self.own(ctx.vertex_array(self.depth_prog, [(self.vbo, "3f", "in_pos")]))
         self.prog = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl",
-                                     defines=shader_defines(self.cfg, alpha is not None)))
+                                     defines=shader_defines(self.cfg, has_alpha)))
         self.vao = self.own(ctx.vertex_array(self.prog, []))
+
+    def load(self, views=None) -> None:
+        """Make the given views (default: as many as are resident at once) resident: the crop's
+        texture layer (render.crops.CropTextures, least recently used replaced) and the view's RGB-D
+        points (its own vertex buffer, freed with the layer).  A frame loads the views it reads."""
+        todo = range(self.crops.capacity) if views is None else views
+        self.crops.load(todo, on_load=self._load_points, on_evict=self._drop_points)
+
+    def _load_points(self, i, rect, rgb, depth, alpha) -> None:
+        pts = np.ascontiguousarray(pr.back_project_crop(self.cameras[i], rect, rgb, depth).points, np.float32)
+        self.counts[i] = len(pts)
+        if len(pts):
+            vbo = self.own(self.ctx.buffer(pts.tobytes()))
+            self._point_vaos[i] = (vbo, self.own(self.ctx.vertex_array(self.depth_prog, [(vbo, "3f", "in_pos")])))
+            self.point_bytes += pts.nbytes
+
+    def _drop_points(self, i) -> None:
+        self.counts[i] = -1
+        vbo, vao = self._point_vaos.pop(i, (None, None))
+        self.free(vao, vbo)
+
+    @property
+    def uploaded_bytes(self) -> int:
+        """Bytes uploaded so far: the loaded crops' texels and points."""
+        return self.crops.bytes + self.point_bytes
+
+    @property
+    def tex(self):
+        """The RGBz crop texture array (render.crops.CropTextures.rgbz)."""
+        return self.crops.rgbz
+
+    @property
+    def alpha_tex(self):
+        """The matte crop texture array, or None without a matte."""
+        return self.crops.matte
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None,
                    config: gr.GatherConfig | None = None) -> GatherRenderer:
-        """Renderer of a volume.model.Model's RGBz images (its kept views and their depth)."""
-        r = model.rgbz
-        return cls(ctx, r.rgb, r.depth, r.cameras, model.bounds, options, config, alpha=r.alpha)
+        """Renderer of a volume.model.Model's RGBz images (its kept views and their depth), read
+        crop by crop (render.crops): never the full stacks."""
+        return cls(ctx, model.rgbz, model.bounds, options, config)
 
     def views(self, eye: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(depth cameras, blend cameras, blend weights 1 / angle) of a frame: the nearest in
@@ -119,8 +151,8 @@ class GatherRenderer(Renderer):
         p["view_proj"].write(mat4_bytes(eye.gl_projection(near, far) @ eye.gl_view()))
         p["eye_z_row"].value = tuple(float(x) for x in eye.cam_from_world[2])
         for i in cams:
-            if self.counts[i]:
-                self.depth_vao.render(ctx.POINTS, vertices=int(self.counts[i]), first=int(self.first[i]))
+            if self.counts[i] > 0:
+                self._point_vaos[int(i)][1].render(ctx.POINTS, vertices=int(self.counts[i]))
         # the context may be shared (tests, the viewer): leave its state as found
         ctx.point_size = prev_point_size
         ctx.blend_equation = ctx.FUNC_ADD
@@ -142,8 +174,9 @@ class GatherRenderer(Renderer):
         p["rgbz"].value = 1
         if self.alpha_tex is not None:
             self.alpha_tex.use(2)
-            p["rgba"].value = 2
+            p["matte"].value = 2
         p["height"].value = eye.height
+        p["view_size"].value = tuple(int(v) for v in self.image_size)
         p["eye_intr"].value = (eye.K[0, 0], eye.K[1, 1], eye.K[0, 2], eye.K[1, 2])
         p["eye_skew"].value = float(eye.K[0, 1])
         p["eye_rot"].write(np.ascontiguousarray(eye.world_from_cam[:3, :3].T, np.float32).tobytes())
@@ -151,11 +184,13 @@ class GatherRenderer(Renderer):
         cfw = np.zeros((K, 4, 4), np.float32)
         intr = np.zeros((K, 4), np.float32)
         skew, layer, w = np.zeros(K, np.float32), np.zeros(K, np.int32), np.zeros(K, np.float32)
+        rect = np.zeros((K, 4), np.int32)
         for j, (i, wj) in enumerate(zip(blend, weights)):
             c = self.cameras[i]
             cfw[j] = c.cam_from_world.T  # column-major mat4
             intr[j] = (c.K[0, 0], c.K[1, 1], c.K[0, 2], c.K[1, 2])
-            skew[j], layer[j], w[j] = c.K[0, 1], i, wj
+            skew[j], layer[j], w[j], rect[j] = c.K[0, 1], self.crops.layer[i], wj, self.crops.rects[i]
+        p["rect"].write(rect.tobytes())
         p["cfw"].write(cfw.tobytes())
         p["intr"].write(intr.tobytes())
         p["skew"].write(skew.tobytes())
@@ -166,6 +201,7 @@ class GatherRenderer(Renderer):
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         depth_cams, blend, weights = self.views(eye)
+        self.load(np.concatenate([depth_cams, blend]))
         near, far = near_far(eye, self.bounds)
         with FrameTimer(self.ctx) as t:
             zt = self._depth_pass(eye, depth_cams, near, far)

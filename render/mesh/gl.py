@@ -21,7 +21,7 @@ from render.frame import Frame, FrameStats
 from render.gl import program
 from render.methods import Renderer, RenderOptions
 from render.microfacet.gl import camera_block, shader_defines
-from render.microfacet.rgbz_textures import matte_texture, rgbz_array
+from render.microfacet.rgbz_textures import layer_textures
 from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Visibility tolerance of a camera for a mesh fragment, in finest-level voxel sizes.
@@ -34,20 +34,21 @@ class VdtmRenderer(Renderer):
     Args:
         ctx: moderngl context.
         vertices, faces, colors: the mesh ((V,3) float32 m, (F,3) int32, (V,3) linear or None).
-        rgb, depth, cameras: RGBz images of the input cameras.
+        rgbz: RGBz images of the input cameras (volume.model.RgbzImages, with its matte when it has
+            one: then the blend carries premultiplied colour + alpha, render.microfacet.rgbz_textures,
+            and the frame its alpha), uploaded view by view (rgbz_textures.layer_textures).
+        depth: (N, H, W) z-depth (metres) the visibility test uses in place of the RGBz depth.
         bounds: (2, 3) object box (near/far).
         vis_tol: visibility tolerance |d - D| in metres.
         options: default per-frame options (this method reads ``supersample``).
-        alpha: the views' (N, H, W) matte (RgbzImages.alpha) or None: with one, the blend carries
-            premultiplied colour + alpha (render.microfacet.rgbz_textures) and the frame its alpha.
     """
 
     name = "mesh-vdtm"
 
-    def __init__(self, ctx, vertices, faces, colors, rgb, depth, cameras, bounds, vis_tol: float,
-                 options: RenderOptions | None = None, alpha=None):
+    def __init__(self, ctx, vertices, faces, colors, rgbz, depth, bounds, vis_tol: float,
+                 options: RenderOptions | None = None):
         super().__init__(ctx, options)
-        self.cameras = tuple(cameras)
+        self.cameras = tuple(rgbz.cameras)
         self.bounds = np.asarray(bounds, np.float64)
         self.vis_tol = float(vis_tol)
         self.vis_depth = np.asarray(depth, np.float32)  # (N, H, W) z-depth the visibility test uses
@@ -57,16 +58,13 @@ class VdtmRenderer(Renderer):
         self.vbo = self.own(ctx.buffer(np.concatenate([v, col], 1).astype(np.float32).tobytes()))
         self.ibo = self.own(ctx.buffer(np.asarray(faces, np.int32).tobytes()))
         self.prog = self.own(program(ctx, "vdtm_vert.glsl", "vdtm_frag.glsl",
-                                     defines=shader_defines(has_alpha=alpha is not None)))
+                                     defines=shader_defines(has_alpha=rgbz.has_alpha)))
         self.vao = self.own(ctx.vertex_array(self.prog, [(self.vbo, "3f 3f", "in_pos", "in_color")],
                                              index_buffer=self.ibo, index_element_size=4))
         self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
-        texels = rgbz_array(rgb, depth, alpha)
-        self.matte = None if alpha is None else self.own(matte_texture(ctx, alpha))
-        n, H, W = texels.shape[:3]
-        self.tex_size = (W, H)
-        self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.tobytes(), dtype="f4"))
-        self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.tex_size = rgbz.size
+        tex, matte = layer_textures(ctx, rgbz, depth=self.vis_depth, dtype="f4")
+        self.tex, self.matte = self.own(tex), None if matte is None else self.own(matte)
 
     @classmethod
     def from_model(cls, ctx, model, options: RenderOptions | None = None) -> VdtmRenderer:
@@ -78,8 +76,8 @@ class VdtmRenderer(Renderer):
 
         w = model.pyramid.levels[-1].voxel_size
         depth = raycast_depth(model.mesh_vertices, model.mesh_faces, model.rgbz.cameras)
-        return cls(ctx, model.mesh_vertices, model.mesh_faces, model.mesh_colors, model.rgbz.rgb, depth,
-                   model.rgbz.cameras, model.bounds, VIS_TOL_VOXELS * w, options, alpha=model.rgbz.alpha)
+        return cls(ctx, model.mesh_vertices, model.mesh_faces, model.mesh_colors, model.rgbz, depth,
+                   model.bounds, VIS_TOL_VOXELS * w, options)
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         """One frame (Renderer.render) with ``options.supersample`` samples per pixel and axis."""

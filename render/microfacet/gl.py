@@ -33,7 +33,7 @@ from render.methods import Renderer, RenderOptions
 from render.microfacet import cull as mcull
 from render.microfacet import geometry as mg
 from render.microfacet import lod as mlod
-from render.microfacet.rgbz_textures import RGBZ_DTYPE, matte_texture, rgbz_array
+from render.microfacet.rgbz_textures import RGBZ_DTYPE, layer_textures
 from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Compute work-group size of microfacet_select.glsl.
@@ -161,7 +161,8 @@ class MicrofacetRenderer(Renderer):
     Args:
         ctx: a moderngl context (render.gl.create_context()).
         levels: the pyramid levels (volume.model.SdfLevel, coarse -> fine).
-        rgb, depth, cameras: the RGBz images (volume.model.RgbzImages fields).
+        rgbz: the RGBz images (volume.model.RgbzImages, with its matte when it has one), uploaded
+            view by view (render.microfacet.rgbz_textures.layer_textures), never as full stacks.
         bounds: (2, 3) object box (near/far planes, LOD centre).
         options: default per-frame options (render.methods.RenderOptions; this method reads all).
         rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
@@ -180,13 +181,13 @@ class MicrofacetRenderer(Renderer):
     name = "microfacet"
     uses = frozenset(f.name for f in fields(RenderOptions))
 
-    def __init__(self, ctx, levels, rgb, depth, cameras, bounds, options: RenderOptions | None = None,
+    def __init__(self, ctx, levels, rgbz, bounds, options: RenderOptions | None = None,
                  rule: str = "vote", n_fallback: int | None = None, cull: bool = CULL,
-                 tile_px: float = mcull.TILE_PX, prepass: bool = PREPASS, alpha=None):
+                 tile_px: float = mcull.TILE_PX, prepass: bool = PREPASS):
         super().__init__(ctx, options)
         self.levels = tuple(levels)
         self.surfaces = covering_surfaces(self.levels)
-        self.cameras = tuple(cameras)
+        self.cameras = tuple(rgbz.cameras)
         self.bounds = np.asarray(bounds, dtype=np.float64)
         self.voxel_sizes = [lv.voxel_size for lv in self.levels]
         self.counts = [len(x) for x in self.surfaces]
@@ -216,23 +217,27 @@ class MicrofacetRenderer(Renderer):
         self._last_order = None
         self.cam_buf = self.own(ctx.buffer(camera_block(self.cameras)))
         self.eye_buf = self.own(ctx.buffer(reserve=16 * max(len(self.cameras), 1)))
-        texels = rgbz_array(rgb, depth, alpha)
-        self.matte = None if alpha is None else self.own(matte_texture(ctx, alpha))
-        n, H, W = texels.shape[:3]
-        self.tex_size = (W, H)
-        self.tex = self.own(ctx.texture_array((W, H, n), 4, texels.astype(RGBZ_DTYPE).tobytes(), dtype="f2"))
-        self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
-        self.tex.repeat_x = self.tex.repeat_y = False
-        # min / max pyramid of the depths as the texture holds them (microfacet_cull)
-        pyr = mcull.depth_bounds_pyramid(texels[..., 3].astype(RGBZ_DTYPE).astype(np.float32))
+        W, H = self.tex_size = rgbz.size
+        n = len(self.cameras)
+        self.ztex = self.own(ctx.texture_array((W, H, n), 1, None, dtype="f2"))
+        self.ztex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.ztex.repeat_x = self.ztex.repeat_y = False
+        pyrs = []  # per view, the min / max pyramid of its depths as the texture holds them (microfacet_cull)
+
+        def on_view(i, texels):
+            z = np.ascontiguousarray(texels[..., 3].astype(RGBZ_DTYPE))
+            self.ztex.write(z.tobytes(), viewport=(0, 0, i, W, H, 1))
+            pyrs.append(mcull.depth_bounds_pyramid(z.astype(np.float32)[None]))
+
+        tex, matte = layer_textures(ctx, rgbz, on_view=on_view)
+        self.tex, self.matte = self.own(tex), None if matte is None else self.own(matte)
+        pyr = [np.concatenate(lv) for lv in zip(*pyrs)]
+        pyrs.clear()
         if len(pyr) > MAX_PYR_LEVELS:
             raise ValueError(f"microfacet renderer: RGBz images of {W}x{H} need {len(pyr)} pyramid levels "
                              f"(at most {MAX_PYR_LEVELS})")
         words, self.pyr_offsets = mcull.pack_pyramid(pyr)
         self.pyr_buf = self.own(ctx.buffer(words.tobytes()))
-        self.ztex = self.own(ctx.texture_array((W, H, n), 1, texels[..., 3].astype(RGBZ_DTYPE).tobytes(), dtype="f2"))
-        self.ztex.filter = (ctx.NEAREST, ctx.NEAREST)
-        self.ztex.repeat_x = self.ztex.repeat_y = False
         self.prepass = bool(prepass)
         self.cull = bool(cull)
         #: Time every pass of the next frames (MicrofacetStats.passes; synchronises between passes).
@@ -249,9 +254,7 @@ class MicrofacetRenderer(Renderer):
     def from_model(cls, ctx, model, options: RenderOptions | None = None, rule: str = "vote",
                    n_fallback: int | None = None) -> MicrofacetRenderer:
         """Renderer for a volume.model.Model (with its matte, RgbzImages.alpha, when it has one)."""
-        r = model.rgbz
-        return cls(ctx, model.pyramid.levels, r.rgb, r.depth, r.cameras, model.bounds, options, rule, n_fallback,
-                   alpha=r.alpha)
+        return cls(ctx, model.pyramid.levels, model.rgbz, model.bounds, options, rule, n_fallback)
 
     def level_centers(self, level: int) -> np.ndarray:
         """(N, 3) world centres of the voxels drawn on ``level`` (see covering_surfaces)."""

@@ -5,11 +5,18 @@ With a matte the colour texels hold the PREMULTIPLIED colour (rgb x alpha) and t
 the alpha: the shaders then carry (premultiplied rgb, alpha) through Eq. 2, the blend and the
 fallback exactly as they carry the colour (``HAS_ALPHA``), and a slice fragment's output alpha
 is the blended view alpha (the frame's alpha: the coverage of the drawn samples times it).
+
+:func:`layer_textures` builds the arrays view by view from a model's RgbzImages (``rgbz.view(n)``,
+float16 values: render.crops.view_f16), never the decoded (N, H, W) stacks: these methods index
+their views by full-frame pixel (the microfacet cull pyramid too), so they upload full layers, not
+the crops gather and points upload (render/crops.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from render.crops import view_f16
 
 #: Storage of the RGBz and matte texture arrays (GL "f2").
 RGBZ_DTYPE = np.float16
@@ -33,14 +40,28 @@ def twin_colours(rgb: np.ndarray, alpha: np.ndarray | None = None) -> np.ndarray
     return np.concatenate([col, np.asarray(alpha).astype(RGBZ_DTYPE).astype(np.float64)[..., None]], -1)
 
 
-def matte_texture(ctx, alpha: np.ndarray | None):
-    """R16F texture array of the matte (NEAREST, clamped; sampler ``matte`` of microfacet_rgbz.glsl),
-    or None without one."""
-    if alpha is None:
-        return None
-    a = np.ascontiguousarray(np.asarray(alpha, np.float32).astype(RGBZ_DTYPE))
-    n, H, W = a.shape
-    tex = ctx.texture_array((W, H, n), 1, a.tobytes(), dtype="f2")
-    tex.filter = (ctx.NEAREST, ctx.NEAREST)
-    tex.repeat_x = tex.repeat_y = False
-    return tex
+def layer_textures(ctx, rgbz, depth=None, dtype: str = "f2", on_view=None):
+    """(RGBz texture array, matte texture array or None) of ``rgbz`` (RgbzImages), written view by
+    view: layer i = :func:`rgbz_array` of view i (its depth, or ``depth[i]`` (H, W) metres when
+    given), stored as GL ``dtype`` ("f2": RGBZ_DTYPE, or "f4"); NEAREST, clamped.  ``on_view(i,
+    texels)`` (optional) sees each layer's (H, W, 4) float32 texels as computed (before storage)."""
+    n = len(rgbz)
+    W, H = rgbz.size
+    tex = ctx.texture_array((W, H, max(n, 1)), 4, None, dtype=dtype)
+    matte = ctx.texture_array((W, H, max(n, 1)), 1, None, dtype="f2") if rgbz.has_alpha else None
+    for i in range(n):
+        rgb, d, a = view_f16(rgbz, i)
+        if depth is not None:
+            d = np.asarray(depth[i], np.float32)
+        texels = rgbz_array(rgb[None], d[None], None if a is None else a[None])[0]
+        if on_view is not None:
+            on_view(i, texels)
+        stored = texels.astype(RGBZ_DTYPE) if dtype == "f2" else texels
+        tex.write(np.ascontiguousarray(stored).tobytes(), viewport=(0, 0, i, W, H, 1))
+        if matte is not None:
+            matte.write(np.ascontiguousarray(a, RGBZ_DTYPE).tobytes(), viewport=(0, 0, i, W, H, 1))
+    for t in (tex, matte):
+        if t is not None:
+            t.filter = (ctx.NEAREST, ctx.NEAREST)
+            t.repeat_x = t.repeat_y = False
+    return tex, matte

@@ -60,6 +60,24 @@ def back_project(cameras, rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray 
     return out
 
 
+def back_project_crop(cam: Camera, rect, rgb: np.ndarray, depth: np.ndarray,
+                      alpha: np.ndarray | None = None) -> Cloud:
+    """The Cloud of one view from its crop (render.crops): ``rect`` (x0, y0, w, h) in the camera's
+    image, ``rgb`` (h, w, 3) linear, ``depth`` (h, w) metres, ``alpha`` (h, w) or None; the same
+    points, in the same order, as :func:`back_project` of the full frame the crop was cut from."""
+    x0, y0 = int(rect[0]), int(rect[1])
+    d = np.asarray(depth)
+    mask = np.isfinite(d) & (d > 0)
+    v, u = np.nonzero(mask)
+    uv = np.stack([u + float(x0), v + float(y0)], -1).astype(np.float64)
+    pts = cam.unproject(uv, d[mask])
+    col = np.asarray(rgb, np.float32)[mask]
+    if alpha is not None:
+        a = np.asarray(alpha, np.float32)[mask][:, None]
+        col = np.concatenate([col * a, a], 1)
+    return Cloud(pts, col)
+
+
 def view_direction(position: np.ndarray, centre: np.ndarray, forward: np.ndarray | None = None) -> np.ndarray:
     """(3,) unit direction from ``centre`` to ``position``; ``-forward`` when they coincide
     (an eye at the object centre)."""

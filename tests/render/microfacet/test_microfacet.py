@@ -127,8 +127,8 @@ def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
 def test_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
     """Slices, camera selection, Eq. 2 and the blend on the GPU equal the float64 twin (with and
     without tile culling and the visibility pre-pass: neither changes the frame)."""
-    r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                           model.bounds, RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass)
+    r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz, model.bounds,
+                           RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass)
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
         fr = r.render(eye, tolerance_px=2.0, level=2)
@@ -157,9 +157,8 @@ def test_alpha_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
     from render.microfacet.rgbz_textures import twin_colours
 
     ma = scene.with_alpha(model, scene.soft_matte(model.rgbz.depth))
-    r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                           model.bounds, RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass,
-                           alpha=ma.rgbz.alpha)
+    r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, ma.rgbz, model.bounds,
+                           RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass)
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
         fr = r.render(eye, tolerance_px=2.0, level=2)

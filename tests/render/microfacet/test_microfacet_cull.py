@@ -36,8 +36,8 @@ def model():
 
 
 def _renderer(gl_ctx, model, cull, prepass, **kw):
-    return MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz.rgb, model.rgbz.depth, model.rgbz.cameras,
-                              model.bounds, ONE, cull=cull, prepass=prepass, **kw)
+    return MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz, model.bounds,
+                              ONE, cull=cull, prepass=prepass, **kw)
 
 
 # ------------------------------------------------------------------ the depth bounds
