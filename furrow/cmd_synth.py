@@ -116,6 +116,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pixel-filter", type=float, default=0.5, metavar="SIGMA",
                    help="film filter: Gaussian of SIGMA pixels in total, like a path tracer's (default 0.5, "
                         "pbrt-v4 / Mitsuba 3); 0 = a 1-pixel box")
+    _add_surroundings_arguments(p)
+    _add_sensor_arguments(p)
+    _add_camera_trait_arguments(p)
+    p.add_argument("--preview", action="store_true", help="also write DIR/preview.png (colour + depth contact sheet)")
+    p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
+    p.add_argument("--debug", action="store_true", help="show tracebacks")
+
+
+def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
+    """What is seen around the object (issue 20)."""
     p.add_argument("--background", choices=["black", "env", "clutter"], default="black",
                    help="what is seen behind the object: black (default, like a masked scan and like "
                         "furrow render's output), env (the environment map made visible) or clutter (a room of "
@@ -128,6 +138,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="views that show the background and the support (slice spec, e.g. 0::2); the others are "
                         "over black with the object's depth only, as held-out views of the evaluation captures "
                         "(default: every view). The true matte is always written: masks/NAME.png, mask_path")
+
+
+def _add_sensor_arguments(p: argparse.ArgumentParser) -> None:
+    """Depth-sensor traits, pose noise and the depth files."""
     p.add_argument("--depth-noise", type=float, default=0.0, metavar="K",
                    help="depth noise sigma = K z^2 (metres of sigma at 1 m; e.g. 0.002)")
     p.add_argument("--holes", type=float, default=0.0, metavar="FRAC",
@@ -153,6 +167,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stand the object on a ChArUco board (for `furrow register --method board`); the board "
                         "is part of the geometry (gt/mesh.ply) and of gt/scene.json; the detector needs a steep view, "
                         "e.g. --elevations 50 --size 480x360")
+
+
+def _add_camera_trait_arguments(p: argparse.ArgumentParser) -> None:
+    """Real-camera traits (issue 21): auto exposure and lens distortion."""
     g = p.add_argument_group("real-camera traits (issue 21)")
     g.add_argument("--auto-exposure", type=float, nargs="?", const=0.35, default=None, metavar="SIGMA_EV",
                    help="jitter the exposure of the kept views (i %% --exposure-holdout == 0) by 2^N(0, SIGMA_EV) "
@@ -167,9 +185,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--lens", choices=["opencv", "fisheye"], default=None,
                    help="render through a distorting lens and write camera_model OPENCV (k1=-0.12 k2=0.03 p1=8e-4 "
                         "p2=-5e-4) or OPENCV_FISHEYE (k1=0.03 k2=-0.01 k3=0.002 k4=-0.0005) to transforms.json")
-    p.add_argument("--preview", action="store_true", help="also write DIR/preview.png (colour + depth contact sheet)")
-    p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
-    p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
 def build_config(args):
