@@ -17,6 +17,17 @@ if has render && [ -d "$OUT/furball_model" ]; then
   $F render "$OUT/furball_model" --cameras "$OUT/furball_scan" --orbit 8 -o "$OUT/furball_orbit"
   $F render "$OUT/furball_model" --cameras "$OUT/furball_scan" --orbit 8 -o "$OUT/furball_orbit_sunset" --env sunset --ground
 fi
+# a capture as a camera takes it: the room behind the object (kept views), a turntable disc in the
+# depth, auto exposure; furrow model removes the disc, mattes every view and aligns the exposure,
+# then the RGBA render is composited over a white backdrop (README "Real captures").
+if has model; then
+  $F synth furball -o "$OUT/room_scan" --views 36 --size 320x240 --seed 2 --background env --support disc \
+    --background-frames 0::2 --auto-exposure --overwrite
+  $F model "$OUT/room_scan" -o "$OUT/room_model" --frames 0::2 --max-res 128 --overwrite --json > "$OUT/room_model.json"
+  $F render "$OUT/room_model" --cameras "$OUT/room_scan" --frames 1::6 -o "$OUT/room_rgba"
+  $F render "$OUT/room_model" --cameras "$OUT/room_scan" --frames 1::6 -o "$OUT/room_over_white" --background white
+  $F eval "$OUT/room_scan" --holdout 2 --json "$OUT/room_eval.json" -o "$OUT/room_eval"
+fi
 if has eval; then
   $F eval "$OUT/furball_scan" --holdout 2 --json "$OUT/furball_eval.json" -o "$OUT/furball_eval"
   $F eval "$OUT/plant_scan" --holdout 2 --json "$OUT/plant_eval.json" -o "$OUT/plant_eval"
