@@ -29,6 +29,8 @@ pymatting path on small crops.
 
 from __future__ import annotations
 
+import contextlib
+import io
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,8 +148,10 @@ def solve_matte(image: np.ndarray, trimap: np.ndarray, method: str, reference: b
     elif reference:
         a = closed_form_alpha_reference(ci, ct)
     else:
-        a = estimate_alpha_cf(ci, ct, laplacian_kwargs={"epsilon": CF_EPSILON, "radius": CF_RADIUS},
-                              cg_kwargs={"maxiter": 2000})
+        # pymatting prints its preconditioner's warnings on stdout, which holds `furrow model --json`
+        with contextlib.redirect_stdout(io.StringIO()):
+            a = estimate_alpha_cf(ci, ct, laplacian_kwargs={"epsilon": CF_EPSILON, "radius": CF_RADIUS},
+                                  cg_kwargs={"maxiter": 2000})
     a = np.clip(a, 0.0, 1.0)
     alpha[box] = a
     fg[box] = estimate_foreground_ml(ci, a)
