@@ -156,3 +156,12 @@ def test_thin_structure_is_not_cut(thin_ideal):
         _, rep = remove_surroundings(cap.scanset)
         assert rep.removed["support"] == rep.removed["far"] == rep.removed["outside"] == 0.0
         assert rep.removed["floaters"] <= THIN_FLOATER_TOL
+
+
+def test_floaters_are_removed_without_a_support(pot_on_table):
+    table, clean = pot_on_table
+    noisy, masks = _with_floaters(clean.scanset, clean.scanset, table.info["support"]["z0"], np.random.default_rng(4))
+    out, rep = remove_surroundings(noisy)
+    assert rep.plane is None and rep.removed["floaters"] > 0
+    for s, c, m in zip(out.scans, clean.scanset.scans, masks, strict=True):
+        assert np.all(s.depth[m] == 0) and np.array_equal(s.depth[~m], c.depth[~m])
