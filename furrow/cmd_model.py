@@ -346,7 +346,7 @@ def _print_surroundings(console, rec: dict) -> None:
             (f"support plane n = {ex['plane'][:3]}, d = {ex['plane'][3]:+.4f} m ({ex['plane_inlier_fraction']:.1%} of "
              f"the focus points){' kept' if ex['kept_support'] else ''}")
         console.print(f"extent: {plane}; depth removed: support {r['support']:.2%}, far {r['far']:.2%}, "
-                      f"outside {r['outside']:.2%}", highlight=False)
+                      f"outside {r['outside']:.2%}, floaters {r.get('floaters', 0.0):.2%}", highlight=False)
     m = rec.get("matte", {})
     if m.get("mode") not in (None, "off"):
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "
