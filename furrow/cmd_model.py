@@ -129,27 +129,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
-#: Named backdrop colours of --backdrop (sRGB 0-255).
-BACKDROPS = {"black": (0, 0, 0), "white": (255, 255, 255), "grey": (128, 128, 128), "gray": (128, 128, 128)}
-
-
 def _colour(text: str) -> tuple[float, float, float]:
-    """--backdrop COLOUR -> linear RGB in [0, 1]."""
-    t = text.strip().lower()
-    try:
-        if t in BACKDROPS:
-            c = BACKDROPS[t]
-        elif t.startswith("#") and len(t) == 7:
-            c = tuple(int(t[i:i + 2], 16) for i in (1, 3, 5))
-        else:
-            c = tuple(int(v) for v in t.split(","))
-    except ValueError:
-        c = ()
-    if len(c) != 3 or not all(0 <= v <= 255 for v in c):
-        raise argparse.ArgumentTypeError(f"bad colour {text!r}: use black, white, grey, #rrggbb or r,g,b (0-255)")
-    from capture.scan import srgb_to_linear
+    """--backdrop COLOUR -> linear RGB in [0, 1], read like furrow render --background
+    (render.composite.background.parse_colour: a colour name, #rrggbb, or an sRGB triple)."""
+    from render.composite.background import parse_colour
 
-    return tuple(float(v) for v in srgb_to_linear([v / 255 for v in c]))
+    try:
+        c = parse_colour(text.strip())
+    except ValueError:
+        c = None
+    if c is None:
+        raise argparse.ArgumentTypeError(f"bad colour {text!r}: use a colour name (black, white, grey), #rrggbb "
+                                         "or r,g,b (0-255)")
+    return tuple(float(v) for v in c)
 
 
 def _prepare(args):
