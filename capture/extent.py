@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from capture.orbit import closest_point_to_axes, estimate_up
-from capture.scan import Scan, ScanSet, bounds_from_points
+from capture.scan import Scan, ScanSet, bounds_from_points, sampled_points
 
 #: Removal reasons, in the order they are decided.
 REASONS = ("support", "far", "outside", "floaters")
@@ -187,55 +187,73 @@ def _labels(scan: Scan, center: np.ndarray, radius: float, plane: np.ndarray | N
     return lab
 
 
-def floater_labels(scans, labs: list, center: np.ndarray, radius: float) -> list:
-    """``labs`` (per scan (H, W) int8 of :func:`_labels`) with the kept depth pixels that are floaters
-    (module docstring) set to their reason's code."""
+def _floater_cells(scan: Scan, lab: np.ndarray, origin: np.ndarray, voxel: float, n: int):
+    """(kept depth pixels (H, W) bool, their flat cell indices in the floater grid) of one view."""
+    keep = (lab == 0) & np.isfinite(scan.depth) & (scan.depth > 0)
+    pts, _ = scan.camera.depth_to_points(np.where(keep, scan.depth, 0.0))
+    ijk = np.clip(np.floor((pts - origin) / voxel).astype(np.int64), 0, n - 1)
+    return keep, (ijk[:, 0] * n + ijk[:, 1]) * n + ijk[:, 2]
+
+
+def floater_grid(scans, labels_of, center: np.ndarray, radius: float):
+    """(object cells (n^3,) bool, origin, voxel, n) of the floater test (module docstring), one view
+    at a time (``labels_of(scan)``: its :func:`_labels`); None when no cell is seen often enough."""
     from scipy import ndimage
 
-    code = 1 + REASONS.index("floaters")
     voxel = FLOATER_VOXEL_FRACTION * radius
     n = int(np.ceil(2 * radius / voxel)) + 1
     origin = center - radius
     hits = np.zeros(n ** 3, np.int32)
-    flats = []
-    for s, lab in zip(scans, labs, strict=True):
-        keep = (lab == 0) & np.isfinite(s.depth) & (s.depth > 0)
-        pts, _ = s.camera.depth_to_points(np.where(keep, s.depth, 0.0))
-        ijk = np.clip(np.floor((pts - origin) / voxel).astype(np.int64), 0, n - 1)
-        flat = (ijk[:, 0] * n + ijk[:, 1]) * n + ijk[:, 2]
-        flats.append((keep, flat))
-        hits[np.unique(flat)] += 1
+    for s in scans:
+        hits[np.unique(_floater_cells(s, labels_of(s), origin, voxel, n)[1])] += 1
     occ = (hits >= FLOATER_MIN_VIEWS).reshape(n, n, n)
     comp, n_comp = ndimage.label(occ, structure=np.ones((3, 3, 3), bool))
     if n_comp == 0:
-        return labs
+        return None
     weight = ndimage.sum(hits.reshape(n, n, n), comp, np.arange(1, n_comp + 1))
-    obj_ids = 1 + np.flatnonzero(weight >= FLOATER_KEEP_FRACTION * weight.max())
-    obj = np.isin(comp, obj_ids)
+    obj = np.isin(comp, 1 + np.flatnonzero(weight >= FLOATER_KEEP_FRACTION * weight.max()))
     if FLOATER_DILATE > 0:
         obj = ndimage.binary_dilation(obj, np.ones((3, 3, 3), bool), iterations=FLOATER_DILATE)
-    obj = obj.ravel()
-    out = []
-    for lab, (keep, flat) in zip(labs, flats, strict=True):
-        lab = lab.copy()
-        sub = lab[keep]
-        sub[~obj[flat]] = code
-        lab[keep] = sub
-        out.append(lab)
-    return out
+    return obj.ravel(), origin, voxel, n
 
 
-def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None) -> tuple[ScanSet, ExtentReport]:
+def floater_relabel(scan: Scan, lab: np.ndarray, grid) -> np.ndarray:
+    """``lab`` with the kept depth pixels outside the object cells of ``grid`` (:func:`floater_grid`)
+    set to the floaters' code."""
+    if grid is None:
+        return lab
+    obj, origin, voxel, n = grid
+    keep, flat = _floater_cells(scan, lab, origin, voxel, n)
+    lab = lab.copy()
+    sub = lab[keep]
+    sub[~obj[flat]] = 1 + REASONS.index("floaters")
+    lab[keep] = sub
+    return lab
+
+
+def floater_labels(scans, labs: list, center: np.ndarray, radius: float) -> list:
+    """``labs`` (per scan (H, W) int8 of :func:`_labels`) with the kept depth pixels that are floaters
+    (module docstring) set to their reason's code (:func:`floater_grid`, :func:`floater_relabel`)."""
+    scans = list(scans)
+    of = {id(s): lab for s, lab in zip(scans, labs, strict=True)}
+    grid = floater_grid(scans, lambda s: of[id(s)], center, radius)
+    return [floater_relabel(s, lab, grid) for s, lab in zip(scans, labs, strict=True)]
+
+
+def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None, keep=None) -> tuple[ScanSet, ExtentReport]:
     """``scanset`` with the depth of everything but the object set to 0 (module docstring), its
-    bounds shrunk to the remaining depth (never grown), and the report.  Colour and mattes are kept."""
+    bounds shrunk to the remaining depth (never grown), and the report.  Colour and mattes are kept.
+    Views are labelled one at a time (twice with the floater test); ``keep`` takes each changed
+    scan (capture.scan_store)."""
     cfg = cfg or ExtentConfig()
+    keep = keep or (lambda scan: scan)
     cams = scanset.cameras
     up = estimate_up(cams)
     center, radius = focus_region(cams, cfg.focus_margin)
     thr = PLANE_DISTANCE_FRACTION * radius
-    pts = [s.points() for s in scanset.scans]
-    allp = np.concatenate([p for p in pts if len(p)] or [np.zeros((0, 3))])
+    allp = sampled_points(scanset.scans)
     focus = allp[np.linalg.norm(allp - center, axis=1) <= radius]
+    del allp
     plane, frac = fit_support_plane(focus, up, center, np.array([c.center for c in cams]), thr) \
         if len(focus) >= 3 else (None, 0.0)
     kept = plane is not None and cfg.keep_support
@@ -243,17 +261,21 @@ def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None) -> tu
     scans, per_view = [], []
     totals = dict.fromkeys(REASONS, 0)
     n_valid = 0
-    labs = [_labels(s, center, radius, use_plane, SUPPORT_BAND * thr) for s in scanset.scans]
-    if cfg.floaters:
-        labs = floater_labels(scanset.scans, labs, center, radius)
-    for s, lab in zip(scanset.scans, labs, strict=True):
+
+    def labels_of(s):
+        return _labels(s, center, radius, use_plane, SUPPORT_BAND * thr)
+
+    grid = floater_grid(scanset.scans, labels_of, center, radius) if cfg.floaters else None
+    for s in scanset.scans:
+        lab = floater_relabel(s, labels_of(s), grid)
         nv = int(np.count_nonzero(s.valid))
         n_valid += nv
         counts = {r: int(np.count_nonzero(lab == k + 1)) for k, r in enumerate(REASONS)}
         for r in REASONS:
             totals[r] += counts[r]
         per_view.append({r: (counts[r] / nv if nv else 0.0) for r in REASONS})
-        scans.append(s if not lab.any() else Scan(s.rgb, np.where(lab > 0, 0.0, s.depth), s.camera, s.name, s.alpha))
+        scans.append(s if not lab.any() else keep(Scan(s.rgb, np.where(lab > 0, 0.0, s.depth), s.camera, s.name,
+                                                       s.alpha)))
     removed_any = any(sc is not s for sc, s in zip(scans, scanset.scans, strict=True))
     out = ScanSet(tuple(scans), _shrunk_bounds(scanset.bounds, scans), scanset.metadata) if removed_any else scanset
     removed = {r: (totals[r] / n_valid if n_valid else 0.0) for r in REASONS}
@@ -264,7 +286,7 @@ def _shrunk_bounds(bounds: np.ndarray, scans) -> np.ndarray:
     """``bounds`` intersected with the robust box of the scans' remaining depth (capture.io.auto_bounds)."""
     from capture.io import AUTO_BOUNDS_MARGIN, AUTO_BOUNDS_PERCENTILES
 
-    pts = np.concatenate([p for p in (s.points() for s in scans) if len(p)] or [np.zeros((0, 3))])
+    pts = sampled_points(scans)
     if len(pts) < 2:
         return bounds
     lo, hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0), np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1],

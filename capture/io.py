@@ -47,7 +47,7 @@ from capture.imageio import (
 from capture.io_lens import frame_lens, note_undistorted, pinhole_camera
 from capture.lens import DEFAULT_UNDISTORT, Lens, nerfstudio_keys, undistort_scan
 from capture.matte_io import attach_mattes, write_matte
-from capture.scan import Scan, ScanError, ScanSet, bounds_from_points
+from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, sampled_points
 
 TRANSFORMS = "transforms.json"
 #: Percentiles of the back-projected depth used for automatic bounds (robust to outliers).
@@ -270,15 +270,15 @@ def log_resampled(notes: list, metadata: dict) -> None:
 
     line = describe(notes)
     logging.getLogger("furrow.capture").info(line)
-    metadata["depth_resampled"] = line
+    metadata.update(depth_resampled=line, depth_size=list(notes[0].depth_size))  # (w, h) the sensor measured
 
 
 def auto_bounds(scans, where: str = "") -> np.ndarray:
     """Robust (2, 3) bounds from the back-projected depth of every scan; ``where`` (the scan set's
-    file or folder) prefixes the error when there are none."""
+    file or folder) prefixes the error when there are none.  Above AUTO_BOUNDS_MAX_POINTS depth
+    pixels in all, a regular sample of them (capture.scan.sampled_points)."""
     prefix = f"{where}: " if where else ""
-    pts = [s.points() for s in scans]
-    pts = np.concatenate([p for p in pts if len(p)]) if any(len(p) for p in pts) else np.zeros((0, 3))
+    pts = sampled_points(scans)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     if len(pts) == 0:
         raise ScanIOError(f"{prefix}cannot derive object bounds: no scan has depth; "
@@ -307,17 +307,19 @@ def _read_bounds(block, where: str):
 
 
 def read_transforms(path: Path, frames: str | None = None, progress=None,
-                    undistort: str = DEFAULT_UNDISTORT) -> ScanSet:
-    """Read a nerfstudio transforms.json scan set (module docstring; ``undistort``: capture.lens)."""
+                    undistort: str = DEFAULT_UNDISTORT, keep=None) -> ScanSet:
+    """Read a nerfstudio transforms.json scan set (module docstring; ``undistort``: capture.lens;
+    ``keep``: where each scan goes once read, capture.scan_store -- in memory by default)."""
     from capture.scan import select_indices
 
+    keep = keep or (lambda scan: scan)
     tj = resolve_transforms(path)
     meta = _load_json(tj)
     cams = read_cameras(tj, undistort)
     idx = select_indices(frames, len(cams))
-    scans, notes, rgb_paths = [], [], []
+    scans, notes = [], []
     it = progress(idx, "reading scans") if progress else idx
-    for i in it:
+    for i in it:  # one frame at a time, each handed to ``keep`` as soon as it is read (capture.scan_store)
         fc = cams[i]
         where = f"{tj} frame {i}"
         rgb_path = _resolve_image(tj.parent, fc.file_path, "colour image", where)
@@ -326,13 +328,12 @@ def read_transforms(path: Path, frames: str | None = None, progress=None,
             depth_path = _resolve_image(tj.parent, fc.depth_file_path, "depth file", where)
         if fc.confidence_file_path is not None:
             conf_path = _resolve_image(tj.parent, fc.confidence_file_path, "confidence file", where)
-        scans.append(_load_scan(fc.distorted or fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor,
-                                fc.file_path, conf_path, notes, units_from=str(tj)))
-        rgb_paths.append(rgb_path)
-    # mattes (mask_path / RGBA alpha) are read at the captured size, then undistorted with the colour
-    scans = attach_mattes(scans, meta["frames"], idx, tj.parent, rgb_paths, str(tj))
-    scans = [s if cams[i].lens is None else undistort_scan(s, cams[i].lens, cams[i].distorted.K, cams[i].camera)
-             for s, i in zip(scans, idx, strict=True)]
+        s = _load_scan(fc.distorted or fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor,
+                       fc.file_path, conf_path, notes, units_from=str(tj))
+        # mattes (mask_path / RGBA alpha) are read at the captured size, then undistorted with the colour
+        s = attach_mattes([s], meta["frames"], [i], tj.parent, [rgb_path], str(tj))[0]
+        s = s if fc.lens is None else undistort_scan(s, fc.lens, fc.distorted.K, fc.camera)
+        scans.append(keep(s))
     fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
     bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
     if bounds is None:
@@ -385,9 +386,12 @@ def read_plain_folder(folder: Path, frames: str | None = None, progress=None) ->
     return ScanSet(tuple(scans), bounds, md)
 
 
-def read_scanset(path: Path, frames: str | None = None, progress=None, undistort: str = DEFAULT_UNDISTORT) -> ScanSet:
+def read_scanset(path: Path, frames: str | None = None, progress=None, undistort: str = DEFAULT_UNDISTORT,
+                 keep=None) -> ScanSet:
     """Read a scan set: transforms.json (file or folder holding one), a plain folder, or a
-    COLMAP folder (``sparse/0`` + ``images/`` + optional ``depth/`` and ``depth_units.json``)."""
+    COLMAP folder (``sparse/0`` + ``images/`` + optional ``depth/`` and ``depth_units.json``).
+    ``keep`` (transforms.json): each scan is passed through it as soon as it is read
+    (capture.scan_store.ScanSpill.keep puts it on disk)."""
     path = Path(path)
     if path.is_dir() and not (path / TRANSFORMS).is_file():
         if (path / "cameras").is_dir():
@@ -404,7 +408,7 @@ def read_scanset(path: Path, frames: str | None = None, progress=None, undistort
                 return read_colmap(model, path / "images", depth, unit, frames, undistort)
         raise ScanIOError(f"{path}: neither a {TRANSFORMS}, a plain folder layout (cameras/, rgb/, depth/) "
                           "nor a COLMAP layout (sparse/0/, images/, depth/)")
-    return read_transforms(path, frames, progress, undistort)
+    return read_transforms(path, frames, progress, undistort, keep)
 
 
 # --------------------------------------------------------------------------- writing

@@ -56,6 +56,8 @@ APPEARANCE_RATIOS = np.logspace(-3, 4, 29)
 PAIR_BIAS = 0.01
 #: Weight of the temporary sum-to-zero row that makes the joint system full rank.
 GAUGE_ROW_WEIGHT = 1e3
+#: Views whose linear colour and usable mask stay in memory while the pairs are measured.
+PREP_CACHE_VIEWS = 8
 
 
 @dataclass(frozen=True)
@@ -168,6 +170,25 @@ def _usable(scan: Scan, cfg: PhotometricConfig) -> tuple[np.ndarray, np.ndarray]
     if scan.alpha is not None:
         ok &= scan.alpha >= 1.0 - 1e-3
     return lin, ok
+
+
+def _usable_cache(scans, cfg: PhotometricConfig):
+    """``prep(k)`` = :func:`_usable` of view k, the last PREP_CACHE_VIEWS views kept (the pairs run
+    view by view, so a capture's float colour is never held for every view at once)."""
+    from collections import OrderedDict
+
+    cache: OrderedDict = OrderedDict()
+
+    def prep(k: int):
+        if k in cache:
+            cache.move_to_end(k)
+        else:
+            cache[k] = _usable(scans[k], cfg)
+            while len(cache) > PREP_CACHE_VIEWS:
+                cache.popitem(last=False)
+        return cache[k]
+
+    return prep
 
 
 def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -304,11 +325,11 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None) -
     if cfg.reference not in GAUGES and cfg.reference not in names:
         raise ValueError(f"photometric reference {cfg.reference!r} is neither {' nor '.join(GAUGES)} nor a view name "
                          f"(views: {', '.join(names[:6])}{', ...' if len(names) > 6 else ''})")
-    prep = [_usable(s, cfg) for s in scans]
+    prep = _usable_cache(scans, cfg)
     pairs = neighbour_pairs(scans, cfg)
     edges, samples = [], 0
     for i, j in (progress(pairs, "photometric pairs") if progress else pairs):
-        r = pair_log_ratios(scans[i], scans[j], prep[i], prep[j], cfg)
+        r = pair_log_ratios(scans[i], scans[j], prep(i), prep(j), cfg)
         if len(r) < cfg.min_samples:
             continue
         mu, sigma = robust_location(r, cfg.huber)
@@ -333,9 +354,11 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None) -
                              cfg.reference, resid, {"appearance_to_exposure": ratio})
 
 
-def apply_gains(scans, gains: np.ndarray) -> tuple[Scan, ...]:
+def apply_gains(scans, gains: np.ndarray, keep=None) -> tuple[Scan, ...]:
     """The scans with their linear colour multiplied by ``gains`` (V, 3); 8-bit sRGB stays 8-bit
-    (re-encoded, clipped), float linear stays float; a view with gain exactly 1 is untouched."""
+    (re-encoded, clipped), float linear stays float; a view with gain exactly 1 is untouched.
+    ``keep`` takes each new scan (capture.scan_store)."""
+    keep = keep or (lambda scan: scan)
     out = []
     for s, g in zip(scans, np.asarray(gains, np.float64), strict=True):
         if np.all(g == 1.0):
@@ -343,5 +366,5 @@ def apply_gains(scans, gains: np.ndarray) -> tuple[Scan, ...]:
             continue
         lin = s.linear_rgb * g.astype(np.float32)
         rgb = to_uint8_srgb(lin) if s.rgb.dtype == np.uint8 else lin.astype(np.float32)
-        out.append(Scan(rgb, s.depth, s.camera, s.name, s.alpha))
+        out.append(keep(Scan(rgb, s.depth, s.camera, s.name, s.alpha)))
     return tuple(out)

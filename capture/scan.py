@@ -177,6 +177,19 @@ def select_indices(spec: str | None, n: int) -> list[int]:
     return out
 
 
+#: Depth pixels :func:`sampled_points` back-projects at most (a 200-frame phone capture has 550 million).
+MAX_SAMPLED_POINTS = 8_000_000
+
+
+def sampled_points(scans, max_points: int = MAX_SAMPLED_POINTS) -> np.ndarray:
+    """(N, 3) world points of the scans' depth pixels, read one scan at a time; above ``max_points``
+    depth pixels in all, every k-th pixel of each scan (the same k for all) stands for them."""
+    total = sum(int(np.count_nonzero(s.depth > 0)) for s in scans)
+    k = max(1, -(-total // max(int(max_points), 1)))
+    pts = [p for p in (s.points()[::k] for s in scans) if len(p)]
+    return np.concatenate(pts) if pts else np.zeros((0, 3))
+
+
 def bounds_from_points(points: np.ndarray, margin: float = 0.05) -> np.ndarray:
     """(2, 3) box around points, grown by ``margin`` of its diagonal on every side."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)

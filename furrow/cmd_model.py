@@ -93,6 +93,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="decimate the mesh to this many triangles (default 60000)")
     p.add_argument("--mesh-level", type=_pow2, default=128,
                    help="fused level the baseline mesh is marched on (default 128, capped at --max-res)")
+    p.add_argument("--spill", choices=["auto", "always", "never"], default="auto",
+                   help="where the scans wait between stages (capture/scan_store.py): on disk in a temporary folder, "
+                        "read back one view at a time, so that peak memory does not grow with the frames; auto "
+                        "(default) spills when the frames would take over 1 GiB in memory (about 70 frames at "
+                        "1280x960); the model is the same either way")
     p.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
@@ -185,11 +190,17 @@ def run(args, console) -> int:
     t0, c0 = time.perf_counter(), time.process_time()
     capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
-        scanset, views = _read_views(args, progress=lambda it, d: track(it, d))
-    res = _working_resolution(scanset, args, timer)
-    scanset = res.pop("scanset")
-    model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
-                                 provenance={"source": str(args.scans), "frames": args.frames})
+        scanset, views, spill = _read_views(args, progress=lambda it, d: track(it, d))
+    try:  # the spilled scans (capture.scan_store) are needed until the model is built
+        keep = spill.keep if spill is not None else None
+        res = _working_resolution(scanset, args, timer, keep)
+        scanset = res.pop("scanset")
+        model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
+                                     provenance={"source": str(args.scans), "frames": args.frames}, keep=keep)
+        summary["spill"] = "disk" if spill is not None else "memory"
+    finally:
+        if spill is not None:
+            spill.close()
     summary["views"] = views
     summary["resolution"] = res
     model = dataclasses.replace(model, params={**model.params, "views": views, "resolution": res})
@@ -266,10 +277,12 @@ def photometric_table(rec: dict):
 
 
 def _read_views(args, progress):
-    """(ScanSet of the kept views, views report): the cameras are read first where the format
-    allows (transforms.json), so dropped views' images are never read."""
+    """(ScanSet of the kept views, views report, ScanSpill or None): the cameras are read first
+    where the format allows (transforms.json), so dropped views' images are never read, and the
+    scans go to disk as they are read when the frames are many (--spill, capture.scan_store)."""
     from capture.io import read_cameras, read_scanset
     from capture.scan import select_indices
+    from capture.scan_store import spill_for
     from volume.views import select_views
 
     try:
@@ -280,27 +293,35 @@ def _read_views(args, progress):
         idx = select_indices(args.frames, len(cams))
         kept, reasons = select_views([cams[i].camera for i in idx], args.views)
         spec = ",".join(str(idx[k]) for k in kept)
-        scanset = read_scanset(args.scans, spec, progress=progress, undistort=args.undistort)
+        spill = spill_for(sum(cams[idx[k]].camera.width * cams[idx[k]].camera.height for k in kept), args.spill)
+        try:
+            scanset = read_scanset(args.scans, spec, progress=progress, undistort=args.undistort,
+                                   keep=spill.keep if spill is not None else None)
+        except BaseException:
+            if spill is not None:
+                spill.close()
+            raise
         names = [cams[i].file_path for i in idx]
-    else:
+    else:  # another format is read whole; the later stages' scans go to disk when they are many
         full = read_scanset(args.scans, args.frames, progress=progress, undistort=args.undistort)
         kept, reasons = select_views(full.cameras, args.views)
         scanset = type(full)(tuple(full.scans[k] for k in kept), full.bounds, full.metadata)
         names = [s.name for s in full.scans]
+        spill = spill_for(sum(c.width * c.height for c in scanset.cameras), args.spill)
     for r in reasons:
         r["name"] = names[r["view"]]
-    return scanset, {"mode": args.views, "kept": len(kept), "of": len(reasons), "per_view": reasons}
+    return scanset, {"mode": args.views, "kept": len(kept), "of": len(reasons), "per_view": reasons}, spill
 
 
-def _working_resolution(scanset, args, timer) -> dict:
+def _working_resolution(scanset, args, timer, keep=None) -> dict:
     """The working scale from the object's footprint against --output-size; the scaled scans
-    under "scanset" (volume.views)."""
+    under "scanset" (volume.views; each passed through ``keep``)."""
     from volume.views import footprint_px, scaled_scanset, working_scale
 
     s, rep = working_scale([footprint_px(x.depth) for x in scanset.scans], args.output_size)
     if s < 1:
         with timer.stage("scale views"):
-            scanset = scaled_scanset(scanset, s)
+            scanset = scaled_scanset(scanset, s, keep)
     c = scanset.scans[0].camera
     return {**rep, "size": [c.width, c.height], "output_size": list(args.output_size) if args.output_size else None,
             "scanset": scanset}

@@ -37,7 +37,7 @@ from volume.prepare import PrepareConfig, prepare_scans
 from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import RgbzConfig, build_rgbz
 from volume.spheres import fit_spheres
-from volume.stream import NORMAL_THREADS, pack_scans
+from volume.stream import NORMAL_THREADS, native_scale, pack_scans
 from volume.tsdf import fuse_tsdf
 
 #: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
@@ -115,7 +115,8 @@ def scan_maps_of(scanset: ScanSet, fcfg: FusionConfig, progress=None):
     (volume.stream.pack_scans) for the compiled backend; the list of full-frame ScanMaps (the
     reference) for 'numpy'."""
     if fcfg.backend == "numba":
-        return pack_scans(scanset.scans, fcfg.max_grazing_deg, fcfg.smooth_sigma_z, NORMAL_THREADS, progress)
+        return pack_scans(scanset.scans, fcfg.max_grazing_deg, fcfg.smooth_sigma_z, NORMAL_THREADS, progress,
+                          native_scale(scanset, fcfg.map_oversample))
     with ThreadPoolExecutor(NORMAL_THREADS) as pool:
         # numpy and OpenCV release the GIL in these whole-image operations: measured on 18 views of
         # a 640x480 capture, 1.5 s on one thread, 0.8-1.0 s on two (quiet 2-core machine)
@@ -164,16 +165,17 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, d
 
 
 def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, progress=None,
-                provenance: dict | None = None) -> tuple[Model, dict]:
+                provenance: dict | None = None, keep=None) -> tuple[Model, dict]:
     """Build the Model; returns (model, summary) with the summary keys of ``furrow model --json``.
 
     ``stage(name)`` is a context-manager factory used to time stages (furrow.console.StageTimer);
-    ``progress(iterable, description)`` wraps loops in a progress bar.
+    ``progress(iterable, description)`` wraps loops in a progress bar.  ``keep`` takes every scan a
+    stage makes (capture.scan_store.ScanSpill.keep: on disk, read back view by view).
     """
     cfg = cfg or ModelConfig()
     stage = stage or (lambda name: contextlib.nullcontext())
-    scanset, surroundings = prepare_scans(scanset, cfg.prepare, stage, progress)  # extent, matte
-    scanset, photometric = align_views(scanset, cfg.photometric, stage, progress)
+    scanset, surroundings = prepare_scans(scanset, cfg.prepare, stage, progress, keep)  # extent, matte
+    scanset, photometric = align_views(scanset, cfg.photometric, stage, progress, keep)
     top = cfg.lopt.max_res
     mesh_res = top if cfg.mesh.level == 0 else min(cfg.mesh.level, top)
     sphere_res = min(top, SPHERE_LEVEL)

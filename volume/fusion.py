@@ -84,6 +84,10 @@ class FusionConfig:
     smooth_sigma_z: float = 0.003
     """Range sigma (metres) of the bilateral filter applied to depth before normals and planes
     are computed (depth edges larger than this are kept); 0 disables."""
+    map_oversample: float = 2.0
+    """When the depth was resampled up to the colour's size (scan-set metadata ``depth_size``: a phone's
+    256x192 under 1920x1440 colour), the per-view maps are computed at this many times the measured
+    size, capped at the colour's (volume.stream.native_scale; 'numba' backend); 0 = at the colour's size."""
     backend: str = "numba"
     """Compiled kernels, 'numba' (passes 1-2 in volume.fusion_jit, the distance transform of
     the ``edt`` package), or 'numpy' (vectorised numpy passes and scipy's transform: the reference)."""

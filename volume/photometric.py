@@ -15,12 +15,13 @@ OFF_KEY = "photometric"
 STAGE = "photometric"
 
 
-def align_views(scanset: ScanSet, cfg: PhotometricConfig | None, stage=None, progress=None):
-    """(scan set with corrected colours, JSON record of the gains or None when off)."""
+def align_views(scanset: ScanSet, cfg: PhotometricConfig | None, stage=None, progress=None, keep=None):
+    """(scan set with corrected colours, JSON record of the gains or None when off); ``keep`` takes
+    each corrected scan (capture.scan_store)."""
     if cfg is None or scanset.metadata.get(OFF_KEY) == "off" or len(scanset.scans) < 2:
         return scanset, None
     stage = stage or (lambda name: contextlib.nullcontext())
     with stage(STAGE):
         res = estimate_gains(scanset.scans, cfg, (lambda it, d: progress(it, d)) if progress else None)
-        scans = apply_gains(scanset.scans, res.gains)
+        scans = apply_gains(scanset.scans, res.gains, keep)
     return replace(scanset, scans=scans), {**res.record(), "config": asdict(cfg)}

@@ -38,24 +38,26 @@ class PrepareConfig:
 
 
 def prepare_scans(scanset: ScanSet, cfg: PrepareConfig | None = None, stage=None,
-                  progress=None) -> tuple[ScanSet, dict]:
-    """(scan set ready for fusion, record for model.json / the console) (module docstring)."""
+                  progress=None, keep=None) -> tuple[ScanSet, dict]:
+    """(scan set ready for fusion, record for model.json / the console) (module docstring).
+    Views are worked on one at a time; ``keep`` takes each new scan (capture.scan_store)."""
     cfg = cfg or PrepareConfig()
+    keep = keep or (lambda scan: scan)
     stage = stage or (lambda name: contextlib.nullcontext())
     record: dict = {}
     if cfg.extent:
         with stage("extent"):
-            scanset, rep = remove_surroundings(scanset, cfg.extent_cfg)
+            scanset, rep = remove_surroundings(scanset, cfg.extent_cfg, keep)
         record["extent"] = rep.record()
     if cfg.matte.mode == "off":
         if any(s.alpha is not None for s in scanset.scans):
-            scanset = ScanSet(tuple(Scan(s.rgb, s.depth, s.camera, s.name) for s in scanset.scans),
+            scanset = ScanSet(tuple(keep(Scan(s.rgb, s.depth, s.camera, s.name)) for s in scanset.scans),
                               scanset.bounds, scanset.metadata)
         record["matte"] = {"mode": "off"}
         return scanset, record
     with stage("matte warm-up"):
         warm_up()
-    scans, methods, seconds, unknown = [], [], [], []
+    scans, methods, seconds, unknown, partial = [], [], [], [], []
     with stage(f"matte ({len(scanset)} views)"):
         items = list(scanset.scans)
         for s in (progress(items, "matting") if progress else items):
@@ -64,13 +66,13 @@ def prepare_scans(scanset: ScanSet, cfg: PrepareConfig | None = None, stage=None
             seconds.append(time.perf_counter() - t0)
             methods.append(m.method)
             unknown.append(m.unknown_fraction)
-            scans.append(Scan(m.foreground, s.depth, s.camera, s.name, m.alpha))
+            partial.append(float(np.mean((m.alpha > 0) & (m.alpha < 1))))
+            scans.append(keep(Scan(m.foreground, s.depth, s.camera, s.name, m.alpha)))
     scanset = ScanSet(tuple(scans), scanset.bounds, scanset.metadata)
     record["matte"] = {"mode": cfg.matte.mode, "backdrop": cfg.matte.backdrop,
                        "methods": {k: methods.count(k) for k in sorted(set(methods))},
                        "seconds_per_view": round(float(np.mean(seconds)), 4),
                        "seconds_per_view_max": round(float(np.max(seconds)), 4),
                        "unknown_fraction_mean": round(float(np.mean(unknown)), 5),
-                       "partial_fraction_mean": round(float(np.mean([np.mean((s.alpha > 0) & (s.alpha < 1))
-                                                                     for s in scans])), 5)}
+                       "partial_fraction_mean": round(float(np.mean(partial)), 5)}
     return scanset, record

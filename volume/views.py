@@ -115,6 +115,15 @@ def working_scale(footprints, output_size: tuple[int, int] | None) -> tuple[floa
     return float(s), {"scale": float(s), "reason": why, "footprint_px": med, "needed_px": need}
 
 
+def nearest_depth(depth: np.ndarray, W: int, H: int) -> np.ndarray:
+    """(H, W) ``depth`` resampled by the nearest source pixel to each target pixel centre (a
+    measured value, never a blend across an edge)."""
+    h, w = np.asarray(depth).shape
+    xi = np.minimum(((np.arange(W) + 0.5) * (w / W)).astype(np.int64), w - 1)
+    yi = np.minimum(((np.arange(H) + 0.5) * (h / H)).astype(np.int64), h - 1)
+    return np.asarray(depth)[yi[:, None], xi[None, :]]
+
+
 def scaled_scan(scan, s: float):
     """``scan`` resampled by ``s`` <= 1: colour (and alpha) by area averaging (OpenCV INTER_AREA),
     depth by the nearest source pixel (a measured value, never a blend across an edge), the
@@ -128,20 +137,19 @@ def scaled_scan(scan, s: float):
     cam = scan.camera.scaled(s)
     W, H = cam.width, cam.height
     rgb = cv2.resize(np.asarray(scan.rgb), (W, H), interpolation=cv2.INTER_AREA)
-    sx, sy = scan.camera.width / W, scan.camera.height / H
-    xi = np.minimum(((np.arange(W) + 0.5) * sx).astype(np.int64), scan.camera.width - 1)
-    yi = np.minimum(((np.arange(H) + 0.5) * sy).astype(np.int64), scan.camera.height - 1)
-    depth = np.asarray(scan.depth)[yi[:, None], xi[None, :]]
+    depth = nearest_depth(scan.depth, W, H)
     alpha = None if scan.alpha is None else cv2.resize(np.asarray(scan.alpha, np.float32), (W, H),
                                                        interpolation=cv2.INTER_AREA)
     return Scan(rgb, depth, cam, scan.name, alpha)
 
 
-def scaled_scanset(scanset, s: float):
-    """Every scan of ``scanset`` resampled by ``s`` (:func:`scaled_scan`); the set itself when s >= 1."""
+def scaled_scanset(scanset, s: float, keep=None):
+    """Every scan of ``scanset`` resampled by ``s`` (:func:`scaled_scan`), each passed through
+    ``keep`` (capture.scan_store); the set itself when s >= 1."""
     from capture.scan import ScanSet
 
     if s >= 1:
         return scanset
-    return ScanSet(tuple(scaled_scan(x, s) for x in scanset.scans), scanset.bounds,
+    keep = keep or (lambda scan: scan)
+    return ScanSet(tuple(keep(scaled_scan(x, s)) for x in scanset.scans), scanset.bounds,
                    {**scanset.metadata, "working_scale": s})

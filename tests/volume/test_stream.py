@@ -65,3 +65,53 @@ def test_fusion_with_footprints_is_identical(fur):
         np.testing.assert_array_equal(a.seen, b.seen)
         assert a.band.sum() > 0
         coarse_a, coarse_b = a, b
+
+
+def test_maps_at_the_measured_depth_size(fur):
+    """A phone's depth resampled up to the colour (metadata depth_size): the maps are those of the
+    depth at the measured size (volume.stream.native_scale), and the fused surface is where the
+    colour-size maps put it (within a voxel)."""
+    from capture.scan import ScanSet
+    from volume.stream import depth_only_scan, native_scale
+
+    assert native_scale(fur) == 1.0
+    phone = ScanSet(fur.scans, fur.bounds, {**fur.metadata, "depth_size": [40, 30]})
+    s = native_scale(phone)
+    assert s == pytest.approx(40 / 160)
+    cfg = FusionConfig()
+    small = pack_scans(phone.scans, cfg.max_grazing_deg, cfg.smooth_sigma_z, scale=s)
+    ref = pack_maps([scan_maps(depth_only_scan(x, s), cfg.max_grazing_deg, cfg.smooth_sigma_z) for x in phone.scans])
+    np.testing.assert_array_equal(small.P, ref.P)
+    assert list(small.W) == [40] * len(phone) and list(small.H) == [30] * len(phone)
+    for v in range(len(phone)):
+        x0, y0, w, h = small.rect[v]
+        mine = small.pixel[small.start[v]:small.start[v] + w * h].reshape(h, w, -1)
+        full = ref.pixel[ref.start[v]:ref.start[v] + 40 * 30].reshape(30, 40, -1)
+        # float32 rounding only: OpenCV's bilateral filter rounds differently on a rectangle this small
+        np.testing.assert_allclose(mine, full[y0:y0 + h, x0:x0 + w], rtol=0, atol=2e-5)
+
+
+def test_fusion_at_twice_the_measured_depth_size(tmp_path):
+    """A capture whose depth was written at a quarter of the colour's size and resampled up when
+    read: fusion maps at 2x the measured size (the default) put the surface nearly as well as maps
+    at the colour's size, against the exact torus (measured: mean |SDF error| over the surface
+    voxels 3.36 mm against 3.07; 3.60 at 1x)."""
+    from capture.io import read_scanset, write_transforms
+    from tests.scenes import make_scanset, scan_ring, torus_scene, torus_sdf
+    from volume.stream import native_scale
+
+    ss = make_scanset(torus_scene(), scan_ring(8, 256, 192))
+    phone = read_scanset(write_transforms(ss, tmp_path / "s", depth_size=(64, 48)))
+    cfg = FusionConfig()
+    assert native_scale(phone, cfg.map_oversample) == pytest.approx(0.5)
+    origin, ext = cube_for_bounds(phone.bounds)
+    L = 32
+    w = ext / L
+    err = []
+    for scale in (1.0, native_scale(phone, cfg.map_oversample)):
+        maps = pack_scans(phone.scans, cfg.max_grazing_deg, cfg.smooth_sigma_z, scale=scale)
+        v = fuse_consensus(phone, origin, w, L, cfg, maps).values
+        idx = np.argwhere(np.abs(v) < w)
+        assert len(idx) > 1000
+        err.append(np.mean(np.abs(v[tuple(idx.T)] - torus_sdf(0.06, 0.025)(origin + (idx + 0.5) * w))))
+    assert err[0] < 0.5 * w and err[1] < 1.2 * err[0], err

@@ -1,0 +1,167 @@
+"""Scans kept on disk, read back one view at a time: peak memory bounded whatever the number of frames (issue 24).
+
+A phone capture of 200 frames at 1920x1440 holds about 4 GB as Scans (8-bit colour plus float32
+depth at the colour's size), and twice that once the matte stage has made float32 foregrounds.
+:class:`ScanSpill` owns a temporary folder; :meth:`ScanSpill.keep` writes a Scan there and hands
+back a :class:`SpilledScan`, which reads like a Scan (``rgb``, ``depth``, ``alpha``, ``camera``,
+``name``, ``linear_rgb``, ``srgb8``, ``valid``, ``points()``) but holds only its camera and file
+name.  Its arrays are read from disk when asked for; the last READ_CACHE_VIEWS views read stay
+in memory (a stage reads a view's colour, depth and matte one after the other).
+
+Nothing is lost or rounded: every array is stored as it is (same dtype, same values), so a
+pipeline run over spilled scans gives the same model, bit for bit, as over Scans in memory
+(tests/capture/test_scan_store.py).  Depth and matte, zero away from the object once the extent
+stage has run, are stored as the bounding box of their non-zero pixels.
+
+Stages that make new scans (reading, extent, matte, photometric gains, working scale) take a
+``keep`` callable and pass each new Scan through it: :func:`keep_in_memory` (the identity) or
+``spill.keep``.  :func:`spill_for` chooses by the size of the capture.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from collections import OrderedDict
+from pathlib import Path
+
+import numpy as np
+
+from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
+
+#: Views whose arrays stay in memory after being read (each is at most colour + depth + matte).
+READ_CACHE_VIEWS = 4
+#: ``--spill auto``: scans go to disk when the capture's frames would take more than this in memory
+#: (8-bit colour + float32 depth per pixel, counted over every frame).
+SPILL_AUTO_BYTES = 1 << 30
+#: Bytes per pixel of a Scan read from an 8-bit image with depth (3 colour + 4 depth).
+SCAN_BYTES_PER_PIXEL = 7
+
+
+def keep_in_memory(scan: Scan) -> Scan:
+    """The ``keep`` of a pipeline that holds its scans in memory: the scan itself."""
+    return scan
+
+
+def _crop(a: np.ndarray) -> tuple[np.ndarray, tuple[int, int, int, int]]:
+    """(bounding-box crop of the non-zero pixels of a (H, W) map, (y0, x0, H, W))."""
+    nz = a != 0
+    rows, cols = np.flatnonzero(nz.any(axis=1)), np.flatnonzero(nz.any(axis=0))
+    if not len(rows):
+        return a[:0, :0].copy(), (0, 0, *a.shape)
+    y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    return np.ascontiguousarray(a[y0:y1, x0:x1]), (int(y0), int(x0), *a.shape)
+
+
+def _uncrop(c: np.ndarray, box) -> np.ndarray:
+    y0, x0, H, W = box
+    out = np.zeros((H, W), c.dtype)
+    out[y0:y0 + c.shape[0], x0:x0 + c.shape[1]] = c
+    return out
+
+
+class ScanSpill:
+    """A temporary folder of scans (module docstring); removed by :meth:`close` or on leaving ``with``."""
+
+    def __init__(self, root: str | Path | None = None):
+        self.path = Path(tempfile.mkdtemp(prefix="furrow-scans-", dir=root))
+        self._n = 0
+        self._cache: OrderedDict[Path, Scan] = OrderedDict()
+
+    def keep(self, scan: Scan) -> SpilledScan:
+        """Write ``scan`` (a Scan or a SpilledScan) to the folder; the SpilledScan that reads it back."""
+        if isinstance(scan, SpilledScan) and scan.spill is self:
+            return scan
+        f = self.path / f"{self._n:06d}.npz"
+        self._n += 1
+        depth, dbox = _crop(np.asarray(scan.depth))
+        arrays = {"rgb": np.asarray(scan.rgb), "depth": depth, "depth_box": np.array(dbox, np.int64)}
+        if scan.alpha is not None:
+            alpha, abox = _crop(np.asarray(scan.alpha))
+            arrays.update(alpha=alpha, alpha_box=np.array(abox, np.int64))
+        tmp = f.with_suffix(".tmp.npz")
+        np.savez(tmp, **arrays)
+        tmp.rename(f)
+        return SpilledScan(self, f, scan.camera, scan.name, scan.alpha is not None, np.asarray(scan.rgb).dtype)
+
+    def load(self, sp: SpilledScan) -> Scan:
+        """The Scan ``sp`` reads (from the read cache when it was read lately)."""
+        f = sp.file
+        if f in self._cache:
+            self._cache.move_to_end(f)
+            return self._cache[f]
+        if not self.path.is_dir():
+            raise RuntimeError(f"{self.path}: the scan spill folder was closed or removed; its scans are gone")
+        with np.load(f) as z:
+            rgb = z["rgb"]
+            depth = _uncrop(z["depth"], z["depth_box"])
+            alpha = _uncrop(z["alpha"], z["alpha_box"]) if "alpha" in z.files else None
+        scan = Scan(rgb, depth, sp.camera, sp.name, alpha)  # validated again: cheap next to the read
+        self._cache[f] = scan
+        while len(self._cache) > READ_CACHE_VIEWS:
+            self._cache.popitem(last=False)
+        return scan
+
+    def close(self) -> None:
+        self._cache.clear()
+        shutil.rmtree(self.path, ignore_errors=True)
+
+    def __enter__(self) -> ScanSpill:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+
+class SpilledScan:
+    """A Scan on disk (module docstring): the same attributes, its arrays read on access."""
+
+    __slots__ = ("spill", "file", "camera", "name", "has_alpha", "rgb_dtype")
+
+    def __init__(self, spill: ScanSpill, file: Path, camera, name: str, has_alpha: bool, rgb_dtype):
+        self.spill, self.file, self.camera, self.name = spill, file, camera, name
+        self.has_alpha, self.rgb_dtype = has_alpha, np.dtype(rgb_dtype)
+
+    def load(self) -> Scan:
+        """The Scan itself (in memory)."""
+        return self.spill.load(self)
+
+    @property
+    def rgb(self) -> np.ndarray:
+        return self.load().rgb
+
+    @property
+    def depth(self) -> np.ndarray:
+        return self.load().depth
+
+    @property
+    def alpha(self) -> np.ndarray | None:
+        return self.load().alpha if self.has_alpha else None
+
+    @property
+    def linear_rgb(self) -> np.ndarray:
+        rgb = self.rgb
+        return srgb_to_linear(rgb.astype(np.float32) / 255.0) if rgb.dtype == np.uint8 else rgb
+
+    @property
+    def srgb8(self) -> np.ndarray:
+        rgb = self.rgb
+        return rgb if rgb.dtype == np.uint8 else to_uint8_srgb(rgb)
+
+    @property
+    def valid(self) -> np.ndarray:
+        return self.depth > 0
+
+    def points(self) -> np.ndarray:
+        return self.camera.depth_to_points(self.depth)[0]
+
+
+def spill_for(n_pixels: int, mode: str = "auto", root: str | Path | None = None) -> ScanSpill | None:
+    """The ScanSpill for a capture of ``n_pixels`` pixels over all its frames (None: keep the scans
+    in memory): ``mode`` 'always', 'never' or 'auto' (on disk above SPILL_AUTO_BYTES)."""
+    if mode not in ("auto", "always", "never"):
+        raise ValueError(f"--spill must be auto, always or never, got {mode!r}")
+    if mode == "never" or (mode == "auto" and n_pixels * SCAN_BYTES_PER_PIXEL <= SPILL_AUTO_BYTES):
+        return None
+    return ScanSpill(root)

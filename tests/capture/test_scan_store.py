@@ -1,0 +1,121 @@
+"""Scans spilled to disk (capture.scan_store): read back exactly, a bounded read cache, the same
+model bit for bit as from scans in memory, and the reader / stages handing each scan to ``keep``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture.io import auto_bounds, read_scanset, write_transforms
+from capture.scan import MAX_SAMPLED_POINTS, Scan, ScanSet, sampled_points
+from capture.scan_store import (
+    READ_CACHE_VIEWS,
+    SCAN_BYTES_PER_PIXEL,
+    SPILL_AUTO_BYTES,
+    ScanSpill,
+    SpilledScan,
+    spill_for,
+)
+from tests.scenes import furball_scene, make_scanset, ring_cameras, scan_ring, sphere_scene
+
+
+@pytest.fixture(scope="module")
+def fur():
+    return make_scanset(furball_scene(n=150), ring_cameras(6, 96, 72), noise=0.001, holes=0.05)
+
+
+def _with_alpha(scan: Scan, float_rgb: bool) -> Scan:
+    alpha = (scan.depth > 0).astype(np.float32) * 0.75
+    rgb = scan.linear_rgb if float_rgb else scan.rgb
+    return Scan(rgb, scan.depth, scan.camera, scan.name, alpha)
+
+
+@pytest.mark.parametrize("float_rgb", [False, True])
+def test_spilled_scan_reads_back_exactly(fur, float_rgb):
+    with ScanSpill() as spill:
+        for scan in (fur.scans[0], _with_alpha(fur.scans[1], float_rgb)):
+            sp = spill.keep(scan)
+            assert isinstance(sp, SpilledScan) and spill.keep(sp) is sp  # kept once
+            for attr in ("rgb", "depth", "linear_rgb", "srgb8", "valid"):
+                a, b = getattr(sp, attr), getattr(scan, attr)
+                assert a.dtype == b.dtype
+                np.testing.assert_array_equal(a, b)
+            assert (sp.alpha is None) == (scan.alpha is None)
+            if scan.alpha is not None:
+                np.testing.assert_array_equal(sp.alpha, scan.alpha)
+            np.testing.assert_array_equal(sp.points(), scan.points())
+            assert sp.camera is scan.camera and sp.name == scan.name
+        folder = spill.path
+        assert folder.is_dir()
+    assert not folder.exists()  # removed on leaving ``with``
+    with pytest.raises(RuntimeError, match="closed"):
+        sp.load()
+
+
+def test_read_cache_is_bounded(fur):
+    with ScanSpill() as spill:
+        kept = [spill.keep(s) for s in fur.scans]
+        for sp in kept:
+            _ = sp.depth
+        assert len(spill._cache) == min(READ_CACHE_VIEWS, len(kept))
+        assert sp.load() is sp.load()  # the last read view comes from the cache
+
+
+def test_spill_for_chooses_by_size():
+    small = SPILL_AUTO_BYTES // SCAN_BYTES_PER_PIXEL
+    assert spill_for(small) is None
+    with spill_for(small + 1) as s:
+        assert isinstance(s, ScanSpill)
+    assert spill_for(10 ** 12, "never") is None
+    with spill_for(1, "always") as s:
+        assert isinstance(s, ScanSpill)
+    with pytest.raises(ValueError, match="--spill"):
+        spill_for(1, "sometimes")
+
+
+def test_model_from_spilled_scans_is_the_same(fur):
+    """The whole build (extent, matte, photometric, fusion, RGBz) over spilled scans gives the
+    model built over scans in memory, array for array."""
+    from volume.build import ModelConfig, build_model
+    from volume.pyramid import LoptConfig
+
+    cfg = ModelConfig(lopt=LoptConfig(max_res=32))
+    ref, ref_summary = build_model(fur, cfg)
+    with ScanSpill() as spill:
+        spilled = ScanSet(tuple(spill.keep(s) for s in fur.scans), fur.bounds, fur.metadata)
+        got, summary = build_model(spilled, cfg, keep=spill.keep)
+        for a, b in zip(ref.pyramid.levels, got.pyramid.levels, strict=True):
+            np.testing.assert_array_equal(a.surface, b.surface)
+            if a.values is not None:
+                np.testing.assert_array_equal(a.values, b.values)
+        for n in range(len(ref.rgbz)):
+            for x, y in zip(ref.rgbz.view(n), got.rgbz.view(n), strict=True):
+                np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(ref.mesh_vertices, got.mesh_vertices)
+        np.testing.assert_array_equal(ref.spheres.centers, got.spheres.centers)
+    assert summary["l_opt"] == ref_summary["l_opt"]
+
+
+def test_reader_hands_each_scan_to_keep(tmp_path):
+    ss = make_scanset(sphere_scene(), scan_ring(4, 64, 48))
+    tj = write_transforms(ss, tmp_path / "s", depth_size=(16, 12))
+    ref = read_scanset(tj)
+    assert ref.metadata["depth_size"] == [16, 12]
+    with ScanSpill() as spill:
+        got = read_scanset(tj, keep=spill.keep)
+        assert all(isinstance(s, SpilledScan) for s in got.scans)
+        np.testing.assert_array_equal(got.bounds, ref.bounds)
+        for a, b in zip(got.scans, ref.scans, strict=True):
+            np.testing.assert_array_equal(a.depth, b.depth)
+            np.testing.assert_array_equal(a.rgb, b.rgb)
+
+
+def test_sampled_points_stride(fur):
+    full = sampled_points(fur.scans)
+    assert len(full) == sum(int(np.count_nonzero(s.depth > 0)) for s in fur.scans) and len(full) < MAX_SAMPLED_POINTS
+    part = sampled_points(fur.scans, len(full) // 4)
+    assert len(full) // 8 <= len(part) <= len(full) // 4 + len(fur.scans)  # stride k = ceil(total / max)
+    # a regular sample: the robust box moves by little (metres)
+    lo, hi = np.percentile(full, [0.5, 99.5], axis=0), np.percentile(part, [0.5, 99.5], axis=0)
+    assert np.max(np.abs(lo - hi)) < 0.01
+    assert np.all(np.isfinite(auto_bounds(fur.scans)))
