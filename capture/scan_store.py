@@ -43,6 +43,11 @@ def keep_in_memory(scan: Scan) -> Scan:
     return scan
 
 
+def scan_has_alpha(scan) -> bool:
+    """Whether a Scan or SpilledScan has a matte, without reading a spilled one's arrays."""
+    return scan.has_alpha if isinstance(scan, SpilledScan) else scan.alpha is not None
+
+
 def _crop(a: np.ndarray) -> tuple[np.ndarray, tuple[int, int, int, int]]:
     """(bounding-box crop of the non-zero pixels of a (H, W) map, (y0, x0, H, W))."""
     nz = a != 0

@@ -191,24 +191,23 @@ def run(args, console) -> int:
     capture_env = _capture_env(args)  # before the long build: a bad map fails at once
     with timer.stage("read scans"):
         scanset, views, spill = _read_views(args, progress=lambda it, d: track(it, d))
-    try:  # the spilled scans (capture.scan_store) are needed until the model is built
+    try:  # the spilled scans and crops (capture.scan_store) are needed until the model is written
         keep = spill.keep if spill is not None else None
         res = _working_resolution(scanset, args, timer, keep)
         scanset = res.pop("scanset")
         model, summary = build_model(scanset, cfg, stage=timer.stage, progress=progress,
-                                     provenance={"source": str(args.scans), "frames": args.frames}, keep=keep)
-        summary["spill"] = "disk" if spill is not None else "memory"
+                                     provenance={"source": str(args.scans), "frames": args.frames}, keep=keep,
+                                     work_dir=spill.path if spill is not None else None)
+        summary.update(spill="disk" if spill is not None else "memory", views=views, resolution=res)
+        model = dataclasses.replace(model, params={**model.params, "views": views, "resolution": res})
+        if capture_env is not None:
+            model = _with_capture_env(model, capture_env, scanset, args)
+            summary["capture_env"] = model.capture_env.record()
+        with timer.stage("write"):
+            save_model(model, out)
     finally:
         if spill is not None:
             spill.close()
-    summary["views"] = views
-    summary["resolution"] = res
-    model = dataclasses.replace(model, params={**model.params, "views": views, "resolution": res})
-    if capture_env is not None:
-        model = _with_capture_env(model, capture_env, scanset, args)
-        summary["capture_env"] = model.capture_env.record()
-    with timer.stage("write"):
-        save_model(model, out)
     summary["seconds"] = {k: round(v, 3) for k, v in timer.seconds.items()}
     summary["seconds_total"] = round(time.perf_counter() - t0, 3)
     summary["cpu_seconds"] = {k: round(v, 3) for k, v in timer.cpu_seconds.items()}

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -165,7 +166,7 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, d
 
 
 def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, progress=None,
-                provenance: dict | None = None, keep=None) -> tuple[Model, dict]:
+                provenance: dict | None = None, keep=None, work_dir=None) -> tuple[Model, dict]:
     """Build the Model; returns (model, summary) with the summary keys of ``furrow model --json``.
 
     ``stage(name)`` is a context-manager factory used to time stages (furrow.console.StageTimer);
@@ -201,7 +202,8 @@ def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, pr
         verts, faces = clean_and_decimate(verts, faces, cfg.mesh)
     with stage("rgbz"):
         rgbz, holes = build_rgbz(scanset, verts, faces, mesh_level, cfg.rgbz,
-                                 (lambda it: progress(it, "rgbz")) if progress else None)
+                                 (lambda it: progress(it, "rgbz")) if progress else None,
+                                 Path(work_dir) / "rgbz_crops.npz" if work_dir is not None else None)
     with stage("mesh colour"):
         # view by view: the decoded frames are never stacked
         colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),

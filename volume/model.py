@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -342,7 +343,9 @@ def save_model(model: Model, folder) -> Path:
                 half = lv.resolution > VALUES_FULL_MAX_RES
                 arrays[f"level_{lv.resolution}_values"] = lv.values.astype(np.float16) if half else lv.values
         np.savez_compressed(tmp / "pyramid.npz", **arrays)
-        if model.rgbz.compact:
+        if model.rgbz.crop_file is not None:  # crops streamed to a file while the model was built, or loaded
+            shutil.copyfile(model.rgbz.crop_file, tmp / "rgbz.npz")
+        elif model.rgbz.compact:
             save_crops(tmp / "rgbz.npz", (model.rgbz.encoded(n) for n in range(len(model.rgbz))),
                        model.rgbz.has_alpha)
         else:

@@ -139,16 +139,29 @@ def measured_voxels(points, origin, voxel_size: float, L: int, min_views: int = 
     ``points``: one (M_v, 3) array of world points (metres) per view; points outside the cube are
     ignored.  Sorted by linear index (i major).
     """
-    keys = []
+    return measured_voxels_levels(points, origin, {L: voxel_size}, min_views)[L]
+
+
+def measured_voxels_levels(points, origin, sizes: dict[int, float], min_views: int = MEASURED_MIN_VIEWS) -> dict:
+    """{L: :func:`measured_voxels` of the L^3 grid of voxel size ``sizes[L]``} for every level at
+    once: each view's points are made (a spilled scan read, back-projected) once, not once a level."""
+    origin = np.asarray(origin, np.float64)
+    keys: dict[int, list] = {L: [] for L in sizes}
     for p in points:
-        g = np.floor((np.asarray(p, np.float64).reshape(-1, 3) - np.asarray(origin, np.float64)) / voxel_size)
-        g = g[np.all((g >= 0) & (g < L), axis=1)].astype(np.int64)
-        keys.append(np.unique((g[:, 0] * L + g[:, 1]) * L + g[:, 2]))
-    if not keys:
-        return np.zeros((0, 3), np.int32)
-    k, n = np.unique(np.concatenate(keys), return_counts=True)
-    k = k[n >= max(int(min_views), 1)]
-    return np.stack([k // (L * L), (k // L) % L, k % L], axis=1).astype(np.int32)
+        p = np.asarray(p, np.float64).reshape(-1, 3) - origin
+        for L, w in sizes.items():
+            g = np.floor(p / w)
+            g = g[np.all((g >= 0) & (g < L), axis=1)].astype(np.int64)
+            keys[L].append(np.unique((g[:, 0] * L + g[:, 1]) * L + g[:, 2]))
+    out = {}
+    for L, ks in keys.items():
+        if not ks:
+            out[L] = np.zeros((0, 3), np.int32)
+            continue
+        k, n = np.unique(np.concatenate(ks), return_counts=True)
+        k = k[n >= max(int(min_views), 1)]
+        out[L] = np.stack([k // (L * L), (k // L) % L, k % L], axis=1).astype(np.int32)
+    return out
 
 
 def union_voxels(a: np.ndarray, b: np.ndarray, L: int) -> np.ndarray:
@@ -166,13 +179,14 @@ def build_pyramid(volumes: dict[int, np.ndarray], origin, extent: float, l_opt: 
     at least ``min_views`` scans join each level's surface voxels (module docstring).
     """
     levels = []
-    for L in sorted(volumes):
-        if L > l_opt:
-            continue
+    kept = [L for L in sorted(volumes) if L <= l_opt]
+    measured = measured_voxels_levels(points, origin, {L: extent / L for L in kept}, min_views) \
+        if points is not None else {}
+    for L in kept:
         w = extent / L
         v = np.asarray(volumes[L], np.float32)
         surf = surface_voxels(v, w)
         if points is not None:
-            surf = union_voxels(surf, measured_voxels(points, origin, w, L, min_views), L)
+            surf = union_voxels(surf, measured[L], L)
         levels.append(SdfLevel(L, np.asarray(origin, np.float64), w, surf, v if keep_values else None))
     return SdfPyramid(tuple(levels), l_opt)

@@ -35,8 +35,9 @@ from scipy import ndimage
 
 from capture.raycast import raycast_depth
 from capture.scan import ScanSet
+from capture.scan_store import scan_has_alpha
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
-from volume.rgbz_store import RgbzCrop
+from volume.rgbz_store import CropFile, RgbzCrop, save_crops
 
 #: RgbzConfig.store choices.
 STORES = ("compact", "dense")
@@ -123,9 +124,13 @@ def geometry_depth(verts: np.ndarray, faces: np.ndarray, cam, mesh_depth: str = 
 
 
 def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: SdfLevel,
-               cfg: RgbzConfig | None = None, progress=None) -> tuple[RgbzImages, list[dict]]:
+               cfg: RgbzConfig | None = None, progress=None, crop_file=None) -> tuple[RgbzImages, list[dict]]:
     """RgbzImages for every scan's camera and per-view hole statistics
-    ``[{"view", "holes_before", "holes_after"}]`` (fractions, see :func:`hole_fraction`)."""
+    ``[{"view", "holes_before", "holes_after"}]`` (fractions, see :func:`hole_fraction`).
+
+    ``crop_file`` (a path; compact store only): each view's crop is written there as soon as it is
+    made (volume.rgbz_store.save_crops) and the store reads it back view by view, so the crops of
+    a capture are never all held in memory."""
     cfg = cfg or RgbzConfig()
     cams = [s.camera for s in scanset.scans]
     sizes = {(c.width, c.height) for c in cams}
@@ -135,23 +140,31 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
     dense = cfg.store == "dense"
     W, H = sizes.pop()
     depth = np.zeros((len(cams), H, W), RGBZ_STORAGE) if dense else None
-    with_alpha = any(s.alpha is not None for s in scanset.scans)
-    crops, stats = [], []
-    it = range(len(cams))
-    for n in (progress(it) if progress else it):
-        scan = scanset.scans[n]
-        geo = geometry_depth(verts, faces, cams[n], cfg.mesh_depth)
-        comb = combine_depth(scan.depth, geo, cams[n], level, tol, cfg.keep_measured)
-        before = hole_fraction(comb)
-        closed = close_holes(comb, cfg.closing_px)
-        stats.append({"view": scan.name, "holes_before": before, "holes_after": hole_fraction(closed)})
-        alpha = scan.alpha if scan.alpha is not None or not with_alpha else (closed > 0).astype(np.float32)
-        if dense:
-            depth[n] = closed
-        else:
-            crops.append(RgbzCrop.encode(scan.rgb, closed, alpha))
+    with_alpha = any(scan_has_alpha(s) for s in scanset.scans)
+    stats = []
+
+    def views():
+        it = range(len(cams))
+        for n in (progress(it) if progress else it):
+            scan = scanset.scans[n]
+            geo = geometry_depth(verts, faces, cams[n], cfg.mesh_depth)
+            comb = combine_depth(scan.depth, geo, cams[n], level, tol, cfg.keep_measured)
+            before = hole_fraction(comb)
+            closed = close_holes(comb, cfg.closing_px)
+            stats.append({"view": scan.name, "holes_before": before, "holes_after": hole_fraction(closed)})
+            alpha = scan.alpha if scan.alpha is not None or not with_alpha else (closed > 0).astype(np.float32)
+            if dense:
+                depth[n] = closed
+            else:
+                yield RgbzCrop.encode(scan.rgb, closed, alpha)
+
     if not dense:
-        return RgbzImages.from_crops(cams, crops), stats
+        if crop_file is None:
+            return RgbzImages.from_crops(cams, list(views())), stats
+        save_crops(crop_file, views(), with_alpha)
+        return RgbzImages.from_crops(cams, CropFile(crop_file)), stats
+    for _ in views():
+        pass
     rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
     alpha = np.stack([s.alpha if s.alpha is not None else (depth[n] > 0).astype(np.float32)
                       for n, s in enumerate(scanset.scans)]) if with_alpha else None

@@ -227,6 +227,11 @@ class RgbzImages:
     def __setattr__(self, name, value):
         raise AttributeError(f"RgbzImages is frozen (cannot set {name})")
 
+    @property
+    def crop_file(self) -> Path | None:
+        """The compact rgbz.npz the crops are read from (a CropFile store), else None."""
+        return self._crops.path if isinstance(self._crops, CropFile) else None
+
     @classmethod
     def from_crops(cls, cameras, crops) -> RgbzImages:
         """A compact store: ``crops`` a list of :class:`RgbzCrop` or a :class:`CropFile`."""

@@ -73,17 +73,20 @@ def test_spill_for_chooses_by_size():
         spill_for(1, "sometimes")
 
 
-def test_model_from_spilled_scans_is_the_same(fur):
-    """The whole build (extent, matte, photometric, fusion, RGBz) over spilled scans gives the
-    model built over scans in memory, array for array."""
+def test_model_from_spilled_scans_is_the_same(fur, tmp_path):
+    """The whole build (extent, matte, photometric, fusion, RGBz) over spilled scans, its RGBz crops
+    streamed to a file, gives the model built over scans in memory, array for array, and saves it."""
     from volume.build import ModelConfig, build_model
+    from volume.model import load_model, save_model
     from volume.pyramid import LoptConfig
 
     cfg = ModelConfig(lopt=LoptConfig(max_res=32))
     ref, ref_summary = build_model(fur, cfg)
     with ScanSpill() as spill:
         spilled = ScanSet(tuple(spill.keep(s) for s in fur.scans), fur.bounds, fur.metadata)
-        got, summary = build_model(spilled, cfg, keep=spill.keep)
+        got, summary = build_model(spilled, cfg, keep=spill.keep, work_dir=spill.path)
+        assert got.rgbz.crop_file is not None and ref.rgbz.crop_file is None
+        save_model(got, tmp_path / "m")
         for a, b in zip(ref.pyramid.levels, got.pyramid.levels, strict=True):
             np.testing.assert_array_equal(a.surface, b.surface)
             if a.values is not None:
@@ -94,6 +97,10 @@ def test_model_from_spilled_scans_is_the_same(fur):
         np.testing.assert_array_equal(ref.mesh_vertices, got.mesh_vertices)
         np.testing.assert_array_equal(ref.spheres.centers, got.spheres.centers)
     assert summary["l_opt"] == ref_summary["l_opt"]
+    back = load_model(tmp_path / "m")  # the spill folder is gone; the saved crops are the model's own
+    for n in range(len(ref.rgbz)):
+        for x, y in zip(ref.rgbz.view(n), back.rgbz.view(n), strict=True):
+            np.testing.assert_array_equal(x, y)
 
 
 def test_reader_hands_each_scan_to_keep(tmp_path):

@@ -113,3 +113,17 @@ def test_measured_voxels_need_two_views_and_join_the_surface():
     for lv0, lv1 in zip(p0.levels, p1.levels):
         assert len(lv1.surface) == len(lv0.surface) + 1
         assert (lv1.surface == lv1.resolution - 1).all(axis=1).any()
+
+
+def test_measured_voxels_of_every_level_in_one_pass():
+    """Each view's points are made once for all levels; the voxels equal one pass per level."""
+    from volume.pyramid import measured_voxels, measured_voxels_levels
+
+    rng = np.random.default_rng(3)
+    views = [rng.normal(0.0, 0.05, (4000, 3)) for _ in range(5)]
+    origin, extent = np.array([-0.12, -0.12, -0.12]), 0.24
+    sizes = {L: extent / L for L in (8, 16, 32, 64)}
+    both = measured_voxels_levels(iter(views), origin, sizes, 2)  # a one-shot iterator: one pass
+    for L, w in sizes.items():
+        np.testing.assert_array_equal(both[L], measured_voxels(views, origin, w, L, 2))
+        assert len(both[L]) > 0
