@@ -55,6 +55,8 @@ CROP_PAD = 4
 #: Closed-form matting: regularisation epsilon of the Laplacian and the CG solver's tolerance.
 CF_EPSILON = 1e-7
 CF_RADIUS = 1
+#: Iterations of pymatting's conjugate gradient solve before a view falls back to its depth mask.
+CG_MAX_ITERATIONS = 2000
 #: Trimap values: background, unknown, opaque (pymatting's convention).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
 
@@ -84,7 +86,7 @@ class Matte:
     Attributes:
         alpha: (H, W) float32 straight alpha in [0, 1].
         foreground: (H, W, 3) float32 linear straight colour of the object.
-        method: 'given', 'backdrop' or 'estimate'.
+        method: 'given', 'backdrop' or 'estimate' (+ ' (not converged: depth mask)' when the solve failed).
         unknown_fraction: fraction of the view's pixels the trimap left unknown (0 for 'given').
     """
 
@@ -130,8 +132,13 @@ def _crop(trimap: np.ndarray) -> tuple[slice, slice] | None:
             slice(max(0, xs.min() - CROP_PAD), min(W, xs.max() + CROP_PAD + 1)))
 
 
-def solve_matte(image: np.ndarray, trimap: np.ndarray, method: str, reference: bool = False) -> Matte:
-    """Closed-form alpha + ML foreground of linear ``image`` (H, W, 3) under ``trimap`` on its crop."""
+def solve_matte(image: np.ndarray, trimap: np.ndarray, method: str, reference: bool = False,
+                fallback: np.ndarray | None = None) -> Matte:
+    """Closed-form alpha + ML foreground of linear ``image`` (H, W, 3) under ``trimap`` on its crop.
+    When the solver does not converge (CG_MAX_ITERATIONS; seen on a 1920x1440 phone frame whose
+    unknown band covers a whole pot plant), alpha is ``fallback`` (H, W) (the object's depth mask;
+    default the trimap's opaque pixels) and the method says so: one view's matte must not stop a
+    model."""
     from pymatting import estimate_alpha_cf, estimate_foreground_ml
 
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
@@ -149,9 +156,15 @@ def solve_matte(image: np.ndarray, trimap: np.ndarray, method: str, reference: b
         a = closed_form_alpha_reference(ci, ct)
     else:
         # pymatting prints its preconditioner's warnings on stdout, which holds `furrow model --json`
-        with contextlib.redirect_stdout(io.StringIO()):
-            a = estimate_alpha_cf(ci, ct, laplacian_kwargs={"epsilon": CF_EPSILON, "radius": CF_RADIUS},
-                                  cg_kwargs={"maxiter": 2000})
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                a = estimate_alpha_cf(ci, ct, laplacian_kwargs={"epsilon": CF_EPSILON, "radius": CF_RADIUS},
+                                      cg_kwargs={"maxiter": CG_MAX_ITERATIONS})
+        except ValueError as e:  # pymatting: "Conjugate gradient descent did not converge ..."
+            if "converge" not in str(e):
+                raise
+            a = (np.asarray(fallback)[box] if fallback is not None else ct == FG).astype(np.float64)
+            method = f"{method} (not converged: depth mask)"
     a = np.clip(a, 0.0, 1.0)
     alpha[box] = a
     fg[box] = estimate_foreground_ml(ci, a)
@@ -171,7 +184,9 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
             raise ValueError(f"scan {scan.name!r}: --matte given but the capture has no matte (mask_path / RGBA)")
         a = np.asarray(scan.alpha, np.float32)
         return Matte(a, _foreground(img, a), "given", 0.0)
-    tri = depth_trimap(scan.depth if object_depth is None else object_depth)
+    depth = scan.depth if object_depth is None else object_depth
+    tri = depth_trimap(depth)
+    mask = np.asarray(depth) > 0
     backdrop = None if cfg.backdrop is None else np.asarray(cfg.backdrop, np.float64)
     if cfg.mode == "backdrop" and backdrop is None:
         raise ValueError("--matte backdrop needs --backdrop COLOUR")
@@ -179,8 +194,8 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         backdrop = detect_backdrop(img, tri)
     if backdrop is not None and cfg.mode in ("auto", "backdrop"):
         plain = (np.max(np.abs(np.clip(img, 0, 1) - backdrop), axis=-1) <= BACKDROP_TOL) & (tri == UNKNOWN)
-        return solve_matte(img, np.where(plain, BG, tri), "backdrop")
-    return solve_matte(img, tri, "estimate")
+        return solve_matte(img, np.where(plain, BG, tri), "backdrop", fallback=mask)
+    return solve_matte(img, tri, "estimate", fallback=mask)
 
 
 def _foreground(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:

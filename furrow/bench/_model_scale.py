@@ -58,8 +58,9 @@ def scale_capture(size: str, n: int, data: Path, given: dict[str, Path]) -> Path
 
 
 def run_scale(sizes, counts, before: str, work: Path, data: Path, given: dict[str, Path], run_child, tree_of,
-              root: Path) -> list[dict]:
-    """One row per (variant, size, frames): wall / CPU seconds, peak MiB, model and capture MiB."""
+              root: Path, spill: str | None = None) -> list[dict]:
+    """One row per (variant, size, frames): wall / CPU seconds, peak MiB, model and capture MiB
+    (``spill``: furrow model --spill, None = its default)."""
     import sys
 
     env = {**os.environ, "OMP_WAIT_POLICY": "passive"}
@@ -80,12 +81,13 @@ def run_scale(sizes, counts, before: str, work: Path, data: Path, given: dict[st
             for name, tree in variants:
                 out = work / f"m-{size}-{n}-{name.replace(':', '_').replace(' ', '_')}"
                 cmd = [sys.executable, "-m", "furrow", "model", str(scans), "-o", str(out), "--overwrite", "--json",
-                       "--frames", spec]
+                       "--frames", spec, *(["--spill", spill] if spill else [])]
                 r = run_child(cmd, tree, {**env, "PYTHONPATH": str(tree)})
                 rows.append({"variant": name, "size": size, "frames": len(frames), "wall_s": round(r["wall_s"], 2),
                              "cpu_s": round(r["cpu_s"], 2), "peak_mb": round(r["peak_mb"], 1),
                              "model_mb": round(folder_mb(out), 2), "capture_mb": round(capture_mb(scans, frames), 2),
-                             "stage_peak_mb": r["summary"].get("peak_mb", {}), "l_opt": r["summary"].get("l_opt")})
+                             "stage_peak_mb": r["summary"].get("peak_mb", {}), "l_opt": r["summary"].get("l_opt"),
+                             "spill": r["summary"].get("spill")})
                 print(json.dumps(rows[-1]), flush=True)
     return rows
 
@@ -144,7 +146,7 @@ def scale_main(args, run_child, tree_of, root: Path) -> int:
     work = (args.out / "scale").resolve()
     work.mkdir(parents=True, exist_ok=True)
     rows = run_scale(sizes, counts, args.before if args.before != "reference" else "none", work,
-                     args.out / "data", given, run_child, tree_of, root)
+                     args.out / "data", given, run_child, tree_of, root, getattr(args, "scale_spill", None))
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "model_scale.json").write_text(json.dumps({"rows": rows, "load_average": os.getloadavg()}, indent=1))
     Console(stderr=True, width=200).print(scale_table(rows))

@@ -371,6 +371,8 @@ def main(argv: list[str] | None = None) -> int:
                          " --before git:REF adds that commit's builds)")
     ap.add_argument("--sizes", default="640x480,1280x960,1920x1440", help="--scale: frame sizes WxH")
     ap.add_argument("--frame-counts", default="18,36,72,144", help="--scale: frame counts (subsets of the largest)")
+    ap.add_argument("--scale-spill", choices=["auto", "always", "never"], default=None,
+                    help="--scale: furrow model --spill for every build (default: furrow model's, auto)")
     ap.add_argument("--scale-scans", default=None, metavar="WxH=PATH,...",
                     help="--scale: use these captures instead of synthesising the plant (one per frame size)")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "model")

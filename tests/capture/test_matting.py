@@ -155,3 +155,16 @@ def test_pymatting_closed_form_matches_the_numpy_reference():
     ref = closed_form_alpha_reference(img, tri)
     fast = solve_matte(img, tri, "estimate").alpha
     assert np.abs(fast - ref).max() < 1e-4
+
+
+def test_a_matte_that_does_not_converge_falls_back_to_the_depth_mask(conifer, monkeypatch):
+    """A closed-form solve that stops before converging (seen on a 1920x1440 phone frame) gives that
+    view the object's depth mask and says so, instead of stopping the model."""
+    import capture.matting as M
+
+    scan = _plain(conifer[1][0])  # over the environment: estimated
+    monkeypatch.setattr(M, "CG_MAX_ITERATIONS", 1)
+    m = M.matte_scan(scan, scan.depth, M.MatteConfig(mode="estimate"))
+    assert m.method == "estimate (not converged: depth mask)"
+    np.testing.assert_array_equal(m.alpha, (scan.depth > 0).astype(np.float32))
+    assert m.foreground.shape == scan.rgb.shape and np.all(np.isfinite(m.foreground))
