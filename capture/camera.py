@@ -172,7 +172,8 @@ class Camera:
         if depth.shape != (self.height, self.width):
             raise CameraError(f"depth shape {depth.shape} does not match camera {self.height}x{self.width}")
         mask = np.isfinite(depth) & (depth > 0)
-        uv = self.pixel_grid()[mask]
+        v, u = np.nonzero(mask)  # row-major, as pixel_grid()[mask], without the full grid
+        uv = np.stack([u, v], axis=-1).astype(np.float64)
         return self.unproject(uv, depth[mask]), mask
 
     def footprint(self, depth: float) -> float:
