@@ -188,3 +188,25 @@ def test_model_views_and_output_size(scan_dir, tmp_path, capsys):
     assert "views: 4 of 8 kept" in stderr
     rc, _, stderr = _run(["model", str(scan_dir), "-o", str(tmp_path / "m4"), "--views", "lots"], capsys)
     assert rc != 0 and "--views" in stderr
+
+
+def test_model_spill_gives_the_same_files(scan_dir, tmp_path, capsys, monkeypatch):
+    """--spill always (scans and RGBz crops on disk, capture/scan_store.py) writes the same model
+    files, byte for byte, as --spill never, and removes its temporary folder."""
+    import tempfile
+
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    files = {}
+    for mode in ("never", "always"):
+        out = tmp_path / mode
+        rc, stdout, stderr = _run(["model", str(scan_dir), "-o", str(out), "--max-res", "32", "--json",
+                                   "--spill", mode], capsys)
+        assert rc == 0, stderr
+        assert json.loads(stdout)["spill"] == ("disk" if mode == "always" else "memory")
+        files[mode] = {p.name: p.read_bytes() for p in out.iterdir() if p.suffix == ".npz"}
+    assert set(files["never"]) == {"pyramid.npz", "rgbz.npz", "spheres.npz", "mesh.npz"}
+    for name, data in files["never"].items():
+        assert files["always"][name] == data, name
+    assert not list(scratch.iterdir())  # the spill folder is gone
