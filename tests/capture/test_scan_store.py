@@ -126,3 +126,22 @@ def test_sampled_points_stride(fur):
     lo, hi = np.percentile(full, [0.5, 99.5], axis=0), np.percentile(part, [0.5, 99.5], axis=0)
     assert np.max(np.abs(lo - hi)) < 0.01
     assert np.all(np.isfinite(auto_bounds(fur.scans)))
+
+
+def test_sampled_points_do_not_keep_every_scans_points():
+    """A strided sample of each scan's points must not keep the scan's full point array alive
+    (it did: 9.6 GB on 200 phone frames); the peak stays near one scan's points."""
+    import tracemalloc
+
+    from capture.camera import Camera
+
+    cam = ring_cameras(1, 200, 150)[0]
+    scans = [Scan(np.zeros((150, 200, 3), np.uint8), np.full((150, 200), 0.45, np.float32),
+                  Camera(cam.K, cam.cam_from_world, 200, 150), f"s{i}") for i in range(16)]
+    one = 200 * 150 * 3 * 8  # bytes of one scan's float64 points
+    tracemalloc.start()
+    pts = sampled_points(scans, 1000)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert len(pts) <= 1000 + len(scans)
+    assert peak < 8 * one, (peak, one)  # measured: 4.7x (back-projection temporaries); 19.6x with the views kept
