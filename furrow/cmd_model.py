@@ -96,8 +96,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--spill", choices=["auto", "always", "never"], default="auto",
                    help="where the scans wait between stages (capture/scan_store.py): on disk in a temporary folder, "
                         "read back one view at a time, so that peak memory does not grow with the frames; auto "
-                        "(default) spills when the frames would take over 256 MiB in memory (28 frames at "
-                        "1280x960, 55 at 640x480); the model is the same either way")
+                        "(default) spills when the frames would take over 128 MiB in memory (15 frames at "
+                        "1280x960, 62 at 640x480); the model is the same either way")
     p.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
