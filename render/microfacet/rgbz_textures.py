@@ -20,6 +20,9 @@ from render.crops import view_f16
 
 #: Storage of the RGBz and matte texture arrays (GL "f2").
 RGBZ_DTYPE = np.float16
+#: Largest full-frame texture arrays :func:`layer_textures` makes (bytes): 200 views of 1920x1440
+#: need 5.5 GB, which took llvmpipe past the 23 GB of this machine (the process was killed).
+MAX_LAYER_BYTES = 2 << 30
 
 
 def rgbz_array(rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray | None = None) -> np.ndarray:
@@ -47,6 +50,12 @@ def layer_textures(ctx, rgbz, depth=None, dtype: str = "f2", on_view=None):
     texels)`` (optional) sees each layer's (H, W, 4) float32 texels as computed (before storage)."""
     n = len(rgbz)
     W, H = rgbz.size
+    need = n * W * H * (4 * (2 if dtype == "f2" else 4) + (2 if rgbz.has_alpha else 0))
+    if need > MAX_LAYER_BYTES:
+        raise ValueError(f"this method keeps every view as a full {W}x{H} texture layer: {n} views need "
+                         f"{need / 2 ** 30:.1f} GiB (limit {MAX_LAYER_BYTES / 2 ** 30:.0f}); render with --method "
+                         "gather or points (they upload the crops around the object), or build the model with fewer or "
+                         "smaller views (furrow model --views N, --output-size WxH)")
     tex = ctx.texture_array((W, H, max(n, 1)), 4, None, dtype=dtype)
     matte = ctx.texture_array((W, H, max(n, 1)), 1, None, dtype="f2") if rgbz.has_alpha else None
     for i in range(n):
