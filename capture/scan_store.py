@@ -34,7 +34,7 @@ READ_CACHE_VIEWS = 4
 #: ``--spill auto``: scans go to disk when the capture's frames would take more than this in memory
 #: (8-bit colour + float32 depth per pixel, counted over every frame: 128 MiB is 62 frames at 640x480,
 #: 15 at 1280x960).  The matte stage's float foregrounds are 3x that again: a 72-view 1280x960 plant
-#: peaked at 5.3 GB in memory and 1.6 GB spilled, with the same model; an 18-view 1280x960 one at
+#: peaked at 5.3 GB in memory and 1.2 GB spilled, with the same model; an 18-view 1280x960 one at
 #: 1.66 GB in memory against 1.08 GB for 36 views spilled (furrow bench model --scale).
 SPILL_AUTO_BYTES = 1 << 27
 #: Bytes per pixel of a Scan read from an 8-bit image with depth (3 colour + 4 depth).
