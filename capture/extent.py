@@ -40,6 +40,7 @@ import numpy as np
 
 from capture.orbit import closest_point_to_axes, estimate_up
 from capture.scan import Scan, ScanSet, bounds_from_points, sampled_points
+from capture.scan_store import keep_in_memory
 
 #: Removal reasons, in the order they are decided.
 REASONS = ("support", "far", "outside", "floaters")
@@ -275,7 +276,7 @@ def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None, keep=
     Views are labelled one at a time (twice with the floater test); ``keep`` takes each changed
     scan (capture.scan_store)."""
     cfg = cfg or ExtentConfig()
-    keep = keep or (lambda scan: scan)
+    keep = keep or keep_in_memory
     cams = scanset.cameras
     up = estimate_up(cams)
     center, radius = focus_region(cams, cfg.focus_margin)

@@ -311,8 +311,9 @@ def read_transforms(path: Path, frames: str | None = None, progress=None,
     """Read a nerfstudio transforms.json scan set (module docstring; ``undistort``: capture.lens;
     ``keep``: where each scan goes once read, capture.scan_store -- in memory by default)."""
     from capture.scan import select_indices
+    from capture.scan_store import keep_in_memory
 
-    keep = keep or (lambda scan: scan)
+    keep = keep or keep_in_memory
     tj = resolve_transforms(path)
     meta = _load_json(tj)
     cams = read_cameras(tj, undistort)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
+from capture.scan_store import keep_in_memory
 
 #: Gauge choices besides a view name.
 GAUGES = ("median", "mean")
@@ -358,7 +359,7 @@ def apply_gains(scans, gains: np.ndarray, keep=None) -> tuple[Scan, ...]:
     """The scans with their linear colour multiplied by ``gains`` (V, 3); 8-bit sRGB stays 8-bit
     (re-encoded, clipped), float linear stays float; a view with gain exactly 1 is untouched.
     ``keep`` takes each new scan (capture.scan_store)."""
-    keep = keep or (lambda scan: scan)
+    keep = keep or keep_in_memory
     out = []
     for s, g in zip(scans, np.asarray(gains, np.float64), strict=True):
         if np.all(g == 1.0):

@@ -195,6 +195,16 @@ def upsample_depth_reference(depth: np.ndarray, guide: np.ndarray) -> np.ndarray
     return out
 
 
+def nearest_depth(depth: np.ndarray, W: int, H: int) -> np.ndarray:
+    """(H, W) ``depth`` resampled by the nearest source pixel to each target pixel centre (a
+    measured value, never a blend across an edge): the working scale's depth (volume.views) and the
+    fusion maps at a phone depth's measured size (volume.stream)."""
+    h, w = np.asarray(depth).shape
+    xi = np.minimum(((np.arange(W) + 0.5) * (w / W)).astype(np.int64), w - 1)
+    yi = np.minimum(((np.arange(H) + 0.5) * (h / H)).astype(np.int64), h - 1)
+    return np.asarray(depth)[yi[:, None], xi[None, :]]
+
+
 def confidence_levels(conf: np.ndarray) -> np.ndarray:
     """Confidence image -> float in [0, 1]: ARKit levels 0/1/2 when the maximum is <= 2, else value / 255."""
     c = np.asarray(conf)

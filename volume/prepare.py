@@ -23,6 +23,7 @@ import numpy as np
 from capture.extent import ExtentConfig, remove_surroundings
 from capture.matting import MatteConfig, matte_scan, warm_up
 from capture.scan import Scan, ScanSet
+from capture.scan_store import keep_in_memory
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ def prepare_scans(scanset: ScanSet, cfg: PrepareConfig | None = None, stage=None
     """(scan set ready for fusion, record for model.json / the console) (module docstring).
     Views are worked on one at a time; ``keep`` takes each new scan (capture.scan_store)."""
     cfg = cfg or PrepareConfig()
-    keep = keep or (lambda scan: scan)
+    keep = keep or keep_in_memory
     stage = stage or (lambda name: contextlib.nullcontext())
     record: dict = {}
     if cfg.extent:

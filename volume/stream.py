@@ -21,11 +21,11 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from capture.resample import nearest_depth
 from capture.scan import Scan
 from volume.fusion import BILATERAL_DIAMETER, SILHOUETTE_PX, scan_maps
 from volume.fusion_jit import PackedMaps, empty_records, write_records
 from volume.rgbz_store import bbox
-from volume.views import nearest_depth
 
 #: Pixels of no depth kept around a scan's depth pixels (module docstring: at least the reach
 #: of the bilateral filter, of the no-return flag and of the normals, plus one).

@@ -115,21 +115,13 @@ def working_scale(footprints, output_size: tuple[int, int] | None) -> tuple[floa
     return float(s), {"scale": float(s), "reason": why, "footprint_px": med, "needed_px": need}
 
 
-def nearest_depth(depth: np.ndarray, W: int, H: int) -> np.ndarray:
-    """(H, W) ``depth`` resampled by the nearest source pixel to each target pixel centre (a
-    measured value, never a blend across an edge)."""
-    h, w = np.asarray(depth).shape
-    xi = np.minimum(((np.arange(W) + 0.5) * (w / W)).astype(np.int64), w - 1)
-    yi = np.minimum(((np.arange(H) + 0.5) * (h / H)).astype(np.int64), h - 1)
-    return np.asarray(depth)[yi[:, None], xi[None, :]]
-
-
 def scaled_scan(scan, s: float):
     """``scan`` resampled by ``s`` <= 1: colour (and alpha) by area averaging (OpenCV INTER_AREA),
     depth by the nearest source pixel (a measured value, never a blend across an edge), the
     camera by Camera.scaled (pixel centres exact)."""
     import cv2
 
+    from capture.resample import nearest_depth
     from capture.scan import Scan
 
     if s >= 1:
@@ -150,6 +142,8 @@ def scaled_scanset(scanset, s: float, keep=None):
 
     if s >= 1:
         return scanset
-    keep = keep or (lambda scan: scan)
+    from capture.scan_store import keep_in_memory
+
+    keep = keep or keep_in_memory
     return ScanSet(tuple(keep(scaled_scan(x, s)) for x in scanset.scans), scanset.bounds,
                    {**scanset.metadata, "working_scale": s})
