@@ -29,7 +29,10 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
                         "lighting, on black; with --env the same map lights the object, the background, the "
                         "ground shadow and the glare (--relight alone then takes the --env map)")
     g.add_argument("--relight-kernel", default=None, metavar="NAME",
-                   help="transfer kernel of the relighting: wrap (default), lambert, fur, half-lambert")
+                   help="transfer of the relighting: auto (default: the kernel and the forward scattering that best "
+                        "explain the model's own capture views under the capture lighting, fitted in a second or two; "
+                        "docs/relight.md), or a fixed kernel: wrap, lambert, fur, half-lambert, or mix:W0,W1,W2,W3 "
+                        "(weights of lambert, wrap, half-lambert, uniform)")
     g.add_argument("--relight-strands", action="store_true",
                    help="strand-aware relighting: strand tangents from the capture views and a fibre transfer where "
                         "the capture looks like fur or needles (docs/relight.md; measured within 0.2 dB of the default "
@@ -67,4 +70,13 @@ def open_relighter(args, ctx, model, stack):
     env = named_envmap(name, args.env_convention, args.env_rotation)
     cfg = RelightConfig(**({"kernel": args.relight_kernel} if args.relight_kernel else {}),
                         visibility=args.relight_visibility, strands=args.relight_strands)
-    return stack.enter_context(Relighter.from_model(ctx, model, env, cfg))
+    rel = stack.enter_context(Relighter.from_model(ctx, model, env, cfg))
+    from furrow.console import console
+
+    if rel.fit is not None:
+        console.print(f"relighting transfer fitted to the capture views: kernel {rel.fit.kernel}, forward scattering "
+                      f"{rel.fit.forward:g} (g {rel.fit.forward_g:g}), from {rel.fit.samples} (voxel, view) cells in "
+                      f"{rel.setup_seconds.get('fit', 0):.1f} s")
+    elif rel.fit_note:
+        console.print(f"[yellow]relighting: {rel.fit_note}[/yellow]")
+    return rel

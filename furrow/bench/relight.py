@@ -172,6 +172,9 @@ def bench_pair(ctx, model, split, frames, scans: Path, relit: str, configs: dict
                 cpu.append(rel.last_cpu_ms)
             row[name] = {**score(refs, imgs, frames), "apply_ms": float(np.median(ms)),
                          "apply_cpu_ms": float(np.median(cpu)), "setup_s": dict(rel.setup_seconds)}
+            if rel.fit is not None:  # kernel auto: what the capture chose
+                row[name]["fit"] = {"kernel": rel.fit.kernel, "forward": rel.fit.forward,
+                                    "forward_g": rel.fit.forward_g, "score": rel.fit.score}
             relit_imgs[name] = imgs
             if name == next(iter(configs)):
                 row["oracle"], row["oracle_gain"] = _oracle(rel, refs, split.held, frames, g)

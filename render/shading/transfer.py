@@ -65,7 +65,45 @@ def _wrap(c):
     return np.maximum(c + 0.5, 0.0) / 1.5
 
 
+def _uniform(c):
+    return np.ones_like(np.asarray(c, np.float64))
+
+
 KERNELS = {"lambert": _lambert, "fur": _strand, "half-lambert": _half_lambert, "wrap": _wrap}
+#: The basis of a mixed kernel ``mix:w0,w1,w2,w3`` = sum w_j K_j (``render.relight.calibrate`` fits the
+#: weights to the capture): "uniform" is K = 1, light from everywhere alike (the single gain's transfer).
+#: GLSL: RELIGHT_KERNEL = len(KERNELS) with the weights injected as RELIGHT_KERNEL_W.
+MIX_BASIS = {"lambert": _lambert, "wrap": _wrap, "half-lambert": _half_lambert, "uniform": _uniform}
+MIX_PREFIX = "mix:"
+
+
+def mix_kernel(weights) -> str:
+    """The kernel name of the mixture with these (len(MIX_BASIS),) weights >= 0 (not all 0)."""
+    w = np.asarray(weights, np.float64).reshape(-1)
+    if w.shape != (len(MIX_BASIS),) or np.any(w < 0) or not w.sum() > 0 or not np.all(np.isfinite(w)):
+        raise ValueError(f"mix kernel: need {len(MIX_BASIS)} weights >= 0, not all 0, got {w.tolist()}")
+    return MIX_PREFIX + ",".join(f"{x:.6g}" for x in w)
+
+
+def mix_weights(kernel: str) -> np.ndarray:
+    """(len(MIX_BASIS),) weights of a ``mix:`` kernel name (ValueError if malformed)."""
+    try:
+        w = np.array([float(x) for x in kernel[len(MIX_PREFIX):].split(",")])
+    except ValueError:
+        w = np.zeros(0)
+    mix_kernel(w)  # validates
+    return w
+
+
+def kernel_fn(kernel: str):
+    """K(c) of a kernel name: one of :data:`KERNELS` or ``mix:w0,..`` over :data:`MIX_BASIS`."""
+    if kernel in KERNELS:
+        return KERNELS[kernel]
+    if isinstance(kernel, str) and kernel.startswith(MIX_PREFIX):
+        w = mix_weights(kernel)
+        return lambda c: sum(wj * f(c) for wj, f in zip(w, MIX_BASIS.values()) if wj)
+    raise ValueError(f"unknown relighting kernel {kernel!r}; use one of {', '.join(KERNELS)}, auto "
+                     f"(fitted to the capture) or {MIX_PREFIX}w0,w1,w2,w3 over {', '.join(MIX_BASIS)}")
 #: Kernel of the relighting unless told otherwise (measured best of the four on the fur ball and
 #: the plant, docs/relight.md).
 DEFAULT_KERNEL = "wrap"
@@ -119,8 +157,7 @@ class RelightLighting:
         k = len(np.asarray(self.lams).reshape(-1))
         if np.asarray(self.axes).shape != (k, 3) or np.asarray(self.mus).shape != (k, 3):
             raise ValueError(f"RelightLighting: axes and mus must be ({k}, 3)")
-        if self.kernel not in KERNELS:
-            raise ValueError(f"unknown relighting kernel {self.kernel!r}; use one of {', '.join(KERNELS)}")
+        kernel_fn(self.kernel)
 
 
 def world_to_env(up) -> np.ndarray:
@@ -131,16 +168,15 @@ def world_to_env(up) -> np.ndarray:
 def kernel_integral(kernel: str) -> float:
     """Integral of the kernel over the sphere (pi for lambert, pi^2 for fur): 2 pi int K(c) dc."""
     c = (np.arange(20000) + 0.5) / 20000 * 2 - 1
-    return float(2 * np.pi * KERNELS[kernel](c).mean() * 2)
+    return float(2 * np.pi * kernel_fn(kernel)(c).mean() * 2)
 
 
 def transfer_table(env: EnvMap, kernel: str, h: int = TRANSFER_TABLE_H) -> np.ndarray:
     """(h, 2h, 3) float32 E_K(n) = sum_w K(n.w) L(w) Omega(w) at the pixel-centre directions of an
     (h, 2h) map, on ``env`` area-resampled to h rows."""
-    if kernel not in KERNELS:
-        raise ValueError(f"unknown relighting kernel {kernel!r}; use one of {', '.join(KERNELS)}")
+    fn = kernel_fn(kernel)
     src = env.resized(int(h))
-    return np.maximum(convolve_zonal(src, KERNELS[kernel], np.pi, normalise=False), 0).astype(np.float32)
+    return np.maximum(convolve_zonal(src, fn, np.pi, normalise=False), 0).astype(np.float32)
 
 
 def relight_lighting(env: EnvMap, up=(0.0, 0.0, 1.0), kernel: str = DEFAULT_KERNEL, k: int = RELIGHT_SG_K,
@@ -194,7 +230,7 @@ def forward_transfer(lighting: RelightLighting, normals, views, g: float = FORWA
     v = np.asarray(views, np.float64).reshape(-1, 3)
     ax = np.asarray(lighting.axes, np.float64)
     power = np.asarray(lighting.mus, np.float64) * sg_integral(np.asarray(lighting.lams, np.float64))[:, None]
-    w = KERNELS[lighting.kernel](n @ ax.T) * henyey_greenstein(-(v @ ax.T), g)
+    w = kernel_fn(lighting.kernel)(n @ ax.T) * henyey_greenstein(-(v @ ax.T), g)
     return w @ power
 
 

@@ -4,7 +4,8 @@
 // lookup at u_to_env * n), K SG lobes in world coordinates, its reference transfer. Spheres for the
 // SSDF: the SSBO of shading_ssdf.glsl (u_ssdf_count = 0: no visibility).
 // Injected: MAX_SG (lobes per lighting), RELIGHT_MIN_GRADIENT (MIN_GRADIENT), RELIGHT_KERNEL
-// (0 lambert, 1 fur, 2 half-lambert, 3 wrap: KERNELS), RELIGHT_FORWARD_G (FORWARD_G).
+// (0 lambert, 1 fur, 2 half-lambert, 3 wrap: KERNELS; 4 a mix, its weights RELIGHT_KERNEL_W, a vec4),
+// RELIGHT_FORWARD_G (FORWARD_G).
 #include "shading_envmap.glsl"
 #include "shading_sg.glsl"
 #include "shading_ssdf.glsl"
@@ -44,8 +45,12 @@ float relight_kernel(float c) {
 #elif RELIGHT_KERNEL == 2
     float h = 0.5 * (clamp(c, -1.0, 1.0) + 1.0);
     return h * h;
-#else
+#elif RELIGHT_KERNEL == 3
     return max(c + 0.5, 0.0) / 1.5;
+#else
+    // mix: weights of lambert, wrap, half-lambert, uniform (transfer.MIX_BASIS)
+    float h = 0.5 * (clamp(c, -1.0, 1.0) + 1.0);
+    return dot(RELIGHT_KERNEL_W, vec4(max(c, 0.0), max(c + 0.5, 0.0) / 1.5, h * h, 1.0));
 #endif
 }
 

@@ -155,3 +155,25 @@ def test_forward_scattering_lights_back_lit_fur():
     assert back[0, 0] > 5 * front[0, 0]
     t0 = rl.transfer(np.zeros((1, 3)), n, lt)
     np.testing.assert_allclose(rl.transfer(np.zeros((1, 3)), n, lt, views=np.array([[-1.0, 0, 0]]), forward=0.0), t0)
+
+
+def test_mixed_kernel_is_the_weighted_sum_of_its_basis():
+    """A ``mix:`` kernel's table, forward transfer and reference are the weighted sums of its basis
+    kernels' (transfers are linear in the kernel), and malformed weights are refused."""
+    env = _sky()
+    w = [0.1, 0.2, 0.3, 0.4]
+    lt = rl.relight_lighting(env, kernel=rl.mix_kernel(w), k=4)
+    parts = [rl.relight_lighting(env, kernel=rl.mix_kernel(np.eye(4)[j]), fit=None, k=4) for j in range(4)]
+    np.testing.assert_allclose(lt.table, sum(wj * p.table for wj, p in zip(w, parts)), rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(lt.reference, sum(wj * p.reference for wj, p in zip(w, parts)), rtol=1e-6)
+    n, v = fibonacci_directions(32), _unit(np.roll(fibonacci_directions(32), 5, axis=0))
+    np.testing.assert_allclose(rl.forward_transfer(lt, n, v),
+                               sum(wj * rl.forward_transfer(p, n, v) for wj, p in zip(w, parts)), rtol=1e-9)
+    # the uniform basis kernel: the same transfer at every orientation (4 pi x the mean radiance)
+    uni = parts[3].table.reshape(-1, 3)
+    np.testing.assert_allclose(uni, np.broadcast_to(4 * np.pi * parts[3].mean, uni.shape), rtol=2e-3)
+    for bad in ([0, 0, 0, 0], [1, -1, 0, 0], [1, 1, 1]):
+        with pytest.raises(ValueError, match="mix kernel"):
+            rl.mix_kernel(bad)
+    with pytest.raises(ValueError, match="kernel"):
+        rl.kernel_fn("mix:1,x,0,0")
