@@ -50,7 +50,9 @@ def test_render_relight(relightable, tmp_path, capsys):
     base = ["render", str(lit), "--cameras", str(scans), "--frames", "1", "--method", "microfacet",
             "--supersample", "1"]
     assert main(base + ["-o", str(tmp_path / "a")]) == 0
+    capsys.readouterr()
     assert main(base + ["--relight", "sunset", "-o", str(tmp_path / "b")]) == 0
+    assert "relighting transfer fitted to the capture views: kernel mix:" in " ".join(capsys.readouterr().err.split())
     assert main(base + ["--relight", "sunset", "--relight-visibility", "--relight-kernel", "lambert",
                         "-o", str(tmp_path / "v")]) == 0
     assert main(base + ["--relight", "--env", "sunset", "--ground", "-o", str(tmp_path / "c")]) == 0
@@ -75,6 +77,8 @@ def test_render_relight(relightable, tmp_path, capsys):
     assert main(["render", str(plain), "--cameras", str(scans), "--relight", "sunset", "-o", str(tmp_path / "e")]) == 1
     err = " ".join(capsys.readouterr().err.split())  # the console wraps long lines
     assert "cannot be relit" in err and "--capture-env" in err and err.count("error:") == 1
+    assert main(base + ["--relight", "sunset", "--relight-kernel", "mix:1,2", "-o", str(tmp_path / "f")]) == 1
+    assert "mix kernel" in " ".join(capsys.readouterr().err.split())
 
 
 def test_capture_lighting_from_photos(tmp_path):
