@@ -65,10 +65,10 @@ class RelightConfig:
     """Knobs of the relighting (defaults measured in ``furrow bench relight``)."""
 
     #: Transfer kernel: "auto" (default): kernel, forward and forward_g fitted to the model's own capture
-    #: views (render.relight.calibrate; measured +0.4 dB on average over the fixed wrap transfer on our five
-    #: relit pairs, docs/relight.md; forward and forward_g given here are then replaced, and a model whose
-    #: views cannot be fitted keeps render.shading.transfer.DEFAULT_KERNEL with them); or one of
-    #: render.shading.transfer.KERNELS, or a ``mix:w0,w1,w2,w3`` over its MIX_BASIS.
+    #: views (render.relight.calibrate; measured +0.48 dB on average over the fixed wrap transfer on seven
+    #: relit pairs of our fur balls and plants, docs/relight.md); forward and forward_g given here are then
+    #: replaced, and a model whose views cannot be fitted keeps render.shading.transfer.DEFAULT_KERNEL with
+    #: them.  Or one of render.shading.transfer.KERNELS, or a ``mix:w0,w1,w2,w3`` over its MIX_BASIS.
     kernel: str = "auto"
     #: SG lobes fitted to each environment (visible share, forward scattering).
     sg_lobes: int = rl.RELIGHT_SG_K
