@@ -35,9 +35,9 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
                         "(weights of lambert, wrap, half-lambert, uniform)")
     g.add_argument("--relight-strands", action="store_true",
                    help="strand-aware relighting: strand tangents from the capture views and a fibre transfer where "
-                        "the capture looks like fur or needles (docs/relight.md; measured -0.25 to +0.23 dB on top of the "
-                        "default transfer on our fur balls and plants, no better on the whole, so off by default); "
-                        "adds a second or two of setup")
+                        "the capture looks like fur or needles (docs/relight.md; measured -0.25 to +0.23 dB on top "
+                        "of the default transfer on our fur balls and plants, no better on the whole, so off by "
+                        "default); adds a second or two of setup")
     g.add_argument("--relight-visibility", action="store_true",
                    help="self-visibility from the model's sphere set (SSDF): for concave solids; adds seconds of setup")
 
