@@ -370,3 +370,16 @@ def densified(model: Model) -> Model:
 
     r = model.rgbz
     return replace(model, rgbz=RgbzImages(r.rgb, r.depth, r.cameras, r.alpha))
+
+
+def sun_sky_env(h: int = 32, sun=(0.6, -0.3, 0.75), ambient: float = 0.3, sky: float = 0.2, power: float = 40.0,
+                sharpness: float = 60.0):
+    """An (h, 2h) EnvMap of a bluish sky (``ambient`` + ``sky`` x the elevation's sine above the horizon) and a
+    warm sun of peak ``power`` at direction ``sun``, falling off as exp(sharpness (cos - 1))."""
+    from render.shading.envmap import EnvMap
+
+    d = EnvMap(np.zeros((h, 2 * h, 3), np.float32)).pixel_directions()
+    s = np.asarray(sun, np.float64) / np.linalg.norm(sun)
+    blue = ambient + sky * np.maximum(d[..., 2:3], 0) * np.array([0.6, 0.8, 1.0])
+    disc = power * np.exp(sharpness * (d @ s - 1))[..., None] * np.array([1.0, 0.9, 0.7])
+    return EnvMap((blue + disc).astype(np.float32), "sun")

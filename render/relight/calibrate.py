@@ -129,12 +129,18 @@ def simplex_weights(n: int, steps: int = WEIGHT_STEPS) -> np.ndarray:
     return np.asarray(out, np.float64) / steps
 
 
-def _basis(samples: CaptureSamples, env, up, fit):
-    """Per basis kernel: luminance of E_j at the samples (P,), of F_j,g per g (G, P), of the reference."""
+def _basis(samples: CaptureSamples, env, up, fit, basis):
+    """Per kernel of MIX_BASIS: luminance of E_j at the samples (P,), of F_j,g per g (G, P), of the
+    reference; zeros for the kernels not in ``basis`` (no candidate weighs them)."""
     lum_e, lum_f, refs = [], [], []
     ok = np.linalg.norm(samples.normals, axis=1) > 0.5
     n = np.where(ok[:, None], samples.normals, np.array([0.0, 0.0, 1.0]))
     for name in rl.MIX_BASIS:
+        if name not in basis:
+            lum_e.append(np.zeros(len(n)))
+            lum_f.append(np.zeros((len(FORWARD_GS), len(n))))
+            refs.append(0.0)
+            continue
         lt = rl.relight_lighting(env, up, rl.mix_kernel([float(k == name) for k in rl.MIX_BASIS]), fit=fit)
         lum_e.append(rl.unoccluded_transfer(lt, n) @ LUMA)
         lum_f.append([rl.forward_transfer(lt, n, samples.views, g) @ LUMA for g in FORWARD_GS])
@@ -143,8 +149,8 @@ def _basis(samples: CaptureSamples, env, up, fit):
 
 
 def _cells(samples: CaptureSamples, use, origin, side: float):
-    """(cell of each used sample, voxel of each cell): the samples grouped by (voxel, view), keeping
-    the cells of voxels that at least two views saw with MIN_GROUP_SAMPLES pixels each."""
+    """(cell of each used sample, voxel of each cell, which cells count): the samples grouped by (voxel,
+    view); a cell counts when it has MIN_GROUP_SAMPLES pixels and its voxel has two or more such cells."""
     vox = _groups(samples.points[use], np.asarray(origin, np.float64), float(side), GROUP_RES)
     nv = int(samples.view_index.max()) + 1
     cell_key = vox * nv + samples.view_index[use]
@@ -170,7 +176,7 @@ def fit_transfer(samples: CaptureSamples, env, up, origin, side: float, fit=None
     from render.shading.sg_fit import fit_env_sg
 
     fit = fit_env_sg(env, rl.RELIGHT_SG_K) if fit is None else fit
-    e, f, refs, ok = _basis(samples, env, up, fit)
+    e, f, refs, ok = _basis(samples, env, up, fit, basis)
     y = samples.luminance
     floor = LOG_FLOOR * max(float(np.median(y[y > 0])) if np.any(y > 0) else 1.0, 1e-12)
     use = ok & (y > 0)

@@ -156,6 +156,7 @@ class Relighter(GLOwner):
         #: ``fit_note``: why there is none although "auto" was asked for ("" otherwise).
         self.fit = None
         self.fit_note = ""
+        self._capture_sg = None  # the capture map's SG fit, made once when the transfer is fitted
         if self.config.kernel == AUTO_KERNEL:
             self._calibrate(capture_env)
         kernel = self.config.kernel
@@ -185,7 +186,7 @@ class Relighter(GLOwner):
         self._tables = (None, None)
         #: (L, L, L, 6) float32 visible shares (S_A rgb, S_B rgb) of the last share pass.
         self.share_volume = None
-        self.capture = self._lighting(capture_env, "capture")
+        self.capture = self._lighting(capture_env, "capture", self._capture_sg)
         self.new = self._lighting(new_env, "new")
         #: The strands' field and fitted colours (None with config.strands False), the lightings (A, B) of
         #: the strand transfer.
@@ -217,9 +218,9 @@ class Relighter(GLOwner):
         tex.repeat_x = tex.repeat_y = tex.repeat_z = False
         return tex
 
-    def _lighting(self, env: EnvMap, label: str) -> rl.RelightLighting:
+    def _lighting(self, env: EnvMap, label: str, fit=None) -> rl.RelightLighting:
         t0 = time.perf_counter()
-        lt = rl.relight_lighting(env, self.up, self.config.kernel, self.config.sg_lobes)
+        lt = rl.relight_lighting(env, self.up, self.config.kernel, self.config.sg_lobes, fit=fit)
         self.setup_seconds[label] = time.perf_counter() - t0
         return lt
 
@@ -227,12 +228,15 @@ class Relighter(GLOwner):
         """Kernel "auto": the transfer that best explains the model's capture views under the capture
         lighting (``render.relight.calibrate``) replaces the config's kernel, forward weight and phase."""
         from render.relight.calibrate import capture_samples, fit_transfer
+        from render.shading.sg_fit import fit_env_sg
 
         t0 = time.perf_counter()
+        self._capture_sg = fit_env_sg(capture_env, self.config.sg_lobes)
         try:
             samples = capture_samples(self.model.rgbz, lambda x: unit_normals(sdf_gradient(self.smooth, x)))
             self.fit = fit_transfer(samples, capture_env, self.up, self.raw.origin,
-                                    self.raw.voxel * self.raw.resolution, regularise=self.config.regularise)
+                                    self.raw.voxel * self.raw.resolution, fit=self._capture_sg,
+                                    regularise=self.config.regularise)
         except ValueError as e:  # too few capture pixels to tell: the fixed default transfer
             self.fit_note = f"{e}; relighting with the fixed {rl.DEFAULT_KERNEL} transfer"
             self.config = replace(self.config, kernel=rl.DEFAULT_KERNEL)

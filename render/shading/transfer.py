@@ -104,8 +104,9 @@ def kernel_fn(kernel: str):
         return lambda c: sum(wj * f(c) for wj, f in zip(w, MIX_BASIS.values()) if wj)
     raise ValueError(f"unknown relighting kernel {kernel!r}; use one of {', '.join(KERNELS)}, auto "
                      f"(fitted to the capture) or {MIX_PREFIX}w0,w1,w2,w3 over {', '.join(MIX_BASIS)}")
-#: Kernel of the relighting unless told otherwise (measured best of the four on the fur ball and
-#: the plant, docs/relight.md).
+#: The fixed kernel of the relighting before issue 23 (measured best of the four on the fur ball and
+#: the plant, docs/relight.md); since then the fallback when a capture cannot be fitted
+#: (render.relight.calibrate) and the default of relight_lighting.
 DEFAULT_KERNEL = "wrap"
 #: Rows of the transfer table (h, 2h) and of the map it is computed from (the irradiance table's
 #: h = 64 is within 1.1 % of the brute-force integral: render.shading.irradiance).

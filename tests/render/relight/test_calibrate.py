@@ -1,24 +1,24 @@
 """The relighting transfer fitted to the capture (render.relight.calibrate): colours made by a known
-transfer times a per-voxel colour must give that transfer back, and kernel "auto" runs end to end."""
+transfer times a per-voxel colour must give that transfer back (kernel "auto" through the GL pass:
+test_relight.py::test_auto_kernel_twin)."""
 
 from __future__ import annotations
+
+from functools import partial
 
 import numpy as np
 
 from render.relight import calibrate as cb
 from render.shading import transfer as rl
 from render.shading.envmap import EnvMap
+from tests import scenes as scene
 
 #: Multiplicative noise on the synthetic capture colours (sensor noise, 2 %).
 NOISE = 0.02
 
 
-def _sun_sky(h=32, sun=(0.6, -0.3, 0.5)):
-    d = EnvMap(np.zeros((h, 2 * h, 3), np.float32)).pixel_directions()
-    s = np.asarray(sun) / np.linalg.norm(sun)
-    sky = 0.2 + 0.3 * np.maximum(d[..., 2:3], 0) * np.array([0.6, 0.8, 1.0])
-    sun_disc = 30 * np.exp(40 * (d @ s - 1))[..., None] * np.array([1.0, 0.9, 0.7])
-    return EnvMap((sky + sun_disc).astype(np.float32), "sun")
+#: The capture / new maps of these tests: a softer, wider sun than tests.scenes' default.
+_sun_sky = partial(scene.sun_sky_env, sun=(0.6, -0.3, 0.5), ambient=0.2, sky=0.3, power=30.0, sharpness=40.0)
 
 
 def _capture(kernel: str, beta: float, g: float, env: EnvMap, seed: int = 0) -> cb.CaptureSamples:

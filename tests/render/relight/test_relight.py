@@ -25,12 +25,7 @@ SHARE_FLIP_SHARE = 0.005
 APPLY_RTOL = 1e-3
 
 
-def _sun_sky(h=32, sun=(0.6, -0.3, 0.75)):
-    d = EnvMap(np.zeros((h, 2 * h, 3), np.float32)).pixel_directions()
-    s = np.asarray(sun) / np.linalg.norm(sun)
-    sky = 0.3 + 0.2 * np.maximum(d[..., 2:3], 0) * np.array([0.6, 0.8, 1.0])
-    sun_disc = 40 * np.exp(60 * (d @ s - 1))[..., None] * np.array([1.0, 0.9, 0.7])
-    return EnvMap((sky + sun_disc).astype(np.float32), "sun")
+_sun_sky = scene.sun_sky_env
 
 
 @pytest.fixture(scope="module")
