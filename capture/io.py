@@ -21,33 +21,30 @@ noted in the metadata); an optional per-frame ``confidence_file_path`` (plain fo
 
 Plain folder layout: ``rgb/NAME.png``, ``depth/NAME.png|.exr``, ``cameras/NAME.json`` with
 ``K`` (OpenCV, pixel centres at integers), ``cam_from_world`` (OpenCV 4x4), ``width``,
-``height`` and ``depth_unit_scale_factor``.
+``height``, ``depth_unit_scale_factor`` and optionally a lens (``camera_model`` and its
+coefficients, as in transforms.json); optional ``confidence/NAME.png``, ``masks/NAME.png`` (the
+matte, read as transforms.json's ``mask_path``) and ``bounds.json``.
+
+Every layout opens as a :class:`capture.sources.Source` (cameras first, no image read) and every
+frame is read by the same steps (capture.sources: read, units and confidence, depth resample,
+matte read, undistort), so mattes, lenses, confidence and spilling work alike for all three.
 """
 
 from __future__ import annotations
 
 import json
-import logging
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from capture.atomic import atomic_dir, jsonable
 from capture.camera import Camera, CameraError
-from capture.imageio import (
-    ScanIOError,
-    depth_to_uint16,
-    read_color,
-    read_confidence,
-    read_depth_raw,
-    write_exr,
-    write_png,
-)
-from capture.io_lens import frame_lens, note_undistorted, pinhole_camera
-from capture.lens import DEFAULT_UNDISTORT, Lens, nerfstudio_keys, undistort_scan
-from capture.matte_io import attach_mattes, write_matte
-from capture.scan import Scan, ScanError, ScanSet, bounds_from_points, sampled_points
+from capture.imageio import ScanIOError, depth_to_uint16, write_exr, write_png
+from capture.io_lens import frame_lens, pinhole_camera
+from capture.lens import DEFAULT_UNDISTORT, Lens, nerfstudio_keys
+from capture.matte_io import MASK_DIR, write_matte
+from capture.scan import Scan, ScanSet, bounds_from_points, sampled_points
+from capture.sources import FrameRef, Source, UndistortConfig, open_source
 
 TRANSFORMS = "transforms.json"
 #: Percentiles of the back-projected depth used for automatic bounds (robust to outliers).
@@ -67,18 +64,8 @@ __all__ = ["ScanIOError", "read_scanset", "read_cameras", "write_transforms", "w
            "FrameCamera", "resolve_transforms", "DEPTH_FORMATS", "depth_format_spec"]
 
 
-@dataclass(frozen=True)
-class FrameCamera:
-    """A camera read from transforms.json without loading its images."""
-
-    camera: Camera
-    file_path: str
-    depth_file_path: str | None
-    depth_unit_scale_factor: float | None
-    confidence_file_path: str | None = None
-    #: Lens distortion (capture.lens) and the camera as written; ``camera`` is then the undistorted one.
-    lens: Lens | None = None
-    distorted: Camera | None = None
+#: The frame of a capture's cameras (capture.sources.FrameRef: ``camera``, ``captured``, ``lens``, paths).
+FrameCamera = FrameRef
 
 
 def resolve_transforms(path: Path) -> Path:
@@ -106,51 +93,66 @@ def _load_json(path: Path) -> dict:
     return data
 
 
-def read_cameras(path: Path, undistort: str = DEFAULT_UNDISTORT) -> list[FrameCamera]:
-    """Cameras of a transforms.json (file or folder), without reading any image (undistorted: capture.lens)."""
+def transforms_source(path: Path, undistort: str = DEFAULT_UNDISTORT) -> Source:
+    """The Source of a transforms.json (file or folder): its cameras (undistorted: capture.lens),
+    file paths, units and mattes, parsed once; no image is read."""
     tj = resolve_transforms(path)
     meta = _load_json(tj)
     frames = meta.get("frames")
     if not isinstance(frames, list) or not frames:
         raise ScanIOError(f"{tj}: 'frames' must be a non-empty list")
-    out = []
-    for i, fr in enumerate(frames):
-        where = f"{tj} frame {i}"
-        if not isinstance(fr, dict) or "file_path" not in fr:
-            raise ScanIOError(f"{where}: missing 'file_path'")
-        paths = {k: _path_field(fr, k, where) for k in ("file_path", "depth_file_path", "confidence_file_path")}
-        where = f"{tj} frame {i} ({paths['file_path']})"
+    refs = tuple(_transforms_frame(tj, meta, i, fr, undistort) for i, fr in enumerate(frames))
+    fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
+    bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
+    md = fblock.get("metadata", {})
+    md = dict(md) if isinstance(md, dict) else {}
+    md.update(source=str(tj), format="transforms.json")
+    return Source(tj, "transforms.json", refs, bounds, md, undistort)
 
-        def get(key, _fr=fr, _where=where):
-            v = _fr.get(key, meta.get(key))
-            if v is None:
-                raise ScanIOError(f"{_where}: missing intrinsic '{key}' (per frame or global)")
-            return _finite(v, f"intrinsic '{key}'", _where)
 
-        if "transform_matrix" not in fr:
-            raise ScanIOError(f"{where}: missing 'transform_matrix'")
-        try:
-            tm = np.asarray(fr["transform_matrix"], dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ScanIOError(f"{where}: 'transform_matrix' is not a 4x4 number matrix") from None
-        try:
-            cam = Camera.from_nerfstudio(tm, get("fl_x"), get("fl_y"), get("cx"), get("cy"),
-                                         _pixels(get("w"), "w", where), _pixels(get("h"), "h", where),
-                                         name=paths["file_path"])
-        except CameraError as e:
-            raise ScanIOError(f"{where}: {e}") from None
-        lens, distorted = frame_lens(fr, meta, where), None
-        if lens is not None:
-            cam, distorted = pinhole_camera(cam, lens, undistort, where), cam
-        unit = fr.get("depth_unit_scale_factor", meta.get("depth_unit_scale_factor"))
-        if unit is not None:
-            unit = _finite(unit, "depth_unit_scale_factor", where)
-            if unit <= 0:
-                raise ScanIOError(f"{where}: depth_unit_scale_factor must be a positive number (metres per "
-                                  f"depth unit), got {unit}")
-        out.append(FrameCamera(cam, paths["file_path"], paths["depth_file_path"], unit, paths["confidence_file_path"],
-                               lens, distorted))
-    return out
+def _transforms_frame(tj: Path, meta: dict, i: int, fr, undistort: str) -> FrameRef:
+    """One frame of a transforms.json as a FrameRef (module docstring)."""
+    where = f"{tj} frame {i}"
+    if not isinstance(fr, dict) or "file_path" not in fr:
+        raise ScanIOError(f"{where}: missing 'file_path'")
+    paths = {k: _path_field(fr, k, where) for k in ("file_path", "depth_file_path", "confidence_file_path")}
+    mask = fr.get("mask_path")
+    if mask is not None and (not isinstance(mask, str) or not mask.strip()):
+        raise ScanIOError(f"{where}: 'mask_path' must be a non-empty file path string, got {mask!r}")
+    named = f"{where} ({paths['file_path']})"
+
+    def get(key):
+        v = fr.get(key, meta.get(key))
+        if v is None:
+            raise ScanIOError(f"{named}: missing intrinsic '{key}' (per frame or global)")
+        return _finite(v, f"intrinsic '{key}'", named)
+
+    if "transform_matrix" not in fr:
+        raise ScanIOError(f"{named}: missing 'transform_matrix'")
+    try:
+        tm = np.asarray(fr["transform_matrix"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ScanIOError(f"{named}: 'transform_matrix' is not a 4x4 number matrix") from None
+    try:
+        cam = Camera.from_nerfstudio(tm, get("fl_x"), get("fl_y"), get("cx"), get("cy"),
+                                     _pixels(get("w"), "w", named), _pixels(get("h"), "h", named),
+                                     name=paths["file_path"])
+    except CameraError as e:
+        raise ScanIOError(f"{named}: {e}") from None
+    lens = frame_lens(fr, meta, named)
+    pinhole = cam if lens is None else pinhole_camera(cam, lens, undistort, named)
+    unit = fr.get("depth_unit_scale_factor", meta.get("depth_unit_scale_factor"))
+    if unit is not None:
+        unit = _finite(unit, "depth_unit_scale_factor", named)
+        if unit <= 0:
+            raise ScanIOError(f"{named}: depth_unit_scale_factor must be a positive number (metres per "
+                              f"depth unit), got {unit}")
+
+    def file(rel):
+        return None if rel is None else (Path(rel) if Path(rel).is_absolute() else tj.parent / rel)
+
+    return FrameRef(i, paths["file_path"], pinhole, cam, lens, file(paths["file_path"]), file(paths["depth_file_path"]),
+                    file(paths["confidence_file_path"]), file(mask), unit, str(tj), where)
 
 
 def _path_field(fr: dict, key: str, where: str) -> str | None:
@@ -188,89 +190,40 @@ def _pixels(v: float, key: str, where: str) -> int:
     return int(v)
 
 
-def _resolve_image(base: Path, rel: str, what: str, where: str) -> Path:
-    p = (base / rel) if not Path(rel).is_absolute() else Path(rel)
-    if p.is_file():
-        return p
-    if not p.suffix:
-        for ext in (".png", ".jpg", ".jpeg", ".exr"):
-            if p.with_suffix(ext).is_file():
-                return p.with_suffix(ext)
-    raise ScanIOError(f"{p}: {what} not found (referenced by {where})")
+def plain_source(folder: Path, undistort: str = DEFAULT_UNDISTORT) -> Source:
+    """The Source of the plain folder layout (module docstring): cameras, lenses, units and
+    mattes (``masks/NAME.png``) of every frame; no image is read."""
+    folder = Path(folder)
+    cam_dir = folder / "cameras"
+    files = sorted(cam_dir.glob("*.json"))
+    if not files:
+        raise ScanIOError(f"{cam_dir}: no camera JSON files")
+    refs = tuple(_plain_frame(folder, i, cj, undistort) for i, cj in enumerate(files))
+    bj = folder / "bounds.json"
+    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else None
+    return Source(folder, "plain-folder", refs, bounds, {"source": str(folder), "format": "plain-folder"}, undistort)
 
 
-def _depth_metres(raw: np.ndarray, unit: float | None, path: Path, units_from: str = "") -> np.ndarray:
-    """Depth in metres; ``units_from`` names the file that should give the unit (for the error)."""
-    if np.issubdtype(raw.dtype, np.integer):
-        if unit is None:
-            src = f" in {units_from}" if units_from else ""
-            raise ScanIOError(f"{path}: integer depth image but no depth_unit_scale_factor{src}: unknown units "
-                              "(add \"depth_unit_scale_factor\": 0.001 for millimetres)")
-        d = raw.astype(np.float64) * unit
-    else:
-        d = raw.astype(np.float64) * (1.0 if unit is None else unit)
-    bad = ~np.isfinite(d) | (d < 0)
-    d[bad] = 0.0
-    return d.astype(np.float32)
-
-
-def _confidence_masked(depth: np.ndarray, conf_path: Path, depth_path: Path) -> np.ndarray:
-    """Depth with low-confidence samples removed (capture.resample.confidence_mask)."""
-    from capture.resample import ResampleError, confidence_mask
-
-    conf = read_confidence(conf_path)
-    if conf.shape != depth.shape:
-        raise ScanIOError(f"{conf_path}: confidence is {conf.shape[1]}x{conf.shape[0]} but its depth {depth_path.name} "
-                          f"is {depth.shape[1]}x{depth.shape[0]}")
+def _plain_frame(folder: Path, i: int, cj: Path, undistort: str) -> FrameRef:
+    """One camera JSON of the plain folder layout as a FrameRef."""
+    c = _load_json(cj)
     try:
-        return np.where(confidence_mask(conf), depth, 0.0).astype(np.float32)
-    except ResampleError as e:
-        raise ScanIOError(f"{conf_path}: {e}") from None
-
-
-def _load_scan(cam: Camera, rgb_path: Path, depth_path: Path | None, unit: float | None, name: str,
-               conf_path: Path | None = None, notes: list | None = None, units_from: str = "") -> Scan:
-    """One scan; a depth map smaller than the colour camera is resampled to it edge-aware
-    (capture.resample; the statistics are appended to ``notes``)."""
-    from capture.resample import ResampleError, guide_from_colour, upsample_depth
-
-    rgb = read_color(rgb_path)
-    if rgb.shape[:2] != (cam.height, cam.width):
-        raise ScanIOError(f"{rgb_path}: image is {rgb.shape[1]}x{rgb.shape[0]} but its camera says "
-                          f"{cam.width}x{cam.height}")
-    if depth_path is None:
-        depth = np.zeros((cam.height, cam.width), np.float32)
-    else:
-        depth = _depth_metres(read_depth_raw(depth_path), unit, depth_path, units_from)
-        if conf_path is not None:
-            depth = _confidence_masked(depth, conf_path, depth_path)
-        if depth.shape != (cam.height, cam.width):
-            if depth.shape[0] > cam.height or depth.shape[1] > cam.width:
-                raise ScanIOError(f"{depth_path}: depth is {depth.shape[1]}x{depth.shape[0]}, larger than the colour "
-                                  f"image and camera ({cam.width}x{cam.height}); resize the depth to the colour")
-            try:
-                depth, stats = upsample_depth(depth, guide_from_colour(rgb))
-            except ResampleError as e:
-                raise ScanIOError(f"{depth_path}: {e}") from None
-            if notes is not None:
-                notes.append(stats)
-        if not np.any(depth > 0):
-            raise ScanIOError(f"{depth_path}: depth is all zero (no measurement at all)")
-    try:
-        return Scan(rgb, depth, cam, name)
-    except ScanError as e:
-        raise ScanIOError(f"{rgb_path}: {e}") from None
-
-
-def log_resampled(notes: list, metadata: dict) -> None:
-    """Say in the log (logger ``furrow``) and in the scan set's metadata that depth was resampled."""
-    if not notes:
-        return
-    from capture.resample import describe
-
-    line = describe(notes)
-    logging.getLogger("furrow.capture").info(line)
-    metadata.update(depth_resampled=line, depth_size=list(notes[0].depth_size))  # (w, h) the sensor measured
+        cam = Camera(np.asarray(c["K"], float), np.asarray(c["cam_from_world"], float),
+                     _pixels(_finite(c["width"], "width", str(cj)), "width", str(cj)),
+                     _pixels(_finite(c["height"], "height", str(cj)), "height", str(cj)), name=cj.stem)
+    except KeyError as e:
+        raise ScanIOError(f"{cj}: missing key {e}") from None
+    except (CameraError, TypeError, ValueError) as e:
+        raise ScanIOError(f"{cj}: {e}") from None
+    unit = c.get("depth_unit_scale_factor")
+    if unit is not None and _finite(unit, "depth_unit_scale_factor", str(cj)) <= 0:
+        raise ScanIOError(f"{cj}: depth_unit_scale_factor must be a positive number of metres, got {unit!r}")
+    lens = frame_lens(c, {}, str(cj))
+    pinhole = cam if lens is None else pinhole_camera(cam, lens, undistort, str(cj))
+    conf = folder / "confidence" / cj.stem if (folder / "confidence").is_dir() else None
+    mask = folder / MASK_DIR / f"{cj.stem}.png"
+    return FrameRef(i, cj.stem, pinhole, cam, lens, folder / "rgb" / cj.stem, folder / "depth" / cj.stem, conf,
+                    mask if mask.is_file() else None, None if unit is None else float(unit), str(cj), str(cj))
 
 
 def auto_bounds(scans, where: str = "") -> np.ndarray:
@@ -306,110 +259,23 @@ def _read_bounds(block, where: str):
     return b
 
 
-def read_transforms(path: Path, frames: str | None = None, progress=None,
-                    undistort: str = DEFAULT_UNDISTORT, keep=None) -> ScanSet:
-    """Read a nerfstudio transforms.json scan set (module docstring; ``undistort``: capture.lens;
-    ``keep``: where each scan goes once read, capture.scan_store -- in memory by default)."""
-    from capture.scan import select_indices
-    from capture.scan_store import keep_in_memory
-
-    keep = keep or keep_in_memory
-    tj = resolve_transforms(path)
-    meta = _load_json(tj)
-    cams = read_cameras(tj, undistort)
-    idx = select_indices(frames, len(cams))
-    scans, notes = [], []
-    it = progress(idx, "reading scans") if progress else idx
-    for i in it:  # one frame at a time, each handed to ``keep`` as soon as it is read (capture.scan_store)
-        fc = cams[i]
-        where = f"{tj} frame {i}"
-        rgb_path = _resolve_image(tj.parent, fc.file_path, "colour image", where)
-        depth_path = conf_path = None
-        if fc.depth_file_path is not None:
-            depth_path = _resolve_image(tj.parent, fc.depth_file_path, "depth file", where)
-        if fc.confidence_file_path is not None:
-            conf_path = _resolve_image(tj.parent, fc.confidence_file_path, "confidence file", where)
-        s = _load_scan(fc.distorted or fc.camera, rgb_path, depth_path, fc.depth_unit_scale_factor,
-                       fc.file_path, conf_path, notes, units_from=str(tj))
-        # mattes (mask_path / RGBA alpha) are read at the captured size, then undistorted with the colour
-        s = attach_mattes([s], meta["frames"], [i], tj.parent, [rgb_path], str(tj))[0]
-        s = s if fc.lens is None else undistort_scan(s, fc.lens, fc.distorted.K, fc.camera)
-        scans.append(keep(s))
-    fblock = meta.get("furrow", {}) if isinstance(meta.get("furrow"), dict) else {}
-    bounds = _read_bounds(fblock.get("bounds"), f"{tj} furrow.bounds")
-    if bounds is None:
-        bounds = auto_bounds(scans, str(tj))
-    md = fblock.get("metadata", {})
-    md = dict(md) if isinstance(md, dict) else {}
-    md.update(source=str(tj), format="transforms.json")
-    log_resampled(notes, md)
-    note_undistorted([cams[i].lens for i in idx], undistort, md)
-    if frames:
-        md["frames"] = frames
-    return ScanSet(tuple(scans), bounds, md)
-
-
-def read_plain_folder(folder: Path, frames: str | None = None, progress=None) -> ScanSet:
-    """Read the plain folder layout (see module docstring)."""
-    from capture.scan import select_indices
-
-    folder = Path(folder)
-    cam_dir = folder / "cameras"
-    files = sorted(cam_dir.glob("*.json"))
-    if not files:
-        raise ScanIOError(f"{cam_dir}: no camera JSON files")
-    idx = select_indices(frames, len(files))
-    scans, notes = [], []
-    for i in (progress(idx, "reading scans") if progress else idx):
-        cj = files[i]
-        c = _load_json(cj)
-        try:
-            cam = Camera(np.asarray(c["K"], float), np.asarray(c["cam_from_world"], float),
-                         _pixels(_finite(c["width"], "width", str(cj)), "width", str(cj)),
-                         _pixels(_finite(c["height"], "height", str(cj)), "height", str(cj)), name=cj.stem)
-        except KeyError as e:
-            raise ScanIOError(f"{cj}: missing key {e}") from None
-        except (CameraError, TypeError, ValueError) as e:
-            raise ScanIOError(f"{cj}: {e}") from None
-        rgb_path = _resolve_image(folder / "rgb", cj.stem, "colour image", str(cj))
-        depth_path = _resolve_image(folder / "depth", cj.stem, "depth file", str(cj))
-        conf_path = _resolve_image(folder / "confidence", cj.stem, "confidence file", str(cj)) \
-            if (folder / "confidence").is_dir() else None
-        unit = c.get("depth_unit_scale_factor")
-        if unit is not None and _finite(unit, "depth_unit_scale_factor", str(cj)) <= 0:
-            raise ScanIOError(f"{cj}: depth_unit_scale_factor must be a positive number of metres, got {unit!r}")
-        scans.append(_load_scan(cam, rgb_path, depth_path, None if unit is None else float(unit), cj.stem,
-                                conf_path, notes, units_from=str(cj)))
-    bj = folder / "bounds.json"
-    bounds = _read_bounds(_load_json(bj).get("bounds"), str(bj)) if bj.is_file() else auto_bounds(scans, str(folder))
-    md = {"source": str(folder), "format": "plain-folder"}
-    log_resampled(notes, md)
-    return ScanSet(tuple(scans), bounds, md)
+def read_cameras(path: Path, undistort: str = DEFAULT_UNDISTORT) -> tuple[FrameRef, ...]:
+    """The frames of a capture (any layout, capture.sources.open_source) without reading any image:
+    each one's pinhole ``camera`` (undistorted: capture.lens), ``captured`` camera and ``lens``."""
+    return open_source(path, undistort).frames
 
 
 def read_scanset(path: Path, frames: str | None = None, progress=None, undistort: str = DEFAULT_UNDISTORT,
                  keep=None) -> ScanSet:
-    """Read a scan set: transforms.json (file or folder holding one), a plain folder, or a
-    COLMAP folder (``sparse/0`` + ``images/`` + optional ``depth/`` and ``depth_units.json``).
-    ``keep`` (transforms.json): each scan is passed through it as soon as it is read
-    (capture.scan_store.ScanSpill.keep puts it on disk)."""
-    path = Path(path)
-    if path.is_dir() and not (path / TRANSFORMS).is_file():
-        if (path / "cameras").is_dir():
-            return read_plain_folder(path, frames, progress)
-        for model in (path / "sparse" / "0", path / "sparse", path):
-            if (model / "cameras.bin").is_file() or (model / "cameras.txt").is_file():
-                from capture.io_colmap import read_colmap
+    """Read a scan set: transforms.json (file or folder holding one), a plain folder, or a COLMAP
+    folder (``sparse/0`` + ``images/`` + optional ``depth/``, ``masks/`` and ``depth_units.json``),
+    every frame by the same steps (capture.sources).  ``keep``: each scan is passed through it as
+    soon as it is read (capture.scan_store.ScanSpill.keep puts it on disk)."""
+    from capture.sources import STEP_CONFIGS, read_source
 
-                units = path / "depth_units.json"
-                unit = _load_json(units).get("depth_unit_scale_factor") if units.is_file() else None
-                if unit is not None and (unit := _finite(unit, "depth_unit_scale_factor", str(units))) <= 0:
-                    raise ScanIOError(f"{units}: depth_unit_scale_factor must be a positive number of metres")
-                depth = path / "depth" if (path / "depth").is_dir() else None
-                return read_colmap(model, path / "images", depth, unit, frames, undistort)
-        raise ScanIOError(f"{path}: neither a {TRANSFORMS}, a plain folder layout (cameras/, rgb/, depth/) "
-                          "nor a COLMAP layout (sparse/0/, images/, depth/)")
-    return read_transforms(path, frames, progress, undistort, keep)
+    source = open_source(path, undistort).select(frames)
+    configs = tuple(c() for c in STEP_CONFIGS[:-1]) + (UndistortConfig(undistort),)
+    return read_source(source, progress, keep, configs)
 
 
 # --------------------------------------------------------------------------- writing
@@ -496,5 +362,6 @@ def write_plain_folder(scanset: ScanSet, out_dir: Path, depth_format: str = "exr
                    "width": s.camera.width, "height": s.camera.height, "depth_unit_scale_factor": unit}
             (tmp / "cameras").mkdir(exist_ok=True)
             (tmp / "cameras" / f"{stem}.json").write_text(json.dumps(cam, indent=1))
+            write_matte(s, tmp, stem)
         (tmp / "bounds.json").write_text(json.dumps({"bounds": np.asarray(scanset.bounds).tolist()}))
     return out_dir

@@ -7,6 +7,9 @@ colour images are found under ``IMAGES_DIR/<image name>``; depth maps under
 like nerfstudio, so half a pixel is subtracted from the principal point (OpenCV centres).
 Pinhole models are read as they are; SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE and FULL_OPENCV
 are undistorted at read time to a pinhole camera (capture.lens; ``undistort``: crop | full).
+Mattes: ``masks/STEM.png`` (or COLMAP's ``masks/IMAGE_NAME.png``) beside ``images/``, read as
+transforms.json's ``mask_path`` (capture.matte_io).  The model opens as a capture.sources.Source;
+its frames are read by the same steps as every layout's.
 """
 
 from __future__ import annotations
@@ -18,10 +21,11 @@ import numpy as np
 
 from capture.camera import Camera, CameraError, cv_from_corner, make_K
 from capture.imageio import ScanIOError
-from capture.io import _load_scan, auto_bounds, log_resampled
-from capture.io_lens import note_undistorted, pinhole_camera
-from capture.lens import DEFAULT_UNDISTORT, Lens, LensError, colmap_lens, undistort_scan
-from capture.scan import ScanError, ScanSet, select_indices
+from capture.io_lens import pinhole_camera
+from capture.lens import DEFAULT_UNDISTORT, Lens, LensError, colmap_lens
+from capture.matte_io import MASK_DIR
+from capture.scan import ScanSet
+from capture.sources import FrameRef, Source
 
 #: Longest a COLMAP model may take to load (seconds).  pycolmap loops forever on some truncated
 #: binary files (found by tests/capture/test_fuzz_readers.py) and aborts the process on others, so
@@ -124,52 +128,74 @@ def _lens(im: ColmapImage, where: str) -> Lens | None:
         raise ScanIOError(f"{where}: {e}") from None
 
 
-def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None,
-                depth_unit_scale_factor: float | None = None, frames: str | None = None,
-                undistort: str = DEFAULT_UNDISTORT) -> ScanSet:
-    """Read a COLMAP model + images (+ depth maps) into a ScanSet, images sorted by name; cameras
-    with lens distortion are undistorted to pinhole ones (capture.lens, ``undistort``)."""
+def colmap_source(model_dir: Path, images_dir: Path, depth_dir: Path | None = None,
+                  depth_unit_scale_factor: float | None = None, undistort: str = DEFAULT_UNDISTORT,
+                  masks_dir: Path | None = None) -> Source:
+    """The Source of a COLMAP model + images (+ depth maps, + mattes): registered images sorted by
+    name; cameras with lens distortion get the pinhole camera they are undistorted to (capture.lens,
+    ``undistort``).  Mattes: ``masks_dir/STEM.png`` or COLMAP's ``masks_dir/IMAGE_NAME.png``."""
     model_dir = Path(model_dir)
     if not model_dir.is_dir():
         raise ScanIOError(f"{model_dir}: COLMAP model folder not found")
     images, points = load_colmap_model(model_dir)
     if not images:
         raise ScanIOError(f"{model_dir}: COLMAP model has no registered image")
-    scans, notes, lenses = [], [], []
-    for i in select_indices(frames, len(images)):
-        im = images[i]
-        where = f"{model_dir} image {im.name!r}"
-        M = np.eye(4)
-        M[:3, :4] = im.cam_from_world
-        try:
-            camera = Camera(_camera_K(im, where), M, im.width, im.height, name=im.name)
-        except CameraError as e:
-            raise ScanIOError(f"{where}: {e}") from None
-        lenses.append(lens := _lens(im, where))
-        pinhole = camera if lens is None else pinhole_camera(camera, lens, undistort, where)
-        rgb_path = Path(images_dir) / im.name
-        if not im.name or not rgb_path.is_file():
-            raise ScanIOError(f"{rgb_path}: colour image not found (named in {model_dir})")
-        depth_path = None
-        if depth_dir is not None:
-            stem = Path(im.name).with_suffix("")
-            cands = [Path(depth_dir) / f"{stem}{ext}" for ext in (".png", ".exr", ".npy")]
-            depth_path = next((c for c in cands if c.is_file()), None)
-            if depth_path is None:
-                raise ScanIOError(f"{cands[0]}: depth file not found for COLMAP image {im.name!r}")
-        try:
-            scan = _load_scan(camera, rgb_path, depth_path, depth_unit_scale_factor, im.name, notes=notes)
-            scans.append(scan if lens is None else undistort_scan(scan, lens, camera.K, pinhole))
-        except ScanIOError as e:  # the camera came from the model: name it too
-            raise ScanIOError(f"{e} (camera of {where})") from None
+    refs = tuple(_frame(model_dir, i, im, images_dir, depth_dir, depth_unit_scale_factor, undistort, masks_dir)
+                 for i, im in enumerate(images))
+    fallback = _bounds_from_points(points, model_dir) if depth_dir is None else None
+    return Source(model_dir, "colmap", refs, None, {"source": str(model_dir), "format": "colmap"}, undistort,
+                  fallback)
+
+
+def _frame(model_dir: Path, i: int, im: ColmapImage, images_dir, depth_dir, unit, undistort: str,
+           masks_dir) -> FrameRef:
+    """One registered image as a FrameRef (its colour file must exist: named in the model)."""
+    where = f"{model_dir} image {im.name!r}"
+    M = np.eye(4)
+    M[:3, :4] = im.cam_from_world
     try:
-        bounds = auto_bounds(scans, str(model_dir)) if depth_dir is not None else _bounds_from_points(points, model_dir)
-        md = {"source": str(model_dir), "format": "colmap"}
-        log_resampled(notes, md)
-        note_undistorted(lenses, undistort, md)
-        return ScanSet(tuple(scans), bounds, md)
-    except ScanError as e:
-        raise ScanIOError(f"{model_dir}: {e}") from None
+        camera = Camera(_camera_K(im, where), M, im.width, im.height, name=im.name)
+    except CameraError as e:
+        raise ScanIOError(f"{where}: {e}") from None
+    lens = _lens(im, where)
+    pinhole = camera if lens is None else pinhole_camera(camera, lens, undistort, where)
+    rgb_path = Path(images_dir) / im.name
+    if not im.name or not rgb_path.is_file():
+        raise ScanIOError(f"{rgb_path}: colour image not found (named in {model_dir})")
+    stem = Path(im.name).with_suffix("")
+    depth = None if depth_dir is None else Path(depth_dir) / stem
+    mask = None
+    if masks_dir is not None:
+        mask = next((m for m in (Path(masks_dir) / f"{stem}.png", Path(masks_dir) / f"{im.name}.png") if m.is_file()),
+                    None)
+    return FrameRef(i, im.name, pinhole, camera, lens, rgb_path, depth, None, mask, unit, "", where)
+
+
+def colmap_folder_source(path: Path, model: Path, undistort: str = DEFAULT_UNDISTORT) -> Source:
+    """The Source of a COLMAP folder: ``model`` (``sparse/0``) + ``images/`` + optional ``depth/``,
+    ``masks/`` and ``depth_units.json`` (``{"depth_unit_scale_factor": metres per unit}``)."""
+    from capture.io import _finite, _load_json
+
+    path = Path(path)
+    units = path / "depth_units.json"
+    unit = _load_json(units).get("depth_unit_scale_factor") if units.is_file() else None
+    if unit is not None and (unit := _finite(unit, "depth_unit_scale_factor", str(units))) <= 0:
+        raise ScanIOError(f"{units}: depth_unit_scale_factor must be a positive number of metres")
+    depth = path / "depth" if (path / "depth").is_dir() else None
+    masks = path / MASK_DIR if (path / MASK_DIR).is_dir() else None
+    return colmap_source(model, path / "images", depth, unit, undistort, masks)
+
+
+def read_colmap(model_dir: Path, images_dir: Path, depth_dir: Path | None = None,
+                depth_unit_scale_factor: float | None = None, frames: str | None = None,
+                undistort: str = DEFAULT_UNDISTORT, masks_dir: Path | None = None) -> ScanSet:
+    """Read a COLMAP model + images (+ depth maps, + mattes) into a ScanSet (:func:`colmap_source`,
+    every frame read by the steps of capture.sources)."""
+    from capture.sources import STEP_CONFIGS, UndistortConfig, read_source
+
+    source = colmap_source(model_dir, images_dir, depth_dir, depth_unit_scale_factor, undistort, masks_dir)
+    configs = tuple(c() for c in STEP_CONFIGS[:-1]) + (UndistortConfig(undistort),)
+    return read_source(source.select(frames), configs=configs)
 
 
 def _bounds_from_points(pts: np.ndarray, where) -> np.ndarray:

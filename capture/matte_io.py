@@ -1,6 +1,10 @@
-"""The object's alpha matte on disk: per-frame ``mask_path`` of transforms.json and RGBA colour images.
+"""The object's alpha matte on disk: per-frame ``mask_path`` of transforms.json, ``masks/NAME.png``
+of the plain folder and COLMAP layouts, and RGBA colour images.
 
-nerfstudio keys a per-frame mask as ``mask_path`` (binary: 0 = not the object).  furrow reads it as
+nerfstudio keys a per-frame mask as ``mask_path`` (binary: 0 = not the object); the plain folder
+and COLMAP layouts hold it as ``masks/NAME.png`` beside ``rgb/`` or ``images/`` (COLMAP's own
+``masks/IMAGE_NAME.png`` is read too).  The frame-reading step that reads it is
+capture.sources.read_matte, the same for every layout.  furrow reads it as
 a soft straight alpha matte: an 8-bit image in 0..255 (a binary 0/1 image is read as 0/1), 16-bit in
 0..65535, the first channel of a colour mask; a colour image with an alpha channel (RGBA PNG)
 supplies its alpha when the frame has no ``mask_path`` (unless it is opaque everywhere).  The mask
@@ -15,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.imageio import ScanIOError, write_png
-from capture.scan import Scan, ScanError
+from capture.scan import Scan
 
 #: Folder of the mattes written beside images/ and depth/.
 MASK_DIR = "masks"
@@ -72,31 +76,6 @@ def _png_shape(path: Path) -> tuple[int, int]:
     with open(path, "rb") as f:
         head = f.read(24)
     return int.from_bytes(head[20:24], "big"), int.from_bytes(head[16:20], "big")
-
-
-def attach_mattes(scans: list[Scan], frames: list, idx: list[int], base: Path, rgb_paths: list[Path],
-                  where: str) -> list[Scan]:
-    """``scans`` (frames ``idx`` of the transforms.json ``frames`` list at ``where``, colour files
-    ``rgb_paths``) with ``alpha`` set from each frame's ``mask_path``, else its RGBA colour image."""
-    out = []
-    for s, i, rgb_path in zip(scans, idx, rgb_paths, strict=True):
-        fr = frames[i]
-        rel = fr.get("mask_path") if isinstance(fr, dict) else None
-        if rel is not None and (not isinstance(rel, str) or not rel.strip()):
-            raise ScanIOError(f"{where} frame {i}: 'mask_path' must be a non-empty file path string, got {rel!r}")
-        if rel is not None:
-            p = Path(rel) if Path(rel).is_absolute() else Path(base) / rel
-            alpha = read_matte(p, s.depth.shape)
-        else:
-            alpha = rgba_alpha(rgb_path)
-        if alpha is None:
-            out.append(s)
-            continue
-        try:
-            out.append(Scan(s.rgb, s.depth, s.camera, s.name, alpha))
-        except ScanError as e:
-            raise ScanIOError(f"{where} frame {i}: {e}") from None
-    return out
 
 
 def write_matte(scan: Scan, folder: Path, stem: str) -> dict:

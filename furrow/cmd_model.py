@@ -300,7 +300,7 @@ def _read_views(args, progress):
             if spill is not None:
                 spill.close()
             raise
-        names = [cams[i].file_path for i in idx]
+        names = [cams[i].name for i in idx]
     else:  # another format is read whole; the later stages' scans go to disk when they are many
         full = read_scanset(args.scans, args.frames, progress=progress, undistort=args.undistort)
         kept, reasons = select_views(full.cameras, args.views)
