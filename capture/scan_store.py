@@ -39,6 +39,8 @@ READ_CACHE_VIEWS = 4
 SPILL_AUTO_BYTES = 1 << 27
 #: Bytes per pixel of a Scan read from an 8-bit image with depth (3 colour + 4 depth).
 SCAN_BYTES_PER_PIXEL = 7
+#: ``--spill`` choices (:func:`spill_for`).
+SPILL_MODES = ("auto", "always", "never")
 
 
 def keep_in_memory(scan: Scan) -> Scan:
@@ -168,7 +170,7 @@ class SpilledScan:
 def spill_for(n_pixels: int, mode: str = "auto", root: str | Path | None = None) -> ScanSpill | None:
     """The ScanSpill for a capture of ``n_pixels`` pixels over all its frames (None: keep the scans
     in memory): ``mode`` 'always', 'never' or 'auto' (on disk above SPILL_AUTO_BYTES)."""
-    if mode not in ("auto", "always", "never"):
+    if mode not in SPILL_MODES:
         raise ValueError(f"--spill must be auto, always or never, got {mode!r}")
     if mode == "never" or (mode == "auto" and n_pixels * SCAN_BYTES_PER_PIXEL <= SPILL_AUTO_BYTES):
         return None

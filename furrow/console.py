@@ -81,11 +81,14 @@ class StageTimer:
         self.peak_mb: dict[str, float] = {}
 
     @contextlib.contextmanager
-    def stage(self, name: str):
+    def stage(self, name: str, quiet: bool = False):
+        """Time the body as row ``name`` (added to the row's earlier times; ``quiet``: no "> name"
+        line, for a row entered once per view)."""
         reset_peak_rss()
         t0 = time.perf_counter()
         c0 = time.process_time()
-        console.print(f"[cyan]>[/] {name} ...", highlight=False)
+        if not quiet:
+            console.print(f"[cyan]>[/] {name} ...", highlight=False)
         try:
             yield
         finally:

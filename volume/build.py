@@ -1,4 +1,5 @@
-"""Scan set -> Model: fusion of every pyramid level, L_opt, spheres, mesh, RGBz (docs/methods.md §1.1, §1.4, §3).
+"""The volume stages of the pipeline (volume/pipeline/stages.py): fuse, pyramid, spheres, mesh,
+RGBz (docs/methods.md §1.1, §1.4, §3).
 
 Levels are fused coarse to fine (each level's pass 1 only near the coarser level's surface,
 see volume.fusion.carve_field) for every power of two from ``min_res`` to ``max_res``; Eq. 1
@@ -12,90 +13,55 @@ is therefore deferred and done only when something uses that level's values: the
 (L_opt = max_res), the mesh (``MeshConfig.level``) or the spheres (level min(max_res, 64)).
 Spheres, mesh and the RGBz geometry depth describe the solid, not the
 billboard LOD: they use their own levels even when Eq. 1 keeps coarser levels only.
-``ModelConfig.reference()`` is the former pipeline (mesh on the finest level, pymeshlab
+``PipelineConfig.reference()`` is the former pipeline (mesh on the finest level, pymeshlab
 decimation, every level completed), kept for the side-by-side benchmark (furrow/bench/model.py).
+
+Each stage is ``stage(work, cfg, ctx) -> work`` (volume/pipeline/work.py): it reads what the
+earlier stages made from ``work.parts`` and adds its own.
 """
 
 from __future__ import annotations
 
 import contextlib
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from capture.io import jsonable
-from capture.photometric import PhotometricConfig
 from capture.scan import ScanSet
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
-from volume.mesh import MeshConfig, clean_and_decimate, marching_cubes, vertex_colors_views
-from volume.model import Model, SdfLevel, SdfPyramid
-from volume.photometric import align_views
-from volume.prepare import PrepareConfig, prepare_scans
-from volume.pyramid import LoptConfig, build_pyramid, choose_l_opt, discontinuity_fraction
-from volume.rgbz import RgbzConfig, build_rgbz
+from volume.mesh import clean_and_decimate, marching_cubes, vertex_colors_views
+from volume.model import SdfLevel, SdfPyramid
+from volume.pyramid import build_pyramid, choose_l_opt, discontinuity_fraction
+from volume.rgbz import build_rgbz
 from volume.spheres import fit_spheres
 from volume.stream import NORMAL_THREADS, native_scale, pack_scans
 from volume.tsdf import fuse_tsdf
 
-#: Sphere sets are fitted on this level (or L_opt if coarser): finer levels cost time, not accuracy
-#: of the occluder (docs/methods.md §3: tens to hundreds of spheres).
-SPHERE_LEVEL = 64
-METHODS = ("consensus", "tsdf")
-#: Finest level whose signed distances the model stores (the renderers read surface voxels; the
-#: relighting's orientation grid reads <= 32^3): a 256^3 level's values are 64 MB, 20x a
-#: 640x480 capture of 18 frames, and nothing reads them.
-VALUES_MAX_RES = 64
-
 
 @dataclass(frozen=True)
-class ModelConfig:
-    """Everything ``furrow model`` can set."""
+class Fused:
+    """The fuse stage's result.
 
-    sdf: str = "consensus"
-    """Fusion method: 'consensus' (Wheeler-Sato-Ikeuchi style) or 'tsdf' (Open3D peer)."""
-    lopt: LoptConfig = field(default_factory=LoptConfig)
-    """L_opt search (max_res, alpha, t; docs/methods.md §1.1 Eq. 1)."""
-    fusion: FusionConfig = field(default_factory=FusionConfig)
-    """Fusion parameters."""
-    sphere_error: float = 0.2
-    """Target 1 - volume IoU of the occluder sphere set (docs/methods.md §3)."""
-    mesh: MeshConfig = field(default_factory=MeshConfig)
-    """Mesh extraction."""
-    rgbz: RgbzConfig = field(default_factory=RgbzConfig)
-    """RGBz preparation (docs/methods.md §1.4)."""
-    prepare: PrepareConfig = field(default_factory=PrepareConfig)
-    """The object apart from its surroundings before fusion: extent and matte stages (volume.prepare)."""
-    measured_voxels: bool = True
-    """Voxels holding measured depth points of >= 2 scans are surface voxels too (volume.pyramid)."""
-    keep_values: bool = True
-    """Store the levels' signed distance values in the model (not only surface voxels)..."""
-    values_max_res: int = VALUES_MAX_RES
-    """...up to this resolution (finer levels keep their surface voxels only; module constant)."""
-    defer_finest: bool = True
-    """Complete the finest fused level's distances only when a consumer needs them (module docstring)."""
-    photometric: PhotometricConfig | None = field(default_factory=PhotometricConfig)
-    """Per-view exposure / white-balance alignment before everything (volume.photometric); None = off."""
-    sample_eq1: bool = True
-    """Judge L_max by Eq. 1 on a sample first and fuse it only when Eq. 1 may keep it (volume.lopt_sample)."""
+    Attributes:
+        origin: (3,) float64 corner of the cube (metres, world).
+        extent: the cube's edge (metres).
+        levels: L -> volume.fusion.FusedSdf (values completed for the levels later stages read).
+        l_opt: the resolution Eq. 1 chose.
+    """
 
-    def __post_init__(self) -> None:
-        if self.sdf not in METHODS:
-            raise ValueError(f"--sdf must be one of {METHODS}, got {self.sdf!r}")
+    origin: np.ndarray
+    extent: float
+    levels: dict
+    l_opt: int
 
-    @classmethod
-    def reference(cls, **kw) -> ModelConfig:
-        """The pipeline before the build-only-what-is-needed changes: numpy fusion passes, mesh
-        marched on the finest level and decimated by pymeshlab, every fused level completed,
-        RGBz geometry depth ray cast by Open3D."""
-        mesh = MeshConfig(level=0, decimator="pymeshlab")
-        fusion = replace(kw.pop("fusion", FusionConfig()), backend="numpy")
-        rgbz = replace(kw.pop("rgbz", RgbzConfig()), mesh_depth="raycast")
-        return cls(mesh=mesh, defer_finest=False, fusion=fusion, rgbz=rgbz, sample_eq1=False,
-                   values_max_res=1 << 30, **kw)
+    def level(self, L: int) -> SdfLevel:
+        """The SdfLevel (no surface voxels) of the completed level ``L``."""
+        f = self.levels[L]
+        return SdfLevel(f.resolution, self.origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
 
 
 def _release_free_memory() -> None:
@@ -126,10 +92,10 @@ def scan_maps_of(scanset: ScanSet, fcfg: FusionConfig, progress=None):
                             fcfg.backend)
 
 
-def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, defer_finest: bool = False,
+def fuse_levels(scanset: ScanSet, cfg, stage=None, progress=None, defer_finest: bool = False,
                 needed_res: int | None = None):
-    """Fuse the levels min_res..max_res; returns (origin, extent, {L: FusedSdf}, {L: Eq. 1 fraction},
-    {L: SampledEq1}).
+    """Fuse the levels min_res..max_res (``cfg``: FuseConfig); returns (origin, extent, {L: FusedSdf},
+    {L: Eq. 1 fraction}, {L: SampledEq1}).
 
     ``defer_finest``: the finest level's values are left to volume.fusion.completed.
     ``needed_res``: the finest level something other than Eq. 1 reads (mesh, spheres); with
@@ -165,98 +131,77 @@ def fuse_levels(scanset: ScanSet, cfg: ModelConfig, stage=None, progress=None, d
     return origin, extent, fused, frac, sampled
 
 
-def build_model(scanset: ScanSet, cfg: ModelConfig | None = None, stage=None, progress=None,
-                provenance: dict | None = None, keep=None, work_dir=None) -> tuple[Model, dict]:
-    """Build the Model; returns (model, summary) with the summary keys of ``furrow model --json``.
-
-    ``stage(name)`` is a context-manager factory used to time stages (furrow.console.StageTimer);
-    ``progress(iterable, description)`` wraps loops in a progress bar.  ``keep`` takes every scan a
-    stage makes (capture.scan_store.ScanSpill.keep: on disk, read back view by view).
-    """
-    cfg = cfg or ModelConfig()
-    stage = stage or (lambda name: contextlib.nullcontext())
-    scanset, surroundings = prepare_scans(scanset, cfg.prepare, stage, progress, keep)  # extent, matte
-    scanset, photometric = align_views(scanset, cfg.photometric, stage, progress, keep)
-    top = cfg.lopt.max_res
-    mesh_res = top if cfg.mesh.level == 0 else min(cfg.mesh.level, top)
-    sphere_res = min(top, SPHERE_LEVEL)
-    origin, extent, fused, frac, sampled = fuse_levels(scanset, cfg, stage, progress, cfg.defer_finest,
-                                                       max(mesh_res, sphere_res))
+def fuse_stage(work, cfg, ctx):
+    """The fuse stage (cfg: FuseConfig): every level fused, L_opt chosen by Eq. 1, and the levels
+    the pyramid, the spheres and the mesh read completed; one stage-table row per step."""
+    pc = ctx.config
+    origin, extent, fused, frac, sampled = fuse_levels(work.scanset, cfg, ctx.row, ctx.progress, cfg.defer_finest,
+                                                       max(pc.mesh_res, pc.sphere_res))
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     # N_i over the measured voxels (reported only; Eq. 1 divides by L^3, see volume.pyramid)
     per_measured = {L: (frac[L] * L ** 3 / n if (n := int(np.count_nonzero(f.measured_mask))) else 0.0)
                     for L, f in fused.items() if f.measured_mask is not None}
-    for L in sorted({mesh_res, sphere_res} | {L for L in fused if L <= l_opt}):
+    for L in sorted({pc.mesh_res, pc.sphere_res} | {L for L in fused if L <= l_opt}):
         if fused[L].values is None:
-            with stage(f"complete {L}^3"):
+            with ctx.row(f"complete {L}^3"):
                 fused[L] = completed(fused[L], cfg.fusion.backend)
-    with stage("pyramid"):
-        points = ViewPoints(scanset) if cfg.measured_voxels else None
-        pyramid: SdfPyramid = build_pyramid({L: f.values for L, f in fused.items() if L <= l_opt}, origin, extent,
-                                            l_opt, keep_values=True, points=points)
-    with stage("spheres"):
-        spheres, sphere_err = fit_spheres(_level(fused[sphere_res], origin), cfg.sphere_error)
-    mesh_level = _level(fused[mesh_res], origin)
-    with stage(f"mesh {mesh_res}^3"):
-        verts, faces = marching_cubes(mesh_level)
-        verts, faces = clean_and_decimate(verts, faces, cfg.mesh)
-    with stage("rgbz"):
-        rgbz, holes = build_rgbz(scanset, verts, faces, mesh_level, cfg.rgbz,
-                                 (lambda it: progress(it, "rgbz")) if progress else None,
-                                 Path(work_dir) / "rgbz_crops.npz" if work_dir is not None else None)
-    with stage("mesh colour"):
-        # view by view: the decoded frames are never stacked
+    rec = {"l_opt": l_opt, "eq1_fraction": {str(L): v for L, v in frac.items()},
+           "eq1_sampled": {str(L): v.record() for L, v in sampled.items()},
+           "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()}}
+    return work.made(fused=Fused(origin, extent, fused, l_opt)).record("fuse", rec)
+
+
+def pyramid_stage(work, cfg, ctx):
+    """The pyramid stage (cfg: PyramidConfig): the levels up to L_opt with their surface voxels
+    (and the measured points of >= 2 views), their distances kept up to ``values_max_res``."""
+    f = work.parts["fused"]
+    points = ViewPoints(work.scans) if cfg.measured_voxels else None
+    pyr = build_pyramid({L: v.values for L, v in f.levels.items() if L <= f.l_opt}, f.origin, f.extent, f.l_opt,
+                        keep_values=cfg.keep_values, points=points)
+    pyr = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
+                           for lv in pyr.levels), f.l_opt)
+    return work.made(pyramid=pyr)
+
+
+def spheres_stage(work, cfg, ctx):
+    """The spheres stage (cfg: SpheresConfig): the occluder sphere set fitted on its level to the error target."""
+    res = ctx.config.sphere_res
+    spheres, err = fit_spheres(work.parts["fused"].level(res), cfg.error)
+    return work.made(spheres=spheres).record("spheres", {"count": len(spheres), "error": err, "level": res})
+
+
+def mesh_stage(work, cfg, ctx):
+    """The mesh stage (cfg: volume.mesh.MeshConfig): marching cubes on the mesh level, cleaned and decimated."""
+    verts, faces = marching_cubes(work.parts["fused"].level(ctx.config.mesh_res))
+    verts, faces = clean_and_decimate(verts, faces, cfg)
+    return work.made(mesh=(verts, faces))
+
+
+def rgbz_stage(work, cfg, ctx):
+    """The RGBz stage (cfg: volume.rgbz.RgbzConfig): each view's colour, alpha and cleaned depth
+    (measured, filled from the mesh; streamed to the spill folder as crops), then the mesh's vertex
+    colours from them, view by view; rows "rgbz" and "mesh colour"."""
+    verts, faces = work.parts["mesh"]
+    level = work.parts["fused"].level(ctx.config.mesh_res)
+    with ctx.row("rgbz"):
+        rgbz, holes = build_rgbz(work.scanset, verts, faces, level, cfg, lambda it: ctx.track(it, "rgbz"),
+                                 Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None)
+    with ctx.row("mesh colour"):
         colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
-                                     mesh_level.voxel_size) if len(verts) else None
-    if not cfg.keep_values:
-        pyramid = build_pyramid({lv.resolution: lv.values for lv in pyramid.levels}, origin, extent, l_opt,
-                                keep_values=False, points=points)
-    pyramid = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
-                               for lv in pyramid.levels), l_opt)
-    params = {"sdf": cfg.sdf, "lopt": asdict(cfg.lopt), "fusion": asdict(cfg.fusion), "sphere_error": cfg.sphere_error,
-              "mesh": asdict(cfg.mesh), "rgbz": asdict(cfg.rgbz), "measured_voxels": cfg.measured_voxels,
-              "sphere_level": sphere_res, "mesh_level": mesh_res,
-              "eq1_fraction": {str(L): v for L, v in frac.items()},
-              "eq1_sampled": {str(L): v.record() for L, v in sampled.items()},
-              "eq1_flagged_per_measured": {str(L): v for L, v in per_measured.items()},
-              "surroundings": jsonable(surroundings), "photometric": photometric}
-    prov = {"scans": len(scanset), "scan_names": [s.name for s in scanset.scans],
-            "scanset_metadata": jsonable(scanset.metadata), **(provenance or {})}
-    bounds = np.asarray(scanset.bounds, np.float64)
-    model = Model(pyramid, rgbz, spheres, verts, faces, colors, bounds, params, prov)
-    summary = {
-        "l_opt": l_opt,
-        "levels": pyramid.resolutions,
-        "surface_voxels": {str(lv.resolution): int(len(lv.surface)) for lv in pyramid.levels},
-        "eq1_fraction": {str(L): round(v, 6) for L, v in frac.items()},
-        "eq1_sampled": {str(L): {k: (round(x, 6) if isinstance(x, float) else x) for k, x in v.record().items()}
-                        for L, v in sampled.items()},
-        "eq1_flagged_per_measured": {str(L): round(v, 6) for L, v in per_measured.items()},
-        "spheres": len(spheres),
-        "sphere_error": round(sphere_err, 5),
-        "mesh": {"vertices": int(len(verts)), "faces": int(len(faces))},
-        "surroundings": jsonable(surroundings),
-        "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()} for h in holes],
-        "photometric": photometric,
-    }
-    return model, summary
+                                     level.voxel_size) if len(verts) else None
+    return work.made(rgbz=rgbz, colors=colors).record("rgbz", {"holes": holes})
 
 
 class ViewPoints:
     """The scans' measured world points, one view at a time (back-projected on each pass, never
     all held: volume.pyramid.measured_voxels reads them view by view)."""
 
-    def __init__(self, scanset: ScanSet):
-        self.scans = scanset.scans
+    def __init__(self, scans):
+        self.scans = scans
 
     def __len__(self) -> int:
         return len(self.scans)
 
     def __iter__(self):
         return (s.points() for s in self.scans)
-
-
-def _level(f, origin) -> SdfLevel:
-    """The SdfLevel (no surface voxels) of a completed FusedSdf."""
-    return SdfLevel(f.resolution, origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
 

@@ -135,15 +135,29 @@ def scaled_scan(scan, s: float):
     return Scan(rgb, depth, cam, scan.name, alpha)
 
 
-def scaled_scanset(scanset, s: float, keep=None):
-    """Every scan of ``scanset`` resampled by ``s`` (:func:`scaled_scan`), each passed through
-    ``keep`` (capture.scan_store); the set itself when s >= 1."""
-    from capture.scan import ScanSet
+def select_stage(refs, cfg) -> tuple[list[int], dict]:
+    """The view-selection stage (cfg: ViewsConfig): (kept view indices, the report: mode, kept, of
+    and every view's reason with its name), from the cameras alone (no image is read)."""
+    kept, reasons = select_views([r.camera for r in refs], cfg.mode)
+    for r in reasons:
+        r["name"] = refs[r["view"]].name
+    return kept, {"mode": cfg.mode, "kept": len(kept), "of": len(reasons), "per_view": reasons}
 
-    if s >= 1:
-        return scanset
-    from capture.scan_store import keep_in_memory
 
-    keep = keep or keep_in_memory
-    return ScanSet(tuple(keep(scaled_scan(x, s)) for x in scanset.scans), scanset.bounds,
-                   {**scanset.metadata, "working_scale": s})
+def scale_view(view, ref, s: float):
+    """One view resampled by ``s`` (:func:`scaled_scan`; a per-view step of the working-scale stage)."""
+    return scaled_scan(view, s), None
+
+
+def scale_stage(work, cfg, ctx):
+    """The working-scale stage (cfg: ScaleConfig): the views' factor from their object footprint
+    against ``cfg.output_size`` (:func:`working_scale`), every view scaled by it (never up)."""
+    from dataclasses import replace
+
+    s, rep = working_scale([footprint_px(x.depth) for x in work.scans], cfg.output_size)
+    if s < 1:
+        scans, _ = ctx.map_views(scale_view, work, s, "scale views")
+        work = replace(work, scans=scans, metadata={**work.metadata, "working_scale": s})
+    c = work.scans[0].camera
+    return work.record("working scale", {**rep, "size": [c.width, c.height],
+                                         "output_size": list(cfg.output_size) if cfg.output_size else None})

@@ -1,0 +1,176 @@
+"""The flags that change the model, shared by every command that builds one (``furrow model``,
+``furrow eval``, ``furrow batch``, the benches): :func:`add_model_arguments` adds them to a parser,
+:func:`pipeline_config` turns the parsed arguments into the pipeline's config
+(volume/pipeline/config.py), :func:`pipeline_hooks` gives the runner the command's stage table and
+progress bars, :func:`print_plan` prints the stages a configuration runs (``--plan``)."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from functools import partial
+
+
+def _pow2(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 8 or v & (v - 1) or v > 512:
+        raise argparse.ArgumentTypeError(f"{v} must be a power of two between 8 and 512")
+    return v
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not WxH (e.g. 1280x960)") from None
+    if w < 1 or h < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: width and height must be positive")
+    return w, h
+
+
+def _colour(text: str) -> tuple[float, float, float]:
+    """--backdrop COLOUR -> linear RGB in [0, 1], read like furrow render --background
+    (render.composite.background.parse_colour: a colour name, #rrggbb, or an sRGB triple)."""
+    from render.composite.background import parse_colour
+
+    try:
+        c = parse_colour(text.strip())
+    except ValueError:
+        c = None
+    if c is None:
+        raise argparse.ArgumentTypeError(f"bad colour {text!r}: use a colour name (black, white, grey), #rrggbb "
+                                         "or r,g,b (0-255)")
+    return tuple(float(v) for v in c)
+
+
+def add_model_arguments(p: argparse.ArgumentParser, frames: bool = True) -> None:
+    """Every flag that changes the model (``frames``: with --frames; furrow batch picks no frames)."""
+    g = p.add_argument_group("the model (the same flags in furrow model, eval and batch; --plan lists the stages)")
+    if frames:
+        g.add_argument("--frames", default=None, metavar="SPEC",
+                       help="frames to use, python-slice style: 0::2, 3, 1,4,7 (furrow eval: before the hold-out "
+                            "split)")
+    g.add_argument("--views", default="auto", metavar="auto|all|N",
+                   help="views kept (volume/views.py): auto drops near-duplicates (direction from the object within "
+                        "2 deg of a kept view at a similar distance), all keeps every view, N keeps the N most spread "
+                        "out; the model report gives every view's reason (default auto)")
+    g.add_argument("--output-size", type=_size, default=None, metavar="WxH",
+                   help="size of the frames you will render: the views are scaled down so the object keeps the "
+                        "pixels it will cover there (never up); default: full resolution")
+    g.add_argument("--max-res", type=_pow2, default=256, help="L_max: finest resolution tried (default 256)")
+    g.add_argument("--alpha", type=float, default=1.5, help="Eq. 1 tolerance alpha >= 1 (default 1.5)")
+    g.add_argument("--t", type=float, default=0.01, help="Eq. 1 threshold t on N_i / L^3 (default 0.01)")
+    g.add_argument("--sdf", choices=["consensus", "tsdf"], default="consensus",
+                   help="fusion method (default consensus)")
+    g.add_argument("--sphere-error", type=float, default=0.2, metavar="E",
+                   help="target 1 - volume IoU of the occluder sphere set (default 0.2)")
+    g.add_argument("--quorum", type=int, default=3,
+                   help="consensus: scans that must agree for a depth sample to count (default 3; use 1-2 "
+                        "when each surface point is seen by fewer views)")
+    g.add_argument("--mesh-faces", type=int, default=60000,
+                   help="decimate the mesh to this many triangles (default 60000)")
+    g.add_argument("--mesh-level", type=_pow2, default=128,
+                   help="fused level the baseline mesh is marched on (default 128, capped at --max-res)")
+    g.add_argument("--spill", choices=["auto", "always", "never"], default="auto",
+                   help="where the scans wait between stages (capture/scan_store.py): on disk in a temporary folder, "
+                        "read back one view at a time, so that peak memory does not grow with the frames; auto "
+                        "(default) spills when the frames would take over 128 MiB in memory (15 frames at "
+                        "1280x960, 62 at 640x480); the model is the same either way")
+    g.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="processes the per-view stages (reading, matte) run in (default 1: this process)")
+    g.add_argument("--reference-pipeline", action="store_true",
+                   help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
+                        "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
+    _add_camera_arguments(p)
+    _add_surroundings_arguments(p)
+
+
+def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("real cameras: lens distortion and per-view exposure / white balance")
+    g.add_argument("--undistort", choices=["crop", "full"], default="crop",
+                   help="frames with lens distortion (camera_model OPENCV / OPENCV_FISHEYE, COLMAP radial models) "
+                        "are undistorted at read time: 'crop' (default, as nerfstudio: every pixel valid, corners "
+                        "lost) or 'full' (every source pixel kept, black corners without depth)")
+    g.add_argument("--no-photometric", action="store_true",
+                   help="do not align the views' exposure and white balance (default: a per-view, per-channel "
+                        "gain in linear light estimated from what neighbouring views see of the same surface)")
+    g.add_argument("--photometric-reference", default="median", metavar="NAME",
+                   help="whose colour the aligned views keep: 'median' (default: the median view in each channel), "
+                        "'mean', or a view's name")
+
+
+def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("the object apart from its surroundings (before fusion)")
+    g.add_argument("--keep-support", action="store_true",
+                   help="keep the support plane (table, turntable) the object stands on; by default it is found "
+                        "by RANSAC in the depth and removed with far depth and clutter (capture/extent.py)")
+    g.add_argument("--no-extent", action="store_true",
+                   help="use the depth as captured: no support, far-depth or clutter removal at all")
+    g.add_argument("--matte", choices=["auto", "given", "backdrop", "estimate", "off"], default="auto",
+                   help="soft alpha matte per view and the object's colour under it (capture/matting.py): auto "
+                        "(default: the capture's own matte, mask_path or RGBA alpha; else a plain backdrop, named "
+                        "or detected; else estimated from the depth by closed-form matting), given, backdrop, "
+                        "estimate, or off (the binary depth mask, as before)")
+    g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
+                   help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
+
+
+def pipeline_config(args, **save):
+    """The PipelineConfig of the model flags (:func:`add_model_arguments`); ``save``: the save
+    stage's settings (``out``, the capture lighting)."""
+    from capture.extent import ExtentConfig
+    from capture.matting import MatteConfig
+    from capture.photometric import PhotometricConfig
+    from capture.sources import ReadConfig, UndistortConfig
+    from volume.fusion import FusionConfig
+    from volume.mesh import MeshConfig
+    from volume.pipeline.config import FuseConfig, PipelineConfig, SaveConfig, ScaleConfig, SpheresConfig, ViewsConfig
+    from volume.pyramid import LoptConfig
+
+    lopt = LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res))
+    cfg = PipelineConfig(
+        read=ReadConfig(getattr(args, "frames", None)), undistort=UndistortConfig(args.undistort),
+        views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
+        extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
+        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop),
+        photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
+        fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
+        spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,
+                                                                         level=args.mesh_level),
+        save=SaveConfig(**save), spill=args.spill, workers=args.workers)
+    return cfg.reference() if args.reference_pipeline else cfg
+
+
+def pipeline_hooks(timer):
+    """The runner's Hooks for a command: its StageTimer's rows (per-view rows quiet) and progress bars."""
+    from furrow.console import track
+    from volume.pipeline.work import Hooks
+
+    return Hooks(row=timer.stage, view_row=partial(timer.stage, quiet=True), progress=track)
+
+
+def print_plan(console, cfg, source=None, title: str = "the pipeline") -> None:
+    """The stages ``cfg`` runs, in order, with their settings and on / off (``--plan``)."""
+    from rich.table import Table
+
+    from volume.pipeline.plan import plan_rows
+
+    if source is not None:
+        console.print(f"source: {source.format}, {len(source)} frames ({source.path})", highlight=False)
+    t = Table(title=f"{title}: stages in order (volume/pipeline/stages.py)")
+    for c in ("#", "stage", "", "kind", "settings", "where"):
+        t.add_column(c, overflow="fold")
+    for r in plan_rows(cfg):
+        t.add_row(str(r["n"]), r["name"], "[green]on" if r["on"] else "[dim]off", r["kind"], r["settings"], r["where"])
+    console.print(t)
+    console.print(f"runner: spill {cfg.spill}, workers {cfg.workers}", highlight=False)
+
+
+def with_frames(cfg, frames: str | None):
+    """``cfg`` reading the frames ``frames`` (a slice spec) instead."""
+    from capture.sources import ReadConfig
+
+    return replace(cfg, read=ReadConfig(frames))

@@ -1,0 +1,248 @@
+"""The pipeline's runner: the stages of volume/pipeline/stages.py in order, and what no stage does
+itself -- where the views wait (capture/scan_store.py), the progress bars and the stage table
+(through the command's :class:`~volume.pipeline.work.Hooks`).
+
+Per-view stages are queued and run when a whole-set stage needs the views (or at the end): each
+view goes through every queued stage before the next view is read, and the result is kept in
+memory or on disk.  A cameras stage (view selection) works on the cameras the source gives before
+any image, so the views it drops are never read.  Reading makes the scan set: the capture's bounds
+or the robust box of the depth, and the metadata of what reading did (capture/sources.finish_scanset).
+
+``workers > 1`` maps the per-view stages over a pool of processes (each view's result comes back and
+is kept here, one at a time, in view order: the spill store's memory bound holds for the main
+process; each worker holds one view).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import partial
+
+from capture.scan import ScanSet
+from capture.scan_store import spill_for
+from capture.sources import FRAME_STEPS, Source, finish_scanset
+from volume.pipeline.config import PipelineConfig
+from volume.pipeline.stages import CAMERAS, SET, STAGES, VIEW
+from volume.pipeline.work import Context, Hooks, Work
+
+
+def _start(source, cfg: PipelineConfig) -> Work:
+    """The first Work: a Source's frames picked by ``cfg.read.frames``, or a ScanSet's scans in memory."""
+    if isinstance(source, ScanSet):
+        from capture.sources import FrameRef, Source
+
+        refs = tuple(FrameRef(i, s.name, s.camera, s.camera, None, None, None) for i, s in enumerate(source.scans))
+        src = Source(source.metadata.get("source", "<scans in memory>"), "memory", refs, source.bounds,
+                     dict(source.metadata))
+        work = Work(src, refs, tuple(source.scans), source.bounds, dict(source.metadata))
+        if cfg.read.frames:
+            from capture.scan import select_indices
+
+            idx = select_indices(cfg.read.frames, len(refs))
+            work = replace(work, refs=tuple(refs[i] for i in idx), scans=tuple(source.scans[i] for i in idx))
+        return work
+    src = source.select(cfg.read.frames)
+    return Work(src, src.frames)
+
+
+def _view_items(work: Work):
+    """What the first per-view step gets: nothing before reading (it reads the frame), else the view."""
+    return [None] * len(work.refs) if work.scans is None else list(work.scans)
+
+
+def _apply(steps, view, ref):
+    """``view`` through ``steps`` [(stage, fn, cfg, row)]: (the view, the notes)."""
+    notes = []
+    for _, fn, cfg, row in steps:
+        with row():
+            view, note = fn(view, ref, cfg)
+        notes.append(note)
+    return view, notes
+
+
+def _apply_loaded(steps, view, ref):
+    """:func:`_apply` in a worker process (no stage-table row there; ``steps``: [(fn, cfg)]): a
+    spilled view arrives as its Scan."""
+    from contextlib import nullcontext
+
+    return _apply([(None, fn, cfg, nullcontext) for fn, cfg in steps], view, ref)
+
+
+class Run:
+    """One run of the pipeline: its :class:`Work` and the spill folder its views and RGBz crops wait
+    in (owned: :meth:`close`, or leave ``with``).  :func:`run_pipeline` makes it."""
+
+    def __init__(self, work: Work, cfg: PipelineConfig, hooks: Hooks):
+        self.work, self.cfg, self.hooks = work, cfg, hooks
+        self.spill, self._spill_decided = None, False
+
+    # ------------------------------------------------------------------ what the stages made
+    @property
+    def model(self):
+        return self.work.parts.get("model")
+
+    def summary(self) -> dict:
+        """The ``furrow model --json`` summary keys (volume/pipeline/report.summary) and where the views waited."""
+        from volume.pipeline.report import summary
+
+        return {**summary(self.work), "spill": "disk" if self.spill is not None else "memory"}
+
+    # ------------------------------------------------------------------ resources
+    def close(self) -> None:
+        if self.spill is not None:
+            self.spill.close()
+
+    def __enter__(self) -> Run:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _decide_spill(self) -> None:
+        """The spill folder, chosen once by the pixels of the views (after view selection, ``cfg.spill``)."""
+        if not self._spill_decided:
+            self._spill_decided = True
+            self.spill = spill_for(sum(r.camera.width * r.camera.height for r in self.work.refs), self.cfg.spill)
+
+    def keep(self, scan):
+        """Where a stage's new scan waits: the spill folder once the views are many (``cfg.spill``)."""
+        self._decide_spill()
+        return self.spill.keep(scan) if self.spill is not None else scan
+
+    def context(self) -> Context:
+        self._decide_spill()
+        return Context(self.cfg, self.keep, self.hooks.row, self.hooks.progress,
+                       self.spill.path if self.spill is not None else None, self.map_views)
+
+    # ------------------------------------------------------------------ running
+    def run(self, stages=STAGES) -> Run:
+        pending = []
+        for st in stages:
+            cfg = getattr(self.cfg, st.key)
+            if not st.on(cfg):
+                continue
+            if st.kind == VIEW:
+                pending.append(st)
+                continue
+            if st.kind == SET and pending:
+                self.views(pending)
+                pending = []
+            if st.kind == CAMERAS:
+                self.select(st, cfg)
+            else:
+                self.whole(st, cfg)
+        if pending:
+            self.views(pending)
+        return self
+
+    def select(self, st, cfg) -> None:
+        """A cameras stage: the kept views (and their scans, when read)."""
+        with self.hooks.row(st.row_name(self.cfg)):
+            kept, rec = st.fn(self.work.refs, cfg)
+        w = self.work
+        scans = None if w.scans is None else tuple(w.scans[k] for k in kept)
+        self.work = replace(w, refs=tuple(w.refs[k] for k in kept), scans=scans).record(st.name, rec)
+
+    def whole(self, st, cfg) -> None:
+        """A whole-set stage, in its row (or its own rows)."""
+        ctx = self.context()
+        if st.rows:
+            self.work = st.fn(self.work, cfg, ctx)
+            return
+        with self.hooks.row(st.row_name(self.cfg)):
+            self.work = st.fn(self.work, cfg, ctx)
+
+    def views(self, pending) -> None:
+        """Queued per-view stages, view by view (module docstring); reading ends in the scan set."""
+        w = self.work
+        from_files = w.scans is None
+        todo = [st for st in pending if from_files or not st.reads_frame]
+        if not todo:
+            return
+        view_row = self.hooks.view_row or self.hooks.row
+        steps = [(st, st.fn, getattr(self.cfg, st.key), partial(view_row, st.row_name(self.cfg))) for st in todo]
+        for st, _, cfg, _ in steps:
+            if st.before is not None:
+                with self.hooks.row(f"{st.name} warm-up"):
+                    st.before(cfg)
+        desc = f"reading {len(w.refs)} views" if from_files else ", ".join(st.name for st in todo)
+        scans, notes = self._map(steps, w, desc)
+        w = replace(w, scans=scans)
+        by_stage = {st.name: [n[k] for n in notes] for k, st in enumerate(todo)}
+        if from_files:
+            ss = finish_scanset(w.source, scans, by_stage)
+            w = replace(w, bounds=ss.bounds, metadata=ss.metadata)
+        for st, _, cfg, _ in steps:
+            if st.reduce is not None:
+                w = st.reduce(w, by_stage, cfg)
+        self.work = w
+
+    def map_views(self, fn, work: Work, arg, description: str):
+        """``fn(view, ref, arg) -> (view, note)`` over every view of ``work`` (Context.map_views)."""
+        from contextlib import nullcontext
+
+        scans, notes = self._map([(None, fn, arg, nullcontext)], work, description)
+        return scans, [n[0] for n in notes]
+
+    def _map(self, steps, work: Work, description: str):
+        """(kept views, per-view notes): every view through ``steps``, in this process or a pool."""
+        items = _view_items(work)
+        out, notes = [], []
+        hooks_track = self.hooks.progress or (lambda it, d: it)
+        if self.cfg.workers > 1 and len(items) > 1:
+            results = self._pool_map(steps, items, work.refs)
+        else:
+            results = (_apply(steps, v, ref) for v, ref in zip(items, work.refs, strict=True))
+        for view, n in hooks_track(results, description):
+            out.append(self.keep(view))
+            notes.append(n)
+        return tuple(out), notes
+
+    def _pool_map(self, steps, items, refs):
+        """The views through ``steps`` in ``cfg.workers`` processes, yielded in view order; at most
+        2 x workers views are in flight (each is loaded from the spill folder only when submitted)."""
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        from capture.scan_store import SpilledScan
+
+        plain = [(fn, cfg) for _, fn, cfg, _ in steps]
+        with ProcessPoolExecutor(self.cfg.workers, mp_context=mp.get_context("spawn")) as pool:
+            queue, k = [], 0
+            while k < len(items) or queue:
+                while k < len(items) and len(queue) < 2 * self.cfg.workers:
+                    v = items[k].load() if isinstance(items[k], SpilledScan) else items[k]
+                    queue.append(pool.submit(_apply_loaded, plain, v, refs[k]))
+                    k += 1
+                yield queue.pop(0).result()
+
+
+def run_pipeline(source: Source | ScanSet, cfg: PipelineConfig | None = None, hooks: Hooks | None = None,
+                 stages=STAGES) -> Run:
+    """Run ``stages`` (default: the whole pipeline) on a capture (a capture.sources.Source) or on
+    scans already in memory (a ScanSet: the reading stages are skipped).  Returns the :class:`Run`,
+    which holds the spill folder until it is closed (the model's RGBz crops may be read from it)."""
+    cfg = cfg or PipelineConfig()
+    run = Run(_start(source, cfg), cfg, hooks or Hooks())
+    try:
+        return run.run(stages)
+    except BaseException:
+        run.close()
+        raise
+
+
+def read_views(source: Source, refs, cfg: PipelineConfig | None = None, progress=None) -> list:
+    """The frames ``refs`` of ``source`` read by the pipeline's reading stages only (the held-out
+    references of ``furrow eval``), as Scans in memory."""
+    cfg = cfg or PipelineConfig()
+    reading = [st for st in STAGES if st.reads_frame]
+    from capture.sources import read_frame
+
+    configs = tuple(getattr(cfg, st.key) for st in reading)
+    items = progress(refs, "reading references") if progress else refs
+    return [read_frame(ref, configs)[0] for ref in items]
+
+
+def reading_steps_match() -> bool:
+    """The pipeline's reading stages are capture/sources.FRAME_STEPS, the same functions in the same order."""
+    return [(st.name, st.fn) for st in STAGES if st.reads_frame] == list(FRAME_STEPS)
