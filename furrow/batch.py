@@ -1,7 +1,8 @@
 """Many captures: :func:`run_capture` (one capture, plain function) and :func:`run_batch` (the Ray layer).
 
-``run_capture(scans, out, steps)`` wires the stages for one capture -- read, ``model`` (volume.build,
-as ``furrow model``), ``eval`` (held-out, render.evaluate, as ``furrow eval``), ``orbit`` (an MP4
+``run_capture(scans, out, steps)`` wires the stages for one capture -- read, ``model`` (the pipeline,
+volume/pipeline, as ``furrow model`` with the same flags), ``eval`` (held-out, as ``furrow eval``:
+the same function, furrow.cmd_eval.evaluate_capture), ``orbit`` (an MP4
 turntable, as ``furrow render --orbit --video``) -- and writes into ``out``:
 
     out/model/       the model (volume.model.save_model: temporary folder + rename)
@@ -25,8 +26,10 @@ import os
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+
+from volume.pipeline.config import PipelineConfig
 
 #: The steps a capture can run, in order.
 STEPS = ("model", "eval", "orbit")
@@ -48,8 +51,8 @@ LOCAL_OBJECT_STORE_BYTES = 256 * 1024 * 1024
 class CaptureConfig:
     """What ``furrow batch`` sets for every capture."""
 
-    max_res: int = 256
-    """L_max of the model (as ``furrow model --max-res``)."""
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+    """The model pipeline's config (the model flags of ``furrow model``, furrow/model_flags.py)."""
     holdout: int = 2
     """eval: keep frames i % holdout == 0 for the held-out model (as ``furrow eval --holdout``)."""
     orbit_frames: int = 36
@@ -111,14 +114,7 @@ def _check_registration(scans: Path, allow_flagged: bool) -> None:
                          "model anyway)")
 
 
-def _model_config(cfg: CaptureConfig):
-    from volume.build import ModelConfig
-    from volume.pyramid import LoptConfig
-
-    return ModelConfig(lopt=LoptConfig(max_res=cfg.max_res, min_res=min(8, cfg.max_res)))
-
-
-def _orbit(model, scanset, out: Path, cfg: CaptureConfig) -> int:
+def _orbit(model, cameras, out: Path, cfg: CaptureConfig) -> int:
     """Render the orbit of ``model`` into out/orbit.mp4 (GL context created here, in the worker)."""
     import numpy as np
 
@@ -128,23 +124,30 @@ def _orbit(model, scanset, out: Path, cfg: CaptureConfig) -> int:
     from render.gl import gl_context
     from render.methods import create_renderer
 
-    cams = orbit_cameras(scanset.cameras, cfg.orbit_frames, center=np.asarray(model.bounds).mean(axis=0))
+    cams = orbit_cameras(cameras, cfg.orbit_frames, center=np.asarray(model.bounds).mean(axis=0))
     with gl_context() as ctx, create_renderer(cfg.method, ctx, model) as r:
         return write_mp4((to_uint8_srgb(r.render(c).rgb) for c in cams), out / "orbit.mp4", cfg.fps)
 
 
-def _evaluate(scanset, scans: Path, out: Path, cfg: CaptureConfig) -> dict:
-    """Held-out scores (as ``furrow eval``) into out/eval.json; returns the means per method."""
-    from render.evaluate import evaluate, holdout_split
-    from render.gl import gl_context
-    from volume.build import build_model
+def _model(source, out: Path, cfg: CaptureConfig) -> dict:
+    """The model (as ``furrow model``) into out/model; the summary keys of the record."""
+    from volume.pipeline.config import SaveConfig
+    from volume.pipeline.runner import run_pipeline
 
-    split = holdout_split(scanset, cfg.holdout)
-    model, _ = build_model(split.kept, _model_config(cfg), provenance={"source": str(scans), "holdout": cfg.holdout})
-    with gl_context() as ctx:
-        res = evaluate(ctx, model, split.held)
-    _write_json(out / "eval.json", {"holdout": cfg.holdout, "kept": split.kept_idx, "held": split.held_idx, **res})
-    return {k: {m: round(v[m], 4) for m in ("psnr", "ssim", "psnr_masked")} for k, v in res.items()}
+    with run_pipeline(source, replace(cfg.pipeline, save=SaveConfig(out=out / "model"))) as run:
+        summary = run.summary()
+    return {k: summary[k] for k in ("l_opt", "levels", "spheres", "mesh")}
+
+
+def _evaluate(scans: Path, out: Path, cfg: CaptureConfig) -> dict:
+    """Held-out scores (as ``furrow eval``, the same pipeline config) into out/eval.json; returns the
+    means per method."""
+    from furrow.cmd_eval import evaluate_capture
+
+    res = evaluate_capture(scans, cfg.pipeline, cfg.holdout)
+    _write_json(out / "eval.json", res)
+    return {k: {m: round(v[m], 4) for m in ("psnr", "ssim", "psnr_masked")} for k, v in res.items()
+            if isinstance(v, dict) and "psnr_masked" in v}
 
 
 def run_capture(scans, out, steps: Sequence[str] = STEPS, config: CaptureConfig | None = None,
@@ -154,16 +157,16 @@ def run_capture(scans, out, steps: Sequence[str] = STEPS, config: CaptureConfig 
     Raises whatever a stage raises (the caller reports it); nothing is marked complete unless
     every step succeeded (done.json is written last).  ``record``: a dict filled as the stages run
     (their times survive a failure)."""
-    from capture.io import read_scanset
-    from volume.build import build_model
-    from volume.model import load_model, save_model
+    from capture.atomic import jsonable
+    from capture.sources import open_source
+    from volume.model import load_model
 
     cfg = config or CaptureConfig()
     scans, out = Path(scans), Path(out)
     steps = tuple(s for s in STEPS if s in steps)
     rec = record if record is not None else {}
     rec.update({"capture": out.name, "scans": str(scans), "steps": list(steps), "stages": {}, "scores": {},
-                "config": asdict(cfg), "pid": os.getpid()})
+                "config": jsonable(asdict(cfg)), "pid": os.getpid()})
 
     def stage(name):
         if on_stage:
@@ -173,20 +176,16 @@ def run_capture(scans, out, steps: Sequence[str] = STEPS, config: CaptureConfig 
     out.mkdir(parents=True, exist_ok=True)
     with stage("read"):
         _check_registration(scans, cfg.allow_flagged)
-        scanset = read_scanset(scans)
-    model = None
+        source = open_source(scans, cfg.pipeline.undistort.mode)
     if "model" in steps:
         with stage("model"):
-            model, summary = build_model(scanset, _model_config(cfg), provenance={"source": str(scans), "batch": True})
-            save_model(model, out / "model")
-            rec["model"] = {k: summary[k] for k in ("l_opt", "levels", "spheres", "mesh")}
+            rec["model"] = _model(source, out, cfg)
     if "eval" in steps:
         with stage("eval"):
-            rec["scores"] = _evaluate(scanset, scans, out, cfg)
+            rec["scores"] = _evaluate(scans, out, cfg)
     if "orbit" in steps:
         with stage("orbit"):
-            model = model if model is not None else load_model(out / "model")
-            rec["orbit_frames"] = _orbit(model, scanset, out, cfg)
+            rec["orbit_frames"] = _orbit(load_model(out / "model"), source.cameras, out, cfg)
     rec["status"] = "done"
     _write_json(out / DONE_FILE, rec)
     return rec

@@ -8,7 +8,8 @@ from pathlib import Path
 HELP = "run many captures (model, held-out eval, orbit video) as Ray tasks, locally or on a cluster"
 DESCRIPTION = """Each capture (a folder holding a transforms.json, a plain folder or a COLMAP folder) is one task on
 Ray: a local cluster on this machine by default (--workers CPUs), an existing cluster with --address.
-Per capture OUT/NAME/ gets model/ (as `furrow model`), eval.json (as `furrow eval`), orbit.mp4 (as
+Per capture OUT/NAME/ gets model/ (as `furrow model`, with the same model flags: --max-res, --matte,
+--no-photometric, ...), eval.json (as `furrow eval`, the same model), orbit.mp4 (as
 `furrow render --orbit --video`) and done.json, each written atomically; a capture that fails
 (corrupt depth, flagged registration, out of memory) is reported by name with its one-line reason
 and the others go on; a re-run skips complete captures.  OUT/batch.json holds every capture's
@@ -29,11 +30,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="an existing Ray cluster (e.g. ray://host:10001 or auto); default: a local cluster")
     p.add_argument("--workers", type=int, default=2, help="local cluster: CPUs, i.e. captures at once (default 2)")
     p.add_argument("--steps", default="model,eval,orbit", help="steps per capture, from model,eval,orbit (default all)")
-    p.add_argument("--max-res", type=int, default=256, help="model L_max, as `furrow model --max-res` (default 256)")
     p.add_argument("--holdout", type=int, default=2, help="eval: keep frames i %% K == 0 (default 2)")
     p.add_argument("--orbit-frames", type=int, default=36, help="orbit video frames (default 36)")
     p.add_argument("--fps", type=float, default=24.0, help="orbit video frames per second (default 24)")
     p.add_argument("--allow-flagged", action="store_true", help="model captures whose registration.json flags scans")
+    from furrow.model_flags import add_model_arguments
+
+    add_model_arguments(p, frames=False)
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
 
@@ -62,6 +65,7 @@ def run(args, console) -> int:
     from rich.live import Live
 
     from furrow.batch import BATCH_FILE, CaptureConfig, parse_steps, run_batch
+    from furrow.model_flags import pipeline_config
 
     steps = parse_steps(args.steps)
     if args.workers < 1:
@@ -70,8 +74,8 @@ def run(args, console) -> int:
         import ray  # noqa: F401
     except ModuleNotFoundError:
         raise RuntimeError("furrow batch needs Ray: pip install 'furrow[cluster]'") from None
-    cfg = CaptureConfig(max_res=args.max_res, holdout=args.holdout, orbit_frames=args.orbit_frames, fps=args.fps,
-                        allow_flagged=args.allow_flagged)
+    cfg = CaptureConfig(pipeline=pipeline_config(args), holdout=args.holdout, orbit_frames=args.orbit_frames,
+                        fps=args.fps, allow_flagged=args.allow_flagged)
     missing = [str(c) for c in args.captures if not c.exists()]
     if missing:
         raise ValueError(f"no such capture: {', '.join(missing)}")

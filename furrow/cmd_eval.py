@@ -5,7 +5,6 @@ the vertex-colour floor; docs/methods.md §1.8, the paper's Fig. 11)."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 from pathlib import Path
 
@@ -41,18 +40,25 @@ there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, ea
 ssim, psnr_masked, ssim_masked, sharpness, psnr_white, psnr_dark, alpha_mse, alpha_sad,
 ms_per_frame, ... and the per-view records).
 
---geometry: `model` builds the model with the volume stage (volume.build.build_model, the
-same as `furrow model`);
-`gt` takes the voxels from the synthetic set's exact gt/mesh.ply (render.gt_model; the
-baseline mesh is then a TSDF fusion of the kept scans); `auto` (default) uses `model` when
-the volume stage provides it, else `gt`.
+The model of the kept frames is built by the pipeline of `furrow model` with the same flags (every
+flag of `furrow model` that changes the model: --matte, --backdrop, --no-photometric, --views,
+--undistort, --keep-support, --no-extent, --max-res, --sdf, ...; --frames picks the frames before
+the split): `furrow eval SCANS --holdout 2 --matte off` evaluates the model `furrow model SCANS
+--frames 0::2 --matte off` writes.  The held-out references are read by the pipeline's reading
+stages only (lenses undistorted, the capture's mattes read).
+--geometry: `model` (and `auto`, the default) builds the model with that pipeline; `gt` takes
+the voxels from the synthetic set's exact gt/mesh.ply (render.gt_model; the baseline mesh is
+then a TSDF fusion of the kept scans).
 
 example:
   furrow eval out/furball --holdout 2 --json out/eval_furball.json -o out/eval_furball"""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scans", type=Path, help="scan set (transforms.json, a folder holding one, or a plain folder)")
+    from furrow.model_flags import add_model_arguments
+
+    p.add_argument("scans", type=Path,
+                   help="scan set (transforms.json, a folder holding one, a plain folder or a COLMAP folder)")
     p.add_argument("--holdout", type=int, required=True, metavar="K",
                    help="keep frames with i %% K == 0 for the model, evaluate on the others (K >= 2)")
     p.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the numbers as JSON")
@@ -69,49 +75,61 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
     p.add_argument("--max-views", type=int, default=None,
                    help="evaluate at most this many held-out views (evenly spaced)")
-    g = p.add_argument_group("real cameras")
-    g.add_argument("--undistort", choices=["crop", "full"], default="crop",
-                   help="lens-distorted frames are undistorted at read time: 'crop' (default, as nerfstudio) or 'full'")
-    g.add_argument("--no-photometric", action="store_true",
-                   help="build the model without aligning the kept views' exposure and white balance")
+    add_model_arguments(p)
     p.add_argument("--debug", action="store_true", help="show tracebacks")
+
+
+def evaluate_capture(scans: Path, cfg, holdout: int, options=None, out_dir: Path | None = None, timer=None,
+                     geometry: str = "auto", l_max: int = 128, max_views: int | None = None, methods=None) -> dict:
+    """Held-out evaluation of a capture (module docstring): the frames i %% holdout == 0 (of those
+    ``cfg`` reads) through the pipeline with ``cfg`` (volume/pipeline, as ``furrow model``), the
+    others read by its reading stages and rendered with every method; returns the eval.json record.
+    ``timer``: a furrow.console.StageTimer for the stage table (None: no table)."""
+    from capture.sources import open_source
+    from furrow.console import StageTimer, track
+    from furrow.model_flags import pipeline_hooks
+    from render import evaluate as ev
+    from render.gl import gl_context
+
+    timer = timer or StageTimer()
+    methods = methods or ev.EVAL_METHODS
+    source = open_source(scans, cfg.undistort.mode)
+    with timer.stage("read held-out views"):
+        split = ev.source_holdout(source, holdout, cfg, max_views, track)
+    kept, held = split.kept_idx, split.held_idx
+    if not held:
+        raise ValueError(f"{scans}: {len(kept)} frames leave nothing to hold out with --holdout {holdout}")
+    with ev.build_eval_model(source, kept, cfg, geometry, l_max, pipeline_hooks(timer)) as em:
+        with gl_context() as ctx, timer.stage(f"render {len(held)} held-out views x {len(methods)} methods"):
+            res = ev.evaluate(ctx, em.model, split.held, options, methods, out_dir, track)
+        model = em.model
+        res.update({"photometric": model.params.get("photometric"), "undistorted": em.metadata.get("undistorted"),
+                    "geometry": em.geometry, "levels": model.pyramid.resolutions,
+                    "surface_voxels": [len(lv.surface) for lv in model.pyramid.levels]})
+        if em.summary is not None:
+            res["model"] = {k: em.summary[k] for k in ("l_opt", "views", "resolution", "surroundings", "spill")}
+    res.update({"scans": str(scans), "holdout": holdout, "kept": kept, "held": held})
+    return res
 
 
 def run(args, console) -> int:
     from rich.table import Table
 
-    from capture.io import read_scanset
-    from furrow.console import StageTimer, track
+    from furrow.console import StageTimer
+    from furrow.model_flags import pipeline_config
     from render import evaluate as ev
-    from render.gl import gl_context
 
     options = render_options(args)
-    timer = StageTimer()
     if args.holdout < 2:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
-    with timer.stage("read scans"):
-        ss = read_scanset(args.scans, undistort=args.undistort)
-    if args.no_photometric:
-        from volume.photometric import OFF_KEY
-
-        ss = dataclasses.replace(ss, metadata={**ss.metadata, OFF_KEY: "off"})
-    split = ev.holdout_split(ss, args.holdout, args.max_views)
-    if not split.held:
-        raise ValueError(f"{args.scans}: {len(ss.scans)} frames leave nothing to hold out "
-                         f"with --holdout {args.holdout}")
-    with timer.stage(f"build model from {len(split.kept_idx)} frames"):
-        model, used = ev.build_eval_model(split.kept, args.scans, args.geometry, args.l_max)
+    timer = StageTimer()
     out_dir = args.out or Path("out") / "eval" / Path(args.scans).resolve().name
-    with gl_context() as ctx, timer.stage(f"render {len(split.held)} held-out views x {len(ev.EVAL_METHODS)} methods"):
-        res = ev.evaluate(ctx, model, split.held, options, ev.EVAL_METHODS, out_dir, track)
-    held_idx = split.held_idx
-    res.update({"photometric": model.params.get("photometric"), "undistorted": ss.metadata.get("undistorted")})
-    res.update({"scans": str(args.scans), "holdout": args.holdout, "kept": split.kept_idx, "held": held_idx,
-                "geometry": used, "tolerance_px": options.tolerance_px, "supersample": options.supersample,
-                "refine": options.refine_steps, "levels": model.pyramid.resolutions,
-                "surface_voxels": [len(lv.surface) for lv in model.pyramid.levels]})
-    t = Table(title=f"held-out evaluation ({len(held_idx)} views, geometry: {used}, E = {options.tolerance_px:g} px, "
-                    f"{options.supersample}x{options.supersample} samples/pixel)")
+    res = evaluate_capture(args.scans, pipeline_config(args), args.holdout, options, out_dir, timer, args.geometry,
+                           args.l_max, args.max_views)
+    res.update({"tolerance_px": options.tolerance_px, "supersample": options.supersample,
+                "refine": options.refine_steps})
+    t = Table(title=f"held-out evaluation ({len(res['held'])} views, geometry: {res['geometry']}, "
+                    f"E = {options.tolerance_px:g} px, {options.supersample}x{options.supersample} samples/pixel)")
     for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "sharpness", "holes %", "largest hole px",
               "ms/frame", "CPU ms", "facets"):
         t.add_column(c, justify="right")

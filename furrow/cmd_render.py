@@ -139,7 +139,7 @@ def select_views(args, model) -> tuple[list, list]:
         cams = orbit_cameras(inputs, args.orbit, center=np.asarray(model.bounds).mean(axis=0))
         views = [(c, c.name) for c in cams]
     else:
-        views = [(frames[i].camera, Path(frames[i].file_path).name) for i in select_indices(args.frames, len(frames))]
+        views = [(frames[i].camera, Path(frames[i].name).name) for i in select_indices(args.frames, len(frames))]
         names = [v[1] for v in views]
         if len(set(names)) != len(names):
             raise ValueError(f"{args.cameras}: several selected frames share a file name; output names would clash")

@@ -79,7 +79,7 @@ def add_model_arguments(p: argparse.ArgumentParser, frames: bool = True) -> None
                         "read back one view at a time, so that peak memory does not grow with the frames; auto "
                         "(default) spills when the frames would take over 128 MiB in memory (15 frames at "
                         "1280x960, 62 at 640x480); the model is the same either way")
-    g.add_argument("--workers", type=int, default=1, metavar="N",
+    g.add_argument("--view-workers", type=int, default=1, metavar="N",
                    help="processes the per-view stages (reading, matte) run in (default 1: this process)")
     g.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
@@ -140,7 +140,7 @@ def pipeline_config(args, **save):
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,
                                                                          level=args.mesh_level),
-        save=SaveConfig(**save), spill=args.spill, workers=args.workers)
+        save=SaveConfig(**save), spill=args.spill, workers=args.view_workers)
     return cfg.reference() if args.reference_pipeline else cfg
 
 

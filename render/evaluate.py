@@ -8,7 +8,7 @@ in how they draw.
 
 from __future__ import annotations
 
-import importlib
+import contextlib
 from pathlib import Path
 from typing import NamedTuple
 
@@ -26,7 +26,8 @@ ERROR_GAIN = 4.0
 #: Label text of the sheets: OpenCV Hershey font scale per 480 image rows, and its colour.
 LABEL_SCALE = 0.6
 LABEL_COLOUR = (255, 255, 0)
-#: Where the evaluated model's geometry comes from (build_eval_model).
+#: Where the evaluated model's geometry comes from (build_eval_model): the pipeline ("model"; "auto"
+#: is the same) or the synthetic capture's exact mesh ("gt").
 GEOMETRIES = ("auto", "model", "gt")
 #: Backdrops of the composite scores (8-bit sRGB grey): a product photo's white and a dark one.
 COMPOSITE_BACKDROPS = {"white": 235, "dark": 24}
@@ -52,64 +53,99 @@ def reference_foreground(scan) -> np.ndarray:
 class HoldOut(NamedTuple):
     """A scan set split for held-out evaluation: the model's scans and the references."""
 
-    kept: object  # capture.scan.ScanSet of the frames i % holdout == 0
+    kept: object  # capture.scan.ScanSet of the frames i % holdout == 0 (None from source_holdout)
     held: list  # the held-out capture.scan.Scan references
     kept_idx: list[int]
     held_idx: list[int]
 
 
-def holdout_split(scanset, holdout: int, max_views: int | None = None) -> HoldOut:
-    """Keep the frames i % holdout == 0 for the model; hold out the others, at most ``max_views``
-    of them (evenly spaced)."""
-    from capture.scan import ScanSet
-
+def holdout_indices(n: int, holdout: int, max_views: int | None = None) -> tuple[list[int], list[int]]:
+    """(kept, held): positions i % holdout == 0 of ``range(n)`` for the model, the others held out,
+    at most ``max_views`` of them (evenly spaced)."""
     if holdout < 2:
         raise ValueError(f"--holdout must be >= 2, got {holdout}")
-    n = len(scanset.scans)
     kept = [i for i in range(n) if i % holdout == 0]
     held = [i for i in range(n) if i % holdout != 0]
     if max_views is not None and len(held) > max_views:
         held = [held[int(round(j))] for j in np.linspace(0, len(held) - 1, max_views)]
+    return kept, held
+
+
+def holdout_split(scanset, holdout: int, max_views: int | None = None) -> HoldOut:
+    """A scan set in memory split by :func:`holdout_indices`."""
+    from capture.scan import ScanSet
+
+    kept, held = holdout_indices(len(scanset.scans), holdout, max_views)
     return HoldOut(ScanSet(tuple(scanset.scans[i] for i in kept), scanset.bounds, scanset.metadata),
                    [scanset.scans[i] for i in held], kept, held)
 
 
-def volume_builder():
-    """The volume stage's public model builder, or None while it does not exist."""
-    try:
-        mod = importlib.import_module("volume.build")
-    except ModuleNotFoundError as e:
-        if e.name in ("volume.build",):
-            return None
-        raise
-    return getattr(mod, "build_model", None)
+def source_holdout(source, holdout: int, cfg=None, max_views: int | None = None, progress=None) -> HoldOut:
+    """A capture (capture.sources.Source) split as :func:`holdout_split` does, among the frames
+    ``cfg`` reads (its ``frames``): ``kept_idx`` and ``held_idx`` index ``source.frames``; the held-out
+    references are read by the pipeline's reading stages (volume.pipeline.runner.read_views); ``kept``
+    is None (the pipeline reads those: :func:`build_eval_model`)."""
+    from capture.scan import select_indices
+    from volume.pipeline.config import PipelineConfig
+    from volume.pipeline.runner import read_views
+
+    cfg = cfg or PipelineConfig()
+    frames = select_indices(cfg.read.frames, len(source))
+    kept, held = holdout_indices(len(frames), holdout, max_views)
+    kept, held = [frames[i] for i in kept], [frames[i] for i in held]
+    return HoldOut(None, read_views(source, [source.frames[i] for i in held], cfg, progress), kept, held)
 
 
-def build_eval_model(kept, scans_path: Path, geometry: str, l_max: int):
-    """Model of the kept scans; returns (model, geometry actually used).
+class EvalModel(NamedTuple):
+    """The model of the kept frames (:func:`build_eval_model`)."""
 
-    ``geometry``: "model" builds it with the volume stage (volume.build.build_model, as
-    ``furrow model``); "gt" takes the voxels from the synthetic set's exact gt/mesh.ply
-    (render.gt_model, up to ``l_max``); "auto" uses "model" when the volume stage provides it."""
-    from capture.io import resolve_transforms
+    model: object  # volume.model.Model
+    geometry: str  # "model" or "gt"
+    summary: dict | None  # the pipeline's ``furrow model --json`` summary ("model" geometry)
+    metadata: dict  # the kept scans' scan-set metadata
+
+
+@contextlib.contextmanager
+def build_eval_model(source, kept: list[int], cfg=None, geometry: str = "auto", l_max: int = 128, hooks=None):
+    """``with build_eval_model(...) as em:`` the :class:`EvalModel` of the frames ``kept`` (indices
+    into ``source.frames``, a capture.sources.Source).
+
+    ``geometry``: "model" (and "auto") runs the pipeline (volume/pipeline: the same stages and
+    config as ``furrow model --frames KEPT``; ``cfg`` a PipelineConfig, its ``frames`` replaced by
+    ``kept``); "gt" takes the voxels from the synthetic set's exact gt/mesh.ply (render.gt_model, up
+    to ``l_max``) and the kept frames as read.  The pipeline's spill folder (the model's RGBz crops)
+    lives until the ``with`` block ends."""
+    from dataclasses import replace
+
+    from capture.sources import ReadConfig
+    from volume.pipeline.config import PipelineConfig
+    from volume.pipeline.runner import run_pipeline
 
     if geometry not in GEOMETRIES:
         raise ValueError(f"unknown geometry {geometry!r}; use one of {GEOMETRIES}")
-    builder = volume_builder() if geometry in ("auto", "model") else None
-    if geometry == "model" and builder is None:
-        raise RuntimeError("--geometry model: the volume stage has no volume.build.build_model yet; use --geometry gt")
-    if builder is not None:
-        out = builder(kept, provenance={"scans": str(scans_path), "frames": "i % holdout == 0"})
-        return (out[0] if isinstance(out, tuple) else out), "model"
+    cfg = replace(cfg or PipelineConfig(), read=ReadConfig(",".join(map(str, kept))))
+    if geometry == "gt":
+        yield _gt_model(source, kept, cfg, l_max)
+        return
+    with run_pipeline(source, cfg, hooks) as run:
+        yield EvalModel(run.model, "model", run.summary(), run.work.metadata)
+
+
+def _gt_model(source, kept, cfg, l_max: int) -> EvalModel:
+    """The EvalModel of ``--geometry gt`` (:func:`build_eval_model`)."""
+    from capture.sources import finish_scanset
     from render.gt_model import model_from_geometry
     from volume.metrics import read_ply_mesh
+    from volume.pipeline.runner import read_views
 
-    base = scans_path if scans_path.is_dir() else resolve_transforms(scans_path).parent
+    base = Path(source.path) if Path(source.path).is_dir() else Path(source.path).parent
     ply = base / "gt" / "mesh.ply"
     if not ply.is_file():
         raise FileNotFoundError(f"{ply}: --geometry gt needs a synthetic scan set with gt/mesh.ply")
+    ss = finish_scanset(source, read_views(source, [source.frames[i] for i in kept], cfg))
     v, f = read_ply_mesh(ply)
-    return model_from_geometry(kept, v, f, l_max, provenance={"scans": str(scans_path), "gt_mesh": str(ply)}), "gt"
+    model = model_from_geometry(ss, v, f, l_max, provenance={"scans": str(source.path), "gt_mesh": str(ply)})
+    return EvalModel(model, "gt", None, ss.metadata)
 
 
 def summarise(views: list[dict]) -> dict:

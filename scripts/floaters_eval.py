@@ -18,8 +18,8 @@ from capture.scan import Scan, ScanSet
 from render import evaluate as ev
 from render.gl import gl_context
 from render.methods import RenderOptions
-from volume.build import ModelConfig, build_model
-from volume.prepare import PrepareConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import PipelineConfig
 
 
 def main(path: str, floaters: str = "1") -> dict:
@@ -27,7 +27,7 @@ def main(path: str, floaters: str = "1") -> dict:
     kept = ScanSet(tuple(Scan(s.rgb, s.depth, s.camera, s.name) for s in split.kept.scans), split.kept.bounds,
                    split.kept.metadata)
     t = time.perf_counter()
-    cfg = ModelConfig(prepare=PrepareConfig(extent_cfg=ExtentConfig(floaters=floaters == "1")))
+    cfg = PipelineConfig(extent=ExtentConfig(floaters=floaters == "1"))
     model, summ = build_model(kept, cfg)
     build_s = time.perf_counter() - t
     with gl_context() as ctx:

@@ -17,15 +17,16 @@ import time
 
 import numpy as np
 
+from capture.extent import ExtentConfig
 from capture.io import read_scanset
 from capture.matting import MatteConfig
 from capture.scan import Scan, ScanSet
 from render import evaluate as ev
 from render.gl import gl_context
 from render.methods import RenderOptions
-from volume.build import ModelConfig, build_model
 from volume.model import RgbzImages
-from volume.prepare import PrepareConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import PipelineConfig
 
 
 def main(path: str, mode: str, extent: str = "1", premul: str = "") -> dict:
@@ -34,7 +35,7 @@ def main(path: str, mode: str, extent: str = "1", premul: str = "") -> dict:
     if mode != "given":
         kept = ScanSet(tuple(Scan(s.rgb, s.depth, s.camera, s.name) for s in kept.scans), kept.bounds, kept.metadata)
     t = time.perf_counter()
-    cfg = ModelConfig(prepare=PrepareConfig(extent=extent == "1", matte=MatteConfig(mode=mode)))
+    cfg = PipelineConfig(extent=ExtentConfig() if extent == "1" else None, matte=MatteConfig(mode=mode))
     model, summ = build_model(kept, cfg)
     build_s = time.perf_counter() - t
     if premul == "premul":

@@ -21,8 +21,9 @@ from capture.io import read_scanset
 from render import evaluate as ev
 from render.gl import gl_context
 from render.methods import RenderOptions
-from volume.build import ModelConfig, build_model
 from volume.fusion import FusionConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import FuseConfig, PipelineConfig
 
 METHODS = ("gather", "microfacet", "points")
 KEYS = ("psnr_masked", "ssim_masked", "sharpness", "psnr")
@@ -33,7 +34,7 @@ def main(path: str) -> dict:
     out = {"scans": path, "depth_size": split.kept.metadata.get("depth_size")}
     for over in (0.0, 2.0, 1.0):
         name = "colour_size" if over == 0 else f"measured_x{over:g}"
-        cfg = ModelConfig(fusion=replace(FusionConfig(), map_oversample=over))
+        cfg = PipelineConfig(fuse=FuseConfig(fusion=replace(FusionConfig(), map_oversample=over)))
         t = time.perf_counter()
         model, summ = build_model(split.kept, cfg)
         rec = {"build_s": round(time.perf_counter() - t, 1), "l_opt": summ["l_opt"],

@@ -81,18 +81,22 @@ def main(argv: list[str]) -> int:
     p.add_argument("--json", action="store_true", help="print the results as JSON on stdout")
     args = p.parse_args(argv)
 
-    from capture.io import read_scanset
-    from render.evaluate import build_eval_model, holdout_split
+    from contextlib import nullcontext
+
+    from capture.sources import open_source
+    from render.evaluate import EvalModel, build_eval_model, source_holdout
     from render.gl import gl_context
     from render.methods import METHODS
     from volume.model import load_model
 
     methods = list(METHODS) if args.methods is None else args.methods.split(",")
-    split = holdout_split(read_scanset(args.scans), args.holdout, args.views)
-    model = load_model(args.model) if args.model else build_eval_model(split.kept, args.scans, "auto", 128)[0]
-    with gl_context() as ctx:
-        res = {"scans": str(args.scans), "held": split.held_idx, "methods": measure(ctx, model, split.held, methods,
-                                                                                     args.repeat)}
+    source = open_source(args.scans)
+    split = source_holdout(source, args.holdout, None, args.views)
+    built = nullcontext(EvalModel(load_model(args.model), "model", None, {})) if args.model else \
+        build_eval_model(source, split.kept_idx)  # as furrow eval does, at the defaults
+    with built as em, gl_context() as ctx:
+        res = {"scans": str(args.scans), "held": split.held_idx, "methods": measure(ctx, em.model, split.held,
+                                                                                     methods, args.repeat)}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "methods.json").write_text(json.dumps(res, indent=1))
     return print_result(res, args.json, _table, f"wrote {args.out / 'methods.json'}")

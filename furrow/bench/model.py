@@ -158,18 +158,22 @@ def run_scene(name: str, scans: Path, resolutions: list[int], methods: list[str]
 
 def run_target(scans: Path) -> dict:
     """The whole pipeline (as `furrow model --max-res 128`), timed per stage."""
-    from capture.io import read_scanset
+    from capture.sources import open_source
     from furrow.console import StageTimer
-    from volume.build import ModelConfig, build_model
+    from furrow.model_flags import pipeline_hooks
+    from volume.pipeline.config import FuseConfig, PipelineConfig
+    from volume.pipeline.runner import run_pipeline
     from volume.pyramid import LoptConfig
 
     timer = StageTimer()
     t0 = time.perf_counter()
-    with timer.stage("read scans"):
-        ss = read_scanset(scans)
-    _, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=128)), stage=timer.stage)
+    source = open_source(scans)
+    with run_pipeline(source, PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=128))),
+                      pipeline_hooks(timer)) as run:
+        summary = run.summary()
     total = time.perf_counter() - t0
-    return {"views": len(ss), "image": f"{ss.scans[0].camera.width}x{ss.scans[0].camera.height}",
+    cam = source.frames[0].camera
+    return {"views": summary["views"]["kept"], "image": f"{cam.width}x{cam.height}",
             "seconds_total": round(total, 2), "seconds": {k: round(v, 2) for k, v in timer.seconds.items()},
             "l_opt": summary["l_opt"], "eq1_fraction": summary["eq1_fraction"], "target_seconds": 60.0,
             "met": total < 60.0}
@@ -178,13 +182,14 @@ def run_target(scans: Path) -> dict:
 def run_spheres(name: str, scans: Path, targets: list[float], res: int = 64) -> list[dict]:
     """Sphere count and achieved 1 - IoU for a sweep of error targets (docs/methods.md §3)."""
     from capture.io import read_scanset
-    from volume.build import ModelConfig, fuse_levels
+    from volume.build import fuse_levels
     from volume.model import SdfLevel
+    from volume.pipeline.config import FuseConfig
     from volume.pyramid import LoptConfig
     from volume.spheres import fit_spheres, volume_iou
 
     ss = read_scanset(scans)
-    origin, _, fused, _, _ = fuse_levels(ss, ModelConfig(lopt=LoptConfig(max_res=res)))
+    origin, _, fused, _, _ = fuse_levels(ss, FuseConfig(lopt=LoptConfig(max_res=res)))
     f = fused[res]
     lv = SdfLevel(res, origin, f.voxel_size, np.zeros((0, 3), np.int32), f.values)
     rows = []

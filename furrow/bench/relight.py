@@ -124,20 +124,20 @@ def score(refs, imgs, frames) -> dict:
 def prepare(scans: Path, capture_env: str, max_views: int | None, map_dir: Path | None = None,
             method: str = DEFAULT_METHOD):
     """(model with capture lighting, held-out scans, their frames, median render ms / cpu ms)."""
-    import dataclasses
-
-    from capture.io import read_scanset
-    from capture.orbit import estimate_up
-    from render.evaluate import build_eval_model, holdout_split
+    from capture.sources import open_source
+    from render.evaluate import build_eval_model, source_holdout
     from render.gl import gl_context
     from render.methods import create_renderer
-    from volume.model import CaptureLighting
+    from volume.pipeline.config import PipelineConfig, SaveConfig
 
-    split = holdout_split(read_scanset(scans), 2, max_views)
-    model, _ = build_eval_model(split.kept, scans, "auto", 128)
-    up = estimate_up([s.camera for s in split.kept.scans])
-    model = dataclasses.replace(model, capture_env=CaptureLighting(find_map(capture_env, map_dir).data, up, 0.0,
-                                                                   capture_env))
+    source = open_source(scans)
+    split = source_holdout(source, 2, None, max_views)
+    # furrow eval's model at the defaults, with the capture lighting stored as furrow model --capture-env does;
+    # its views stay in memory (spill never): the model outlives the run
+    cfg = PipelineConfig(save=SaveConfig(capture_env=find_map(capture_env, map_dir), capture_env_source=capture_env),
+                         spill="never")
+    with build_eval_model(source, split.kept_idx, cfg) as em:
+        model = em.model
     with gl_context() as ctx, create_renderer(method, ctx, model) as r:
         r.render(split.held[0].camera, read=False)
         frames = [r.render(s.camera) for s in split.held]

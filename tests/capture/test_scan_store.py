@@ -3,11 +3,13 @@ model bit for bit as from scans in memory, and the reader / stages handing each 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from capture.io import auto_bounds, read_scanset, write_transforms
-from capture.scan import MAX_SAMPLED_POINTS, Scan, ScanSet, sampled_points
+from capture.scan import MAX_SAMPLED_POINTS, Scan, sampled_points
 from capture.scan_store import (
     READ_CACHE_VIEWS,
     SCAN_BYTES_PER_PIXEL,
@@ -74,19 +76,25 @@ def test_spill_for_chooses_by_size():
 
 
 def test_model_from_spilled_scans_is_the_same(fur, tmp_path):
-    """The whole build (extent, matte, photometric, fusion, RGBz) over spilled scans, its RGBz crops
-    streamed to a file, gives the model built over scans in memory, array for array, and saves it."""
-    from volume.build import ModelConfig, build_model
-    from volume.model import load_model, save_model
+    """The whole pipeline (reading, extent, matte, photometric, fusion, RGBz) with every view on disk
+    (--spill always: each view kept in the spill folder as soon as a stage makes it, the RGBz crops
+    streamed to a file there) gives the model built with the views in memory, array for array, and
+    saves it; the spill folder really held the views."""
+    from capture.sources import open_source
+    from volume.model import load_model
+    from volume.pipeline.config import FuseConfig, PipelineConfig, SaveConfig
+    from volume.pipeline.runner import run_pipeline
     from volume.pyramid import LoptConfig
 
-    cfg = ModelConfig(lopt=LoptConfig(max_res=32))
-    ref, ref_summary = build_model(fur, cfg)
-    with ScanSpill() as spill:
-        spilled = ScanSet(tuple(spill.keep(s) for s in fur.scans), fur.bounds, fur.metadata)
-        got, summary = build_model(spilled, cfg, keep=spill.keep, work_dir=spill.path)
-        assert got.rgbz.crop_file is not None and ref.rgbz.crop_file is None
-        save_model(got, tmp_path / "m")
+    tj = write_transforms(fur, tmp_path / "capture")
+    cfg = PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=32)))
+    with run_pipeline(open_source(tj), replace(cfg, spill="never")) as ref_run:
+        ref, ref_summary = ref_run.model, ref_run.summary()
+        assert ref_run.spill is None and ref.rgbz.crop_file is None
+    with run_pipeline(open_source(tj), replace(cfg, spill="always", save=SaveConfig(out=tmp_path / "m"))) as run:
+        got, summary = run.model, run.summary()
+        assert all(isinstance(s, SpilledScan) for s in run.work.scans)
+        assert got.rgbz.crop_file is not None and got.rgbz.crop_file.parent == run.spill.path
         for a, b in zip(ref.pyramid.levels, got.pyramid.levels, strict=True):
             np.testing.assert_array_equal(a.surface, b.surface)
             if a.values is not None:
@@ -96,7 +104,9 @@ def test_model_from_spilled_scans_is_the_same(fur, tmp_path):
                 np.testing.assert_array_equal(x, y)
         np.testing.assert_array_equal(ref.mesh_vertices, got.mesh_vertices)
         np.testing.assert_array_equal(ref.spheres.centers, got.spheres.centers)
-    assert summary["l_opt"] == ref_summary["l_opt"]
+        folder = run.spill.path
+    assert not folder.exists()  # the run's spill folder is removed with it
+    assert summary["l_opt"] == ref_summary["l_opt"] and summary["spill"] == "disk"
     back = load_model(tmp_path / "m")  # the spill folder is gone; the saved crops are the model's own
     for n in range(len(ref.rgbz)):
         for x, y in zip(ref.rgbz.view(n), back.rgbz.view(n), strict=True):
@@ -125,7 +135,19 @@ def test_sampled_points_stride(fur):
     # a regular sample: the robust box moves by little (metres)
     lo, hi = np.percentile(full, [0.5, 99.5], axis=0), np.percentile(part, [0.5, 99.5], axis=0)
     assert np.max(np.abs(lo - hi)) < 0.01
-    assert np.all(np.isfinite(auto_bounds(fur.scans)))
+
+
+def test_auto_bounds_hold_the_object_and_little_more(fur):
+    """The automatic bounds against the fur ball's true geometry (tests.scenes.furball_scene: a
+    5 cm core with strands to at most 9 cm from the centre): the core inside on every side, nothing
+    beyond the strands' reach plus AUTO_BOUNDS_MARGIN of the diagonal."""
+    from capture.io import AUTO_BOUNDS_MARGIN
+
+    b = auto_bounds(fur.scans)
+    core, reach = 0.05, 0.05 + 0.04
+    assert np.all(b[0] < -core) and np.all(b[1] > core)
+    slack = AUTO_BOUNDS_MARGIN * np.linalg.norm(b[1] - b[0])
+    assert np.all(b[0] > -reach - slack) and np.all(b[1] < reach + slack)
 
 
 def test_sampled_points_do_not_keep_every_scans_points():

@@ -11,6 +11,8 @@ import pytest
 
 from furrow.batch import STEPS, CaptureConfig, is_complete, parse_steps, run_capture
 from furrow.cli import main
+from volume.pipeline.config import FuseConfig, PipelineConfig
+from volume.pyramid import LoptConfig
 
 pytest.importorskip("ray", reason="furrow batch needs the cluster extra (make test installs it)")
 
@@ -66,7 +68,7 @@ def test_batch_two_done_one_failed_then_skipped(captures, capsys):
 def test_run_capture_is_a_plain_function(captures, tmp_path):
     """The task body without Ray: steps in order, done.json last, a failure leaves no done.json."""
     root, bad = captures
-    small = CaptureConfig(max_res=32)
+    small = CaptureConfig(pipeline=PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=32))))
     rec = run_capture(root / "torus", tmp_path / "t", ("model",), small)
     assert rec["status"] == "done" and set(rec["stages"]) == {"read", "model"}
     assert is_complete(tmp_path / "t", ("model",)) and not is_complete(tmp_path / "t", ("model", "orbit"))

@@ -17,7 +17,8 @@ from furrow.cli import main
 from render.evaluate import evaluate, holdout_split
 from render.gl import gl_context
 from render.methods import RenderOptions
-from volume.build import ModelConfig, build_model
+from volume.pipeline import build_model
+from volume.pipeline.config import FuseConfig, PipelineConfig
 from volume.pyramid import LoptConfig
 
 #: Allowed held-out PSNR loss (dB) of the phone-style captures against the full-resolution one.
@@ -63,7 +64,7 @@ def captures(tmp_path_factory):
 
 
 def test_low_resolution_depth_and_jpeg_model_within_1db(captures):
-    cfg = ModelConfig(lopt=LoptConfig(max_res=MAX_RES, min_res=8))
+    cfg = PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=MAX_RES, min_res=8)))
     reference = holdout_split(read_scanset(captures / "full"), 2)
     scores = {}
     for name in ("full", "phone_half", "phone_quarter"):

@@ -1,5 +1,5 @@
 """Eq. 1 on a sample of L_max (volume.lopt_sample) against the full fusion of every level (the
-reference path, ModelConfig(sample_eq1=False)): the same L_opt and the same fused levels on
+reference path, FuseConfig(sample_eq1=False)): the same L_opt and the same fused levels on
 scenes where L_opt is 8, 64 and 256; the skipped level is not fused, and the sample's interval
 holds the exact fraction."""
 
@@ -10,8 +10,9 @@ import pytest
 
 from tests.scenes import furball_scene, make_scanset, sphere_scene
 from tests.scenes import ring_cameras as scan_ring
-from volume.build import ModelConfig, fuse_levels
+from volume.build import fuse_levels
 from volume.lopt_sample import wilson
+from volume.pipeline.config import FuseConfig, PipelineConfig, PyramidConfig
 from volume.pyramid import LoptConfig, choose_l_opt
 
 CASES = [
@@ -24,10 +25,10 @@ CASES = [
 @pytest.mark.parametrize("scene_fn, top, expect", CASES)
 def test_sampled_eq1_matches_full_fusion(scene_fn, top, expect):
     ss = make_scanset(scene_fn(), scan_ring(16, 96, 72), noise=0.001, holes=0.03, outliers=0.002)
-    ref_cfg = ModelConfig(lopt=LoptConfig(max_res=top), sample_eq1=False)
+    ref_cfg = FuseConfig(lopt=LoptConfig(max_res=top), sample_eq1=False)
     _, _, ref, ref_frac, none = fuse_levels(ss, ref_cfg, needed_res=top // 2)
     assert not none
-    cfg = ModelConfig(lopt=LoptConfig(max_res=top))
+    cfg = FuseConfig(lopt=LoptConfig(max_res=top))
     _, _, got, frac, sampled = fuse_levels(ss, cfg, needed_res=top // 2)
     t = cfg.lopt.t
     assert choose_l_opt(ref_frac, t) == expect == choose_l_opt(frac, t)
@@ -55,11 +56,12 @@ def test_wilson_interval():
 
 
 def test_model_keeps_values_up_to_values_max_res():
-    """Levels finer than ModelConfig.values_max_res keep their surface voxels, not their distances."""
-    from volume.build import build_model
+    """Levels finer than PyramidConfig.values_max_res keep their surface voxels, not their distances."""
+    from volume.pipeline import build_model
 
     ss = make_scanset(sphere_scene(), scan_ring(8, 64, 48), noise=0.0005)
-    model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=32, t=1.0), values_max_res=16))
+    model, summary = build_model(ss, PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=32, t=1.0)),
+                                                    pyramid=PyramidConfig(values_max_res=16)))
     assert summary["l_opt"] == 32
     assert [lv.values is not None for lv in model.pyramid.levels] == [True, True, False]
     assert len(model.pyramid.level(32).surface) > 100

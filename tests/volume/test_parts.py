@@ -137,12 +137,13 @@ def test_build_rgbz_fills_holes_and_keeps_agreeing_depth():
 
 
 def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):
-    from volume.build import ModelConfig, build_model
     from volume.model import load_model, save_model
+    from volume.pipeline import build_model
+    from volume.pipeline.config import FuseConfig, PipelineConfig
     from volume.pyramid import LoptConfig
 
     ss = make_scanset(sphere_scene(), scan_ring(4, 48, 36), depth_hook=lambda i, z: np.zeros_like(z))
-    model, summary = build_model(ss, ModelConfig(lopt=LoptConfig(max_res=16)))
+    model, summary = build_model(ss, PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=16))))
     assert summary["spheres"] == 0 and summary["mesh"]["faces"] == 0
     assert all(n == 0 for n in summary["surface_voxels"].values())
     assert model.mesh_colors is None and np.all(model.rgbz.depth == 0)

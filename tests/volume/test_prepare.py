@@ -1,4 +1,4 @@
-"""Extent and matte stages before fusion (volume.prepare): a pot on a table gives a model of the pot alone."""
+"""Extent and matte stages before fusion (volume/surroundings.py): a pot on a table gives a model of the pot alone."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ from capture.matting import MatteConfig
 from datasets_synthetic.lighting import LightingConfig
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.synth import SynthConfig, synthesize
-from volume.build import ModelConfig, build_model
-from volume.prepare import PrepareConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import FuseConfig, PipelineConfig
+from volume.pipeline.work import Hooks
 from volume.pyramid import LoptConfig
 
 RIG = TurntableRig(views_per_ring=8, width=128, height=96)
@@ -26,17 +27,18 @@ def pot_on_table(gl_ctx):
     return synthesize(cfg, gl_ctx)
 
 
-def _build(scanset, prepare):
-    cfg = ModelConfig(lopt=LoptConfig(max_res=64, min_res=8), prepare=prepare)
+def _build(scanset, **stages):
+    cfg = PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=64, min_res=8)), **stages)
     names = []
 
-    def stage(name):
+    def row(name):
         import contextlib
 
-        names.append(name)
+        if name not in names:
+            names.append(name)
         return contextlib.nullcontext()
 
-    model, summary = build_model(scanset, cfg, stage=stage)
+    model, summary = build_model(scanset, cfg, Hooks(row=row))
     return model, summary, names
 
 
@@ -44,8 +46,8 @@ def _build(scanset, prepare):
 def test_model_of_a_pot_on_a_table_holds_no_table(pot_on_table):
     z0 = pot_on_table.info["support"]["z0"]
     pot_r = 0.08  # the pot's radius is under 0.06 m; its foot is the only geometry allowed near the table
-    model, summary, stages = _build(pot_on_table.scanset, PrepareConfig(matte=MatteConfig(mode="estimate")))
-    assert stages[:3] == ["extent", "matte warm-up", "matte (8 views)"]
+    model, summary, stages = _build(pot_on_table.scanset, matte=MatteConfig(mode="estimate"))
+    assert stages[stages.index("extent"):][:4] == ["extent", "matte warm-up", "matte", "photometric"]
     ex = summary["surroundings"]["extent"]
     assert ex["plane"] is not None and ex["removed_fraction"]["support"] > 0.3
     v = model.mesh_vertices
@@ -56,7 +58,7 @@ def test_model_of_a_pot_on_a_table_holds_no_table(pot_on_table):
     assert model.rgbz.alpha is not None and model.rgbz.alpha.shape == model.rgbz.depth.shape
     assert summary["surroundings"]["matte"]["methods"] == {"estimate": 8}
     # without the extent stage the table is modelled too
-    raw, raw_summary, _ = _build(pot_on_table.scanset, PrepareConfig(extent=False, matte=MatteConfig(mode="off")))
+    raw, raw_summary, _ = _build(pot_on_table.scanset, extent=None, matte=MatteConfig(mode="off"))
     assert np.ptp(raw.mesh_vertices[:, 0]) > 0.5
     assert raw.rgbz.alpha is None
     assert raw_summary["l_opt"] >= summary["l_opt"]

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from tests.scenes import furball_scene, make_scanset, scan_ring, sphere_scene
-from volume.build import ModelConfig, fuse_levels
+from volume.build import fuse_levels
 from volume.grid import voxel_centers
+from volume.pipeline.config import FuseConfig
 from volume.pyramid import (
     LoptConfig,
     build_pyramid,
@@ -85,7 +86,7 @@ def test_eq1_smooth_keeps_fur_drops(scene_fn, keeps):
     """Paper values (alpha 1.5, t 0.01), max_res 64, noisy holed scans: the smooth sphere keeps
     64^3, the fur ball (strands 1.6 mm thick, 2-4 cm long) drops."""
     ss = make_scanset(scene_fn(), scan_ring(16, 96, 72), noise=0.001, holes=0.03, outliers=0.002)
-    cfg = ModelConfig(lopt=LoptConfig(max_res=64))
+    cfg = FuseConfig(lopt=LoptConfig(max_res=64))
     _, _, fused, frac, _ = fuse_levels(ss, cfg)
     l_opt = choose_l_opt(frac, cfg.lopt.t)
     if keeps:

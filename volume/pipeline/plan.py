@@ -92,6 +92,6 @@ def diagram(stages=STAGES) -> str:
         run = "┃" if st.kind == VIEW else "│"
         lines.append(f"   {run}{i:>3}. {st.name:<{NAME_WIDTH}} {st.kind:<9}  {st.does:<{DOES_WIDTH}}  {st.where}")
     lines += ["   ▼", DIAGRAM_OUT, "",
-              " ┃ per view: run view by view, each view through the consecutive per-view stages before the next is read",
+              " ┃ per view: view by view, each view through the consecutive per-view stages before the next is read",
               " │ cameras: the cameras alone, before any image;  whole set: every view (or what came before) at once"]
     return "\n".join(line.rstrip() for line in lines)
