@@ -75,6 +75,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
     p.add_argument("--max-views", type=int, default=None,
                    help="evaluate at most this many held-out views (evenly spaced)")
+    p.add_argument("--save-model", type=Path, default=None, metavar="DIR",
+                   help="also write the evaluated model (the kept frames', as furrow model writes it) to DIR")
     add_model_arguments(p)
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
@@ -124,8 +126,11 @@ def run(args, console) -> int:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
     timer = StageTimer()
     out_dir = args.out or Path("out") / "eval" / Path(args.scans).resolve().name
-    res = evaluate_capture(args.scans, pipeline_config(args), args.holdout, options, out_dir, timer, args.geometry,
-                           args.l_max, args.max_views)
+    if args.save_model is not None and args.geometry == "gt":
+        raise ValueError("--save-model saves the pipeline's model: not with --geometry gt")
+    cfg = pipeline_config(args, out=args.save_model)
+    res = evaluate_capture(args.scans, cfg, args.holdout, options, out_dir, timer, args.geometry, args.l_max,
+                           args.max_views)
     res.update({"tolerance_px": options.tolerance_px, "supersample": options.supersample,
                 "refine": options.refine_steps})
     t = Table(title=f"held-out evaluation ({len(res['held'])} views, geometry: {res['geometry']}, "

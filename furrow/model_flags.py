@@ -153,20 +153,14 @@ def pipeline_hooks(timer):
 
 
 def print_plan(console, cfg, source=None, title: str = "the pipeline") -> None:
-    """The stages ``cfg`` runs, in order, with their settings and on / off (``--plan``)."""
-    from rich.table import Table
-
-    from volume.pipeline.plan import plan_rows
+    """The stages ``cfg`` runs, in order, one line each: on / off, kind, settings (``--plan``)."""
+    from volume.pipeline.plan import plan_text
 
     if source is not None:
         console.print(f"source: {source.format}, {len(source)} frames ({source.path})", highlight=False)
-    t = Table(title=f"{title}: stages in order (volume/pipeline/stages.py)")
-    for c in ("#", "stage", "", "kind", "settings", "where"):
-        t.add_column(c, overflow="fold")
-    for r in plan_rows(cfg):
-        t.add_row(str(r["n"]), r["name"], "[green]on" if r["on"] else "[dim]off", r["kind"], r["settings"], r["where"])
-    console.print(t)
-    console.print(f"runner: spill {cfg.spill}, workers {cfg.workers}", highlight=False)
+    console.print(f"{title}: the stages in order (volume/pipeline/stages.py), on / off with these flags:",
+                  highlight=False)
+    console.print(plan_text(cfg), highlight=False, markup=False, soft_wrap=True)
 
 
 def with_frames(cfg, frames: str | None):

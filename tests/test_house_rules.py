@@ -1,6 +1,9 @@
 """House rules that a reader of the tree can check mechanically: no library module over
 MAX_MODULE_LINES lines, no function over MAX_FUNCTION_LINES lines, imports one way between the
-stage packages (``capture`` <- ``volume`` <- ``render``; the CLI wires them)."""
+stage packages (``capture`` <- ``volume`` <- ``render``; the CLI wires them).
+
+The checks are functions of a root folder, so that they run on this tree and on a planted
+violation (a temporary package with one of each: each check must report it)."""
 
 from __future__ import annotations
 
@@ -19,45 +22,76 @@ FORBIDDEN = {"capture": ("volume", "render", "datasets_synthetic", "furrow"),
              "render": ("datasets_synthetic", "furrow")}
 
 
-def _sources():
-    for pkg in PACKAGES:
-        for p in sorted((ROOT / pkg).rglob("*.py")):
+def sources(root: Path, packages=PACKAGES):
+    """(path, parsed module) of every .py file under ``root/PACKAGE`` for each package."""
+    for pkg in packages:
+        for p in sorted((root / pkg).rglob("*.py")):
             yield p, ast.parse(p.read_text(), filename=str(p))
 
 
-def test_modules_and_functions_stay_small():
-    long_modules, long_functions = [], []
-    for p, tree in _sources():
+def long_modules(root: Path, packages=PACKAGES, limit: int = MAX_MODULE_LINES) -> list[str]:
+    """'path: N lines' of every module over ``limit`` lines."""
+    out = []
+    for p, _ in sources(root, packages):
         n = len(p.read_text().splitlines())
-        if n > MAX_MODULE_LINES:
-            long_modules.append(f"{p.relative_to(ROOT)}: {n} lines")
+        if n > limit:
+            out.append(f"{p.relative_to(root)}: {n} lines")
+    return out
+
+
+def long_functions(root: Path, packages=PACKAGES, limit: int = MAX_FUNCTION_LINES) -> list[str]:
+    """'path:line name: N lines' of every function (methods and nested ones too) over ``limit`` lines."""
+    out = []
+    for p, tree in sources(root, packages):
         for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 length = node.end_lineno - node.lineno + 1
-                if length > MAX_FUNCTION_LINES:
-                    long_functions.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name}: {length} lines")
-    assert not long_modules, "modules over the limit:\n" + "\n".join(long_modules)
-    assert not long_functions, "functions over the limit:\n" + "\n".join(long_functions)
+                if length > limit:
+                    out.append(f"{p.relative_to(root)}:{node.lineno} {node.name}: {length} lines")
+    return out
 
 
-def test_imports_run_one_way():
+def wrong_way_imports(root: Path, packages=PACKAGES, forbidden=FORBIDDEN) -> list[str]:
+    """'path:line imports NAME' of every import (at any depth, absolute) against ``forbidden``."""
     bad = []
-    for p, tree in _sources():
-        pkg = p.relative_to(ROOT).parts[0]
+    for p, tree in sources(root, packages):
+        pkg = p.relative_to(root).parts[0]
         for node in ast.walk(tree):
             names = []
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
                 names = [node.module]
-            bad += [f"{p.relative_to(ROOT)}:{node.lineno} imports {n}" for n in names
-                    if n.split(".")[0] in FORBIDDEN.get(pkg, ())]
+            bad += [f"{p.relative_to(root)}:{node.lineno} imports {n}" for n in names
+                    if n.split(".")[0] in forbidden.get(pkg, ())]
+    return bad
+
+
+def test_modules_and_functions_stay_small():
+    mods, fns = long_modules(ROOT), long_functions(ROOT)
+    assert not mods, "modules over the limit:\n" + "\n".join(mods)
+    assert not fns, "functions over the limit:\n" + "\n".join(fns)
+
+
+def test_imports_run_one_way():
+    bad = wrong_way_imports(ROOT)
     assert not bad, "imports against the stage order:\n" + "\n".join(bad)
 
 
-def test_the_checks_see_a_violation(tmp_path):
-    """The size walk is not vacuous: a synthetic 81-line function is found."""
-    body = "def f():\n" + "    x = 1\n" * 80
-    tree = ast.parse(body)
-    fn = next(n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef))
-    assert fn.end_lineno - fn.lineno + 1 > MAX_FUNCTION_LINES
+def test_the_checks_see_a_planted_violation(tmp_path):
+    """A temporary tree with one of each violation (and lawful code beside it): each check reports
+    exactly the planted one."""
+    cap, vol = tmp_path / "capture", tmp_path / "volume"
+    (cap / "deep").mkdir(parents=True)
+    vol.mkdir()
+    (cap / "__init__.py").write_text('"""ok"""\n')
+    (cap / "ok.py").write_text("import numpy\n\n\ndef f():\n    return 1\n")
+    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES))  # def line + 80 = 81 lines
+    (cap / "long_function.py").write_text("class A:\n    def method(self):\n        pass\n\n\ndef g():\n" + body)
+    (cap / "deep" / "wrong_way.py").write_text("def h():\n    from volume.build import fuse_levels\n    return 1\n")
+    (vol / "long_module.py").write_text("from capture import ok\n" + "X = 1\n" * MAX_MODULE_LINES)
+    (vol / "fine.py").write_text("import capture.ok\n" + "Y = 1\n" * (MAX_MODULE_LINES - 1))
+    pkgs = ("capture", "volume")
+    assert long_functions(tmp_path, pkgs) == [f"capture/long_function.py:6 g: {MAX_FUNCTION_LINES + 1} lines"]
+    assert long_modules(tmp_path, pkgs) == [f"volume/long_module.py: {MAX_MODULE_LINES + 1} lines"]
+    assert wrong_way_imports(tmp_path, pkgs) == ["capture/deep/wrong_way.py:2 imports volume.build"]

@@ -20,7 +20,7 @@ from functools import partial
 
 from capture.scan import ScanSet
 from capture.scan_store import spill_for
-from capture.sources import FRAME_STEPS, Source, finish_scanset
+from capture.sources import Source, finish_scanset
 from volume.pipeline.config import PipelineConfig
 from volume.pipeline.stages import CAMERAS, SET, STAGES, VIEW
 from volume.pipeline.work import Context, Hooks, Work
@@ -241,8 +241,3 @@ def read_views(source: Source, refs, cfg: PipelineConfig | None = None, progress
     configs = tuple(getattr(cfg, st.key) for st in reading)
     items = progress(refs, "reading references") if progress else refs
     return [read_frame(ref, configs)[0] for ref in items]
-
-
-def reading_steps_match() -> bool:
-    """The pipeline's reading stages are capture/sources.FRAME_STEPS, the same functions in the same order."""
-    return [(st.name, st.fn) for st in STAGES if st.reads_frame] == list(FRAME_STEPS)

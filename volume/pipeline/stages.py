@@ -90,7 +90,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("units and confidence", "units", VIEW, sources.depth_units, "depth to metres, low confidence removed",
           "capture/sources.py", reads_frame=True),
     Stage("depth resample", "resample", VIEW, sources.resample_depth,
-          "a smaller depth map resampled to the colour, edge-aware", "capture/resample.py", reads_frame=True),
+          "a smaller depth map resampled to the colour", "capture/resample.py", reads_frame=True),
     Stage("matte read", "matte_read", VIEW, sources.read_matte, "the capture's matte: mask file or RGBA alpha",
           "capture/matte_io.py", reads_frame=True),
     Stage("undistort", "undistort", VIEW, sources.undistort, "lens-distorted frames to pinhole cameras",
