@@ -61,11 +61,7 @@ DEFAULT_PNG_DEPTH_UNIT = 0.001
 DEPTH_FORMATS = {"png": ("png", None), "png-0.1mm": ("png", 1e-4), "exr": ("exr", 1.0)}
 
 __all__ = ["ScanIOError", "read_scanset", "read_cameras", "write_transforms", "write_plain_folder",
-           "FrameCamera", "resolve_transforms", "DEPTH_FORMATS", "depth_format_spec"]
-
-
-#: The frame of a capture's cameras (capture.sources.FrameRef: ``camera``, ``captured``, ``lens``, paths).
-FrameCamera = FrameRef
+           "resolve_transforms", "DEPTH_FORMATS", "depth_format_spec", "transforms_source", "plain_source"]
 
 
 def resolve_transforms(path: Path) -> Path:

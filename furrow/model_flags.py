@@ -7,7 +7,6 @@ progress bars, :func:`print_plan` prints the stages a configuration runs (``--pl
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 from functools import partial
 
 
@@ -161,10 +160,3 @@ def print_plan(console, cfg, source=None, title: str = "the pipeline") -> None:
     console.print(f"{title}: the stages in order (volume/pipeline/stages.py), on / off with these flags:",
                   highlight=False)
     console.print(plan_text(cfg), highlight=False, markup=False, soft_wrap=True)
-
-
-def with_frames(cfg, frames: str | None):
-    """``cfg`` reading the frames ``frames`` (a slice spec) instead."""
-    from capture.sources import ReadConfig
-
-    return replace(cfg, read=ReadConfig(frames))

@@ -70,10 +70,11 @@ def main(argv: list[str]) -> int:
     import volume.build as vb
     from capture.sources import open_source
     from render.evaluate import build_eval_model, source_holdout
-    from volume.pipeline.config import PipelineConfig
+    from volume.pipeline.config import FuseConfig, PipelineConfig
 
     source = open_source(args.scans)
-    cfg = PipelineConfig()  # furrow eval's model at the defaults
+    # furrow eval's model at the defaults, every level fused (Eq. 1 on a sample would skip L_max)
+    cfg = PipelineConfig(fuse=FuseConfig(sample_eq1=False))
     split = source_holdout(source, args.holdout, cfg)
     orig = vb.choose_l_opt
     vb.choose_l_opt = lambda frac, t: max(frac)  # keep every level; Eq. 1's own choice is reported below

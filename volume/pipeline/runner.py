@@ -15,12 +15,14 @@ process; each worker holds one view).
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import replace
 from functools import partial
+from pathlib import Path
 
-from capture.scan import ScanSet
+from capture.scan import ScanSet, select_indices
 from capture.scan_store import spill_for
-from capture.sources import Source, finish_scanset
+from capture.sources import FrameRef, Source, finish_scanset
 from volume.pipeline.config import PipelineConfig
 from volume.pipeline.stages import CAMERAS, SET, STAGES, VIEW
 from volume.pipeline.work import Context, Hooks, Work
@@ -29,15 +31,11 @@ from volume.pipeline.work import Context, Hooks, Work
 def _start(source, cfg: PipelineConfig) -> Work:
     """The first Work: a Source's frames picked by ``cfg.read.frames``, or a ScanSet's scans in memory."""
     if isinstance(source, ScanSet):
-        from capture.sources import FrameRef, Source
-
         refs = tuple(FrameRef(i, s.name, s.camera, s.camera, None, None, None) for i, s in enumerate(source.scans))
-        src = Source(source.metadata.get("source", "<scans in memory>"), "memory", refs, source.bounds,
+        src = Source(Path(source.metadata.get("source", "<scans in memory>")), "memory", refs, source.bounds,
                      dict(source.metadata))
         work = Work(src, refs, tuple(source.scans), source.bounds, dict(source.metadata))
         if cfg.read.frames:
-            from capture.scan import select_indices
-
             idx = select_indices(cfg.read.frames, len(refs))
             work = replace(work, refs=tuple(refs[i] for i in idx), scans=tuple(source.scans[i] for i in idx))
         return work
@@ -63,8 +61,6 @@ def _apply(steps, view, ref):
 def _apply_loaded(steps, view, ref):
     """:func:`_apply` in a worker process (no stage-table row there; ``steps``: [(fn, cfg)]): a
     spilled view arrives as its Scan."""
-    from contextlib import nullcontext
-
     return _apply([(None, fn, cfg, nullcontext) for fn, cfg in steps], view, ref)
 
 
@@ -166,7 +162,10 @@ class Run:
                 with self.hooks.row(f"{st.name} warm-up"):
                     st.before(cfg)
         desc = f"reading {len(w.refs)} views" if from_files else ", ".join(st.name for st in todo)
-        scans, notes = self._map(steps, w, desc)
+        pooled = self.cfg.workers > 1 and len(w.refs) > 1  # the per-view rows are timed in the workers: one row here
+        with self.hooks.row(f"{', '.join(st.name for st in todo)} ({self.cfg.workers} processes)") if pooled \
+                else nullcontext():
+            scans, notes = self._map(steps, w, desc)
         w = replace(w, scans=scans)
         by_stage = {st.name: [n[k] for n in notes] for k, st in enumerate(todo)}
         if from_files:
@@ -179,8 +178,6 @@ class Run:
 
     def map_views(self, fn, work: Work, arg, description: str):
         """``fn(view, ref, arg) -> (view, note)`` over every view of ``work`` (Context.map_views)."""
-        from contextlib import nullcontext
-
         scans, notes = self._map([(None, fn, arg, nullcontext)], work, description)
         return scans, [n[0] for n in notes]
 
@@ -234,10 +231,10 @@ def run_pipeline(source: Source | ScanSet, cfg: PipelineConfig | None = None, ho
 def read_views(source: Source, refs, cfg: PipelineConfig | None = None, progress=None) -> list:
     """The frames ``refs`` of ``source`` read by the pipeline's reading stages only (the held-out
     references of ``furrow eval``), as Scans in memory."""
-    cfg = cfg or PipelineConfig()
-    reading = [st for st in STAGES if st.reads_frame]
     from capture.sources import read_frame
 
+    cfg = cfg or PipelineConfig()
+    reading = [st for st in STAGES if st.reads_frame]
     configs = tuple(getattr(cfg, st.key) for st in reading)
     items = progress(refs, "reading references") if progress else refs
     return [read_frame(ref, configs)[0] for ref in items]
