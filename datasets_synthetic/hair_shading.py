@@ -120,11 +120,31 @@ class HairLighting:
 
     def info(self) -> dict:
         """JSON-able summary for gt/scene.json."""
-        return {"model": "chiang2016+diffuse-ms", "strand_points": int(len(self.points.centres)),
-                "lights": int(len(self.dirs)), "light_dirs": self.dirs.tolist(), "light_power": self.power.tolist(),
-                "mean_visibility": self.visibility.mean(0).tolist() if len(self.visibility) else [],
-                "beta_m": self.params.beta_m, "beta_n": self.params.beta_n, "alpha_deg": self.params.alpha_deg,
-                "eta": self.params.eta, "width_nodes": self.nodes}
+        mean = self.visibility.mean(0) if len(self.visibility) else np.zeros(0)
+        return hair_info(len(self.points.centres), self.dirs, self.power, mean, self.params, self.nodes)
+
+
+def hair_info(points: int, dirs, power, mean_visibility, params: HairParams, nodes: int) -> dict:
+    """The gt/scene.json record of the chiang hair shading (either renderer)."""
+    return {"model": "chiang2016+diffuse-ms", "strand_points": int(points), "lights": int(len(dirs)),
+            "light_dirs": np.asarray(dirs).tolist(), "light_power": np.asarray(power).tolist(),
+            "mean_visibility": np.asarray(mean_visibility).tolist(), "beta_m": params.beta_m,
+            "beta_n": params.beta_n, "alpha_deg": params.alpha_deg, "eta": params.eta, "width_nodes": nodes}
+
+
+def hair_lights(lighting: Lighting, residual: EnvMap, env_lights: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(dirs (L, 3), power (L, 3), spread (L,)) of the hair shading: ``lighting``'s dominant lights
+    (spread 0) then the ``residual`` map cut into ``env_lights`` lights (a power of two; median
+    cut), each with the angular variance of its region (``fibre_radiance``'s ``light_spread``)."""
+    if env_lights < 1 or env_lights & (env_lights - 1):
+        raise ValueError(f"hair: env_lights must be a power of two, got {env_lights}")
+    cut = median_cut_lights(residual, int(np.log2(env_lights)))
+    dom = np.asarray(lighting.light_dirs, np.float64).reshape(-1, 3)
+    dirs = np.concatenate([dom, cut.dirs])
+    power = np.concatenate([np.asarray(lighting.light_colors, np.float64).reshape(-1, 3), cut.power])
+    # a region of solid angle Omega as a disc: radius sqrt(Omega / pi), variance per axis Omega / (4 pi)
+    spread = np.concatenate([np.zeros(len(dom)), cut.solid_angle / (4 * np.pi) * SPREAD_SCALE])
+    return dirs, power, spread
 
 
 def hair_lighting(pts: StrandPoints, lighting: Lighting, residual: EnvMap, env_lights: int, visibility,
@@ -136,19 +156,13 @@ def hair_lighting(pts: StrandPoints, lighting: Lighting, residual: EnvMap, env_l
     each point's first vertex; the rest from ``visibility(dirs, points, map_size) -> (P, n)``,
     ``MeshRasterizer.light_visibility``; all 1 when ``shadows`` is off), absorption and the
     multiple-scattering weight."""
-    if env_lights < 1 or env_lights & (env_lights - 1):
-        raise ValueError(f"hair: env_lights must be a power of two, got {env_lights}")
-    cut = median_cut_lights(residual, int(np.log2(env_lights)))
-    dom = np.asarray(lighting.light_dirs, np.float64).reshape(-1, 3)
-    dirs = np.concatenate([dom, cut.dirs])
-    power = np.concatenate([np.asarray(lighting.light_colors, np.float64).reshape(-1, 3), cut.power])
-    # a region of solid angle Omega as a disc: radius sqrt(Omega / pi), variance per axis Omega / (4 pi)
-    spread = np.concatenate([np.zeros(len(dom)), cut.solid_angle / (4 * np.pi) * SPREAD_SCALE])
+    dirs, power, spread = hair_lights(lighting, residual, env_lights)
+    K = len(np.asarray(lighting.light_dirs).reshape(-1, 3))
     P = len(pts.centres)
     if shadows and P:
         vd = (np.asarray(dominant_visibility, np.float64) if dominant_visibility is not None
-              else np.asarray(visibility(dom, pts.centres, SHADOW_MAP_SIZE), np.float64).reshape(P, len(dom)))
-        ve = np.asarray(visibility(cut.dirs, pts.centres, ENV_SHADOW_MAP_SIZE), np.float64)
+              else np.asarray(visibility(dirs[:K], pts.centres, SHADOW_MAP_SIZE), np.float64).reshape(P, K))
+        ve = np.asarray(visibility(dirs[K:], pts.centres, ENV_SHADOW_MAP_SIZE), np.float64)
         vis = np.concatenate([vd, ve], 1)
     else:
         vis = np.ones((P, len(dirs)))

@@ -29,10 +29,9 @@ import numpy as np
 
 from capture.io import depth_format_spec
 from capture.scan import to_uint8_srgb
-from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import ambient_residual, background, resolve_env, scene_lighting
 from datasets_synthetic.pixel_filter import path_tracer_filter
-from render.mesh.raster.gl import MeshRasterizer
+from datasets_synthetic.synth_renderer import SceneRenderer
 
 #: Linear radiance at or above this (after exposure) is white in 8-bit sRGB (counted as clipped).
 CLIP_LEVEL = 1.0
@@ -60,20 +59,17 @@ def relight_images(cap, cfg, env: str, ctx=None, progress: Callable | None = Non
     info["exposure"] = exposure
     images = []
     cams = list(cap.true_cameras)
-    with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
-        hair = prepare_hair(rast, cap.scene.mesh, lighting, ambient_residual(emap, lc), lc.hair_model,
-                            lc.hair_env_lights, lc.shadows)
+    with SceneRenderer(ctx, cfg.renderer, cfg.supersample, cap.scene.mesh, lighting, ambient_residual(emap, lc),
+                       lc) as rend:
         for cam in (progress(cams, f"relighting under {map_label(env)}") if progress else cams):
-            if hair is not None:
-                rast.set_emission(vertex_emission(hair, cam.center))
-            res = rast.render(cam)
+            res = rend.render(cam)
             rgb = res.color
             if cfg.background == "env":
                 rgb = rgb + (1.0 - res.alpha[..., None]) * background(emap, cam, exposure, lc.rotation_deg)
             images.append(np.clip(path_tracer_filter(rgb, cfg.pixel_filter_px), 0, None).astype(np.float32))
     fg = np.concatenate([im[d > 0] for im, d in zip(images, cap.clean_depth)]) if images else np.zeros((0, 3))
     info["clipped_fraction"] = float(np.mean(np.any(fg >= CLIP_LEVEL, axis=1))) if len(fg) else 0.0
-    info["hair"] = hair.info() if hair is not None else {"model": "kajiya-kay"}
+    info["hair"] = rend.hair_info
     return images, info
 
 

@@ -25,16 +25,14 @@ from capture.io import DEFAULT_PNG_DEPTH_UNIT, write_transforms
 from capture.lens import Lens
 from capture.scan import Scan, ScanSet, select_indices
 from datasets_synthetic.backdrop import SUPPORTS, clutter_background, support_layer, upward_radiance
-from datasets_synthetic.camera_traits import render_through_lens
 from datasets_synthetic.geometry import ply_bytes
-from datasets_synthetic.hair_shading import prepare_hair, vertex_emission
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, background, resolve_env, scene_lighting
 from datasets_synthetic.noise import NoiseConfig, depth_noise, grazing_dropout, perturb_pose, random_holes
 from datasets_synthetic.pixel_filter import path_tracer_filter
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import Scene, build_scene
 from datasets_synthetic.sensor import SENSORS, SensorModel, apply_sensor
-from render.mesh.raster.gl import MeshRasterizer
+from datasets_synthetic.synth_renderer import RENDERERS, SceneRenderer
 
 #: Margin added around the scene's tight bounds for the ScanSet bounds (fraction of the diagonal).
 BOUNDS_MARGIN = 0.05
@@ -84,6 +82,9 @@ class SynthConfig:
     rasteriser's 1-pixel box."""
     lens: Lens | None = None
     """Lens distortion of every view (datasets_synthetic.camera_traits; None = pinhole)."""
+    renderer: str = RENDERERS[0]
+    """'gl' (strands as ribbons shaded on the GPU, ``datasets_synthetic.strand_gl``) or 'numpy' (every
+    strand a tube of triangles, the hair lobes in numpy: the reference; ``synth_renderer``)."""
 
     def __post_init__(self) -> None:
         if self.background not in BACKGROUNDS:
@@ -95,6 +96,8 @@ class SynthConfig:
                              "background black or env and no support")
         if self.supersample < 1:
             raise ValueError(f"supersample must be >= 1, got {self.supersample}")
+        if self.renderer not in RENDERERS:
+            raise ValueError(f"renderer must be one of {', '.join(RENDERERS)}, got {self.renderer!r}")
         if not 0 <= self.pixel_filter_px <= 4:
             raise ValueError(f"pixel_filter_px must be in [0, 4], got {self.pixel_filter_px}")
 
@@ -151,14 +154,9 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         views = [views[i] for i in cfg.views]
     lc = cfg.lighting
     shown = set(select_indices(cfg.background_frames, len(cams)))
-    with MeshRasterizer(ctx, supersample=cfg.supersample) as rast:
-        hair = prepare_hair(rast, scene.mesh, lighting, ambient_residual(env, lc), lc.hair_model, lc.hair_env_lights,
-                            lc.shadows)
-        shadow_info = dict(rast.shadow_info)
+    with SceneRenderer(ctx, cfg.renderer, cfg.supersample, scene.mesh, lighting, ambient_residual(env, lc), lc) as rend:
         for i, cam in (progress(views, f"rendering {cfg.scene}") if progress else views):
-            if hair is not None:
-                rast.set_emission(vertex_emission(hair, cam.center))
-            res = rast.render(cam) if cfg.lens is None else render_through_lens(rast, cam, cfg.lens)
+            res = rend.render(cam, cfg.lens)
             rgb, depth = _surroundings(cfg, env, lighting.exposure, cam, res, scene, i in shown)
             rgb = path_tracer_filter(rgb, cfg.pixel_filter_px)
             # the object's true matte: its supersampled coverage under the same film filter as the colour
@@ -185,9 +183,9 @@ def synthesize(cfg: SynthConfig, ctx=None, scene: Scene | None = None,
         "lighting_config": asdict(cfg.lighting), "noise": asdict(nz), "sensor": cfg.sensor.to_json(),
         "supersample": cfg.supersample, "pixel_filter_px": cfg.pixel_filter_px,
         "background": cfg.background, "support": _support_info(cfg, scene),
-        "background_frames": cfg.background_frames, "poses_perturbed": nz.any_pose, "shadow_maps": shadow_info,
-        "lens": cfg.lens.record() if cfg.lens is not None else None,
-        "hair": hair.info() if hair is not None else {"model": "kajiya-kay"},
+        "background_frames": cfg.background_frames, "poses_perturbed": nz.any_pose,
+        "shadow_maps": rend.shadow_info, "lens": cfg.lens.record() if cfg.lens is not None else None,
+        "hair": rend.hair_info, "renderer": cfg.renderer,
     }
     meta = {"generator": "furrow synth", "scene": scene.name, "seed": scene.seed, "noise": asdict(nz),
             "sensor": cfg.sensor.name}

@@ -111,6 +111,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(repeatable; see above)")
     p.add_argument("--hair", choices=["chiang", "kajiya-kay"], default="chiang",
                    help="strand shading: chiang (R/TT/TRT lobes, default) or kajiya-kay (the older lobe)")
+    p.add_argument("--synth-renderer", choices=["gl", "numpy"], default="gl",
+                   help="gl (default): each strand segment drawn as the tube's facets that face the camera, the hair "
+                        "lobes (visible points only) and the shadow lookups on the GPU (llvmpipe here); numpy: every "
+                        "strand a whole tube of triangles and the lobes in numpy, the slow reference the gl renderer "
+                        "is tested against (docs/synthetic.md)")
     p.add_argument("--lights", type=int, default=3, help="dominant lights casting shadows (0-4, default 3)")
     p.add_argument("--supersample", type=int, default=3, help="colour supersampling per axis (default 3)")
     p.add_argument("--pixel-filter", type=float, default=0.5, metavar="SIGMA",
@@ -226,7 +231,8 @@ def build_config(args):
     return SynthConfig(scene=args.name, seed=args.seed, rig=rig, lighting=lighting, noise=noise, sensor=sensor,
                        supersample=args.supersample, background=args.background, support=args.support,
                        background_frames=args.background_frames, scene_params=params,
-                       pixel_filter_px=args.pixel_filter, lens=_lens(args))
+                       pixel_filter_px=args.pixel_filter, lens=_lens(args),
+                       renderer=getattr(args, "synth_renderer", "gl"))
 
 
 def _lens(args):
