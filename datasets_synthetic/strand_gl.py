@@ -231,6 +231,7 @@ class StrandRasterizer(MeshRasterizer):
             raise RasterError(f"the GL renderer draws strands of at most {MAX_SIDES} sides and {MAX_SEGMENTS} "
                               "segments: use --synth-renderer numpy")
         self._geo, self._hair_model, self._scene_bounds = geo, hair_model, mesh.bounds
+        self.visible_points = 0
         K = len(lighting.light_dirs)
         if hair_model == "chiang" and geo.count:
             dirs, power, spread = hair_lights(lighting, residual, env_lights)
@@ -254,7 +255,8 @@ class StrandRasterizer(MeshRasterizer):
         P = geo.count
         surf_v = geo.surfaces.vertices if geo.surfaces is not None else np.zeros((0, 3), np.float32)
         first = np.nonzero(np.r_[True, np.diff(geo.points.group) != 0] & (geo.points.group >= 0))[0]
-        lookup = np.concatenate([geo.points.centres, mesh.vertices[first], surf_v]).astype(np.float64)
+        ring_v = mesh.vertices[geo.points.group >= 0] if self._hair_model == "kajiya-kay" else np.zeros((0, 3))
+        lookup = np.concatenate([geo.points.centres, mesh.vertices[first], surf_v, ring_v]).astype(np.float64)
         lookup4 = np.concatenate([lookup, np.ones((len(lookup), 1))], 1).astype(np.float32)
         self._buffer("points", point_records(geo, mesh) if P else np.zeros((1, POINT_FLOATS), np.float32))
         self._buffer("segments", geo.segments.astype(np.uint32) if len(geo.segments) else np.zeros(2, np.uint32))
@@ -263,6 +265,10 @@ class StrandRasterizer(MeshRasterizer):
         self._buffer("visibility", np.ones((max(rows, 1), max(len(dirs), 1)), np.float32))
         self._buffer("lights", light_records(dirs, power, spread) if len(dirs) else np.zeros((1, LIGHT_FLOATS),
                                                                                              np.float32))
+        # Kajiya-Kay: the dominant lights' visibility at every ring vertex, interpolated as the rasteriser does
+        self._buffer("ring_visibility", np.ones((max(len(ring_v), 1), MAX_LIGHTS), np.float32))
+        start = np.r_[0, np.cumsum(geo.sides)[:-1]] if P else np.zeros(1)
+        self._buffer("ring_start", start.astype(np.uint32))
         self._buffer("radiance", reserve=16 * max(P, 1))
         self._buffer("flags", reserve=4 * max(P, 1))
         self._buffer("list", reserve=4 * max(P, 1))
@@ -297,15 +303,22 @@ class StrandRasterizer(MeshRasterizer):
             cs["u_light_vp"].write(mat4_bytes(vp))
             cs["u_dir"].value = tuple(float(x) for x in d)
             cs["u_bias"].value = SHADOW_BIAS_TEXELS * 2 * radius / size
-            cs["u_stride"].value = L
-            cs["u_column"].value = i
             # dominant: ring first vertices (lookup rows P..2P) then the surface vertices; cut lights: centres
             count, offset = (P + Vs, P) if i < K else (P, 0)
-            cs["u_count"].value, cs["u_offset"].value = count, offset
-            if count:
-                cs.run(group_x=(count + LOCAL_SIZE - 1) // LOCAL_SIZE)
-            self.ctx.memory_barrier()
+            self._lookup(cs, count, offset, L, i)
+            if i < K and self._hair_model == "kajiya-kay":  # every ring vertex, into ring_visibility
+                self._buf["ring_visibility"].bind_to_storage_buffer(2)
+                self._lookup(cs, int(geo.sides.sum()), 2 * P + Vs, MAX_LIGHTS, i)
+                self._buf["visibility"].bind_to_storage_buffer(2)
         return np.frombuffer(self._buf["visibility"].read(), np.float32).reshape(-1, L)[:P + Vs].copy()
+
+    def _lookup(self, cs, count: int, offset: int, stride: int, column: int) -> None:
+        """vis[r * stride + column] for r < count from lookup[offset + r] (strand_visibility_comp.glsl)."""
+        cs["u_count"].value, cs["u_offset"].value = count, offset
+        cs["u_stride"].value, cs["u_column"].value = stride, column
+        if count:
+            cs.run(group_x=(count + LOCAL_SIZE - 1) // LOCAL_SIZE)
+        self.ctx.memory_barrier()
 
     def _shadow_map(self, vp: np.ndarray, d, size: int):
         """The depth map of the surfaces and the ribbons seen from a directional light."""
@@ -377,7 +390,7 @@ class StrandRasterizer(MeshRasterizer):
 
     def _bind_strand_buffers(self) -> None:
         for name, binding in (("points", 0), ("lights", 1), ("visibility", 2), ("radiance", 3), ("flags", 4),
-                              ("list", 6), ("count", 7), ("segments", 8)):
+                              ("list", 6), ("count", 7), ("segments", 8), ("ring_visibility", 9), ("ring_start", 10)):
             self._buf[name].bind_to_storage_buffer(binding)
 
     def _draw_strands(self, cam, near: float, far: float, tgt) -> None:
@@ -448,7 +461,6 @@ class StrandRasterizer(MeshRasterizer):
         prog["u_light_col"].write(cols.tobytes())
         prog["u_nlights"].value = k
         prog["u_hair_shininess"].value = float(lt.hair_shininess)
-        prog["u_vis_stride"].value = max(self._n_lights, 1)
 
     def strand_radiance(self, eye) -> np.ndarray:
         """(P, 3) float32 radiance of every strand point towards ``eye`` from the lobe pass (the twin

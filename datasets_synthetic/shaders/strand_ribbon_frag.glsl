@@ -14,8 +14,7 @@ uniform vec3 u_light_dir_kk[MAX_LIGHTS];
 uniform vec3 u_light_col[MAX_LIGHTS];
 uniform int u_nlights;
 uniform float u_hair_shininess;
-layout(std430, binding = 2) readonly buffer Visibility { float vis[]; };
-uniform int u_vis_stride;
+in vec4 g_vis;   // the dominant lights' visibility, per ring vertex, interpolated
 #endif
 
 in vec3 g_world;
@@ -53,7 +52,7 @@ void main() {
         float tl = dot(T, L), th = dot(T, H);
         float cos_d = sqrt(max(0.0, 1.0 - tl * tl));
         float lobe = blinn_phong_normalized(sqrt(max(0.0, 1.0 - th * th)), u_hair_shininess);
-        float v = mix(vis[g_points.x * u_vis_stride + i], vis[g_points.y * u_vis_stride + i], g_t);
+        float v = g_vis[i];
         irradiance += u_light_col[i] * (v * cos_d);
         specular += u_light_col[i] * (v * lobe);
     }

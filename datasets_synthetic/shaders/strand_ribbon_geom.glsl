@@ -20,6 +20,13 @@ in VS {
     flat int index;
 } gs_in[];
 
+#if HAIR_KK
+// the dominant lights' visibility at every ring vertex, from the ring's first row (strand_gl._visibility)
+layout(std430, binding = 9) readonly buffer RingVisibility { vec4 ring_vis[]; };
+layout(std430, binding = 10) readonly buffer RingStart { uint ring_start[]; };
+out vec4 g_vis;
+#endif
+
 uniform mat4 u_view;   // world -> GL eye (identity for a shadow map)
 uniform mat4 u_proj;   // GL eye -> clip (the light's view-projection for a shadow map)
 
@@ -46,6 +53,9 @@ void corner(int e, int k) {
     g_t = float(e);
     g_points = ivec2(gs_in[0].index, gs_in[1].index);
     g_segment = gl_PrimitiveIDIn;
+#if HAIR_KK
+    g_vis = ring_vis[ring_start[gs_in[e].index] + uint(k)];
+#endif
     vec4 eye = u_view * vec4(g_world, 1.0);
     g_eyez = -eye.z;
     gl_Position = u_proj * eye;
@@ -57,8 +67,8 @@ void main() {
     ivec2 chain = front_chain(gs_in[0].silhouette, gs_in[1].silhouette, n);
     for (int j = 0; j < chain.y; ++j) {
         int k = (chain.x + j) % n;
+        corner(1, k);   // this order splits each facet along (ring 0, k) - (ring 1, k + 1), as tube_sweep does
         corner(0, k);
-        corner(1, k);
     }
     EndPrimitive();
 }
