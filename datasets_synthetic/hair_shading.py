@@ -1,9 +1,12 @@
 """Hair shading of the synthetic strands: the R / TT / TRT lobes under the HDR environment.
 
-For ``LightingConfig.hair_model == "chiang"`` every strand vertex (a vertex with a tangent: fur,
-needles) is shaded here in numpy, once per view, and handed to the rasteriser as per-vertex
-radiance (``MeshRasterizer.set_emission``; its own strand shading is switched off by giving those
-vertices zero albedo and specular).  Surfaces (skin, pot, leaves) keep the rasteriser's shading.
+For ``LightingConfig.hair_model == "chiang"`` the numpy renderer (``--synth-renderer numpy``, the
+reference) shades every strand vertex (a vertex with a tangent: fur, needles) here in numpy, once
+per view, and hands it to the rasteriser as per-vertex radiance (``MeshRasterizer.set_emission``;
+its own strand shading is switched off by giving those vertices zero albedo and specular).
+Surfaces (skin, pot, leaves) keep the rasteriser's shading.  The GL renderer
+(``datasets_synthetic.strand_gl``, the default) evaluates the same sum in GLSL
+(``shaders/strand_lobes.glsl``) with the lights of :func:`hair_lights`.
 
 Lights: the K dominant lights of the map (``Lighting.light_dirs``) plus the rest of the map as
 ``env_lights`` directional lights of equal energy (median cut, ``render.shading.median_cut``),

@@ -36,7 +36,11 @@ file, its folder the name or the file's stem.
 
 Strands (fur, needles) are shaded with the R / TT / TRT lobes of Chiang et al. 2016 under the
 environment's dominant lights and 32 median-cut lights with shadow maps (--hair chiang, default),
-or with the older Kajiya-Kay lobe (--hair kajiya-kay).
+or with the older Kajiya-Kay lobe (--hair kajiya-kay).  The GL renderer (--synth-renderer gl,
+default) draws each strand segment as the tube's facets facing the camera and evaluates the lobes
+and the shadow lookups on the GPU (llvmpipe without one); --synth-renderer numpy draws the whole
+tubes and evaluates the lobes in numpy, the reference it is tested against (same images to the
+tolerances of docs/synthetic.md, 5-6 times slower).
 
 scenes: furball  ellipsoidal body with thousands of thin curved strands (real tube geometry)
         plant    pot, stem, branches with many thin needles, a few flat leaves

@@ -224,3 +224,16 @@ def test_gl_scene_without_strands_is_the_rasteriser(gl_ctx):
     for a, b in zip(ref, got):
         assert np.array_equal(a.alpha, b.alpha) and np.array_equal(a.depth, b.depth)
         assert np.abs(a.color - b.color).max() < 1e-3  # shadow lookups in GLSL against numpy: a few taps
+
+
+def test_strands_that_are_not_tube_rings_are_refused():
+    """A strand vertex run that is not a ring of equidistant vertices names the numpy renderer."""
+    from datasets_synthetic.strands import StrandError
+    from datasets_synthetic.synth import SynthConfig
+
+    v = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.03, 0]], float)
+    bad = RasterMesh(v, np.array([[0, 1, 2]]), np.full((3, 3), 0.5), tangents=np.tile([0, 0, 1.0], (3, 1)))
+    with pytest.raises(StrandError, match="synth-renderer numpy"):
+        split_strands(bad)
+    with pytest.raises(ValueError, match="renderer must be one of"):
+        SynthConfig(renderer="cuda")

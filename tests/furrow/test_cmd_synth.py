@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from capture.io import read_scanset
 
 
@@ -30,3 +32,19 @@ def test_cli_synth_board_is_in_the_ground_truth(tmp_path):
     scene = json.loads((out / "gt" / "scene.json").read_text())
     board = scene["params"]["board"] if "params" in scene else scene["board"]
     assert board["squares"] == [7, 7] and board["z_m"] < 0
+
+
+def test_cli_synth_renderer_choice_is_recorded(tmp_path, capsys):
+    """--synth-renderer gl (default) and numpy both write a capture; gt/scene.json says which."""
+    import json
+
+    from furrow.cli import main
+
+    for kind in ("gl", "numpy"):
+        out = tmp_path / kind
+        args = ["synth", "furball", "-o", str(out), "--small", "--views", "2", "--strands", "300"]
+        assert main(args + ([] if kind == "gl" else ["--synth-renderer", kind])) == 0
+        scene = json.loads((out / "gt" / "scene.json").read_text())
+        assert scene["renderer"] == kind and scene["hair"]["renderer"] == kind
+    with pytest.raises(SystemExit):  # argparse: invalid choice
+        main(["synth", "torus", "-o", str(tmp_path / "z"), "--synth-renderer", "cuda"])
