@@ -72,7 +72,7 @@ STRAND_SENTINEL = -1.0
 MAX_SEGMENTS = 2**24
 #: Texture unit of the shadow map read by the visibility pass, and of the KK irradiance table.
 DEPTH_TEXTURE_UNIT = 1
-#: Most sides of a strand's tube the geometry shader draws (its strip has at most 2 x this vertices).
+#: Most sides of a strand's tube the geometry shader draws (its strip has at most 2 (this + 1) vertices).
 MAX_SIDES = 8
 #: Floats per strand-point record (strand_points.glsl) and per light record (strand_lobes_comp.glsl).
 POINT_FLOATS = 16
@@ -191,7 +191,7 @@ class StrandRasterizer(MeshRasterizer):
     def _ribbon_program(self, kind: str):
         """kind: 'camera' (chiang), 'camera_kk' or 'shadow' (depth only)."""
         frag = "raster_shadow_frag.glsl" if kind == "shadow" else "strand_ribbon_frag.glsl"
-        d = {"HAIR_KK": int(kind == "camera_kk"), "MAX_LIGHTS": MAX_LIGHTS, "MAX_STRIP_VERTICES": 2 * MAX_SIDES,
+        d = {"HAIR_KK": int(kind == "camera_kk"), "MAX_LIGHTS": MAX_LIGHTS, "MAX_STRIP_VERTICES": 2 * (MAX_SIDES + 1),
              **_DEFERRED_DEFINES}
         return self._program(kind, vertex_shader=load_synth_shader("strand_ribbon_vert.glsl", d),
                              geometry_shader=load_synth_shader("strand_ribbon_geom.glsl", d),

@@ -138,11 +138,14 @@ def front_chain(s0, s1, sides: int) -> tuple[np.ndarray, np.ndarray]:
     """(start, count) of a segment's front chain: ring vertices start, start + 1, ... (mod sides)
     from the right silhouette vertex over the side facing the viewer to the left one, the union of
     the chains of its two rings (``s0``, ``s1`` = (kr, kl) of each); twin of ``front_chain`` in
-    strand_ribbon.glsl.  The strip over these vertices is the tube's facets facing the viewer."""
+    strand_ribbon.glsl.  The strip over these vertices is the tube's facets facing the viewer; when
+    the two rings disagree so much that the union is one vertex (a segment seen end-on), the chain
+    is the whole ring (count = sides + 1: every facet)."""
     half = sides // 2
     wrap = lambda d: np.where(d % sides > half, d % sides - sides, d % sides)
     dr = wrap(np.asarray(s1[0]) - np.asarray(s0[0]))
     dl = wrap(np.asarray(s1[1]) - np.asarray(s0[1]))
     start = np.asarray(s0[0]) + np.minimum(dr, 0)
     stop = np.asarray(s0[1]) + np.maximum(dl, 0)
-    return start % sides, (stop - start) % sides + 1
+    count = (stop - start) % sides + 1
+    return start % sides, np.where(count < 2, sides + 1, count)  # a single vertex: every facet

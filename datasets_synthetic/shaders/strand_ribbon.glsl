@@ -29,7 +29,8 @@ ivec2 silhouette_vertices(vec3 T, vec3 N, int sides, vec3 w_dir) {
 
 // The front chain of a segment: ring vertices start, start + 1, ... (mod sides), count of them,
 // running from the right silhouette vertex over the front to the left one, the union of the two
-// rings' chains (so both rings' silhouettes are inside).  Returns (start, count).
+// rings' chains (so both rings' silhouettes are inside); all the facets (count = sides + 1) when
+// that union is a single vertex.  Returns (start, count).
 ivec2 front_chain(ivec2 s0, ivec2 s1, int sides) {
     int half_n = sides / 2;
     int dr = (s1.x - s0.x + sides) % sides;
@@ -41,5 +42,7 @@ ivec2 front_chain(ivec2 s0, ivec2 s1, int sides) {
     // (% of a negative operand is undefined in GLSL: shift by whole turns first; start >= -sides,
     // stop - start >= -2 sides)
     int count = (stop - start + 3 * sides) % sides + 1;
+    // the rings disagree about the sides (a segment seen end-on, u turning over): every facet
+    if (count < 2) count = sides + 1;
     return ivec2((start + sides) % sides, count);
 }

@@ -95,7 +95,7 @@ def test_front_chain_spans_the_silhouette():
         s0 = silhouette_vertices(T, N, sides, w)
         start, count = front_chain(s0, s0, sides)
         x = np.stack([np.sum(ring_direction(T, N, k, sides) * np.cross(w, T), -1) for k in range(sides)], -1)
-        assert np.all(count <= sides // 2 + 2)
+        assert np.all(count <= sides // 2 + 2)  # (one ring: its chain is never a single vertex)
         for i in range(len(T)):
             ks = [(start[i] + j) % sides for j in range(count[i])]
             assert ks[0] == np.argmax(x[i]) and ks[-1] == np.argmin(x[i])
