@@ -59,7 +59,7 @@ from render.mesh.raster.gl import (
 from render.mesh.raster.shadow_maps import light_view_projection
 from render.owner import mat4_bytes, near_far
 from render.shading.envmap import EnvMap
-from render.shading.hair import HairParams, width_nodes
+from render.shading.hair import HairParams, sigma_a_from_colour, width_nodes
 
 #: This package's shaders (package data, pyproject [tool.setuptools.package-data]).
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
@@ -70,8 +70,8 @@ LOCAL_SIZE = 64
 STRAND_SENTINEL = -1.0
 #: Most segments the strand pass can name (an exact integer in the float32 colour attachment).
 MAX_SEGMENTS = 2**24
-#: Texture unit of the shadow map read by the visibility pass, and of the KK irradiance table.
-DEPTH_TEXTURE_UNIT = 1
+#: Texture unit of the shadow map read by the visibility pass and of the Kajiya-Kay irradiance table.
+TEXTURE_UNIT = 1
 #: Most sides of a strand's tube the geometry shader draws (its strip has at most 2 (this + 1) vertices).
 MAX_SIDES = 8
 #: Floats per strand-point record (strand_points.glsl) and per light record (strand_lobes_comp.glsl).
@@ -116,8 +116,8 @@ def _floats(a) -> str:
 def lobe_defines(n_lights: int, params: HairParams = HairParams(), nodes: int = WIDTH_NODES_SYNTH) -> dict:
     """Constants of strand_lobes_comp.glsl, from its numpy twin's (render.shading.hair)."""
     hs, ws = width_nodes(nodes)
-    b = params.beta_n
-    den = 5.969 - 0.215 * b + 2.532 * b**2 - 10.73 * b**3 + 5.574 * b**4 + 0.245 * b**5  # sigma_a_from_colour
+    # sigma_a_from_colour(c) = (log(c) / den)^2: den read off the twin itself at c = 1/2
+    den = -np.log(0.5) / float(np.sqrt(sigma_a_from_colour(0.5, params.beta_n)))
     return {"LOCAL_SIZE": LOCAL_SIZE, "N_LIGHTS": max(int(n_lights), 1), "N_NODES": int(nodes),
             "NODE_H_LIST": _floats(hs), "NODE_W_LIST": _floats(ws), "ETA": f"{params.eta:.9e}",
             "ALPHA_RAD": f"{np.radians(params.alpha_deg):.9e}", "SIGMA_DEN": f"{den:.9e}"}
@@ -177,25 +177,27 @@ class StrandRasterizer(MeshRasterizer):
         self._strand_vaos: dict = {}
         self._hair_model = "chiang"
         self._n_lights = 0
-        self.timing: dict[str, float] = {}
+        #: Strand points the lobe pass shaded in the last view (chiang).
+        self.visible_points = 0
 
     # ------------------------------------------------------------------ programs and buffers
-    def _program(self, key: str, **src):
+    def _program(self, key: str, build):
+        """The program ``key``, made by ``build()`` (a compute shader's source, or the keyword
+        arguments of ``ctx.program``) the first time."""
         if key not in self._progs:
-            if "compute" in src:
-                self._progs[key] = self.own(self.ctx.compute_shader(src["compute"]))
-            else:
-                self._progs[key] = self.own(self.ctx.program(**src))
+            src = build()
+            prog = self.ctx.compute_shader(src) if isinstance(src, str) else self.ctx.program(**src)
+            self._progs[key] = self.own(prog)
         return self._progs[key]
 
     def _ribbon_program(self, kind: str):
         """kind: 'camera' (chiang), 'camera_kk' or 'shadow' (depth only)."""
         frag = "raster_shadow_frag.glsl" if kind == "shadow" else "strand_ribbon_frag.glsl"
-        d = {"HAIR_KK": int(kind == "camera_kk"), "MAX_LIGHTS": MAX_LIGHTS, "MAX_STRIP_VERTICES": 2 * (MAX_SIDES + 1),
-             **_DEFERRED_DEFINES}
-        return self._program(kind, vertex_shader=load_synth_shader("strand_ribbon_vert.glsl", d),
-                             geometry_shader=load_synth_shader("strand_ribbon_geom.glsl", d),
-                             fragment_shader=load_synth_shader(frag, d))
+        d = {"HAIR_KK": int(kind == "camera_kk"), "MAX_LIGHTS": MAX_LIGHTS,
+             "MAX_STRIP_VERTICES": 2 * (MAX_SIDES + 1), **_DEFERRED_DEFINES}
+        return self._program(kind, lambda: {"vertex_shader": load_synth_shader("strand_ribbon_vert.glsl", d),
+                                            "geometry_shader": load_synth_shader("strand_ribbon_geom.glsl", d),
+                                            "fragment_shader": load_synth_shader(frag, d)})
 
     def _buffer(self, name: str, data: np.ndarray | None = None, reserve: int = 0):
         self.free(self._buf.pop(name, None))
@@ -289,7 +291,7 @@ class StrandRasterizer(MeshRasterizer):
         b = mesh.bounds
         centre = 0.5 * (b[0] + b[1])
         radius = 0.5 * float(np.linalg.norm(b[1] - b[0])) * (1 + SHADOW_BOX_MARGIN)
-        cs = self._program("visibility", compute=load_synth_shader("strand_visibility_comp.glsl",
+        cs = self._program("visibility", lambda: load_synth_shader("strand_visibility_comp.glsl",
                                                                    {"LOCAL_SIZE": LOCAL_SIZE}))
         self._buf["lookup"].bind_to_storage_buffer(5)
         self._buf["visibility"].bind_to_storage_buffer(2)
@@ -298,8 +300,8 @@ class StrandRasterizer(MeshRasterizer):
             vp = light_view_projection(d, centre, radius)
             tgt = self._shadow_map(vp, d, size)
             tgt.depth.compare_func = ""
-            tgt.depth.use(location=DEPTH_TEXTURE_UNIT)
-            cs["u_depth"].value = DEPTH_TEXTURE_UNIT
+            tgt.depth.use(location=TEXTURE_UNIT)
+            cs["u_depth"].value = TEXTURE_UNIT
             cs["u_light_vp"].write(mat4_bytes(vp))
             cs["u_dir"].value = tuple(float(x) for x in d)
             cs["u_bias"].value = SHADOW_BIAS_TEXELS * 2 * radius / size
@@ -344,15 +346,14 @@ class StrandRasterizer(MeshRasterizer):
 
     def _surface_shadow(self):
         """(program, vertex array) of the surfaces' shadow-map pass (the rasteriser's shadow shaders)."""
+        prog = self._program("surface_shadow", lambda: {
+            "vertex_shader": load_synth_shader("raster_shadow_vert.glsl"),
+            "fragment_shader": load_synth_shader("raster_shadow_frag.glsl")})
         if "surface_shadow" not in self._strand_vaos:
-            from render.gl import program
-
-            prog = self._progs["surface_shadow"] = self.own(program(self.ctx, "raster_shadow_vert.glsl",
-                                                                    "raster_shadow_frag.glsl"))
             self._strand_vaos["surface_shadow"] = self.own(self.ctx.vertex_array(
                 prog, [(self._buf["surface_pos"], "3f", "in_pos")], index_buffer=self._buf["surface_idx"],
                 index_element_size=4))
-        return self._progs["surface_shadow"], self._strand_vaos["surface_shadow"]
+        return prog, self._strand_vaos["surface_shadow"]
 
     def _shadow_info(self, geo, vis, K, lighting, shadows) -> dict:
         if not (shadows and lighting.shadows and K):
@@ -415,7 +416,7 @@ class StrandRasterizer(MeshRasterizer):
         """Flag the points of the segments the strand pass left on the frame's samples, list them,
         shade them (lobe pass) and put their radiance on the samples (strand_deferred_comp.glsl)."""
         ctx = self.ctx
-        cs = self._program("deferred", compute=load_synth_shader("strand_deferred_comp.glsl", _DEFERRED_DEFINES))
+        cs = self._program("deferred", lambda: load_synth_shader("strand_deferred_comp.glsl", _DEFERRED_DEFINES))
         self._bind_strand_buffers()
         colour.bind_to_image(0, read=True, write=True)
         W, H = colour.size
@@ -440,8 +441,8 @@ class StrandRasterizer(MeshRasterizer):
         ctx.memory_barrier()
 
     def _lobes(self, eye, count: int, use_list: bool) -> None:
-        cs = self._program("lobes", compute=load_synth_shader("strand_lobes_comp.glsl",
-                                                              lobe_defines(self._n_lights)))
+        n = self._n_lights
+        cs = self._program(f"lobes{n}", lambda: load_synth_shader("strand_lobes_comp.glsl", lobe_defines(n)))
         cs["u_eye"].value = tuple(float(x) for x in eye)
         cs["u_count"].value = int(count)
         cs["u_use_list"].value = int(use_list)
@@ -451,8 +452,8 @@ class StrandRasterizer(MeshRasterizer):
 
     def _kk_uniforms(self, prog) -> None:
         lt = self._lighting
-        self._irr_tex.use(location=DEPTH_TEXTURE_UNIT)
-        prog["u_irradiance"].value = DEPTH_TEXTURE_UNIT
+        self._irr_tex.use(location=TEXTURE_UNIT)
+        prog["u_irradiance"].value = TEXTURE_UNIT
         k = len(lt.light_dirs)
         dirs = np.zeros((MAX_LIGHTS, 3), np.float32)
         cols = np.zeros((MAX_LIGHTS, 3), np.float32)

@@ -237,3 +237,30 @@ def test_strands_that_are_not_tube_rings_are_refused():
         split_strands(bad)
     with pytest.raises(ValueError, match="renderer must be one of"):
         SynthConfig(renderer="cuda")
+
+
+#: The realism bench (furrow bench synth_realism) on a 12-view 160 x 120 fur ball made by each
+#: renderer: the largest |GL - numpy| allowed per statistic (fractions of the image / of the
+#: pixels, 8-bit luma and Laplacian units, dB).  Measured here: fg 0, fg_luma 0.003, sharp 0.016,
+#: depth_cover 0, miss@k <= 0.00015, points PSNR 0.0005 dB, SSIM 0.0001, sharpness ratio 0.0003;
+#: at the demo's 36 views 320 x 240 (seed 1, docs/synthetic.md): fur ball fg 1e-5, luma 0.001,
+#: sharp 0.018, miss@k <= 0.00015, PSNR 0.003 dB, SSIM 0.0002; plant fg 3e-5, luma 0.017, sharp
+#: 0.019, miss@k <= 0.0008, PSNR 0.005 dB, SSIM 0.001.
+REALISM_TOL = {"fg": 2e-3, "fg_luma": 0.2, "sharp": 0.3, "depth_cover": 2e-3, "miss@1": 5e-3, "miss@2": 5e-3,
+               "miss@4": 5e-3, "points_psnr": 0.05, "points_ssim": 5e-3, "points_sharp_ratio": 0.01}
+
+
+def test_realism_bench_numbers_match(tmp_path, gl_ctx):
+    from datasets_synthetic.sensor import SENSORS
+    from datasets_synthetic.synth import SynthConfig, synthesize, write_capture
+    from furrow.bench.synth_realism import capture_stats
+
+    stats = {}
+    for kind in ("numpy", "gl"):
+        cfg = SynthConfig(scene="furball", seed=1, rig=TurntableRig(views_per_ring=12, width=160, height=120),
+                          scene_params={"strands": 1500}, lighting=LightingConfig(hair_env_lights=8),
+                          sensor=SENSORS["d435"], pixel_filter_px=0.5, renderer=kind)
+        write_capture(synthesize(cfg, gl_ctx), tmp_path / kind)
+        stats[kind] = capture_stats(tmp_path / kind)
+    diff = {k: abs(stats["gl"][k] - stats["numpy"][k]) for k in REALISM_TOL}
+    assert all(diff[k] <= REALISM_TOL[k] for k in REALISM_TOL), (diff, stats)
