@@ -33,9 +33,6 @@ The GL context is passed in; every GL object is owned here and released by :meth
 
 from __future__ import annotations
 
-import re
-from pathlib import Path
-
 import numpy as np
 
 from datasets_synthetic.hair_shading import (
@@ -44,6 +41,20 @@ from datasets_synthetic.hair_shading import (
     WIDTH_NODES_SYNTH,
     hair_info,
     hair_lights,
+)
+from datasets_synthetic.strand_shaders import (
+    DEFERRED_DEFINES,
+    HIZ_DEFINES,
+    HIZ_TILE,
+    LIGHT_FLOATS,
+    LOCAL_SIZE,
+    MAX_SEGMENTS,
+    MAX_SIDES,
+    POINT_FLOATS,
+    light_records,
+    load_synth_shader,
+    lobe_defines,
+    point_records,
 )
 from datasets_synthetic.strands import StrandGeometry, split_strands
 from render.mesh.raster.gl import (
@@ -59,100 +70,12 @@ from render.mesh.raster.gl import (
 from render.mesh.raster.shadow_maps import light_view_projection
 from render.owner import mat4_bytes, near_far
 from render.shading.envmap import EnvMap
-from render.shading.hair import HairParams, sigma_a_from_colour, width_nodes
+from render.shading.hair import HairParams
 
-#: This package's shaders (package data, pyproject [tool.setuptools.package-data]).
-SHADER_DIR = Path(__file__).resolve().parent / "shaders"
-#: Invocations per work group of the compute passes.
-LOCAL_SIZE = 64
-#: Blue of a colour-attachment sample that holds a strand's (segment, t) until the deferred pass
-#: shades it (shaded colours are never negative).
-STRAND_SENTINEL = -1.0
-#: Most segments the strand pass can name (an exact integer in the float32 colour attachment).
-MAX_SEGMENTS = 2**24
 #: Texture unit of the shadow map read by the visibility pass and of the Kajiya-Kay irradiance table.
 TEXTURE_UNIT = 1
-#: Most sides of a strand's tube the geometry shader draws (its strip has at most 2 (this + 1) vertices).
-MAX_SIDES = 8
-#: Floats per strand-point record (strand_points.glsl) and per light record (strand_lobes_comp.glsl).
-POINT_FLOATS = 16
-LIGHT_FLOATS = 20
-_DEFERRED_DEFINES = {"STRAND_SENTINEL": f"{STRAND_SENTINEL:.1f}"}
-_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$')
-
-
-def load_synth_shader(name: str, defines: dict | None = None) -> str:
-    """Source of the shader ``name``: from this package's shaders/ folder, else the render package's
-    (``render.gl.load_shader``), ``#include`` resolved the same way (each file once) and ``defines``
-    put after the ``#version`` line."""
-    text = _expand(name, set())
-    if defines:
-        block = "".join(f"#define {k} {v}\n" for k, v in defines.items())
-        head, _, rest = text.partition("\n")
-        text = head + "\n" + block + rest if head.lstrip().startswith("#version") else block + text
-    return text
-
-
-def _expand(name: str, seen: set) -> str:
-    if name in seen:
-        return ""
-    seen.add(name)
-    path = SHADER_DIR / name
-    if not path.is_file():
-        from render.gl import load_shader
-
-        return load_shader(name)
-    out = []
-    for line in path.read_text().splitlines():
-        m = _INCLUDE.match(line)
-        out.append(_expand(m.group(1), seen) if m else line)
-    return "\n".join(out) + "\n"
-
-
-def _floats(a) -> str:
-    return "float[](" + ", ".join(f"{float(x):.9e}" for x in a) + ")"
-
-
-def lobe_defines(n_lights: int, params: HairParams = HairParams(), nodes: int = WIDTH_NODES_SYNTH) -> dict:
-    """Constants of strand_lobes_comp.glsl, from its numpy twin's (render.shading.hair)."""
-    hs, ws = width_nodes(nodes)
-    # sigma_a_from_colour(c) = (log(c) / den)^2: den read off the twin itself at c = 1/2
-    den = -np.log(0.5) / float(np.sqrt(sigma_a_from_colour(0.5, params.beta_n)))
-    return {"LOCAL_SIZE": LOCAL_SIZE, "N_LIGHTS": max(int(n_lights), 1), "N_NODES": int(nodes),
-            "NODE_H_LIST": _floats(hs), "NODE_W_LIST": _floats(ws), "ETA": f"{params.eta:.9e}",
-            "ALPHA_RAD": f"{np.radians(params.alpha_deg):.9e}", "SIGMA_DEN": f"{den:.9e}"}
-
-
-def light_records(dirs, power, spread, params: HairParams = HairParams()) -> np.ndarray:
-    """(L, LIGHT_FLOATS) float32 records of strand_lobes_comp.glsl's Light: direction, power, 1 / v_p
-    and log normaliser of M_p (p = 0..3), 1 / s and norm / s of the logistic, per light (the
-    per-light constants of render.shading.hair._radiance_block, widened by ``spread``)."""
-    spread = np.asarray(spread, np.float64)
-    v = params.variances()[None, :] + spread[:, None]                          # (L, 4)
-    s = np.sqrt(params.azimuthal_scale() ** 2 + 3 * spread / np.pi**2)
-    norm = 1 / (1 / (1 + np.exp(-np.pi / s)) - 1 / (1 + np.exp(np.pi / s)))
-    out = np.zeros((len(spread), LIGHT_FLOATS), np.float64)
-    out[:, 0:3] = dirs
-    out[:, 4:7] = power
-    out[:, 8:12] = 1 / v
-    out[:, 12:16] = -1 / v - np.log(v) - np.log1p(-np.exp(-2 / v))
-    out[:, 16] = 1 / s
-    out[:, 17] = norm / s
-    return out.astype(np.float32)
-
-
-def point_records(geo: StrandGeometry, mesh: RasterMesh) -> np.ndarray:
-    """(P, POINT_FLOATS) float32 strand-point records (strand_points.glsl)."""
-    pts = geo.points
-    first = np.nonzero(np.r_[True, np.diff(pts.group) != 0] & (pts.group >= 0))[0]
-    occl = mesh.occlusion[first] if mesh.occlusion is not None else np.ones(len(first))
-    spec = mesh.specular[first] if mesh.specular is not None else np.zeros(len(first))
-    out = np.zeros((geo.count, POINT_FLOATS), np.float64)
-    out[:, 0:3], out[:, 3] = pts.centres, geo.radius
-    out[:, 4:7], out[:, 7] = pts.tangents, geo.sides
-    out[:, 8:11], out[:, 11] = pts.colours, occl
-    out[:, 12:15], out[:, 15] = geo.frame, spec
-    return out.astype(np.float32)
+#: Skip the strand strips wholly behind the surfaces (False draws every strip; same images).
+HIZ_CULL = True
 
 
 class StrandRasterizer(MeshRasterizer):
@@ -194,7 +117,7 @@ class StrandRasterizer(MeshRasterizer):
         """kind: 'camera' (chiang), 'camera_kk' or 'shadow' (depth only)."""
         frag = "raster_shadow_frag.glsl" if kind == "shadow" else "strand_ribbon_frag.glsl"
         d = {"HAIR_KK": int(kind == "camera_kk"), "MAX_LIGHTS": MAX_LIGHTS,
-             "MAX_STRIP_VERTICES": 2 * (MAX_SIDES + 1), **_DEFERRED_DEFINES}
+             "MAX_STRIP_VERTICES": 2 * (MAX_SIDES + 1), **DEFERRED_DEFINES, **HIZ_DEFINES}
         return self._program(kind, lambda: {"vertex_shader": load_synth_shader("strand_ribbon_vert.glsl", d),
                                             "geometry_shader": load_synth_shader("strand_ribbon_geom.glsl", d),
                                             "fragment_shader": load_synth_shader(frag, d)})
@@ -331,11 +254,12 @@ class StrandRasterizer(MeshRasterizer):
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
         if self._geo.surfaces is not None:
-            prog, vao = self._surface_shadow()
-            prog["u_mvp"].write(mat4_bytes(vp))
+            sprog, vao = self._surface_shadow()
+            sprog["u_mvp"].write(mat4_bytes(vp))
             vao.render()
         if self._geo.count:
             prog = self._ribbon_program("shadow")
+            self._hiz(prog, tgt.depth)
             self._bind_strand_buffers()
             prog["u_view"].write(mat4_bytes(np.eye(4)))
             prog["u_proj"].write(mat4_bytes(vp))
@@ -389,6 +313,28 @@ class StrandRasterizer(MeshRasterizer):
             self._draw_strands(camera if factor == 1 else camera.scaled(factor), near, far, tgt)
         return tgt
 
+    def _hiz(self, prog, depth) -> None:
+        """Give ``prog`` the farthest depth of every tile of ``depth`` (the surfaces drawn so far) so
+        that its geometry shader skips the strips behind them (off when there are no surfaces)."""
+        if self._geo.surfaces is None or not HIZ_CULL:
+            prog["u_hiz"].value = 0
+            return
+        W, H = depth.size
+        tiles = ((W + HIZ_TILE - 1) // HIZ_TILE, (H + HIZ_TILE - 1) // HIZ_TILE)
+        if self._buf.get("tiles") is None or self._buf["tiles"].size < 4 * tiles[0] * tiles[1]:
+            self._buffer("tiles", reserve=4 * tiles[0] * tiles[1])
+        cs = self._program("hiz", lambda: load_synth_shader("strand_hiz_comp.glsl", HIZ_DEFINES))
+        depth.compare_func = ""
+        depth.use(location=TEXTURE_UNIT)
+        self._buf["tiles"].bind_to_storage_buffer(11)
+        cs["u_depth"].value = TEXTURE_UNIT
+        cs["u_tiles"].value = tiles
+        cs.run((tiles[0] + 7) // 8, (tiles[1] + 7) // 8)
+        self.ctx.memory_barrier()
+        prog["u_hiz"].value = 1
+        prog["u_tiles"].value = tiles
+        prog["u_viewport"].value = (float(W), float(H))
+
     def _bind_strand_buffers(self) -> None:
         for name, binding in (("points", 0), ("lights", 1), ("visibility", 2), ("radiance", 3), ("flags", 4),
                               ("list", 6), ("count", 7), ("segments", 8), ("ring_visibility", 9), ("ring_start", 10)):
@@ -399,11 +345,12 @@ class StrandRasterizer(MeshRasterizer):
         kk = self._hair_model == "kajiya-kay"
         kind = "camera_kk" if kk else "camera"
         prog = self._ribbon_program(kind)
-        self._bind_strand_buffers()
         prog["u_view"].write(mat4_bytes(cam.gl_view()))
         prog["u_proj"].write(mat4_bytes(cam.gl_projection(near, far)))
         prog["u_eye"].value = tuple(float(x) for x in cam.center)
         prog["u_ortho"].value = 0
+        self._hiz(prog, tgt.depth)
+        self._bind_strand_buffers()
         if kk:
             prog["u_exposure"].value = float(self._lighting.exposure)
             self._kk_uniforms(prog)
@@ -416,7 +363,7 @@ class StrandRasterizer(MeshRasterizer):
         """Flag the points of the segments the strand pass left on the frame's samples, list them,
         shade them (lobe pass) and put their radiance on the samples (strand_deferred_comp.glsl)."""
         ctx = self.ctx
-        cs = self._program("deferred", lambda: load_synth_shader("strand_deferred_comp.glsl", _DEFERRED_DEFINES))
+        cs = self._program("deferred", lambda: load_synth_shader("strand_deferred_comp.glsl", DEFERRED_DEFINES))
         self._bind_strand_buffers()
         colour.bind_to_image(0, read=True, write=True)
         W, H = colour.size

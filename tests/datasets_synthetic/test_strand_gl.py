@@ -18,7 +18,8 @@ from datasets_synthetic.hair_shading import (
 from datasets_synthetic.lighting import LightingConfig, ambient_residual, resolve_env, scene_lighting
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.scenes import build_scene
-from datasets_synthetic.strand_gl import StrandRasterizer, load_synth_shader
+from datasets_synthetic.strand_gl import StrandRasterizer
+from datasets_synthetic.strand_shaders import load_synth_shader
 from datasets_synthetic.strands import front_chain, ring_direction, silhouette_vertices, split_strands
 from datasets_synthetic.synth_renderer import SceneRenderer
 from render.mesh.raster.gl import SHADOW_BIAS_TEXELS, SHADOW_BOX_MARGIN, MeshRasterizer, RasterMesh
