@@ -7,25 +7,29 @@ tests/datasets_synthetic/test_strand_gl.py, many times faster on llvmpipe:
 
 * **Strands** (``datasets_synthetic.strands``): per segment between two tube rings, the strip of
   the tube's facets that face the viewer, made in a geometry shader from the rings (centre, radius,
-  frame; ``strand_ribbon.glsl``): the tube's own vertices, depth and interpolated normals, its
-  silhouette, and 2 or 4 triangles where the tube has 6 (3 sides), no back faces.  Coverage comes
-  from the rasteriser's supersamples, as the tube's does.
+  frame; ``strand_ribbon.glsl``): the tube's own vertices, triangulation, depth and interpolated
+  normals, its silhouette, and 2 or 4 triangles where the tube has 6 (3 sides), no back faces.
+  Coverage comes from the rasteriser's supersamples, as the tube's does.  A strip wholly behind
+  the surfaces already drawn is not emitted (the farthest surface depth per 16 x 16 tile,
+  ``strand_hiz_comp.glsl``): the depth test would have rejected all of it.
 * **Surfaces** (skin, pot, stems, leaves) are drawn by the mesh rasteriser itself (this class is
   one), shaded as before, with the dominant lights' visibility from shadow maps that hold the
-  strands too.
+  strands too.  (This overrides ``MeshRasterizer._build_shadows``, which would make the maps of the
+  surfaces alone.)
 * **Shadow maps**: for every hair light (the map's dominant lights at SHADOW_MAP_SIZE, the
   median-cut lights at ENV_SHADOW_MAP_SIZE, as today) the surfaces and the strands' facets facing
-  the light; the
-  visibility of every strand point (the dominant lights at the ring's first vertex, the cut lights
-  at its centre, as ``hair_shading.prepare_hair`` looks them up) and of every surface vertex by
-  ``strand_visibility_comp.glsl``, the twin of ``render.mesh.raster.shadow_maps.shadow_map_visibility``.
+  the light; the visibility of every strand point (the dominant lights at the ring's first vertex,
+  the cut lights at its centre, as ``hair_shading.prepare_hair`` looks them up) and of every
+  surface vertex by ``strand_visibility_comp.glsl``, the twin of
+  ``render.mesh.raster.shadow_maps.shadow_map_visibility``.
 * **Lobes** (chiang), deferred: the strand pass writes each covered sample's segment and its
   position along it; the points of the segments left on the frame are listed
   (``strand_deferred_comp.glsl``), ``strand_lobes_comp.glsl`` (the twin of
   ``hair_shading.strand_radiance``) shades those only (a fifth of the fur ball's points in a view),
   and every strand sample gets its two points' radiance mixed at its position (what the
   rasteriser does with per-vertex emission).  Kajiya-Kay: the rasteriser's strand shading per
-  fragment, in ``strand_ribbon_frag.glsl``.
+  fragment, in ``strand_ribbon_frag.glsl``, with the dominant lights' visibility at every ring
+  vertex.
 
 The GL context is passed in; every GL object is owned here and released by :meth:`release`
 (``render.owner.GLOwner``).
