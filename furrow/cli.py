@@ -1,7 +1,8 @@
 """``furrow <command>``: the command line. Wires the stages together; holds no algorithms.
 
 Each command lives in ``furrow/cmd_<name>.py`` and defines ``HELP`` (one line),
-``add_arguments(parser)`` and ``run(args, console) -> int``.  Only the commands whose
+``add_arguments(parser)`` and ``run(args, console) -> int``, and its --help text as ``DESCRIPTION``
+or, when part of it is made from the registries (the methods' entries), ``description()``.  Only the commands whose
 module is present are listed.
 """
 
@@ -39,8 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
         mod = _load(name)
         if mod is None:
             continue
-        p = sub.add_parser(name, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        desc = mod.description() if hasattr(mod, "description") else getattr(mod, "DESCRIPTION", mod.HELP)
+        p = sub.add_parser(name, help=mod.HELP, description=desc, formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(p)
         p.set_defaults(_module=mod)
     return parser

@@ -1,6 +1,7 @@
-"""``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method (gather,
-the default; the microfacet renderer; the plain point splatter; the fixed-mesh VDTM baseline and
-the vertex-colour floor; docs/methods.md §1.8, the paper's Fig. 11)."""
+"""``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method whose spec
+says it is evaluated (render.methods.eval_methods: gather, the default; the microfacet renderer; the
+plain point splatter; the fixed-mesh VDTM baseline and the vertex-colour floor; docs/methods.md
+§1.8, the paper's Fig. 11)."""
 
 from __future__ import annotations
 
@@ -9,36 +10,30 @@ import json
 from pathlib import Path
 
 from render.evaluate import GEOMETRIES
-from render.methods import DEFAULT_SUPERSAMPLE, DEFAULT_TOLERANCE_PX, MICROFACET_MODES
 
 HELP = "held-out evaluation: build a model from every K-th frame, render the others with every method"
-DESCRIPTION = """Build a model from the frames i % K == 0 of a scan set, render every other frame with every
-method: gather (the default of `furrow render`: the splatted depth of the 2 nearest kept views,
-colours resampled from them with soft visibility), the microfacet renderer, the plain RGB-D point
-splatter (`points`: 4 nearest kept views, 2x2 splats, colours within 4 mm of the front averaged
-by 1/angle), the fixed-mesh VDTM baseline (same cameras, same selection and blending as the
-microfacets: they differ only in geometry) and the mesh's vertex colours (the floor).  Report
-per view and mean PSNR and SSIM (8-bit sRGB, scikit-image) over the full image and inside the
-union of the reference and rendered foregrounds (their non-black 8-bit pixels: the captures are
+DESCRIPTION_HEAD = """Build a model from the frames i % K == 0 of a scan set, render every other frame with every
+method (--methods picks some; each one's spec in render/NAME/spec.py says whether it is evaluated):"""
+DESCRIPTION_BODY = """Report per view and mean PSNR and SSIM (8-bit sRGB, scikit-image) over the full image and
+inside the union of the reference and rendered foregrounds (their non-black 8-bit pixels: the captures are
 over black), the sharpness ratio there (RMS of the Laplacian of the grey image, rendering over
 reference: 1 = as crisp as the photo; PSNR rewards blur, so read the two together), the hole
-fraction inside the object, ms per frame and facet count.  Renderings are scored over black
-(premultiplied colour in linear light, what a path tracer's coverage gives).  When the held-out
+fraction inside the object, ms per frame and, for the methods that count them, facets drawn.
+Renderings are scored over black (premultiplied colour in linear light, what a path tracer's
+coverage gives).  When the held-out
 scans carry a true matte (Scan.alpha, from mask_path), the frames are also composited with their
 own alpha over a white (sRGB 235) and a dark (sRGB 24) backdrop and scored against the true
 composite (photo + (1 - true alpha) x backdrop; PSNR white / PSNR dark), and their alpha against
 the true matte (alpha MSE inside the union of the foregrounds; SAD = sum |error| / 1000);
 without a matte these are skipped with a note.
-The microfacets and the mesh baselines are drawn with --supersample S x S samples per pixel
-(default 2: the references are area-sampled photographs or path-traced images); gather and
-points draw one sample per pixel whatever S (gather resamples the photos, whose own area
-sampling is kept).  The microfacets parallax-correct their colours along the eye ray
-(--refine, default 2 steps; 0 = the paper).
-Writes DIR/side_by_side/VIEW.png (top: reference | gather | microfacet | points | mesh-vdtm;
+The methods that supersample are drawn with --supersample S x S samples per pixel (default 2: the
+references are area-sampled photographs or path-traced images); the others draw one sample per
+pixel whatever S.  A method's own flags (below) reach that method.
+Writes DIR/side_by_side/VIEW.png (top: reference | {sheets};
 bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
-there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, each with psnr,
+there too (keys {keys}, each with psnr,
 ssim, psnr_masked, ssim_masked, sharpness, psnr_white, psnr_dark, alpha_mse, alpha_sad,
-ms_per_frame, ... and the per-view records).
+ms_per_frame, ... and the per-view records; `options`: the options each method was drawn with).
 
 The model of the kept frames is built by the pipeline of `furrow model` with the same flags (every
 flag of `furrow model` that changes the model: --matte, --backdrop, --no-photometric, --views,
@@ -54,7 +49,19 @@ example:
   furrow eval out/furball --holdout 2 --json out/eval_furball.json -o out/eval_furball"""
 
 
+def description() -> str:
+    """The --help text: the evaluated methods, the sheets and the JSON keys come from the specs."""
+    from furrow.method_flags import methods_help
+    from render.evaluate import result_key
+    from render.methods import eval_methods, sheet_methods
+
+    keys = ", ".join(f"`{result_key(m)}`" for m in eval_methods())
+    body = DESCRIPTION_BODY.format(sheets=" | ".join(sheet_methods()), keys=keys)
+    return f"{DESCRIPTION_HEAD}\n{methods_help(methods=eval_methods())}\n{body}"
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from furrow.method_flags import add_option_arguments
     from furrow.model_flags import add_model_arguments
 
     p.add_argument("scans", type=Path,
@@ -64,15 +71,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the numbers as JSON")
     p.add_argument("-o", "--out", type=Path, default=None,
                    help="folder for the side-by-side sheets and eval.json (default out/eval/NAME)")
-    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE_PX,
-                   help=f"microfacet screen-space tolerance E, pixels (default {DEFAULT_TOLERANCE_PX:g})")
+    p.add_argument("--methods", default=None, metavar="A,B",
+                   help="evaluate these methods only, comma-separated (default: every evaluated method)")
     p.add_argument("--geometry", choices=GEOMETRIES, default="auto", help="where the model's geometry comes from")
     p.add_argument("--l-max", type=int, default=128, help="finest level for --geometry gt (default 128)")
-    p.add_argument("--mode", choices=MICROFACET_MODES, default=MICROFACET_MODES[0], help="microfacet slice generation")
-    p.add_argument("--supersample", type=int, default=DEFAULT_SUPERSAMPLE, metavar="S",
-                   help=f"S x S samples per pixel for every method (default {DEFAULT_SUPERSAMPLE}; 1 = off)")
-    p.add_argument("--refine", type=int, default=None, metavar="N",
-                   help="microfacet parallax-correction steps (default 2; 0 = the paper's slice-point colour)")
+    add_option_arguments(p)
     p.add_argument("--max-views", type=int, default=None,
                    help="evaluate at most this many held-out views (evenly spaced)")
     p.add_argument("--save-model", type=Path, default=None, metavar="DIR",
@@ -94,7 +97,7 @@ def evaluate_capture(scans: Path, cfg, holdout: int, options=None, out_dir: Path
     from render.gl import gl_context
 
     timer = timer or StageTimer()
-    methods = methods or ev.EVAL_METHODS
+    methods = methods or ev.eval_methods()
     source = open_source(scans, cfg.undistort.mode)
     with timer.stage("read held-out views"):
         split = ev.source_holdout(source, holdout, cfg, max_views, track)
@@ -115,13 +118,12 @@ def evaluate_capture(scans: Path, cfg, holdout: int, options=None, out_dir: Path
 
 
 def run(args, console) -> int:
-    from rich.table import Table
-
     from furrow.console import StageTimer
     from furrow.model_flags import pipeline_config
-    from render import evaluate as ev
+    from render.methods import options_record
 
-    options = render_options(args)
+    methods = selected_methods(args.methods)
+    options = render_options(args, methods)
     if args.holdout < 2:
         raise ValueError(f"--holdout must be >= 2, got {args.holdout}")
     timer = StageTimer()
@@ -130,24 +132,10 @@ def run(args, console) -> int:
         raise ValueError("--save-model saves the pipeline's model: not with --geometry gt")
     cfg = pipeline_config(args, out=args.save_model)
     res = evaluate_capture(args.scans, cfg, args.holdout, options, out_dir, timer, args.geometry, args.l_max,
-                           args.max_views)
-    res.update({"tolerance_px": options.tolerance_px, "supersample": options.supersample,
-                "refine": options.refine_steps})
-    t = Table(title=f"held-out evaluation ({len(res['held'])} views, geometry: {res['geometry']}, "
-                    f"E = {options.tolerance_px:g} px, {options.supersample}x{options.supersample} samples/pixel)")
-    for c in ("method", "PSNR", "SSIM", "PSNR masked", "SSIM masked", "sharpness", "holes %", "largest hole px",
-              "ms/frame", "CPU ms", "facets"):
-        t.add_column(c, justify="right")
-    for k in map(ev.result_key, ev.EVAL_METHODS):
-        r = res[k]
-        t.add_row(k, f"{r['psnr']:.2f}", f"{r['ssim']:.3f}", f"{r['psnr_masked']:.2f}", f"{r['ssim_masked']:.3f}",
-                  f"{r['sharpness']:.2f}", f"{100 * r['hole_fraction']:.2f}", f"{r['largest_hole']:.0f}",
-                  f"{r['ms_per_frame']:.1f}", f"{r['cpu_ms_per_frame']:.1f}", f"{r['facets']:.0f}")
-    console.print(t)
-    print_composite_table(console, res, ev)
-    sheet = " | ".join(m for m in ev.EVAL_METHODS if m in ev.SHEET_METHODS)
-    console.print(f"side-by-side sheets (reference | {sheet}; below: {ev.ERROR_GAIN:g} x error): "
-                  f"{out_dir / 'side_by_side'}")
+                           args.max_views, methods)
+    res.update({"methods": list(methods), "supersample": options.supersample,
+                "options": options_record(options, *methods)})
+    print_tables(console, res, methods, out_dir)
     for path in [out_dir / "eval.json"] + ([args.json] if args.json else []):
         write_json(path, res)
         console.print(f"[green]wrote[/] {path}")
@@ -155,13 +143,66 @@ def run(args, console) -> int:
     return 0
 
 
-def print_composite_table(console, res: dict, ev) -> None:
+def selected_methods(text: str | None) -> tuple[str, ...]:
+    """The methods of --methods (comma-separated registry names), or every evaluated method."""
+    from render.methods import eval_methods, method_spec
+
+    if text is None:
+        return eval_methods()
+    names = tuple(m.strip() for m in text.split(",") if m.strip())
+    for m in names:
+        method_spec(m)  # an unknown name fails here, naming the registered ones
+    if not names:
+        raise ValueError("--methods names no method")
+    return names
+
+
+def _cell(value: float, fmt: str) -> str:
+    """A table cell; "-" where a method reports nothing (NaN: e.g. facets of a method that does not count them)."""
+    import numpy as np
+
+    return "-" if not np.isfinite(value) else f"{value:{fmt}}"
+
+
+def print_tables(console, res: dict, methods, out_dir: Path) -> None:
+    """The scores table (one row per method), the composite table and where the sheets are."""
+    from rich.table import Table
+
+    from render import evaluate as ev
+    from render.methods import sheet_methods
+
+    S = res["supersample"]
+    t = Table(title=f"held-out evaluation ({len(res['held'])} views, geometry: {res['geometry']}, "
+                    f"{S}x{S} samples/pixel where the method supersamples)")
+    cols = (("PSNR", "psnr", ".2f"), ("SSIM", "ssim", ".3f"), ("PSNR masked", "psnr_masked", ".2f"),
+            ("SSIM masked", "ssim_masked", ".3f"), ("sharpness", "sharpness", ".2f"),
+            ("holes %", "hole_percent", ".2f"), ("largest hole px", "largest_hole", ".0f"),
+            ("ms/frame", "ms_per_frame", ".1f"), ("CPU ms", "cpu_ms_per_frame", ".1f"), ("facets", "facets", ".0f"))
+    for c in ("method", *(c[0] for c in cols)):
+        t.add_column(c, justify="right")
+    for k in map(ev.result_key, methods):
+        r = {**res[k], "hole_percent": 100 * res[k]["hole_fraction"]}
+        t.add_row(k, *(_cell(r[key], fmt) for _, key, fmt in cols))
+    console.print(t)
+    own = {m: v for m, v in res["options"].items() if isinstance(v, dict)}
+    if own:
+        console.print("method options: " + "; ".join(f"{m} " + ", ".join(f"{k}={v}" for k, v in o.items())
+                                                   for m, o in own.items()), highlight=False)
+    print_composite_table(console, res, methods)
+    sheet = " | ".join(m for m in methods if m in sheet_methods())
+    console.print(f"side-by-side sheets (reference | {sheet}; below: {ev.ERROR_GAIN:g} x error): "
+                  f"{out_dir / 'side_by_side'}")
+
+
+def print_composite_table(console, res: dict, methods) -> None:
     """The composite scores (render.evaluate.composite_scores) per method, or a note when the
     held-out scans have no true matte."""
     import numpy as np
     from rich.table import Table
 
-    keys = list(map(ev.result_key, ev.EVAL_METHODS))
+    from render import evaluate as ev
+
+    keys = list(map(ev.result_key, methods))
     if not any(np.isfinite(res[k]["alpha_mse"]) for k in keys):
         console.print("composite scores skipped: the held-out scans carry no true matte (mask_path / Scan.alpha)")
         return
@@ -172,8 +213,8 @@ def print_composite_table(console, res: dict, ev) -> None:
         t.add_column(c, justify="right")
     for k in keys:
         r = res[k]
-        t.add_row(k, *(f"{r[c]:{f}}" for c, f in (("psnr_white", ".2f"), ("psnr_dark", ".2f"), ("alpha_mse", ".4f"),
-                                                  ("alpha_sad", ".2f"))))
+        t.add_row(k, *(_cell(r[c], f) for c, f in (("psnr_white", ".2f"), ("psnr_dark", ".2f"), ("alpha_mse", ".4f"),
+                                                   ("alpha_sad", ".2f"))))
     console.print(t)
 
 
@@ -185,8 +226,9 @@ def write_json(path: Path, data: dict) -> None:
         tmp.write_text(json.dumps(data, indent=1))
 
 
-def render_options(args):
-    """RenderOptions from the command line (validated: a bad value fails before any work)."""
-    from render.methods import RenderOptions
+def render_options(args, methods):
+    """RenderOptions from the command line for ``methods`` (validated: a bad value or a flag none of
+    them reads fails before any work; furrow.method_flags)."""
+    from furrow.method_flags import render_options as from_flags
 
-    return RenderOptions(tolerance_px=args.tolerance, supersample=args.supersample, refine=args.refine, mode=args.mode)
+    return from_flags(args, methods, "the evaluated methods (" + ", ".join(methods) + ")")

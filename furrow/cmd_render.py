@@ -8,33 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
-from render.methods import (
-    DEFAULT_METHOD,
-    DEFAULT_SUPERSAMPLE,
-    DEFAULT_TOLERANCE_PX,
-    METHODS,
-    MICROFACET_MODES,
-    RenderOptions,
-    unused_options,
-)
+from render.methods import DEFAULT_METHOD, RenderOptions, method_names
 
 HELP = "render a model from new cameras (gather by default; microfacets, point splatting, mesh baselines)"
-DESCRIPTION = f"""Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
+DESCRIPTION_HEAD = """Render a furrow model (from `furrow model`) from the cameras of a transforms.json, one
 PNG per selected frame, named after the frame's file_path basename: 8-bit sRGB RGBA with the
 object's soft alpha (straight colour, as PNG stores it), or flattened RGB over --background
 COLOUR|MAP or composited into --env MAP (linear light: premultiplied + (1 - alpha) background).
 --video writes the flattened frames (over black unless --background / --env say otherwise).
-Methods (--method, render.methods):
-  gather       (default) the z-buffer of the 2 nearest kept views' RGB-D points in 2 x 2 splats,
-               colours resampled (bilinear) from those 2 views with (1 / angle) x soft
-               visibility; one sample per pixel (the photos' own anti-aliasing is kept)
-  microfacet   view-dependent microfacet billboards (docs/methods.md §1.2-1.7): the pyramid level and
-               slice spacing follow the screen-space tolerance E (--tolerance, pixels; the
-               paper's default 8), --supersample S x S samples per pixel (default
-               {DEFAULT_SUPERSAMPLE}), --refine, --level, --mode
-  points       the plain RGB-D point splatter (4 nearest views, 2 x 2 splats, 4 mm, 1 / angle)
-  mesh-vdtm    the fixed-mesh baseline (--supersample); mesh-colour: per-vertex colour floor
-Every method can be composited with --env; a flag the chosen method does not use is an error.
+Methods (--method; each one's spec in render/NAME/spec.py, registered in render.methods.METHODS):"""
+DESCRIPTION_TAIL = """Every method can be composited with --env; a flag the chosen method does not read is an error.
 
 examples:
   furrow render out/fur_model --cameras out/furball/transforms.json -o out/renders
@@ -49,12 +32,18 @@ examples:
 
 #: Frames per second of --video.
 DEFAULT_FPS = 24.0
-#: Command-line flag -> the RenderOptions field it sets.
-OPTION_FLAGS = {"tolerance": "tolerance_px", "level": "level", "supersample": "supersample", "refine": "refine",
-                "mode": "mode"}
+
+
+def description() -> str:
+    """The --help text: the methods' entries come from their specs (furrow.method_flags)."""
+    from furrow.method_flags import methods_help
+
+    return f"{DESCRIPTION_HEAD}\n{methods_help(DEFAULT_METHOD)}\n{DESCRIPTION_TAIL}"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from furrow.method_flags import add_option_arguments
+
     p.add_argument("model", type=Path, help="model folder written by `furrow model`")
     p.add_argument("--cameras", type=Path, required=True,
                    help="transforms.json (or a folder holding one) with the cameras")
@@ -67,20 +56,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(render.composite.video.write_mp4)")
     p.add_argument("--fps", type=float, default=DEFAULT_FPS,
                    help=f"frames per second of --video (default {DEFAULT_FPS:g})")
-    p.add_argument("--method", choices=list(METHODS), default=DEFAULT_METHOD,
+    p.add_argument("--method", choices=method_names(), default=DEFAULT_METHOD,
                    help=f"rendering method (default {DEFAULT_METHOD}; see above)")
-    p.add_argument("--tolerance", type=float, default=None,
-                   help=f"screen-space tolerance E in pixels (default {DEFAULT_TOLERANCE_PX:g})")
-    p.add_argument("--level", type=int, default=None,
-                   help="force this pyramid resolution L (e.g. 64) instead of Eq. 11")
-    p.add_argument("--supersample", type=int, default=None, metavar="S",
-                   help=f"anti-aliasing: S x S samples per pixel, box-resolved (default {DEFAULT_SUPERSAMPLE}; "
-                        "1 = off, about S^2 x the fill cost)")
-    p.add_argument("--refine", type=int, default=None, metavar="N",
-                   help="microfacet parallax correction: steps along the eye ray to each camera's depth "
-                        "(default 2; 0 = the paper's colour at the slice point)")
-    p.add_argument("--mode", choices=MICROFACET_MODES, default=None,
-                   help="microfacet slice generation: compute + instancing (default) or geometry shader")
+    add_option_arguments(p)
     p.add_argument("--orbit", type=int, default=None, metavar="N",
                    help="instead of the given frames: a turntable of N frames around the rig's up axis (estimated "
                         "from the cameras) at their mean distance and height, with the first camera's intrinsics")
@@ -108,22 +86,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def render_options(args) -> RenderOptions:
     """The RenderOptions of the flags given (the rest default); a flag the method ignores is an
-    error.  --level (a resolution L) is resolved against the model later (level_index)."""
-    given = {f: getattr(args, flag) for flag, f in OPTION_FLAGS.items() if getattr(args, flag) is not None}
-    bad = unused_options(args.method, given)
-    if bad:
-        flags = ", ".join(f"--{k}" for k, f in OPTION_FLAGS.items() if f in bad)
-        raise ValueError(f"{flags} does not apply to --method {args.method}")
-    given.pop("level", None)
-    return RenderOptions(**given)
+    error (furrow.method_flags)."""
+    from furrow.method_flags import render_options as from_flags
 
-
-def level_index(model, resolution: int) -> int:
-    """Index of the pyramid level of resolution L (the --level flag)."""
-    res = model.pyramid.resolutions
-    if resolution not in res:
-        raise ValueError(f"--level {resolution}: the model has levels {res}")
-    return res.index(resolution)
+    return from_flags(args, [args.method])
 
 
 def select_views(args, model) -> tuple[list, list]:
@@ -198,7 +164,7 @@ def run(args, console) -> int:
     from furrow.console import StageTimer, track
     from furrow.relight_flags import open_relighter
     from render.gl import gl_context
-    from render.methods import create_renderer
+    from render.methods import create_renderer, options_record, samples_per_pixel_side
     from volume.model import load_model
 
     if args.out is None and args.video is None:
@@ -213,8 +179,6 @@ def run(args, console) -> int:
     with timer.stage("load model"):
         model = load_model(args.model)
     views, inputs = select_views(args, model)
-    if args.level is not None:
-        options = options.changed(level=level_index(model, args.level))
     env = load_env(args)
     up = None
     if env is not None or (background is not None and background.env is not None):
@@ -257,15 +221,15 @@ def run(args, console) -> int:
             else:
                 for _ in frames():
                     pass
-    record = {"method": args.method, "tolerance_px": options.tolerance_px, "supersample": options.supersample,
-              "frames": stats}
+    record = {"method": args.method, "supersample": samples_per_pixel_side(args.method, options),
+              "options": options_record(options, args.method), "frames": stats}
     if args.out is not None:
         (args.out / "render_stats.json").write_text(json.dumps(record, indent=1))
     if args.video is not None:
         console.print(f"[green]wrote[/] {len(stats)} frames to {args.video} (H.264, {args.fps:g} fps)", highlight=False)
     ms = [s["ms"] for s in stats]
+    facets = [s["facets"] for s in stats if "facets" in s]
     console.print(f"[green]rendered[/] {len(stats)} frames{f' to {args.out}' if args.out else ''}  (mean "
-                  f"{np.mean(ms):.1f} ms/frame, "
-                  f"mean facets {np.mean([s['facets'] for s in stats]):.0f})")
+                  f"{np.mean(ms):.1f} ms/frame" + (f", mean facets {np.mean(facets):.0f})" if facets else ")"))
     console.print(timer.table())
     return 0

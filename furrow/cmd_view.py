@@ -14,7 +14,7 @@ DESCRIPTION = """Serve a furrow model to web browsers: the server renders every 
 renderers (any method of the registry) and the browser shows it (viser).  While the camera moves,
 frames are drawn smaller to hold about 12 frames per second; 0.2 s after it stops, the full
 frame is drawn supersampled.  The capture cameras are clickable frustums; the panel holds the
-method, tolerance E, supersampling, refine steps, environment compositing, debug views, a PNG
+method and its own options (from its spec), supersampling, environment compositing, debug views, a PNG
 screenshot and MP4 export (saved under --out and downloaded).  Ctrl-C stops it.
 
 examples:

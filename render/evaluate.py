@@ -3,7 +3,8 @@ of a scan set, render the other frames with every method and score them against 
 
 Used by ``furrow eval``, ``furrow/bench/lopt.py`` and ``furrow/bench/render.py``.  Every method is drawn
 through the one registry (``render.methods``) with the same options, so the methods differ only
-in how they draw.
+in how they draw; which methods are evaluated and shown on the sheets is their specs' say
+(``render.methods.eval_methods``, ``sheet_methods``).
 """
 
 from __future__ import annotations
@@ -15,12 +16,8 @@ from typing import NamedTuple
 import numpy as np
 
 from render import metrics
-from render.methods import RenderOptions, create_renderer
+from render.methods import RenderOptions, create_renderer, eval_methods, sheet_methods
 
-#: Methods ``furrow eval`` draws, in the order of its table.
-EVAL_METHODS = ("gather", "microfacet", "points", "mesh-vdtm", "mesh-colour")
-#: Methods of the side-by-side sheets (those among the evaluated ones, in this order).
-SHEET_METHODS = ("gather", "microfacet", "points", "mesh-vdtm")
 #: Amplification of the error panels of the side-by-side sheets.
 ERROR_GAIN = 4.0
 #: Label text of the sheets: OpenCV Hershey font scale per 480 image rows, and its colour.
@@ -233,15 +230,17 @@ def write_side_by_side(path: Path, reference: np.ndarray, images: dict) -> None:
     write_png(path, side_by_side(reference, images))
 
 
-def evaluate(ctx, model, held, options: RenderOptions | None = None, methods=EVAL_METHODS,
+def evaluate(ctx, model, held, options: RenderOptions | None = None, methods=None,
              out_dir: Path | None = None, progress=None) -> dict:
-    """Render every held-out scan with every method in ``methods``, all with the same
-    ``options``; per method (key result_key(name)) the per-view scores and their means
-    (summarise).  With ``out_dir``: out_dir/side_by_side/VIEW.png sheets (side_by_side) of the
-    SHEET_METHODS among ``methods``."""
+    """Render every held-out scan with every method in ``methods`` (default: eval_methods()), all
+    with the same ``options``; per method (key result_key(name)) the per-view scores and their
+    means (summarise).  With ``out_dir``: out_dir/side_by_side/VIEW.png sheets (side_by_side) of
+    the sheet methods (render.methods.sheet_methods) among ``methods``."""
     from contextlib import ExitStack
 
     options = options if options is not None else RenderOptions()
+    methods = tuple(methods) if methods is not None else eval_methods()
+    on_sheet = set(sheet_methods())
     res = {result_key(m): [] for m in methods}
     with ExitStack() as stack:
         renderers = [stack.enter_context(create_renderer(m, ctx, model, options)) for m in methods]
@@ -253,6 +252,6 @@ def evaluate(ctx, model, held, options: RenderOptions | None = None, methods=EVA
             for m, fr in zip(methods, frames):
                 res[result_key(m)].append({**score_view(scan, fr), "view": name})
             if out_dir is not None:
-                sheet = {m: fr.rgb for m, fr in zip(methods, frames) if m in SHEET_METHODS}
+                sheet = {m: fr.rgb for m, fr in zip(methods, frames) if m in on_sheet}
                 write_side_by_side(out_dir / "side_by_side" / (Path(name).stem + ".png"), scan.srgb8, sheet)
     return {k: summarise(v) for k, v in res.items()}

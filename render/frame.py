@@ -1,13 +1,14 @@
 """What every renderer returns: one :class:`Frame` (rgb, alpha, depth, stats).
 
 Clients (``furrow render``, ``furrow eval``, the benchmarks, the viewer, batch) read only these
-fields, whatever the method (``render.methods``).  A method with more to report subclasses
-:class:`FrameStats` (the microfacets add the level, resolution and slice spacing).
+fields, whatever the method (``render.methods``).  What every method reports is the time and the
+samples per pixel; a count of primitives drawn (``facets``) is optional, and a method with more to
+report subclasses :class:`FrameStats` (the microfacets add the level, resolution and slice spacing).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
@@ -37,20 +38,24 @@ class FrameStats:
             and after), read-back excluded.
         cpu_ms: process CPU time over the same interval (llvmpipe's threads included): the cost
             independent of other load on the machine.
-        facets: primitives drawn (microfacet slices, mesh triangles).
-        supersample: samples per pixel and axis the frame was drawn with.
+        supersample: samples per pixel and axis the frame was drawn with (keyword).
+        facets: primitives drawn (microfacet slices, mesh triangles, points), for a method that
+            counts them; None = not reported (keyword).
     """
 
     ms: float
     cpu_ms: float
-    facets: int
+    _: KW_ONLY
     supersample: int
+    facets: int | None = None
 
     def record(self) -> dict:
         """The numbers as a flat JSON-ready dict (per-frame records of render_stats.json and of
-        ``furrow eval``)."""
-        return {"ms": float(self.ms), "cpu_ms": float(self.cpu_ms), "facets": int(self.facets),
-                "supersample": int(self.supersample)}
+        ``furrow eval``); ``facets`` only where the method counts them."""
+        out = {"ms": float(self.ms), "cpu_ms": float(self.cpu_ms), "supersample": int(self.supersample)}
+        if self.facets is not None:
+            out["facets"] = int(self.facets)
+        return out
 
 
 @dataclass(frozen=True)

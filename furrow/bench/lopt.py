@@ -44,7 +44,7 @@ def _sweep(args, model, summ: dict, held, cfg) -> dict:
             if not lv:
                 continue
             r = evaluate(ctx, dataclasses.replace(model, pyramid=SdfPyramid(lv, lv[-1].resolution)), held,
-                         RenderOptions(tolerance_px=args.tolerance), methods=(METHOD,))
+                         RenderOptions.for_method(METHOD, tolerance_px=args.tolerance), methods=(METHOD,))
             a = r[result_key(METHOD)]
             row = {"cap": L, "levels_used": sorted({v["level"] for v in a["views"]}), "psnr": a["psnr"],
                    "psnr_masked": a["psnr_masked"], "hole_fraction": a["hole_fraction"], "facets": a["facets"]}
@@ -56,7 +56,7 @@ def _sweep(args, model, summ: dict, held, cfg) -> dict:
 
 
 def main(argv: list[str]) -> int:
-    from render.methods import DEFAULT_TOLERANCE_PX
+    from render.microfacet.lod import DEFAULT_TOLERANCE_PX
 
     p = argparse.ArgumentParser(prog="furrow bench lopt", description=__doc__.splitlines()[0])
     p.add_argument("scans", type=Path, help="scan set (transforms.json or its folder)")

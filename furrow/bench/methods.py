@@ -47,7 +47,7 @@ def measure(ctx, model, held, methods, repeat: int) -> dict:
             rows = [score_view(s, r.render(s.camera)) for s in held]
             out[m] = {k: float(np.mean([x[k] for x in rows])) for k in QUALITY}
             out[m].update(ms=float(np.median(times[m][0])), cpu_ms=float(np.median(times[m][1])),
-                          facets=float(np.mean([x["facets"] for x in rows])))
+                          facets=float(np.mean([x.get("facets", np.nan) for x in rows])))  # NaN: not counted
     finally:
         for r in renderers.values():
             r.release()

@@ -36,7 +36,7 @@ import numpy as np
 from furrow.bench import OUT_ROOT
 
 TOLERANCES = (2.0, 4.0, 8.0, 16.0)
-#: Frames of the pipeline comparison: (name, RenderOptions changes); level -1 = the finest.
+#: Frames of the pipeline comparison: (name, option changes); level -1 = the finest (a resolution L otherwise).
 PIPELINE_FRAMES = (("E=8, 1x1", {"supersample": 1}), ("E=8, 2x2", {"supersample": 2}),
                    ("finest level, 1x1", {"supersample": 1, "level": -1}))
 #: The two pipelines: renderer attributes (render.microfacet.gl.MicrofacetRenderer cull / prepass).
@@ -96,21 +96,22 @@ def _sweep(r, vd, views, resolutions, base, con, key: str) -> dict:
     r.render(views[0].camera, base, read=False)  # warm-up (shader compilation)
     r.render(views[0].camera, base, mode="geometry", read=False)
     res = {"levels": [], "tolerances": [], "options": []}
-    for li, L in enumerate(resolutions):
+    for L in resolutions:
         con.print(f"{key}: level {L}^3 ...")
-        res["levels"].append({"L": L, **_measure(r, views, base.changed(level=li))})
+        res["levels"].append({"L": L, **_measure(r, views, base.changed_for(METHOD, level=L))})
     for E in TOLERANCES:
         con.print(f"{key}: E = {E:g} px ...")
-        row = {"E": E, **_measure(r, views, base.changed(tolerance_px=E))}
+        row = {"E": E, **_measure(r, views, base.changed_for(METHOD, tolerance_px=E))}
         row["geometry_shader_ms"] = float(np.median([r.render(s.camera, base, tolerance_px=E, mode="geometry",
                                                               read=False).stats.ms for s in views]))
         res["tolerances"].append(row)
     # the two quality options beyond the paper, at the paper's E
-    for refine in (0, base.refine_steps):
+    own = base.of(METHOD)
+    for refine in (0, own.refine_steps):
         for ssf in (1, 2):
-            con.print(f"{key}: E = {base.tolerance_px:g}, refine {refine}, {ssf}x{ssf} samples ...")
+            con.print(f"{key}: E = {own.tolerance_px:g}, refine {refine}, {ssf}x{ssf} samples ...")
             res["options"].append({"refine": refine, "supersample": ssf,
-                                   **_measure(r, views, base.changed(refine=refine, supersample=ssf))})
+                                   **_measure(r, views, base.changed_for(METHOD, refine=refine, supersample=ssf))})
     for name, ssf, keys in (("mesh_vdtm", base.supersample, ("psnr", "psnr_masked", "ssim", "ms", "cpu_ms", "facets")),
                             ("mesh_vdtm_ss2", 2, ("psnr", "psnr_masked", "ms"))):
         res[name] = _mean([score_view(s, vd.render(s.camera, supersample=ssf)) for s in views], keys)
@@ -168,7 +169,7 @@ def main(argv: list[str]) -> int:
     from render.gl import gl_context
     from render.methods import RenderOptions, create_renderer
 
-    base = RenderOptions(supersample=args.supersample, refine=args.refine)
+    base = RenderOptions.for_method(METHOD, supersample=args.supersample, refine=args.refine)
     con = Console(stderr=True, width=170)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     model, held, refs = _load(args, sizes, con)
@@ -207,8 +208,8 @@ def _pipelines(r, views, base, repeats: int, con, key: str) -> list[dict]:
     rows = []
     for name, changes in PIPELINE_FRAMES:
         if changes.get("level") == -1:
-            changes = {**changes, "level": len(r.levels) - 1}
-        opts = base.changed(**changes)
+            changes = {**changes, "level": r.levels[-1].resolution}
+        opts = base.changed_for(METHOD, **changes)
         con.print(f"{key}: pipelines, {name} ...")
         times = {k: [] for k in (*PIPELINES, "fill")}
         scores, passes, load = {}, {}, [_load_average()]
@@ -277,7 +278,7 @@ def _pipeline_table(con, key: str, rows: list[dict], n_views: int) -> None:
 def _tables(con, results: dict, n_views: int) -> None:
     from rich.table import Table
 
-    from render.methods import DEFAULT_TOLERANCE_PX
+    from render.microfacet.lod import DEFAULT_TOLERANCE_PX
 
     for key, rows in results.get("pipelines", {}).items():
         _pipeline_table(con, key, rows, n_views)

@@ -64,7 +64,6 @@ class GatherRenderer(Renderer):
     """
 
     name = "gather"
-    uses = frozenset()
 
     def __init__(self, ctx, rgbz, bounds, options: RenderOptions | None = None,
                  config: gr.GatherConfig | None = None, resident: int = RESIDENT_VIEWS):
@@ -206,7 +205,7 @@ class GatherRenderer(Renderer):
         with FrameTimer(self.ctx) as t:
             zt = self._depth_pass(eye, depth_cams, near, far)
             ct = self._gather_pass(eye, zt, blend, weights)
-        stats = FrameStats(t.ms, t.cpu_ms, int(self.counts[depth_cams].sum()), 1)
+        stats = FrameStats(t.ms, t.cpu_ms, supersample=1, facets=int(self.counts[depth_cams].sum()))
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         rgba = gl_rows_to_image(ct.read_colour(0))

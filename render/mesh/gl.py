@@ -103,7 +103,7 @@ class VdtmRenderer(Renderer):
             if self.n_faces:
                 self.vao.render(self.ctx.TRIANGLES)
             self.resolve_frame()
-        stats = FrameStats(t.ms, t.cpu_ms, self.n_faces, f)
+        stats = FrameStats(t.ms, t.cpu_ms, supersample=f, facets=self.n_faces)
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         return Frame.from_gl(*self.read_frame(), near, far, stats)
@@ -134,7 +134,7 @@ class MeshColourRenderer(Renderer):
         with FrameTimer(self.ctx) as t:
             r.draw(eye, f, near, far)
             r.resolve_frame()
-        stats = FrameStats(t.ms, t.cpu_ms, len(r.mesh.faces), f)
+        stats = FrameStats(t.ms, t.cpu_ms, supersample=f, facets=len(r.mesh.faces))
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         return Frame.from_gl(*r.read_frame(), near, far, stats)

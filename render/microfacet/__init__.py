@@ -1,6 +1,8 @@
 """The ``microfacet`` method: the paper's view-dependent microfacet billboards (docs/methods.md §1.2-§1.7).
 
-- ``gl.py``: the GL owner :class:`render.microfacet.gl.MicrofacetRenderer` (registered as ``microfacet``);
+- ``spec.py``: its spec (render.methods.MethodSpec; registered as ``microfacet``) and its own options,
+  :class:`render.microfacet.spec.MicrofacetOptions` (tolerance E, level, refine, mode, debug, ...);
+- ``gl.py``: the GL owner :class:`render.microfacet.gl.MicrofacetRenderer`;
 - ``reference.py``: the brute-force ray caster of whole frames, its slow twin;
 - ``geometry.py``: the numpy twin of every shader step (slice placement, Eq. 2, 10, 11, camera selection);
 - ``rgbz_textures.py``: the RGBz texels and the matte beside them (premultiplied colour + alpha when

@@ -3,7 +3,7 @@
 All surface voxel centres of every pyramid level (each in 6 axis-sorted orders), the input
 cameras and the RGBz texture array are uploaded once; per frame only uniforms change (plus
 the 16-byte reset of the indirect draw command).  Two interchangeable paths, chosen per frame
-(``RenderOptions.mode``; this is the ``"microfacet"`` method of render.methods):
+(``MicrofacetOptions.mode``, render/microfacet/spec.py; this is the ``"microfacet"`` method of render.methods):
 
 * ``"instanced"`` (default): a compute pass selects the cameras per voxel and appends one
   record per slice (atomic counter -> indirect draw command); an instanced 4-vertex strip
@@ -22,7 +22,7 @@ of every step is ``render/microfacet/geometry.py`` (the level of detail: ``rende
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from render.microfacet import cull as mcull
 from render.microfacet import geometry as mg
 from render.microfacet import lod as mlod
 from render.microfacet.rgbz_textures import RGBZ_DTYPE, layer_textures
+from render.microfacet.spec import MicrofacetOptions
 from render.owner import FrameTimer, mat4_bytes, near_far
 
 #: Compute work-group size of microfacet_select.glsl.
@@ -49,10 +50,6 @@ CULL = True
 #: (on llvmpipe every rasterised fragment costs the whole shader; most are discarded).
 PREPASS = True
 
-#: Draw, on every coarse level, the ancestors of the finest level's surface voxels too
-#: (covering_surfaces): the plant's top vanished from a fused 8^3 level (volume.build), whose
-#: surface voxels ended 7.6 cm below the plant's tip.
-COARSE_COVERS_FINE = True
 #: RGBZ_DTYPE (render.microfacet.rgbz_textures): half floats (8 bytes per texel; the fetches are
 #: the fragment cost on llvmpipe).  Depth in half float: 0.24 mm steps at 0.5 m.
 
@@ -121,7 +118,7 @@ def eye_projections(cameras, eye_pos: np.ndarray) -> bytes:
     return out.tobytes()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MicrofacetStats(FrameStats):
     """FrameStats plus the level of detail of the frame.
 
@@ -164,7 +161,8 @@ class MicrofacetRenderer(Renderer):
         rgbz: the RGBz images (volume.model.RgbzImages, with its matte when it has one), uploaded
             view by view (render.microfacet.rgbz_textures.layer_textures), never as full stacks.
         bounds: (2, 3) object box (near/far planes, LOD centre).
-        options: default per-frame options (render.methods.RenderOptions; this method reads all).
+        options: default per-frame options (render.methods.RenderOptions: ``supersample`` and this
+            method's own, render.microfacet.spec.MicrofacetOptions).
         rule: per-fragment fallback rule, "vote" or "any" (microfacet_geometry.shade_fragments).
         n_fallback: fallback candidates tried after the blend cameras (default N_FALLBACK).
         cull: split the instanced path's slices into tiles and drop those on which no camera
@@ -179,14 +177,13 @@ class MicrofacetRenderer(Renderer):
     """
 
     name = "microfacet"
-    uses = frozenset(f.name for f in fields(RenderOptions))
 
     def __init__(self, ctx, levels, rgbz, bounds, options: RenderOptions | None = None,
                  rule: str = "vote", n_fallback: int | None = None, cull: bool = CULL,
                  tile_px: float = mcull.TILE_PX, prepass: bool = PREPASS):
         super().__init__(ctx, options)
         self.levels = tuple(levels)
-        self.surfaces = covering_surfaces(self.levels)
+        self.surfaces = mlod.covering_surfaces(self.levels)
         self.cameras = tuple(rgbz.cameras)
         self.bounds = np.asarray(bounds, dtype=np.float64)
         self.voxel_sizes = [lv.voxel_size for lv in self.levels]
@@ -257,7 +254,7 @@ class MicrofacetRenderer(Renderer):
         return cls(ctx, model.pyramid.levels, model.rgbz, model.bounds, options, rule, n_fallback)
 
     def level_centers(self, level: int) -> np.ndarray:
-        """(N, 3) world centres of the voxels drawn on ``level`` (see covering_surfaces)."""
+        """(N, 3) world centres of the voxels drawn on ``level`` (see render.microfacet.lod.covering_surfaces)."""
         lv = self.levels[level]
         return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
 
@@ -296,11 +293,18 @@ class MicrofacetRenderer(Renderer):
         center = self.bounds.mean(axis=0)
         return mlod.choose_lod(eye, center, self.cameras, self.voxel_sizes, self.counts, tolerance_px)
 
-    def frame_lod(self, eye: Camera, options: RenderOptions) -> tuple[int, float, mlod.Lod]:
+    def level_index(self, resolution: int) -> int:
+        """Index of the pyramid level of resolution L (MicrofacetOptions.level)."""
+        res = [lv.resolution for lv in self.levels]
+        if resolution not in res:
+            raise ValueError(f"level {resolution}: the model has levels {res}")
+        return res.index(resolution)
+
+    def frame_lod(self, eye: Camera, options: MicrofacetOptions) -> tuple[int, float, mlod.Lod]:
         """(level index, slice spacing l, automatic choice) of a frame: Eq. 10-11, or the
         options' forced level (spacing by Eq. 10 on it) and spacing."""
         lod = self.choose_lod(eye, options.tolerance_px)
-        lev = lod.level if options.level is None else int(options.level)
+        lev = lod.level if options.level is None else self.level_index(options.level)
         w = self.voxel_sizes[lev]
         spacing = options.spacing
         if spacing is None:
@@ -325,7 +329,7 @@ class MicrofacetRenderer(Renderer):
             if name in prog:
                 prog[name].value = value
 
-    def _draw(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
+    def _draw(self, eye: Camera, options: MicrofacetOptions, f: int, lev: int, spacing: float, near: float,
               view_proj: np.ndarray) -> tuple[int, int]:
         """Select and draw the slices of level ``lev`` into the bound target; returns the counts of
         slices (facets) and of tiles drawn."""
@@ -350,7 +354,7 @@ class MicrofacetRenderer(Renderer):
             facets = int(self.query.primitives) // 2  # two triangles per square
             return facets, facets
         while True:
-            records = self._select(eye, options, lev, spacing, near, view_proj)
+            records = self._select(eye, options, f, lev, spacing, near, view_proj)
             if records <= self.max_records:
                 break
             # more tiles than the buffer holds: grow it and select again (rare: first frames)
@@ -368,12 +372,12 @@ class MicrofacetRenderer(Renderer):
         ctx.finish()
         return self._slices, records
 
-    def _two_pass(self, options: RenderOptions) -> bool:
+    def _two_pass(self, options: MicrofacetOptions) -> bool:
         """Whether a frame with ``options`` is drawn as pre-pass + colour pass (the instanced path's
         colour frames; fills and debug views take the one-pass path, which sees every fragment)."""
         return self.prepass and options.mode == "instanced" and not options.fill_only and options.debug is None
 
-    def _two_passes(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
+    def _two_passes(self, eye: Camera, options: MicrofacetOptions, lev: int, spacing: float, near: float,
                     view_proj: np.ndarray) -> None:
         """The visibility pre-pass (depth + record index per sample) and the colour pass (each
         drawn sample shaded once) into the frame's target (colour 0, record index 1)."""
@@ -404,7 +408,7 @@ class MicrofacetRenderer(Renderer):
             pre_fbo.release()
             col_fbo.release()
 
-    def _select(self, eye: Camera, options: RenderOptions, lev: int, spacing: float, near: float,
+    def _select(self, eye: Camera, options: MicrofacetOptions, f: int, lev: int, spacing: float, near: float,
                 view_proj: np.ndarray) -> int:
         """Run the compute pass (slice tiles of level ``lev`` into the slice buffer, their count
         into the indirect draw command); returns the number of tiles it wanted to write."""
@@ -421,7 +425,7 @@ class MicrofacetRenderer(Renderer):
         select["max_records"].value = self.max_records
         if cull:
             select["tile_px"].value = self.tile_px
-            select["eye_focal"].value = float(eye.K[0, 0]) * options.supersample  # drawn pixels
+            select["eye_focal"].value = float(eye.K[0, 0]) * f  # drawn pixels
             select["pyr_levels"].value = len(self.pyr_offsets)
             select["pyr_offset"].value = tuple(self.pyr_offsets) + (0,) * (MAX_PYR_LEVELS - len(self.pyr_offsets))
         select.run(group_x=(n_vox + LOCAL_SIZE - 1) // LOCAL_SIZE)
@@ -434,10 +438,14 @@ class MicrofacetRenderer(Renderer):
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         """One frame (Renderer.render).  ``options.supersample`` samples per pixel and axis: the
         frame is drawn at that multiple of the eye's size (E stays in output pixels) and
-        box-resolved on the GPU; ``fill_only`` draws the same squares untextured (instanced)."""
+        box-resolved on the GPU; the method's own options (MicrofacetOptions): ``fill_only`` draws the
+        same squares untextured (instanced), a ``debug`` output needs one sample per pixel."""
+        f = options.supersample
+        options = options.of(self.name)
+        if options.debug is not None and f != 1:
+            raise ValueError("debug outputs are codes per pixel: they need supersample 1")
         lev, spacing, lod = self.frame_lod(eye, options)
         near, far = near_far(eye, self.bounds)
-        f = options.supersample
         draw_eye = eye if f == 1 else eye.scaled(f)
         view_proj = draw_eye.gl_projection(near, far) @ draw_eye.gl_view()
         two_pass = self._two_pass(options)
@@ -445,12 +453,13 @@ class MicrofacetRenderer(Renderer):
         n_vox = self.counts[lev]
         with FrameTimer(self.ctx, laps=self.profile) as t:
             self._timer = t
-            facets, tiles = self._draw(eye, options, lev, spacing, near, view_proj) if n_vox > 0 else (0, 0)
+            facets, tiles = self._draw(eye, options, f, lev, spacing, near, view_proj) if n_vox > 0 else (0, 0)
             self.resolve_frame()
             t.lap("resolve")
         self._timer = FrameTimer(self.ctx)
-        stats = MicrofacetStats(t.ms, t.cpu_ms, facets, f, lev if n_vox > 0 else -1, self.levels[lev].resolution,
-                                float(spacing), lod, tiles, t.laps)
+        stats = MicrofacetStats(t.ms, t.cpu_ms, supersample=f, facets=facets, level=lev if n_vox > 0 else -1,
+                                resolution=self.levels[lev].resolution, spacing=float(spacing), lod=lod, tiles=tiles,
+                                passes=t.laps)
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         with FrameTimer(self.ctx, laps=self.profile) as r:
@@ -468,27 +477,6 @@ class MicrofacetRenderer(Renderer):
                 "weights": raw[:, 4:7].astype(np.float64), "cand": np.concatenate([ints[:, 8:12], ints[:, 12:14]], 1),
                 "voxel": self._last_order[ints[:, 14]], "n": ints[:, 15].copy(),
                 "rect": raw[:, 16:20].astype(np.float64)}
-
-
-def covering_surfaces(levels) -> list[np.ndarray]:
-    """Surface voxel indices drawn per level: the level's own surface voxels plus the ancestors
-    of the finest level's surface voxels (COARSE_COVERS_FINE).
-
-    A fused pyramid's coarse levels can lose thin parts (plant tips, needles) that its finest
-    level keeps; the slices are carved by Eq. 2 anyway, so a coarse voxel that contains finer
-    surface must be drawn.  With an exact distance field the union adds nothing (a parent of a
-    surface voxel is a surface voxel when |d| <= half the diagonal)."""
-    out = [np.asarray(lv.surface, np.int64) for lv in levels]
-    if not COARSE_COVERS_FINE or not levels:
-        return [o.astype(np.int32) for o in out]
-    fine = levels[-1]
-    for i, lv in enumerate(levels[:-1]):
-        ratio = fine.resolution // lv.resolution
-        if ratio < 1 or fine.resolution % lv.resolution or len(fine.surface) == 0:
-            continue
-        anc = np.asarray(fine.surface, np.int64) // ratio
-        out[i] = np.unique(np.concatenate([out[i], anc]), axis=0) if len(out[i]) else np.unique(anc, axis=0)
-    return [o.astype(np.int32) for o in out]
 
 
 def view_axis(eye: Camera) -> int:

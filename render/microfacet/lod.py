@@ -24,6 +24,12 @@ from render.microfacet.geometry import (
 DEFAULT_TOLERANCE_PX = 8.0
 
 
+#: Draw, on every coarse level, the ancestors of the finest level's surface voxels too
+#: (covering_surfaces): the plant's top vanished from a fused 8^3 level (volume.build), whose
+#: surface voxels ended 7.6 cm below the plant's tip.
+COARSE_COVERS_FINE = True
+
+
 def eq10_spacing(e_world: float, phi: float, w: float) -> float:
     """Largest slice spacing l (metres) for tolerance ``e_world`` (metres at the voxel) and
     angle ``phi`` (radians) on a level of voxel size ``w``: l = min(E / tan phi, w cos phi)
@@ -121,3 +127,24 @@ def choose_lod(eye: Camera, center: np.ndarray, cameras, voxel_sizes, counts, to
         lev = int(min(nonempty, key=lambda i: (abs(int(i) - lev), -int(i))))
     spacing = max(eq10_spacing(e_world, phi, ws[lev]), min_spacing(ws[lev]))
     return Lod(int(lev), float(spacing), float(phi), float(e_world))
+
+
+def covering_surfaces(levels) -> list[np.ndarray]:
+    """Surface voxel indices drawn per level: the level's own surface voxels plus the ancestors
+    of the finest level's surface voxels (COARSE_COVERS_FINE).
+
+    A fused pyramid's coarse levels can lose thin parts (plant tips, needles) that its finest
+    level keeps; the slices are carved by Eq. 2 anyway, so a coarse voxel that contains finer
+    surface must be drawn.  With an exact distance field the union adds nothing (a parent of a
+    surface voxel is a surface voxel when |d| <= half the diagonal)."""
+    out = [np.asarray(lv.surface, np.int64) for lv in levels]
+    if not COARSE_COVERS_FINE or not levels:
+        return [o.astype(np.int32) for o in out]
+    fine = levels[-1]
+    for i, lv in enumerate(levels[:-1]):
+        ratio = fine.resolution // lv.resolution
+        if ratio < 1 or fine.resolution % lv.resolution or len(fine.surface) == 0:
+            continue
+        anc = np.asarray(fine.surface, np.int64) // ratio
+        out[i] = np.unique(np.concatenate([out[i], anc]), axis=0) if len(out[i]) else np.unique(anc, axis=0)
+    return [o.astype(np.int32) for o in out]

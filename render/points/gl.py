@@ -59,7 +59,6 @@ class PointsRenderer(Renderer):
     """
 
     name = "points"
-    uses = frozenset()
 
     def __init__(self, ctx, rgbz, bounds, options: RenderOptions | None = None):
         super().__init__(ctx, options)
@@ -78,7 +77,8 @@ class PointsRenderer(Renderer):
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         t0, c0 = time.perf_counter(), time.process_time()
         rgb, cov, depth, n = pr.points_frame(eye, self.clouds, self.cameras, self.centre)
-        stats = FrameStats((time.perf_counter() - t0) * 1e3, (time.process_time() - c0) * 1e3, n, 1)
+        stats = FrameStats((time.perf_counter() - t0) * 1e3, (time.process_time() - c0) * 1e3, supersample=1,
+                           facets=n)
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         return Frame(rgb, cov, depth, stats)

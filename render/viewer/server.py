@@ -152,10 +152,9 @@ class Viewer:
 
     # ------------------------------------------------------------------ clients
     def _connect(self, client) -> None:
-        from render.methods import METHODS
         from render.viewer import gui
 
-        controls = gui.build_controls(client.gui, self.settings, self.env_names, METHODS)
+        controls = gui.build_controls(client.gui, self.settings, self.env_names)
         recent: list[dict] = []
         last_full: list[dict] = []
         still_count = [0]
@@ -177,7 +176,7 @@ class Viewer:
                 last_full[:] = [rec]
                 still_count[0] += 1
                 controls.note.visible = False
-            level = f"tolerance E {controls.tolerance.value:g} px -> level L = {rec['level']}" if "level" in rec else ""
+            level = f"pyramid level drawn: L = {rec['level']}" if "level" in rec else ""
             controls.readout.content = gui.readout_text(recent, last_full[0] if last_full else None, level,
                                                         still_count[0])
 

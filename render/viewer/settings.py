@@ -6,17 +6,27 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-from render.methods import DEFAULT_METHOD, RenderOptions, samples_per_pixel_side
+from render.methods import DEFAULT_METHOD, RenderOptions, method_specs, samples_per_pixel_side
 
 #: Debug views computed from any method's Frame ("colour" is the normal picture).
 FRAME_VIEWS = ("colour", "depth", "level")
-#: Debug views a renderer draws itself (RenderOptions.debug; only methods that read that option).
-RENDERER_VIEWS = ("camera", "rejections")
-VIEWS = FRAME_VIEWS + RENDERER_VIEWS
 #: Default cap on the full frame's height (lines); the browser canvas is used up to it.
 DEFAULT_MAX_LINES = 720
 #: Full-frame height caps offered in the GUI.
 MAX_LINES_CHOICES = (240, 360, 480, 720, 1080)
+
+
+def renderer_views() -> tuple[str, ...]:
+    """Debug views a renderer draws itself: every method spec's ``debug_outputs``, in registry order."""
+    out: list[str] = []
+    for spec in method_specs():
+        out += [v for v in spec.debug_outputs if v not in out and v not in FRAME_VIEWS]
+    return tuple(out)
+
+
+def all_views() -> tuple[str, ...]:
+    """The views a client can ask for: FRAME_VIEWS, then :func:`renderer_views`."""
+    return FRAME_VIEWS + renderer_views()
 
 
 @dataclass(frozen=True)
@@ -52,12 +62,13 @@ class ViewSettings:
     #: Cap on the full frame's height in lines (the canvas aspect is kept).
     max_lines: int = DEFAULT_MAX_LINES
     env: EnvSettings = field(default_factory=EnvSettings)
-    #: One of VIEWS.
+    #: One of all_views().
     view: str = "colour"
 
     def __post_init__(self) -> None:
-        if self.view not in VIEWS:
-            raise ValueError(f"unknown view {self.view!r}; use one of {', '.join(VIEWS)}")
+        views = all_views()
+        if self.view not in views:
+            raise ValueError(f"unknown view {self.view!r}; use one of {', '.join(views)}")
         if int(self.max_lines) < 16:
             raise ValueError(f"max_lines must be >= 16, got {self.max_lines}")
 
@@ -68,9 +79,10 @@ class ViewSettings:
         return samples_per_pixel_side(self.method, self.options)
 
     def changed(self, **changes) -> ViewSettings:
-        """A copy with fields replaced; ``options`` / ``env`` may be given as dicts of field changes."""
+        """A copy with fields replaced; ``options`` / ``env`` may be given as dicts of field changes
+        (``options``: shared fields and the fields of the method's own options)."""
         if isinstance(changes.get("options"), dict):
-            changes["options"] = self.options.changed(**changes["options"])
+            changes["options"] = self.options.changed_for(changes.get("method", self.method), **changes["options"])
         if isinstance(changes.get("env"), dict):
             changes["env"] = dataclasses.replace(self.env, **changes["env"])
         return dataclasses.replace(self, **changes)

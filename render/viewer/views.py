@@ -5,9 +5,10 @@
 * "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
 * "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
   pixel shows it), for methods whose FrameStats report a ``level``;
-* "camera" / "rejections": drawn by the renderer itself (RenderOptions.debug): per pixel the
-  index + 1 of the dominant input camera, or 1 for a kept and 2 for an Eq. 2-rejected slice
-  fragment (render.microfacet.gl); shown through fixed palettes.
+* a method's debug outputs (its spec's ``debug_outputs``, drawn by the renderer itself through its
+  option ``debug``): the microfacets' "camera" (per pixel the index + 1 of the dominant input
+  camera) and "rejections" (1 for a kept and 2 for an Eq. 2-rejected slice fragment,
+  render.microfacet.gl); codes shown through fixed palettes.
 
 Methods are looked up by name and never branched on: a view a method cannot give is reported
 (``Drawn.note``) and the colour picture is shown instead.
@@ -20,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
-from render.viewer.settings import RENDERER_VIEWS, EnvSettings, ViewSettings
+from render.viewer.settings import FRAME_VIEWS, EnvSettings, ViewSettings
 
 #: Colour of pixels where nothing was drawn in the debug views (8-bit sRGB).
 EMPTY_RGB = (0, 0, 0)
@@ -121,9 +122,9 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
     renderer = scene.renderer(settings.method)
     opts = settings.options.changed(supersample=supersample)
     view, note = settings.view, ""
-    if view in RENDERER_VIEWS:
-        if "debug" in renderer.uses:
-            opts = opts.changed(debug=view, supersample=1)
+    if view not in FRAME_VIEWS:
+        if view in renderer.spec.debug_outputs:
+            opts = opts.changed_for(renderer.name, debug=view, supersample=1)
         else:
             view, note = "colour", f"method {settings.method!r} draws no {settings.view!r} view"
     frame = renderer.render(camera, opts)
@@ -138,8 +139,8 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
                 f"method {settings.method!r} draws no pyramid level"
         else:
             img = code_image(np.where(frame.alpha > 0, level + 1, 0), palette(16))
-    elif view == "camera":
-        img = code_image(frame_codes(frame), palette(20))
-    else:
+    elif view == "rejections":
         img = code_image(frame_codes(frame), np.array([KEPT_RGB, REJECTED_RGB], np.uint8))
+    else:  # a method's code view (the camera index + 1 per pixel, ...)
+        img = code_image(frame_codes(frame), palette(20))
     return Drawn(img, frame.stats, note)

@@ -37,6 +37,7 @@ def test_render_cli_writes_one_png_per_frame(tmp_path):
     assert img[0, 0].tolist() == [0, 0, 0]
     stats = json.loads((out / "render_stats.json").read_text())
     assert len(stats["frames"]) == 3 and all(f["facets"] > 0 for f in stats["frames"])
+    assert stats["method"] == "gather" and stats["supersample"] == 1  # gather draws one sample per pixel
     # baseline and orbit
     assert main(["render", str(tmp_path / "model"), "--cameras", str(tj), "--frames", "2", "--method", "mesh-vdtm",
                  "-o", str(tmp_path / "vdtm")]) == 0
@@ -101,7 +102,8 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
         assert len(res[key]["views"]) == 6
     assert 0.3 < res["points"]["sharpness"] < 3.0
     assert res["held"] == [1, 3, 5, 7, 9, 11] and res["geometry"] == "gt"
-    assert res["supersample"] == 2 and res["refine"] == 2  # the defaults, recorded
+    assert res["supersample"] == 2 and res["options"]["microfacet"]["refine"] is None  # the defaults, recorded
+    assert res["options"]["microfacet"]["tolerance_px"] == 8.0 and res["methods"][0] == "gather"
     assert json.loads((tmp_path / "ev" / "eval.json").read_text()) == res
     sheets = sorted((tmp_path / "ev" / "side_by_side").glob("*.png"))
     assert len(sheets) == 6

@@ -10,7 +10,7 @@ from render import evaluate as ev
 from render.frame import Frame, FrameStats
 from tests import scenes as scene
 
-STATS = FrameStats(0.0, 0.0, 0, 1)
+STATS = FrameStats(0.0, 0.0, supersample=1)
 
 
 def _held(cam, ramp_px=3.0):

@@ -3,7 +3,9 @@
 - ``render/`` itself keeps only what every method shares (at most ``MAX_TOP_MODULES`` modules);
 - one folder per method or pass, holding its GL owner ``gl.py``, its numpy twin ``reference.py``,
   its shaders in ``shaders/`` and a package docstring saying what is where;
-- every registered method's folder has both, and a test file in the mirrored ``tests/render/<folder>/``;
+- every registered method's folder has both, its spec ``spec.py`` (render.methods.MethodSpec: the
+  registry line points at it, and it names the folder's ``gl.py`` class), and a test file in the
+  mirrored ``tests/render/<folder>/``;
 - no two modules under ``render/`` share a basename, apart from the per-folder names of the rule;
 - shader file names are unique in the package (the loader finds them by name, render.gl.shader_path);
 - the benchmarks import render names that are public (no leading underscore).
@@ -17,13 +19,13 @@ from collections import defaultdict
 from pathlib import Path
 
 from render.gl import RENDER_DIR, shader_index, shader_path
-from render.methods import METHODS
+from render.methods import METHODS, method_spec
 
 REPO = Path(__file__).resolve().parents[2]
 #: Most modules (``__init__.py`` included) directly in ``render/``.
 MAX_TOP_MODULES = 10
 #: Module names a folder of the rule may repeat.
-PER_FOLDER_NAMES = {"__init__.py", "gl.py", "reference.py", "config.py"}
+PER_FOLDER_NAMES = {"__init__.py", "gl.py", "reference.py", "config.py", "spec.py"}
 #: The passes that follow a method, each a folder of the rule like the methods.
 PASS_FOLDERS = ("composite", "relight")
 
@@ -64,11 +66,16 @@ def test_every_method_and_pass_folder_has_owner_twin_docstring_and_tests():
         assert sorted(tests.glob("test_*.py")), f"no tests in {tests.relative_to(REPO)} for {rel}"
 
 
-def test_registered_classes_live_in_their_folders_gl_module():
+def test_registered_specs_live_in_their_folders_and_name_its_gl_class():
     for name, target in METHODS.items():
-        module, cls = target.split(":")
-        assert module.endswith(".gl"), f"{name}: registered from {module}, not a folder's gl module"
-        assert hasattr(importlib.import_module(module), cls)
+        module = target.split(":")[0]
+        assert module.endswith(".spec"), f"{name}: registered from {module}, not a folder's spec module"
+        spec = method_spec(name)
+        owner, cls = spec.renderer.split(":")
+        folder_gl = module.rsplit(".", 1)[0] + ".gl"
+        assert owner == folder_gl, f"{name}: its renderer {spec.renderer} is not in its folder's gl.py"
+        assert hasattr(importlib.import_module(owner), cls)
+        assert spec.renderer_class().name == name
 
 
 def test_shader_names_are_unique_and_each_program_finds_its_shader():

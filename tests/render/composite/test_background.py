@@ -84,7 +84,7 @@ def test_flatten_over_a_colour_has_no_fringe(bg):
     pm, a, c = _soft_disc()
     B = np.asarray(bg)
     want = a[..., None] * c + (1 - a[..., None]) * B
-    fr = Frame(pm, a, np.where(a > 0, 1.0, 0.0), FrameStats(0, 0, 0, 1))
+    fr = Frame(pm, a, np.where(a > 0, 1.0, 0.0), FrameStats(0, 0, supersample=1))
     got = fr.over(B)
     np.testing.assert_allclose(got, want, atol=FLATTEN_TOL)
     np.testing.assert_allclose(flatten(pm, a, np.broadcast_to(B, pm.shape)), want, atol=FLATTEN_TOL)

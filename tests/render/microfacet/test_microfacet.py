@@ -11,7 +11,8 @@ from capture.scan import to_uint8_srgb
 from render.methods import RenderOptions
 from render.microfacet import geometry as mg
 from render.microfacet import lod as mlod
-from render.microfacet.gl import RGBZ_DTYPE, MicrofacetRenderer, covering_surfaces
+from render.microfacet.gl import RGBZ_DTYPE, MicrofacetRenderer
+from render.microfacet.lod import covering_surfaces
 from render.microfacet.reference import reference_render
 from tests import scenes as scene
 from tests.conftest import assert_images_close, image_diff_stats
@@ -113,7 +114,7 @@ def test_gpu_matches_twin_fallback_rules(gl_ctx, model, rule, n_fallback):
     r = MicrofacetRenderer.from_model(gl_ctx, model, ONE, rule=rule, n_fallback=n_fallback)
     try:
         eye = scene.ring_cameras(12, phase_deg=19, elevations=(8,))[3]
-        fr = r.render(eye, tolerance_px=4.0, level=2)
+        fr = r.render(eye, tolerance_px=4.0, level=16)
         img, alive, _ = _twin(model, eye, 2, fr.stats.spacing, rule, n_fallback)
         assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
         assert_images_close(fr.rgb, img.astype(np.float32), mean_tol=TWIN_MEAN_TOL, max_tol=TWIN_MAX_TOL,
@@ -128,10 +129,10 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
     """Slices, camera selection, Eq. 2 and the blend on the GPU equal the float64 twin (with and
     without tile culling and the visibility pre-pass: neither changes the frame)."""
     r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, model.rgbz, model.bounds,
-                           RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass)
+                           RenderOptions.for_method("microfacet", mode=mode, supersample=1), cull=cull, prepass=prepass)
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
-        fr = r.render(eye, tolerance_px=2.0, level=2)
+        fr = r.render(eye, tolerance_px=2.0, level=16)
         img, alive, (vox, n) = _twin(model, eye, 2, fr.stats.spacing)
         assert fr.stats.facets == len(vox)
         if mode == "instanced" and not cull:  # one record per slice (tiles: test_microfacet_cull.py)
@@ -158,10 +159,10 @@ def test_alpha_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
 
     ma = scene.with_alpha(model, scene.soft_matte(model.rgbz.depth))
     r = MicrofacetRenderer(gl_ctx, model.pyramid.levels, ma.rgbz, model.bounds,
-                           RenderOptions(mode=mode, supersample=1), cull=cull, prepass=prepass)
+                           RenderOptions.for_method("microfacet", mode=mode, supersample=1), cull=cull, prepass=prepass)
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
-        fr = r.render(eye, tolerance_px=2.0, level=2)
+        fr = r.render(eye, tolerance_px=2.0, level=16)
         lv = model.pyramid.levels[2]
         depth = model.rgbz.depth.astype(RGBZ_DTYPE).astype(np.float64)
         img, alive, _ = reference_render(eye, lv.centers(), lv.voxel_size, fr.stats.spacing, model.rgbz.cameras,
@@ -177,7 +178,7 @@ def test_alpha_gpu_matches_numpy_twin(gl_ctx, model, mode, cull, prepass):
 
 
 def test_geometry_shader_equals_instanced(gl_ctx, model, renderer):
-    g = MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(mode="geometry", supersample=1))
+    g = MicrofacetRenderer.from_model(gl_ctx, model, ONE.changed_for("microfacet", mode="geometry"))
     try:
         eye = scene.ring_cameras(12, phase_deg=11)[4]
         a = renderer.render(eye, tolerance_px=4.0)
@@ -204,7 +205,7 @@ def test_input_pose_reproduces_input(renderer, model, tolerance):
         st = image_diff_stats(to_uint8_srgb(fr.rgb), ref, mask)
         assert st["psnr"] > INPUT_POSE_MIN_PSNR, st
         for lev in range(len(model.pyramid.levels)):  # every level, not only the automatic one
-            fl = renderer.render(cam, tolerance_px=tolerance, level=lev)
+            fl = renderer.render(cam, tolerance_px=tolerance, level=model.pyramid.levels[lev].resolution)
             st = image_diff_stats(to_uint8_srgb(fl.rgb), ref, (model.rgbz.depth[i] > 0) | fl.mask)
             assert st["psnr"] > INPUT_POSE_MIN_PSNR, (lev, st)
 
@@ -233,7 +234,7 @@ def test_eye_inside_bounds(renderer, model):
     K = model.rgbz.cameras[0].K
     eye = Camera(K, look_at([0.11, -0.09, 0.1], [0.0, 0.0, 0.0]), 96, 72)
     assert np.all(eye.center > model.bounds[0]) and np.all(eye.center < model.bounds[1])
-    fr = renderer.render(eye, tolerance_px=4.0, level=2)
+    fr = renderer.render(eye, tolerance_px=4.0, level=16)
     assert np.all(np.isfinite(fr.rgb)) and fr.mask.any()
     img, alive, _ = _twin(model, eye, 2, fr.stats.spacing)
     assert np.mean(alive != fr.mask) <= TWIN_OUTLIER_FRAC
@@ -306,7 +307,7 @@ def test_empty_level(gl_ctx):
     m = scene.build_model(cams, resolutions=(4, 8, 16, 32), empty=(4, 8, 16, 32))
     r = MicrofacetRenderer.from_model(gl_ctx, m, ONE)
     try:
-        for level in (None, 0, 3):
+        for level in (None, 4, 32):
             fr = r.render(cams[2], tolerance_px=8.0, level=level)
             assert fr.stats.level == -1 and fr.stats.facets == 0 and not fr.mask.any() and not fr.rgb.any()
     finally:
@@ -340,9 +341,9 @@ def test_refinement_matches_twin_and_reduces_parallax(gl_ctx, model):
     exact, exact_depth = scene.render_rgbz(eye)
     psnr = {}
     for refine in (0, 2):
-        r = MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(refine=refine, supersample=1))
+        r = MicrofacetRenderer.from_model(gl_ctx, model, ONE.changed_for("microfacet", refine=refine))
         try:
-            fr = r.render(eye, tolerance_px=8.0, level=1)
+            fr = r.render(eye, tolerance_px=8.0, level=8)
         finally:
             r.release()
         img, alive, _ = _twin(model, eye, 1, fr.stats.spacing, refine=refine)
@@ -356,4 +357,4 @@ def test_refinement_matches_twin_and_reduces_parallax(gl_ctx, model):
 
 def test_refine_steps_validated(gl_ctx, model):
     with pytest.raises(ValueError, match="refine"):
-        MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions(refine=-1))
+        MicrofacetRenderer.from_model(gl_ctx, model, RenderOptions.for_method("microfacet", refine=-1))

@@ -94,7 +94,7 @@ def test_gpu_tiles_match_twin(gl_ctx, model):
     r = _renderer(gl_ctx, model, cull=True, prepass=True, tile_px=4.0)  # several tiles per slice at 96x72
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
-        fr = r.render(eye, tolerance_px=2.0, level=1)
+        fr = r.render(eye, tolerance_px=2.0, level=8)
         rec = r.read_slices(fr.stats.tiles)
         lv = model.pyramid.levels[1]
         right, up = image_axes(eye)
@@ -125,13 +125,13 @@ def test_culling_drops_tiles(gl_ctx, model):
     r = _renderer(gl_ctx, model, cull=False, prepass=False)
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
-        whole = r.render(eye, tolerance_px=2.0, level=1, read=False).stats
+        whole = r.render(eye, tolerance_px=2.0, level=8, read=False).stats
         r.cull, r.tile_px = True, 4.0
-        culled = r.render(eye, tolerance_px=2.0, level=1, read=False).stats
+        culled = r.render(eye, tolerance_px=2.0, level=8, read=False).stats
         assert whole.tiles == whole.facets == culled.facets
         grid = culled.tiles  # tiles kept ...
         r.cull, r.tile_px = True, 1e9  # ... and with one tile per slice
-        per_slice = r.render(eye, tolerance_px=2.0, level=1, read=False).stats.tiles
+        per_slice = r.render(eye, tolerance_px=2.0, level=8, read=False).stats.tiles
         assert per_slice < whole.tiles and grid > per_slice
     finally:
         r.release()
@@ -151,7 +151,7 @@ def test_cull_and_prepass_change_nothing(gl_ctx, model, supersample):
     fast = _renderer(gl_ctx, model, cull=True, prepass=True, tile_px=4.0)  # many small tiles at 96x72
     try:
         for what, eye in _eyes(model).items():
-            for opts in ({"tolerance_px": 2.0}, {"tolerance_px": 8.0}, {"level": 3}):
+            for opts in ({"tolerance_px": 2.0}, {"tolerance_px": 8.0}, {"level": 32}):
                 a = ref.render(eye, supersample=supersample, **opts)
                 b = fast.render(eye, supersample=supersample, **opts)
                 assert a.stats.facets == b.stats.facets
@@ -187,7 +187,7 @@ def test_refinement_never_changes_what_is_drawn(gl_ctx, model):
     try:
         recoloured = 0
         for what, eye in _eyes(model).items():
-            for level in (1, 3):
+            for level in (8, 32):
                 a = r.render(eye, level=level, refine=0)
                 b = r.render(eye, level=level, refine=2)
                 np.testing.assert_array_equal(a.alpha, b.alpha, err_msg=f"{what}, level {level}")

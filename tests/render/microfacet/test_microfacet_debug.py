@@ -33,12 +33,12 @@ def twin(model, eye, level, spacing, debug):
 
 @pytest.mark.parametrize("mode", ["instanced", "geometry"])
 def test_debug_outputs_match_the_twin(gl_ctx, model, mode):
-    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE.changed(mode=mode))
+    r = MicrofacetRenderer.from_model(gl_ctx, model, ONE.changed_for("microfacet", mode=mode))
     try:
         eye = scene.ring_cameras(12, phase_deg=7, elevations=(22,))[0]
-        colour = r.render(eye, tolerance_px=2.0, level=2)
-        cams = r.render(eye, tolerance_px=2.0, level=2, debug="camera")
-        rej = r.render(eye, tolerance_px=2.0, level=2, debug="rejections")
+        colour = r.render(eye, tolerance_px=2.0, level=16)
+        cams = r.render(eye, tolerance_px=2.0, level=16, debug="camera")
+        rej = r.render(eye, tolerance_px=2.0, level=16, debug="rejections")
         spacing = colour.stats.spacing
         # the camera view draws exactly the colour view's pixels, each with a camera index + 1
         assert np.array_equal(cams.mask, colour.mask)
@@ -57,14 +57,15 @@ def test_debug_outputs_match_the_twin(gl_ctx, model, mode):
         differ = (rc != np.rint(img[..., 0]).astype(int)) | (alive != rej.mask)
         assert differ.mean() <= OUTLIER_FRAC, differ.mean()
         # the colour output is unchanged by having drawn the debug ones
-        again = r.render(eye, tolerance_px=2.0, level=2)
+        again = r.render(eye, tolerance_px=2.0, level=16)
         np.testing.assert_array_equal(again.rgb, colour.rgb)
     finally:
         r.release()
 
 
-def test_debug_option_validated():
+def test_debug_option_validated(gl_ctx, model):
     with pytest.raises(ValueError, match="debug"):
-        RenderOptions(debug="nosuch")
-    with pytest.raises(ValueError, match="supersample 1"):
-        RenderOptions(debug="camera", supersample=2)
+        RenderOptions.for_method("microfacet", debug="nosuch")
+    with MicrofacetRenderer.from_model(gl_ctx, model, ONE) as r:
+        with pytest.raises(ValueError, match="supersample 1"):
+            r.render(scene.ring_cameras(12)[0], debug="camera", supersample=2)

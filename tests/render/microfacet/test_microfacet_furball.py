@@ -46,7 +46,7 @@ def test_furball_input_pose(gl_ctx, furball):
         for i in (0, 4, 9):
             scan = cap.scanset.scans[i]
             fg = reference_foreground(scan)
-            for level in [None, *range(len(model.pyramid.levels))]:
+            for level in [None, *model.pyramid.resolutions]:
                 fr = r.render(scan.camera, tolerance_px=8.0, level=level)
                 p = metrics.psnr(scan.srgb8, fr.rgb, fg | fr.mask)
                 measured.append(p)

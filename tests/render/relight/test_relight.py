@@ -18,6 +18,9 @@ from render.shading.irradiance import irradiance_table
 from tests import scenes as scene
 from volume.model import CaptureLighting
 
+#: The stats of the hand-made frames relit here.
+STATS = FrameStats(0, 0, supersample=1)
+
 #: Share-volume twin: float32 GLSL against float64 numpy; a voxel whose sphere test or band test
 #: flips (a point on a sphere's surface) may differ, so all but this share of voxels agree to 1e-3.
 SHARE_FLIP_SHARE = 0.005
@@ -36,14 +39,14 @@ def model():
 
 
 def _frame_of(res) -> Frame:
-    return Frame(res.color, res.alpha, res.depth, FrameStats(0.0, 0.0, 0, 1))
+    return Frame(res.color, res.alpha, res.depth, STATS)
 
 
 def test_twins(gl_ctx, model):
     cam = scene.ring_cameras(8, 96, 72)[1]
     rng = np.random.default_rng(0)
     dep = np.where(rng.random((72, 96)) < 0.7, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
-    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
+    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, STATS)
     cfg = RelightConfig(kernel="wrap", volume_res=16, visibility=True, strands=True)
     with Relighter(gl_ctx, model, procedural_sky(32), _sun_sky(), cfg) as rel:
         ref = share_volume_reference(rel.raw, rel.smooth, rel.capture, rel.new, model.spheres)
@@ -67,7 +70,7 @@ def test_auto_kernel_twin(gl_ctx, model):
     cam = scene.ring_cameras(8, 96, 72)[3]
     rng = np.random.default_rng(4)
     dep = np.where(rng.random((72, 96)) < 0.8, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
-    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
+    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, STATS)
     for cfg in (RelightConfig(kernel="auto", volume_res=16),
                 RelightConfig(kernel=rl.mix_kernel([0.1, 0.2, 0.3, 0.4]), forward=0.7, forward_g=0.6, volume_res=16)):
         with Relighter(gl_ctx, model, procedural_sky(32), _sun_sky(), cfg) as rel:
@@ -97,7 +100,7 @@ def test_strand_twin(gl_ctx, model):
     cam = scene.ring_cameras(8, 96, 72)[2]
     rng = np.random.default_rng(3)
     dep = np.where(rng.random((72, 96)) < 0.8, rng.uniform(0.25, 0.45, (72, 96)), 0.0).astype(np.float32)
-    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, FrameStats(0, 0, 0, 1))
+    fr = Frame(rng.random((72, 96, 3), dtype=np.float32), (dep > 0).astype(np.float32), dep, STATS)
     cfg = RelightConfig(volume_res=16, strands=True)
     red_sun = EnvMap((_sun_sky(sun=(-0.5, 0.6, 0.3)).data * np.array([1.0, 0.3, 0.1], np.float32)), "red")
     with Relighter(gl_ctx, model, _sun_sky(), red_sun, cfg) as rel:
@@ -144,7 +147,7 @@ def test_lambertian_object_relit_like_the_rasteriser(gl_ctx, model):
 def test_same_map_is_the_identity(gl_ctx, model, strands):
     cam = scene.ring_cameras(8, 64, 48)[0]
     dep = np.full((48, 64), 0.35, np.float32)
-    fr = Frame(np.full((48, 64, 3), 0.4, np.float32), np.ones((48, 64), np.float32), dep, FrameStats(0, 0, 0, 1))
+    fr = Frame(np.full((48, 64, 3), 0.4, np.float32), np.ones((48, 64), np.float32), dep, STATS)
     with Relighter.from_model(gl_ctx, model, procedural_sky(32), RelightConfig(volume_res=16, strands=strands)) as rel:
         np.testing.assert_allclose(rel.apply(fr, cam).rgb, fr.rgb, rtol=1e-6)
         rel.set_new_env(_sun_sky())  # the viewer's switch: another map, another result

@@ -212,17 +212,30 @@ def test_transport_quality():
     assert transport_quality("full", ViewSettings(method="gather")) is None  # one sample: nothing follows
 
 
-@pytest.mark.parametrize("method,greyed", [("gather", {"tolerance", "supersample", "refine"}),
-                                           ("microfacet", set()), ("points", {"tolerance", "supersample", "refine"})])
-def test_option_controls_follow_the_method(method, greyed):
-    """The panel greys out the sliders a method ignores (its ``uses``), and only those."""
-    from render.methods import method_class
+@pytest.mark.parametrize("method,greyed,shown", [("gather", {"supersampling"}, set()),
+                                                 ("microfacet", set(), {"tolerance E (px)", "refine steps"}),
+                                                 ("mesh-vdtm", set(), set())])
+def test_option_controls_follow_the_method(method, greyed, shown):
+    """The panel is made from the specs: the shared supersampling control (greyed for a method that
+    draws one sample per pixel) and each method's own controls, shown only while it is chosen; the
+    settings it builds carry what the controls show."""
+    from render.methods import METHODS
     from render.viewer import gui
+    from tests.render.viewer.fake_gui import FakeGui
 
-    handle = lambda value=None: SimpleNamespace(value=value, disabled=None)
-    controls = SimpleNamespace(method=handle(method), tolerance=handle(), supersample=handle(), refine=handle())
-    gui.sync_option_controls(controls)
-    got = {attr for attr, _ in gui.OPTION_CONTROLS if getattr(controls, attr).disabled}
-    uses = method_class(method).uses
-    assert got == {attr for attr, f in gui.OPTION_CONTROLS if f not in uses}
-    assert got == greyed
+    fake = FakeGui()
+    controls = gui.build_controls(fake, ViewSettings(), METHODS)
+    assert fake.handles["method"].options == tuple(METHODS)
+    applied = []
+    gui.on_settings_change(controls, applied.append, lambda msg: None)
+    fake.handles["method"].set(method)
+    own = {c.handle.label for c in controls.options if c.method is not None and c.handle.visible}
+    assert own == shown
+    assert {c.handle.label for c in controls.options if c.handle.disabled} == greyed
+    fake.handles["tolerance E (px)"].set(4.0)
+    fake.handles["refine steps"].set(-1)
+    st = applied[-1]
+    assert st.method == method and st.options.of("microfacet").tolerance_px == 4.0
+    assert st.options.of("microfacet").refine is None  # -1 = the method's default
+    fake.handles["refine steps"].set(3)
+    assert applied[-1].options.of("microfacet").refine == 3

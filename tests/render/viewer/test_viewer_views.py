@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
@@ -9,8 +10,30 @@ import pytest
 
 from capture.camera import Camera, look_at, make_K
 from render.frame import Frame, FrameStats
+from render.methods import METHODS, MethodSpec, method_spec, option
 from render.viewer import views
 from render.viewer.settings import ViewSettings
+
+
+@dataclass(frozen=True)
+class CodesOptions:
+    """The options of a fake method that draws the debug outputs "camera" and "rejections"."""
+
+    #: Debug output instead of the colour.
+    debug: str | None = option(None, "debug output", type=str)
+
+
+#: Two fake methods (registered by the fixture ``fakes``): one draws nothing but colour, the other
+#: the debug outputs too.
+PLAIN = MethodSpec("fake", "tests.render.viewer.test_viewer_views:FakeRenderer", "colour only")
+CODES = MethodSpec("fake-codes", "tests.render.viewer.test_viewer_views:FakeRenderer", "colour and codes",
+                   options=CodesOptions, supersample=True, debug_outputs=("camera", "rejections"))
+
+
+@pytest.fixture
+def fakes(monkeypatch):
+    for spec, attr in ((PLAIN, "PLAIN"), (CODES, "CODES")):
+        monkeypatch.setitem(METHODS, spec.name, f"tests.render.viewer.test_viewer_views:{attr}")
 
 
 def test_depth_image_near_is_bright_and_empty_is_black():
@@ -31,17 +54,16 @@ def test_code_image_and_frame_codes():
     rgb = np.zeros((1, 3, 3), np.float32)
     rgb[0, :, 0] = [3.0000002, 7.0, 9.0]
     f = Frame(rgb, np.array([[1.0, 1.0, 0.0]], np.float32), np.ones((1, 3), np.float32),
-              FrameStats(1.0, 1.0, 1, 1))
+              FrameStats(1.0, 1.0, supersample=1, facets=1))
     assert views.frame_codes(f).tolist() == [[3, 7, 0]]
 
 
 class FakeRenderer:
     """Returns a fixed frame; records the options it was asked for."""
 
-    uses = frozenset({"supersample"})
-
-    def __init__(self, stats):
-        self.stats, self.asked = stats, []
+    def __init__(self, stats, name="fake"):
+        self.stats, self.asked, self.name = stats, [], name
+        self.spec = method_spec(name)
 
     def render(self, camera, options):
         self.asked.append(options)
@@ -56,31 +78,28 @@ def cam():
     return Camera(make_K(5.0, 5.0, 1.5, 1.5), look_at([0, -1, 0], [0, 0, 0]), 4, 4)
 
 
-def test_views_a_method_cannot_give_fall_back_with_a_note(cam):
-    r = FakeRenderer(FrameStats(1.0, 1.0, 1, 1))
+def test_views_a_method_cannot_give_fall_back_with_a_note(cam, fakes):
+    r = FakeRenderer(FrameStats(1.0, 1.0, supersample=1, facets=1))
     scene = SimpleNamespace(renderer=lambda name: r)
     for view in ("camera", "rejections", "level"):
         drawn = views.draw(scene, cam, ViewSettings(method="fake", view=view), 1)
         assert "fake" in drawn.note and view.split()[0][:5] in drawn.note
         assert drawn.image[2, 2].tolist() == drawn.image[1, 1].tolist() != [0, 0, 0]   # the colour picture
-    assert all(o.debug is None for o in r.asked)
+    assert all(o.methods == () for o in r.asked)  # no method's own option was set
 
 
-def test_level_and_debug_views_of_a_method_that_gives_them(cam):
-    from dataclasses import dataclass
-
-    @dataclass(frozen=True)
+def test_level_and_debug_views_of_a_method_that_gives_them(cam, fakes):
+    @dataclass(frozen=True, kw_only=True)
     class LevelStats(FrameStats):
         level: int = 0
 
-    r = FakeRenderer(LevelStats(1.0, 1.0, 1, 1, level=3))
-    r.uses = frozenset({"supersample", "debug"})
+    r = FakeRenderer(LevelStats(1.0, 1.0, supersample=1, facets=1, level=3), "fake-codes")
     scene = SimpleNamespace(renderer=lambda name: r)
-    lev = views.draw(scene, cam, ViewSettings(view="level"), 2)
+    lev = views.draw(scene, cam, ViewSettings(method="fake-codes", view="level"), 2)
     assert lev.note == "" and lev.image[1, 1].tolist() == views.palette(16)[3].tolist()
     assert lev.image[0, 0].tolist() == list(views.EMPTY_RGB)
-    views.draw(scene, cam, ViewSettings(view="camera"), 2)
-    assert r.asked[-1].debug == "camera" and r.asked[-1].supersample == 1
+    views.draw(scene, cam, ViewSettings(method="fake-codes", view="camera"), 2)
+    assert r.asked[-1].of("fake-codes").debug == "camera" and r.asked[-1].supersample == 1
 
 
 @pytest.mark.gl
@@ -96,7 +115,7 @@ def test_composite_env_uses_the_frames_matte(gl_ctx):
     a = np.zeros((16, 16), np.float32)
     a[4:12, 4:12] = 0.5
     rgb = a[..., None] * np.array([1.0, 0.0, 0.0], np.float32)
-    fr = Frame(rgb, a, np.where(a > 0, 1.0, 0.0).astype(np.float32), FrameStats(0, 0, 0, 1))
+    fr = Frame(rgb, a, np.where(a > 0, 1.0, 0.0).astype(np.float32), FrameStats(0, 0, supersample=1))
     B = np.array([0.2, 0.4, 0.6], np.float32)
     env = EnvMap(np.broadcast_to(B, (8, 16, 3)).copy(), "flat")
     with views.make_compositor(gl_ctx) as comp:
