@@ -4,6 +4,7 @@ version (or nothing) and no temporary behind. The one implementation every packa
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -61,6 +62,15 @@ def atomic_dir(target) -> Iterator[Path]:
             os.replace(tmp, target)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def write_json(path, data, indent: int | None = 1, default=None) -> Path:
+    """Write ``data`` as JSON to ``path`` atomically (:func:`atomic_write`: the parent folder made,
+    a failed write leaves the previous file); ``default`` as for ``json.dumps``.  Returns the path."""
+    text = json.dumps(data, indent=indent, default=default)
+    with atomic_write(path) as tmp:
+        tmp.write_text(text)
+    return Path(path)
 
 
 def jsonable(x):

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from capture.orbit import closest_point_to_axes, estimate_up
+from capture.sampling import cell_index
 from capture.scan import Scan, ScanSet, bounds_from_points, sampled_points
 from capture.scan_store import keep_in_memory
 
@@ -221,7 +222,7 @@ def _floater_cells(scan: Scan, lab: np.ndarray, origin: np.ndarray, voxel: float
     """(kept depth pixels (H, W) bool, their flat cell indices in the floater grid) of one view."""
     keep = (lab == 0) & np.isfinite(scan.depth) & (scan.depth > 0)
     pts, _ = scan.camera.depth_to_points(np.where(keep, scan.depth, 0.0))
-    ijk = np.clip(np.floor((pts - origin) / voxel).astype(np.int64), 0, n - 1)
+    ijk = np.clip(cell_index(pts, origin, voxel), 0, n - 1)
     return keep, (ijk[:, 0] * n + ijk[:, 1]) * n + ijk[:, 2]
 
 

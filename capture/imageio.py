@@ -18,6 +18,20 @@ class ScanIOError(ValueError):
     """A file of a scan set is missing, unreadable or inconsistent; the message names it."""
 
 
+def finite_number(v, what: str, where: str) -> float:
+    """A finite JSON number (or numeric string) read from file ``where``; bools, lists, objects,
+    NaN and inf are a ScanIOError naming ``what``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+        raise ScanIOError(f"{where}: {what} is not a number: {v!r}")
+    try:
+        v = float(v)
+    except (ValueError, OverflowError):
+        raise ScanIOError(f"{where}: {what} is not a number: {v!r}") from None
+    if not np.isfinite(v):
+        raise ScanIOError(f"{where}: {what} is not finite")
+    return v
+
+
 def _cv2():
     import cv2
 

@@ -39,10 +39,11 @@ import numpy as np
 
 from capture.atomic import atomic_dir, jsonable
 from capture.camera import Camera, CameraError
-from capture.imageio import ScanIOError, depth_to_uint16, write_exr, write_png
+from capture.imageio import ScanIOError, depth_to_uint16, finite_number, write_exr, write_png
 from capture.io_lens import frame_lens, pinhole_camera
 from capture.lens import DEFAULT_UNDISTORT, Lens, nerfstudio_keys
 from capture.matte_io import MASK_DIR, write_matte
+from capture.resample import nearest_depth
 from capture.scan import Scan, ScanSet, bounds_from_points, sampled_points
 from capture.sources import FrameRef, Source, UndistortConfig, open_source
 
@@ -121,7 +122,7 @@ def _transforms_frame(tj: Path, meta: dict, i: int, fr, undistort: str) -> Frame
         v = fr.get(key, meta.get(key))
         if v is None:
             raise ScanIOError(f"{named}: missing intrinsic '{key}' (per frame or global)")
-        return _finite(v, f"intrinsic '{key}'", named)
+        return finite_number(v, f"intrinsic '{key}'", named)
 
     if "transform_matrix" not in fr:
         raise ScanIOError(f"{named}: missing 'transform_matrix'")
@@ -139,7 +140,7 @@ def _transforms_frame(tj: Path, meta: dict, i: int, fr, undistort: str) -> Frame
     pinhole = cam if lens is None else pinhole_camera(cam, lens, undistort, named)
     unit = fr.get("depth_unit_scale_factor", meta.get("depth_unit_scale_factor"))
     if unit is not None:
-        unit = _finite(unit, "depth_unit_scale_factor", named)
+        unit = finite_number(unit, "depth_unit_scale_factor", named)
         if unit <= 0:
             raise ScanIOError(f"{named}: depth_unit_scale_factor must be a positive number (metres per "
                               f"depth unit), got {unit}")
@@ -158,19 +159,6 @@ def _path_field(fr: dict, key: str, where: str) -> str | None:
         return None
     if not isinstance(v, str) or not v.strip() or "\0" in v:
         raise ScanIOError(f"{where}: '{key}' must be a non-empty file path string, got {v!r}")
-    return v
-
-
-def _finite(v, what: str, where: str) -> float:
-    """A finite JSON number (or numeric string); bools, lists, objects, NaN and inf are errors naming ``what``."""
-    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
-        raise ScanIOError(f"{where}: {what} is not a number: {v!r}")
-    try:
-        v = float(v)
-    except (ValueError, OverflowError):
-        raise ScanIOError(f"{where}: {what} is not a number: {v!r}") from None
-    if not np.isfinite(v):
-        raise ScanIOError(f"{where}: {what} is not finite")
     return v
 
 
@@ -205,14 +193,14 @@ def _plain_frame(folder: Path, i: int, cj: Path, undistort: str) -> FrameRef:
     c = _load_json(cj)
     try:
         cam = Camera(np.asarray(c["K"], float), np.asarray(c["cam_from_world"], float),
-                     _pixels(_finite(c["width"], "width", str(cj)), "width", str(cj)),
-                     _pixels(_finite(c["height"], "height", str(cj)), "height", str(cj)), name=cj.stem)
+                     _pixels(finite_number(c["width"], "width", str(cj)), "width", str(cj)),
+                     _pixels(finite_number(c["height"], "height", str(cj)), "height", str(cj)), name=cj.stem)
     except KeyError as e:
         raise ScanIOError(f"{cj}: missing key {e}") from None
     except (CameraError, TypeError, ValueError) as e:
         raise ScanIOError(f"{cj}: {e}") from None
     unit = c.get("depth_unit_scale_factor")
-    if unit is not None and _finite(unit, "depth_unit_scale_factor", str(cj)) <= 0:
+    if unit is not None and finite_number(unit, "depth_unit_scale_factor", str(cj)) <= 0:
         raise ScanIOError(f"{cj}: depth_unit_scale_factor must be a positive number of metres, got {unit!r}")
     lens = frame_lens(c, {}, str(cj))
     pinhole = cam if lens is None else pinhole_camera(cam, lens, undistort, str(cj))
@@ -302,8 +290,7 @@ def _write_images(scan: Scan, rgb_path: Path, depth_path: Path, ext: str, unit: 
         (w, h), (W, H) = depth_size, (scan.camera.width, scan.camera.height)
         if not (0 < w <= W and 0 < h <= H):
             raise ScanIOError(f"{depth_path}: depth size {w}x{h} must be within the colour's {W}x{H}")
-        depth = depth[np.minimum(((np.arange(h) + 0.5) * H / h).astype(int), H - 1)[:, None],
-                      np.minimum(((np.arange(w) + 0.5) * W / w).astype(int), W - 1)[None, :]]
+        depth = nearest_depth(depth, w, h)
     if ext == "png":
         write_png(depth_path, depth_to_uint16(depth, unit, str(depth_path)))
     else:

@@ -174,12 +174,13 @@ def _frame(model_dir: Path, i: int, im: ColmapImage, images_dir, depth_dir, unit
 def colmap_folder_source(path: Path, model: Path, undistort: str = DEFAULT_UNDISTORT) -> Source:
     """The Source of a COLMAP folder: ``model`` (``sparse/0``) + ``images/`` + optional ``depth/``,
     ``masks/`` and ``depth_units.json`` (``{"depth_unit_scale_factor": metres per unit}``)."""
-    from capture.io import _finite, _load_json
+    from capture.imageio import finite_number
+    from capture.io import _load_json
 
     path = Path(path)
     units = path / "depth_units.json"
     unit = _load_json(units).get("depth_unit_scale_factor") if units.is_file() else None
-    if unit is not None and (unit := _finite(unit, "depth_unit_scale_factor", str(units))) <= 0:
+    if unit is not None and (unit := finite_number(unit, "depth_unit_scale_factor", str(units))) <= 0:
         raise ScanIOError(f"{units}: depth_unit_scale_factor must be a positive number of metres")
     depth = path / "depth" if (path / "depth").is_dir() else None
     masks = path / MASK_DIR if (path / MASK_DIR).is_dir() else None

@@ -5,23 +5,9 @@ from __future__ import annotations
 
 import logging
 
-import numpy as np
-
 from capture.camera import Camera, CameraError
-from capture.imageio import ScanIOError
+from capture.imageio import ScanIOError, finite_number
 from capture.lens import Lens, LensError, nerfstudio_lens, undistorted_camera
-
-
-def _number(v, key: str, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
-        raise ScanIOError(f"{where}: lens distortion '{key}' is not a number: {v!r}")
-    try:
-        x = float(v)
-    except (ValueError, OverflowError):
-        raise ScanIOError(f"{where}: lens distortion '{key}' is not a number: {v!r}") from None
-    if not np.isfinite(x):
-        raise ScanIOError(f"{where}: lens distortion '{key}' is not finite")
-    return x
 
 
 def frame_lens(fr: dict, meta: dict, where: str) -> Lens | None:
@@ -29,7 +15,7 @@ def frame_lens(fr: dict, meta: dict, where: str) -> Lens | None:
     (a per-frame key overrides the global one); None for a pinhole camera."""
     def value(k):
         v = fr.get(k, meta.get(k))
-        return None if v is None else _number(v, k, where)
+        return None if v is None else finite_number(v, f"lens distortion '{k}'", where)
 
     try:
         return nerfstudio_lens(fr.get("camera_model", meta.get("camera_model")), value)

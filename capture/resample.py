@@ -7,7 +7,8 @@ camera's pixels without ever averaging across a depth discontinuity:
 - The depth image covers the colour image's field of view, edges aligned: depth pixel j's centre
   sits at colour coordinate (j + 0.5) * s - 0.5 with s = W / w (``capture.camera.resample_pixel_coords``,
   as in ``Camera.scaled``); W / w and H / h must agree (:data:`ASPECT_TOLERANCE`).
-- Each colour pixel takes the 2 x 2 depth samples around it.  Where all four are measured and lie
+- Each colour pixel takes the 2 x 2 depth samples around it (``capture.sampling.linear_taps``;
+  beyond the outer sample centres, the edge samples twice: CLAMP_TO_EDGE).  Where all four are measured and lie
   on one surface (spread <= :data:`DISCONTINUITY_REL` of the nearest), it is their bilinear
   interpolation (exact for planes).
 - Elsewhere the footprint straddles a depth edge or a hole.  Joint-bilateral choice: each of the
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import resample_pixel_coords
+from capture.sampling import linear_taps, nearest_pixel
 
 #: Largest relative difference between W / w and H / h of a colour / depth pair.
 ASPECT_TOLERANCE = 0.01
@@ -93,23 +95,14 @@ def _guide_lo(guide: np.ndarray, w: int, h: int) -> np.ndarray:
     return cv2.resize(np.ascontiguousarray(guide, np.float32), (w, h), interpolation=cv2.INTER_AREA)
 
 
-def _corners(x, n: int):
-    """Lower / upper sample index around ``x`` (clamped into [0, n - 1]) and the upper one's weight."""
-    c = np.clip(x, 0.0, n - 1.0)
-    i0 = np.minimum(np.floor(c), max(n - 2, 0)).astype(np.int64)
-    i1 = np.minimum(i0 + 1, n - 1)
-    return i0, i1, c - i0
-
-
 def _block(depth, glo, guide, rows, sx, sy):
     """Resample colour rows ``rows`` (all columns); returns (depth block, edge, colour_decided, holes)."""
     h, w = depth.shape
     W = guide.shape[1]
     Y, X = np.meshgrid(resample_pixel_coords(rows, 1 / sy), resample_pixel_coords(np.arange(W), 1 / sx), indexing="ij")
-    j0, j1, fy = _corners(Y, h)
-    i0, i1, fx = _corners(X, w)
-    idx = [(j0, i0), (j0, i1), (j1, i0), (j1, i1)]
-    b = np.stack([(1 - fy) * (1 - fx), (1 - fy) * fx, fy * (1 - fx), fy * fx], -1)
+    taps = linear_taps(np.stack([Y, X], -1), (h, w), "clamp")  # the 2 x 2 depth samples, edge clamped
+    idx = [ij for ij, _, _ in taps]
+    b = np.stack([wt for _, _, wt in taps], -1)
     d = np.stack([depth[j, i] for j, i in idx], -1)
     valid = d > 0
     dmin = np.where(valid, d, np.inf).min(-1)
@@ -172,10 +165,7 @@ def upsample_depth_reference(depth: np.ndarray, guide: np.ndarray) -> np.ndarray
     for v in range(H):
         for u in range(W):
             y, x = float(resample_pixel_coords(v, 1 / sy)), float(resample_pixel_coords(u, 1 / sx))
-            j0, j1, fy = (int(a) if k < 2 else float(a) for k, a in enumerate(_corners(y, h)))
-            i0, i1, fx = (int(a) if k < 2 else float(a) for k, a in enumerate(_corners(x, w)))
-            corners = [(j0, i0, (1 - fy) * (1 - fx)), (j0, i1, (1 - fy) * fx), (j1, i0, fy * (1 - fx)),
-                       (j1, i1, fy * fx)]
+            corners = [(int(j), int(i), float(wt)) for (j, i), _, wt in linear_taps(np.array([y, x]), (h, w), "clamp")]
             ds = [depth[j, i] for j, i, _ in corners]
             if all(z > 0 for z in ds) and max(ds) - min(ds) <= DISCONTINUITY_REL * min(ds):
                 out[v, u] = sum(bk * depth[j, i] for j, i, bk in corners)
@@ -200,8 +190,8 @@ def nearest_depth(depth: np.ndarray, W: int, H: int) -> np.ndarray:
     measured value, never a blend across an edge): the working scale's depth (volume.views) and the
     fusion maps at a phone depth's measured size (volume.stream)."""
     h, w = np.asarray(depth).shape
-    xi = np.minimum(((np.arange(W) + 0.5) * (w / W)).astype(np.int64), w - 1)
-    yi = np.minimum(((np.arange(H) + 0.5) * (h / H)).astype(np.int64), h - 1)
+    xi = np.clip(nearest_pixel(resample_pixel_coords(np.arange(W), w / W)), 0, w - 1)
+    yi = np.clip(nearest_pixel(resample_pixel_coords(np.arange(H), h / H)), 0, h - 1)
     return np.asarray(depth)[yi[:, None], xi[None, :]]
 
 

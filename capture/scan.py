@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from capture.camera import Camera
+from capture.sampling import points_box
 
 
 class ScanError(ValueError):
@@ -194,9 +195,8 @@ def sampled_points(scans, max_points: int = MAX_SAMPLED_POINTS) -> np.ndarray:
 def bounds_from_points(points: np.ndarray, margin: float = 0.05) -> np.ndarray:
     """(2, 3) box around points, grown by ``margin`` of its diagonal on every side."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    p = p[np.all(np.isfinite(p), axis=1)]
-    if len(p) == 0:
+    if not np.all(np.isfinite(p), axis=1).any():
         raise ScanError("cannot compute bounds: no valid 3-D points")
-    lo, hi = p.min(0), p.max(0)
+    lo, hi = points_box(p)
     pad = margin * max(np.linalg.norm(hi - lo), 1e-6)
     return np.stack([lo - pad, hi + pad])

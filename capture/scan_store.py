@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.sampling import mask_box
 from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
 
 #: Views whose arrays stay in memory after being read (each is at most colour + depth + matte).
@@ -55,12 +56,11 @@ def scan_has_alpha(scan) -> bool:
 
 def _crop(a: np.ndarray) -> tuple[np.ndarray, tuple[int, int, int, int]]:
     """(bounding-box crop of the non-zero pixels of a (H, W) map, (y0, x0, H, W))."""
-    nz = a != 0
-    rows, cols = np.flatnonzero(nz.any(axis=1)), np.flatnonzero(nz.any(axis=0))
-    if not len(rows):
+    box = mask_box(a != 0)
+    if box is None:
         return a[:0, :0].copy(), (0, 0, *a.shape)
-    y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
-    return np.ascontiguousarray(a[y0:y1, x0:x1]), (int(y0), int(x0), *a.shape)
+    y0, y1, x0, x1 = box
+    return np.ascontiguousarray(a[y0:y1, x0:x1]), (y0, x0, *a.shape)
 
 
 def _uncrop(c: np.ndarray, box) -> np.ndarray:

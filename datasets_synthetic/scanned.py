@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.sampling import points_box
 from datasets_synthetic.fur import FurParams, grow_strands, push_outside, sample_surface, strand_tubes
 from datasets_synthetic.geometry import _unit, merge
 from render.mesh.raster.gl import RasterMesh
@@ -63,7 +64,7 @@ def load_bunny(size_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     f = np.asarray(m.triangles, np.int64)
     if len(v) == 0 or len(f) == 0:
         raise MeshSourceError(f"{path}: no triangles read")
-    lo, hi = v.min(0), v.max(0)
+    lo, hi = points_box(v)
     v = (v - 0.5 * (lo + hi)) * (size_m / float((hi - lo).max()))
     m.vertices = o3d.utility.Vector3dVector(v)
     m.compute_vertex_normals()

@@ -29,6 +29,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+from capture.atomic import write_json
 from volume.pipeline.config import PipelineConfig
 
 #: The steps a capture can run, in order.
@@ -78,13 +79,6 @@ def one_line(e: BaseException) -> str:
     """``Type: first line of the message`` (at most REASON_CHARS)."""
     msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
     return f"{type(e).__name__}: {msg}"[:REASON_CHARS] if msg else type(e).__name__
-
-
-def _write_json(path: Path, data) -> None:
-    from capture.atomic import atomic_write
-
-    with atomic_write(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=1))
 
 
 def is_complete(out: Path, steps: Sequence[str]) -> bool:
@@ -145,7 +139,7 @@ def _evaluate(scans: Path, out: Path, cfg: CaptureConfig) -> dict:
     from furrow.cmd_eval import evaluate_capture
 
     res = evaluate_capture(scans, cfg.pipeline, cfg.holdout)
-    _write_json(out / "eval.json", res)
+    write_json(out / "eval.json", res)
     return {k: {m: round(v[m], 4) for m in ("psnr", "ssim", "psnr_masked")} for k, v in res.items()
             if isinstance(v, dict) and "psnr_masked" in v}
 
@@ -187,7 +181,7 @@ def run_capture(scans, out, steps: Sequence[str] = STEPS, config: CaptureConfig 
         with stage("orbit"):
             rec["orbit_frames"] = _orbit(load_model(out / "model"), source.cameras, out, cfg)
     rec["status"] = "done"
-    _write_json(out / DONE_FILE, rec)
+    write_json(out / DONE_FILE, rec)
     return rec
 
 
@@ -266,7 +260,7 @@ def run_batch(captures: Sequence[Path], out_root: Path, steps: Sequence[str] = S
         batch["seconds"] = round(time.time() - t0, 3)
         batch["summary"] = {s: sum(r["status"] == s for r in batch["captures"].values())
                             for s in ("done", "failed", "skipped", "queued")}
-        _write_json(out_root / BATCH_FILE, batch)
+        write_json(out_root / BATCH_FILE, batch)
         if on_update:
             on_update(rec)
 

@@ -6,7 +6,6 @@ plain point splatter; the fixed-mesh VDTM baseline and the vertex-colour floor; 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from render.evaluate import GEOMETRIES
@@ -118,6 +117,7 @@ def evaluate_capture(scans: Path, cfg, holdout: int, options=None, out_dir: Path
 
 
 def run(args, console) -> int:
+    from capture.atomic import write_json
     from furrow.console import StageTimer
     from furrow.model_flags import pipeline_config
     from render.methods import options_record
@@ -216,14 +216,6 @@ def print_composite_table(console, res: dict, methods) -> None:
         t.add_row(k, *(_cell(r[c], f) for c, f in (("psnr_white", ".2f"), ("psnr_dark", ".2f"), ("alpha_mse", ".4f"),
                                                    ("alpha_sad", ".2f"))))
     console.print(t)
-
-
-def write_json(path: Path, data: dict) -> None:
-    """``data`` as indented JSON at ``path``, written atomically."""
-    from capture.atomic import atomic_write
-
-    with atomic_write(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=1))
 
 
 def render_options(args, methods):

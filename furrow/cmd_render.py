@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -160,6 +159,7 @@ def output_images(frame, cam, background, up, composite_env) -> tuple[np.ndarray
 def run(args, console) -> int:
     from contextlib import ExitStack
 
+    from capture.atomic import write_json
     from capture.imageio import write_png
     from furrow.console import StageTimer, track
     from furrow.relight_flags import open_relighter
@@ -224,7 +224,7 @@ def run(args, console) -> int:
     record = {"method": args.method, "supersample": samples_per_pixel_side(args.method, options),
               "options": options_record(options, args.method), "frames": stats}
     if args.out is not None:
-        (args.out / "render_stats.json").write_text(json.dumps(record, indent=1))
+        write_json(args.out / "render_stats.json", record)
     if args.video is not None:
         console.print(f"[green]wrote[/] {len(stats)} frames to {args.video} (H.264, {args.fps:g} fps)", highlight=False)
     ms = [s["ms"] for s in stats]

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.sampling import voxel_centres
 from capture.scan import ScanSet, srgb_to_linear
-from volume.grid import cube_for_bounds, voxel_centers_of
+from volume.grid import cube_for_bounds
 from volume.model import Model, RgbzImages, SdfLevel, SdfPyramid, SphereSet
 from volume.tsdf import integrate_tsdf
 
@@ -71,7 +72,7 @@ def surface_pyramid(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray,
     cand = np.stack(np.meshgrid(*[np.arange(L)] * 3, indexing="ij"), -1).reshape(-1, 3)
     while L <= l_max:
         w = extent / L
-        centres = voxel_centers_of(cand, origin, w)
+        centres = voxel_centres(cand, origin, w)
         d = scene.compute_distance(o3d.core.Tensor(centres.astype(np.float32))).numpy()
         surf = cand[d <= 0.5 * np.sqrt(3) * w]
         levels.append(SdfLevel(L, origin, w, surf.astype(np.int32)))

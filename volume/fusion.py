@@ -37,9 +37,10 @@ import numpy as np
 from scipy import ndimage
 
 from capture.depth_normals import depth_normals
+from capture.sampling import voxel_centres
 from capture.scan import Scan, ScanSet
 from volume.completion import complete_sdf
-from volume.grid import voxel_centers
+from volume.grid import flat_voxel_indices, voxel_centers
 
 #: Voxels per chunk in pass 1 (memory ~ 40 bytes per voxel per array).
 PASS1_CHUNK = 1 << 19
@@ -307,9 +308,7 @@ def carve_votes(maps: list[ScanMaps], origin, w: float, L: int, trunc: float, fr
 
 
 def _centers_of(flat: np.ndarray, origin, w: float, L: int) -> np.ndarray:
-    i, rem = np.divmod(flat, L * L)
-    j, k = np.divmod(rem, L)
-    return (np.asarray(origin) + (np.stack([i, j, k], 1) + 0.5) * w).astype(np.float32)
+    return voxel_centres(flat_voxel_indices(flat, L), origin, w).astype(np.float32)
 
 
 def upsample2(a: np.ndarray) -> np.ndarray:

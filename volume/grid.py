@@ -1,13 +1,16 @@
 """The voxel cube shared by every level of the pyramid (docs/methods.md §1.1).
 
 A level of resolution L covers the cube ``origin + [0, L*w]^3``; voxel (i, j, k) (x, y, z
-order) has its centre at ``origin + (ijk + 0.5) * w``.  All levels share origin and extent,
-so level L/2's voxel (i, j, k) is the union of level L's voxels (2i..2i+1, ...).
+order) has its centre at ``origin + (ijk + 0.5) * w`` (capture.sampling.voxel_centres).  All
+levels share origin and extent, so level L/2's voxel (i, j, k) is the union of level L's voxels
+(2i..2i+1, ...).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from capture.sampling import voxel_centres
 
 #: Extra room around the object's bounds, as a fraction of their largest side, so that the
 #: surface never touches the cube's border (the SDF must change sign inside the cube).
@@ -24,18 +27,18 @@ def cube_for_bounds(bounds: np.ndarray, margin: float = CUBE_MARGIN) -> tuple[np
     return centre - 0.5 * side, side
 
 
-def voxel_centers_of(ijk, origin, voxel_size: float) -> np.ndarray:
-    """(..., 3) float64 world centres ``origin + (ijk + 0.5) w`` of voxel indices (..., 3)."""
-    return np.asarray(origin, np.float64) + (np.asarray(ijk) + 0.5) * voxel_size
-
-
 def voxel_centers(origin: np.ndarray, voxel_size: float, resolution: int, start: int = 0,
                   stop: int | None = None, dtype=np.float64) -> np.ndarray:
-    """World centres (M, 3) of the voxels with flat index in [start, stop) (C order over i, j, k)."""
+    """World centres (M, 3) of the voxels with flat index in [start, stop) (C order over i, j, k),
+    computed in ``dtype`` (capture.sampling.voxel_centres)."""
     L = int(resolution)
     stop = L ** 3 if stop is None else stop
-    flat = np.arange(start, stop, dtype=np.int64)
-    i, rem = np.divmod(flat, L * L)
+    return voxel_centres(flat_voxel_indices(np.arange(start, stop, dtype=np.int64), L), origin, voxel_size, dtype)
+
+
+def flat_voxel_indices(flat: np.ndarray, resolution: int) -> np.ndarray:
+    """(M, 3) int64 (i, j, k) of flat voxel indices (C order) of a cube of ``resolution``^3."""
+    L = int(resolution)
+    i, rem = np.divmod(np.asarray(flat, np.int64), L * L)
     j, k = np.divmod(rem, L)
-    ijk = np.stack([i, j, k], axis=1).astype(dtype)
-    return (np.asarray(origin, dtype) + (ijk + dtype(0.5)) * dtype(voxel_size)).astype(dtype)
+    return np.stack([i, j, k], axis=1)

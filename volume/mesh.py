@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from capture.sampling import nearest_pixel, points_box
 from volume.model import SdfLevel
 
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
@@ -109,7 +110,7 @@ def _pymeshlab_clean_decimate(verts: np.ndarray, faces: np.ndarray, clean: bool,
         ms.meshing_remove_duplicate_vertices()
         ms.meshing_remove_duplicate_faces()
         ms.meshing_remove_null_faces()
-        diag = float(np.linalg.norm(verts.max(0) - verts.min(0)))
+        diag = float(np.linalg.norm(np.diff(points_box(verts), axis=0)))
         ms.meshing_remove_connected_component_by_diameter(
             mincomponentdiag=pymeshlab.PureValue(MIN_COMPONENT_FRACTION * diag))
         ms.meshing_remove_unreferenced_vertices()
@@ -158,11 +159,10 @@ def vertex_colors_views(verts: np.ndarray, faces: np.ndarray, cameras, views, vo
     for cam, (img, gd) in zip(cameras, views):
         uv, z = cam.project(verts.astype(np.float64))
         with np.errstate(invalid="ignore"):
-            u = np.floor(uv[:, 0] + 0.5)
-            v = np.floor(uv[:, 1] + 0.5)
-            inb = np.isfinite(u) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height) & (z > 0)
-        ui = np.where(inb, u, 0).astype(np.int64)
-        vi = np.where(inb, v, 0).astype(np.int64)
+            u, v = nearest_pixel(uv[:, 0]), nearest_pixel(uv[:, 1])
+            inb = np.isfinite(uv).all(axis=1) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height) & (z > 0)
+        ui = np.where(inb, u, 0)
+        vi = np.where(inb, v, 0)
         g = gd[vi, ui]
         view = cam.center - verts
         view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-12)

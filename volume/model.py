@@ -38,6 +38,7 @@ import numpy as np
 
 from capture.atomic import atomic_dir
 from capture.camera import Camera
+from capture.sampling import voxel_centres
 from volume.rgbz_store import RGBZ_STORAGE, CropFile, ModelError, RgbzImages, is_compact, save_crops
 
 __all__ = ["RGBZ_STORAGE", "ModelError", "RgbzImages", "SdfLevel", "SdfPyramid", "SphereSet", "CaptureLighting",
@@ -130,7 +131,7 @@ class SdfLevel:
 
     def centers(self) -> np.ndarray:
         """(N, 3) float64 world centres (metres) of the surface voxels: origin + (ijk + 0.5) w."""
-        return self.origin + (self.surface.astype(np.float64) + 0.5) * self.voxel_size
+        return voxel_centres(self.surface, self.origin, self.voxel_size)
 
     @property
     def extent(self) -> float:

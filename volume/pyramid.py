@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from capture.sampling import cell_index
 from volume.model import SdfLevel, SdfPyramid
 
 #: Surface-voxel threshold as a fraction of the voxel diagonal (docs/methods.md §1.1: "about half").
@@ -150,8 +151,8 @@ def measured_voxels_levels(points, origin, sizes: dict[int, float], min_views: i
     for p in points:
         p = np.asarray(p, np.float64).reshape(-1, 3) - origin
         for L, w in sizes.items():
-            g = np.floor(p / w)
-            g = g[np.all((g >= 0) & (g < L), axis=1)].astype(np.int64)
+            g = cell_index(p, 0.0, w)
+            g = g[np.all((g >= 0) & (g < L), axis=1)]
             keys[L].append(np.unique((g[:, 0] * L + g[:, 1]) * L + g[:, 2]))
     out = {}
     for L, ks in keys.items():

@@ -34,6 +34,7 @@ import numpy as np
 from scipy import ndimage
 
 from capture.raycast import raycast_depth
+from capture.sampling import index_coords, sample_grid
 from capture.scan import ScanSet
 from capture.scan_store import scan_has_alpha
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
@@ -69,11 +70,11 @@ class RgbzConfig:
 def sdf_at(level: SdfLevel, points: np.ndarray) -> np.ndarray:
     """Trilinear signed distance at world points (M, 3); points outside the cube get +inf."""
     L, w = level.resolution, level.voxel_size
-    g = (np.asarray(points, np.float64) - level.origin) / w - 0.5
+    g = index_coords(points, level.origin, w)
     inside = np.all((g >= 0) & (g <= L - 1), axis=1)
     out = np.full(len(g), np.inf)
     if inside.any():
-        out[inside] = ndimage.map_coordinates(level.values, g[inside].T, order=1, mode="nearest")
+        out[inside] = sample_grid(level.values, g[inside], "linear", "clamp")
     return out
 
 

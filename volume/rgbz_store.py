@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.camera import Camera
+from capture.sampling import mask_box
 from capture.scan import srgb_to_linear, to_uint8_srgb
 
 
@@ -58,14 +59,12 @@ def crop_margin_px(width: int, height: int) -> int:
 def bbox(mask: np.ndarray, margin: int) -> tuple[int, int, int, int]:
     """(x0, y0, w, h) of the bounding box of ``mask`` (H, W) bool grown by ``margin`` pixels and
     clipped to the image; (0, 0, 0, 0) when the mask is empty."""
-    m = np.asarray(mask, bool)
-    rows = np.flatnonzero(m.any(axis=1))
-    if not len(rows):
+    box = mask_box(mask)
+    if box is None:
         return 0, 0, 0, 0
-    cols = np.flatnonzero(m.any(axis=0))
-    H, W = m.shape
-    y0, y1 = max(int(rows[0]) - margin, 0), min(int(rows[-1]) + 1 + margin, H)
-    x0, x1 = max(int(cols[0]) - margin, 0), min(int(cols[-1]) + 1 + margin, W)
+    H, W = np.shape(mask)
+    y0, y1 = max(box[0] - margin, 0), min(box[1] + margin, H)
+    x0, x1 = max(box[2] - margin, 0), min(box[3] + margin, W)
     return x0, y0, x1 - x0, y1 - y0
 
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.sampling import points_box
+from volume.grid import voxel_centers
 from volume.model import SdfLevel, SphereSet
 
 #: Hard cap on the number of spheres (the SSDF shader loops over all of them).
@@ -40,15 +42,12 @@ def volume_iou(spheres: SphereSet, level: SdfLevel) -> float:
     solid = level.values.reshape(-1) < 0
     if not solid.any():
         return 1.0 if len(spheres) == 0 else 0.0
-    idx = np.arange(L ** 3)
-    i, rem = np.divmod(idx, L * L)
-    j, k = np.divmod(rem, L)
-    pts = level.origin + (np.stack([i, j, k], 1) + 0.5) * w
+    pts = voxel_centers(level.origin, w, L)
     # only voxels inside the spheres' bounding box can be covered
     inside = np.zeros(L ** 3, bool)
     if len(spheres):
-        lo = (spheres.centers - spheres.radii[:, None]).min(0)
-        hi = (spheres.centers + spheres.radii[:, None]).max(0)
+        r = spheres.radii[:, None]
+        lo, hi = points_box(np.concatenate([spheres.centers - r, spheres.centers + r]))
         box = np.all((pts >= lo) & (pts <= hi), axis=1)
         inside[box] = union_mask(spheres.centers, spheres.radii, pts[box])
     inter = (inside & solid).sum()
@@ -94,9 +93,7 @@ def _greedy_cover(level: SdfLevel, error: float, max_spheres: int, pad_voxels: f
     if n_solid == 0:
         return SphereSet(np.zeros((0, 3)), np.zeros(0)), 0.0
     idx = np.arange(L ** 3)
-    i, rem = np.divmod(idx, L * L)
-    j, k = np.divmod(rem, L)
-    pts = level.origin + (np.stack([i, j, k], 1) + 0.5) * w
+    pts = voxel_centers(level.origin, w, L)
     sub = idx
     tree = cKDTree(pts[sub])
     sub_solid = solid[sub]

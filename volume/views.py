@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.sampling import mask_box
+
 #: ``--views auto``: views closer than this in direction (seen from the object) are near-duplicates.
 AUTO_MIN_ANGLE_DEG = 2.0
 #: A view whose distance to the object differs from a near-duplicate's by more than this ratio is kept.
@@ -95,9 +97,8 @@ def select_views(cameras, mode: str = "auto", centre=None) -> tuple[list[int], l
 
 def footprint_px(depth: np.ndarray) -> int:
     """Largest side (pixels) of the bounding box of a depth map's pixels with depth (0 if none)."""
-    m = np.asarray(depth) > 0
-    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
-    return int(max(rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1)) if len(rows) else 0
+    box = mask_box(np.asarray(depth) > 0)
+    return 0 if box is None else max(box[1] - box[0], box[3] - box[2])
 
 
 def working_scale(footprints, output_size: tuple[int, int] | None) -> tuple[float, dict]:

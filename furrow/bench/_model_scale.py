@@ -18,6 +18,8 @@ import json
 import os
 from pathlib import Path
 
+from capture.atomic import write_json
+
 #: Frame counts measured by default.
 FRAME_COUNTS = (18, 36, 72, 144)
 #: Frame sizes measured by default.
@@ -161,7 +163,7 @@ def scale_main(args, run_child, tree_of, root: Path) -> int:
     rows = run_scale(sizes, counts, args.before if args.before != "reference" else "none", work,
                      args.out / "data", given, run_child, tree_of, root, getattr(args, "scale_spill", None))
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "model_scale.json").write_text(json.dumps({"rows": rows, "load_average": os.getloadavg()}, indent=1))
+    write_json(args.out / "model_scale.json", {"rows": rows, "load_average": os.getloadavg()})
     Console(stderr=True, width=200).print(scale_table(rows))
     if rows:
         print(f"plot: {plot_scale(rows, args.out)}")

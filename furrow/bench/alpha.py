@@ -17,12 +17,12 @@ map (``--map``), binary mask | soft alpha | truth, cropped to the object.
 from __future__ import annotations
 
 import argparse
-import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 from furrow.bench._common import print_result
 
@@ -179,5 +179,5 @@ def main(argv: list[str]) -> int:
                 picture(ctx, {"binary mask (no matte)": binary, "soft alpha (true matte)": matte},
                         split.held[len(split.held) // 4], args.map, args.picture)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "alpha.json").write_text(json.dumps(res, indent=1))
+    write_json(args.out / "alpha.json", res)
     return print_result(res, args.json, _table, f"wrote {args.out / 'alpha.json'}")

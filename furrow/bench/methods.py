@@ -14,11 +14,11 @@ of ``furrow eval``).
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 from furrow.bench._common import print_result
 
@@ -98,5 +98,5 @@ def main(argv: list[str]) -> int:
         res = {"scans": str(args.scans), "held": split.held_idx, "methods": measure(ctx, em.model, split.held,
                                                                                      methods, args.repeat)}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "methods.json").write_text(json.dumps(res, indent=1))
+    write_json(args.out / "methods.json", res)
     return print_result(res, args.json, _table, f"wrote {args.out / 'methods.json'}")

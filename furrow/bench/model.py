@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
+from capture.sampling import voxel_centres
 from furrow.bench import OUT_ROOT
 from furrow.bench._common import save_figure
 
@@ -84,6 +86,7 @@ def gt_volumes(verts, faces, origin, extent, resolutions) -> dict[int, np.ndarra
     import open3d as o3d
 
     from volume.fusion import upsample2
+    from volume.grid import flat_voxel_indices
     from volume.metrics import mesh_sdf
 
     scene = o3d.t.geometry.RaycastingScene()
@@ -102,9 +105,7 @@ def gt_volumes(verts, faces, origin, extent, resolutions) -> dict[int, np.ndarra
         fine = np.where(upsample2(cur) > 0, far, -far).astype(np.float32).reshape(-1)
         for s in range(0, len(idx), 1 << 20):
             sl = idx[s:s + (1 << 20)]
-            i, rem = np.divmod(sl, Lf * Lf)
-            j, k = np.divmod(rem, Lf)
-            x = (origin + (np.stack([i, j, k], 1) + 0.5) * wf).astype(np.float32)
+            x = voxel_centres(flat_voxel_indices(sl, Lf), origin, wf).astype(np.float32)
             q = o3d.core.Tensor(x)
             d = scene.compute_distance(q).numpy()
             occ = scene.compute_occupancy(q, nsamples=3).numpy() > 0.5
@@ -412,7 +413,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"rows": rows, "target": target, "spheres": sphere_rows}
     args.out.mkdir(parents=True, exist_ok=True)
     name = "model_bench.json" if rows else ("model_bench_spheres.json" if sphere_rows else "model_bench_target.json")
-    (args.out / name).write_text(json.dumps(result, indent=1))
+    write_json(args.out / name, result)
     if rows:
         p = plot(rows, args.out)
         print(f"plot: {p}")
@@ -437,7 +438,7 @@ def _speed_main(args, data: Path) -> int:
         if args.eval:
             quality += run_quality(name, scans, args.before, work)
     result = {"speed": rows, "quality": quality, "before": args.before, "load_average": os.getloadavg()}
-    (args.out / "model_bench_speed.json").write_text(json.dumps(result, indent=1))
+    write_json(args.out / "model_bench_speed.json", result)
     Console(stderr=True, width=200).print(speed_table(rows, quality))
     if args.json:
         print(json.dumps(result))

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 from render.methods import DEFAULT_METHOD, METHODS
 
@@ -51,6 +52,14 @@ def variant_turn(text: str) -> float:
     return 0.0
 
 
+#: Switch flags of a variant: flag -> (RelightConfig field, value).
+VARIANT_SWITCHES = {"vis": ("visibility", True), "novis": ("visibility", False), "strands": ("strands", True),
+                    "nostrands": ("strands", False)}
+#: Valued flags of a variant (``KEY=VALUE``): key -> (RelightConfig field, type).
+VARIANT_VALUES = {"fwd": ("forward", float), "g": ("forward_g", float), "s": ("smooth", float),
+                  "res": ("volume_res", int), "sres": ("strand_res", int), "sw": ("strand_weight", float)}
+
+
 def parse_variant(text: str):
     """``KERNEL[:vis|:novis][:strands|:nostrands][:fwd=BETA][:g=G][:s=SMOOTH][:res=L][:sres=L][:sw=W][:turn=DEG]`` ->
     render.relight.gl.RelightConfig (vis / novis: with / without the sphere set's visibility; strands /
@@ -62,26 +71,14 @@ def parse_variant(text: str):
     kernel, *flags = text.split(":")
     kw = {"kernel": kernel}
     for f in flags:
-        if f.startswith("turn="):
+        key, eq, value = f.partition("=")
+        if eq and key == "turn":
             continue
-        if f in ("strands", "nostrands"):
-            kw["strands"] = f == "strands"
-        elif f == "novis":
-            kw["visibility"] = False
-        elif f == "vis":
-            kw["visibility"] = True
-        elif f.startswith("fwd="):
-            kw["forward"] = float(f[4:])
-        elif f.startswith("g="):
-            kw["forward_g"] = float(f[2:])
-        elif f.startswith("s="):
-            kw["smooth"] = float(f[2:])
-        elif f.startswith("sres="):
-            kw["strand_res"] = int(f[5:])
-        elif f.startswith("sw="):
-            kw["strand_weight"] = float(f[3:])
-        elif f.startswith("res="):
-            kw["volume_res"] = int(f[4:])
+        if not eq and f in VARIANT_SWITCHES:
+            kw.update([VARIANT_SWITCHES[f]])
+        elif eq and key in VARIANT_VALUES:
+            field, kind = VARIANT_VALUES[key]
+            kw[field] = kind(value)
         else:
             raise ValueError(f"bad variant {text!r}: flags are 'vis', 'novis', 'strands', 'nostrands', 'fwd=BETA', "
                              "'g=G', 's=SMOOTH', 'res=L', 'sres=L', 'sw=W', 'turn=DEG'")
@@ -305,7 +302,7 @@ def main(argv: list[str]) -> int:
                                       a.timing_width) for c in a.captures]}
     first = res["variants"][0]
     res["met"] = all(p[first]["gain_over_single_db"] >= TARGET_DB for c in res["captures"] for p in c["pairs"])
-    (a.out / "relight.json").write_text(json.dumps(res, indent=1, default=float))
+    write_json(a.out / "relight.json", res, default=float)
     if a.json:
         print(json.dumps(res, indent=1, default=float))
         return 0

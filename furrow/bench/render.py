@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 
 TOLERANCES = (2.0, 4.0, 8.0, 16.0)
@@ -184,7 +185,7 @@ def main(argv: list[str]) -> int:
             if not args.no_sweep:
                 results["sizes"][key] = _sweep(r, vd, views, model.pyramid.resolutions, base, con, key)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "render.json").write_text(json.dumps(results, indent=1))
+    write_json(args.out / "render.json", results)
     _tables(con, results, len(held))
     if results["sizes"]:
         _plot(results, args.out / "render.png")

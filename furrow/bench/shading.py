@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.sampling import cell_centres, to_texcoord
 from furrow.bench import OUT_ROOT
 from furrow.bench._common import print_result, save_figure
 
@@ -70,7 +71,7 @@ def bench_irradiance(quick: bool) -> list[dict]:
 
 def _voxel_sample(s, n, seed):
     idx = np.random.default_rng(seed).integers(0, s, (3 * n, 3))
-    return idx[np.linalg.norm((idx + 0.5) / s * 2 - 1, axis=1) <= 1.0][:n]
+    return idx[np.linalg.norm(to_texcoord(idx, s) * 2 - 1, axis=1) <= 1.0][:n]
 
 
 def bench_msem(quick: bool, map_name: str, samples: int) -> list[dict]:
@@ -110,7 +111,7 @@ def bench_sphere(quick: bool, map_name: str) -> list[dict]:
     s = 64 if quick else 128
     vol = msem_build(env, s).volume
     res = 48 if quick else 96
-    u = (np.arange(res) + 0.5) / res * 2 - 1
+    u = cell_centres(res, -1.0, 1.0)
     X, Z = np.meshgrid(u, -u)
     inside = X**2 + Z**2 < 1
     nx, nz = X[inside], Z[inside]

@@ -31,6 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
+from capture.sampling import nearest_pixel
+
 #: Visibility tolerance of the reprojection statistic (issue 11: 4 mm, the splatter's).
 VIS_TOL_M = 0.004
 #: Neighbour counts of the reprojection statistic.
@@ -48,7 +51,7 @@ def miss_fractions(held, kept_scans, centre) -> dict:
     for n, j in enumerate(order, 1):
         s = kept_scans[j]
         uv, z = s.camera.project(pts)
-        ij = np.round(uv).astype(np.int64)
+        ij = nearest_pixel(uv)
         ok = (z > 0) & (ij[:, 0] >= 0) & (ij[:, 1] >= 0) & (ij[:, 0] < s.camera.width) & (ij[:, 1] < s.camera.height)
         d = np.zeros(len(pts))
         d[ok] = s.depth[ij[ok, 1], ij[ok, 0]]
@@ -122,7 +125,7 @@ def main(argv: list[str]) -> int:
             (f"{st[k]:13.3f}" if isinstance(st[k], float) else str(st[k]).rjust(13)) for k in keys))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(table, indent=1))
+        write_json(args.json, table)
     return 0
 
 

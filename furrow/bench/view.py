@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 from furrow.bench._common import print_result
 from render.methods import DEFAULT_METHOD, samples_per_pixel_side
@@ -246,7 +247,7 @@ def main(argv=None) -> int:
     costs = cost_table(load_model(model_dir))
     res = {"driver": args.driver, "model": str(model_dir), "size": list(SIZE), "load_before": list(load0),
            "load_after": list(os.getloadavg()), "cpus": os.cpu_count(), **summarise(frames), "costs": costs}
-    (args.out / f"bench_view_{args.driver}.json").write_text(json.dumps({**res, "frames": frames}, indent=1))
+    write_json(args.out / f"bench_view_{args.driver}.json", {**res, "frames": frames})
     m = res["median"]
     ok = (m["fps"] >= TARGET_FPS and m["lines"] >= TARGET_LINES, m["full_s"] <= TARGET_STILL_S)
 

@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from capture.camera import gl_row, gl_rows_to_image
+from capture.sampling import points_box
 from render.owner import GLOwner
 
 #: Default sub-samples per pixel side of the streak layer.
@@ -73,8 +74,7 @@ class GlareLayer(GLOwner):
             return None
         a = np.abs(streaks.axis)
         ext = a * streaks.length[:, None] + a[:, ::-1] * streaks.width[:, None] / 2
-        lo = (streaks.centre - ext).min(0)
-        hi = (streaks.centre + ext).max(0)
+        lo, hi = points_box(np.concatenate([streaks.centre - ext, streaks.centre + ext]))
         w, h = self.size
         u0, u1 = max(int(np.floor(lo[0])) - 1, 0), min(int(np.ceil(hi[0])) + 2, w)
         v_top, v_bottom = int(np.floor(lo[1])) - 1, int(np.ceil(hi[1])) + 1  # image rows, 1 px margin

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from capture.sampling import from_texcoord, points_box, sample_image, voxel_centres
 from render.shading.sg import COS_LOBE_LAMBDA, COS_LOBE_MU, fh_fit, sg_product
 from render.shading.ssdf import combine_ssdf, ssdf_ground, ssdf_spheres
 
@@ -66,8 +67,7 @@ class GroundPlane:
 
     def grid_points(self) -> np.ndarray:
         """(G, G, 3) world texel centres; [j, i] = origin + (i + 0.5, j + 0.5) * cell."""
-        g = int(self.resolution)
-        t = (np.arange(g) + 0.5) * self.cell
+        t = voxel_centres(np.arange(int(self.resolution)), 0.0, self.cell)
         xx, yy = np.meshgrid(self.origin[0] + t, self.origin[1] + t)
         return np.stack([xx, yy, np.full_like(xx, self.height)], -1)
 
@@ -79,7 +79,7 @@ def ground_from_spheres(spheres, height: float | None = None, resolution: int = 
     r = np.asarray(spheres.radii, np.float64)
     if len(r) == 0:
         raise ValueError("ground_from_spheres: empty sphere set")
-    lo, hi = (c - r[:, None]).min(0), (c + r[:, None]).max(0)
+    lo, hi = points_box(np.concatenate([c - r[:, None], c + r[:, None]]))
     h = float(lo[2]) if height is None else float(height)
     mid = (lo[:2] + hi[:2]) / 2
     rad = float(np.max(np.linalg.norm(c[:, :2] - mid, axis=1) + r))
@@ -144,11 +144,5 @@ def ratio_lookup(grid, ground: GroundPlane, xy) -> np.ndarray:
     G = g.shape[0]
     uv = (np.asarray(xy, np.float64) - ground.origin) / (2 * ground.half_size)
     inside = np.all((uv >= 0) & (uv <= 1), axis=-1)
-    x = np.clip(uv[..., 0] * G - 0.5, 0, G - 1)
-    y = np.clip(uv[..., 1] * G - 0.5, 0, G - 1)
-    x0 = np.minimum(np.floor(x).astype(np.int64), G - 2)
-    y0 = np.minimum(np.floor(y).astype(np.int64), G - 2)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    v = (g[y0, x0] * (1 - fx) * (1 - fy) + g[y0, x0 + 1] * fx * (1 - fy)
-         + g[y0 + 1, x0] * (1 - fx) * fy + g[y0 + 1, x0 + 1] * fx * fy)
+    v = sample_image(g, from_texcoord(uv[..., 0], G), from_texcoord(uv[..., 1], G), "linear", "clamp")
     return np.where(inside[..., None], v, 1.0)

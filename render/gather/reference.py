@@ -10,9 +10,9 @@ Per frame, for an eye E (docs/methods.md §1.9; measured in README "Novel views"
    pixel no splat covers stays empty (this is the frame's coverage).
 2. **Colour** (:func:`gather`): the pixel's point X (its centre at that depth) is projected
    into the ``k_blend`` nearest cameras; each gives its colour image resampled at the
-   projection (bilinear by default, :func:`bilinear`; Catmull-Rom bicubic, :func:`cubic`, as an
-   option: the photos' own anti-aliasing and strand fringes are kept, where a 2 x 2 splat
-   repeats one texel), with weight (1 / angle) x visibility.  Visibility is soft
+   projection (bilinear by default, capture.sampling.sample_image; Catmull-Rom bicubic,
+   :func:`cubic`, as an option: the photos' own anti-aliasing and strand fringes are kept, where
+   a 2 x 2 splat repeats one texel), with weight (1 / angle) x visibility.  Visibility is soft
    (Soft 3D, Penner & Zhang 2017): exp(-(d - z)^2 / 2 sigma^2) for the camera's depth d at the
    nearest texel and X's depth z in that camera, never below ``vis_floor`` -- an occluded or
    unmeasured camera still adds a little of what it saw there, so the pixels no camera sees
@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
+from capture.sampling import sample_image
 from render.points import reference as pr
 
 #: Colour resampling filters (GatherConfig.resample).
@@ -99,22 +100,6 @@ def front_depth(eye: Camera, clouds, side: int) -> tuple[np.ndarray, int]:
     return np.where(np.isfinite(front), front, 0.0), n
 
 
-def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """(N, C) bilinear interpolation of ``img`` (H, W, C) at ``uv`` (N, 2) OpenCV pixel
-    coordinates (texel (i, j) centred at (i, j)); taps beyond the border are clamped to it."""
-    H, W = img.shape[:2]
-    x0 = np.floor(uv[:, 0])
-    y0 = np.floor(uv[:, 1])
-    fx = (uv[:, 0] - x0)[:, None]
-    fy = (uv[:, 1] - y0)[:, None]
-    xa = np.clip(x0, 0, W - 1).astype(np.int64)
-    xb = np.clip(x0 + 1, 0, W - 1).astype(np.int64)
-    ya = np.clip(y0, 0, H - 1).astype(np.int64)
-    yb = np.clip(y0 + 1, 0, H - 1).astype(np.int64)
-    return ((img[ya, xa] * (1 - fx) + img[ya, xb] * fx) * (1 - fy)
-            + (img[yb, xa] * (1 - fx) + img[yb, xb] * fx) * fy)
-
-
 def cubic_weights(t: np.ndarray, a: float = CUBIC_A) -> np.ndarray:
     """(N, 4) Keys cubic weights of the taps at offsets -1, 0, 1, 2 from floor(x), t = x - floor(x)."""
     t = np.asarray(t, np.float64)
@@ -151,8 +136,9 @@ def premultiply(rgb: np.ndarray, alpha: np.ndarray | None) -> np.ndarray:
 
 
 def sample_view(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndarray, resample: str = "linear"):
-    """What camera ``cam`` saw at world ``points`` (N, 3): (colour (N, C) resampled (:func:`cubic`
-    or :func:`bilinear`) from ``rgb`` (H, W, C): 3 straight or 4 premultiplied + alpha channels, depth d (N,)
+    """What camera ``cam`` saw at world ``points`` (N, 3): (colour (N, C) resampled from ``rgb``
+    (H, W, C; 3 straight or 4 premultiplied + alpha channels) by :func:`cubic`, or bilinearly with
+    the edge texels clamped (capture.sampling.sample_image: GL_LINEAR + CLAMP_TO_EDGE), depth d (N,)
     at the nearest texel, the points' own z-depth z (N,), inside (N,) bool: in front of the camera
     and within its image, [-0.5, W - 0.5] x [-0.5, H - 0.5])."""
     uv, z = cam.project(points)
@@ -160,9 +146,8 @@ def sample_view(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndar
     H, W = depth.shape
     inside = (z > 0) & (uv[:, 0] >= -0.5) & (uv[:, 1] >= -0.5) & (uv[:, 0] <= W - 0.5) & (uv[:, 1] <= H - 0.5)
     uvc = np.where(inside[:, None], uv, 0.0)
-    ij = np.clip(np.floor(uvc + 0.5).astype(np.int64), 0, [W - 1, H - 1])
-    d = np.where(inside, depth[ij[:, 1], ij[:, 0]], 0.0)
-    col = (cubic if resample == "cubic" else bilinear)(rgb, uvc)
+    d = np.where(inside, sample_image(depth, uvc[:, 0], uvc[:, 1], "nearest", "clamp"), 0.0)
+    col = cubic(rgb, uvc) if resample == "cubic" else sample_image(rgb, uvc[:, 0], uvc[:, 1], "linear", "clamp")
     return col, d, z, inside
 
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera
+from capture.sampling import nearest_pixel
 
 #: A slice is a square of side sqrt(3) w, so it covers its voxel from every direction (§1.2).
 SLICE_SIDE_FACTOR = float(np.sqrt(3.0))
@@ -269,11 +270,10 @@ def sample_rgbz(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.ndar
     """
     uv, D = cam.project(points)
     with np.errstate(invalid="ignore"):
-        ix = np.floor(uv[:, 0] + 0.5)
-        iy = np.floor(uv[:, 1] + 0.5)
+        ix, iy = nearest_pixel(uv[:, 0]), nearest_pixel(uv[:, 1])
         inside = (D > 0) & (ix >= 0) & (ix < cam.width) & (iy >= 0) & (iy < cam.height)
-    ixi = np.where(inside, ix, 0).astype(np.int64)
-    iyi = np.where(inside, iy, 0).astype(np.int64)
+    ixi = np.where(inside, ix, 0)
+    iyi = np.where(inside, iy, 0)
     d = np.where(inside, depth[iyi, ixi], 0.0)
     col = np.where(inside[:, None], rgb[iyi, ixi], 0.0)
     return col, d, D, inside
@@ -326,11 +326,10 @@ def refine_colours(cam: Camera, rgb: np.ndarray, depth: np.ndarray, points: np.n
             q2 = pe + s_[:, None] * dirv
             ok &= (q2[:, 2] > 0) & (np.abs(q2[:, 2] - pr[:, 2]) <= REFINE_RANGE * tol)
             zz = np.where(ok, q2[:, 2], 1.0)
-            ix = np.floor(q2[:, 0] / zz + 0.5)
-            iy = np.floor(q2[:, 1] / zz + 0.5)
+            ix, iy = nearest_pixel(q2[:, 0] / zz), nearest_pixel(q2[:, 1] / zz)
         ok &= (ix >= 0) & (iy >= 0) & (ix < W) & (iy < H)
-        ixi = np.where(ok, ix, 0).astype(np.int64)
-        iyi = np.where(ok, iy, 0).astype(np.int64)
+        ixi = np.where(ok, ix, 0)
+        iyi = np.where(ok, iy, 0)
         dn = depth[iyi, ixi]
         ok &= dn > 0
         tcol = np.where(ok[:, None], rgb[iyi, ixi], tcol)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from capture.camera import Camera, image_axes
+from capture.sampling import voxel_centres
 from render.frame import Frame, FrameStats
 from render.gl import load_shader, program
 from render.methods import Renderer, RenderOptions
@@ -199,7 +200,7 @@ class MicrofacetRenderer(Renderer):
         self.voxel_bufs = []
         self.orders = []
         for lv, surf in zip(self.levels, self.surfaces):
-            cen = lv.origin + (surf.astype(np.float64) + 0.5) * lv.voxel_size
+            cen = voxel_centres(surf, lv.origin, lv.voxel_size)
             bufs, ords = [], []
             for axis in range(6):
                 direction = np.zeros(3)
@@ -256,7 +257,7 @@ class MicrofacetRenderer(Renderer):
     def level_centers(self, level: int) -> np.ndarray:
         """(N, 3) world centres of the voxels drawn on ``level`` (see render.microfacet.lod.covering_surfaces)."""
         lv = self.levels[level]
-        return lv.origin + (self.surfaces[level].astype(np.float64) + 0.5) * lv.voxel_size
+        return voxel_centres(self.surfaces[level], lv.origin, lv.voxel_size)
 
     def _program(self, kind: str, refine: int, debug: str | None = None):
         """(program, vertex array) of ``kind`` ("select" (tiles, culled), "select_all" (one record

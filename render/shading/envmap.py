@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.imageio import read_exr_rgb, write_exr
+from capture.sampling import cell_centres, from_texcoord, nearest_pixel, sample_image
 
 #: Folder of the bundled CC0 environment maps (package data of datasets_synthetic, found by path
 #: so that render/ does not import datasets_synthetic).
@@ -92,9 +93,7 @@ class EnvMap:
     def pixel_directions(self) -> np.ndarray:
         """(H, W, 3) float64 unit directions of the pixel centres."""
         h, w = self.height, self.width
-        u = (np.arange(w) + 0.5) / w
-        v = (np.arange(h) + 0.5) / h
-        uu, vv = np.meshgrid(u, v)
+        uu, vv = np.meshgrid(cell_centres(w, 0.0, 1.0), cell_centres(h, 0.0, 1.0))
         return uv_to_dir(np.stack([uu, vv], -1))
 
     def pixel_solid_angles(self) -> np.ndarray:
@@ -112,11 +111,8 @@ class EnvMap:
         w = self.width
         # phi -> phi + a  <=>  u -> u - a / (2 pi); new[:, j] = old at column j + a W / (2 pi)
         shift = float(angle_z) * w / (2 * np.pi)
-        x = np.arange(w) + shift
-        x0 = np.floor(x).astype(np.int64)
-        f = (x - x0)[None, :, None]
-        d = self.data.astype(np.float64)
-        out = d[:, x0 % w] * (1 - f) + d[:, (x0 + 1) % w] * f
+        y, x = np.meshgrid(np.arange(self.height), np.arange(w) + shift, indexing="ij")
+        out = sample_image(self.data.astype(np.float64), x, y, "linear", ("clamp", "wrap"))
         return EnvMap(out.astype(np.float32), self.name)
 
     def resized(self, h: int) -> EnvMap:
@@ -163,21 +159,21 @@ def pixel_solid_angles(h: int) -> np.ndarray:
 def pixel_centre_polar(h: int) -> np.ndarray:
     """(h,) float64 polar angle theta (from +z) of the pixel-centre rows of an equirect map of
     height h: pi (i + 0.5) / h."""
-    return np.pi * (np.arange(h) + 0.5) / h
+    return cell_centres(h, 0.0, np.pi)
 
 
 def pixel_centre_azimuth(w: int) -> np.ndarray:
     """(w,) float64 azimuth phi (atan2(y, x)) of the pixel-centre columns of an equirect map of
     width w: pi (1 - 2 (j + 0.5) / w)."""
-    return np.pi * (1.0 - 2.0 * (np.arange(w) + 0.5) / w)
+    return np.pi * (1.0 - 2.0 * cell_centres(w, 0.0, 1.0))
 
 
-def nearest_pixel(uv, h: int) -> tuple[np.ndarray, np.ndarray]:
+def equirect_nearest(uv, h: int) -> tuple[np.ndarray, np.ndarray]:
     """(rows, columns) int64 of the pixels of an (h, 2h) equirect map whose centres are nearest
-    to (..., 2) uv (columns wrap, rows clamp)."""
+    to (..., 2) uv (columns wrap, rows clamp; capture.sampling.nearest_pixel: ties go up)."""
     uv = np.asarray(uv, np.float64)
-    rows = np.clip(np.round(uv[..., 1] * h - 0.5).astype(np.int64), 0, h - 1)
-    cols = np.round(uv[..., 0] * (2 * h) - 0.5).astype(np.int64) % (2 * h)
+    rows = np.clip(nearest_pixel(from_texcoord(uv[..., 1], h)), 0, h - 1)
+    cols = nearest_pixel(from_texcoord(uv[..., 0], 2 * h)) % (2 * h)
     return rows, cols
 
 
@@ -209,21 +205,12 @@ def uv_to_dir(uv) -> np.ndarray:
 
 
 def sample_equirect(data: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of an (H, W, C) equirect array at (..., 2) uv: wrap in u, clamp in v."""
+    """Bilinear lookup of an (H, W, C) equirect array at (..., 2) uv: wrap in u, clamp in v
+    (GL_LINEAR, REPEAT in s, CLAMP_TO_EDGE in t; capture.sampling). float64."""
     data = np.asarray(data)
     H, W = data.shape[:2]
-    x = uv[..., 0] * W - 0.5
-    y = np.clip(uv[..., 1] * H - 0.5, 0.0, H - 1.0)
-    x0 = np.floor(x).astype(np.int64)
-    y0 = np.floor(y).astype(np.int64)
-    fx = (x - x0)[..., None]
-    fy = (y - y0)[..., None]
-    y1 = np.minimum(y0 + 1, H - 1)
-    xa, xb = x0 % W, (x0 + 1) % W
     d = data.astype(np.float64) if data.dtype != np.float64 else data
-    top = d[y0, xa] * (1 - fx) + d[y0, xb] * fx
-    bot = d[y1, xa] * (1 - fx) + d[y1, xb] * fx
-    return top * (1 - fy) + bot * fy
+    return sample_image(d, from_texcoord(uv[..., 0], W), from_texcoord(uv[..., 1], H), "linear", ("clamp", "wrap"))
 
 
 # -- procedural fallback ----------------------------------------------------------------------
@@ -284,9 +271,7 @@ def procedural_sky(h: int = 64) -> EnvMap:
     h = int(h)
     ss = 4
     w = 2 * h
-    u = (np.arange(w * ss) + 0.5) / (w * ss)
-    v = (np.arange(h * ss) + 0.5) / (h * ss)
-    d = uv_to_dir(np.stack(np.meshgrid(u, v), -1))
+    d = uv_to_dir(np.stack(np.meshgrid(cell_centres(w * ss, 0.0, 1.0), cell_centres(h * ss, 0.0, 1.0)), -1))
     z = d[..., 2:3]
     zenith = np.array([0.25, 0.45, 0.9])
     horizon = np.array([0.9, 0.95, 1.0])

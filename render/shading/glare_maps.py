@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from capture.camera import resample_pixel_coords
+from capture.sampling import cell_centres, nearest_pixel
 from render.shading.brdf import blinn_phong_normalized
 from render.shading.envmap import EnvMap
 from render.shading.lights import LUMA
@@ -146,7 +147,7 @@ def glare_sources(image, display_max: float = 1.0, mask=None, spec=None, default
 def remove_excess(image, src: GlareSources) -> np.ndarray:
     """float64 copy of ``image`` with each source pixel's excess taken out."""
     out = np.array(image, np.float64)
-    ij = np.rint(src.centres).astype(np.int64)
+    ij = nearest_pixel(src.centres)  # the sources' own pixels (their centres are integers)
     out[ij[:, 1], ij[:, 0]] -= src.excess
     return out
 
@@ -234,8 +235,6 @@ def streak_energy_on_screen(streaks: Streaks, width: int, height: int) -> np.nda
         if np.any(hi <= lo):
             continue
         n = np.maximum(np.ceil((hi - lo) * 8).astype(int), 1)
-        us = lo[0] + (np.arange(n[0]) + 0.5) * (hi[0] - lo[0]) / n[0]
-        vs = lo[1] + (np.arange(n[1]) + 0.5) * (hi[1] - lo[1]) / n[1]
-        uu, vv = np.meshgrid(us, vs)
+        uu, vv = np.meshgrid(cell_centres(n[0], lo[0], hi[0]), cell_centres(n[1], lo[1], hi[1]))
         tot += _tent(streaks, m, uu, vv).sum() * np.prod((hi - lo) / n) * streaks.colour[m]
     return tot

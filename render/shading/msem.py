@@ -37,10 +37,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from capture.sampling import cell_centres, from_texcoord, sample_grid, to_texcoord
 from render.shading.envmap import (
     EnvMap,
     dir_to_uv,
-    nearest_pixel,
+    equirect_nearest,
     pixel_centre_azimuth,
     pixel_centre_polar,
     pixel_solid_angles,
@@ -72,7 +73,7 @@ def msem_lambda(radius, s: int, levels: int = MSEM_INTENSITY_LEVELS) -> np.ndarr
 
 def voxel_centres(s: int) -> np.ndarray:
     """(s, s, s, 3) float64 voxel centres t in (-1, 1)^3, indexed [i, j, k] = (x, y, z)."""
-    c = (np.arange(s) + 0.5) / s * 2.0 - 1.0
+    c = cell_centres(s, -1.0, 1.0)
     return np.stack(np.meshgrid(c, c, c, indexing="ij"), -1)
 
 
@@ -85,7 +86,7 @@ def phong_weights(cosang, lam):
 def msem_brute(env: EnvMap, s: int, index) -> np.ndarray:
     """Reference F for voxels ``index`` ((N, 3) int, i j k): the full pixel sum. (N, 3) float64."""
     idx = np.atleast_2d(np.asarray(index, np.int64))
-    t = (idx + 0.5) / s * 2.0 - 1.0
+    t = to_texcoord(idx, s) * 2.0 - 1.0
     rad = np.linalg.norm(t, axis=1)
     lam = msem_lambda(rad, s)
     tn = t / rad[:, None]
@@ -190,7 +191,7 @@ def msem_direct(env: EnvMap, dirs, lam, th: float) -> np.ndarray:
     alpha = _reach(lam, th)
     cos_a = np.cos(alpha)
     uv = dir_to_uv(dirs)
-    i0, j0 = nearest_pixel(uv, H)
+    i0, j0 = equirect_nearest(uv, H)
     R = np.ceil(alpha / dth).astype(np.int64) + 1
     lo, hi = i0 - R, i0 + R
     polar = (lo < 0) | (hi > H - 1)
@@ -344,17 +345,7 @@ def msem_lookup(volume: np.ndarray, r, smoothness) -> np.ndarray:
     vol = np.asarray(volume, np.float64)
     s = vol.shape[0]
     t = np.asarray(r, np.float64) * np.asarray(smoothness, np.float64)[..., None]
-    p = np.clip((t + 1.0) / 2.0 * s - 0.5, 0.0, s - 1.0)
-    p0 = np.minimum(np.floor(p).astype(np.int64), s - 2)
-    f = p - p0
-    out = 0.0
-    for dx in (0, 1):
-        for dy in (0, 1):
-            for dz in (0, 1):
-                wgt = ((f[:, 0] if dx else 1 - f[:, 0]) * (f[:, 1] if dy else 1 - f[:, 1])
-                       * (f[:, 2] if dz else 1 - f[:, 2]))
-                out = out + wgt[:, None] * vol[p0[:, 0] + dx, p0[:, 1] + dy, p0[:, 2] + dz]
-    return out
+    return sample_grid(vol, from_texcoord((t + 1.0) / 2.0, s), "linear", "clamp")
 
 
 def msem_texture(ctx, volume: np.ndarray):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.sampling import cell_centres, from_texcoord, sample_grid, sample_image
 from render.shading.envmap import EnvMap
 
 #: docs/methods.md §2 Table 2: equirect width -> geodesic dome vertices (frequency nu = 9 W / 64).
@@ -100,7 +101,7 @@ def dome_from_equirect(env: EnvMap, freq: int):
 # -- cube maps -------------------------------------------------------------------------------------
 def _cube_dirs(n: int) -> np.ndarray:
     """(6, n, n, 3) unit directions of the cube-map texel centres (OpenGL face table)."""
-    s = (np.arange(n) + 0.5) / n * 2 - 1
+    s = cell_centres(n, -1.0, 1.0)
     sc, tc = np.meshgrid(s, s)  # sc along columns, tc along rows (rows top-down = +t down)
     one = np.ones_like(sc)
     faces = [np.stack([one, -tc, -sc], -1), np.stack([-one, -tc, sc], -1), np.stack([sc, one, tc], -1),
@@ -130,14 +131,8 @@ def sample_cubemap(cube, dirs) -> np.ndarray:
     conds = [face == k for k in range(6)]
     sc = np.select(conds, [-z, z, x, x, x, -x]) / ma
     tc = np.select(conds, [-y, -y, z, -z, -y, -y]) / ma
-    px = np.clip((sc + 1) / 2 * n - 0.5, 0, n - 1)
-    py = np.clip((tc + 1) / 2 * n - 0.5, 0, n - 1)
-    x0 = np.minimum(np.floor(px).astype(int), max(n - 2, 0))
-    y0 = np.minimum(np.floor(py).astype(int), max(n - 2, 0))
-    fx, fy = (px - x0)[:, None], (py - y0)[:, None]
-    x1, y1 = np.minimum(x0 + 1, n - 1), np.minimum(y0 + 1, n - 1)
-    v = (cube[face, y0, x0] * (1 - fx) * (1 - fy) + cube[face, y0, x1] * fx * (1 - fy)
-         + cube[face, y1, x0] * (1 - fx) * fy + cube[face, y1, x1] * fx * fy)
+    px, py = from_texcoord((sc + 1) / 2, n), from_texcoord((tc + 1) / 2, n)
+    v = sample_grid(cube, np.stack([face, py, px], -1), "linear", "clamp")  # face exact: weight 0 beyond it
     return v.reshape(shape + (cube.shape[-1],))
 
 
@@ -150,7 +145,7 @@ def equirect_from_cubemap(cube, h: int, name: str = "cubemap") -> EnvMap:
 # -- fisheye and mirror ball ---------------------------------------------------------------------
 def fisheye_from_equirect(env: EnvMap, size: int, fov_deg: float = 185.0) -> np.ndarray:
     """(size, size, 3) angular fisheye image of ``env`` looking up (+z); outside the circle 0."""
-    c = (np.arange(size) + 0.5) / size * 2 - 1
+    c = cell_centres(size, -1.0, 1.0)
     X, Y = np.meshgrid(c, c)  # Y grows downwards
     r = np.hypot(X, Y)
     theta = r * np.radians(fov_deg) / 2
@@ -173,27 +168,16 @@ def equirect_from_fisheye(img, h: int, fov_deg: float = 185.0, below: float = 0.
     theta = np.arctan2(np.hypot(d[..., 0], d[..., 1]), d[..., 2])
     r = theta / (np.radians(fov_deg) / 2)
     phi = np.arctan2(d[..., 1], d[..., 0])
-    px = (r * np.cos(phi) + 1) / 2 * S - 0.5
-    py = (-r * np.sin(phi) + 1) / 2 * S - 0.5
-    v = _bilinear(img, px, py)
+    px = from_texcoord((r * np.cos(phi) + 1) / 2, S)
+    py = from_texcoord((-r * np.sin(phi) + 1) / 2, S)
+    v = sample_image(img, px, py, "linear", "clamp")
     v[r > 1] = below
     return EnvMap(np.maximum(v, 0).astype(np.float32), name)
 
 
-def _bilinear(img, px, py):
-    H, W = img.shape[:2]
-    px = np.clip(px, 0, W - 1)
-    py = np.clip(py, 0, H - 1)
-    x0 = np.minimum(np.floor(px).astype(int), W - 2)
-    y0 = np.minimum(np.floor(py).astype(int), H - 2)
-    fx, fy = (px - x0)[..., None], (py - y0)[..., None]
-    return (img[y0, x0] * (1 - fx) * (1 - fy) + img[y0, x0 + 1] * fx * (1 - fy)
-            + img[y0 + 1, x0] * (1 - fx) * fy + img[y0 + 1, x0 + 1] * fx * fy)
-
-
 def mirror_ball_from_equirect(env: EnvMap, size: int, cam_to_world=None) -> np.ndarray:
     """(size, size, 3) orthographic image of a mirror ball reflecting ``env``; outside 0."""
-    c = (np.arange(size) + 0.5) / size * 2 - 1
+    c = cell_centres(size, -1.0, 1.0)
     X, Y = np.meshgrid(c, -c)  # camera x right, y up
     r2 = X**2 + Y**2
     nz = np.sqrt(np.clip(1 - r2, 0, None))
@@ -220,9 +204,8 @@ def equirect_from_mirror_ball(img, h: int, cam_to_world=None, name: str = "mirro
     n = dc + np.array([0.0, 0.0, 1.0])
     nn = np.linalg.norm(n, axis=-1, keepdims=True)
     n = np.where(nn > 1e-12, n / np.maximum(nn, 1e-12), np.array([1.0, 0.0, 0.0]))
-    px = (n[..., 0] + 1) / 2 * S - 0.5
-    py = (-n[..., 1] + 1) / 2 * S - 0.5
-    return EnvMap(np.maximum(_bilinear(img, px, py), 0).astype(np.float32), name)
+    px, py = from_texcoord((n[..., 0] + 1) / 2, S), from_texcoord((-n[..., 1] + 1) / 2, S)
+    return EnvMap(np.maximum(sample_image(img, px, py, "linear", "clamp"), 0).astype(np.float32), name)
 
 
 __all__ = ["DOME_TABLE2", "geodesic_dome", "dome_frequency_for_width", "dome_solid_angles", "dome_from_equirect",

@@ -22,6 +22,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from capture.sampling import cell_centres, sample_grid
+
 #: Clamped cosine max(0, i.n) as one SG (Wang et al. 2009; seed 004): sharpness and amplitude.
 COS_LOBE_LAMBDA = 2.133
 COS_LOBE_MU = 1.170
@@ -126,7 +128,7 @@ def fit_cosine_lobe(h: int = 256) -> tuple[float, float]:
     quadrature on a 1-D theta grid); returns (lambda, mu). Compare with (2.133, 1.170)."""
     from scipy.optimize import minimize
 
-    th = (np.arange(h * 8) + 0.5) * np.pi / (h * 8)
+    th = cell_centres(h * 8, 0.0, np.pi)
     w = np.sin(th) * (np.pi / (h * 8)) * 2 * np.pi
     c = np.cos(th)
     target = np.maximum(c, 0)
@@ -239,12 +241,7 @@ def fh_fit(theta_d, lam) -> np.ndarray:
     ll = np.clip(np.log10(np.maximum(lam, 1e-300)), lo, hi)
     x = (_fh_warp(theta_d, lam) + 1) / 2 * (nw - 1)
     y = (ll - lo) / (hi - lo) * (nl - 1)
-    x0 = np.clip(np.floor(x).astype(int), 0, nw - 2)
-    y0 = np.clip(np.floor(y).astype(int), 0, nl - 2)
-    fx = x - x0
-    fy = y - y0
-    r = (tab[x0, y0] * (1 - fx) * (1 - fy) + tab[x0 + 1, y0] * fx * (1 - fy)
-         + tab[x0, y0 + 1] * (1 - fx) * fy + tab[x0 + 1, y0 + 1] * fx * fy)
+    r = sample_grid(tab, np.stack(np.broadcast_arrays(x, y), -1), "linear", "clamp")
     return r * sg_hemi_integral(lam)
 
 

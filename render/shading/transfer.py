@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.rotations import rotation_between
+from capture.sampling import cell_centres
 from render.shading.envmap import EnvMap, dir_to_uv, sample_equirect
 from render.shading.msem import convolve_zonal
 from render.shading.sg import COS_LOBE_LAMBDA, COS_LOBE_MU, fh_fit, sg_integral, sg_product
@@ -168,7 +169,7 @@ def world_to_env(up) -> np.ndarray:
 
 def kernel_integral(kernel: str) -> float:
     """Integral of the kernel over the sphere (pi for lambert, pi^2 for fur): 2 pi int K(c) dc."""
-    c = (np.arange(20000) + 0.5) / 20000 * 2 - 1
+    c = cell_centres(20000, -1.0, 1.0)
     return float(2 * np.pi * kernel_fn(kernel)(c).mean() * 2)
 
 

@@ -11,7 +11,6 @@ is recorded in the shared :class:`FrameLog` (``furrow view --stats``).
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from collections.abc import Callable
@@ -92,10 +91,9 @@ class FrameLog:
 
     def write(self, path) -> None:
         """Write ``{"frames": [...]}`` to ``path`` atomically."""
-        from capture.atomic import atomic_write
+        from capture.atomic import write_json
 
-        with atomic_write(path) as tmp:
-            tmp.write_text(json.dumps({"frames": self.frames()}, indent=1))
+        write_json(path, {"frames": self.frames()})
 
 
 class Session:

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
+from capture.sampling import points_box
 from render.gl import program
-from render.mesh.raster.gl import RasterError, vertex_bounds
+from render.mesh.raster.gl import RasterError, triangle_arrays
 from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
 
 #: Texture units of the MSEM (3-D) and the smoothness map.
@@ -64,12 +65,7 @@ class GlossyMesh:
     smoothness_map: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        v = np.ascontiguousarray(self.vertices, np.float32)
-        f = np.ascontiguousarray(self.faces, np.int32)
-        if v.ndim != 2 or v.shape[1] != 3 or not len(v) or not np.all(np.isfinite(v)):
-            raise RasterError(f"glossy mesh vertices must be finite (V, 3), got {v.shape}")
-        if f.ndim != 2 or f.shape[1] != 3 or not len(f) or f.min() < 0 or f.max() >= len(v):
-            raise RasterError(f"glossy mesh faces must be (F, 3) indices into {len(v)} vertices")
+        v, f = triangle_arrays(self.vertices, self.faces, "glossy mesh")
         n = np.ascontiguousarray(self.normals, np.float32)
         s = np.ascontiguousarray(self.smoothness, np.float32)
         if n.shape != v.shape or not np.all(np.isfinite(n)):
@@ -93,7 +89,7 @@ class GlossyMesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 [min, max] of the vertices."""
-        return vertex_bounds(self.vertices)
+        return points_box(self.vertices)
 
 
 @dataclass(frozen=True)
@@ -266,7 +262,7 @@ def utah_teapot(size: float = 0.25, n: int = 12, centre=(0.0, 0.0, 0.0)):
     v = pos.reshape(-1, 3)
     area = np.linalg.norm(np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]]), axis=1)
     faces = faces[area > 1e-10]
-    lo, hi = v.min(0), v.max(0)
+    lo, hi = points_box(v)
     scale = size / float((hi - lo).max())
     v = (v - 0.5 * (lo + hi)) * scale + np.asarray(centre, float)
     return v, faces, nrm.reshape(-1, 3), uv.reshape(-1, 2)

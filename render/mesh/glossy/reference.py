@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera
+from capture.sampling import from_texcoord, sample_image
 from render.mesh.glossy.gl import GlossyMesh
 from render.mesh.raster.gl import MIN_NEAR, RasterMesh
 from render.mesh.raster.reference import _facing_normals, interpolate_reference
@@ -37,15 +38,7 @@ def sample_smoothness_map(m: np.ndarray, uv: np.ndarray) -> np.ndarray:
     centred at (u, v) = ((j + 0.5) / w, (i + 0.5) / h), wrap in u, clamp to edge in v."""
     m = np.asarray(m, np.float64)
     h, w = m.shape
-    x = np.asarray(uv[:, 0], np.float64) * w - 0.5
-    y = np.clip(np.asarray(uv[:, 1], np.float64) * h - 0.5, 0.0, h - 1.0)
-    x0 = np.floor(x).astype(np.int64)
-    y0 = np.minimum(np.floor(y).astype(np.int64), max(h - 2, 0))
-    fx, fy = x - x0, y - y0
-    y1 = np.minimum(y0 + 1, h - 1)
-    xa, xb = x0 % w, (x0 + 1) % w
-    return ((1 - fx) * (1 - fy) * m[y0, xa] + fx * (1 - fy) * m[y0, xb]
-            + (1 - fx) * fy * m[y1, xa] + fx * fy * m[y1, xb])
+    return sample_image(m, from_texcoord(uv[:, 0], w), from_texcoord(uv[:, 1], h), "linear", ("clamp", "wrap"))
 
 
 def glossy_pixels(mesh: GlossyMesh, camera: Camera, near: float = MIN_NEAR) -> dict:

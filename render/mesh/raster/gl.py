@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
+from capture.sampling import points_box
 from render.gl import program
 from render.mesh.raster.shadow_maps import light_view_projection, shadow_map_visibility
 from render.owner import GLOwner, mat4_bytes, near_far, vertex_format
@@ -64,6 +65,22 @@ class RasterError(ValueError):
     """Invalid mesh or render request."""
 
 
+def triangle_arrays(vertices, faces, what: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3) float32 vertices and (F, 3) int32 faces, validated: at least one of each, finite
+    vertices, faces indexing them (RasterError naming ``what`` otherwise)."""
+    v = np.ascontiguousarray(vertices, dtype=np.float32)
+    f = np.ascontiguousarray(faces, dtype=np.int32)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+        raise RasterError(f"{what} vertices must be (V, 3), got {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+        raise RasterError(f"{what} faces must be (F, 3), got {f.shape}")
+    if f.min() < 0 or f.max() >= len(v):
+        raise RasterError(f"{what} faces index vertices out of range [0, {len(v)})")
+    if not np.all(np.isfinite(v)):
+        raise RasterError(f"{what} vertices contain NaN or inf")
+    return v, f
+
+
 @dataclass(frozen=True)
 class RasterMesh:
     """A triangle mesh with per-vertex attributes (world metres, linear colour).
@@ -87,16 +104,7 @@ class RasterMesh:
     specular: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        v = np.ascontiguousarray(self.vertices, dtype=np.float32)
-        f = np.ascontiguousarray(self.faces, dtype=np.int32)
-        if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
-            raise RasterError(f"mesh vertices must be (V, 3), got {v.shape}")
-        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
-            raise RasterError(f"mesh faces must be (F, 3), got {f.shape}")
-        if f.min() < 0 or f.max() >= len(v):
-            raise RasterError(f"mesh faces index vertices out of range [0, {len(v)})")
-        if not np.all(np.isfinite(v)):
-            raise RasterError("mesh vertices contain NaN or inf")
+        v, f = triangle_arrays(self.vertices, self.faces)
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
         for name, cols in (("colors", 3), ("normals", 3), ("tangents", 3), ("occlusion", 0), ("specular", 0)):
@@ -116,12 +124,7 @@ class RasterMesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 axis-aligned [min, max] of the vertices."""
-        return vertex_bounds(self.vertices)
-
-
-def vertex_bounds(vertices: np.ndarray) -> np.ndarray:
-    """(2, 3) float64 axis-aligned [min, max] of (V, 3) vertices."""
-    return np.stack([vertices.min(0), vertices.max(0)]).astype(np.float64)
+        return points_box(self.vertices)
 
 
 @dataclass(frozen=True)

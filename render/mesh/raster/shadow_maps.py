@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.camera import Camera, look_at
+from capture.sampling import from_texcoord, linear_taps
 
 
 def _ortho(half: float, near: float, far: float) -> np.ndarray:
@@ -43,20 +44,13 @@ def shadow_map_visibility(points: np.ndarray, depth: np.ndarray, light_vp: np.nd
     w = p @ light_vp[3, :3] + light_vp[3, 3]
     ndc = q / w[:, None]
     ref = ndc[:, 2] * 0.5 + 0.5
-    x = (ndc[:, 0] * 0.5 + 0.5) * S - 0.5
-    y = (ndc[:, 1] * 0.5 + 0.5) * S - 0.5
+    yx = from_texcoord(ndc[:, 1::-1] * 0.5 + 0.5, S)  # (row, column) texel coordinates
     inside = (np.abs(ndc) <= 1).all(axis=1)
     vis = np.zeros(len(p))
-    taps = (-0.5, 0.5)
-    for dy in taps:
-        for dx in taps:
-            xs, ys = x + dx, y + dy
-            x0, y0 = np.floor(xs).astype(np.int64), np.floor(ys).astype(np.int64)
-            fx, fy = xs - x0, ys - y0
-            for ox, oy, wgt in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
-                                (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
-                xi = np.clip(x0 + ox, 0, S - 1)
-                yi = np.clip(y0 + oy, 0, S - 1)
-                vis += wgt * (ref <= depth[yi, xi])
-    vis /= len(taps) ** 2
+    offsets = (-0.5, 0.5)
+    for dy in offsets:
+        for dx in offsets:  # each tap compared, then weighted (GL's sampler2DShadow with LINEAR)
+            for idx, _, wgt in linear_taps(yx + (dy, dx), depth.shape, "clamp"):
+                vis += wgt * (ref <= depth[idx])
+    vis /= len(offsets) ** 2
     return np.where(inside, vis, 1.0).astype(np.float32)

@@ -21,10 +21,10 @@ from render.composite.pipeline import Compositor, composite_frame, normals_from_
 from render.composite.reference import composite_reference, raycast_sphere
 from render.composite.tonemap import TONE_WHITE, display_white, tonemap
 from render.shading.envmap import SUN_DIR, EnvMap, bundled_envmap, procedural_sky
+from render.shading.lights import LUMA
 from render.shading.sg import sg_mixture_eval
 from volume.model import SphereSet
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: GL (float32) vs numpy (float64) shadow-ratio grid: measured max 3e-4.
 GRID_TWIN_TOL = 2e-3
 #: GL vs numpy composite, relative to the pixel value: float32 atan / bilinear weights; measured

@@ -21,8 +21,8 @@ from render.shading.glare_maps import (
     specular_parameter_map,
     streak_energy_on_screen,
 )
+from render.shading.lights import LUMA
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: GL (float32 vertices, float32 blending) vs the numpy twin, relative to the image's peak:
 #: measured 3e-6 (s = 1) to 3e-5 (s = 2).
 TWIN_REL_TOL = 1e-4

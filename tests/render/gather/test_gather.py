@@ -42,6 +42,18 @@ def _with_rgbz(model, rgbz):
                  model.bounds)
 
 
+def assert_frame_matches_twin(fr, rgb, alpha, depth) -> None:
+    """A GPU frame against the numpy twin's (rgb, alpha, depth): the coverage within
+    COVERAGE_MISMATCH_FRAC, the front depth within DEPTH_RTOL on all but DEPTH_MISMATCH_FRAC of the
+    pixels both draw, and there the colour and alpha within COLOUR_TOL."""
+    assert np.mean(fr.mask != (alpha > 0)) <= COVERAGE_MISMATCH_FRAC
+    both = fr.mask & (alpha > 0)
+    same = both & (np.abs(fr.depth - depth) <= DEPTH_RTOL * depth)
+    assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
+    np.testing.assert_allclose(fr.alpha[same], alpha[same], atol=COLOUR_TOL)
+    np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL)
+
+
 @pytest.mark.parametrize("i,phase,resample", [(2, 17.0, "cubic"), (7, 10.0, "cubic"), (4, 3.0, "cubic"),
                                                (7, 10.0, "linear")])
 def test_gpu_matches_numpy_twin(gl_ctx, model, i, phase, resample):
@@ -53,12 +65,8 @@ def test_gpu_matches_numpy_twin(gl_ctx, model, i, phase, resample):
     with GatherRenderer.from_model(gl_ctx, model, config=cfg) as r:
         fr = r.render(eye)
     assert fr.stats.facets == n > 0 and fr.stats.supersample == 1
-    both = (fr.alpha > 0) & (cov > 0)
     assert cov.sum() > 500
-    assert np.mean((fr.alpha > 0) != (cov > 0)) <= COVERAGE_MISMATCH_FRAC
-    same = both & (np.abs(fr.depth - depth) <= DEPTH_RTOL * depth)
-    assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
-    np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL)
+    assert_frame_matches_twin(fr, rgb, cov, depth)
 
 
 def test_eye_on_a_kept_camera_reproduces_its_photo(model):
@@ -74,13 +82,6 @@ def test_eye_on_a_kept_camera_reproduces_its_photo(model):
     share = (1.0 / pr.ANGLE_EPS) / (1.0 / pr.ANGLE_EPS + other_w)
     err = np.abs(rgb[inner] - model.rgbz.rgb[k][inner]).max(-1)
     assert np.percentile(err, 99) <= (1 - share) * 1.0 + 1e-6
-
-
-def test_bilinear_by_hand():
-    img = np.arange(12, dtype=np.float64).reshape(3, 4, 1)  # value = 4 y + x
-    uv = np.array([[1.25, 0.5], [0.0, 0.0], [3.0, 2.0], [-0.4, 1.0], [3.4, 2.3]])
-    out = gr.bilinear(img, uv)[:, 0]
-    np.testing.assert_allclose(out, [4 * 0.5 + 1.25, 0.0, 11.0, 4.0, 11.0])  # linear inside, clamped outside
 
 
 def test_cubic_is_catmull_rom():
@@ -166,12 +167,7 @@ def test_alpha_gpu_matches_numpy_twin(gl_ctx, alpha_model, i, phase, resample):
     with GatherRenderer.from_model(gl_ctx, m, config=cfg) as r:
         fr = r.render(eye)
     assert np.mean((a > 0) & (a < 0.999)) > 0.05, "the matte gives partial pixels"
-    assert np.mean(fr.mask != (a > 0)) <= COVERAGE_MISMATCH_FRAC
-    both = fr.mask & (a > 0)
-    same = both & (np.abs(fr.depth - depth) <= DEPTH_RTOL * depth)
-    assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
-    np.testing.assert_allclose(fr.alpha[same], a[same], atol=COLOUR_TOL)
-    np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL)
+    assert_frame_matches_twin(fr, rgb, a, depth)
 
 
 def test_alpha_blends_premultiplied_colour(model):

@@ -12,7 +12,7 @@ import pytest
 from render.gather import reference as gr
 from render.points import reference as pr
 from tests import scenes as scene
-from tests.render.gather.test_gather import COLOUR_TOL, COVERAGE_MISMATCH_FRAC, DEPTH_MISMATCH_FRAC, DEPTH_RTOL
+from tests.render.gather.test_gather import assert_frame_matches_twin
 from volume.model import RgbzImages
 
 EYES = [(2, 17.0), (7, 10.0), (4, 3.0)]
@@ -76,12 +76,7 @@ def test_crops_path_matches_numpy_twin(gl_ctx, models, kind):
             t_rgb, t_a, t_z, n = gr.gather_frame(eye, clouds, r.cameras, rgb, depth, m.bounds.mean(0), cfg, alpha=alpha)
             fr = rr.render(eye)
             assert fr.stats.facets == n > 0
-            assert np.mean(fr.mask != (t_a > 0)) <= COVERAGE_MISMATCH_FRAC
-            both = fr.mask & (t_a > 0)
-            same = both & (np.abs(fr.depth - t_z) <= DEPTH_RTOL * t_z)
-            assert 1 - same.sum() / both.sum() <= DEPTH_MISMATCH_FRAC
-            np.testing.assert_allclose(fr.alpha[same], t_a[same], atol=COLOUR_TOL)
-            np.testing.assert_allclose(fr.rgb[same], t_rgb[same], atol=COLOUR_TOL)
+            assert_frame_matches_twin(fr, t_rgb, t_a, t_z)
 
 
 def test_a_frame_uploads_only_the_views_it_reads(gl_ctx, models):

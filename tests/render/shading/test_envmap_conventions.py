@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from render.shading.envmap import ENV_CONVENTIONS, EnvMap, named_envmap, save_envmap
+from render.shading.ssdf import fibonacci_directions
 from render.shading.transfer import relight_lighting, unoccluded_transfer
 
 #: Map height of the test maps, the spot's angular size (radians) and radiance over a dim floor.
@@ -51,19 +52,11 @@ def _spot_map(dirs: np.ndarray, target) -> EnvMap:
     return EnvMap(np.repeat(lum[..., None], 3, -1).astype(np.float32), "spot")
 
 
-def _fibonacci(n: int) -> np.ndarray:
-    i = np.arange(n) + 0.5
-    z = 1 - 2 * i / n
-    phi = np.pi * (1 + 5 ** 0.5) * i
-    r = np.sqrt(1 - z * z)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
-
-
 def brightest_normal(env: EnvMap, up) -> np.ndarray:
     """The direction of the brightest point of a Lambertian sphere lit by ``env`` in the world whose up is
     ``up``: the centroid of the normals within 0.3 % of the peak of the lambert transfer (a symmetric cap)."""
     lt = relight_lighting(env, up, "lambert", k=1)
-    n = _fibonacci(40_000)
+    n = fibonacci_directions(40_000)
     e = unoccluded_transfer(lt, n)[:, 0]
     top = n[e >= e.max() * 0.997]
     c = top.mean(0)
