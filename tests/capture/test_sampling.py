@@ -12,6 +12,7 @@ from scipy import ndimage
 
 from capture.sampling import (
     cell_centres,
+    cell_index,
     from_texcoord,
     index_coords,
     mask_box,
@@ -152,6 +153,8 @@ def test_nearest_pixel_cell_centres_and_texcoords():
     c = voxel_centres(ijk, [1.0, 2.0, 3.0], 0.5)
     np.testing.assert_allclose(c, [[1.25, 2.25, 3.25], [2.75, 2.75, 4.25]])
     np.testing.assert_allclose(index_coords(c, [1.0, 2.0, 3.0], 0.5), ijk)
+    assert cell_index(c, [1.0, 2.0, 3.0], 0.5).tolist() == ijk.tolist()
+    assert cell_index([[0.99, 2.0, 3.49], [1.5, 2.0, 3.5]], [1.0, 2.0, 3.0], 0.5).tolist() == [[-1, 0, 0], [1, 0, 1]]
 
 
 def test_boxes():
