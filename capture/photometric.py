@@ -23,11 +23,17 @@ correction ``g_i`` is estimated from what neighbouring views see of the same sur
    gain of every channel at 1 (the median of the log gains over views, per channel), ``mean``
    the mean, a view name fixes that view.
 4. **Appearance is not exposure.**  Fur and needles look different from different directions
-   (lit and unlit sides, hair lobes): on a fur ball at fixed exposure the solve of step 3 finds
-   "gains" that are real appearance.  Exposure jumps independently from view to view; appearance
-   changes smoothly with the viewing direction.  :func:`exposure_part` splits the solved log gains
-   into the two by maximum likelihood of their variances and keeps only the independent part
-   (``appearance_deg``; 0 = off).
+   (sheen and hair lobes of the lights, a patterned coat seen along or across its stripes): on a
+   fur ball at fixed exposure under a studio's lamps the solve of step 3 finds "gains" of +-0.5 EV
+   that are appearance.  Such changes change the colour too (a white sheen on ginger fur, more of
+   the dark stripes), an exposure does not (white balance jitter aside, which is independent of
+   it).  So (``appearance`` "colour", the default, :func:`colour_appearance_part`) each view's EV is
+   predicted from its chromatic change by the relation the other views show; that part is appearance
+   and is left in (nothing unless the colour predicts beyond chance: 1 % of shuffled colours do
+   better).  With appearance found, only one exposure per view is corrected; without, exposure and
+   white balance (capture.photometric_appearance).
+   ``appearance`` "smooth" instead keeps what changes smoothly with the viewing direction
+   (:func:`exposure_part`), "none" takes every difference for exposure.
 5. **Shown to help, or not applied** (capture.photometric_check): the gains are estimated without
    each fold of held-back cells and judged on it; no alignment, one exposure per view, or exposure
    and white balance, whichever is simplest within ``check_z`` standard errors of the best.
@@ -43,6 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from capture.lens import remap_bilinear
+from capture.photometric_appearance import APPEARANCE_QUANTILE, colour_appearance_part, exposure_part
 from capture.photometric_cells import CellGrid, cell_grid, cell_ratios
 from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
 from capture.scan_store import keep_in_memory
@@ -58,8 +65,8 @@ IRLS_STEPS = 6
 SIGMA_FLOOR = 0.01
 #: Automatic sampling stride: one step per this many pixels of the shorter image side.
 AUTO_STRIDE_PX = 240
-#: Ratios (appearance variance / exposure variance) tried by :func:`exposure_part`.
-APPEARANCE_RATIOS = np.logspace(-3, 4, 29)
+#: How appearance is told from exposure (PhotometricConfig.appearance).
+APPEARANCE_MODES = ("auto", "colour", "smooth", "none")
 #: Systematic error of a pair's ratio (log units: view-dependent shading that does not average
 #: out over its cells), added in quadrature to its statistical error.
 PAIR_BIAS = 0.01
@@ -104,10 +111,11 @@ class PhotometricConfig:
     """Huber threshold in robust standard deviations (pair locations and the joint solve)."""
     reference: str = "median"
     """Gauge: ``median``, ``mean`` or the name of the view whose colour is kept."""
+    appearance: str = "auto"
+    """How view-dependent appearance is told from exposure (module docstring, step 4): ``auto`` (colour,
+    else smoothness, each only beyond chance), ``colour``, ``smooth`` (issue 21's, no chance test) or ``none``."""
     appearance_deg: float = 30.0
-    """Correlation angle of view-dependent appearance between viewing directions (degrees), which
-    separates it from per-view exposure (:func:`exposure_part`); 0 = take every difference between
-    views for exposure."""
+    """``smooth``: correlation angle of view-dependent appearance between viewing directions (degrees)."""
     check: bool = True
     """Apply the gains only when held-back cells show they help (capture.photometric_check); False =
     apply whatever was estimated."""
@@ -124,6 +132,8 @@ class PhotometricConfig:
             raise ValueError("photometric: depth_tol and edge_tol must be in (0, 1), max_srgb in (0, 1]")
         if self.cell_res < 1 or self.min_cell_samples < 1 or not 0 <= self.cell_trim < 0.5:
             raise ValueError("photometric: cell_res and min_cell_samples must be >= 1, cell_trim in [0, 0.5)")
+        if self.appearance not in APPEARANCE_MODES or not self.appearance_deg > 0:
+            raise ValueError(f"photometric: appearance must be one of {APPEARANCE_MODES}, appearance_deg > 0")
         if self.check_folds < 2 or not self.check_z >= 0:
             raise ValueError("photometric: check_folds must be >= 2 and check_z >= 0")
 
@@ -140,8 +150,11 @@ class PhotometricResult:
         unaligned: names of views with no usable pair (gain 1).
         reference: the gauge used (``median``, ``mean`` or a view name).
         residual: median absolute pair residual after the solve (log units).
-        meta: JSON-able extras (``appearance_to_exposure``: the variance ratio of exposure_part;
-            ``cells``: cell ratios used; ``check``: the held-back check, capture.photometric_check).
+        meta: JSON-able extras (``appearance``: how it was told apart (colour, smooth, none);
+            ``appearance_share`` (colour): the share of the
+            EV spread taken for appearance, ``appearance_to_exposure`` (smooth): the variance ratio of
+            exposure_part; ``cells``: cell ratios used; ``check``: the held-back check,
+            capture.photometric_check).
     """
 
     names: tuple[str, ...]
@@ -334,36 +347,6 @@ def solve_gains(n_views: int, edges: list[tuple[int, int, np.ndarray, np.ndarray
     return x, float(np.median(np.abs(A[:E] @ x - d))) if E else 0.0
 
 
-def exposure_part(x: np.ndarray, forward: np.ndarray, corr_deg: float) -> tuple[np.ndarray, float]:
-    """The per-view exposure in log gains ``x`` (V, 3), separated from view-dependent appearance.
-
-    ``x = e + a``: exposure e is independent per view (covariance s_e I); appearance a is
-    correlated between views that look from similar directions (covariance s_a K, K_ij =
-    exp(-angle_ij^2 / 2 corr_deg^2) from the viewing directions ``forward`` (V, 3)).  The ratio
-    s_a / s_e is chosen by maximum likelihood (profiled over s_e, the three channels pooled, the
-    global gain projected out), and e is its posterior mean (Wiener filter).  A capture whose views
-    differ only smoothly with the viewpoint (fur lit from one side) keeps its colours; one whose
-    views jump independently (auto exposure) is corrected.  Returns (e, s_a / s_e)."""
-    n = len(x)
-    if n < 3:
-        return x, 0.0
-    cos = np.clip(forward @ forward.T, -1.0, 1.0)
-    K = np.exp(-np.degrees(np.arccos(cos)) ** 2 / (2 * corr_deg ** 2))
-    Q = np.linalg.svd(np.eye(n) - 1.0 / n, hermitian=True)[0][:, : n - 1]   # basis without the global gain
-    y = Q.T @ x
-    Kq = Q.T @ K @ Q
-    best = None
-    for r in APPEARANCE_RATIOS:
-        M = np.eye(n - 1) + r * Kq
-        sign, logdet = np.linalg.slogdet(M)
-        quad = float(np.sum(y * np.linalg.solve(M, y)))
-        nll = 3 * (n - 1) * np.log(quad / (3 * (n - 1)) + 1e-300) + 3 * logdet
-        if best is None or nll < best[0]:
-            best = (nll, r, M)
-    _, r, M = best
-    return Q @ np.linalg.solve(M, y), float(r)
-
-
 def _connected(n: int, edges) -> np.ndarray:
     """(V,) bool: views joined by at least one edge."""
     seen = np.zeros(n, bool)
@@ -373,17 +356,24 @@ def _connected(n: int, edges) -> np.ndarray:
 
 
 def log_gains(n_views: int, pairs: list[PairCells], forward: np.ndarray, cfg: PhotometricConfig, use=None):
-    """(x (V, 3) log gains, sum 0 per channel, 0 for unlinked views; edges; |residual| median; appearance
-    ratio): steps 2-4 on the pairs' cells (``use``: see :func:`pair_edges`)."""
+    """(x (V, 3) log gains, 0 for unlinked views; edges; |residual| median; (how appearance was told apart:
+    colour, smooth or none; the share of the EV spread taken for it, or the variance ratio)): steps 2-4 on
+    the pairs' cells (``use``: see :func:`pair_edges`)."""
     edges = pair_edges(pairs, cfg.huber, use)
     if not edges:
-        return np.zeros((n_views, 3)), edges, 0.0, 0.0
+        return np.zeros((n_views, 3)), edges, 0.0, ("none", 0.0)
     x, resid = solve_gains(n_views, edges, cfg.huber)
-    ratio = 0.0
-    if cfg.appearance_deg > 0:
-        x, ratio = exposure_part(x, forward, cfg.appearance_deg)
-    x[~_connected(n_views, edges)] = 0.0
-    return x, edges, resid, ratio
+    linked = _connected(n_views, edges)
+    app, how = 0.0, "none"
+    if cfg.appearance in ("auto", "colour"):
+        x, app = colour_appearance_part(x, linked)
+        how = "colour" if app else how
+    if cfg.appearance == "smooth" or (cfg.appearance == "auto" and not app):
+        chance = APPEARANCE_QUANTILE if cfg.appearance == "auto" else None
+        x, app = exposure_part(x, forward, cfg.appearance_deg, chance)
+        how = "smooth" if app else how
+    x[~linked] = 0.0
+    return x, edges, resid, (how, app)
 
 
 def _gauge(x: np.ndarray, linked: np.ndarray, reference: str, names) -> np.ndarray:
@@ -415,9 +405,10 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None, b
     grid = cell_grid(scans, cfg.cell_res, bounds, cfg.cell_min_px * step)
     pairs = measure_pairs(scans, cfg, grid, progress)
     forward = np.stack([s.camera.forward for s in scans])
-    x, edges, resid, ratio = log_gains(len(scans), pairs, forward, cfg)
+    x, edges, resid, app = log_gains(len(scans), pairs, forward, cfg)
     linked = _connected(len(scans), edges)
-    meta = {"appearance_to_exposure": ratio, "cells": int(sum(len(p.cells) for p in pairs))}
+    meta = {"appearance": app[0], "cells": int(sum(len(p.cells) for p in pairs)),
+            ("appearance_to_exposure" if app[0] == "smooth" else "appearance_share"): app[1]}
     if cfg.check and edges:
         check = check_alignment(len(scans), pairs, forward, cfg, grid)
         x = check.apply(x)

@@ -58,17 +58,23 @@ def _depth_points(scans):
 
 
 def cell_grid(scans, res: int, bounds=None, min_px: float = 0.0) -> CellGrid:
-    """The cube of at most ``res``^3 cells over ``bounds`` ((2, 3) metres), or without them over the box of
-    the views' depth points (BOUNDS_PERCENTILES, every BOUNDS_STRIDE-th pixel, padded BOUNDS_PAD); fewer
+    """The cube of at most ``res``^3 cells over the box of the views' depth points (BOUNDS_PERCENTILES, every
+    BOUNDS_STRIDE-th pixel, padded BOUNDS_PAD) within ``bounds`` ((2, 3) metres, or None); fewer
     cells when a cell would be narrower than ``min_px`` pixels at the views' median depth (small images:
     a cell must hold samples enough to average)."""
     pts, dep, focal = _depth_points(scans)
-    if bounds is None:
-        if not len(pts):
-            return CellGrid(np.zeros(3), 1.0, 1)
+    if len(pts):
         lo, hi = np.percentile(pts, BOUNDS_PERCENTILES, axis=0)
         pad = BOUNDS_PAD * (hi - lo).max()
-        bounds = np.stack([lo - pad, hi + pad])
+        box = np.stack([lo - pad, hi + pad])
+        if bounds is not None:   # within the given bounds (they may be loose), where the views measured
+            b = np.asarray(bounds, np.float64)
+            box = np.stack([np.maximum(box[0], b[0]), np.minimum(box[1], b[1])])
+            if np.any(box[1] <= box[0]):
+                box = b
+        bounds = box
+    elif bounds is None:
+        return CellGrid(np.zeros(3), 1.0, 1)
     b = np.asarray(bounds, np.float64)
     side = max(float((b[1] - b[0]).max()), 1e-9)
     if len(dep) and min_px > 0:

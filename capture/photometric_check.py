@@ -5,16 +5,17 @@ data are the cells' log ratios ``d = log c_j - log c_i`` of every compared pair 
 a gain explains them when ``d ~ x_i - x_j``.  So the cells are split into ``check_folds`` folds by
 blocks of :data:`CHECK_BLOCK`^3 cells (held-back cells lie apart from the ones the gains come
 from, as a different part of the object would), and for each fold the gains are estimated from
-the other folds (capture.photometric.log_gains: the same solve and exposure split) and judged on
-the fold's cells, three ways:
+the other folds (capture.photometric.log_gains: the same solve and appearance split) and judged on
+the fold's cells -- per pair, the median of its held-back cells' ratios, so that the cells' own
+appearance averages out and a wrong exposure does not -- three ways:
 
 * ``none``: no alignment (the residual is ``d`` itself);
 * ``ev``: one exposure per view (the mean over channels of the estimated log gain);
 * ``full``: exposure and white balance (the estimate as it is).
 
-The loss of a held-back cell ratio is its squared residual in robust standard deviations (of the
+The loss of a held-back ratio is its squared residual in robust standard deviations (of the
 ``full`` residuals), clipped at :data:`LOSS_CLIP` (sheen, an occlusion the depth missed); its
-standard error comes from the spread of the blocks' summed loss differences.  The simplest choice
+standard error comes from the spread of the pairs' summed loss differences.  The simplest choice
 whose mean loss is within ``check_z`` standard errors of the best one is applied.  A capture whose
 views differ by exposure is aligned (the gains predict cells they never saw); one whose views
 differ in ways no gain explains (strands that do not correspond, sheen that moves) keeps its
@@ -37,8 +38,10 @@ CHOICE_WORDS = {"none": "no alignment", "ev": "one exposure per view", "full": "
 CHECK_BLOCK = 4
 #: A held-back residual counts at most this many robust standard deviations (squared).
 LOSS_CLIP = 3.0
-#: Fewer held-back cell ratios than this: nothing can be shown, the views keep their colour.
-MIN_CHECK_ROWS = 30
+#: Fewer held-back (pair, fold) ratios than this: nothing can be shown, the views keep their colour.
+MIN_CHECK_ROWS = 12
+#: A pair's held-back cells in a fold count when there are at least this many (their median is its ratio).
+MIN_HELD_CELLS = 3
 #: Seed of the blocks' split into folds.
 SEED = 0
 
@@ -47,7 +50,7 @@ SEED = 0
 class AlignmentCheck:
     """The check's outcome: ``chosen`` (one of :data:`CHOICES`); ``losses`` the mean held-back loss
     of each choice; ``se`` the standard error of each choice's loss minus the best one's; ``rows`` the
-    held-back cell ratios judged, ``blocks`` the blocks they lie in; ``reason`` one line saying why."""
+    held-back (pair, fold) ratios judged, ``blocks`` the pairs they come from; ``reason`` one line saying why."""
 
     chosen: str
     losses: dict
@@ -91,8 +94,11 @@ def _folds(pairs: list[PairCells], grid: CellGrid, folds: int) -> list[np.ndarra
 
 
 def held_back_residuals(n_views: int, pairs: list[PairCells], forward, cfg: PhotometricConfig, grid: CellGrid):
-    """({choice: (R, 3) residuals of the held-back cell ratios}, (R,) their blocks)."""
-    fold, blocks = _folds(pairs, grid, cfg.check_folds)
+    """({choice: (R, 3) residuals}, (R,) the pair of each): per pair and fold with MIN_HELD_CELLS held-back
+    cells, the median of those cells' log ratios minus what each choice's gains (estimated without the fold)
+    predict for the pair.  One number per pair and fold: the cells' own appearance (a strand texture, the
+    coat seen more or less edge-on) averages out in the median, a wrong exposure does not."""
+    fold, _ = _folds(pairs, grid, cfg.check_folds)
     res = {c: [] for c in CHOICES}
     where = []
     for f in range(cfg.check_folds):
@@ -100,26 +106,27 @@ def held_back_residuals(n_views: int, pairs: list[PairCells], forward, cfg: Phot
         if not any(u.any() for u in use) or all(u.all() for u in use):
             continue
         x = log_gains(n_views, pairs, forward, cfg, use)[0]
-        for p, u, b in zip(pairs, use, blocks):
+        for k, (p, u) in enumerate(zip(pairs, use)):
             held = ~u
-            if not held.any():
+            if held.sum() < MIN_HELD_CELLS:
                 continue
+            d = np.median(p.d[held], axis=0)
             for c in CHOICES:
                 xc = as_choice(x, c)
-                res[c].append(p.d[held] - (xc[p.i] - xc[p.j]))
-            where.append(b[held])
+                res[c].append(d - (xc[p.i] - xc[p.j]))
+            where.append(k)
     if not where:
         return {c: np.zeros((0, 3)) for c in CHOICES}, np.zeros(0, np.int64)
-    return {c: np.concatenate(v) for c, v in res.items()}, np.concatenate(where)
+    return {c: np.stack(v) for c, v in res.items()}, np.asarray(where)
 
 
 def check_alignment(n_views: int, pairs: list[PairCells], forward, cfg: PhotometricConfig,
                     grid: CellGrid) -> AlignmentCheck:
     """Which correction the held-back cells support (module docstring)."""
-    res, blocks = held_back_residuals(n_views, pairs, forward, cfg, grid)
+    res, blocks = held_back_residuals(n_views, pairs, forward, cfg, grid)   # clustered by pair
     rows = len(blocks)
     if rows < MIN_CHECK_ROWS:
-        return AlignmentCheck("none", {}, {}, rows, 0, f"kept the views as they are: only {rows} cell ratios could be "
+        return AlignmentCheck("none", {}, {}, rows, 0, f"kept the views as they are: only {rows} pair ratios could be "
                               f"held back (fewer than {MIN_CHECK_ROWS}), too few to show that an alignment helps")
     full = res["full"]
     sigma = MAD_TO_SIGMA * np.median(np.abs(full - np.median(full, axis=0)), axis=0) + SIGMA_FLOOR
@@ -141,7 +148,7 @@ def check_alignment(n_views: int, pairs: list[PairCells], forward, cfg: Photomet
 def _reason(chosen: str, best: str, mean: dict, se: dict, z: float, rows: int) -> str:
     """One line on the check's outcome (``furrow model`` prints it)."""
     nums = ", ".join(f"{CHOICE_WORDS[c]} {mean[c]:.3f}" for c in CHOICES)
-    tail = f"(mean clipped squared residual of {rows} held-back cell ratios: {nums})"
+    tail = f"(mean clipped squared residual of {rows} held-back pair ratios: {nums})"
     if chosen == "none":
         return f"kept the views as they are: no alignment beats none by {z:g} standard errors {tail}"
     if chosen != best:
