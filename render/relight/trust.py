@@ -161,6 +161,10 @@ def _decide(fit: cb.TransferFit, spread: float, worst: dict, dark: dict) -> Reli
     n = len(fit.plausible)
     what = "the default transfer" if fit.is_default else f"the fitted transfer ({fit.kernel}, beta {fit.forward:g})"
     fall = min(worst, key=worst.get)
+    if fit.is_default and fall == "default":   # the fit already is the default: nothing to fall back to
+        return RelightChoice(*fit.candidate, "default", f"the default transfer: the capture shows none better within "
+                             f"noise; the {n} transfers it cannot tell apart relight within {spread:.0%} of it, nearer "
+                             f"than the gain (within {worst['gain']:.0%}) {lit}", spread, worst, dark)
     if spread <= SPREAD_MAX or spread < worst[fall]:
         agree = "relight within" if spread <= SPREAD_MAX else "are nearer it than the default or the gain: within"
         return RelightChoice(*fit.candidate, "default" if fit.is_default else "fitted",

@@ -77,6 +77,10 @@ def test_decision_is_minimax():
     assert d.source == "default" and (d.kernel, d.forward, d.forward_g) == cb.DEFAULT_TRANSFER
     assert "60% of the new light, on the side +x" in d.reason
     assert trust._decide(fit, 0.3, {"default": 0.4, "gain": 0.3}, {}).source == "gain"        # a tie: do nothing
+    default = cb.TransferFit(*cb.DEFAULT_TRANSFER, 0.1, {}, 100, plausible=(cb.key(*cb.DEFAULT_TRANSFER),))
+    d = trust._decide(default, 0.3, {"default": 0.3, "gain": 0.5}, {})
+    assert d.source == "default" and d.reason.startswith("the default transfer: the capture shows none better")
+    assert trust._decide(default, 0.3, {"default": 0.3, "gain": 0.2}, {}).source == "gain"
 
 
 def test_dark_shares():
