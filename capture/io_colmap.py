@@ -6,7 +6,7 @@ colour images are found under ``IMAGES_DIR/<image name>``; depth maps under
 ``depth_unit_scale_factor``).  COLMAP puts the centre of the top-left pixel at (0.5, 0.5),
 like nerfstudio, so half a pixel is subtracted from the principal point (OpenCV centres).
 Pinhole models are read as they are; SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE and FULL_OPENCV
-are undistorted at read time to a pinhole camera (capture.lens; ``undistort``: crop | full).
+are undistorted at read time to a pinhole camera (capture.lens; ``undistort``: keep | crop | full).
 Mattes: ``masks/STEM.png`` (or COLMAP's ``masks/IMAGE_NAME.png``) beside ``images/``, read as
 transforms.json's ``mask_path`` (capture.matte_io).  The model opens as a capture.sources.Source;
 its frames are read by the same steps as every layout's.

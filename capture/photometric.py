@@ -3,28 +3,40 @@
 Phones and RGB-D cameras choose exposure and white balance anew for every frame, so the same
 surface point has a different colour in every view; blending such views mixes exposures.  Here
 each view's colour is modelled as ``c_i = c / g_i`` (a gain per channel, linear light) and the
-correction ``g_i`` is estimated from what neighbouring views see of the same surface points:
+correction ``g_i`` is estimated from what neighbouring views see of the same surface:
 
-1. **Correspondences.**  Every ``stride``-th measured pixel of view i is back-projected with its
-   depth and projected into each of its nearest views j (by viewing direction); it counts when
-   j measures the same depth there (relative ``depth_tol``), both colours are neither dark
-   (quantisation dominates the log) nor clipped, the depth is smooth around it in view i (no
-   silhouette edge, ``edge_tol``) and, when a matte is known, both pixels are opaque.
-2. **Pair ratios.**  For every pair, per channel, a robust location of ``log c_j - log c_i``
-   (median, then Huber IRLS steps) and its weight (samples / robust variance): fur, glints and
-   occlusion edges are view-dependent outliers, and the median over thousands of samples ignores
-   them.
+1. **Correspondences, pooled per cell.**  Every ``stride``-th measured pixel of view i is
+   back-projected with its depth and looked up (bilinear) in each of its nearest views j (by
+   viewing direction); it counts when j measures the same depth there (relative ``depth_tol``),
+   neither colour is clipped, the depth is smooth around it in view i (no silhouette edge,
+   ``edge_tol``) and, when a matte is known, both pixels are opaque.  Fur and needles do not
+   correspond pixel to pixel between views (a strand in one view is a gap in the other), so no
+   pixel ratio is used: the correspondences are pooled per cell of a ``cell_res``^3 cube over the
+   object, and each cell gives one ratio of the two views' sums over its samples, the ``cell_trim``
+   most extreme samples (by their ratio: sheen, glints, occlusions) left out of both
+   (:func:`cell_ratios`): the strand texture averages out, the gain stays.
+2. **Pair ratios.**  For every pair, per channel, a robust location of the cells' ``log c_j -
+   log c_i`` (median, then Huber IRLS steps) and its weight (cells / robust variance).
 3. **Joint solve.**  ``x_i - x_j = d_ij`` (x = log gain) over all pairs, weighted least squares
    with Huber re-weighting of the pair residuals, all channels at once; the gauge (the one
    global gain no view can tell) is fixed afterwards: ``median`` (default) puts the median view's
    gain of every channel at 1 (the median of the log gains over views, per channel), ``mean``
    the mean, a view name fixes that view.
 4. **Appearance is not exposure.**  Fur and needles look different from different directions
-   (lit and unlit sides, hair lobes): on a fur ball at fixed exposure the solve of step 3 finds
-   "gains" of +-0.5 EV that are real appearance, and applying them cost 0.5 dB held-out.  Exposure
-   jumps independently from view to view; appearance changes smoothly with the viewing direction.
-   :func:`exposure_part` splits the solved log gains into the two by maximum likelihood of their
-   variances and keeps only the independent part (``appearance_deg``; 0 = off).
+   (sheen and hair lobes of the lights, a patterned coat seen along or across its stripes): on a
+   fur ball at fixed exposure under a studio's lamps the solve of step 3 finds "gains" of +-0.5 EV
+   that are appearance.  Such changes change the colour too (a white sheen on ginger fur, more of
+   the dark stripes), an exposure does not (white balance jitter aside, which is independent of
+   it).  So (``appearance`` "colour", the default, :func:`colour_appearance_part`) each view's EV is
+   predicted from its chromatic change by the relation the other views show; that part is appearance
+   and is left in (nothing unless the colour predicts beyond chance: 1 % of shuffled colours do
+   better).  With appearance found, only one exposure per view is corrected; without, exposure and
+   white balance (capture.photometric_appearance).
+   ``appearance`` "smooth" instead keeps what changes smoothly with the viewing direction
+   (:func:`exposure_part`), "none" takes every difference for exposure.
+5. **Shown to help, or not applied** (capture.photometric_check): the gains are estimated without
+   each fold of held-back cells and judged on it; no alignment, one exposure per view, or exposure
+   and white balance, whichever is simplest within ``check_z`` standard errors of the best.
 
 Views with no usable pair keep gain 1 (and are listed).  Everything is numpy over arrays of the
 scans; :func:`apply_gains` returns the scans with corrected colour (8-bit sRGB stays 8-bit).
@@ -36,6 +48,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from capture.lens import remap_bilinear
+from capture.photometric_appearance import APPEARANCE_QUANTILE, colour_appearance_part, exposure_part
+from capture.photometric_cells import CellGrid, cell_grid, cell_ratios
 from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
 from capture.scan_store import keep_in_memory
 
@@ -50,10 +65,10 @@ IRLS_STEPS = 6
 SIGMA_FLOOR = 0.01
 #: Automatic sampling stride: one step per this many pixels of the shorter image side.
 AUTO_STRIDE_PX = 240
-#: Ratios (appearance variance / exposure variance) tried by :func:`exposure_part`.
-APPEARANCE_RATIOS = np.logspace(-3, 4, 29)
+#: How appearance is told from exposure (PhotometricConfig.appearance).
+APPEARANCE_MODES = ("auto", "colour", "smooth", "none")
 #: Systematic error of a pair's ratio (log units: view-dependent shading that does not average
-#: out over its samples), added in quadrature to its statistical error.
+#: out over its cells), added in quadrature to its statistical error.
 PAIR_BIAS = 0.01
 #: Weight of the temporary sum-to-zero row that makes the joint system full rank.
 GAUGE_ROW_WEIGHT = 1e3
@@ -74,32 +89,55 @@ class PhotometricConfig:
     the shorter image side (2 at 640x480, 1 for small images)."""
     depth_tol: float = 0.02
     """Depth agreement of a correspondence, relative to its depth."""
-    edge_tol: float = 0.05
-    """A sample's 3x3 depth range must stay within this fraction of its depth (no silhouette edge)."""
-    min_linear: float = 0.004
-    """Darkest linear value of a usable sample (every channel)."""
+    edge_tol: float = 0.2
+    """A sample's 3x3 depth range must stay within this fraction of its depth (no silhouette edge).  Fur's
+    depth jumps strand to strand: at 0.05 (issue 21) 8 % of a path-traced fur ball's opaque pixels were left
+    and 6 pairs of 72 counted; the depth agreement of a correspondence guards the rest."""
     max_srgb: float = 250 / 255
-    """Brightest sRGB value of a usable sample (every channel): brighter may be clipped."""
+    """Brightest sRGB value of a usable sample (every channel, in both views): brighter may be clipped."""
     min_samples: int = 100
     """Correspondences a pair needs to count."""
+    cell_res: int = 16
+    """Cells per side of the cube the correspondences are pooled in (the capture's bounds): a cell
+    holds many strands, so their texture averages out, and little enough of the shading to compare."""
+    cell_min_px: float = 4.0
+    """...but a cell is at least this many sample steps wide at the views' median depth (fewer cells on
+    small images, so that each holds samples enough)."""
+    cell_trim: float = 0.2
+    """Share of a cell's samples cut off at each end of the order of their ratio (sheen, glints)."""
+    min_cell_samples: int = 8
+    """Correspondences a cell needs in a pair."""
+    min_cells: int = 4
+    """Cells a pair needs to count."""
     huber: float = 1.0
     """Huber threshold in robust standard deviations (pair locations and the joint solve)."""
     reference: str = "median"
     """Gauge: ``median``, ``mean`` or the name of the view whose colour is kept."""
+    appearance: str = "auto"
+    """How view-dependent appearance is told from exposure (module docstring, step 4): ``auto`` (colour,
+    else smoothness, each only beyond chance), ``colour``, ``smooth`` (issue 21's, no chance test) or ``none``."""
     appearance_deg: float = 30.0
-    """Correlation angle of view-dependent appearance between viewing directions (degrees), which
-    separates it from per-view exposure (:func:`exposure_part`); 0 = take every difference between
-    views for exposure."""
-    affine: bool = False
-    """Reserved: only the per-channel gain is estimated (an offset was not worth it, see the report)."""
+    """``smooth``: correlation angle of view-dependent appearance between viewing directions (degrees)."""
+    check: bool = True
+    """Apply the gains only when held-back cells show they help (capture.photometric_check); False =
+    apply whatever was estimated."""
+    check_folds: int = 4
+    """Folds of the check (blocks of cells held back in turn)."""
+    check_z: float = 2.0
+    """A more complex correction (exposure, then exposure and white balance) is applied only when it
+    beats the simpler one on the held-back cells by more than this many standard errors."""
 
     def __post_init__(self) -> None:
-        if self.neighbours < 1 or self.stride < 0 or self.min_samples < 1:
-            raise ValueError("photometric: neighbours and min_samples must be >= 1, stride >= 0")
-        if not all(0 < v < 1 for v in (self.depth_tol, self.edge_tol, self.min_linear)) or not 0 < self.max_srgb <= 1:
-            raise ValueError("photometric: depth_tol, edge_tol, min_linear and max_srgb must be in (0, 1)")
-        if self.affine:
-            raise ValueError("photometric: the affine colour model is not implemented (gains only)")
+        if self.neighbours < 1 or self.stride < 0 or self.min_samples < 1 or self.min_cells < 1:
+            raise ValueError("photometric: neighbours, min_samples and min_cells must be >= 1, stride >= 0")
+        if not all(0 < v < 1 for v in (self.depth_tol, self.edge_tol)) or not 0 < self.max_srgb <= 1:
+            raise ValueError("photometric: depth_tol and edge_tol must be in (0, 1), max_srgb in (0, 1]")
+        if self.cell_res < 1 or self.min_cell_samples < 1 or not 0 <= self.cell_trim < 0.5:
+            raise ValueError("photometric: cell_res and min_cell_samples must be >= 1, cell_trim in [0, 0.5)")
+        if self.appearance not in APPEARANCE_MODES or not self.appearance_deg > 0:
+            raise ValueError(f"photometric: appearance must be one of {APPEARANCE_MODES}, appearance_deg > 0")
+        if self.check_folds < 2 or not self.check_z >= 0:
+            raise ValueError("photometric: check_folds must be >= 2 and check_z >= 0")
 
 
 @dataclass(frozen=True)
@@ -114,7 +152,11 @@ class PhotometricResult:
         unaligned: names of views with no usable pair (gain 1).
         reference: the gauge used (``median``, ``mean`` or a view name).
         residual: median absolute pair residual after the solve (log units).
-        meta: JSON-able extras (``appearance_to_exposure``: the variance ratio of exposure_part).
+        meta: JSON-able extras (``appearance``: how it was told apart (colour, smooth, none);
+            ``appearance_share`` (colour): the share of the
+            EV spread taken for appearance, ``appearance_to_exposure`` (smooth): the variance ratio of
+            exposure_part; ``cells``: cell ratios used; ``check``: the held-back check,
+            capture.photometric_check).
     """
 
     names: tuple[str, ...]
@@ -167,7 +209,7 @@ def _usable(scan: Scan, cfg: PhotometricConfig) -> tuple[np.ndarray, np.ndarray]
     hi = cv2.dilate(d, np.ones((3, 3), np.uint8))
     lo = cv2.erode(np.where(d > 0, d, np.inf).astype(np.float32), np.ones((3, 3), np.uint8))
     ok = (d > 0) & np.isfinite(lo) & (hi - lo <= cfg.edge_tol * d)
-    ok &= np.all(lin >= cfg.min_linear, axis=2) & np.all(lin <= srgb_to_linear(np.float32(cfg.max_srgb)), axis=2)
+    ok &= np.all(lin <= srgb_to_linear(np.float32(cfg.max_srgb)), axis=2)
     if scan.alpha is not None:
         ok &= scan.alpha >= 1.0 - 1e-3
     return lin, ok
@@ -192,43 +234,33 @@ def _usable_cache(scans, cfg: PhotometricConfig):
     return prep
 
 
-def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """img (H, W, C) sampled at float pixel coordinates (inside the image)."""
-    u0 = np.floor(u).astype(np.int64)
-    v0 = np.floor(v).astype(np.int64)
-    fu = (u - u0)[:, None]
-    fv = (v - v0)[:, None]
-    u1 = np.minimum(u0 + 1, img.shape[1] - 1)
-    v1 = np.minimum(v0 + 1, img.shape[0] - 1)
-    top = img[v0, u0] * (1 - fu) + img[v0, u1] * fu
-    bot = img[v1, u0] * (1 - fu) + img[v1, u1] * fu
-    return top * (1 - fv) + bot * fv
-
-
-def pair_log_ratios(si: Scan, sj: Scan, prep_i, prep_j, cfg: PhotometricConfig) -> np.ndarray:
-    """(N, 3) ``log c_j - log c_i`` over the correspondences of view i's samples in view j."""
+def pair_cells(si: Scan, sj: Scan, prep_i, prep_j, cfg: PhotometricConfig, grid: CellGrid):
+    """(cells (M,) int64, log ratios (M, 3) ``log c_j - log c_i`` of the cells (:func:`cell_ratios`),
+    correspondences (M,) int) of view i's samples seen again by view j (module docstring, step 1)."""
     lin_i, ok_i = prep_i
     lin_j, ok_j = prep_j
+    none = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64))
     step = cfg.stride or max(1, min(ok_i.shape) // AUTO_STRIDE_PX)
     vv, uu = np.nonzero(ok_i[::step, ::step])
     vv, uu = vv * step, uu * step
     if len(uu) == 0:
-        return np.zeros((0, 3))
-    uv = np.stack([uu, vv], axis=1).astype(np.float64)
-    pts = si.camera.unproject(uv, si.depth[vv, uu].astype(np.float64))
+        return none
+    pts = si.camera.unproject(np.stack([uu, vv], axis=1).astype(np.float64), si.depth[vv, uu].astype(np.float64))
     pix, z = sj.camera.project(pts)
     H, W = sj.depth.shape
-    inb = (z > 0) & (pix[:, 0] >= 0) & (pix[:, 0] <= W - 1) & (pix[:, 1] >= 0) & (pix[:, 1] <= H - 1)
-    pix, z, vv, uu = pix[inb], z[inb], vv[inb], uu[inb]
-    ni = np.clip(np.round(pix).astype(np.int64), 0, [W - 1, H - 1])
-    dj = sj.depth[ni[:, 1], ni[:, 0]]
-    agree = ok_j[ni[:, 1], ni[:, 0]] & (np.abs(dj - z) <= cfg.depth_tol * z)
-    if not np.any(agree):
-        return np.zeros((0, 3))
-    cj = _bilinear(lin_j, pix[agree, 0], pix[agree, 1])
-    ci = lin_i[vv[agree], uu[agree]]
-    good = np.all(cj >= cfg.min_linear, axis=1)
-    return np.log(cj[good].astype(np.float64)) - np.log(ci[good].astype(np.float64))
+    with np.errstate(invalid="ignore"):
+        ni = np.floor(np.nan_to_num(pix, nan=-1.0) + 0.5).astype(np.int64)
+    inb = (z > 0) & (ni[:, 0] >= 0) & (ni[:, 0] < W) & (ni[:, 1] >= 0) & (ni[:, 1] < H)
+    pts, pix, ni, z, vv, uu = pts[inb], pix[inb], ni[inb], z[inb], vv[inb], uu[inb]
+    agree = ok_j[ni[:, 1], ni[:, 0]] & (np.abs(sj.depth[ni[:, 1], ni[:, 0]] - z) <= cfg.depth_tol * z)
+    if agree.sum() < cfg.min_samples:
+        return none
+    keys, inv, cnt = np.unique(grid.keys(pts[agree]), return_inverse=True, return_counts=True)
+    uvj = np.clip(pix[agree], 0, [W - 1, H - 1]).astype(np.float32)
+    cj = remap_bilinear(lin_j, uvj[:, :1], uvj[:, 1:]).reshape(-1, 3)
+    d = cell_ratios(lin_i[vv[agree], uu[agree]], cj, inv, len(keys), cfg.cell_trim)
+    ok = (cnt >= cfg.min_cell_samples) & np.all(np.isfinite(d), axis=1)
+    return keys[ok], d[ok], cnt[ok]
 
 
 def robust_location(r: np.ndarray, huber: float) -> tuple[np.ndarray, np.ndarray]:
@@ -256,7 +288,44 @@ def neighbour_pairs(scans, cfg: PhotometricConfig) -> list[tuple[int, int]]:
     return sorted(pairs)
 
 
+@dataclass(frozen=True)
+class PairCells:
+    """One compared pair: views ``i``, ``j``; its cells' flat indices (M,), log ratios ``d`` (M, 3)
+    (log c_j - log c_i) and correspondences per cell (M,)."""
+
+    i: int
+    j: int
+    cells: np.ndarray
+    d: np.ndarray
+    samples: np.ndarray
+
+
+def measure_pairs(scans, cfg: PhotometricConfig, grid: CellGrid, progress=None) -> list[PairCells]:
+    """Every neighbour pair with at least ``min_cells`` cells (steps 1-2's data)."""
+    prep = _usable_cache(scans, cfg)
+    pairs = neighbour_pairs(scans, cfg)
+    out = []
+    for i, j in (progress(pairs, "photometric pairs") if progress else pairs):
+        cells, d, n = pair_cells(scans[i], scans[j], prep(i), prep(j), cfg, grid)
+        if len(cells) >= cfg.min_cells:
+            out.append(PairCells(i, j, cells, d, n))
+    return out
+
+
 # --------------------------------------------------------------------------- solve
+def pair_edges(pairs: list[PairCells], huber: float, use=None) -> list:
+    """Edges (i, j, d_ij (3,), sigma_ij (3,)) of the pairs: the robust location of their cells' ratios
+    (only the cells where ``use[k]`` (M,) bool is set, for pair k; pairs left with fewer than 2 drop)."""
+    edges = []
+    for k, p in enumerate(pairs):
+        d = p.d if use is None else p.d[use[k]]
+        if len(d) < 2:
+            continue
+        mu, sigma = robust_location(d, huber)
+        edges.append((p.i, p.j, mu, np.sqrt(sigma ** 2 / len(d) + PAIR_BIAS ** 2)))
+    return edges
+
+
 def solve_gains(n_views: int, edges: list[tuple[int, int, np.ndarray, np.ndarray]], huber: float):
     """Log gains x (V, 3) from edges (i, j, d_ij (3,), sigma_ij (3,)) meaning x_i - x_j = d_ij,
     sum of x = 0 per channel; Huber IRLS on the normalised residuals.  Returns (x, |residual| median)."""
@@ -280,36 +349,6 @@ def solve_gains(n_views: int, edges: list[tuple[int, int, np.ndarray, np.ndarray
     return x, float(np.median(np.abs(A[:E] @ x - d))) if E else 0.0
 
 
-def exposure_part(x: np.ndarray, forward: np.ndarray, corr_deg: float) -> tuple[np.ndarray, float]:
-    """The per-view exposure in log gains ``x`` (V, 3), separated from view-dependent appearance.
-
-    ``x = e + a``: exposure e is independent per view (covariance s_e I); appearance a is
-    correlated between views that look from similar directions (covariance s_a K, K_ij =
-    exp(-angle_ij^2 / 2 corr_deg^2) from the viewing directions ``forward`` (V, 3)).  The ratio
-    s_a / s_e is chosen by maximum likelihood (profiled over s_e, the three channels pooled, the
-    global gain projected out), and e is its posterior mean (Wiener filter).  A capture whose views
-    differ only smoothly with the viewpoint (fur lit from one side) keeps its colours; one whose
-    views jump independently (auto exposure) is corrected.  Returns (e, s_a / s_e)."""
-    n = len(x)
-    if n < 3:
-        return x, 0.0
-    cos = np.clip(forward @ forward.T, -1.0, 1.0)
-    K = np.exp(-np.degrees(np.arccos(cos)) ** 2 / (2 * corr_deg ** 2))
-    Q = np.linalg.svd(np.eye(n) - 1.0 / n, hermitian=True)[0][:, : n - 1]   # basis without the global gain
-    y = Q.T @ x
-    Kq = Q.T @ K @ Q
-    best = None
-    for r in APPEARANCE_RATIOS:
-        M = np.eye(n - 1) + r * Kq
-        sign, logdet = np.linalg.slogdet(M)
-        quad = float(np.sum(y * np.linalg.solve(M, y)))
-        nll = 3 * (n - 1) * np.log(quad / (3 * (n - 1)) + 1e-300) + 3 * logdet
-        if best is None or nll < best[0]:
-            best = (nll, r, M)
-    _, r, M = best
-    return Q @ np.linalg.solve(M, y), float(r)
-
-
 def _connected(n: int, edges) -> np.ndarray:
     """(V,) bool: views joined by at least one edge."""
     seen = np.zeros(n, bool)
@@ -318,41 +357,67 @@ def _connected(n: int, edges) -> np.ndarray:
     return seen
 
 
-def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None) -> PhotometricResult:
-    """Per-view gains of ``scans`` (module docstring)."""
+def log_gains(n_views: int, pairs: list[PairCells], forward: np.ndarray, cfg: PhotometricConfig, use=None):
+    """(x (V, 3) log gains, 0 for unlinked views; edges; |residual| median; (how appearance was told apart:
+    colour, smooth or none; the share of the EV spread taken for it, or the variance ratio)): steps 2-4 on
+    the pairs' cells (``use``: see :func:`pair_edges`)."""
+    edges = pair_edges(pairs, cfg.huber, use)
+    if not edges:
+        return np.zeros((n_views, 3)), edges, 0.0, ("none", 0.0)
+    x, resid = solve_gains(n_views, edges, cfg.huber)
+    linked = _connected(n_views, edges)
+    app, how = 0.0, "none"
+    if cfg.appearance in ("auto", "colour"):
+        x, app = colour_appearance_part(x, linked)
+        how = "colour" if app else how
+    if cfg.appearance == "smooth" or (cfg.appearance == "auto" and not app):
+        chance = APPEARANCE_QUANTILE if cfg.appearance == "auto" else None
+        x, app = exposure_part(x, forward, cfg.appearance_deg, chance)
+        how = "smooth" if app else how
+    x[~linked] = 0.0
+    return x, edges, resid, (how, app)
+
+
+def _gauge(x: np.ndarray, linked: np.ndarray, reference: str, names) -> np.ndarray:
+    """Log gains with the gauge fixed (module docstring, step 3); unlinked views keep 0."""
+    x = np.where(linked[:, None], x, np.nan)
+    if not linked.any():
+        return np.zeros_like(x)
+    if reference == "median":
+        x = x - np.nanmedian(x, axis=0)
+    elif reference == "mean":
+        x = x - np.nanmean(x, axis=0)
+    else:   # a named view that is not linked keeps its colour; so does everything relative to it
+        x = x - np.nan_to_num(x[list(names).index(reference)], nan=0.0)
+    return np.nan_to_num(x, nan=0.0)
+
+
+def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None, bounds=None) -> PhotometricResult:
+    """Per-view gains of ``scans`` (module docstring); ``bounds`` (2, 3) metres: the cube of the cells
+    (default: from the views' depth)."""
+    from capture.photometric_check import check_alignment
+
     cfg = cfg or PhotometricConfig()
     scans = list(scans)
     names = tuple(s.name for s in scans)
     if cfg.reference not in GAUGES and cfg.reference not in names:
         raise ValueError(f"photometric reference {cfg.reference!r} is neither {' nor '.join(GAUGES)} nor a view name "
                          f"(views: {', '.join(names[:6])}{', ...' if len(names) > 6 else ''})")
-    prep = _usable_cache(scans, cfg)
-    pairs = neighbour_pairs(scans, cfg)
-    edges, samples = [], 0
-    for i, j in (progress(pairs, "photometric pairs") if progress else pairs):
-        r = pair_log_ratios(scans[i], scans[j], prep(i), prep(j), cfg)
-        if len(r) < cfg.min_samples:
-            continue
-        mu, sigma = robust_location(r, cfg.huber)
-        edges.append((i, j, mu, np.sqrt(sigma ** 2 / len(r) + PAIR_BIAS ** 2)))
-        samples += len(r)
-    x, resid = solve_gains(len(scans), edges, cfg.huber) if edges else (np.zeros((len(scans), 3)), 0.0)
-    ratio = 0.0
-    if cfg.appearance_deg > 0 and edges:
-        x, ratio = exposure_part(x, np.stack([s.camera.forward for s in scans]), cfg.appearance_deg)
+    step = cfg.stride or max(1, min(scans[0].depth.shape) // AUTO_STRIDE_PX) if scans else 1
+    grid = cell_grid(scans, cfg.cell_res, bounds, cfg.cell_min_px * step)
+    pairs = measure_pairs(scans, cfg, grid, progress)
+    forward = np.stack([s.camera.forward for s in scans])
+    x, edges, resid, app = log_gains(len(scans), pairs, forward, cfg)
     linked = _connected(len(scans), edges)
-    x[~linked] = np.nan
-    if not linked.any():
-        x[:] = 0.0
-    elif cfg.reference == "median":
-        x = x - np.nanmedian(x, axis=0)
-    elif cfg.reference == "mean":
-        x = x - np.nanmean(x, axis=0)
-    else:   # a named view that is not linked keeps its colour; so does everything relative to it
-        x = x - np.nan_to_num(x[names.index(cfg.reference)], nan=0.0)
-    x = np.nan_to_num(x, nan=0.0)
-    return PhotometricResult(names, np.exp(x), len(edges), samples, tuple(n for n, k in zip(names, linked) if not k),
-                             cfg.reference, resid, {"appearance_to_exposure": ratio})
+    meta = {"appearance": app[0], "cells": int(sum(len(p.cells) for p in pairs)),
+            ("appearance_to_exposure" if app[0] == "smooth" else "appearance_share"): app[1]}
+    if cfg.check and edges:
+        check = check_alignment(len(scans), pairs, forward, cfg, grid)
+        x = check.apply(x)
+        meta["check"] = check.record()
+    x = _gauge(x, linked, cfg.reference, names)
+    return PhotometricResult(names, np.exp(x), len(edges), int(sum(int(p.samples.sum()) for p in pairs)),
+                             tuple(n for n, k in zip(names, linked) if not k), cfg.reference, resid, meta)
 
 
 def apply_gains(scans, gains: np.ndarray, keep=None) -> tuple[Scan, ...]:

@@ -176,7 +176,8 @@ class UndistortConfig:
     """Settings of the undistort stage."""
 
     mode: str = DEFAULT_UNDISTORT
-    """``--undistort``: 'crop' (every pixel valid, as nerfstudio) or 'full' (every source pixel kept)."""
+    """``--undistort``: 'keep' (the camera matrix kept: one resampling, no rescale), 'crop' (every pixel
+    valid, as nerfstudio) or 'full' (every source pixel kept); capture.lens."""
 
     def __post_init__(self) -> None:
         if self.mode not in UNDISTORT_MODES:

@@ -163,9 +163,11 @@ def photometric_table(rec: dict):
     """Rich table of the per-view gains of a photometric record (EV and white balance)."""
     from rich.table import Table
 
+    app = (f"appearance / exposure variance {rec['appearance_to_exposure']:.3g}" if "appearance_to_exposure" in rec
+           else f"share of the EV spread taken for appearance {rec.get('appearance_share', 0):.2f}")
+    applied = f"; applied: {rec['check']['chosen']}" if rec.get("check") else ""
     t = Table(title=f"photometric alignment ({rec['pairs']} view pairs, {rec['samples']} samples, "
-                    f"reference {rec['reference']}, residual {rec['residual_log']:.4f} log, appearance / exposure "
-                    f"variance {rec.get('appearance_to_exposure', 0):.3g})")
+                    f"reference {rec['reference']}, residual {rec['residual_log']:.4f} log, {app}{applied})")
     for c in ("view", "EV", "WB r", "WB g", "WB b"):
         t.add_column(c, justify="right")
     for v in rec["views"]:

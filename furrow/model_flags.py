@@ -88,11 +88,15 @@ def add_model_arguments(p: argparse.ArgumentParser, frames: bool = True) -> None
 
 
 def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
+    from capture.lens import DEFAULT_UNDISTORT, UNDISTORT_HELP, UNDISTORT_MODES
+
     g = p.add_argument_group("real cameras: lens distortion and per-view exposure / white balance")
-    g.add_argument("--undistort", choices=["crop", "full"], default="crop",
+    g.add_argument("--undistort", choices=list(UNDISTORT_MODES), default=DEFAULT_UNDISTORT,
                    help="frames with lens distortion (camera_model OPENCV / OPENCV_FISHEYE, COLMAP radial models) "
-                        "are undistorted at read time: 'crop' (default, as nerfstudio: every pixel valid, corners "
-                        "lost) or 'full' (every source pixel kept, black corners without depth)")
+                        "are undistorted once at read time to a pinhole camera: "
+                        + "; ".join(f"'{m}'{' (default)' if m == DEFAULT_UNDISTORT else ''}: {h}"
+                                    for m, h in UNDISTORT_HELP.items())
+                        + " (docs/real_cameras.md)")
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")

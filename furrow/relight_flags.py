@@ -30,7 +30,10 @@ def add_relight_arguments(p: argparse.ArgumentParser) -> None:
                         "ground shadow and the glare (--relight alone then takes the --env map)")
     g.add_argument("--relight-kernel", default=None, metavar="NAME",
                    help="transfer of the relighting: auto (default: the kernel and the forward scattering that best "
-                        "explain the model's own capture views under the capture lighting, fitted in a second or two; "
+                        "explain the model's own capture views under the capture lighting, judged on views they did "
+                        "not see and kept near the default transfer (wrap, forward 1, g 0.8) unless the views show "
+                        "better; when the transfers the capture cannot tell apart disagree under the new map, the "
+                        "default transfer or the single global gain instead; it prints which and why; "
                         "docs/relight.md), or a fixed kernel: wrap, lambert, fur, half-lambert, or mix:W0,W1,W2,W3 "
                         "(weights of lambert, wrap, half-lambert, uniform)")
     g.add_argument("--relight-strands", action="store_true",
@@ -74,9 +77,14 @@ def open_relighter(args, ctx, model, stack):
     from furrow.console import console
 
     if rel.fit is not None:
-        console.print(f"relighting transfer fitted to the capture views: kernel {rel.fit.kernel}, forward scattering "
-                      f"{rel.fit.forward:g} (g {rel.fit.forward_g:g}), from {rel.fit.samples} (voxel, view) cells in "
-                      f"{rel.setup_seconds.get('fit', 0):.1f} s")
+        f = rel.fit
+        console.print(f"relighting transfer fitted to the capture views: kernel {f.kernel}, forward scattering "
+                      f"{f.forward:g} (g {f.forward_g:g}), chosen on views it did not see from {f.samples} "
+                      f"(voxel, view) cells; {len(f.plausible)} transfers within noise of the best; "
+                      f"{rel.setup_seconds.get('fit', 0):.1f} s", highlight=False)
+    if rel.choice is not None:
+        colour = "" if rel.choice.source == "fitted" else "[yellow]"
+        console.print(f"{colour}relighting with {rel.choice.reason}{'[/yellow]' if colour else ''}", highlight=False)
     elif rel.fit_note:
         console.print(f"[yellow]relighting: {rel.fit_note}[/yellow]")
     return rel

@@ -19,13 +19,24 @@ wrap, half-lambert, uniform) with weights on a simplex grid of step 1 / :data:`W
 transfers are linear in the kernel, each candidate costs a weighted sum of precomputed per-basis
 transfers.  Luminance only (the colour of the light is the maps' business, not the material's).
 
+The choice is judged on views it did not see: the views are split into :data:`CV_FOLDS` groups of
+neighbouring views (by azimuth about up), and each candidate predicts every cell of a group from the
+point colours (per-voxel means) of the other groups; its error is the mean squared held-out residual.
+A candidate that explains the views it was fitted to but not the next sector of views is not chosen.
+Candidates within :data:`NOISE_Z` standard errors (over voxels) or :data:`NOISE_REL` of the best are
+"within noise" --
+the capture cannot tell them apart -- and of those the one nearest the physical default
+(:data:`DEFAULT_TRANSFER`, issue 15's fixed transfer) is taken: the fit is regularised toward the
+default and moves away from it only as far as the evidence demands.  Which of those equally good
+transfers the new light would tell apart is render.relight.trust's question.
+
 Measured in docs/relight.md (``furrow bench relight``: the fitted transfer against every fixed one).
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -58,6 +69,17 @@ MIN_GROUP_SAMPLES = 3
 SEED = 0
 #: Rec. 709 luminance weights.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
+#: The physical default the fit is regularised toward (kernel, beta, g): issue 15's fixed transfer.
+DEFAULT_TRANSFER = (rl.mix_kernel([0, 1, 0, 0]), rl.FORWARD_SCATTER, rl.FORWARD_G)
+#: The single global gain as a transfer: K = 1, no forward scattering (T_B / T_A = mean_B / mean_A).
+GAIN_TRANSFER = (rl.mix_kernel([0, 0, 0, 1]), 0.0, FORWARD_GS[-1])
+#: Cross-validation folds: contiguous sectors of the views by azimuth about up.
+CV_FOLDS = 4
+#: Candidates whose held-out error is within this many standard errors of the best are within noise...
+NOISE_Z = 1.0
+#: ...and so are those within this fraction of it: the transfer tables and SG lobes approximate the
+#: transfers to a few per cent, a difference the sampling noise alone does not show.
+NOISE_REL = 0.05
 
 
 @dataclass(frozen=True)
@@ -75,9 +97,13 @@ class CaptureSamples:
 
 @dataclass(frozen=True)
 class TransferFit:
-    """The fitted transfer: ``kernel`` (a ``mix:`` name), ``forward`` (beta), ``forward_g`` (g); ``score``
-    its residual variance (log luminance squared) and ``scores`` every candidate's, keyed
-    (kernel, beta, g); ``samples`` the capture pixels used."""
+    """The fitted transfer: ``kernel`` (a ``mix:`` name), ``forward`` (beta), ``forward_g`` (g) -- the
+    candidate taken (within noise of the best, nearest the default); ``score`` its held-out error (mean
+    squared log luminance) and ``scores`` every candidate's, keyed (kernel, beta, g); ``fit_scores`` the
+    in-sample residual variance of each; ``se`` each candidate's standard error of its held-out error minus
+    the best one's; ``best`` the candidate of least held-out error; ``plausible`` the candidates within
+    noise of it (nearest the default first); ``samples`` the (voxel, view) cells used; ``views`` the
+    capture views the cells came from."""
 
     kernel: str
     forward: float
@@ -85,10 +111,48 @@ class TransferFit:
     score: float
     scores: dict
     samples: int
+    fit_scores: dict = field(default_factory=dict)
+    se: dict = field(default_factory=dict)
+    best: tuple = ()
+    plausible: tuple = ()
+    views: int = 0
+
+    @property
+    def candidate(self) -> tuple:
+        """(kernel, beta, g) of the taken transfer."""
+        return (self.kernel, float(self.forward), float(self.forward_g))
+
+    @property
+    def is_default(self) -> bool:
+        """The taken transfer is the physical default (the capture shows nothing better)."""
+        return same_transfer(self.candidate, DEFAULT_TRANSFER)
 
     def best_fixed(self, kernel: str, forward: float, forward_g: float) -> float:
-        """The score of a named candidate (NaN if it was not tried)."""
-        return float(self.scores.get((kernel, float(forward), float(forward_g)), np.nan))
+        """The held-out error of a named candidate (NaN if it was not tried)."""
+        return float(self.scores.get(key(kernel, forward, forward_g), np.nan))
+
+
+def key(kernel: str, forward: float, forward_g: float) -> tuple:
+    """The candidate key (kernel name, beta, g); beta 0 ignores g (the last of FORWARD_GS)."""
+    w = rl.mix_weights(kernel) if kernel.startswith(rl.MIX_PREFIX) else None
+    name = rl.mix_kernel(w) if w is not None else kernel
+    return (name, float(forward), float(forward_g if forward else FORWARD_GS[-1]))
+
+
+def same_transfer(a: tuple, b: tuple) -> bool:
+    """Two (kernel, beta, g) are the same transfer."""
+    return key(*a) == key(*b)
+
+
+def default_distance(c: tuple) -> float:
+    """How far a candidate is from DEFAULT_TRANSFER: half the L1 distance of the kernel weights, plus
+    |beta - 1| over the largest beta, plus |g - 0.8| over the range of g where beta > 0 (0 for the default)."""
+    kd, bd, gd = DEFAULT_TRANSFER
+    d = 0.5 * float(np.abs(rl.mix_weights(c[0]) - rl.mix_weights(kd)).sum())
+    d += abs(c[1] - bd) / max(FORWARD_WEIGHTS)
+    if c[1] > 0:
+        d += abs(c[2] - gd) / (max(FORWARD_GS) - min(FORWARD_GS))
+    return d
 
 
 def capture_samples(rgbz, normals_at, max_samples: int = MAX_SAMPLES, seed: int = SEED) -> CaptureSamples:
@@ -129,7 +193,7 @@ def simplex_weights(n: int, steps: int = WEIGHT_STEPS) -> np.ndarray:
     return np.asarray(out, np.float64) / steps
 
 
-def _basis(samples: CaptureSamples, env, up, fit, basis):
+def basis_transfers(samples: CaptureSamples, env, up, fit, basis):
     """Per kernel of MIX_BASIS: luminance of E_j at the samples (P,), of F_j,g per g (G, P), of the
     reference; zeros for the kernels not in ``basis`` (no candidate weighs them)."""
     lum_e, lum_f, refs = [], [], []
@@ -149,8 +213,9 @@ def _basis(samples: CaptureSamples, env, up, fit, basis):
 
 
 def _cells(samples: CaptureSamples, use, origin, side: float):
-    """(cell of each used sample, voxel of each cell, which cells count): the samples grouped by (voxel,
-    view); a cell counts when it has MIN_GROUP_SAMPLES pixels and its voxel has two or more such cells."""
+    """(cell of each used sample, voxel of each cell, view of each cell, which cells count): the samples
+    grouped by (voxel, view); a cell counts when it has MIN_GROUP_SAMPLES pixels and its voxel has two or
+    more such cells."""
     vox = _groups(samples.points[use], np.asarray(origin, np.float64), float(side), GROUP_RES)
     nv = int(samples.view_index.max()) + 1
     cell_key = vox * nv + samples.view_index[use]
@@ -160,15 +225,66 @@ def _cells(samples: CaptureSamples, use, origin, side: float):
     inv = np.unique(cvox[big], return_inverse=True)[1]
     ok_cell = np.zeros(len(keys), bool)
     ok_cell[big] = np.bincount(inv)[inv] >= 2
-    return cell, cvox, ok_cell
+    return cell, cvox, keys % nv, ok_cell
+
+
+def view_folds(samples: CaptureSamples, up, folds: int = CV_FOLDS) -> np.ndarray:
+    """(V,) fold of each capture view: ``folds`` contiguous sectors of the views ordered by the azimuth
+    about ``up`` of their mean direction to the camera (neighbouring views share a fold, so a fold's
+    views are predicted from views that look from elsewhere)."""
+    nv = int(samples.view_index.max()) + 1
+    d = np.stack([np.bincount(samples.view_index, samples.views[:, a], nv) for a in range(3)], 1)
+    u = np.asarray(up, np.float64) / np.linalg.norm(up)
+    e1 = np.cross(u, [1.0, 0, 0] if abs(u[0]) < 0.9 else [0, 1.0, 0])
+    e1 /= np.linalg.norm(e1)
+    az = np.arctan2(d @ np.cross(u, e1), d @ e1)
+    fold = np.empty(nv, np.int64)
+    fold[np.argsort(az)] = np.arange(nv) * folds // nv
+    return fold
+
+
+def held_out_errors(r, grp, fold, folds: int):
+    """(e, valid): each cell's residual ``r`` minus the mean of its voxel's (``grp``) cells in the other
+    folds; valid where there are such cells."""
+    n = int(grp.max()) + 1
+    idx = grp * folds + fold
+    s_all, n_all = np.bincount(grp, r, n), np.bincount(grp, minlength=n)
+    s_f, n_f = np.bincount(idx, r, n * folds), np.bincount(idx, minlength=n * folds)
+    ntr = n_all[grp] - n_f[idx]
+    return r - (s_all[grp] - s_f[idx]) / np.maximum(ntr, 1), ntr > 0
+
+
+def _candidates(w_all, basis):
+    """(weights, beta, g) of every candidate: kernel mixtures over ``basis`` x forward scattering."""
+    for w in w_all:
+        if any(wj > 0 for wj, name in zip(w, rl.MIX_BASIS) if name not in basis):
+            continue
+        for beta, g in [(0.0, FORWARD_GS[-1])] + [(b, g) for b in FORWARD_WEIGHTS if b for g in FORWARD_GS]:
+            yield w, beta, g
+
+
+def _standard_errors(sq: dict, grp, best) -> dict:
+    """Per candidate the standard error of its mean held-out squared error minus the best one's, the
+    cells' differences summed per voxel (``grp``) and the voxels taken as independent."""
+    n_vox = int(grp.max()) + 1
+    cnt = np.bincount(grp, minlength=n_vox).astype(np.float64)
+    used = cnt > 0
+    nv, total = int(used.sum()), float(cnt.sum())
+    out = {}
+    for c, e2 in sq.items():
+        d = np.bincount(grp, e2 - sq[best], n_vox)
+        delta = d.sum() / total
+        out[c] = float(np.sqrt(np.sum(((d - cnt * delta)[used]) ** 2) * nv / max(nv - 1, 1)) / total)
+    return out
 
 
 def fit_transfer(samples: CaptureSamples, env, up, origin, side: float, fit=None,
-                 regularise: float = rl.REGULARISE, basis=FIT_BASIS) -> TransferFit:
-    """The candidate transfer that best explains the capture (module doc).  ``env``: the capture map
-    (EnvMap), ``up`` its world up; ``origin``, ``side``: the cube (metres) of the per-voxel colours;
-    ``fit``: the map's SG fit (``render.shading.sg_fit``) if already made; ``basis``: the kernels of
-    ``transfer.MIX_BASIS`` the mixture may use.
+                 regularise: float = rl.REGULARISE, basis=FIT_BASIS, folds: int = CV_FOLDS) -> TransferFit:
+    """The candidate transfer that best explains the capture on views it did not see, regularised toward
+    the default (module doc).  ``env``: the capture map (EnvMap), ``up`` its world up; ``origin``,
+    ``side``: the cube (metres) of the per-voxel colours; ``fit``: the map's SG fit
+    (``render.shading.sg_fit``) if already made; ``basis``: the kernels of ``transfer.MIX_BASIS`` the
+    mixture may use; ``folds``: view sectors of the cross-validation.
 
     The samples are first averaged per (voxel, view) cell -- mean log luminance, mean basis transfers
     (the transfers are smooth within a cell, the strand texture is not) -- and each voxel seen by two
@@ -176,11 +292,11 @@ def fit_transfer(samples: CaptureSamples, env, up, origin, side: float, fit=None
     from render.shading.sg_fit import fit_env_sg
 
     fit = fit_env_sg(env, rl.RELIGHT_SG_K) if fit is None else fit
-    e, f, refs, ok = _basis(samples, env, up, fit, basis)
+    e, f, refs, ok = basis_transfers(samples, env, up, fit, basis)
     y = samples.luminance
     floor = LOG_FLOOR * max(float(np.median(y[y > 0])) if np.any(y > 0) else 1.0, 1e-12)
     use = ok & (y > 0)
-    cell, cvox, ok_cell = _cells(samples, use, origin, side)
+    cell, cvox, cview, ok_cell = _cells(samples, use, origin, side)
     if ok_cell.sum() < 100:
         raise ValueError(f"relighting fit: only {int(ok_cell.sum())} (voxel, view) cells with "
                          f"{MIN_GROUP_SAMPLES}+ pixels in voxels two views saw")
@@ -191,16 +307,26 @@ def fit_transfer(samples: CaptureSamples, env, up, origin, side: float, fit=None
     e, f = mean(e[:, use]), mean(f[:, :, use])
     grp = np.unique(cvox[ok_cell], return_inverse=True)[1]
     gcnt = np.bincount(grp)
-    scores = {}
-    for w in simplex_weights(len(rl.MIX_BASIS)):
-        if any(wj > 0 for wj, name in zip(w, rl.MIX_BASIS) if name not in basis):
-            continue
-        ew, ref = w @ e, float(w @ refs)
-        fw = np.einsum("j,jgp->gp", w, f)
-        for beta, g in [(0.0, FORWARD_GS[-1])] + [(b, g) for b in FORWARD_WEIGHTS if b for g in FORWARD_GS]:
-            t = ew + (beta * fw[FORWARD_GS.index(g)] if beta else 0.0) + regularise * (1 + beta) * ref
-            r = logy - np.log(np.maximum(t, 1e-30))
-            r = r - (np.bincount(grp, r) / gcnt)[grp]
-            scores[(rl.mix_kernel(w), float(beta), float(g))] = float(np.mean(r * r))
+    fold = view_folds(samples, up, folds)[cview[ok_cell]]
+    valid = held_out_errors(np.zeros(len(grp)), grp, fold, folds)[1]
+    if valid.sum() < 100:
+        raise ValueError(f"relighting fit: only {int(valid.sum())} cells can be predicted from views of other "
+                         "sectors (the capture views cover too little of the object from several sides)")
+    scores, fit_scores, sq = {}, {}, {}
+    for w, beta, g in _candidates(simplex_weights(len(rl.MIX_BASIS)), basis):
+        t = w @ e + (beta * np.einsum("j,jp->p", w, f[:, FORWARD_GS.index(g)]) if beta else 0.0) \
+            + regularise * (1 + beta) * float(w @ refs)
+        r = logy - np.log(np.maximum(t, 1e-30))
+        c = key(rl.mix_kernel(w), beta, g)
+        rin = r - (np.bincount(grp, r) / gcnt)[grp]
+        fit_scores[c] = float(np.mean(rin * rin))
+        sq[c] = held_out_errors(r, grp, fold, folds)[0][valid] ** 2
+        scores[c] = float(sq[c].mean())
     best = min(scores, key=scores.get)
-    return TransferFit(best[0], best[1], best[2], scores[best], scores, int(ok_cell.sum()))
+    se = _standard_errors(sq, grp[valid], best)
+    tol = {c: max(NOISE_Z * se[c], NOISE_REL * scores[best]) for c in scores}
+    plausible = tuple(sorted((c for c in scores if scores[c] - scores[best] <= tol[c]),
+                             key=lambda c: (default_distance(c), scores[c])))
+    k, b, g = plausible[0]
+    return TransferFit(k, b, g, scores[plausible[0]], scores, int(valid.sum()), fit_scores, se, best, plausible,
+                       int(len(np.unique(cview[ok_cell]))))

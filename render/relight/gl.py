@@ -142,7 +142,6 @@ class Relighter(GLOwner):
 
     def __init__(self, ctx, model, capture_env: EnvMap, new_env: EnvMap, config: RelightConfig | None = None,
                  up=(0.0, 0.0, 1.0)) -> None:
-        from render.gl import program
         from render.shading.sg import fh_texture
 
         super().__init__(ctx)
@@ -153,27 +152,21 @@ class Relighter(GLOwner):
         self.smooth = smoothed(self.raw, self.config.smooth * self.raw.resolution)
         self.setup_seconds: dict = {}
         #: The transfer fitted to the capture (``render.relight.calibrate.TransferFit``) with kernel "auto";
-        #: ``fit_note``: why there is none although "auto" was asked for ("" otherwise).
+        #: ``fit_note``: why there is none although "auto" was asked for ("" otherwise); ``choice``: the
+        #: transfer relit with for the new map and why (``render.relight.trust.RelightChoice``: the fitted one,
+        #: or the default transfer or the single gain where the fit cannot be trusted for that map).
         self.fit = None
         self.fit_note = ""
+        self.choice = None
+        self._capture_env = capture_env
         self._capture_sg = None  # the capture map's SG fit, made once when the transfer is fitted
+        self._fit_samples = None
+        self._programs: tuple = ()
         if self.config.kernel == AUTO_KERNEL:
             self._calibrate(capture_env)
-        kernel = self.config.kernel
-        defines = {"MAX_SG": MAX_RELIGHT_SG, "RELIGHT_MIN_GRADIENT": f"{rl.MIN_GRADIENT:.9e}",
-                   "RELIGHT_KERNEL": list(rl.KERNELS).index(kernel) if kernel in rl.KERNELS else len(rl.KERNELS),
-                   "RELIGHT_KERNEL_W": "vec4({})".format(", ".join(
-                       f"{w:.9e}" for w in (rl.mix_weights(kernel) if kernel not in rl.KERNELS else np.zeros(4)))),
-                   "RELIGHT_FORWARD_G": f"{self.config.forward_g:.9e}",
-                   "RELIGHT_LIFT_VOXELS": f"{VISIBILITY_LIFT_VOXELS:.9e}",
-                   "RELIGHT_BAND_VOXELS": f"{VISIBILITY_BAND_VOXELS:.9e}", "SG_FH_TABLE": 1,
-                   "HAIR_FORWARD": f"{ht.HAIR_FORWARD:.9e}", "HAIR_BETA_R": f"{ht.HAIR_BETA_R:.9e}",
-                   "HAIR_BETA_D": f"{ht.HAIR_BETA_D:.9e}", "HAIR_FLOOR": f"{ht.HAIR_FLOOR:.9e}",
-                   "STRAND_POWER_STEPS": POWER_STEPS, "RELIGHT_STRANDS": int(bool(self.config.strands))}
-        self._vol_prog = self.own(program(ctx, "composite_vert.glsl", "relight_volume_frag.glsl", defines=defines))
-        self._app_prog = self.own(program(ctx, "composite_vert.glsl", "relight_apply_frag.glsl", defines=defines))
-        self._vol_vao = self.own(ctx.vertex_array(self._vol_prog, []))
-        self._app_vao = self.own(ctx.vertex_array(self._app_prog, []))
+            if self.fit is not None:
+                self._choose(new_env)
+        self._build_programs()
         self._fh = self.own(fh_texture(ctx))
         self._sdf_raw = self.own(self._texture3d(self.raw.values[..., None]))
         self._sdf_smooth = self.own(self._texture3d(self.smooth.values[..., None], linear=True))
@@ -224,6 +217,40 @@ class Relighter(GLOwner):
         self.setup_seconds[label] = time.perf_counter() - t0
         return lt
 
+    def _build_programs(self) -> None:
+        """The two passes' programs for the config's transfer (its kernel and phase are compiled in)."""
+        from render.gl import program
+
+        ctx, kernel = self.ctx, self.config.kernel
+        defines = {"MAX_SG": MAX_RELIGHT_SG, "RELIGHT_MIN_GRADIENT": f"{rl.MIN_GRADIENT:.9e}",
+                   "RELIGHT_KERNEL": list(rl.KERNELS).index(kernel) if kernel in rl.KERNELS else len(rl.KERNELS),
+                   "RELIGHT_KERNEL_W": "vec4({})".format(", ".join(
+                       f"{w:.9e}" for w in (rl.mix_weights(kernel) if kernel not in rl.KERNELS else np.zeros(4)))),
+                   "RELIGHT_FORWARD_G": f"{self.config.forward_g:.9e}",
+                   "RELIGHT_LIFT_VOXELS": f"{VISIBILITY_LIFT_VOXELS:.9e}",
+                   "RELIGHT_BAND_VOXELS": f"{VISIBILITY_BAND_VOXELS:.9e}", "SG_FH_TABLE": 1,
+                   "HAIR_FORWARD": f"{ht.HAIR_FORWARD:.9e}", "HAIR_BETA_R": f"{ht.HAIR_BETA_R:.9e}",
+                   "HAIR_BETA_D": f"{ht.HAIR_BETA_D:.9e}", "HAIR_FLOOR": f"{ht.HAIR_FLOOR:.9e}",
+                   "STRAND_POWER_STEPS": POWER_STEPS, "RELIGHT_STRANDS": int(bool(self.config.strands))}
+        self.free(*self._programs)
+        self._vol_prog = self.own(program(ctx, "composite_vert.glsl", "relight_volume_frag.glsl", defines=defines))
+        self._app_prog = self.own(program(ctx, "composite_vert.glsl", "relight_apply_frag.glsl", defines=defines))
+        self._vol_vao = self.own(ctx.vertex_array(self._vol_prog, []))
+        self._app_vao = self.own(ctx.vertex_array(self._app_prog, []))
+        self._programs = (self._vol_vao, self._app_vao, self._vol_prog, self._app_prog)
+
+    def _choose(self, new_env: EnvMap) -> None:
+        """Kernel "auto": the transfer for ``new_env`` (``render.relight.trust.choose_transfer``: the fitted
+        one, or the default transfer or the single gain where the fit cannot be trusted for that map)."""
+        from render.relight.trust import choose_transfer
+
+        t0 = time.perf_counter()
+        self.choice = choose_transfer(self.fit, self._fit_samples, self._capture_env, new_env, self.up,
+                                      self._capture_sg, regularise=self.config.regularise)
+        self.config = replace(self.config, kernel=self.choice.kernel, forward=self.choice.forward,
+                              forward_g=self.choice.forward_g)
+        self.setup_seconds["choice"] = time.perf_counter() - t0
+
     def _calibrate(self, capture_env: EnvMap) -> None:
         """Kernel "auto": the transfer that best explains the model's capture views under the capture
         lighting (``render.relight.calibrate``) replaces the config's kernel, forward weight and phase."""
@@ -234,6 +261,7 @@ class Relighter(GLOwner):
         self._capture_sg = fit_env_sg(capture_env, self.config.sg_lobes)
         try:
             samples = capture_samples(self.model.rgbz, lambda x: unit_normals(sdf_gradient(self.smooth, x)))
+            self._fit_samples = samples
             self.fit = fit_transfer(samples, capture_env, self.up, self.raw.origin,
                                     self.raw.voxel * self.raw.resolution, fit=self._capture_sg,
                                     regularise=self.config.regularise)
@@ -269,6 +297,12 @@ class Relighter(GLOwner):
     def set_new_env(self, env: EnvMap) -> None:
         """Relight to another map from now on (the viewer's switch): its lighting and the gain volume."""
         self.check_alive()
+        if self.fit is not None:   # kernel "auto": is the fit to be trusted for this map?
+            before = (self.config.kernel, self.config.forward, self.config.forward_g)
+            self._choose(env)
+            if (self.config.kernel, self.config.forward, self.config.forward_g) != before:
+                self._build_programs()
+                self.capture = self._lighting(self._capture_env, "capture", self._capture_sg)
         self.new = self._lighting(env, "new")
         if self.config.strands:
             self.hair = (self.capture, self.new)

@@ -34,7 +34,7 @@ TOL_PX = 0.01
 
 
 @pytest.mark.parametrize("lens", [OPENCV, FISH], ids=["opencv", "fisheye"])
-@pytest.mark.parametrize("mode", ["crop", "full"])
+@pytest.mark.parametrize("mode", ["keep", "crop", "full"])
 def test_maps_agree_with_cv2_undistort_points(lens, mode):
     import cv2
 
@@ -107,14 +107,38 @@ def test_capture_read_undistorted(tmp_path, lens):
     assert np.allclose(s.camera.K, K_new) and (s.camera.width, s.camera.height) == (w, h)
     assert ss.metadata["undistorted"]["models"] == [lens.source]
     x, y = np.meshgrid((np.arange(w) - K_new[0, 2]) / K_new[0, 0], (np.arange(h) - K_new[1, 2]) / K_new[1, 1])
-    err = np.abs(s.linear_rgb - _smooth(x, y))[2:-2, 2:-2]
+    # the default keeps K: pixels whose ray the lens did not image (barrel corners) are empty, the rest measured
+    mx, my = undistort_maps(K, lens, K_new, w, h)
+    seen = (mx >= 0.5) & (mx <= W - 1.5) & (my >= 0.5) & (my <= H - 1.5)
+    assert seen.mean() > 0.95 and (s.depth[seen] > 0).all()
+    assert (s.depth[(mx < -0.5) | (mx > W - 0.5) | (my < -0.5) | (my > H - 0.5)] == 0).all()
+    inner = seen[2:-2, 2:-2]
+    err = np.abs(s.linear_rgb - _smooth(x, y))[2:-2, 2:-2][inner]
     assert np.median(err) < 0.005 and err.max() < 0.03
     d = s.depth[1:-1, 1:-1]
-    assert set(np.unique(d).tolist()) <= {1.0, 2.0}                      # nothing averaged across the edge
+    assert set(np.unique(d[d > 0]).tolist()) <= {1.0, 2.0}                # nothing averaged across the edge
     xs = x[1:-1, 1:-1]
-    far = np.abs(xs - 0.05) > 1.5 / K_new[0, 0]
+    far = (np.abs(xs - 0.05) > 1.5 / K_new[0, 0]) & (d > 0)
     assert np.array_equal((d == 1.0)[far], (xs < 0.05)[far])              # and the edge where it belongs
     assert read_cameras(tmp_path / "scan")[0].camera.width == w           # cameras alone: the same pinhole
+
+
+def test_keep_is_cv2_undistort_with_the_same_camera_matrix():
+    """The default resamples once to the captured K and size: what ``cv2.undistort(img, K, D)`` gives (an
+    independent reference: OpenCV's own one-call undistortion), to float32 rounding."""
+    import cv2
+
+    from capture.lens import undistort_scan
+
+    rng = np.random.default_rng(2)
+    img = cv2.GaussianBlur(rng.random((H, W, 3)).astype(np.float32), (0, 0), 2.0)
+    cam = Camera(K, np.eye(4), W, H)
+    K_new, w, h = undistorted_camera(K, OPENCV, W, H, "keep")
+    assert np.array_equal(K_new, K) and (w, h) == (W, H)
+    out = undistort_scan(Scan(img, np.ones((H, W), np.float32), cam), OPENCV, K, cam).rgb
+    ref = cv2.undistort(img, K, OPENCV.dist)
+    assert np.abs(out - ref)[4:-4, 4:-4].max() < 2e-3
+    assert np.abs(out - img).max() > 0.05   # the lens does move pixels
 
 
 def test_full_keeps_every_source_pixel(tmp_path):

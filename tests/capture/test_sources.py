@@ -84,10 +84,11 @@ def test_plain_folder_lens_is_undistorted_like_transforms(tmp_path):
         f.write_text(json.dumps({**json.loads(f.read_text()), **lens}))
     tj = tmp_path / "tj" / "transforms.json"
     tj.write_text(json.dumps({**json.loads(tj.read_text()), **lens}))
-    plain, ref = read_scanset(tmp_path / "plain"), read_scanset(tmp_path / "tj")
+    # crop: the lens shows in the camera size (the default, keep, keeps K and the size)
+    plain, ref = read_scanset(tmp_path / "plain", undistort="crop"), read_scanset(tmp_path / "tj", undistort="crop")
     assert plain.metadata["undistorted"]["models"] == ref.metadata["undistorted"]["models"] == ["OPENCV"]
     for a, b in zip(plain.scans, ref.scans, strict=True):
         assert (a.camera.width, a.camera.height) == (b.camera.width, b.camera.height) != (64, 48)
         np.testing.assert_allclose(a.camera.K, b.camera.K, atol=1e-9)
         np.testing.assert_array_equal(a.depth, b.depth)
-    assert [f.camera.width for f in read_cameras(tmp_path / "plain")] == [s.camera.width for s in plain.scans]
+    assert [f.camera.width for f in read_cameras(tmp_path / "plain", "crop")] == [s.camera.width for s in plain.scans]

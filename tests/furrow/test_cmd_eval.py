@@ -69,7 +69,7 @@ CHANGES = {
     "no-photometric": (["--no-photometric"], lambda m, d: m.params["photometric"] is None
                        and d.params["photometric"] is not None),
     "views": (["--views", "2"], lambda m, d: len(m.rgbz) == 2 and len(d.rgbz) == 6),
-    "undistort": (["--undistort", "full"], lambda m, d: m.rgbz.size != d.rgbz.size),
+    "undistort": (["--undistort", "crop"], lambda m, d: m.rgbz.size != d.rgbz.size),
 }
 
 
@@ -95,7 +95,7 @@ def test_eval_flag_changes_the_model_as_furrow_model_does(capture, default_eval,
 def test_eval_reports_the_model_it_built(default_eval):
     res, model, _ = default_eval
     assert res["model"]["views"]["kept"] == 6 and res["model"]["surroundings"]["matte"]["mode"] == "auto"
-    assert res["undistorted"]["mode"] == "crop" and res["levels"] == model.pyramid.resolutions
+    assert res["undistorted"]["mode"] == "keep" and res["levels"] == model.pyramid.resolutions
 
 
 def test_eval_takes_every_model_flag(capsys):
