@@ -52,7 +52,9 @@ def test_render_relight(relightable, tmp_path, capsys):
     assert main(base + ["-o", str(tmp_path / "a")]) == 0
     capsys.readouterr()
     assert main(base + ["--relight", "sunset", "-o", str(tmp_path / "b")]) == 0
-    assert "relighting transfer fitted to the capture views: kernel mix:" in " ".join(capsys.readouterr().err.split())
+    # 8 views of 64x48 leave too few cells to cross-validate a fit: the CLI says so and what it relights with
+    err = " ".join(capsys.readouterr().err.split())
+    assert "cells can be predicted from views of other sectors" in err and "relighting with the fixed" in err
     assert main(base + ["--relight", "sunset", "--relight-visibility", "--relight-kernel", "lambert",
                         "-o", str(tmp_path / "v")]) == 0
     assert main(base + ["--relight", "--env", "sunset", "--ground", "-o", str(tmp_path / "c")]) == 0
