@@ -1,6 +1,6 @@
 """``furrow eval SCANS --holdout K``: held-out evaluation of every rendering method (gather,
 the default; the microfacet renderer; the plain point splatter; the fixed-mesh VDTM baseline and
-the vertex-colour floor; docs/methods.md §1.8, the paper's Fig. 11)."""
+the vertex-colour floor; the exported 3D Gaussians; docs/methods.md §1.8, the paper's Fig. 11)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,9 @@ method: gather (the default of `furrow render`: the splatted depth of the 2 near
 colours resampled from them with soft visibility), the microfacet renderer, the plain RGB-D point
 splatter (`points`: 4 nearest kept views, 2x2 splats, colours within 4 mm of the front averaged
 by 1/angle), the fixed-mesh VDTM baseline (same cameras, same selection and blending as the
-microfacets: they differ only in geometry) and the mesh's vertex colours (the floor).  Report
+microfacets: they differ only in geometry), the mesh's vertex colours (the floor) and the model's
+3D Gaussians (`splat`: what `furrow export --splats` writes, drawn with the 3D Gaussian Splatting
+image formation; docs/splats.md).  Report
 per view and mean PSNR and SSIM (8-bit sRGB, scikit-image) over the full image and inside the
 union of the reference and rendered foregrounds (their non-black 8-bit pixels: the captures are
 over black), the sharpness ratio there (RMS of the Laplacian of the grey image, rendering over
@@ -30,13 +32,13 @@ composite (photo + (1 - true alpha) x backdrop; PSNR white / PSNR dark), and the
 the true matte (alpha MSE inside the union of the foregrounds; SAD = sum |error| / 1000);
 without a matte these are skipped with a note.
 The microfacets and the mesh baselines are drawn with --supersample S x S samples per pixel
-(default 2: the references are area-sampled photographs or path-traced images); gather and
-points draw one sample per pixel whatever S (gather resamples the photos, whose own area
-sampling is kept).  The microfacets parallax-correct their colours along the eye ray
-(--refine, default 2 steps; 0 = the paper).
-Writes DIR/side_by_side/VIEW.png (top: reference | gather | microfacet | points | mesh-vdtm;
+(default 2: the references are area-sampled photographs or path-traced images); gather,
+points and splat draw one sample per pixel whatever S (gather resamples the photos, whose own
+area sampling is kept; the splats' EWA low pass is their anti-aliasing).  The microfacets
+parallax-correct their colours along the eye ray (--refine, default 2 steps; 0 = the paper).
+Writes DIR/side_by_side/VIEW.png (top: reference | gather | microfacet | points | mesh-vdtm | splat;
 bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
-there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, each with psnr,
+there too (keys `gather`, `microfacet`, `points`, `mesh_vdtm`, `mesh_colour`, `splat`, each with psnr,
 ssim, psnr_masked, ssim_masked, sharpness, psnr_white, psnr_dark, alpha_mse, alpha_sad,
 ms_per_frame, ... and the per-view records).
 

@@ -18,9 +18,9 @@ from render import metrics
 from render.methods import RenderOptions, create_renderer
 
 #: Methods ``furrow eval`` draws, in the order of its table.
-EVAL_METHODS = ("gather", "microfacet", "points", "mesh-vdtm", "mesh-colour")
+EVAL_METHODS = ("gather", "microfacet", "points", "mesh-vdtm", "mesh-colour", "splat")
 #: Methods of the side-by-side sheets (those among the evaluated ones, in this order).
-SHEET_METHODS = ("gather", "microfacet", "points", "mesh-vdtm")
+SHEET_METHODS = ("gather", "microfacet", "points", "mesh-vdtm", "splat")
 #: Amplification of the error panels of the side-by-side sheets.
 ERROR_GAIN = 4.0
 #: Label text of the sheets: OpenCV Hershey font scale per 480 image rows, and its colour.

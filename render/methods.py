@@ -140,6 +140,7 @@ METHODS: dict[str, str] = {
     "mesh-colour": "render.mesh.gl:MeshColourRenderer",
     "points": "render.points.gl:PointsRenderer",
     "gather": "render.gather.gl:GatherRenderer",
+    "splat": "render.splat.gl:SplatRenderer",
 }
 
 
