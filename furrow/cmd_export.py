@@ -24,6 +24,8 @@ linear) and a rough non-metallic material; the PLY files hold 8-bit sRGB colours
              Gaussian; the PLY layout of the 3D Gaussian Splatting reference (Kerbl et al. 2023), which
              SuperSplat, the Blender / Unity add-ons and the three.js viewers read; what `--method splat`
              draws
+  --size-ratio R  the splats' PLY at most R x the model folder (default 2.95): the merge grid grows until
+             the Gaussians fit; 0 = one Gaussian per pixel footprint, whatever the size
   --refine N  after building, refine the opacities against the kept views' mattes (up to N iterations,
              each drawing every kept view; an iteration that does not lower the alpha error is undone and
              ends it): thin needles and strands come out less wide
@@ -49,6 +51,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="write the model's 3D Gaussians (3D Gaussian Splatting PLY)")
     p.add_argument("--sh-degree", type=int, default=None, metavar="D",
                    help="spherical-harmonic degree of the splats' colour, 0-3 (default 2)")
+    p.add_argument("--size-ratio", type=float, default=None, metavar="R",
+                   help="the splats' PLY at most R x the model's size on disk (default 2.95, under 3; the merge grid "
+                        "grows until it fits); 0 = no limit")
     p.add_argument("--refine", type=int, default=0, metavar="N",
                    help="refine the splats' opacities against the kept views' mattes for up to N iterations "
                         "(each draws every kept view; stops when one does not lower the alpha error; default 0)")
@@ -65,8 +70,10 @@ def run(args, console) -> int:
         raise ValueError("nothing to export: give --mesh, --points, --spheres, --splats and/or --web")
     if args.point_voxel is not None and not args.points:
         raise ValueError("--point-voxel applies to --points only")
-    if (args.sh_degree is not None or args.refine) and not (args.splats or args.web):
-        raise ValueError("--sh-degree and --refine apply to --splats / --web only")
+    if (args.sh_degree is not None or args.refine or args.size_ratio is not None) and not (args.splats or args.web):
+        raise ValueError("--sh-degree, --size-ratio and --refine apply to --splats / --web only")
+    if args.size_ratio is not None and args.size_ratio < 0:
+        raise ValueError(f"--size-ratio must be >= 0 (0 = no limit), got {args.size_ratio}")
     if args.refine < 0:
         raise ValueError(f"--refine must be >= 0 iterations, got {args.refine}")
     model = load_model(args.model)
@@ -91,13 +98,20 @@ def export_splats(args, model, console) -> None:
 
     from furrow.console import track
     from volume.export import write_splats
-    from volume.splats import SplatConfig, build_splats
+    from volume.splats import SplatConfig, build
 
-    cfg = SplatConfig() if args.sh_degree is None else dataclasses.replace(SplatConfig(), sh_degree=args.sh_degree)
-    t0 = time.perf_counter()
-    splats = build_splats(model, cfg, progress=track)
-    console.print(f"built {len(splats)} Gaussians (SH degree {splats.degree}) from {len(model.rgbz)} views "
-                  f"in {time.perf_counter() - t0:.1f} s", highlight=False)
+    cfg = SplatConfig()
+    if args.sh_degree is not None:
+        cfg = dataclasses.replace(cfg, sh_degree=args.sh_degree)
+    if args.size_ratio is not None:
+        cfg = dataclasses.replace(cfg, budget_ratio=args.size_ratio or None)
+    t0, c0 = time.perf_counter(), time.process_time()
+    splats, info = build(model, cfg, progress=track)
+    budget = f"budget {info.budget} (size ratio {cfg.budget_ratio:g})" if info.budget else "no budget"
+    console.print(f"built {len(splats)} Gaussians (SH degree {splats.degree}) from {len(model.rgbz)} views, "
+                  f"{info.kept} of {info.samples} samples kept (one layer), grid {info.edge_m * 1e3:.2f} mm = "
+                  f"{info.edge_footprints:.2f} pixel footprints, {budget}; {time.perf_counter() - t0:.1f} s "
+                  f"({time.process_time() - c0:.1f} s CPU)", highlight=False)
     if args.refine:
         splats = refine(splats, model, args.refine, console)
     if args.splats:

@@ -218,3 +218,22 @@ def frame_rate(page, seconds: float, x0: float, y0: float, radius: float = 120.0
     elapsed = time.monotonic() - t0
     page.mouse.up()
     return (n1 - n0) / elapsed
+
+
+def page_scores(shot, C, A, mask_level: float = 24.0) -> tuple[float, float]:
+    """(silhouette IoU, masked PSNR dB) of a page's screenshot (H, W, 3) uint8 against a render's
+    display colour ``C`` (H, W, 3, premultiplied) and alpha ``A`` (H, W) blended over the page's
+    background (its top-centre pixel) in display values, as a splat viewer blends: the silhouettes
+    are the pixels more than ``mask_level`` (8-bit) from the background, the PSNR is over their union."""
+    import numpy as np
+
+    h, w = shot.shape[:2]
+    bg = shot[2, w // 2].astype(np.float64) / 255.0
+    ref = np.clip(C + (1.0 - A)[..., None] * bg, 0, 1) * 255.0
+    s = shot.astype(np.float64)
+    ms = np.abs(s - bg * 255.0).max(-1) > mask_level
+    mr = np.abs(ref - bg * 255.0).max(-1) > mask_level
+    union = ms | mr
+    iou = float((ms & mr).sum() / max(union.sum(), 1))
+    mse = float(np.mean((s[union] - np.round(ref[union])) ** 2)) if union.any() else 255.0 ** 2
+    return iou, float(10 * np.log10(255.0 ** 2 / max(mse, 1e-9)))

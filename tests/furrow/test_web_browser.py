@@ -33,7 +33,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.gl]
 W, H = 960, 720
 #: The capture: 12 ring cameras at half the viewport (the page shows them 2x larger).
 CAPTURE = (480, 360)
-#: Silhouette agreement (IoU of |pixel - background| > MASK_LEVEL inside the reference's box):
+#: Silhouette agreement (IoU of |pixel - background| > MASK_LEVEL, furrow.bench._browser.page_scores):
 #: measured 0.93 at the capture camera, 0.62 with the field of view 8 degrees off.
 SILHOUETTE_IOU = 0.85
 MASK_LEVEL = 24
@@ -70,20 +70,6 @@ def reference_view(model, splats, fov_scale: float = 1.0) -> tuple[np.ndarray, n
     pr = sr.project(splats.positions, splats.covariances(), splats.opacities, splats.sh, cam)
     C, A, _ = sr.blend(pr, W, H)
     return C, A
-
-
-def compare(shot: np.ndarray, C: np.ndarray, A: np.ndarray) -> tuple[float, float]:
-    """(silhouette IoU, masked PSNR) of the page's screenshot against furrow's C, A composited in
-    display values over the page's background (its corner pixel), as a splat viewer blends."""
-    bg = shot[2, W // 2].astype(np.float64) / 255.0
-    ref = np.clip(C + (1.0 - A)[..., None] * bg, 0, 1) * 255.0
-    s = shot.astype(np.float64)
-    ms = np.abs(s - bg * 255.0).max(-1) > MASK_LEVEL
-    mr = np.abs(ref - bg * 255.0).max(-1) > MASK_LEVEL
-    iou = float((ms & mr).sum() / max((ms | mr).sum(), 1))
-    both = ms | mr
-    mse = float(np.mean((s[both] - np.round(ref[both])) ** 2)) if both.any() else 255.0 ** 2
-    return iou, float(10 * np.log10(255.0 ** 2 / max(mse, 1e-9)))
 
 
 @pytest.fixture(scope="module")
@@ -129,10 +115,10 @@ def test_static_page_in_a_real_browser(exported):
     shot = read_color(exported / "shot.png")[..., :3]
     model = load_model(exported / "model")
     splats = read_splats(exported / "s.ply")
-    iou, psnr = compare(shot, *reference_view(model, splats))
+    iou, psnr = B.page_scores(shot, *reference_view(model, splats), MASK_LEVEL)
     print(f"static page: silhouette IoU {iou:.3f}, masked PSNR {psnr:.2f} dB against furrow's render; "
           f"{fps:.2f} frames/s while orbiting at {W}x{H} (software WebGL)")
     assert iou >= SILHOUETTE_IOU and psnr >= MASKED_PSNR_DB, (iou, psnr)
-    wrong_iou, wrong_psnr = compare(shot, *reference_view(model, splats, fov_scale=1.25))
+    wrong_iou, wrong_psnr = B.page_scores(shot, *reference_view(model, splats, fov_scale=1.25), MASK_LEVEL)
     assert wrong_iou < SILHOUETTE_IOU or wrong_psnr < MASKED_PSNR_DB, (wrong_iou, wrong_psnr)
     assert fps > 0.0  # orbiting redraws the page

@@ -15,7 +15,6 @@ from render.owner import NEAR_FRACTION_INSIDE, mat4_bytes, near_far
 from tests import scenes as scene
 from tests.conftest import assert_images_close
 
-
 #: Methods whose one-sample frames have soft edges (3D Gaussians: every pixel an alpha blend).
 SOFT_EDGED = {"splat"}
 
