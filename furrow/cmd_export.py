@@ -29,9 +29,10 @@ linear) and a rough non-metallic material; the PLY files hold 8-bit sRGB colours
   --refine N  after building, refine the opacities against the kept views' mattes (up to N iterations,
              each drawing every kept view; an iteration that does not lower the alpha error is undone and
              ends it): thin needles and strands come out less wide
-  --web      a folder that any static file server (`python -m http.server`) or the file itself serves as
-             a page drawing the splats in the browser (viser's bundled client, offline), orbiting with the
-             mouse from the first capture camera; the page shows their view-independent (DC) colour
+  --web      a folder (index.html + splats.bin) that any static file server (`python -m http.server`)
+             shows as a page drawing the splats in the browser (WebGL2, no dependency, offline; the splat
+             method's image formation with the view-dependent colour), orbiting with the mouse about the
+             object from the first capture camera
 
 examples:
   furrow export out/furball_model --mesh out/furball.glb
@@ -123,7 +124,8 @@ def export_splats(args, model, console) -> None:
 
         r = write_web(splats, model, args.web)
         console.print(f"[green]wrote[/] web page ({r.bytes / 2**20:.1f} MiB in {r.files} files) -> {r.path}  "
-                      f"(serve it: cd {r.path} && python -m http.server)", highlight=False)
+                      f"(serve it: cd {r.path} && python -m http.server, then open http://localhost:8000)",
+                      highlight=False)
 
 
 def refine(splats, model, iterations: int, console):

@@ -119,6 +119,14 @@ def render(ply, K, world_to_cam, W, H, near=0.01):
         y0 = min(gy, max(0, int((v - radius) / BLOCK))) * BLOCK
         y1 = min(gy, max(0, int((v + radius + BLOCK - 1) / BLOCK))) * BLOCK
         x1, y1 = min(x1, W), min(y1, H)
+        # inside the touched tiles, only pixels with q <= 2 ln(255 o) can reach alpha >= 1/255: the
+        # others are skipped by the reference's alpha test anyway, so they are not evaluated here
+        reach = 2.0 * np.log(255.0 * opacity[i])
+        if reach <= 0:
+            continue
+        rx, ry = np.sqrt(reach * a), np.sqrt(reach * c)
+        x0, x1 = max(x0, int(np.ceil(u - rx))), min(x1, int(np.floor(u + rx)) + 1)
+        y0, y1 = max(y0, int(np.ceil(v - ry))), min(y1, int(np.floor(v + ry)) + 1)
         if x1 <= x0 or y1 <= y0:
             continue
         d = xyz[i] - cam_pos

@@ -1,8 +1,8 @@
 """The static splat page of ``furrow export --web`` in headless Chromium, measured (issue 33).
 
 Serves DIR with a plain ``python -m http.server`` (nothing of furrow), aborts every request that
-leaves it (offline), opens the page at W x H (device pixel ratio 1), waits for it, hides viser's
-panels, takes a screenshot, compares it with furrow's own render of the first capture camera
+leaves it (offline), opens the page at W x H (device pixel ratio 1), waits for its first frame,
+hides its one-line caption, takes a screenshot, compares it with furrow's own render of the first capture camera
 (the ``splat`` method's numpy twin on the exported PLY, blended over the page's background in
 display values: furrow.bench._browser.page_scores) and measures the frame rate while orbiting
 with the mouse (frames that drew per second of wall time).
@@ -48,12 +48,11 @@ def main(argv=None) -> int:
             page.add_init_script(B.FRAME_COUNTER_JS)
             blocked = B.offline(page, server.url)
             t0 = time.monotonic()
-            page.goto(server.url + "/?fixedDpr=1")
-            B.wait_opaque(page)
+            page.goto(server.url + "/")
+            page.wait_for_function("() => window.__furrowFrames > 0", timeout=B.FRAME_TIMEOUT_S * 1000)
             load_s = time.monotonic() - t0
             time.sleep(a.settle)
-            page.add_style_tag(content=".mantine-Paper-root, .mantine-Notification-root, "
-                                       "[class*='Notification'] { visibility: hidden !important; }")
+            page.add_style_tag(content="#info { visibility: hidden !important; }")
             time.sleep(0.5)
             png = a.web.parent / (a.web.name + "_shot.png")
             page.screenshot(path=str(png))

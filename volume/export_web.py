@@ -1,30 +1,25 @@
 """A static web page that draws a model's 3D Gaussians in the browser (issue 33, ``furrow export --web``).
 
-Built with what furrow already ships: viser (pinned in pyproject) carries its client as one
-bundled ``index.html`` (React + three.js, no network access) and serialises a scene for static
-embedding (``ViserServer.get_scene_serializer().as_html()``).  :func:`write_web` starts a viser server
-on a free local port for the time of the export (nothing connects to it), adds
+:func:`write_web` writes ``DIR/index.html`` (the template volume/web/index.html: WebGL2, no
+dependency, nothing fetched but the file beside it) and ``DIR/splats.bin`` (the Gaussians: positions and opacities
+float32, covariances and the spherical harmonics float16).  Any static file server shows it
+(``python -m http.server``) with nothing of furrow running, offline.  The page draws with the image
+formation of furrow's ``splat`` method (its shaders are ports of render/splat/shaders/), including
+the view-dependent colour, starts at the first capture camera (its centre, its optical axis to the
+object's distance, its vertical field of view; the rig's up: ``capture.orbit.estimate_up``) and
+orbits about that point with the mouse.
 
-* the splats as viser's Gaussian splat node (``scene.add_gaussian_splats``: centre, covariance,
-  colour, opacity per Gaussian, sorted and drawn in the browser);
-* the scene's up direction (the rig's, ``capture.orbit.estimate_up``) and the initial camera: the
-  first capture camera (its centre, its optical axis to the object's distance, its image up and
-  vertical field of view: ``capture.camera.viser_view``); the page orbits about that point,
-
-and writes the serialised scene embedded in the client page as ``DIR/index.html``: any static file
-server, or the file opened directly, shows it offline with nothing of furrow running.
-
-What the page cannot show: viser's splats have one colour each, so the page draws the DC term
-of the spherical harmonics (their view-independent colour, 0.5 + SH_C0 f_dc); it blends in the
-browser's display values, as every splat viewer does.  viser stores the covariance as float16:
-metres would underflow for millimetre Gaussians, so the node holds the scene scaled by
-1 / (median Gaussian size) and the node's own scale maps it back to metres.
+Why not viser's static embedding (``ViserServer.get_scene_serializer().as_html()``, tried first):
+viser 1.1.1's splat node draws one colour per Gaussian and skips every Gaussian whose
+alpha x det(2-D covariance + 0.3) is under 0.25, i.e. the faint pixel-sized Gaussians of thin
+needles: on the path-traced conifer only scattered dots were left (silhouette IoU 0.01 against
+furrow's render of the first capture camera), while the coarser plant came out right (0.98).
+:func:`splat_node` still gives ``furrow view`` viser's node ("splats in the browser"), where the
+viewer's own scene is viser's.
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,10 +28,11 @@ import numpy as np
 from capture.atomic import atomic_dir
 from volume.splat_sh import COLOUR_OFFSET, SH_C0
 
-#: Name of the page in the folder.
-PAGE = "index.html"
-#: Near clipping plane of the page's camera, as a share of its distance to the object.
-NEAR_SHARE = 0.01
+#: The page's template (package data): WebGL2 ports of render/splat/shaders/, the sort, the orbit.
+PAGE_TEMPLATE = Path(__file__).resolve().parent / "web" / "index.html"
+#: Names of the page and of its data in the folder.
+PAGE_NAME = "index.html"
+DATA_NAME = "splats.bin"
 
 
 @dataclass(frozen=True)
@@ -73,40 +69,50 @@ def splat_node(splats) -> dict:
                 rgbs=colour.astype(np.float32), opacities=splats.opacities.astype(np.float32)[:, None], scale=unit)
 
 
-def build_scene(server, splats, model) -> None:
-    """Put the splats, the up direction and the initial camera into ``server``'s scene."""
+def page_camera(model) -> dict:
+    """The page's first camera (JSON-ready): position, target, up, vertical fov (radians)."""
     from capture.orbit import estimate_up
 
-    up = estimate_up(model.rgbz.cameras)
-    server.scene.set_up_direction(tuple(float(x) for x in up))
-    server.scene.add_gaussian_splats("/splats", **splat_node(splats))
     v = start_camera(model)
-    server.initial_camera.position = tuple(float(x) for x in v["position"])
-    server.initial_camera.look_at = tuple(float(x) for x in v["look_at"])
-    server.initial_camera.up = tuple(float(x) for x in v["up_direction"])
-    server.initial_camera.fov = float(v["fov"])
-    server.initial_camera.near = NEAR_SHARE * float(np.linalg.norm(v["look_at"] - v["position"]))
+    return {"position": [float(x) for x in v["position"]], "target": [float(x) for x in v["look_at"]],
+            "up": [float(x) for x in estimate_up(model.rgbz.cameras)], "fov": float(v["fov"])}
 
 
-def write_web(splats, model, folder) -> WebResult:
+def half_texels(k: int) -> int:
+    """RGBA16F texels per Gaussian of the page: 6 covariance terms and 3 ``k`` SH coefficients."""
+    return (6 + 3 * k + 3) // 4
+
+
+def splats_bin(splats) -> tuple[bytes, float]:
+    """(splats.bin bytes (volume/web_page.py LAYOUT), covariance unit in m^2)."""
+    n, k = len(splats), splats.sh.shape[1]
+    unit2 = scene_scale(splats) ** 2
+    c = splats.covariances() / unit2
+    half = np.zeros((n, 4 * half_texels(k)), np.float16)
+    half[:, :6] = np.stack([c[:, 0, 0], c[:, 0, 1], c[:, 0, 2], c[:, 1, 1], c[:, 1, 2], c[:, 2, 2]], 1)
+    half[:, 6:6 + 3 * k] = splats.sh.reshape(n, 3 * k)
+    pos = np.concatenate([splats.positions, splats.opacities[:, None]], 1).astype("<f4")
+    return np.uint32(n).astype("<u4").tobytes() + pos.tobytes() + half.astype("<f2").tobytes(), unit2
+
+
+def write_web(splats, model, folder, title: str = "furrow splats") -> WebResult:
     """Write the page of ``splats`` (volume.splats.Splats) of ``model`` into ``folder`` (created
     or replaced atomically); see the module docstring."""
-    import viser
+    import json
 
     if len(splats) == 0:
         raise ValueError(f"{folder}: no Gaussian to put on the page")
     folder = Path(folder)
-    if folder.exists() and not (folder / PAGE).exists() and any(folder.iterdir()):
-        raise ValueError(f"{folder}: exists, is not empty and holds no {PAGE}; refusing to replace it")
-    with contextlib.redirect_stdout(io.StringIO()):  # viser prints its banner even when not verbose
-        server = viser.ViserServer(host="127.0.0.1", port=0, label="furrow", verbose=False)
-    try:
-        build_scene(server, splats, model)
-        html = server.get_scene_serializer().as_html()
-    finally:
-        with contextlib.redirect_stdout(io.StringIO()):
-            server.stop()
+    if folder.exists() and not (folder / PAGE_NAME).exists() and any(folder.iterdir()):
+        raise ValueError(f"{folder}: exists, is not empty and holds no {PAGE_NAME}; refusing to replace it")
+    data, unit2 = splats_bin(splats)
+    k = splats.sh.shape[1]
+    html = PAGE_TEMPLATE.read_text(encoding="utf-8")
+    html = (html.replace("__TITLE__", title).replace("__CAMERA__", json.dumps(page_camera(model)))
+            .replace("__SH_K__", str(k)).replace("__HALF_TEXELS__", str(half_texels(k)))
+            .replace("__COV_UNIT2__", repr(float(unit2))))
     with atomic_dir(folder) as tmp:
-        (tmp / PAGE).write_text(html, encoding="utf-8")
+        (tmp / PAGE_NAME).write_text(html, encoding="utf-8")
+        (tmp / DATA_NAME).write_bytes(data)
     files = [p for p in folder.rglob("*") if p.is_file()]
     return WebResult(folder, len(files), sum(p.stat().st_size for p in files))

@@ -17,7 +17,8 @@ Per pixel (:func:`blend`): the Gaussians sorted by their centre's z (ascending, 
 ``alpha = min(ALPHA_MAX, opacity exp(-q / 2))``, skipped when < ALPHA_MIN, blended front to back:
 C += colour alpha T, A += alpha T, D += z alpha T, T *= 1 - alpha (no early stop: the GL owner
 cannot stop per pixel; the reference's stop below T = 1e-4 changes a pixel by at most that
-last Gaussian's share).  The frame (:func:`to_frame`): premultiplied linear ``srgb_to_linear(C / A) A``
+last Gaussian's share).  The frame (:func:`to_frame`): premultiplied linear
+``srgb_to_linear(clip(C / A, 0, 1)) A``
 (the coefficients hold display colour, volume/splats.py), alpha A, depth D / A (the
 alpha-weighted mean z-depth of the Gaussians blended at the pixel).
 """

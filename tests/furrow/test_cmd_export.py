@@ -35,7 +35,7 @@ def test_export_errors_are_one_line(tmp_path, capsys):
 
 def test_export_splats_and_web(tmp_path, capsys):
     """--splats writes the reference's PLY (plyfile reads it), --refine reports the kept views'
-    alpha error falling, --web writes one offline page with the scene embedded."""
+    alpha error falling, --web writes the page and its data, asking nothing of the network."""
     from tests.scenes import compact
 
     m = compact(build_model(ring_cameras(6, 64, 48)))
@@ -49,7 +49,10 @@ def test_export_splats_and_web(tmp_path, capsys):
                                                                      "f_dc_1", "f_dc_2"]
     assert "refined opacities" in err and "alpha error" in err
     page = (out / "web" / "index.html").read_text()
-    assert "__VISER_EMBED_DATA__" in page and "http://" not in page.split("__VISER_EMBED_DATA__")[1][:200]
+    assert sorted(p.name for p in (out / "web").iterdir()) == ["index.html", "splats.bin"]
+    assert "http" not in page.split("<script>")[1] and 'fetch("splats.bin")' in page and "__CAMERA__" not in page
+    n = int.from_bytes((out / "web" / "splats.bin").read_bytes()[:4], "little")
+    assert n == v.count
     assert main(["export", str(mdir), "--refine", "1"]) == 1
     assert "nothing to export" in capsys.readouterr().err
     assert main(["export", str(mdir), "--mesh", str(out / "m.glb"), "--refine", "1"]) == 1
