@@ -291,6 +291,7 @@ METHODS: dict[str, str] = {
     "points": "render.points.spec:SPEC",
     "mesh-vdtm": "render.mesh.spec:VDTM",
     "mesh-colour": "render.mesh.spec:COLOUR",
+    "splat": "render.splat.spec:SPEC",
 }
 
 

@@ -175,3 +175,134 @@ def write_spheres(model: Model, path) -> ExportResult:
         if not o3d.t.io.write_point_cloud(str(tmp), pc, write_ascii=False, compressed=False):
             raise ExportError(f"{path}: Open3D could not write the spheres")
     return ExportResult(path, len(s))
+
+
+# ---------------------------------------------------------------------------- 3D Gaussian splats
+#: The PLY header's first lines (what the 3DGS reference writes through plyfile on a little-endian machine).
+SPLAT_PLY_FORMAT = "format binary_little_endian 1.0"
+
+
+def splat_ply_fields(degree: int) -> list[str]:
+    """The vertex properties of a 3D Gaussian Splatting PLY of SH degree ``degree``, in the order
+    of the reference (graphdeco-inria/gaussian-splatting ``GaussianModel.construct_list_of_attributes``):
+    x y z nx ny nz f_dc_0..2 f_rest_0..(3 (K - 1) - 1) opacity scale_0..2 rot_0..3."""
+    from volume.splat_sh import n_coeffs
+
+    k = n_coeffs(degree)
+    return (["x", "y", "z", "nx", "ny", "nz"] + [f"f_dc_{i}" for i in range(3)]
+            + [f"f_rest_{i}" for i in range(3 * (k - 1))] + ["opacity"] + [f"scale_{i}" for i in range(3)]
+            + [f"rot_{i}" for i in range(4)])
+
+
+def splat_records(splats) -> np.ndarray:
+    """(N, F) float32 PLY rows of ``splats`` (volume.splats.Splats) in :func:`splat_ply_fields` order,
+    stored as the reference stores its parameters: normals 0; f_dc the DC coefficient per channel;
+    f_rest channel-major (all of red's higher coefficients, then green's, then blue's: the
+    reference's ``features_rest.transpose(1, 2).flatten``); opacity as its logit; scales as their
+    natural log; rotation as the quaternion (w, x, y, z)."""
+    n, k = len(splats), splats.sh.shape[1]
+    o = splats.opacities.astype(np.float64)
+    rest = splats.sh[:, 1:, :].transpose(0, 2, 1).reshape(n, 3 * (k - 1))
+    cols = [splats.positions, np.zeros((n, 3), np.float32), splats.sh[:, 0, :], rest,
+            np.log(o / (1.0 - o))[:, None], np.log(splats.scales.astype(np.float64)), splats.rotations]
+    return np.concatenate([np.asarray(c, np.float32).reshape(n, -1) for c in cols], 1)
+
+
+def splat_ply_header(n: int, degree: int) -> bytes:
+    """The PLY header of ``n`` Gaussians of SH degree ``degree`` (ASCII, ends with ``end_header\\n``)."""
+    lines = ["ply", SPLAT_PLY_FORMAT, f"element vertex {int(n)}"]
+    lines += [f"property float {name}" for name in splat_ply_fields(degree)]
+    return ("\n".join(lines + ["end_header"]) + "\n").encode("ascii")
+
+
+def write_splats(splats, path) -> ExportResult:
+    """The Gaussians as a 3D Gaussian Splatting PLY (binary little-endian float32, the reference's
+    header and field order: :func:`splat_ply_fields`, :func:`splat_records`), written atomically."""
+    path = Path(path)
+    if path.suffix.lower() != ".ply":
+        raise ExportError(f"{path}: splats are written as .ply")
+    if len(splats) == 0:
+        raise ExportError(f"{path}: no Gaussian to export")
+    with atomic_write(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(splat_ply_header(len(splats), splats.degree))
+            fh.write(splat_records(splats).astype("<f4").tobytes())
+    return ExportResult(path, len(splats))
+
+
+def _ply_header(path: Path, fh) -> tuple[int, list[str]]:
+    """(vertex count, property names) of a binary little-endian float PLY with one element."""
+    if fh.readline().strip() != b"ply":
+        raise ExportError(f"{path}: not a PLY file (no 'ply' magic)")
+    n, names = None, []
+    for _ in range(10000):
+        raw = fh.readline()
+        if not raw:
+            break
+        line = raw.decode("ascii", "replace").strip()
+        words = line.split()
+        if line == "end_header":
+            if n is None:
+                raise ExportError(f"{path}: no 'element vertex' in the header")
+            return n, names
+        if words[:1] in (["comment"], ["obj_info"]):
+            continue
+        if words[:1] == ["format"] and line != SPLAT_PLY_FORMAT:
+            raise ExportError(f"{path}: {line!r}: only binary_little_endian 1.0 splat files are read")
+        elif words[:2] == ["element", "vertex"]:
+            n = int(words[2])
+        elif words[:1] == ["element"]:
+            raise ExportError(f"{path}: unexpected element {line!r} (a splat PLY holds vertices only)")
+        elif words[:1] == ["property"]:
+            if words[1] not in ("float", "float32") or len(words) != 3:
+                raise ExportError(f"{path}: property {line!r}: splat properties are float32")
+            names.append(words[2])
+    raise ExportError(f"{path}: the header has no end_header")
+
+
+def read_splats(path):
+    """The Gaussians of a 3D Gaussian Splatting PLY (:func:`write_splats`, or the reference's own
+    files): activations applied (sigmoid opacity, exp scales, normalised quaternions); errors
+    name the file and the problem."""
+    from volume.splat_sh import degree_of
+    from volume.splats import Splats
+
+    path = Path(path)
+    if not path.is_file():
+        raise ExportError(f"{path}: no such splat file")
+    with open(path, "rb") as fh:
+        n, names = _ply_header(path, fh)
+        raw = fh.read()
+    if len(raw) != 4 * n * len(names):
+        raise ExportError(f"{path}: {len(raw)} bytes of data for {n} vertices x {len(names)} float properties "
+                          "(truncated?)")
+    data = np.frombuffer(raw, "<f4")
+    rows = data.reshape(n, len(names)).astype(np.float64)
+    n_rest = sum(name.startswith("f_rest_") for name in names)
+    try:
+        if n_rest % 3:
+            raise ValueError
+        degree = degree_of(n_rest // 3 + 1)
+    except ValueError:
+        raise ExportError(f"{path}: {n_rest} f_rest properties are no SH degree") from None
+    missing = [f for f in splat_ply_fields(degree) if f not in names and f[0] != "n"]
+    if missing:
+        raise ExportError(f"{path}: missing properties {missing}")
+
+    def col(name):
+        return rows[:, names.index(name)]
+
+    k = n_rest // 3 + 1
+    sh = np.zeros((n, k, 3))
+    sh[:, 0, :] = np.stack([col(f"f_dc_{c}") for c in range(3)], 1)
+    if k > 1:
+        rest = np.stack([col(f"f_rest_{i}") for i in range(n_rest)], 1)
+        sh[:, 1:, :] = rest.reshape(n, 3, k - 1).transpose(0, 2, 1)
+    q = np.stack([col(f"rot_{i}") for i in range(4)], 1)
+    q /= np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-30)
+    o = 1.0 / (1.0 + np.exp(-col("opacity")))
+    try:
+        return Splats(np.stack([col(c) for c in "xyz"], 1), np.exp(np.stack([col(f"scale_{i}") for i in range(3)], 1)),
+                      q, np.clip(o, 1e-6, 1 - 1e-6), sh)
+    except ValueError as e:
+        raise ExportError(f"{path}: {e}") from None

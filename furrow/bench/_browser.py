@@ -128,3 +128,112 @@ def drag(page, seconds: float, x0: float, y0: float, radius: float = 120.0, step
 
 def save_screenshot(page, path: Path) -> None:
     page.screenshot(path=str(path))
+
+
+# ---------------------------------------------------------------------------- static pages (furrow export --web)
+#: Seconds to wait for a static file server to answer.
+SERVE_TIMEOUT_S = 30.0
+#: Counts the frames in which the page drew with WebGL (an instanced draw call between two
+#: animation frames): the page's own frame rate, not the browser's idle 60 Hz ticks.
+FRAME_COUNTER_JS = """
+(() => {
+  window.__furrowFrames = 0; let drew = false;
+  const proto = WebGL2RenderingContext.prototype;
+  for (const name of ['drawElementsInstanced', 'drawArraysInstanced']) {
+    const f = proto[name];
+    proto[name] = function (...a) { drew = true; return f.apply(this, a); };
+  }
+  const tick = () => { if (drew) { window.__furrowFrames += 1; drew = false; } requestAnimationFrame(tick); };
+  requestAnimationFrame(tick);
+})();
+"""
+
+
+class StaticServer:
+    """``python -m http.server`` serving ``folder`` on a free local port (a subprocess, nothing of
+    furrow); ``url`` once it answers; ``close()`` ends it."""
+
+    def __init__(self, folder) -> None:
+        import socket
+        import urllib.request
+
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            self.port = s.getsockname()[1]
+        self.proc = subprocess.Popen([sys.executable, "-m", "http.server", str(self.port), "--bind", "127.0.0.1",
+                                      "--directory", str(folder)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.url = f"http://127.0.0.1:{self.port}"
+        t0 = time.monotonic()
+        while True:
+            try:
+                urllib.request.urlopen(self.url, timeout=2).close()
+                return
+            except OSError:
+                if time.monotonic() - t0 > SERVE_TIMEOUT_S or self.proc.poll() is not None:
+                    self.close()
+                    raise RuntimeError(f"the static server on {self.url} did not answer") from None
+                time.sleep(0.2)
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.wait(10)
+
+
+def offline(page, allowed: str) -> list:
+    """Abort every request of ``page`` that does not go to ``allowed`` (a URL prefix); returns the
+    list the aborted URLs are appended to (the page must need none of them)."""
+    blocked = []
+
+    def route(r):
+        if r.request.url.startswith(allowed) or r.request.url.startswith(("data:", "blob:")):
+            r.continue_()
+        else:
+            blocked.append(r.request.url)
+            r.abort()
+
+    page.route("**/*", route)
+    return blocked
+
+
+def frame_rate(page, seconds: float, x0: float, y0: float, radius: float = 120.0, steps_per_s: float = 30.0) -> float:
+    """Frames per second the page drew while the mouse orbits for ``seconds`` of wall time (moves
+    on a circle around (x0, y0), at most ``steps_per_s``; a slow page gets fewer moves, never a
+    longer drag); needs FRAME_COUNTER_JS as an init script."""
+    import math
+
+    page.mouse.move(x0 + radius, y0)
+    page.mouse.down()
+    n0 = page.evaluate("window.__furrowFrames")
+    t0 = time.monotonic()
+    i = 0
+    while time.monotonic() - t0 < seconds:
+        i += 1
+        a = 2 * math.pi * i / (2.0 * steps_per_s)
+        page.mouse.move(x0 + radius * math.cos(a), y0 + 0.3 * radius * math.sin(a))
+        wait = t0 + i / steps_per_s - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+    n1 = page.evaluate("window.__furrowFrames")
+    elapsed = time.monotonic() - t0
+    page.mouse.up()
+    return (n1 - n0) / elapsed
+
+
+def page_scores(shot, C, A, mask_level: float = 24.0) -> tuple[float, float]:
+    """(silhouette IoU, masked PSNR dB) of a page's screenshot (H, W, 3) uint8 against a render's
+    display colour ``C`` (H, W, 3, premultiplied) and alpha ``A`` (H, W) blended over the page's
+    background (its top-centre pixel) in display values, as a splat viewer blends: the silhouettes
+    are the pixels more than ``mask_level`` (8-bit) from the background, the PSNR is over their union."""
+    import numpy as np
+
+    h, w = shot.shape[:2]
+    bg = shot[2, w // 2].astype(np.float64) / 255.0
+    ref = np.clip(C + (1.0 - A)[..., None] * bg, 0, 1) * 255.0
+    s = shot.astype(np.float64)
+    ms = np.abs(s - bg * 255.0).max(-1) > mask_level
+    mr = np.abs(ref - bg * 255.0).max(-1) > mask_level
+    union = ms | mr
+    iou = float((ms & mr).sum() / max(union.sum(), 1))
+    mse = float(np.mean((s[union] - np.round(ref[union])) ** 2)) if union.any() else 255.0 ** 2
+    return iou, float(10 * np.log10(255.0 ** 2 / max(mse, 1e-9)))

@@ -3,7 +3,9 @@
 :class:`Viewer` starts the GL thread (render.viewer.gl_worker), the viser server and, per
 connected browser, a render thread (render.viewer.session) with its own controls
 (render.viewer.gui); the capture cameras are clickable frustums that snap the clicked client's
-view to them.  :meth:`Viewer.close` ends the sessions, releases every GL object on the GL thread,
+view to them.  "splats in the browser" swaps a client's server frames for the model's 3D
+Gaussians drawn by the browser itself (viser's splat node; its render thread pauses).
+:meth:`Viewer.close` ends the sessions, releases every GL object on the GL thread,
 stops the server and writes the frame log (``--stats``).
 """
 
@@ -29,6 +31,10 @@ FRUSTUM_RGB = (230, 140, 30)
 FRUSTUM_THUMB = 96
 #: Seconds to wait for a screenshot or an export frame.
 JOB_TIMEOUT_S = 600.0
+#: Scene node of a client's own splats, and the hint of the panel's checkbox.
+CLIENT_SPLATS_NODE = "/splats"
+SPLATS_HINT = ("draw the model's 3D Gaussians in the browser (what furrow export --splats writes; their "
+               "view-independent colour) instead of frames rendered here: the server no longer limits the frame rate")
 
 
 class PortInUse(OSError):
@@ -76,6 +82,8 @@ class Viewer:
         self._lock = threading.Lock()
         self._closed = False
         self._frustums: list[dict] | None = None
+        self._splats = None
+        self._client_nodes: dict = {}
         check_port(host, port)
         from render.viewer.gl_worker import GLWorker
 
@@ -186,6 +194,8 @@ class Viewer:
         frustums = self._add_frustums(client)
         controls.cameras.on_update(lambda _e: _show(frustums, controls.cameras.value))
         controls.screenshot.on_click(lambda _e: self._spawn(self.screenshot, client, session, note))
+        splats_box = client.gui.add_checkbox("splats in the browser", False, hint=SPLATS_HINT)
+        splats_box.on_update(lambda _e: self._spawn(self.client_splats, client, session, splats_box, note))
         controls.export.on_click(lambda _e: self._spawn(self.export, client, session, controls, note))
 
         def camera_update(cam) -> None:
@@ -204,6 +214,37 @@ class Viewer:
             session = self.sessions.pop(client.client_id, None)
         if session is not None:
             session.stop()
+
+    def splats(self):
+        """The model's 3D Gaussians (volume.splats.build_splats, built once, on first use)."""
+        with self._lock:
+            if self._splats is None:
+                from volume.splats import build_splats
+
+                self._splats = build_splats(self.model)
+            return self._splats
+
+    def client_splats(self, client, session: Session, box, note) -> None:
+        """Show the splats drawn by the client itself (viser's Gaussian splat node: sorted and
+        blended in the browser, one colour per Gaussian, their DC term) instead of the server's
+        frames, or go back to the server's frames."""
+        from volume.export_web import splat_node
+
+        try:
+            if box.value:
+                note("building the splats...")
+                node = client.scene.add_gaussian_splats(CLIENT_SPLATS_NODE, **splat_node(self.splats()))
+                session.pause(True)
+                client.scene.set_background_image(None)
+                note(f"{len(self.splats())} splats drawn by the browser (view-independent colour)")
+                self._client_nodes[client.client_id] = node
+            else:
+                node = self._client_nodes.pop(client.client_id, None)
+                if node is not None:
+                    node.remove()
+                session.pause(False)
+        except Exception as e:
+            note(f"client-side splats failed: {type(e).__name__}: {e}")
 
     @staticmethod
     def _spawn(fn, *args) -> None:

@@ -134,6 +134,7 @@ class Session:
         self._history: list[tuple[int, float]] = []
         self._scale: float | None = None
         self._stopped = False
+        self._paused = False
         self._thread = threading.Thread(target=self._loop, name=f"furrow-view-{name}", daemon=True)
 
     # ------------------------------------------------------------------ inputs
@@ -151,6 +152,13 @@ class Session:
         """New settings from the client's GUI (any thread)."""
         with self._cond:
             self._settings = settings
+            self._changed()
+
+    def pause(self, paused: bool) -> None:
+        """Stop drawing frames (the client draws the model itself: client-side splats) or resume
+        (a new frame of the current view follows)."""
+        with self._cond:
+            self._paused = bool(paused)
             self._changed()
 
     @property
@@ -188,9 +196,9 @@ class Session:
                 act = next_action(self.clock(), self._version, self._last_change, self._moving_done,
                                   self._full_done, self._refined_done, self._settings.still_samples > 1,
                                   self.cfg)
-                if act.kind != "wait" and self._camera is not None:
+                if act.kind != "wait" and self._camera is not None and not self._paused:
                     return act.kind, self._version
-                self._cond.wait(act.wait_s if self._camera is not None else None)
+                self._cond.wait(act.wait_s if self._camera is not None and not self._paused else None)
             return None
 
     def _job(self, kind: str, version: int):

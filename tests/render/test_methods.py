@@ -15,6 +15,8 @@ from render.owner import NEAR_FRACTION_INSIDE, mat4_bytes, near_far
 from tests import scenes as scene
 from tests.conftest import assert_images_close
 
+#: Methods whose one-sample frames have soft edges (3D Gaussians: every pixel an alpha blend).
+
 
 @pytest.fixture(scope="module")
 def model():
@@ -106,7 +108,7 @@ def test_options_change_per_frame_without_reupload(gl_ctx, model):
 
 
 def test_registry_and_options():
-    assert set(METHODS) == {"microfacet", "mesh-vdtm", "mesh-colour", "points", "gather"}
+    assert set(METHODS) == {"microfacet", "mesh-vdtm", "mesh-colour", "points", "gather", "splat"}
     for name in METHODS:
         assert method_class(name).name == name == method_spec(name).name
     with pytest.raises(ValueError, match="unknown rendering method"):

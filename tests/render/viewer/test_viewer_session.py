@@ -239,3 +239,27 @@ def test_option_controls_follow_the_method(method, greyed, shown):
     assert st.options.of("microfacet").refine is None  # -1 = the method's default
     fake.handles["refine steps"].set(3)
     assert applied[-1].options.of("microfacet").refine == 3
+
+
+def test_paused_session_draws_nothing_until_resumed(fake_draw):
+    """Client-side splats pause the client's render thread: moves draw nothing; resuming draws
+    the current view once more."""
+    worker, log = FakeWorker(), FrameLog()
+    s = Session(worker, lambda img, q: None, ViewSettings(method="gather"), AdaptiveConfig(still_s=0.05), log).start()
+    s.update_camera(view(0))
+    time.sleep(0.3)
+    n = len(log.frames())
+    assert n >= 1
+    s.pause(True)
+    for i in range(1, 10):
+        s.update_camera(view(i))
+        time.sleep(0.01)
+    time.sleep(0.3)
+    assert len(log.frames()) == n
+    s.pause(False)
+    time.sleep(0.4)
+    s.stop()
+    worker.close()
+    after = log.frames()[n:]
+    assert after and not after[-1]["moving"]
+    np.testing.assert_allclose(fake_draw[-1][0].cam_from_world, view(9).camera(*FULL).cam_from_world)
