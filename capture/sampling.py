@@ -189,7 +189,7 @@ def _corners(data, coords, bounds):
     through flat indices (one gather per tap)."""
     d = coords.shape[-1]
     flat_data = data.reshape((-1,) + data.shape[d:])
-    strides = np.cumprod((1,) + data.shape[d - 1:0:-1])[::-1]
+    strides = [int(np.prod(data.shape[k + 1:d], dtype=np.int64)) for k in range(d)]
     values, weights = [], []
     for idx, inside, w in linear_taps(coords, data.shape, bounds):
         flat = idx[0] * strides[0]

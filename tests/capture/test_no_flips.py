@@ -12,7 +12,8 @@ What counts (comments and docstrings are skipped; tests are not scanned):
   coordinates +-0.5 (``xs + 0.5``, ``xy[0] - 0.5``, ``rint(c - 0.5)``), pixel centre to normalised
   image coordinates (``(u + 0.5) / W``) and to a finer grid (``(u + 0.5) * s - 0.5``).
 
-The pixel-centre idioms of environment maps are the same arithmetic on texels: they may stand in
+``capture/sampling.py`` (the one sampling core) may name ``HALF_PIXEL``, which it takes from
+``capture/camera.py``. The pixel-centre idioms of environment maps are the same arithmetic on texels: they may stand in
 ``render/shading/envmap.py`` only (its one direction <-> pixel map). Not counted: centres of voxels
 and of other tables' texels (``(i + 0.5) * w``, ``(np.arange(n) + 0.5) / n``), NDC to texture
 coordinates (``ndc * 0.5 + 0.5``), and rounding to the nearest pixel (``floor(u + 0.5)``, ``rint(u)``).
@@ -29,7 +30,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 #: The files allowed to hold the idioms: all of them (None), or the named ones.
-HOMES = {"capture/camera.py": None, "render/shaders/framebuffer_row.glsl": None,
+HOMES = {"capture/camera.py": None, "capture/sampling.py": {"HALF_PIXEL"}, "render/shaders/framebuffer_row.glsl": None,
          "render/shading/envmap.py": {"pixel centre to normalised coordinates", "rounding a shifted coordinate"}}
 #: Top-level folders that are not code of the project.
 SKIP_DIRS = {"tests", "out", "build", "dist", "docs", "node_modules"}

@@ -107,9 +107,9 @@ def test_eval_cli_on_analytic_scan_set(tmp_path):
     assert json.loads((tmp_path / "ev" / "eval.json").read_text()) == res
     sheets = sorted((tmp_path / "ev" / "side_by_side").glob("*.png"))
     assert len(sheets) == 6
-    # reference | gather | microfacet | points | mesh-vdtm over their error maps
+    # reference | gather | microfacet | points | mesh-vdtm | splat over their error maps
     sheet = read_color(sheets[0])
-    assert sheet.shape == (2 * cams[0].height, 5 * cams[0].width, 3)
+    assert sheet.shape == (2 * cams[0].height, 6 * cams[0].width, 3)
     # kept views are 60 degrees apart here: only check the renders are far better than nothing
     from render import metrics
 
