@@ -6,7 +6,7 @@ images are area-sampled.  MSAA alone does not help: Eq. 2 decides once per fragm
 alpha-to-coverage has no sub-pixel alpha to give.  We render FACTOR x FACTOR samples per pixel
 (the eye camera scaled exactly, Camera.scaled) and resolve on the GPU: the mean of every block
 (colour over black, i.e. premultiplied; coverage in alpha) and the nearest depth of the block.
-Measured on the held-out fur ball and plant at 640x480 (README "Where the design moved"):
+Measured on the held-out fur ball and plant at 640x480 (docs/design_history.md):
 +0.8 to +1.4 dB for the microfacets, +0.2 to +0.5 dB for the mesh baseline, ~3x frame time.
 
 :func:`box_resolve` is the numpy twin of ``shaders/resolve_frag.glsl``.  This is the one

@@ -19,7 +19,7 @@ if has render && [ -d "$OUT/furball_model" ]; then
 fi
 # a capture as a camera takes it: the room behind the object (kept views), a turntable disc in the
 # depth, auto exposure; furrow model removes the disc, mattes every view and aligns the exposure,
-# then the RGBA render is composited over a white backdrop (README "Real captures").
+# then the RGBA render is composited over a white backdrop (docs/real_captures.md).
 if has model; then
   $F synth furball -o "$OUT/room_scan" --views 36 --size 320x240 --seed 2 --background env --support disc \
     --background-frames 0::2 --auto-exposure --overwrite

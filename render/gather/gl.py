@@ -19,7 +19,7 @@ frame only uniforms change:
 
 One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
 colours are interpolated from the photos, whose own area sampling already anti-aliases strand
-fringes and silhouettes; a 2 x 2 box on top blurs (sharpness 0.65 on the fur ball, README).
+fringes and silhouettes; a 2 x 2 box on top blurs (sharpness 0.65 on the fur ball, docs/novel_views.md).
 GL clips a point whose centre lies outside the eye's frustum, so splats reaching into the
 image from beyond its border or from outside the near / far planes of the object box are
 dropped (the twin keeps their inside pixels); nothing else differs.

@@ -2,7 +2,7 @@
 every pixel of the new view a depth, and its colour is gathered from the two nearest kept
 views with soft visibility (the GLSL is ``render/shaders/gather_*.glsl``).
 
-Per frame, for an eye E (docs/methods.md §1.9; measured in README "Novel views"):
+Per frame, for an eye E (docs/methods.md §1.9; measured in docs/novel_views.md):
 
 1. **Depth** (:func:`front_depth`): the points of the ``k_depth`` kept cameras nearest to E in
    viewing angle (``render.points.reference.nearest_views``) are splatted into E in
@@ -57,7 +57,7 @@ class GatherConfig:
     the outer views' fringes to the silhouette: -0.1 dB, lower SSIM and sharpness)."""
     splat_px: int = 2
     """Side of the depth splats in output pixels (1 leaves pin holes between the points of a
-    view seen from 10 degrees away; 3 fattens thin strands: measured in the README)."""
+    view seen from 10 degrees away; 3 fattens thin strands: measured in docs/novel_views.md)."""
     k_blend: int = 2
     """Kept cameras whose colours are blended per pixel (the nearest; a third at 20-degree
     spacing is 30 degrees away and costs 1 dB)."""
