@@ -44,12 +44,8 @@ def main(argv=None) -> int:
     try:
         with sync_playwright() as p:
             browser = B.launch(p)
-            page = browser.new_page(viewport={"width": W, "height": H})
-            page.add_init_script(B.FRAME_COUNTER_JS)
-            blocked = B.offline(page, server.url)
             t0 = time.monotonic()
-            page.goto(server.url + "/")
-            page.wait_for_function("() => window.__furrowFrames > 0", timeout=B.FRAME_TIMEOUT_S * 1000)
+            page, blocked = B.open_offline_page(browser, server.url, W, H)
             load_s = time.monotonic() - t0
             time.sleep(a.settle)
             page.add_style_tag(content="#info { visibility: hidden !important; }")

@@ -33,6 +33,17 @@ def find_chromium() -> str | None:
     return None
 
 
+def skip_reason() -> str | None:
+    """Why a real-browser check cannot run here (no Playwright, no Chromium), or None."""
+    try:
+        import playwright  # noqa: F401
+    except ImportError:
+        return "playwright is not installed (pip install -e .[dev])"
+    if find_chromium() is None:
+        return "no chromium executable (apt-get install --no-install-recommends chromium)"
+    return None
+
+
 def launch(playwright, headless: bool = True):
     """A Chromium browser (Debian's) with software WebGL."""
     exe = find_chromium()
@@ -194,6 +205,17 @@ def offline(page, allowed: str) -> list:
 
     page.route("**/*", route)
     return blocked
+
+
+def open_offline_page(browser, url: str, width: int, height: int):
+    """A ``width`` x ``height`` page on ``url`` that counts its WebGL frames (FRAME_COUNTER_JS) and
+    may reach nothing else, once it drew its first frame; returns (page, blocked URLs)."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    page.add_init_script(FRAME_COUNTER_JS)
+    blocked = offline(page, url)
+    page.goto(url + "/")
+    page.wait_for_function("() => window.__furrowFrames > 0", timeout=FRAME_TIMEOUT_S * 1000)
+    return page, blocked
 
 
 def frame_rate(page, seconds: float, x0: float, y0: float, radius: float = 120.0, steps_per_s: float = 30.0) -> float:

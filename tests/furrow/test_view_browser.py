@@ -68,15 +68,6 @@ SETTLE_S = 10.0
 STILL_S = samples_per_pixel_side(DEFAULT_METHOD)
 
 
-def _skip_reason() -> str | None:
-    try:
-        import playwright  # noqa: F401
-    except ImportError:
-        return "playwright is not installed (pip install -e .[dev])"
-    if B.find_chromium() is None:
-        return "no chromium executable (apt-get install --no-install-recommends chromium)"
-    return None
-
 
 def compare(shot: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
     """(silhouette IoU, colour MAD) of the object region (the reference's drawn pixels' box)."""
@@ -149,7 +140,7 @@ def model_dir(tmp_path_factory):
 
 
 def test_view_in_a_real_browser(model_dir, tmp_path):
-    reason = _skip_reason()
+    reason = B.skip_reason()
     if reason:
         pytest.skip(reason)
     from playwright.sync_api import sync_playwright

@@ -47,15 +47,6 @@ SETTLE_S = 2.0
 ORBIT_S = 4.0
 
 
-def _skip_reason() -> str | None:
-    try:
-        import playwright  # noqa: F401
-    except ImportError:
-        return "playwright is not installed (pip install -e .[dev])"
-    if B.find_chromium() is None:
-        return "no chromium executable (apt-get install --no-install-recommends chromium)"
-    return None
-
 
 def reference_view(model, splats, fov_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """furrow's render (the numpy twin) of the first capture camera at the page's size: (C display
@@ -82,7 +73,7 @@ def exported(tmp_path_factory):
 
 
 def test_static_page_in_a_real_browser(exported):
-    reason = _skip_reason()
+    reason = B.skip_reason()
     if reason:
         pytest.skip(reason)
     from playwright.sync_api import sync_playwright
@@ -95,11 +86,7 @@ def test_static_page_in_a_real_browser(exported):
     try:
         with sync_playwright() as p:
             browser = B.launch(p)
-            page = browser.new_page(viewport={"width": W, "height": H})
-            page.add_init_script(B.FRAME_COUNTER_JS)
-            blocked = B.offline(page, server.url)
-            page.goto(server.url + "/")
-            page.wait_for_function("() => window.__furrowFrames > 0", timeout=B.FRAME_TIMEOUT_S * 1000)
+            page, blocked = B.open_offline_page(browser, server.url, W, H)
             time.sleep(SETTLE_S)
             page.add_style_tag(content="#info { visibility: hidden !important; }")
             time.sleep(0.5)
