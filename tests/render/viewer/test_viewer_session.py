@@ -131,31 +131,50 @@ def test_cheap_frames_grow_to_full_size(fake_draw):
     assert [f for f in frames if f["moving"]][-1]["width"] == FULL[0]
 
 
-def test_stale_full_frame_is_dropped_and_latest_camera_drawn(fake_draw):
+#: Seconds a test waits for an event of the session before failing (generous: a loaded machine).
+WAIT_S = 60.0
+
+
+def test_stale_full_frame_is_dropped_and_latest_camera_drawn(monkeypatch):
     """A move while the supersampled frame is drawn: that frame never goes out, and the next
-    frame shows the newest camera, not the ones queued meanwhile."""
-    cfg = AdaptiveConfig(still_s=0.05)
-    worker, log, sent = FakeWorker(), FrameLog(), []
-    s = Session(worker, lambda img, q: sent.append(q), SUPERSAMPLED, cfg, log).start()
-    s.update_camera(view(0))
-    while not any(ss == 2 for _, ss in fake_draw):                # wait for the supersampled frame to start
-        time.sleep(0.005)
-    n_before = len(fake_draw)
-    for i in range(1, 6):                                         # moves during the 158 ms frame
-        s.update_camera(view(i))
-    time.sleep(0.6)
-    s.stop()
-    worker.close()
-    frames = log.frames()
-    after = fake_draw[n_before:]
+    frame shows the newest camera, not the ones queued meanwhile.  Driven by events, not sleeps:
+    the supersampled draw is held until the test has moved the camera five times, so the moves
+    land during it however loaded the machine is."""
+    started, release, refined = threading.Event(), threading.Event(), threading.Event()
+    drawn = []
+
+    def draw(scene, camera, settings, supersample):
+        drawn.append((camera, supersample))
+        if supersample == 2 and not release.is_set():
+            started.set()
+            release.wait(WAIT_S)
+        return views.Drawn(np.zeros((camera.height, camera.width, 3), np.uint8), Stats(ms=1.0, supersample=supersample))
+
+    monkeypatch.setattr(views, "draw", draw)
+    worker, log = FakeWorker(), FrameLog()
+    s = Session(worker, lambda img, q: None, SUPERSAMPLED, AdaptiveConfig(still_s=0.05), log,
+                on_frame=lambda rec: rec.get("refined") and refined.set()).start()
+    try:
+        s.update_camera(view(0))
+        assert started.wait(WAIT_S), "the supersampled frame never started"
+        n_before = len(drawn)
+        for i in range(1, 6):                                     # moves during the supersampled frame
+            s.update_camera(view(i))
+        release.set()
+        assert refined.wait(WAIT_S), "no supersampled frame of the latest camera"
+    finally:
+        s.stop()
+        worker.close()
     latest = view(5).camera(*FULL)
+    after = drawn[n_before:]
     np.testing.assert_allclose(after[0][0].cam_from_world, latest.cam_from_world)   # jumped to the newest
-    supersampled = [f for f in frames if f["supersample"] == 2]
+    supersampled = [f for f in log.frames() if f["supersample"] == 2]
     assert len(supersampled) == 1                                 # the stale one was dropped
+    np.testing.assert_allclose([c for c, ss in drawn if ss == 2][-1].cam_from_world, latest.cam_from_world)
 
 
 def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
-    notes = []
+    notes, noted, framed = [], threading.Event(), threading.Event()
     calls = []
 
     def draw(scene, camera, settings, supersample):
@@ -167,32 +186,40 @@ def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
     monkeypatch.setattr(views, "draw", draw)
     worker, log = FakeWorker(), FrameLog()
     s = Session(worker, lambda img, q: None, ViewSettings(), AdaptiveConfig(still_s=0.05), log,
-                on_note=notes.append).start()
-    s.update_camera(view(0))
-    time.sleep(0.2)
-    s.update_camera(view(1))
-    time.sleep(0.3)
-    s.stop()
-    worker.close()
+                on_note=lambda m: (notes.append(m), noted.set()), on_frame=lambda rec: framed.set()).start()
+    try:
+        s.update_camera(view(0))
+        assert noted.wait(WAIT_S)
+        s.update_camera(view(1))
+        assert framed.wait(WAIT_S)
+    finally:
+        s.stop()
+        worker.close()
     assert notes and "boom" in notes[0]
     assert log.frames()
 
 
 def test_send_failure_is_survived(fake_draw):
-    """A client that went away (send raises) does not end the thread with an exception."""
-    notes = []
+    """A client that went away (send raises) does not end the thread with an exception: it says
+    so and goes on (tries the frame again)."""
+    notes, again = [], threading.Event()
 
     def send(img, q):
         raise ConnectionError("client gone")
 
+    def note(msg):
+        notes.append(msg)
+        if len(notes) >= 2:
+            again.set()
+
     worker = FakeWorker()
-    s = Session(worker, send, ViewSettings(), AdaptiveConfig(still_s=0.05), FrameLog(), on_note=notes.append).start()
+    s = Session(worker, send, ViewSettings(), AdaptiveConfig(still_s=0.05), FrameLog(), on_note=note).start()
     s.update_camera(view(0))
-    time.sleep(0.4)
+    assert again.wait(WAIT_S)                                     # a second try after the first failure
     assert s.alive
     s.stop()
     worker.close()
-    assert not s.alive and any("client gone" in n for n in notes)
+    assert not s.alive and all("client gone" in n for n in notes)
 
 
 def test_full_size_cap():
