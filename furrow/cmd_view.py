@@ -13,7 +13,7 @@ HELP = "interactive web viewer: renders the model on this machine, shows it in a
 DESCRIPTION = """Serve a furrow model to web browsers: the server renders every frame with furrow's own
 renderers (any method of the registry) and the browser shows it (viser).  While the camera moves,
 frames are drawn smaller to hold about 12 frames per second (sized from each stage's measured
-cost, sent no faster than that); 0.2 s after it stops, the full frame is drawn, then supersampled.
+cost, never sent more than 1.5x that often); 0.2 s after it stops, the full frame is drawn, then supersampled.
 Without a GPU (Mesa llvmpipe) one core is left to the browser (--gl-threads); docs/viewer.md has
 where a frame's time goes.  The capture cameras are clickable frustums; the panel holds the
 method and its own options (from its spec), supersampling, environment compositing, debug views, a PNG
@@ -45,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_map_orientation_arguments(p, "the environment maps (--env and the GUI's; the GUI's slider starts here)")
     p.add_argument("--fps", type=float, default=None,
                    help="frames per second to hold while moving (default 12): moving frames are sized to it and "
-                        "not sent faster")
+                        "sent at most 1.5x that often")
     p.add_argument("--gl-threads", type=int, default=None, metavar="N",
                    help="llvmpipe rasteriser threads when there is no GPU (default: the cores less one, at least 1, "
                         "so that a browser on this machine keeps a core for its software WebGL; LP_NUM_THREADS in "

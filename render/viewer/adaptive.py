@@ -3,9 +3,10 @@
 Pure functions over numbers (no GL, no threads), used by render.viewer.session:
 
 * :func:`choose_scale`: from the measured stages of recent frames (a per-stage cost model
-  ``ms = a + b * pixels``: each stage of :data:`STAGES` fitted to the frames that share its cost,
-  full-size frames included, so that the fixed cost ``a`` -- e.g. gather's point splats, the same
-  at any size -- is told apart from the per-pixel one), the largest share of the full frame size
+  ``cpu ms = a + b * pixels``: each stage of :data:`STAGES` fitted to the frames that share its
+  cost, full-size frames included, so that the fixed cost ``a`` -- e.g. gather's point splats,
+  the same at any size -- is told apart from the per-pixel one; turned into wall time by the wall
+  / CPU ratio of the recent moving frames, :func:`slowdown`), the largest share of the full frame size
   whose predicted time fits the frame budget (``1000 / target_fps`` ms); when the fixed cost
   alone nearly fills the budget, the pixels still get :attr:`AdaptiveConfig.min_pixel_share` of
   the frame (shrinking further would blur the picture and win almost no speed); quantised so that
@@ -53,6 +54,13 @@ FIRST_SCALE = 0.5
 #: of it and the previous size's predicted time is within HOLD_SLACK (share) of the frame time.
 HOLD_STEPS = 2
 HOLD_SLACK = 0.1
+#: A renderer whose still frames take at most this many wall ms per CPU ms of their render stage
+#: is CPU-bound (llvmpipe: about 1 with one rasteriser thread, less with more); a GPU's take far more.
+CPU_BOUND_RATIO = 1.5
+#: Moving frames start at most MAX_FPS_FACTOR x target_fps times per second by default: well above
+#: the target, so that frames drawn faster than the budget (noise) make up for slower ones, but no
+#: runaway rate of tiny frames that a browser decoding in software cannot show.
+MAX_FPS_FACTOR = 1.5
 #: Timing tolerance (s) of the stillness test.
 TIME_EPS = 1e-6
 #: The stages of a frame's time the cost model sees (wall ms each, render.viewer.session): the
@@ -73,8 +81,8 @@ class AdaptiveConfig:
     #: Frames per second to hold while moving (budget = 1000 / target_fps ms per frame, the whole
     #: frame: drawing, read-back, conversion, encoding).
     target_fps: float = TARGET_FPS
-    #: Most moving frames started per second (None: target_fps): a frame drawn faster than the
-    #: budget waits for its slot instead of going out at once, so that the client (a browser
+    #: Most moving frames started per second (None: MAX_FPS_FACTOR x target_fps): a frame drawn
+    #: faster waits for its slot instead of going out at once, so that the client (a browser
     #: decoding and drawing in software on the same cores) is not sent frames it cannot show.
     max_fps: float | None = None
     #: Seconds of stillness before the full frame.
@@ -112,17 +120,45 @@ class AdaptiveConfig:
     @property
     def min_interval_s(self) -> float:
         """Seconds between the starts of two moving frames, at least (1 / max_fps)."""
-        return 1.0 / (self.max_fps if self.max_fps is not None else self.target_fps)
+        return 1.0 / (self.max_fps if self.max_fps is not None else MAX_FPS_FACTOR * self.target_fps)
 
 
 class Sample(NamedTuple):
     """One frame as the cost model sees it: ``pixels`` drawn, the wall milliseconds of each of
-    :data:`STAGES` (``ms``, in that order), and whether it was a ``moving`` frame (else a
-    full-size frame with one sample per pixel)."""
+    :data:`STAGES` (``ms``, in that order), whether it was a ``moving`` frame (else a full-size
+    frame with one sample per pixel), and the process CPU milliseconds of each stage (``cpu``;
+    None: not measured, the wall time is the cost)."""
 
     pixels: int
     ms: tuple
     moving: bool = True
+    cpu: tuple | None = None
+
+
+def cpu_bound(history) -> bool:
+    """Whether the renderer is CPU-bound (Mesa llvmpipe): its still frames' render stage takes at
+    most CPU_BOUND_RATIO wall ms per CPU ms (of all samples' when no still frame is known).  Its
+    cost is then its CPU time, the same whatever the browser does; a GPU's frames (or a starved
+    process's) take far more wall than CPU time and are modelled in wall time."""
+    timed = [s for s in history if s.cpu is not None and s.cpu[0] > 0]
+    ref = [s for s in timed if not s.moving] or timed
+    return bool(ref) and float(np.median([s.ms[0] / s.cpu[0] for s in ref])) <= CPU_BOUND_RATIO
+
+
+def _cost(s: Sample, use_cpu: bool) -> tuple:
+    """The stage costs the model is fitted to: CPU ms when ``use_cpu`` (and measured), else wall ms."""
+    return s.cpu if use_cpu and s.cpu is not None else s.ms
+
+
+def slowdown(history) -> float:
+    """Wall milliseconds one CPU millisecond of frame work takes now: the median wall / CPU of the
+    recent moving samples (of all samples when none moved yet); 1 without CPU times.  A drag
+    shares the cores with the browser drawing it, a still frame mostly does not: the same CPU
+    work takes longer in wall time while moving, so a CPU-bound renderer's model takes its shape
+    from CPU time and its scale from the moving frames."""
+    timed = [s for s in history if s.cpu is not None and sum(s.cpu) > 0]
+    moving = [s for s in timed if s.moving] or timed
+    return float(np.median([sum(s.ms) / sum(s.cpu) for s in moving])) if moving else 1.0
 
 
 def add_sample(history, sample: Sample) -> list:
@@ -172,20 +208,21 @@ def quantise(scale: float, cfg: AdaptiveConfig) -> float:
     return float(np.clip(q, cfg.min_scale, 1.0))
 
 
-def _stage_rows(history, k: int) -> list[tuple[int, float]]:
+def _stage_rows(history, k: int, use_cpu: bool) -> list[tuple[int, float]]:
     """(pixels, ms) of stage ``STAGES[k]`` over the samples that share its cost with a moving
-    frame (every sample for SHARED_STAGES, the moving ones for the others)."""
+    frame (every sample for SHARED_STAGES, the moving ones for the others), CPU ms if ``use_cpu``."""
     shared = STAGES[k] in SHARED_STAGES
-    return [(s.pixels, s.ms[k]) for s in history if s.moving or shared]
+    return [(s.pixels, _cost(s, use_cpu)[k]) for s in history if s.moving or shared]
 
 
 def fixed_costs(history, previous: tuple | None = None) -> tuple:
     """Per stage of :data:`STAGES`, the fixed cost ``a`` of the line fitted to ``history`` where
     its sizes are spread by MIN_SPREAD or more, else the stage's entry of ``previous`` (None:
-    none known yet): what :func:`fit_cost` assumes while a drag holds one size."""
-    out = []
+    none known yet): what :func:`fit_cost` assumes while a drag holds one size.  In CPU ms for a
+    :func:`cpu_bound` renderer, else wall ms."""
+    out, use_cpu = [], cpu_bound(history)
     for k in range(len(STAGES)):
-        rows = _stage_rows(history, k)
+        rows = _stage_rows(history, k, use_cpu)
         px = [r[0] for r in rows]
         if rows and max(px) >= MIN_SPREAD * min(px):
             out.append(fit_cost(*zip(*rows))[0])
@@ -195,17 +232,20 @@ def fixed_costs(history, previous: tuple | None = None) -> tuple:
 
 
 def cost_model(history, fixed: tuple | None = None) -> tuple[float, float]:
-    """(a ms, b ms per pixel) of a moving frame: the sum over :data:`STAGES` of each stage's
-    :func:`fit_cost` over the samples that share that stage's cost (every sample for
-    SHARED_STAGES, the moving ones for the others; a stage no sample teaches costs nothing),
-    with ``fixed`` (:func:`fixed_costs`) as the fixed costs of stages whose sizes are not spread."""
+    """(a ms, b ms per pixel) of a moving frame in wall time: the sum over :data:`STAGES` of each
+    stage's :func:`fit_cost` over the samples that share that stage's cost (every sample for
+    SHARED_STAGES, the moving ones for the others; a stage no sample teaches costs nothing), with
+    ``fixed`` (:func:`fixed_costs`) as the fixed costs of stages whose sizes are not spread.  For a
+    :func:`cpu_bound` renderer fitted to CPU ms and times the moving frames' :func:`slowdown`."""
     a_sum = b_sum = 0.0
+    use_cpu = cpu_bound(history)
     for k in range(len(STAGES)):
-        rows = _stage_rows(history, k)
+        rows = _stage_rows(history, k, use_cpu)
         if rows:
             a, b = fit_cost(*zip(*rows), fixed=None if fixed is None else fixed[k])
             a_sum, b_sum = a_sum + a, b_sum + b
-    return a_sum, b_sum
+    k = slowdown(history) if use_cpu else 1.0
+    return k * a_sum, k * b_sum
 
 
 def frame_ms(a: float, cfg: AdaptiveConfig) -> float:

@@ -2,8 +2,8 @@
 
 The thread follows render.viewer.adaptive: while the camera moves it draws reduced frames of the
 *latest* camera (read when the GL thread takes the job, so a queue never shows an old view) at
-the size that holds the frame budget, one sample per pixel, sent as lower-quality JPEG, no more
-often than the budget allows; once the camera has been still for ``still_s`` it draws the
+the size that holds the frame budget, one sample per pixel, sent as lower-quality JPEG, at most
+``max_fps`` a second (AdaptiveConfig); once the camera has been still for ``still_s`` it draws the
 full-size frame (one sample per pixel), then the supersampled one, the last still frame sent as
 PNG, unless the camera moved meanwhile (then the stale frame is dropped).  Each frame's time is
 measured per stage (queued, render, convert, send: the cost model of the frame size, and the
@@ -76,7 +76,8 @@ class FrameLog:
     ``ms`` (the renderer's GL time), ``total_ms`` (job submitted -> image handed to the client)
     and its stages ``wait_ms`` (queued behind other jobs on the GL thread), ``render_ms`` (the
     renderer: draw, read back), ``convert_ms`` (to the 8-bit picture) and ``send_ms`` (encoding
-    and hand-off to the client), ``width``, ``height``, ``moving``, ``method``, ``client``, for full frames
+    and hand-off to the client), with the process CPU time of the last three (``render_cpu_ms``,
+    ``convert_cpu_ms``, ``send_cpu_ms``), ``width``, ``height``, ``moving``, ``method``, ``client``, for full frames
     ``since_change_s`` (last camera/settings change -> full frame sent) and ``refined``
     (supersampled), and the renderer's own
     figures (``FrameStats.record()``: cpu_ms, facets, supersample, a method's level...)."""
@@ -221,7 +222,7 @@ class Session:
         from render.viewer.views import draw
 
         def job(scene):
-            started = self.clock()
+            started, cpu0 = self.clock(), time.process_time()
             with self._cond:
                 v, cam, settings = self._version, self._camera, self._settings
                 scale = (choose_scale(self._history, self._full_px(cam, settings), self.cfg, self._scale, self._fixed)
@@ -234,7 +235,7 @@ class Session:
             size = frame_size(full, scale) if kind == "moving" else full
             ss = settings.still_samples if kind == "refine" else 1
             drawn = draw(scene, cam.camera(*size), settings, ss)
-            return v, scale, settings, drawn, started, self.clock()
+            return v, scale, settings, drawn, (started, cpu0, self.clock(), time.process_time())
 
         return job
 
@@ -264,7 +265,10 @@ class Session:
             self._deliver(kind, t0, *out)
 
     def _deliver(self, kind: str, t0: float, version: int, scale: float, settings: ViewSettings, drawn,
-                 started: float, drawn_t: float) -> None:
+                 marks: tuple) -> None:
+        """Send a drawn frame (unless stale), record it and teach the cost model; ``marks``: the
+        job's (start, start CPU, end, end CPU) clocks (s)."""
+        started, cpu0, drawn_t, cpu1 = marks
         with self._cond:
             if self._stopped or (kind != "moving" and version != self._version):
                 return  # the camera moved while the still frame was drawn: drop it
@@ -274,15 +278,18 @@ class Session:
         except Exception as e:  # the client went away mid-frame
             self.on_note(f"could not send a frame: {type(e).__name__}: {e}")
             return
-        sent = self.clock()
+        sent, cpu2 = self.clock(), time.process_time()
         h, w = drawn.image.shape[:2]
-        convert = float(drawn.stages.get("convert", 0.0))
+        convert, convert_cpu = float(drawn.stages.get("convert", 0.0)), float(drawn.stages.get("convert_cpu", 0.0))
         stages = {"wait_ms": (started - t0) * 1e3, "render_ms": (drawn_t - started) * 1e3 - convert,
-                  "convert_ms": convert, "send_ms": (sent - drawn_t) * 1e3}
+                  "convert_ms": convert, "send_ms": (sent - drawn_t) * 1e3,
+                  "render_cpu_ms": (cpu1 - cpu0) * 1e3 - convert_cpu, "convert_cpu_ms": convert_cpu,
+                  "send_cpu_ms": (cpu2 - cpu1) * 1e3}
         rec = {**drawn.stats.record(), "ms": round(float(drawn.stats.ms), 2), "total_ms": round((sent - t0) * 1e3, 2),
                **{k: round(v, 2) for k, v in stages.items()},
                "width": w, "height": h, "moving": moving, "method": settings.method, "client": self.name}
-        sample = Sample(w * h, (stages["render_ms"], stages["convert_ms"], stages["send_ms"]), moving)
+        sample = Sample(w * h, (stages["render_ms"], stages["convert_ms"], stages["send_ms"]), moving,
+                        (stages["render_cpu_ms"], stages["convert_cpu_ms"], stages["send_cpu_ms"]))
         with self._cond:
             if settings is self._settings and (moving or drawn.stats.supersample == 1):
                 self._history = add_sample(self._history, sample)

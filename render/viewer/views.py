@@ -41,7 +41,8 @@ DEPTH_COLOURS = "inferno"
 class Drawn:
     """A picture ready to send: ``image`` (H, W, 3) uint8 sRGB, the frame's ``stats``
     (render.frame.FrameStats), a ``note`` when the asked view could not be drawn and the wall
-    milliseconds of the stages measured here (``stages``: "convert", the frame -> the picture)."""
+    milliseconds of the stages measured here (``stages``: "convert", the frame -> the picture, and
+    "convert_cpu", its process CPU milliseconds)."""
 
     image: np.ndarray
     stats: object
@@ -136,7 +137,7 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
         else:
             view, note = "colour", f"method {settings.method!r} draws no {settings.view!r} view"
     frame = renderer.render(camera, opts)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     if view == "colour":
         img = colour_image(scene, frame, camera, settings.env)
     elif view == "depth":
@@ -152,4 +153,5 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
         img = code_image(frame_codes(frame), np.array([KEPT_RGB, REJECTED_RGB], np.uint8))
     else:  # a method's code view (the camera index + 1 per pixel, ...)
         img = code_image(frame_codes(frame), palette(20))
-    return Drawn(img, frame.stats, note, {"convert": (time.perf_counter() - t0) * 1e3})
+    return Drawn(img, frame.stats, note, {"convert": (time.perf_counter() - t0) * 1e3,
+                                          "convert_cpu": (time.process_time() - c0) * 1e3})
