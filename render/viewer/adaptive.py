@@ -48,6 +48,12 @@ FULL_HISTORY = 2
 #: The fixed cost a is fitted only when the frames' pixel counts differ by this ratio or more (closer
 #: sizes make the line fit noise-sensitive: at 1.15, 10 % timing noise cost up to 0.2 in scale).
 MIN_SPREAD = 1.5
+#: The fixed cost is trusted beyond the fit (kept for later frames of one size, and allowed to
+#: stretch the frame time, MIN_PIXEL_SHARE) only when pinned by frames whose pixel counts differ by
+#: this ratio or more (a frame at half the size or less beside the full one): a line through
+#: frames of 660-960 columns only put gather's fixed cost at 69 ms where it is about 30 (measured),
+#: and the stretched budget then let full-size moving frames run at 9 fps.
+PIN_SPREAD = 4.0
 #: Scale used before any frame was measured.
 FIRST_SCALE = 0.5
 #: Hysteresis: the previous moving scale is kept when the new choice is within this many steps
@@ -217,14 +223,15 @@ def _stage_rows(history, k: int, use_cpu: bool) -> list[tuple[int, float]]:
 
 def fixed_costs(history, previous: tuple | None = None) -> tuple:
     """Per stage of :data:`STAGES`, the fixed cost ``a`` of the line fitted to ``history`` where
-    its sizes are spread by MIN_SPREAD or more, else the stage's entry of ``previous`` (None:
-    none known yet): what :func:`fit_cost` assumes while a drag holds one size.  In CPU ms for a
-    :func:`cpu_bound` renderer, else wall ms."""
+    its sizes are spread by PIN_SPREAD or more, else the stage's entry of ``previous`` (None:
+    none known yet): what :func:`fit_cost` assumes while a drag holds one size, and what may
+    stretch the frame time (:func:`frame_ms`).  In CPU ms for a :func:`cpu_bound` renderer, else
+    wall ms."""
     out, use_cpu = [], cpu_bound(history)
     for k in range(len(STAGES)):
         rows = _stage_rows(history, k, use_cpu)
         px = [r[0] for r in rows]
-        if rows and max(px) >= MIN_SPREAD * min(px):
+        if rows and max(px) >= PIN_SPREAD * min(px):
             out.append(fit_cost(*zip(*rows))[0])
         else:
             out.append(None if previous is None else previous[k])
@@ -264,8 +271,9 @@ def choose_scale(history, full_pixels: int, cfg: AdaptiveConfig = AdaptiveConfig
         full_pixels: pixel count of the full-resolution frame.
         cfg: the budget and limits.
         previous: the last moving frame's scale (growth is limited to cfg.max_growth per frame).
-        fixed: the stages' fixed costs found earlier (:func:`fixed_costs`), used while the
-            history's sizes are not spread enough to find them.
+        fixed: the stages' fixed costs pinned earlier (:func:`fixed_costs`), used while the
+            history's sizes are not spread enough to find them; only a pinned fixed cost
+            stretches the frame time beyond the budget (:func:`frame_ms`).
     Returns:
         a multiple of cfg.scale_step in [cfg.min_scale, 1].
     """
@@ -275,8 +283,15 @@ def choose_scale(history, full_pixels: int, cfg: AdaptiveConfig = AdaptiveConfig
     if not history:
         return quantise(FIRST_SCALE if previous is None else previous, cfg)
     a, b = cost_model(history, fixed)
-    target = frame_ms(a, cfg)
-    scale = float(np.sqrt((target - a) / b / full_pixels)) if b > 0 else 1.0
+    pinned = fixed_costs(history, fixed)
+    if pinned[0] is None:
+        target = cfg.budget_ms  # no pinned fixed cost: no stretching the budget
+    else:
+        target = frame_ms((slowdown(history) if cpu_bound(history) else 1.0) * sum(x or 0.0 for x in pinned), cfg)
+    if b <= 0:
+        scale = 1.0
+    else:
+        scale = float(np.sqrt(max(target - a, 0.0) / b / full_pixels))
     if previous is not None:
         scale = min(scale, previous * cfg.max_growth)
         predicted = a + b * previous * previous * full_pixels

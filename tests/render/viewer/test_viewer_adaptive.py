@@ -166,6 +166,22 @@ def test_slowdown():
     assert slowdown(hist[:1]) == 1.0
 
 
+def test_an_unpinned_fixed_cost_does_not_stretch_the_budget():
+    """Frames of 660-960 columns only (a drag near full size, measured): the line through them
+    puts the fixed cost near the frame time itself (69 of ~85 ms), which would stretch the budget to
+    1.5 x that and keep 90-100 ms full-size frames (9 fps).  Unpinned (no frame at a quarter of
+    the pixels or less), it stretches nothing: the frame shrinks to the budget; pinned at 26 ms
+    (gather's point splats), the same."""
+    cfg = AdaptiveConfig()
+    P = FULL_PX
+    rows = [(P, 86.0), (P, 88.0), (int(0.88 * P), 84.0), (int(0.47 * P), 76.0), (int(0.52 * P), 78.0), (P, 91.0)]
+    hist = [Sample(px, (ms, 5.0, 2.0), True, (ms, 5.0, 2.0)) for px, ms in rows]
+    assert cost_model(hist)[0] > 60.0                             # the noisy line's fixed cost
+    assert fixed_costs(hist)[0] is None                           # not pinned
+    assert choose_scale(hist, P, cfg, previous=1.0) <= 0.94
+    assert choose_scale(hist, P, cfg, previous=1.0, fixed=(26.0, 0.0, 0.0)) <= 0.94
+
+
 def test_cost_model_per_stage():
     """Full-size frames teach the render and convert stages (so the fixed cost is found at once)
     but not the send stage, which encodes them otherwise (PNG)."""
