@@ -60,9 +60,6 @@ FIRST_SCALE = 0.5
 #: of it and the previous size's predicted time is within HOLD_SLACK (share) of the frame time.
 HOLD_STEPS = 2
 HOLD_SLACK = 0.1
-#: A renderer whose still frames take at most this many wall ms per CPU ms of their render stage
-#: is CPU-bound (llvmpipe: about 1 with one rasteriser thread, less with more); a GPU's take far more.
-CPU_BOUND_RATIO = 1.5
 #: Moving frames start at most MAX_FPS_FACTOR x target_fps times per second by default: well above
 #: the target, so that frames drawn faster than the budget (noise) make up for slower ones, but no
 #: runaway rate of tiny frames that a browser decoding in software cannot show.
@@ -133,7 +130,7 @@ class Sample(NamedTuple):
     """One frame as the cost model sees it: ``pixels`` drawn, the wall milliseconds of each of
     :data:`STAGES` (``ms``, in that order), whether it was a ``moving`` frame (else a full-size
     frame with one sample per pixel), and the process CPU milliseconds of each stage (``cpu``;
-    None: not measured, the wall time is the cost)."""
+    None for a GPU renderer: the wall time is the cost, :func:`cpu_bound`)."""
 
     pixels: int
     ms: tuple
@@ -142,13 +139,12 @@ class Sample(NamedTuple):
 
 
 def cpu_bound(history) -> bool:
-    """Whether the renderer is CPU-bound (Mesa llvmpipe): its still frames' render stage takes at
-    most CPU_BOUND_RATIO wall ms per CPU ms (of all samples' when no still frame is known).  Its
-    cost is then its CPU time, the same whatever the browser does; a GPU's frames (or a starved
-    process's) take far more wall than CPU time and are modelled in wall time."""
-    timed = [s for s in history if s.cpu is not None and s.cpu[0] > 0]
-    ref = [s for s in timed if not s.moving] or timed
-    return bool(ref) and float(np.median([s.ms[0] / s.cpu[0] for s in ref])) <= CPU_BOUND_RATIO
+    """Whether the model is fitted to CPU time: every sample carries CPU times, which the session
+    records only for a software rasteriser (Mesa llvmpipe; render.viewer.gl_worker.GLWorker
+    ``software``).  Its cost is its CPU time, the same whatever else runs, and the wall time it
+    takes follows from the moving frames' :func:`slowdown`; a GPU's frames take wall time the
+    CPU does not see and are modelled in wall time."""
+    return bool(history) and all(s.cpu is not None for s in history)
 
 
 def _cost(s: Sample, use_cpu: bool) -> tuple:

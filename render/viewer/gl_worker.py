@@ -32,6 +32,14 @@ WARM_UP_SUPERSAMPLE = 2
 CLOSE_TIMEOUT_S = 30.0
 #: Cores left to other processes (a browser on the same machine) by the default llvmpipe thread count.
 FREE_CORES = 1
+#: GL renderer names (GL_RENDERER, lower case) of software rasterisers: their frames cost CPU time.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "swiftshader")
+
+
+def is_software(ctx) -> bool:
+    """Whether ``ctx`` rasterises on the CPU (Mesa llvmpipe and the like: SOFTWARE_RENDERERS)."""
+    name = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return any(s in name for s in SOFTWARE_RENDERERS)
 
 
 @contextlib.contextmanager
@@ -155,6 +163,8 @@ class GLWorker:
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self.scene: GLScene | None = None
+        #: True on a software rasteriser (:func:`is_software`): the sessions model frame cost in CPU time.
+        self.software = False
         self.released = False
         self._closing = False
         self._thread = threading.Thread(target=self._run, name="furrow-gl", daemon=True)
@@ -185,6 +195,7 @@ class GLWorker:
             self._ready.set()
             return
         self.scene = GLScene(ctx, self._model)
+        self.software = is_software(ctx)
         self._ready.set()
         try:
             while True:

@@ -288,8 +288,9 @@ class Session:
         rec = {**drawn.stats.record(), "ms": round(float(drawn.stats.ms), 2), "total_ms": round((sent - t0) * 1e3, 2),
                **{k: round(v, 2) for k, v in stages.items()},
                "width": w, "height": h, "moving": moving, "method": settings.method, "client": self.name}
+        cpu = (stages["render_cpu_ms"], stages["convert_cpu_ms"], stages["send_cpu_ms"])
         sample = Sample(w * h, (stages["render_ms"], stages["convert_ms"], stages["send_ms"]), moving,
-                        (stages["render_cpu_ms"], stages["convert_cpu_ms"], stages["send_cpu_ms"]))
+                        cpu if getattr(self.worker, "software", False) else None)
         with self._cond:
             if settings is self._settings and (moving or drawn.stats.supersample == 1):
                 self._history = add_sample(self._history, sample)

@@ -182,3 +182,14 @@ def test_llvmpipe_thread_cap(monkeypatch):
     with pytest.raises(ValueError):
         with llvmpipe_threads(0):
             pass
+
+
+def test_software_rasteriser_is_told_from_the_renderer_name():
+    """The viewer models frame cost in CPU time on a software rasteriser only."""
+    from types import SimpleNamespace
+
+    from render.viewer.gl_worker import is_software
+
+    assert is_software(SimpleNamespace(info={"GL_RENDERER": "llvmpipe (LLVM 15.0.6, 256 bits)"}))
+    assert not is_software(SimpleNamespace(info={"GL_RENDERER": "NVIDIA H200/PCIe/SSE2"}))
+    assert not is_software(SimpleNamespace(info={}))
