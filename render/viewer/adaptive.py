@@ -41,6 +41,11 @@ MAX_GROWTH = 1.25
 #: cost the same at 60 lines as at 720: shrinking below that buys a few percent of frame rate for
 #: a picture 10x blurrier; measured in docs/viewer.md).
 MIN_PIXEL_SHARE = 1.0 / 3.0
+#: ... but never more than MAX_STRETCH x the budget (at the default 12 fps: 8 fps at the least by
+#: the model's own account): under a load of 10 the fixed cost read from the frames drifted from 26
+#: to 51 ms of CPU, and an unbounded stretch then sized 3.5 fps full-size frames (measured).  Above
+#: it the frames shrink to the budget as they always did.
+MAX_STRETCH = 1.5
 #: Recent moving frames the cost model is fitted to, and recent full-size one-sample frames kept
 #: beside them (same renderer and settings: they pin the per-pixel slope).
 HISTORY = 8
@@ -253,8 +258,9 @@ def cost_model(history, fixed: tuple | None = None) -> tuple[float, float]:
 
 def frame_ms(a: float, cfg: AdaptiveConfig) -> float:
     """Milliseconds a moving frame with fixed cost ``a`` is sized to: the budget, or
-    ``a / (1 - min_pixel_share)`` when the fixed cost leaves the pixels less than that share."""
-    return max(cfg.budget_ms, a / (1.0 - cfg.min_pixel_share))
+    ``a / (1 - min_pixel_share)`` when the fixed cost leaves the pixels less than that share, at
+    most MAX_STRETCH x the budget."""
+    return max(cfg.budget_ms, min(a / (1.0 - cfg.min_pixel_share), MAX_STRETCH * cfg.budget_ms))
 
 
 def choose_scale(history, full_pixels: int, cfg: AdaptiveConfig = AdaptiveConfig(),
