@@ -12,8 +12,10 @@ from render.methods import DEFAULT_METHOD
 HELP = "interactive web viewer: renders the model on this machine, shows it in a browser (viser)"
 DESCRIPTION = """Serve a furrow model to web browsers: the server renders every frame with furrow's own
 renderers (any method of the registry) and the browser shows it (viser).  While the camera moves,
-frames are drawn smaller to hold about 12 frames per second; 0.2 s after it stops, the full
-frame is drawn supersampled.  The capture cameras are clickable frustums; the panel holds the
+frames are drawn smaller to hold about 12 frames per second (sized from each stage's measured
+cost, never sent more than 1.5x that often); 0.2 s after it stops, the full frame is drawn, then supersampled.
+Without a GPU (Mesa llvmpipe) one core is left to the browser (--gl-threads); docs/viewer.md has
+where a frame's time goes.  The capture cameras are clickable frustums; the panel holds the
 method and its own options (from its spec), supersampling, environment compositing, debug views, a PNG
 screenshot and MP4 export (saved under --out and downloaded).  Ctrl-C stops it.
 
@@ -41,7 +43,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     from furrow.relight_flags import add_map_orientation_arguments
 
     add_map_orientation_arguments(p, "the environment maps (--env and the GUI's; the GUI's slider starts here)")
-    p.add_argument("--fps", type=float, default=None, help="frames per second to hold while moving (default 12)")
+    p.add_argument("--fps", type=float, default=None,
+                   help="frames per second to hold while moving (default 12): moving frames are sized to it and "
+                        "sent at most 1.5x that often")
+    p.add_argument("--gl-threads", type=int, default=None, metavar="N",
+                   help="llvmpipe rasteriser threads when there is no GPU (default: the cores less one, at least 1, "
+                        "so that a browser on this machine keeps a core for its software WebGL; LP_NUM_THREADS in "
+                        "the environment wins)")
     p.add_argument("--out", type=Path, default=Path("out/view"), help="where screenshots and videos are saved")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
 
@@ -66,6 +74,13 @@ def settings_from_args(args):
 
 
 def run(args, console) -> int:
+    from render.viewer.gl_worker import llvmpipe_threads
+
+    with llvmpipe_threads(args.gl_threads):  # around the process's first GL context
+        return _serve(args, console)
+
+
+def _serve(args, console) -> int:
     from capture.io import read_cameras
     from render.viewer.adaptive import AdaptiveConfig
     from render.viewer.server import Viewer

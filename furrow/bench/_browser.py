@@ -22,6 +22,37 @@ FRAME_TIMEOUT_S = 240.0
 #: The readout line that says a full frame with these samples per pixel was shown (the still
 #: frames' count before the colon).
 STILL_TEXT = r"still #(\d+): {w}x{h}, {s}x{s} samples"
+#: An init script counting, in the page, the server frames the viewer received and decoded, and
+#: the frames the page drew: viser's client makes each background image a blob URL
+#: (URL.createObjectURL), decodes it as an image and revokes the URL once it is loaded
+#: (MessageHandler.tsx loadBackgroundTexture), so the time between the two is the browser's decode
+#: (waiting for its main thread included); a drawn frame is an animation frame in which WebGL drew.
+FRAME_COUNTERS_JS = """
+(() => {
+  const f = window.__furrowCounters = {received: 0, decoded: 0, decode_ms: [], drawn: 0};
+  const born = new Map();
+  const create = URL.createObjectURL, revoke = URL.revokeObjectURL;
+  URL.createObjectURL = function (obj) {
+    const url = create.call(URL, obj);
+    if (obj instanceof Blob && obj.type.startsWith('image/')) { born.set(url, performance.now()); f.received += 1; }
+    return url;
+  };
+  URL.revokeObjectURL = function (url) {
+    const t0 = born.get(url);
+    if (t0 !== undefined) { born.delete(url); f.decoded += 1; f.decode_ms.push(performance.now() - t0); }
+    return revoke.call(URL, url);
+  };
+  let drew = false;
+  for (const proto of [WebGLRenderingContext.prototype, WebGL2RenderingContext.prototype]) {
+    for (const name of ['drawElements', 'drawArrays', 'drawElementsInstanced', 'drawArraysInstanced']) {
+      const g = proto[name];
+      if (g) proto[name] = function (...a) { drew = true; return g.apply(this, a); };
+    }
+  }
+  const tick = () => { if (drew) { f.drawn += 1; drew = false; } requestAnimationFrame(tick); };
+  requestAnimationFrame(tick);
+})();
+"""
 
 
 def find_chromium() -> str | None:
@@ -119,8 +150,10 @@ def hide_overlays(page) -> None:
                                "[class*='Notification'] { visibility: hidden !important; }")
 
 
-def drag(page, seconds: float, x0: float, y0: float, radius: float = 120.0, steps_per_s: float = 60.0) -> int:
-    """Orbit by dragging the mouse in circles around (x0, y0) for ``seconds``; returns the moves made."""
+def drag(page, seconds: float, x0: float, y0: float, radius: float = 120.0, steps_per_s: float = 60.0,
+         on_ramp=None, ramp_s: float = 0.0) -> int:
+    """Orbit by dragging the mouse in circles around (x0, y0) for ``seconds``; returns the moves made.
+    ``on_ramp()`` is called once, ``ramp_s`` seconds into the drag (e.g. :func:`frame_counters`)."""
     import math
 
     page.mouse.move(x0 + radius, y0)
@@ -130,11 +163,78 @@ def drag(page, seconds: float, x0: float, y0: float, radius: float = 120.0, step
     for i in range(n):
         a = 2 * math.pi * i / (steps_per_s * 2.0)
         page.mouse.move(x0 + radius * math.cos(a), y0 + 0.3 * radius * math.sin(a))
+        if on_ramp is not None and time.monotonic() - t0 >= ramp_s:
+            on_ramp()
+            on_ramp = None
         wait = t0 + (i + 1) / steps_per_s - time.monotonic()
         if wait > 0:
             time.sleep(wait)
     page.mouse.up()
     return n
+
+
+def frame_counters(page) -> dict:
+    """The page's FRAME_COUNTERS_JS counts now: ``t`` (page clock, s), ``received`` and ``decoded``
+    server frames, ``decode_ms`` (each decoded frame's), ``drawn`` animation frames."""
+    c = page.evaluate("() => ({...window.__furrowCounters, t: performance.now() / 1000})")
+    return {**c, "decode_ms": list(c["decode_ms"])}
+
+
+def _proc_stat(pid: int) -> tuple[int, float] | None:
+    """(parent pid, CPU seconds: user + system of every thread) of a live process (Linux /proc)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return int(fields[1]), (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def process_cpu(viewer_pid: int) -> dict:
+    """CPU seconds so far of the ``furrow view`` process (``viewer``) and of the chromium processes
+    under this one (``browser``: the page's renderer, GPU (SwiftShader) and other processes);
+    ``t`` its wall time (s).  Empty on a system without /proc."""
+    if not Path("/proc/self/stat").exists():
+        return {}
+    stats = {int(d.name): _proc_stat(int(d.name)) for d in Path("/proc").iterdir() if d.name.isdigit()}
+    children: dict[int, list[int]] = {}
+    for pid, st in stats.items():
+        if st is not None:
+            children.setdefault(st[0], []).append(pid)
+    browser, todo = 0.0, list(children.get(os.getpid(), []))
+    while todo:
+        pid = todo.pop()
+        todo += children.get(pid, [])
+        try:
+            exe = Path(f"/proc/{pid}/exe").resolve().name
+        except OSError:
+            continue
+        if pid != viewer_pid and "chrom" in exe and stats.get(pid):
+            browser += stats[pid][1]
+    own = stats.get(viewer_pid)
+    return {"t": time.monotonic(), "viewer": own[1] if own else float("nan"), "browser": browser}
+
+
+def counter_rates(start: dict, end: dict) -> dict:
+    """Per second between two :func:`frame_counters` snapshots: frames ``received``, ``decoded``
+    and ``drawn`` by the page, and the median ``decode_ms`` of the frames decoded in between; with
+    :func:`process_cpu` readings under ``"cpu"`` in both, the cores the viewer and the browser
+    used (``viewer_cores``, ``browser_cores``) and the browser's CPU ms per frame it drew."""
+    import numpy as np
+
+    dt = max(end["t"] - start["t"], 1e-9)
+    dec = end["decode_ms"][len(start["decode_ms"]):]
+    out = {"received_fps": (end["received"] - start["received"]) / dt,
+           "decoded_fps": (end["decoded"] - start["decoded"]) / dt,
+           "drawn_fps": (end["drawn"] - start["drawn"]) / dt,
+           "decode_ms": float(np.median(dec)) if dec else float("nan")}
+    c0, c1 = start.get("cpu") or {}, end.get("cpu") or {}
+    if c0 and c1:
+        wall = max(c1["t"] - c0["t"], 1e-9)
+        out["viewer_cores"] = (c1["viewer"] - c0["viewer"]) / wall
+        out["browser_cores"] = (c1["browser"] - c0["browser"]) / wall
+        drawn = end["drawn"] - start["drawn"]
+        out["browser_cpu_ms_per_drawn"] = 1e3 * (c1["browser"] - c0["browser"]) / drawn if drawn else float("nan")
+    return out
 
 
 def save_screenshot(page, path: Path) -> None:

@@ -22,6 +22,14 @@ def _set(prog, name, value):
         prog[name].value = value
 
 
+def same_spheres(a, b) -> bool:
+    """Whether two sphere sets (``centers``, ``radii``) are the same object or hold equal values."""
+    if a is b:
+        return True
+    return (a is not None and b is not None and np.array_equal(a.centers, b.centers)
+            and np.array_equal(a.radii, b.radii))
+
+
 def premultiplied_rgba(rgb, depth, alpha, H: int, W: int) -> np.ndarray:
     """(H, W, 4) float32 premultiplied colour + alpha of an object: without ``alpha`` the straight
     ``rgb`` over the binary mask depth > 0; with one, ``rgb`` is already premultiplied by it."""
@@ -93,12 +101,12 @@ class Compositor(GLOwner):
     def shadow_grid(self, spheres, fit, ground: GroundPlane) -> np.ndarray:
         """Compute the (G, G, 3) shadow-ratio grid on the GPU (twin:
         ``render.composite.ground_shadow.shadow_ratio`` at ``ground.grid_points()``), keep it as the ratio
-        texture and return it. Cached: the same spheres and fit objects and an equal ground reuse
-        the last grid."""
+        texture and return it. Cached: equal spheres (composite_frame turns them to the map's up
+        in a new object every frame), the same fit object and an equal ground reuse the last grid."""
         import moderngl
 
         key = self._grid_key
-        if key is not None and key[0] is spheres and key[1] is fit and key[2] == ground:
+        if key is not None and same_spheres(key[0], spheres) and key[1] is fit and key[2] == ground:
             return self._grid
         ctx = self.ctx
         k = len(fit.lams)

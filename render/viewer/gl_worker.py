@@ -6,13 +6,19 @@ jobs: ``worker.submit(fn, wanted)`` runs ``fn(scene)`` here and returns a Future
 ``wanted()`` is false when its turn comes (a newer camera arrived) is dropped unrun; its Future
 gets None.  :meth:`GLWorker.close` releases every renderer, the compositor and the context on
 this thread, then ends it.
+
+On a machine without a GPU the context is Mesa's llvmpipe, whose rasteriser threads take every
+core by default; :func:`llvmpipe_threads` (``furrow view --gl-threads``) leaves one to the
+browser, whose software WebGL decodes and draws every frame on the same cores (docs/viewer.md).
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import queue
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future
 
 import numpy as np
@@ -24,12 +30,46 @@ WARM_UP_WIDTH = 64
 WARM_UP_SUPERSAMPLE = 2
 #: Seconds close() waits for the job in progress before giving up on the thread.
 CLOSE_TIMEOUT_S = 30.0
+#: Cores left to other processes (a browser on the same machine) by the default llvmpipe thread count.
+FREE_CORES = 1
+#: GL renderer names (GL_RENDERER, lower case) of software rasterisers: their frames cost CPU time.
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "swiftshader")
+
+
+def is_software(ctx) -> bool:
+    """Whether ``ctx`` rasterises on the CPU (Mesa llvmpipe and the like: SOFTWARE_RENDERERS)."""
+    name = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return any(s in name for s in SOFTWARE_RENDERERS)
+
+
+@contextlib.contextmanager
+def llvmpipe_threads(threads: int | None = None) -> Iterator[int]:
+    """``with llvmpipe_threads(n) as n:`` Mesa llvmpipe's rasteriser thread count
+    (``LP_NUM_THREADS``) set for the block, restored after it.  Mesa reads it when the process
+    makes its first GL context, so that context must be made inside (it keeps the count for the
+    process's life; restoring only keeps it from child processes).  ``threads`` (>= 1), or by
+    default the cores less FREE_CORES (at least 1); an ``LP_NUM_THREADS`` already in the
+    environment is kept.  No effect on a GPU driver.  Yields the count in effect."""
+    before = os.environ.get("LP_NUM_THREADS")
+    if before is not None:
+        yield int(before)
+        return
+    if threads is None:
+        threads = max(1, (os.cpu_count() or 1) - FREE_CORES)
+    if int(threads) < 1:
+        raise ValueError(f"llvmpipe threads must be >= 1, got {threads}")
+    os.environ["LP_NUM_THREADS"] = str(int(threads))
+    try:
+        yield int(threads)
+    finally:
+        os.environ.pop("LP_NUM_THREADS", None)
 
 
 class GLScene(GLOwner):
     """The model's GL side, made on the GL thread: one renderer per method (created through the
-    registry on first use, kept), the compositor and the environment maps (cached per name and
-    rotation).
+    registry on first use, kept), the compositor, the environment maps (cached per name and
+    rotation) and their spherical-Gaussian fits for the ground shadow (one per map, made once:
+    seconds of work that composite_frame would otherwise redo every frame).
 
     Args:
         ctx: the context (owned by the GLWorker).
@@ -42,6 +82,7 @@ class GLScene(GLOwner):
         self._renderers: dict = {}
         self._compositor = None
         self._envs: dict = {}
+        self._fits: list = []  # (env, fit) pairs, looked up by the env's identity
         self.up = None
 
     def renderer(self, name: str):
@@ -82,6 +123,19 @@ class GLScene(GLOwner):
             self._envs[key] = named_envmap(name, convention, rotation_deg)
         return self._envs[key]
 
+    def shadow_fit(self, env):
+        """The SG fit of ``env`` that lights the ground shadow (render.shading.sg_fit.fit_env_sg with
+        render.composite.ground_shadow.SHADOW_SG_K lobes, as composite_frame fits it), made once per map."""
+        for e, fit in self._fits:
+            if e is env:
+                return fit
+        from render.composite.ground_shadow import SHADOW_SG_K
+        from render.shading.sg_fit import fit_env_sg
+
+        fit = fit_env_sg(env, SHADOW_SG_K)
+        self._fits.append((env, fit))
+        return fit
+
     def rig_up(self) -> np.ndarray:
         """(3,) the capture rig's up direction (capture.orbit.estimate_up of the model's cameras)."""
         if self.up is None:
@@ -109,6 +163,8 @@ class GLWorker:
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self.scene: GLScene | None = None
+        #: True on a software rasteriser (:func:`is_software`): the sessions model frame cost in CPU time.
+        self.software = False
         self.released = False
         self._closing = False
         self._thread = threading.Thread(target=self._run, name="furrow-gl", daemon=True)
@@ -139,6 +195,7 @@ class GLWorker:
             self._ready.set()
             return
         self.scene = GLScene(ctx, self._model)
+        self.software = is_software(ctx)
         self._ready.set()
         try:
             while True:

@@ -2,11 +2,13 @@
 
 The thread follows render.viewer.adaptive: while the camera moves it draws reduced frames of the
 *latest* camera (read when the GL thread takes the job, so a queue never shows an old view) at
-the size that holds the frame budget, one sample per pixel, sent as lower-quality JPEG; once the
-camera has been still for ``still_s`` it draws the full-size frame (one sample per pixel), then
-the supersampled one, each sent as PNG unless the camera moved meanwhile (then the stale frame
-is dropped).  Every frame sent
-is recorded in the shared :class:`FrameLog` (``furrow view --stats``).
+the size that holds the frame budget, one sample per pixel, sent as lower-quality JPEG, at most
+``max_fps`` a second (AdaptiveConfig); once the camera has been still for ``still_s`` it draws the
+full-size frame (one sample per pixel), then the supersampled one, the last still frame sent as
+PNG, unless the camera moved meanwhile (then the stale frame is dropped).  Each frame's time is
+measured per stage (queued, render, convert, send: the cost model of the frame size, and the
+``--stats`` record).  Every frame sent is recorded in the shared :class:`FrameLog`
+(``furrow view --stats``).
 """
 
 from __future__ import annotations
@@ -18,7 +20,15 @@ from concurrent.futures import CancelledError
 from dataclasses import dataclass
 
 from capture.camera import Camera, camera_from_viser
-from render.viewer.adaptive import AdaptiveConfig, choose_scale, frame_size, next_action
+from render.viewer.adaptive import (
+    AdaptiveConfig,
+    Sample,
+    add_sample,
+    choose_scale,
+    fixed_costs,
+    frame_size,
+    next_action,
+)
 from render.viewer.settings import ViewSettings
 
 #: JPEG quality of moving frames, and of the full frame when a supersampled one follows (the
@@ -63,8 +73,11 @@ def transport_quality(kind: str, settings: ViewSettings) -> int | None:
 
 class FrameLog:
     """Thread-safe record of every frame sent (``furrow view --stats``): ``t`` (s since start),
-    ``ms`` (the renderer's GL time), ``total_ms`` (job submitted -> image handed to the client),
-    ``width``, ``height``, ``moving``, ``method``, ``client``, for full frames
+    ``ms`` (the renderer's GL time), ``total_ms`` (job submitted -> image handed to the client)
+    and its stages ``wait_ms`` (queued behind other jobs on the GL thread), ``render_ms`` (the
+    renderer: draw, read back), ``convert_ms`` (to the 8-bit picture) and ``send_ms`` (encoding
+    and hand-off to the client), with the process CPU time of the last three (``render_cpu_ms``,
+    ``convert_cpu_ms``, ``send_cpu_ms``), ``width``, ``height``, ``moving``, ``method``, ``client``, for full frames
     ``since_change_s`` (last camera/settings change -> full frame sent) and ``refined``
     (supersampled), and the renderer's own
     figures (``FrameStats.record()``: cpu_ms, facets, supersample, a method's level...)."""
@@ -131,8 +144,10 @@ class Session:
         self._moving_done = -1
         self._full_done = -1
         self._refined_done = -1
-        self._history: list[tuple[int, float]] = []
+        self._history: list[Sample] = []
+        self._fixed: tuple | None = None
         self._scale: float | None = None
+        self._moving_started: float | None = None
         self._stopped = False
         self._paused = False
         self._thread = threading.Thread(target=self._loop, name=f"furrow-view-{name}", daemon=True)
@@ -152,6 +167,7 @@ class Session:
         """New settings from the client's GUI (any thread)."""
         with self._cond:
             self._settings = settings
+            self._history, self._fixed = [], None  # another method / view / size cap: another cost
             self._changed()
 
     def pause(self, paused: bool) -> None:
@@ -195,7 +211,7 @@ class Session:
             while not self._stopped:
                 act = next_action(self.clock(), self._version, self._last_change, self._moving_done,
                                   self._full_done, self._refined_done, self._settings.still_samples > 1,
-                                  self.cfg)
+                                  self.cfg, self._moving_started)
                 if act.kind != "wait" and self._camera is not None and not self._paused:
                     return act.kind, self._version
                 self._cond.wait(act.wait_s if self._camera is not None and not self._paused else None)
@@ -206,16 +222,20 @@ class Session:
         from render.viewer.views import draw
 
         def job(scene):
+            started, cpu0 = self.clock(), time.process_time()
             with self._cond:
                 v, cam, settings = self._version, self._camera, self._settings
-                scale = (choose_scale(self._history, self._full_px(cam, settings), self.cfg, self._scale)
+                scale = (choose_scale(self._history, self._full_px(cam, settings), self.cfg, self._scale, self._fixed)
                          if kind == "moving" else 1.0)
+                if kind == "moving":
+                    self._moving_started = started
             if kind != "moving" and v != version or self._stopped:
                 return None  # stale still frame: dropped unrun
             full = cam.full_size(settings.max_lines)
             size = frame_size(full, scale) if kind == "moving" else full
             ss = settings.still_samples if kind == "refine" else 1
-            return v, scale, settings, draw(scene, cam.camera(*size), settings, ss)
+            drawn = draw(scene, cam.camera(*size), settings, ss)
+            return v, scale, settings, drawn, (started, cpu0, self.clock(), time.process_time())
 
         return job
 
@@ -244,7 +264,11 @@ class Session:
                 continue
             self._deliver(kind, t0, *out)
 
-    def _deliver(self, kind: str, t0: float, version: int, scale: float, settings: ViewSettings, drawn) -> None:
+    def _deliver(self, kind: str, t0: float, version: int, scale: float, settings: ViewSettings, drawn,
+                 marks: tuple) -> None:
+        """Send a drawn frame (unless stale), record it and teach the cost model; ``marks``: the
+        job's (start, start CPU, end, end CPU) clocks (s)."""
+        started, cpu0, drawn_t, cpu1 = marks
         with self._cond:
             if self._stopped or (kind != "moving" and version != self._version):
                 return  # the camera moved while the still frame was drawn: drop it
@@ -254,13 +278,24 @@ class Session:
         except Exception as e:  # the client went away mid-frame
             self.on_note(f"could not send a frame: {type(e).__name__}: {e}")
             return
-        sent = self.clock()
+        sent, cpu2 = self.clock(), time.process_time()
         h, w = drawn.image.shape[:2]
+        convert, convert_cpu = float(drawn.stages.get("convert", 0.0)), float(drawn.stages.get("convert_cpu", 0.0))
+        stages = {"wait_ms": (started - t0) * 1e3, "render_ms": (drawn_t - started) * 1e3 - convert,
+                  "convert_ms": convert, "send_ms": (sent - drawn_t) * 1e3,
+                  "render_cpu_ms": (cpu1 - cpu0) * 1e3 - convert_cpu, "convert_cpu_ms": convert_cpu,
+                  "send_cpu_ms": (cpu2 - cpu1) * 1e3}
         rec = {**drawn.stats.record(), "ms": round(float(drawn.stats.ms), 2), "total_ms": round((sent - t0) * 1e3, 2),
+               **{k: round(v, 2) for k, v in stages.items()},
                "width": w, "height": h, "moving": moving, "method": settings.method, "client": self.name}
+        cpu = (stages["render_cpu_ms"], stages["convert_cpu_ms"], stages["send_cpu_ms"])
+        sample = Sample(w * h, (stages["render_ms"], stages["convert_ms"], stages["send_ms"]), moving,
+                        cpu if getattr(self.worker, "software", False) else None)
         with self._cond:
+            if settings is self._settings and (moving or drawn.stats.supersample == 1):
+                self._history = add_sample(self._history, sample)
+                self._fixed = fixed_costs(self._history, self._fixed)
             if moving:
-                self._history = (self._history + [(w * h, (sent - t0) * 1e3)])[-16:]
                 self._scale = scale
                 self._moving_done = version
             else:

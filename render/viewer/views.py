@@ -2,6 +2,8 @@
 
 * "colour": the frame as 8-bit sRGB over black (premultiplied colour), or composited with its matte into an
   environment map (:func:`composite_env`, docs/methods.md §3-§4) with exposure, ground shadow, glare, rotation;
+  the 8-bit conversion through render.viewer.present.srgb8 (a lookup table; reference
+  capture.scan.to_uint8_srgb);
 * "depth": the z-depth, near = bright (inferno colour map over the drawn pixels' range);
 * "level": the pyramid level the frame drew (Eq. 11 picks one level per frame, so every drawn
   pixel shows it), for methods whose FrameStats report a ``level``;
@@ -16,7 +18,8 @@ Methods are looked up by name and never branched on: a view a method cannot give
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,11 +40,14 @@ DEPTH_COLOURS = "inferno"
 @dataclass(frozen=True)
 class Drawn:
     """A picture ready to send: ``image`` (H, W, 3) uint8 sRGB, the frame's ``stats``
-    (render.frame.FrameStats) and a ``note`` when the asked view could not be drawn."""
+    (render.frame.FrameStats), a ``note`` when the asked view could not be drawn and the wall
+    milliseconds of the stages measured here (``stages``: "convert", the frame -> the picture, and
+    "convert_cpu", its process CPU milliseconds)."""
 
     image: np.ndarray
     stats: object
     note: str = ""
+    stages: dict = field(default_factory=dict)
 
 
 def make_compositor(ctx):
@@ -51,16 +57,18 @@ def make_compositor(ctx):
     return Compositor(ctx)
 
 
-def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, spheres, up, compositor) -> np.ndarray:
+def composite_env(ctx, frame, camera: Camera, env, env_settings: EnvSettings, spheres, up, compositor,
+                  sg_fit=None) -> np.ndarray:
     """``frame`` (render.frame.Frame) composited into ``env`` with its matte (premultiplied +
     (1 - alpha) background, linear light): (H, W, 3) float32 display-referred linear colour in
-    [0, 1] (render.composite.pipeline.composite_frame)."""
+    [0, 1] (render.composite.pipeline.composite_frame); ``sg_fit``: the map's SG fit for the ground
+    shadow (fitted per call when None)."""
     from render.composite.pipeline import composite_frame
 
     return composite_frame(ctx, frame.rgb, frame.depth, camera, env, alpha=frame.alpha,
                            spheres=spheres if env_settings.ground else None,
                            ground=None if env_settings.ground else False, exposure=env_settings.exposure,
-                           glare=env_settings.glare, up=up, compositor=compositor)
+                           glare=env_settings.glare, up=up, compositor=compositor, sg_fit=sg_fit)
 
 
 def palette(n: int) -> np.ndarray:
@@ -106,14 +114,15 @@ def frame_codes(frame) -> np.ndarray:
 
 def colour_image(scene, frame, camera: Camera, env_settings: EnvSettings) -> np.ndarray:
     """The "colour" view: sRGB over black, or composited into the environment."""
-    from capture.scan import to_uint8_srgb
+    from render.viewer.present import srgb8
 
     if env_settings.map is None:
-        return to_uint8_srgb(frame.rgb)
+        return srgb8(frame.rgb)
     env = scene.envmap(env_settings.map, env_settings.rotation_deg, env_settings.convention)
+    fit = scene.shadow_fit(env) if env_settings.ground else None
     img = composite_env(scene.ctx, frame, camera, env, env_settings, scene.model.spheres, scene.rig_up(),
-                        scene.compositor())
-    return to_uint8_srgb(img)
+                        scene.compositor(), fit)
+    return srgb8(img)
 
 
 def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Drawn:
@@ -128,6 +137,7 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
         else:
             view, note = "colour", f"method {settings.method!r} draws no {settings.view!r} view"
     frame = renderer.render(camera, opts)
+    t0, c0 = time.perf_counter(), time.process_time()
     if view == "colour":
         img = colour_image(scene, frame, camera, settings.env)
     elif view == "depth":
@@ -143,4 +153,5 @@ def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Dra
         img = code_image(frame_codes(frame), np.array([KEPT_RGB, REJECTED_RGB], np.uint8))
     else:  # a method's code view (the camera index + 1 per pixel, ...)
         img = code_image(frame_codes(frame), palette(20))
-    return Drawn(img, frame.stats, note)
+    return Drawn(img, frame.stats, note, {"convert": (time.perf_counter() - t0) * 1e3,
+                                          "convert_cpu": (time.process_time() - c0) * 1e3})

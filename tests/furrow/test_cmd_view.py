@@ -155,3 +155,41 @@ def test_screenshot_and_turntable_export(model_dir, tmp_path, monkeypatch):
         assert meta["size"] == (64, 48) and len(list(gen)) == 5
     finally:
         assert v.close()
+
+
+def test_llvmpipe_thread_cap(monkeypatch):
+    """``furrow view`` leaves a core to the browser: LP_NUM_THREADS = the cores less one (at least
+    1) unless asked otherwise, for the block that makes the GL context; a value already in the
+    environment wins; nothing is left behind."""
+    import os
+
+    from render.viewer.gl_worker import llvmpipe_threads
+
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    with llvmpipe_threads() as n:
+        assert n == 1 and os.environ["LP_NUM_THREADS"] == "1"
+    assert "LP_NUM_THREADS" not in os.environ
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+    with llvmpipe_threads() as n:
+        assert n == 1
+    with llvmpipe_threads(3) as n:
+        assert n == 3 and os.environ["LP_NUM_THREADS"] == "3"
+        with llvmpipe_threads(5) as inner:
+            assert inner == 3                                          # the environment's wins
+        assert os.environ["LP_NUM_THREADS"] == "3"
+    assert "LP_NUM_THREADS" not in os.environ
+    with pytest.raises(ValueError):
+        with llvmpipe_threads(0):
+            pass
+
+
+def test_software_rasteriser_is_told_from_the_renderer_name():
+    """The viewer models frame cost in CPU time on a software rasteriser only."""
+    from types import SimpleNamespace
+
+    from render.viewer.gl_worker import is_software
+
+    assert is_software(SimpleNamespace(info={"GL_RENDERER": "llvmpipe (LLVM 15.0.6, 256 bits)"}))
+    assert not is_software(SimpleNamespace(info={"GL_RENDERER": "NVIDIA H200/PCIe/SSE2"}))
+    assert not is_software(SimpleNamespace(info={}))

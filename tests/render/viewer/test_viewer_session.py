@@ -131,31 +131,99 @@ def test_cheap_frames_grow_to_full_size(fake_draw):
     assert [f for f in frames if f["moving"]][-1]["width"] == FULL[0]
 
 
-def test_stale_full_frame_is_dropped_and_latest_camera_drawn(fake_draw):
+#: Seconds a test waits for an event of the session before failing (generous: a loaded machine).
+WAIT_S = 60.0
+
+
+class FakeClock:
+    """A session's clock that moves only when told: the session's decisions (moving, full,
+    supersampled) then depend on the order of events, not on how fast the machine runs them."""
+
+    def __init__(self):
+        self.t = 0.0
+        self.lock = threading.Lock()
+
+    def __call__(self) -> float:
+        with self.lock:
+            return self.t
+
+    def advance(self, s: float) -> None:
+        with self.lock:
+            self.t += s
+
+
+class Frames:
+    """The frames a session sent (on_frame records), waited for one by one."""
+
+    def __init__(self):
+        self.records, self.cv = [], threading.Condition()
+
+    def __call__(self, rec: dict) -> None:
+        with self.cv:
+            self.records.append(rec)
+            self.cv.notify_all()
+
+    def wait(self, n: int) -> list[dict]:
+        with self.cv:
+            assert self.cv.wait_for(lambda: len(self.records) >= n, WAIT_S), f"{len(self.records)} of {n} frames"
+            return list(self.records)
+
+
+def which_view(camera) -> int:
+    """Index i of the view(i) a drawn camera shows (the pose does not depend on the frame size)."""
+    hits = [i for i in range(6) if np.allclose(camera.cam_from_world, view(i).camera(*FULL).cam_from_world)]
+    assert len(hits) == 1, hits
+    return hits[0]
+
+
+def test_stale_full_frame_is_dropped_and_latest_camera_drawn(monkeypatch):
     """A move while the supersampled frame is drawn: that frame never goes out, and the next
-    frame shows the newest camera, not the ones queued meanwhile."""
-    cfg = AdaptiveConfig(still_s=0.05)
-    worker, log, sent = FakeWorker(), FrameLog(), []
-    s = Session(worker, lambda img, q: sent.append(q), SUPERSAMPLED, cfg, log).start()
-    s.update_camera(view(0))
-    while not any(ss == 2 for _, ss in fake_draw):                # wait for the supersampled frame to start
-        time.sleep(0.005)
-    n_before = len(fake_draw)
-    for i in range(1, 6):                                         # moves during the 158 ms frame
-        s.update_camera(view(i))
-    time.sleep(0.6)
-    s.stop()
-    worker.close()
-    frames = log.frames()
-    after = fake_draw[n_before:]
-    latest = view(5).camera(*FULL)
-    np.testing.assert_allclose(after[0][0].cam_from_world, latest.cam_from_world)   # jumped to the newest
-    supersampled = [f for f in frames if f["supersample"] == 2]
-    assert len(supersampled) == 1                                 # the stale one was dropped
+    frame shows the newest camera, not the ones queued meanwhile.  Deterministic: the session runs
+    on a clock that moves only when the test (or a draw, by its simulated cost) moves it, and the
+    supersampled draw is held on an event until the test has moved the camera five times, so every
+    decision of the session is the same however loaded the machine is; the whole sequence of
+    frames drawn and sent is checked."""
+    clock, frames = FakeClock(), Frames()
+    started, release = threading.Event(), threading.Event()
+    drawn = []
+
+    def draw(scene, camera, settings, supersample):
+        drawn.append((which_view(camera), camera.width, supersample))
+        clock.advance(0.005 * supersample ** 2)              # the draw's simulated cost (s)
+        if supersample == 2 and not release.is_set():
+            started.set()
+            assert release.wait(WAIT_S)
+        return views.Drawn(np.zeros((camera.height, camera.width, 3), np.uint8), Stats(ms=1.0, supersample=supersample))
+
+    monkeypatch.setattr(views, "draw", draw)
+    cfg = AdaptiveConfig(still_s=0.2)
+    still = 10 * cfg.still_s                                  # a stop: well past still_s and the moving pace
+    worker, log = FakeWorker(), FrameLog()
+    s = Session(worker, lambda img, q: None, SUPERSAMPLED, cfg, log, on_frame=frames, clock=clock).start()
+    try:
+        s.update_camera(view(0))
+        assert frames.wait(1)[0]["moving"]                    # the clock stands: one moving frame, then it waits
+        clock.advance(still)                                  # the camera stops: full, then supersampled
+        assert started.wait(WAIT_S), "the supersampled frame never started"
+        for i in range(1, 6):                                 # moves during the supersampled frame
+            s.update_camera(view(i))
+        release.set()
+        assert frames.wait(3)[2]["moving"]                    # the stale frame dropped, a moving frame drawn
+        clock.advance(still)                                  # stops again
+        sent = frames.wait(5)
+    finally:
+        s.stop()
+        worker.close()
+    assert [(v, ss) for v, _, ss in drawn] == [(0, 1), (0, 1), (0, 2), (5, 1), (5, 1), (5, 2)]
+    assert drawn[3][1] < FULL[0] and drawn[4][1] == FULL[0]   # jumped to the newest, as a moving frame
+    assert [(f["moving"], f.get("refined"), f["supersample"]) for f in sent] == [
+        (True, None, 1), (False, False, 1), (True, None, 1), (False, False, 1), (False, True, 2)]
+    supersampled = [f for f in log.frames() if f["supersample"] == 2]
+    assert len(supersampled) == 1                             # the stale one was dropped
 
 
 def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
-    notes = []
+    notes, noted, framed = [], threading.Event(), threading.Event()
     calls = []
 
     def draw(scene, camera, settings, supersample):
@@ -167,32 +235,40 @@ def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
     monkeypatch.setattr(views, "draw", draw)
     worker, log = FakeWorker(), FrameLog()
     s = Session(worker, lambda img, q: None, ViewSettings(), AdaptiveConfig(still_s=0.05), log,
-                on_note=notes.append).start()
-    s.update_camera(view(0))
-    time.sleep(0.2)
-    s.update_camera(view(1))
-    time.sleep(0.3)
-    s.stop()
-    worker.close()
+                on_note=lambda m: (notes.append(m), noted.set()), on_frame=lambda rec: framed.set()).start()
+    try:
+        s.update_camera(view(0))
+        assert noted.wait(WAIT_S)
+        s.update_camera(view(1))
+        assert framed.wait(WAIT_S)
+    finally:
+        s.stop()
+        worker.close()
     assert notes and "boom" in notes[0]
     assert log.frames()
 
 
 def test_send_failure_is_survived(fake_draw):
-    """A client that went away (send raises) does not end the thread with an exception."""
-    notes = []
+    """A client that went away (send raises) does not end the thread with an exception: it says
+    so and goes on (tries the frame again)."""
+    notes, again = [], threading.Event()
 
     def send(img, q):
         raise ConnectionError("client gone")
 
+    def note(msg):
+        notes.append(msg)
+        if len(notes) >= 2:
+            again.set()
+
     worker = FakeWorker()
-    s = Session(worker, send, ViewSettings(), AdaptiveConfig(still_s=0.05), FrameLog(), on_note=notes.append).start()
+    s = Session(worker, send, ViewSettings(), AdaptiveConfig(still_s=0.05), FrameLog(), on_note=note).start()
     s.update_camera(view(0))
-    time.sleep(0.4)
+    assert again.wait(WAIT_S)                                     # a second try after the first failure
     assert s.alive
     s.stop()
     worker.close()
-    assert not s.alive and any("client gone" in n for n in notes)
+    assert not s.alive and all("client gone" in n for n in notes)
 
 
 def test_full_size_cap():

@@ -124,3 +124,36 @@ def test_composite_env_uses_the_frames_matte(gl_ctx):
                                ground=False)  # the analytic composite, drawn as an opaque object
     np.testing.assert_allclose(got, want, atol=1e-5)
     assert abs(got[8, 8, 0] - got[0, 0, 0]) > 0.05  # the square shows
+
+
+@pytest.mark.gl
+def test_ground_shadow_is_fitted_and_gridded_once_per_map(gl_ctx, monkeypatch, fakes):
+    """With the ground shadow on, the viewer fits the map's spherical Gaussians once (seconds of
+    work composite_frame used to redo every frame: 1.2 s a 533x400 frame measured) and the
+    compositor reuses its shadow grid while only the camera changes, also when the rig's up is
+    not the map's +z (the spheres are turned into a new object every frame)."""
+    from render.shading import sg_fit
+    from render.viewer.gl_worker import GLScene
+    from render.viewer.settings import EnvSettings
+    from tests import scenes
+
+    fits = []
+    real_fit = sg_fit.fit_env_sg
+    monkeypatch.setattr(sg_fit, "fit_env_sg", lambda *a, **k: fits.append(1) or real_fit(*a, **k))
+    scene = GLScene(gl_ctx, scenes.build_model(scenes.ring_cameras(6, 32, 24), resolutions=(4, 8)))
+    try:
+        r = FakeRenderer(FrameStats(1.0, 1.0, supersample=1, facets=1))
+        monkeypatch.setattr(scene, "renderer", lambda name: r)
+        scene.up = np.array([0.0, 0.6, 0.8])                   # a tilted rig: spheres turned per frame
+        settings = ViewSettings(env=EnvSettings(map="sunset", ground=True, glare=False))
+        cams = [Camera(make_K(8.0, 8.0, 3.5, 2.5), look_at([0.1 * i, -0.5, 0.2], [0, 0, 0]), 8, 6) for i in range(3)]
+        views.draw(scene, cams[0], settings, 1)
+        grid = scene.compositor()._grid
+        for cam in cams[1:]:
+            views.draw(scene, cam, settings, 1)
+        assert len(fits) == 1
+        assert grid is not None and scene.compositor()._grid is grid   # not recomputed
+        views.draw(scene, cams[0], settings.changed(env={"map": "forest"}), 1)
+        assert len(fits) == 2 and scene.compositor()._grid is not grid  # another map: refitted
+    finally:
+        scene.release()
