@@ -1,0 +1,202 @@
+"""Path-traced hard cases (Mitsuba 3): captures furrow has not made itself, for issues 30 and 31.
+
+Each case is rendered by an independent path tracer (Mitsuba 3's ``path`` integrator, ``hair``
+BSDF on B-spline strands, needles as round linear curves, the room as a visible environment map)
+and written in furrow's scan format with the true coverage matte of every view (``mask_path``),
+16-bit millimetre z-depth, and gt/ (datasets_synthetic/pathtraced/). Cases, in priority order:
+
+  conifer_room_turntable      (+ conifer_black_turntable)  conifer, room kept / black held, turntable
+  conifer_room_orbit          (+ conifer_black_orbit)      the same, camera circling
+  furball_uniform_turntable   (+ _pose5)                   uniform fur ball, poses off 2/2 (and 5/5)
+  furball_uniform_relit                                    fur ball under forest, truth under city
+  conifer_room_table_ae_lens                               room + table + auto exposure + OPENCV lens
+  fur_similar_bg                                           brown fur before brown bricks
+  furball_uniform_ae          (+ furball_uniform_fixed)    auto exposure on the uniform fur ball
+  furball_uniform_orbit                                    the fur ball, camera circling
+
+Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
+render once). INDEX.md in --out lists every capture made: what it is, the command, size, spp, render
+time, and how partial its mattes are. Needs `pip install -e '.[pathtrace]'` and Debian's libllvm19
+(`make hardcases` installs both and runs this script).
+
+    python scripts/hardcases.py                                  # every case into /work/cache/hardcases
+    python scripts/hardcases.py conifer_room_turntable --size 320x240 --spp 16 -o out/hard
+    python scripts/hardcases.py --noise conifer_room_turntable   # PSNR of one view against 2x spp
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+#: Default output folder (shared between the project's sessions).
+DEFAULT_OUT = Path("/work/cache/hardcases")
+INDEX_JSON, INDEX_MD = "INDEX.json", "INDEX.md"
+
+
+def parse(argv=None) -> argparse.Namespace:
+    from datasets_synthetic.pathtraced.cases import CASES
+
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], epilog=__doc__.split("\n\n", 1)[1],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("cases", nargs="*", metavar="CASE", help=f"cases to make (default: all): {', '.join(CASES)}")
+    p.add_argument("-o", "--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
+    p.add_argument("--cache", type=Path, default=None, help="per-view render cache (default OUT/_renders)")
+    p.add_argument("--env-dir", type=Path, default=None,
+                   help="folder with the maps that are not bundled (city.exr): Blender's studio lights, "
+                        "usr/share/blender/datafiles/studiolights/world of Debian's blender-data")
+    p.add_argument("--size", default=None, metavar="WxH", help="image size of every case (default: 640x480 for the "
+                   "conifer and fur_similar_bg, 320x240 for the fur balls)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel of every case (default 64)")
+    p.add_argument("--views", type=int, default=36, help="views per capture (default 36)")
+    p.add_argument("--seed", type=int, default=0, help="seed of geometry, samples, exposure and poses (default 0)")
+    p.add_argument("--noise", action="store_true", help="instead of writing: render view 0 of each case's first "
+                   "render at 2x spp and print the PSNR of the case's spp against it")
+    p.add_argument("--list", action="store_true", help="list the cases and exit")
+    a = p.parse_args(argv)
+    bad = [c for c in a.cases if c not in CASES]
+    if bad:
+        p.error(f"unknown case(s) {', '.join(bad)}; choose from {', '.join(CASES)}")
+    if a.size is not None:
+        try:
+            w, h = (int(v) for v in a.size.lower().split("x"))
+        except ValueError:
+            p.error(f"--size {a.size!r}: expected WxH, e.g. 640x480")
+        a.size = (w, h)
+    return a
+
+
+def _entries(out: Path) -> list[dict]:
+    p = out / INDEX_JSON
+    return json.loads(p.read_text()) if p.is_file() else []
+
+
+def write_index(out: Path, new: list[dict]) -> None:
+    """Merge ``new`` entries (by name) into OUT/INDEX.json and rewrite OUT/INDEX.md."""
+    from capture.atomic import atomic_write
+
+    old = {e["name"]: e for e in _entries(out)}
+    old.update({e["name"]: e for e in new})
+    entries = list(old.values())
+    with atomic_write(out / INDEX_JSON) as tmp:
+        tmp.write_text(json.dumps(entries, indent=1))
+    lines = ["# Path-traced hard cases (Mitsuba 3)", "",
+             "Made by `scripts/hardcases.py` (datasets_synthetic/pathtraced/). Each folder is a transforms.json "
+             "capture with true mattes (mask_path), 16-bit mm z-depth and gt/ (scene.json, mesh.ply; "
+             "cameras_true.json / exposure.json where poses / exposure are perturbed; maps/ the map that lit it, "
+             "furrow's layout: read with the default --env-convention furrow). Render times were measured on a "
+             "shared, loaded 2-core machine: compare them with each other only.", "",
+             "Partiality (over all views, 8-bit mattes): *partial* = share of object pixels (alpha > 0) with "
+             "alpha < 1; *bin MSE* = alpha MSE of the binary mask alpha > 0.5 over object pixels; *depth-mask MSE* "
+             "= alpha MSE of the binary mask depth > 0 (object depth) over object-or-depth pixels; *frame* = "
+             "object pixels' share of the frame.", "",
+             "| capture | what | size | spp | views | render s | partial | bin MSE | depth-mask MSE | frame "
+             "| command |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for e in entries:
+        lines.append(f"| {e['name']} | {e['what']} | {e['size']} | {e['spp']} | {e['views']} | {e['render_s']:.0f} | "
+                     f"{e['partial_fraction']:.3f} | {e['binary_alpha_mse']:.3f} | {e['depth_mask_alpha_mse']:.3f} | "
+                     f"{e['object_frame_fraction']:.3f} | `{e['command']}` |")
+    notes = [e for e in entries if e.get("noise_psnr")]
+    if notes:
+        lines += ["", "Noise: PSNR (8-bit sRGB, whole frame / object pixels) of view 0 at the case's spp against the "
+                  "same view at twice the spp:", ""]
+        lines += [f"- {e['name']}: {e['noise_psnr']}" for e in notes]
+    with atomic_write(out / INDEX_MD) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def noise_check(name: str, opts, log) -> str:
+    """PSNR of view 0 at the case's spp against twice the spp (rendered now, not cached)."""
+
+    from capture.scan import to_uint8_srgb
+    from datasets_synthetic.lighting import resolve_env
+    from datasets_synthetic.pathtraced import cases
+    from datasets_synthetic.pathtraced.film import render_view
+    from datasets_synthetic.pathtraced.render import view_seed
+    from datasets_synthetic.pathtraced.scene import PathScene, Room, exposure_for
+    from render.metrics import psnr
+
+    obj_name = "conifer" if name.startswith("conifer") else "furball"
+    size = cases.FULL_SIZE if name.startswith("conifer") or name == "fur_similar_bg" else cases.HALF_SIZE
+    env, rot = cases.CONIFER_ROOM if obj_name == "conifer" else (
+        cases.BROWN_ROOM if name == "fur_similar_bg" else (cases.FUR_ENV, 0.0))
+    spec = cases.spec_for(obj_name, opts, size, env=env, env_rotation_deg=rot)
+    obj = spec.build_object()
+    cam = spec.cameras(obj)[0]
+    emap = resolve_env(env)
+    ex = exposure_for(emap, cases.Layout().key)
+    out = []
+    with PathScene(obj, Room(emap, rot), spec.seed) as ps:
+        for spp, seed in ((spec.spp, view_seed(spec.seed, 0)), (2 * spec.spp, view_seed(spec.seed + 1, 0))):
+            t = time.perf_counter()
+            v = render_view(ps, cam, spp, seed, None, spec.max_depth)
+            out.append((to_uint8_srgb(v.room * ex), v.alpha > 0, time.perf_counter() - t))
+            log(f"  {spp} spp: {out[-1][2]:.1f} s")
+    a, b = out
+    return (f"{psnr(a[0], b[0]):.1f} dB / {psnr(a[0], b[0], a[1] | b[1]):.1f} dB ({spec.spp} vs {2 * spec.spp} spp, "
+            f"{spec.rig.width}x{spec.rig.height}; {a[2]:.0f} s vs {b[2]:.0f} s)")
+
+
+def main(argv=None) -> int:
+    from furrow.console import console, fail
+
+    a = parse(argv)
+    from datasets_synthetic.pathtraced.cases import CASES, Options
+    from datasets_synthetic.pathtraced.runtime import MitsubaUnavailable, load_mitsuba
+
+    if a.list:
+        for name, fn in CASES.items():
+            console.print(f"{name}: {(fn.__doc__ or '').strip().splitlines()[0] if fn.__doc__ else ''}")
+        return 0
+    try:
+        load_mitsuba()
+    except MitsubaUnavailable as e:
+        fail(str(e))
+        return 2
+    opts = Options(out=a.out, cache=a.cache or a.out / "_renders", env_dir=a.env_dir, size=a.size, spp=a.spp,
+                   views=a.views, seed=a.seed)
+    log = lambda msg: console.print(msg, highlight=False)
+    for name in a.cases or list(CASES):
+        t0 = time.perf_counter()
+        console.rule(name)
+        try:
+            if a.noise:
+                res = noise_check(name, opts, log)
+                log(f"{name}: noise {res}")
+                write_index(a.out, [dict(e, noise_psnr=res) for e in _entries(a.out) if e["name"] == name])
+                continue
+            entries = CASES[name](opts, log)
+        except (ValueError, FileNotFoundError, MitsubaUnavailable) as e:
+            fail(f"{name}: {e}")
+            return 1
+        for e in entries:
+            e["command"] = _case_command(name, a)
+        write_index(a.out, entries)
+        log(f"{name}: {time.perf_counter() - t0:.0f} s; INDEX: {a.out / INDEX_MD}")
+    return 0
+
+
+def _case_command(name: str, a) -> str:
+    """The command line that remakes case ``name`` with the options given."""
+    opts = [name]
+    if a.out != DEFAULT_OUT:
+        opts += ["-o", str(a.out)]
+    if a.env_dir is not None:
+        opts += ["--env-dir", str(a.env_dir)]
+    if a.size is not None:
+        opts += ["--size", f"{a.size[0]}x{a.size[1]}"]
+    for flag, v, default in (("--spp", a.spp, None), ("--views", a.views, 36), ("--seed", a.seed, 0)):
+        if v != default:
+            opts += [flag, str(v)]
+    return "python scripts/hardcases.py " + shlex.join(opts)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
