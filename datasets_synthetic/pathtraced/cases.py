@@ -59,6 +59,8 @@ AUTO_EXPOSURE = (0.35, 0.06)
 POSE_NOISE, POSE_NOISE_LARGE = (2.0, 0.02), (5.0, 0.05)
 #: Image sizes: the evaluation's for the conifer and the brown-room fur, half for the fur balls.
 FULL_SIZE, HALF_SIZE = (640, 480), (320, 240)
+#: Ring elevation of every case: the evaluation captures' and ``furrow synth``'s (degrees).
+ELEVATION_DEG = 15.0
 #: Samples per pixel and path depth of each object (chosen by the noise check: scripts/hardcases.py --noise).
 SPP = {"conifer": 64, "furball": 64}
 MAX_DEPTH = {"conifer": 6, "furball": 8}
@@ -99,7 +101,7 @@ def env_path(name: str, opts: Options) -> str:
 
 def spec_for(obj: str, opts: Options, size, **kw) -> RenderSpec:
     w, h = opts.size or size
-    rig = TurntableRig(views_per_ring=opts.views, width=w, height=h)
+    rig = TurntableRig(views_per_ring=opts.views, elevations_deg=(ELEVATION_DEG,), width=w, height=h)
     return RenderSpec(object=obj, seed=opts.seed, rig=rig, spp=opts.spp or SPP[obj], max_depth=MAX_DEPTH[obj], **kw)
 
 
