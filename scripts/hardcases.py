@@ -127,7 +127,8 @@ def noise_check(name: str, opts, log) -> str:
     size = cases.FULL_SIZE if name.startswith("conifer") or name == "fur_similar_bg" else cases.HALF_SIZE
     env, rot = cases.CONIFER_ROOM if obj_name == "conifer" else (
         cases.BROWN_ROOM if name == "fur_similar_bg" else (cases.FUR_ENV, 0.0))
-    spec = cases.spec_for(obj_name, opts, size, env=env, env_rotation_deg=rot)
+    spp = cases.FUR_FULL_SPP if name == "fur_similar_bg" else None
+    spec = cases.spec_for(obj_name, opts, size, spp, env=env, env_rotation_deg=rot)
     obj = spec.build_object()
     cam = spec.cameras(obj)[0]
     emap = resolve_env(env)
