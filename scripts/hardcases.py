@@ -38,6 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 #: Default output folder (shared between the project's sessions).
 DEFAULT_OUT = Path("/work/cache/hardcases")
 INDEX_JSON, INDEX_MD = "INDEX.json", "INDEX.md"
+#: Free text appended to INDEX.md when present in the output folder (measurements made with the captures).
+NOTES_MD = "NOTES.md"
 
 
 def parse(argv=None) -> argparse.Namespace:
@@ -108,6 +110,9 @@ def write_index(out: Path, new: list[dict]) -> None:
         lines += ["", "Noise: PSNR (8-bit sRGB, whole frame / object pixels) of view 0 at the case's spp against the "
                   "same view at twice the spp:", ""]
         lines += [f"- {e['name']}: {e['noise_psnr']}" for e in notes]
+    notes = out / NOTES_MD
+    if notes.is_file():  # measurements made with the captures (e.g. furrow eval), kept by hand
+        lines += ["", notes.read_text().rstrip()]
     with atomic_write(out / INDEX_MD) as tmp:
         tmp.write_text("\n".join(lines) + "\n")
 
