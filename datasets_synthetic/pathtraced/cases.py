@@ -90,6 +90,9 @@ class Options:
     """Views per capture."""
     seed: int = 0
     """Seed of the objects, the samples, the exposure and the pose noise."""
+    room_rotation: float | None = None
+    """Override of the courtyard's turn behind the conifer cases (CONIFER_ROOM's 340 degrees; 315 puts the
+    crown before the shaded bricks)."""
 
 
 def env_path(name: str, opts: Options) -> str:
@@ -111,6 +114,10 @@ def spec_for(obj: str, opts: Options, size, spp: int | None = None, **kw) -> Ren
     rig = TurntableRig(views_per_ring=opts.views, elevations_deg=(ELEVATION_DEG,), width=w, height=h)
     return RenderSpec(object=obj, seed=opts.seed, rig=rig, spp=opts.spp or spp or SPP[obj], max_depth=MAX_DEPTH[obj],
                       **kw)
+
+
+def _conifer_turn(opts: Options) -> float:
+    return CONIFER_ROOM[1] if opts.room_rotation is None else float(opts.room_rotation)
 
 
 def _render(spec: RenderSpec, opts: Options, log: Callable):
@@ -160,7 +167,8 @@ def _write(name: str, what: str, spec: RenderSpec, layout: Layout, got, opts: Op
 
 def conifer_room(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
     """Cases a / b: the conifer with the room kept / black held, and its black twin."""
-    spec = spec_for("conifer", opts, FULL_SIZE, env=CONIFER_ROOM[0], env_rotation_deg=CONIFER_ROOM[1], motion=motion)
+    spec = spec_for("conifer", opts, FULL_SIZE, env=CONIFER_ROOM[0], env_rotation_deg=_conifer_turn(opts),
+                    motion=motion)
     got = _render(spec, opts, log)
     how = "fixed camera, object turning: the room the same in every frame" if motion == "turntable" \
         else "camera circling: the far room moves with the view"
@@ -228,7 +236,7 @@ def conifer_table_ae_lens(opts: Options, log=print) -> list[dict]:
     """Case e: room + table + auto exposure + OPENCV lens at once (black twin: conifer_black_turntable)."""
     from datasets_synthetic.camera_traits import OPENCV_LENS
 
-    spec = spec_for("conifer", opts, FULL_SIZE, env=CONIFER_ROOM[0], env_rotation_deg=CONIFER_ROOM[1],
+    spec = spec_for("conifer", opts, FULL_SIZE, env=CONIFER_ROOM[0], env_rotation_deg=_conifer_turn(opts),
                     motion="turntable", support="table", lens=OPENCV_LENS)
     return [_write("conifer_room_table_ae_lens", "conifer in the courtyard on a wooden table top (colour and depth "
                    "of the kept views), auto exposure 0.35 EV / wb 0.06 on the kept views, OPENCV lens; black twin: "
