@@ -200,3 +200,27 @@ def test_lens_of_the_cases_is_opencv():
     _check_lens(OPENCV_LENS)
     with pytest.raises(ValueError, match="OPENCV"):
         _check_lens(Lens("OPENCV_FISHEYE", (0.03, -0.01, 0.002, -0.0005), "OPENCV_FISHEYE"))
+
+
+def test_alias_capture_shares_images_and_carries_its_own_poses(tmp_path):
+    """write_alias: a second transforms.json beside a capture reads the capture's own images, depth and
+    mattes (relative paths) with the poses it was given."""
+    from capture.io import read_scanset, write_transforms
+    from capture.scan import Scan, ScanSet
+    from datasets_synthetic.noise import perturb_pose
+    from datasets_synthetic.pathtraced.assemble import write_alias
+
+    rng = np.random.default_rng(0)
+    cams = [_camera((0.5 * np.cos(a), 0.5 * np.sin(a), 0.1), (0, 0, 0), w=16, h=12) for a in (0.0, 1.0, 2.0)]
+    cams = [Camera(c.K, c.cam_from_world, c.width, c.height, name=f"v{i}") for i, c in enumerate(cams)]
+    scans = [Scan(rng.integers(0, 255, (12, 16, 3), dtype=np.uint8), np.full((12, 16), 0.5, np.float32), c,
+                  f"{c.name}.png", rng.uniform(0, 1, (12, 16)).astype(np.float32)) for c in cams]
+    write_transforms(ScanSet(tuple(scans), np.array([[-1.0, -1, -1], [1, 1, 1]]), {}), tmp_path / "src")
+    moved = [perturb_pose(c, np.random.default_rng(i), 5.0, 0.01) for i, c in enumerate(cams)]
+    write_alias(tmp_path / "src", tmp_path / "alias", moved, {"gt/note.txt": b"x"})
+    a, s = read_scanset(tmp_path / "alias"), read_scanset(tmp_path / "src")
+    for x, y, m in zip(a.scans, s.scans, moved):
+        assert np.array_equal(x.rgb, y.rgb) and np.array_equal(x.depth, y.depth) and np.array_equal(x.alpha, y.alpha)
+        np.testing.assert_allclose(x.camera.cam_from_world, m.cam_from_world, atol=1e-9)
+        assert np.abs(x.camera.cam_from_world - y.camera.cam_from_world).max() > 1e-3
+    assert (tmp_path / "alias" / "gt" / "note.txt").read_bytes() == b"x"
