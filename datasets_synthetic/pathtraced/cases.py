@@ -149,6 +149,7 @@ def _write(name: str, what: str, spec: RenderSpec, layout: Layout, got, opts: Op
             "env": {"map": env.name, "source": spec.env, "convention": "furrow", "rotation_deg": spec.env_rotation_deg,
                     "note": ENV_NOTE}, "exposure": exposure, "room_rotation_deg": turns,
             "room_views": sorted(room), "seconds_per_view": [r.seconds for r in renders],
+            "sample_attempt_per_view": [r.attempt for r in renders],
             "depth": "z-depth of the nearest surface at the pixel centre (film.z_depth); room views: object and "
                      "support, other views: the object only", "matte": "filtered fraction of samples whose first hit "
                      "is the object (film.render_view)"}
@@ -182,7 +183,7 @@ def furball_turntable(opts: Options, log=print) -> list[dict]:
     """Case c: the uniform fur ball on a turntable over black, poses off by 2 / 2 and 5 / 5 (shared images)."""
     spec = spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="turntable")
     got = _render(spec, opts, log)
-    entry = _write("furball_uniform_turntable", "uniform fur ball (20,000 B-spline strands, hair BSDF), turntable "
+    entry = _write("furball_uniform_turntable", "uniform fur ball (20,000 strands, hair BSDF), turntable "
                    "under forest, over black; recorded poses perturbed 2 deg / 2 % (gt/cameras_true.json)",
                    spec, Layout(None, pose_noise=POSE_NOISE), got, opts, log=log)
     renders, obj, cams, _ = got

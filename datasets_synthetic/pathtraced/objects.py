@@ -6,7 +6,7 @@ cases is a second, independent path from geometry to pixels.
 * :func:`build_conifer`: a conical tree of a tapered trunk, tiers of drooping branches with side
   twigs, and thousands of straight needles far thinner than a pixel (radius 0.14 mm tapering to 0.06 mm:
   0.15-0.37 px at 640x480 and 0.56 m), so most of the crown's pixels are partial.
-* :func:`build_furball`: a sphere carrying one uniform coat of B-spline strands (roots uniform on
+* :func:`build_furball`: a sphere carrying one uniform coat of smooth strands (roots uniform on
   the sphere, every strand drooping the same way, melanin jittered per strand in a few groups), so it
   looks nearly the same from every side; the body under the coat is a dark diffuse sphere.
 
@@ -278,6 +278,13 @@ class FurballParams:
     """Relative spread of the melanin between the strand groups."""
     groups: int = 4
     """Strand groups (each its own melanin), strands assigned at random: per-strand variation."""
+    basis: str = "linear"
+    """Curve shape handed to Mitsuba: "linear" (the B-spline of the control points evaluated at
+    ``samples_per_span`` points per span, a polyline of round cones) or "bspline".  Mitsuba 3.9.1's
+    ``hair`` BSDF on its ``bsplinecurve`` crashed the process (segmentation fault, from max_depth 2,
+    also under a constant map; a diffuse coat and the linear curves render) on a fur-ball view here."""
+    samples_per_span: int = 3
+    """Points per B-spline span of the "linear" strands."""
 
 
 #: Albedo of the skin under the coat.
@@ -305,11 +312,17 @@ def build_furball(seed: int = 0, p: FurballParams = FurballParams()) -> PathObje
     group = rng.integers(0, p.groups, p.strands)
     parts, materials = [Sphere(tuple(centre), p.body_radius, "skin")], {"skin": diffuse(SKIN_ALBEDO)}
     spread = np.linspace(-1.0, 1.0, p.groups) * p.melanin_jitter if p.groups > 1 else np.zeros(1)
+    if p.basis == "linear":  # the same smooth strands as polylines (FurballParams.basis)
+        ctrl = np.concatenate([pts, radii[..., None]], axis=2)
+        dense = np.stack([_bspline_eval(c, p.samples_per_span) for c in ctrl])
+        pts, radii, k = dense[..., :3], dense[..., 3], dense.shape[1]
+    elif p.basis != "bspline":
+        raise ValueError(f"furball basis must be 'linear' or 'bspline', got {p.basis!r}")
     for g in range(p.groups):
         sel = group == g
         if not sel.any():
             continue
-        parts.append(Curves(pts[sel].reshape(-1, 3), radii[sel].reshape(-1), np.full(int(sel.sum()), k), "bspline",
+        parts.append(Curves(pts[sel].reshape(-1, 3), radii[sel].reshape(-1), np.full(int(sel.sum()), k), p.basis,
                             f"coat{g}"))
         materials[f"coat{g}"] = {"type": "hair", "eumelanin": p.eumelanin * (1 + spread[g]),
                                  "pheomelanin": p.pheomelanin * (1 + spread[g])}

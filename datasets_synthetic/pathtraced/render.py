@@ -116,7 +116,8 @@ class ViewRender:
     """One rendered view (linear radiance before exposure; see the module docstring).
 
     room, black: (H, W, 3) float32; alpha: (H, W) float32; depth_room: (H, W) float32 z-depth of the
-    object and the support; depth_object: (H, W) float32 z-depth of the object alone; seconds: render time.
+    object and the support; depth_object: (H, W) float32 z-depth of the object alone; seconds: render time;
+    attempt: the retry whose samples these are (0 = the view's own seed; ``view_seed``).
     """
 
     room: np.ndarray
@@ -125,13 +126,15 @@ class ViewRender:
     depth_room: np.ndarray
     depth_object: np.ndarray
     seconds: float
+    attempt: int = 0
 
 
 def _load(path: Path) -> ViewRender | None:
     try:
         with np.load(path) as z:
             return ViewRender(z["room"].astype(np.float32), z["black"].astype(np.float32),
-                              z["alpha"].astype(np.float32), z["depth_room"], z["depth_object"], float(z["seconds"]))
+                              z["alpha"].astype(np.float32), z["depth_room"], z["depth_object"], float(z["seconds"]),
+                              int(z["attempt"]) if "attempt" in z else 0)
     except (OSError, KeyError, ValueError):
         return None
 
@@ -142,12 +145,28 @@ def _save(path: Path, v: ViewRender) -> None:
     with atomic_write(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, room=v.room.astype(np.float16), black=v.black.astype(np.float16),
                             alpha=v.alpha.astype(np.float16), depth_room=v.depth_room,
-                            depth_object=v.depth_object, seconds=np.float64(v.seconds))
+                            depth_object=v.depth_object, seconds=np.float64(v.seconds), attempt=np.int64(v.attempt))
 
 
-def view_seed(seed: int, view: int) -> int:
-    """The sample seed of one view (distinct per view and per capture seed)."""
-    return (int(seed) * 100_003 + int(view) * 7 + 1) & 0xFFFFFFFF
+def view_seed(seed: int, view: int, attempt: int = 0) -> int:
+    """The sample seed of one view (distinct per view and per capture seed; a retry after a crash
+    draws other samples, ``attempt``)."""
+    return (int(seed) * 100_003 + int(view) * 7 + 1 + int(attempt) * 7_777_777) & 0xFFFFFFFF
+
+
+#: Renders of one view that may die (a crash inside Mitsuba's kernels) before the view is given up.
+MAX_ATTEMPTS = 3
+
+
+def _attempt(folder: Path, view: int) -> int:
+    """How many times view ``view`` was started and never finished (a marker file counts them), and
+    mark one more start.  A view whose samples crash the renderer is retried with other samples."""
+    marker = folder / f"view_{view:03d}.started"
+    n = int(marker.read_text() or 0) if marker.is_file() else 0
+    if n >= MAX_ATTEMPTS:
+        raise RuntimeError(f"{folder}: view {view} crashed the renderer {n} times; remove {marker.name} to retry")
+    marker.write_text(str(n + 1))
+    return n
 
 
 def render_views(spec: RenderSpec, env_map, cache: Path, views: list[int] | None = None,
@@ -170,14 +189,16 @@ def render_views(spec: RenderSpec, env_map, cache: Path, views: list[int] | None
         with PathScene(obj, Room(env_map, spec.env_rotation_deg, spec.support), spec.seed) as ps:
             for i in todo:
                 t0 = time.perf_counter()
+                attempt = _attempt(folder, i)
                 ps.turn(spec.room_turn(i, cams))
-                im = render_view(ps, cams[i], spec.spp, view_seed(spec.seed, i), spec.lens, spec.max_depth,
+                im = render_view(ps, cams[i], spec.spp, view_seed(spec.seed, i, attempt), spec.lens, spec.max_depth,
                                  spec.rfilter)
                 dr = z_depth(ps, cams[i], spec.lens, spec.depth_samples, with_table=True)
                 do = z_depth(ps, cams[i], spec.lens, spec.depth_samples, with_table=False) \
                     if spec.support != "none" else dr
-                v = ViewRender(im.room, im.black, im.alpha, dr, do, time.perf_counter() - t0)
+                v = ViewRender(im.room, im.black, im.alpha, dr, do, time.perf_counter() - t0, attempt)
                 _save(folder / f"view_{i:03d}.npz", v)
+                (folder / f"view_{i:03d}.started").unlink(missing_ok=True)
                 out[i] = _load(folder / f"view_{i:03d}.npz")  # what a later run reads (float16 colour)
                 if progress is not None:
                     progress(i, len(idx), v.seconds, False)
