@@ -56,7 +56,7 @@ def parse(argv=None) -> argparse.Namespace:
     p.add_argument("--size", default=None, metavar="WxH", help="image size of every case (default: 640x480 for the "
                    "conifer, 320x240 for the fur balls)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel of every case (default 64; 16 for "
-                   "conifer_room_table_ae_lens, 32 for the relit truth)")
+                   "conifer_room_table_ae_lens; 32 for the fur orbit, its relit truth and fur_similar_bg)")
     p.add_argument("--views", type=int, default=36, help="views per capture (default 36)")
     p.add_argument("--seed", type=int, default=0, help="seed of geometry, samples, exposure and poses (default 0)")
     p.add_argument("--room-rotation", type=float, default=None, metavar="DEG",
@@ -136,7 +136,8 @@ def noise_check(name: str, opts, log) -> str:
     size = cases.FULL_SIZE if name.startswith("conifer") else cases.HALF_SIZE
     env, rot = (cases.CONIFER_ROOM[0], cases._conifer_turn(opts)) if obj_name == "conifer" else (
         cases.BROWN_ROOM if name == "fur_similar_bg" else (cases.FUR_ENV, 0.0))
-    spp = cases.TABLE_SPP if name == "conifer_room_table_ae_lens" else None
+    spp = {"conifer_room_table_ae_lens": cases.TABLE_SPP, "fur_similar_bg": cases.FUR_LATER_SPP,
+           "furball_uniform_relit": cases.FUR_LATER_SPP, "furball_uniform_orbit": cases.FUR_LATER_SPP}.get(name)
     spec = cases.spec_for(obj_name, opts, size, spp, env=env, env_rotation_deg=rot)
     obj = spec.build_object()
     cam = spec.cameras(obj)[0]

@@ -73,6 +73,9 @@ SPP = {"conifer": 64, "furball": 64}
 TABLE_SPP = 16
 #: Samples per pixel of the relit truth of furball_uniform_relit (held-out scores of 12-17 dB need less).
 RELIT_SPP = 32
+#: Samples per pixel of the fur cases after the turntable (orbit / relit capture, fur_similar_bg): the
+#: linear strands cost about 55 s a view at 64 spp on the loaded machine, so these were halved to fit.
+FUR_LATER_SPP = 32
 MAX_DEPTH = {"conifer": 6, "furball": 8}
 
 
@@ -204,7 +207,7 @@ def furball_turntable(opts: Options, log=print) -> list[dict]:
 
 def furball_orbit(opts: Options, log=print) -> list[dict]:
     """Case c (orbit): the fur ball with the camera circling, forest fixed in the object's frame."""
-    spec = spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="orbit")
+    spec = spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=FUR_ENV, motion="orbit")
     return [_write("furball_uniform_orbit", "uniform fur ball, camera circling under forest, over black; poses "
                    "perturbed 2 deg / 2 %", spec, Layout(None, pose_noise=POSE_NOISE), _render(spec, opts, log),
                    opts, log=log)]
@@ -218,7 +221,7 @@ def furball_relit(opts: Options, log=print) -> list[dict]:
     from datasets_synthetic.pathtraced.scene import exposure_for
     from datasets_synthetic.relight import relit_files
 
-    spec = spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="orbit")
+    spec = spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=FUR_ENV, motion="orbit")
     got = _render(spec, opts, log)
     relit_spec = replace(spec, env=env_path(RELIT_ENV, opts), spp=opts.spp or RELIT_SPP)
     relit = _render(relit_spec, opts, log)
@@ -251,7 +254,8 @@ def conifer_table_ae_lens(opts: Options, log=print) -> list[dict]:
 
 def fur_similar_bg(opts: Options, log=print) -> list[dict]:
     """Case f: the brown fur ball before the courtyard's brown bricks, room kept / black held."""
-    spec = spec_for("furball", opts, HALF_SIZE, env=BROWN_ROOM[0], env_rotation_deg=BROWN_ROOM[1], motion="turntable")
+    spec = spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=BROWN_ROOM[0], env_rotation_deg=BROWN_ROOM[1],
+                    motion="turntable")
     return [_write("fur_similar_bg", "uniform brown fur ball before the courtyard's brown brick floor (similar "
                    "colour), turntable; views 0::2 show the room, 1::2 over black", spec, Layout(ROOM_FRAMES),
                    _render(spec, opts, log), opts, log=log)]
