@@ -123,7 +123,6 @@ def write_index(out: Path, new: list[dict]) -> None:
 
 def noise_check(name: str, opts, log) -> str:
     """PSNR of view 0 at the case's spp against twice the spp (rendered now, not cached)."""
-
     from capture.scan import to_uint8_srgb
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.pathtraced import cases
@@ -132,22 +131,16 @@ def noise_check(name: str, opts, log) -> str:
     from datasets_synthetic.pathtraced.scene import PathScene, Room, exposure_for
     from render.metrics import psnr
 
-    obj_name = "conifer" if name.startswith("conifer") else "furball"
-    size = cases.FULL_SIZE if name.startswith("conifer") else cases.HALF_SIZE
-    env, rot = (cases.CONIFER_ROOM[0], cases._conifer_turn(opts)) if obj_name == "conifer" else (
-        cases.BROWN_ROOM if name == "fur_similar_bg" else (cases.FUR_ENV, 0.0))
-    spp = {"conifer_room_table_ae_lens": cases.TABLE_SPP, "fur_similar_bg": cases.FUR_LATER_SPP,
-           "furball_uniform_relit": cases.FUR_LATER_SPP, "furball_uniform_orbit": cases.FUR_LATER_SPP}.get(name)
-    spec = cases.spec_for(obj_name, opts, size, spp, env=env, env_rotation_deg=rot)
+    spec = cases.case_spec(name, opts)
     obj = spec.build_object()
     cam = spec.cameras(obj)[0]
-    emap = resolve_env(env)
+    emap = resolve_env(spec.env)
     ex = exposure_for(emap, cases.Layout().key)
     out = []
-    with PathScene(obj, Room(emap, rot), spec.seed) as ps:
+    with PathScene(obj, Room(emap, spec.env_rotation_deg, spec.support), spec.seed) as ps:
         for spp, seed in ((spec.spp, view_seed(spec.seed, 0)), (2 * spec.spp, view_seed(spec.seed + 1, 0))):
             t = time.perf_counter()
-            v = render_view(ps, cam, spp, seed, None, spec.max_depth)
+            v = render_view(ps, cam, spp, seed, spec.lens, spec.max_depth)
             out.append((to_uint8_srgb(v.room * ex), v.alpha > 0, time.perf_counter() - t))
             log(f"  {spp} spp: {out[-1][2]:.1f} s")
     a, b = out

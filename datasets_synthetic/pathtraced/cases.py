@@ -127,6 +127,26 @@ def _conifer_turn(opts: Options) -> float:
     return CONIFER_ROOM[1] if opts.room_rotation is None else float(opts.room_rotation)
 
 
+def case_spec(name: str, opts: Options) -> RenderSpec:
+    """The render spec of case ``name``'s capture (the relit truth of furball_uniform_relit adds another)."""
+    room = {"env": CONIFER_ROOM[0], "env_rotation_deg": _conifer_turn(opts)}
+    if name in ("conifer_room_turntable", "conifer_room_orbit"):
+        return spec_for("conifer", opts, FULL_SIZE, motion=name.rsplit("_", 1)[1], **room)
+    if name in ("furball_uniform_turntable", "furball_uniform_ae"):
+        return spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="turntable")
+    if name in ("furball_uniform_relit", "furball_uniform_orbit"):
+        return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=FUR_ENV, motion="orbit")
+    if name == "conifer_room_table_ae_lens":
+        from datasets_synthetic.camera_traits import OPENCV_LENS
+
+        return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
+                        **room)
+    if name == "fur_similar_bg":
+        return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=BROWN_ROOM[0], env_rotation_deg=BROWN_ROOM[1],
+                        motion="turntable")
+    raise ValueError(f"unknown case {name!r}")
+
+
 def _render(spec: RenderSpec, opts: Options, log: Callable):
     from datasets_synthetic.lighting import resolve_env
 
@@ -175,8 +195,7 @@ def _write(name: str, what: str, spec: RenderSpec, layout: Layout, got, opts: Op
 
 def conifer_room(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
     """Cases a / b: the conifer with the room kept / black held, and its black twin."""
-    spec = spec_for("conifer", opts, FULL_SIZE, env=CONIFER_ROOM[0], env_rotation_deg=_conifer_turn(opts),
-                    motion=motion)
+    spec = case_spec(f"conifer_room_{motion}", opts)
     got = _render(spec, opts, log)
     how = "fixed camera, object turning: the room the same in every frame" if motion == "turntable" \
         else "camera circling: the far room moves with the view"
@@ -188,7 +207,7 @@ def conifer_room(opts: Options, log=print, motion: str = "turntable") -> list[di
 
 def furball_turntable(opts: Options, log=print) -> list[dict]:
     """Case c: the uniform fur ball on a turntable over black, poses off by 2 / 2 and 5 / 5 (shared images)."""
-    spec = spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="turntable")
+    spec = case_spec("furball_uniform_turntable", opts)
     got = _render(spec, opts, log)
     entry = _write("furball_uniform_turntable", "uniform fur ball (20,000 strands, hair BSDF), turntable "
                    "under forest, over black; recorded poses perturbed 2 deg / 2 % (gt/cameras_true.json)",
@@ -207,7 +226,7 @@ def furball_turntable(opts: Options, log=print) -> list[dict]:
 
 def furball_orbit(opts: Options, log=print) -> list[dict]:
     """Case c (orbit): the fur ball with the camera circling, forest fixed in the object's frame."""
-    spec = spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=FUR_ENV, motion="orbit")
+    spec = case_spec("furball_uniform_orbit", opts)
     return [_write("furball_uniform_orbit", "uniform fur ball, camera circling under forest, over black; poses "
                    "perturbed 2 deg / 2 %", spec, Layout(None, pose_noise=POSE_NOISE), _render(spec, opts, log),
                    opts, log=log)]
@@ -221,7 +240,7 @@ def furball_relit(opts: Options, log=print) -> list[dict]:
     from datasets_synthetic.pathtraced.scene import exposure_for
     from datasets_synthetic.relight import relit_files
 
-    spec = spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=FUR_ENV, motion="orbit")
+    spec = case_spec("furball_uniform_relit", opts)
     got = _render(spec, opts, log)
     relit_spec = replace(spec, env=env_path(RELIT_ENV, opts), spp=opts.spp or RELIT_SPP)
     relit = _render(relit_spec, opts, log)
@@ -242,10 +261,7 @@ def furball_relit(opts: Options, log=print) -> list[dict]:
 
 def conifer_table_ae_lens(opts: Options, log=print) -> list[dict]:
     """Case e: room + table + auto exposure + OPENCV lens at once (black twin: conifer_black_turntable)."""
-    from datasets_synthetic.camera_traits import OPENCV_LENS
-
-    spec = spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, env=CONIFER_ROOM[0], env_rotation_deg=_conifer_turn(opts),
-                    motion="turntable", support="table", lens=OPENCV_LENS)
+    spec = case_spec("conifer_room_table_ae_lens", opts)
     return [_write("conifer_room_table_ae_lens", "conifer in the courtyard on a wooden table top (colour and depth "
                    "of the kept views), auto exposure 0.35 EV / wb 0.06 on the kept views, OPENCV lens; black twin: "
                    "conifer_black_turntable", spec, Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE),
@@ -254,8 +270,7 @@ def conifer_table_ae_lens(opts: Options, log=print) -> list[dict]:
 
 def fur_similar_bg(opts: Options, log=print) -> list[dict]:
     """Case f: the brown fur ball before the courtyard's brown bricks, room kept / black held."""
-    spec = spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=BROWN_ROOM[0], env_rotation_deg=BROWN_ROOM[1],
-                    motion="turntable")
+    spec = case_spec("fur_similar_bg", opts)
     return [_write("fur_similar_bg", "uniform brown fur ball before the courtyard's brown brick floor (similar "
                    "colour), turntable; views 0::2 show the room, 1::2 over black", spec, Layout(ROOM_FRAMES),
                    _render(spec, opts, log), opts, log=log)]
@@ -263,7 +278,7 @@ def fur_similar_bg(opts: Options, log=print) -> list[dict]:
 
 def furball_ae(opts: Options, log=print) -> list[dict]:
     """Case g: the turntable fur ball's renders with auto exposure, and at fixed exposure (true poses)."""
-    spec = spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="turntable")
+    spec = case_spec("furball_uniform_ae", opts)
     got = _render(spec, opts, log)
     return [_write("furball_uniform_ae", "furball_uniform_turntable's renders, auto exposure 0.35 EV / wb 0.06 on "
                    "the kept views (gt/exposure.json), exact poses", spec, Layout(None, auto_exposure=AUTO_EXPOSURE),
