@@ -56,7 +56,7 @@ def parse(argv=None) -> argparse.Namespace:
     p.add_argument("--size", default=None, metavar="WxH", help="image size of every case (default: 640x480 for the "
                    "conifer, 320x240 for the fur balls)")
     p.add_argument("--spp", type=int, default=None, help="samples per pixel of every case (default 64; 16 for "
-                   "conifer_room_table_ae_lens; 32 for the fur orbit, its relit truth and fur_similar_bg)")
+                   "conifer_room_table_ae_lens, the fur orbit, its relit truth and fur_similar_bg)")
     p.add_argument("--views", type=int, default=36, help="views per capture (default 36)")
     p.add_argument("--seed", type=int, default=0, help="seed of geometry, samples, exposure and poses (default 0)")
     p.add_argument("--room-rotation", type=float, default=None, metavar="DEG",

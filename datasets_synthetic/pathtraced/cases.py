@@ -72,10 +72,10 @@ SPP = {"conifer": 64, "furball": 64}
 #: so it is shrunk to fit the generation's time budget (noise: see INDEX.md).
 TABLE_SPP = 16
 #: Samples per pixel of the relit truth of furball_uniform_relit (held-out scores of 12-17 dB need less).
-RELIT_SPP = 32
+RELIT_SPP = 16
 #: Samples per pixel of the fur cases after the turntable (orbit / relit capture, fur_similar_bg): the
-#: linear strands cost about 55 s a view at 64 spp on the loaded machine, so these were halved to fit.
-FUR_LATER_SPP = 32
+#: linear strands cost 50-120 s a view at 64 spp on the shared machine, so these were cut to fit.
+FUR_LATER_SPP = 16
 MAX_DEPTH = {"conifer": 6, "furball": 8}
 
 
