@@ -10,13 +10,17 @@ and written in furrow's scan format with the true coverage matte of every view (
   furball_uniform_turntable   (+ _pose5)                   uniform fur ball, poses off 2/2 (and 5/5)
   furball_uniform_relit                                    fur ball under forest, truth under city
   conifer_room_table_ae_lens                               room + table + auto exposure + OPENCV lens
+  conifer_black_lens                                       the OPENCV lens alone (twin: conifer_black_turntable)
   fur_similar_bg                                           brown fur before brown bricks
   furball_uniform_ae          (+ furball_uniform_fixed)    auto exposure on the uniform fur ball
   furball_uniform_orbit                                    the fur ball, camera circling
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
-render once). INDEX.md in --out lists every capture made: what it is, the command, size, spp, render
-time, and how partial its mattes are. Needs `pip install -e '.[pathtrace]'` and Debian's libllvm19
+render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on
+some fur views), the case is run again and the view that was being rendered draws other samples
+(datasets_synthetic.pathtraced.render.MAX_ATTEMPTS times at most; gt/scene.json records the attempt).
+INDEX.md in --out lists every capture made: what it is, the command, size, spp, render time, and how
+partial its mattes are. Needs `pip install -e '.[pathtrace]'` and Debian's libllvm19
 (`make hardcases` installs both and runs this script).
 
     python scripts/hardcases.py                                  # every case into /work/cache/hardcases
@@ -28,7 +32,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -40,6 +46,8 @@ DEFAULT_OUT = Path("/work/cache/hardcases")
 INDEX_JSON, INDEX_MD = "INDEX.json", "INDEX.md"
 #: Free text appended to INDEX.md when present in the output folder (measurements made with the captures).
 NOTES_MD = "NOTES.md"
+#: Set in the child process that makes one case (``run_isolated``); unset, main() runs every case in a child.
+WORKER_ENV = "FURROW_HARDCASES_WORKER"
 
 
 def parse(argv=None) -> argparse.Namespace:
@@ -65,6 +73,8 @@ def parse(argv=None) -> argparse.Namespace:
     p.add_argument("--noise", action="store_true", help="instead of writing: render view 0 of each case's first "
                    "render at 2x spp and print the PSNR of the case's spp against it")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
+    p.add_argument("--in-process", action="store_true", help="make the cases in this process (no child process, "
+                   "so no retry after a crash of the renderer)")
     a = p.parse_args(argv)
     bad = [c for c in a.cases if c not in CASES]
     if bad:
@@ -159,14 +169,21 @@ def main(argv=None) -> int:
         for name, fn in CASES.items():
             console.print(f"{name}: {(fn.__doc__ or '').strip().splitlines()[0] if fn.__doc__ else ''}")
         return 0
+    log = lambda msg: console.print(msg, highlight=False)
     try:
         load_mitsuba()
     except MitsubaUnavailable as e:
         fail(str(e))
         return 2
+    if not a.in_process and not os.environ.get(WORKER_ENV):
+        for name in a.cases or list(CASES):
+            rc = run_isolated(name, [sys.executable, str(Path(__file__).resolve()), *_case_args(name, a, child=True)],
+                              log)
+            if rc != 0:
+                return rc
+        return 0
     opts = Options(out=a.out, cache=a.cache or a.out / "_renders", env_dir=a.env_dir, size=a.size, spp=a.spp,
                    views=a.views, seed=a.seed, room_rotation=a.room_rotation)
-    log = lambda msg: console.print(msg, highlight=False)
     for name in a.cases or list(CASES):
         t0 = time.perf_counter()
         console.rule(name)
@@ -177,7 +194,8 @@ def main(argv=None) -> int:
                 write_index(a.out, [dict(e, noise_psnr=res) for e in _entries(a.out) if e["name"] == name])
                 continue
             entries = CASES[name](opts, log)
-        except (ValueError, FileNotFoundError, MitsubaUnavailable) as e:
+        except (ValueError, FileNotFoundError, RuntimeError) as e:  # RuntimeError: MitsubaUnavailable, a view
+            # that crashed the renderer MAX_ATTEMPTS times
             fail(f"{name}: {e}")
             return 1
         for e in entries:
@@ -187,11 +205,30 @@ def main(argv=None) -> int:
     return 0
 
 
-def _case_command(name: str, a) -> str:
-    """The command line that remakes case ``name`` with the options given."""
+def run_isolated(name: str, cmd: list[str], log, runner=subprocess.run) -> int:
+    """Run ``cmd`` (this script for case ``name``, as a worker) until it exits by itself; a run killed by a
+    signal (a crash inside the renderer) is run again, at most ``MAX_ATTEMPTS`` times in all: the view it
+    was rendering resumes from the cache with other samples (``render._attempt``).  Its exit status."""
+    from datasets_synthetic.pathtraced.render import MAX_ATTEMPTS
+
+    env = {**os.environ, WORKER_ENV: "1"}
+    rc = 0
+    for attempt in range(1, MAX_ATTEMPTS + 1):
+        rc = runner(cmd, env=env).returncode
+        if rc >= 0:
+            return rc
+        log(f"{name}: the renderer was killed by signal {-rc} (run {attempt} of {MAX_ATTEMPTS})"
+            + ("; running it again with other samples for that view" if attempt < MAX_ATTEMPTS else ""))
+    return 128 - rc
+
+
+def _case_args(name: str, a, child: bool = False) -> list[str]:
+    """Arguments that remake case ``name`` with the options given (``child``: also the cache and --noise)."""
     opts = [name]
     if a.out != DEFAULT_OUT:
         opts += ["-o", str(a.out)]
+    if child and a.cache is not None:
+        opts += ["--cache", str(a.cache)]
     if a.env_dir is not None:
         opts += ["--env-dir", str(a.env_dir)]
     if a.size is not None:
@@ -200,8 +237,12 @@ def _case_command(name: str, a) -> str:
                              ("--room-rotation", a.room_rotation, None)):
         if v != default:
             opts += [flag, str(v)]
-    return "python scripts/hardcases.py " + shlex.join(opts)
+    return opts + (["--noise"] if child and a.noise else [])
 
+
+def _case_command(name: str, a) -> str:
+    """The command line that remakes case ``name`` with the options given."""
+    return "python scripts/hardcases.py " + shlex.join(_case_args(name, a))
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -16,6 +16,8 @@ furball_uniform_relit          the orbit fur ball with its truth under ``city`` 
 conifer_room_table_ae_lens     conifer in the courtyard on a table (in colour and depth), auto exposure
                                0.35 EV / 0.06 on the kept views, an OPENCV lens; its black twin is
                                ``conifer_black_turntable`` (same cameras, no room, table, jitter or lens)
+conifer_black_lens             the conifer over black through the OPENCV lens alone, at the spp of its pinhole
+                               twin ``conifer_black_turntable`` (same cameras, samples, light)
 fur_similar_bg                 the fur ball before the courtyard's brown brick floor, room kept / black held
 furball_uniform_ae             the turntable fur ball's images with auto exposure on the kept views, true
                                poses; ``furball_uniform_fixed``: the same images at fixed exposure
@@ -136,9 +138,11 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
         return spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="turntable")
     if name in ("furball_uniform_relit", "furball_uniform_orbit"):
         return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=FUR_ENV, motion="orbit")
-    if name == "conifer_room_table_ae_lens":
+    if name in ("conifer_room_table_ae_lens", "conifer_black_lens"):
         from datasets_synthetic.camera_traits import OPENCV_LENS
 
+        if name == "conifer_black_lens":  # the pinhole twin's spec (conifer_room_turntable) but for the lens
+            return replace(case_spec("conifer_room_turntable", opts), lens=OPENCV_LENS)
         return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
                         **room)
     if name == "fur_similar_bg":
@@ -268,6 +272,14 @@ def conifer_table_ae_lens(opts: Options, log=print) -> list[dict]:
                    _render(spec, opts, log), opts, log=log)]
 
 
+def conifer_black_lens(opts: Options, log=print) -> list[dict]:
+    """Case e (lens only): the conifer over black through the OPENCV lens; pinhole twin conifer_black_turntable."""
+    spec = case_spec("conifer_black_lens", opts)
+    return [_write("conifer_black_lens", "conifer over black through the OPENCV lens (k1 -0.12, k2 0.03, p1 8e-4, "
+                   "p2 -5e-4) alone; pinhole twin: conifer_black_turntable (same cameras, spp and light)", spec,
+                   Layout(None), _render(spec, opts, log), opts, log=log)]
+
+
 def fur_similar_bg(opts: Options, log=print) -> list[dict]:
     """Case f: the brown fur ball before the courtyard's brown bricks, room kept / black held."""
     spec = case_spec("fur_similar_bg", opts)
@@ -294,6 +306,7 @@ CASES = {
     "furball_uniform_turntable": furball_turntable,
     "furball_uniform_relit": furball_relit,
     "conifer_room_table_ae_lens": conifer_table_ae_lens,
+    "conifer_black_lens": conifer_black_lens,
     "fur_similar_bg": fur_similar_bg,
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,

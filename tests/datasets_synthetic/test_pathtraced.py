@@ -224,3 +224,46 @@ def test_alias_capture_shares_images_and_carries_its_own_poses(tmp_path):
         np.testing.assert_allclose(x.camera.cam_from_world, m.cam_from_world, atol=1e-9)
         assert np.abs(x.camera.cam_from_world - y.camera.cam_from_world).max() > 1e-3
     assert (tmp_path / "alias" / "gt" / "note.txt").read_bytes() == b"x"
+
+
+def test_lens_case_is_its_pinhole_twin_but_for_the_lens(tmp_path):
+    """conifer_black_lens renders what conifer_black_turntable renders (object, seed, light, cameras, spp)
+    through the OPENCV lens: the two differ by the lens alone, so their scores compare the lens path."""
+    from dataclasses import replace
+
+    from datasets_synthetic.pathtraced.cases import Options, case_spec
+
+    opts = Options(out=tmp_path, cache=tmp_path)
+    lens, twin = case_spec("conifer_black_lens", opts), case_spec("conifer_room_turntable", opts)
+    assert lens.lens == OPENCV_LENS and twin.lens is None
+    assert replace(lens, lens=None) == twin and lens.key() != twin.key()
+
+
+def _script():
+    import importlib.util
+
+    from tests.conftest import REPO_DIR
+
+    spec = importlib.util.spec_from_file_location("hardcases_script", REPO_DIR / "scripts" / "hardcases.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize("codes, calls, rc", [([-11, 0], 2, 0), ([-11, -11, -11], 3, 139), ([1], 1, 1), ([0], 1, 0)])
+def test_a_case_the_renderer_kills_is_run_again(codes, calls, rc):
+    """run_isolated: a worker killed by a signal (Mitsuba's segfault) is run again, MAX_ATTEMPTS runs at most
+    (then 128 + signal); a worker that exits by itself (success or a reported error) is not."""
+    from types import SimpleNamespace
+
+    from datasets_synthetic.pathtraced.render import MAX_ATTEMPTS
+
+    hc, seen, logged = _script(), [], []
+
+    def runner(cmd, env):
+        seen.append(env.get(hc.WORKER_ENV))
+        return SimpleNamespace(returncode=codes[len(seen) - 1])
+
+    assert MAX_ATTEMPTS == 3
+    assert hc.run_isolated("c", ["x"], logged.append, runner) == rc
+    assert seen == ["1"] * calls and len(logged) == sum(c < 0 for c in codes)
