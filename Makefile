@@ -75,7 +75,9 @@ pathtrace-deps: setup
 
 $(BLENDER_MAPS)/city.exr:
 	mkdir -p build/blender-data
-	cd build/blender-data && rm -f blender-data_*.deb && apt-get download blender-data && dpkg -x blender-data_*.deb .
+	cd build/blender-data && rm -f blender-data_*.deb && \
+	  { apt-get download blender-data || { apt-get update -qq && apt-get download blender-data; }; } && \
+	  dpkg -x blender-data_*.deb .
 
 hardcases: pathtrace-deps $(BLENDER_MAPS)/city.exr
 	DRJIT_LIBLLVM_PATH=$$(ls /usr/lib/*/libLLVM-19.so | head -1) nice -n 10 \
