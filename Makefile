@@ -1,6 +1,8 @@
 # furrow: two commands on a fresh Debian machine.
 #   make demo   set up, then synthesise a scene, build its model, render it, write pictures + metrics
 #   make test   set up, lint (ruff check .), then run the default test suite
+#   make hardcases  (optional) install Mitsuba 3 + Debian's libllvm19 and path-trace the hard cases
+#               (scripts/hardcases.py) into HARDCASES_OUT; HARDCASES="name ..." picks cases
 # Both are idempotent: set-up steps are skipped when already done.
 
 SHELL := /bin/bash
@@ -14,7 +16,14 @@ DEB_PKGS := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libusb-1.0-0 chr
 DEMO := out/demo
 export OMP_WAIT_POLICY := passive
 
-.PHONY: setup sysdeps lint test test-slow demo bench clean
+# The path-traced hard cases (optional; hours of CPU): Mitsuba 3's llvm_ad_rgb variant needs libLLVM,
+# which Debian names libLLVM-19.so (DRJIT_LIBLLVM_PATH); the maps that are not bundled (city) come
+# from Debian's blender-data (CC0 studio lights), unpacked under build/ without installing Blender.
+HARDCASES_OUT ?= /work/cache/hardcases
+HARDCASES ?=
+BLENDER_MAPS := build/blender-data/usr/share/blender/datafiles/studiolights/world
+
+.PHONY: setup sysdeps lint test test-slow demo bench clean pathtrace-deps hardcases
 
 sysdeps:
 	@missing=$$(for p in $(DEB_PKGS); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "install ok installed" || echo $$p; done); \
@@ -51,6 +60,28 @@ demo: setup
 
 bench: setup
 	$(BIN)/furrow bench all
+
+pathtrace-deps: setup
+	@if ! ls /usr/lib/*/libLLVM-19.so >/dev/null 2>&1; then \
+	  if [ "$$(id -u)" = "0" ]; then \
+	    echo "installing Debian package: libllvm19"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libllvm19; \
+	  else \
+	    echo "error: Mitsuba 3 (llvm_ad_rgb) needs Debian's libllvm19"; \
+	    echo "run:   sudo apt-get install --no-install-recommends libllvm19"; exit 1; \
+	  fi; \
+	fi
+	$(BIN)/python -c "import mitsuba" 2>/dev/null || $(BIN)/python -m pip install -q -e '.[pathtrace]'
+
+$(BLENDER_MAPS)/city.exr:
+	mkdir -p build/blender-data
+	cd build/blender-data && rm -f blender-data_*.deb && \
+	  { apt-get download blender-data || { apt-get update -qq && apt-get download blender-data; }; } && \
+	  dpkg -x blender-data_*.deb .
+
+hardcases: pathtrace-deps $(BLENDER_MAPS)/city.exr
+	DRJIT_LIBLLVM_PATH=$$(ls /usr/lib/*/libLLVM-19.so | head -1) nice -n 10 \
+	  $(BIN)/python scripts/hardcases.py -o $(HARDCASES_OUT) --env-dir $(BLENDER_MAPS) $(HARDCASES)
 
 clean:
 	rm -rf out .pytest_cache
