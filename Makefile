@@ -19,7 +19,7 @@ export OMP_WAIT_POLICY := passive
 # The path-traced hard cases (optional; hours of CPU): Mitsuba 3's llvm_ad_rgb variant needs libLLVM,
 # which Debian names libLLVM-19.so (DRJIT_LIBLLVM_PATH); the maps that are not bundled (city) come
 # from Debian's blender-data (CC0 studio lights), unpacked under build/ without installing Blender.
-HARDCASES_OUT ?= /work/cache/hardcases
+HARDCASES_OUT ?= out/hardcases
 HARDCASES ?=
 BLENDER_MAPS := build/blender-data/usr/share/blender/datafiles/studiolights/world
 
