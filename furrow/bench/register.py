@@ -182,7 +182,8 @@ def run_one(ss, gt, method: str, deg: float, seed: int, rig: str = "free") -> di
            "n_registered": sum(s.status == "registered" for s in rep.scans), "flagged": rep.flagged,
            "kept": rep.kept, "size_m": size,
            "evidence_counts": evidence, "rig_detection": rep.rig_detection,
-           "before_rot_median_deg": b["rot_median_deg"], "before_trans_median_frac": b["trans_median_m"] / size,
+           "before_rot_median_deg": b["rot_median_deg"], "before_rot_max_deg": b["rot_max_deg"],
+           "before_trans_median_frac": b["trans_median_m"] / size,
            "check": dict(rep.check), "status": {s.name: s.status for s in rep.scans},
            "worse_max_deg": max(worse) if worse else None,
            "view_rot_deg": {rep.scans[k].name: e["rot_deg"][i] for i, k in enumerate(idx)} if e is not None else {},
@@ -248,6 +249,10 @@ def run_capture(folder: Path, pose_prior: str | None = None) -> dict:
     _, rep, poses = pipeline.register(ss, "auto", "nominal", rig="auto", pose_prior=prior)
     e, b = report.pose_errors(poses, gt, c, gauge=None), report.pose_errors(inp, gt, c, gauge=None)
     worse = [o - i for o, i in zip(e["rot_deg"], b["rot_deg"])]
+    import numpy as np
+
+    same = [bool(np.allclose(p, q, atol=1e-9)) for p, q in zip(poses, inp)]
+    moved = [w for w, s in zip(worse, same) if not s]
     names = [s.name for s in rep.scans]
     return {"scene": folder.name, "method": "auto", "rig": rep.rig, "perturb_deg": float("nan"),
             "seconds": time.perf_counter() - t0, "n_views": len(gt), "n_written": len(poses),
@@ -256,7 +261,9 @@ def run_capture(folder: Path, pose_prior: str | None = None) -> dict:
             "before_rot_median_deg": b["rot_median_deg"], "before_rot_max_deg": b["rot_max_deg"],
             "rot_median_deg": e["rot_median_deg"], "rot_max_deg": e["rot_max_deg"],
             "trans_median_mm": 1000 * e["trans_median_m"], "trans_max_mm": 1000 * e["trans_max_m"],
-            "worse_max_deg": max(worse), "status": {n: s.status for n, s in zip(names, rep.scans)},
+            "worse_max_deg": max(worse), "n_unchanged": sum(same),
+            "worse_max_moved_deg": max(moved) if moved else None,
+            "status": {n: s.status for n, s in zip(names, rep.scans)},
             "view_rot_deg": dict(zip(names, e["rot_deg"])), "view_rot_in_deg": dict(zip(names, b["rot_deg"])),
             "check": dict(rep.check), "notes": list(rep.notes)}
 
@@ -269,7 +276,9 @@ def _captures(args, rows: list) -> list:
             print(f"{r['scene']:28s} written {r['n_written']}/{r['n_views']} (registered {r['n_registered']}, "
                   f"kept {len(r['kept'])}, flagged {len(r['flagged'])})  input med {r['before_rot_median_deg']:.3f} "
                   f"max {r['before_rot_max_deg']:.3f}  output med {r['rot_median_deg']:.3f} max "
-                  f"{r['rot_max_deg']:.3f} deg  worst vs input {r['worse_max_deg']:+.3f}  {r['seconds']:.0f}s",
+                  f"{r['rot_max_deg']:.3f} deg  worst vs input {r['worse_max_deg']:+.3f} (moved views "
+                  f"{r['worse_max_moved_deg'] if r['worse_max_moved_deg'] is not None else float('nan'):+.3f}, "
+                  f"{r['n_unchanged']} unchanged)  {r['seconds']:.0f}s",
                   flush=True)
     return rows
 
