@@ -15,11 +15,14 @@ other view held where the joint solve put it:
    errors, a paired t over image tiles (``TILE_PX``): the cost difference of each tile of each
    pair is one sample, so the margin is calibrated on the capture's own noise (fur and leaves
    differ by orders of magnitude);
-4. the decision: the evidence places the view when the input angle fits significantly worse than
-   the best hypothesis, and the hypotheses that fit within noise of the best form one cluster
-   inside the bound (the prior rules out those beyond it).  Otherwise the view keeps its input
-   angle, and the record says why with the numbers: the input angle fits as well, several angles
-   fit as well, or the best fits lie beyond the input's uncertainty.
+4. the decision: the angles that fit within noise of the best (hypotheses and grid points alike)
+   must form one cluster inside the bound (the prior rules out those beyond it), and the evidence
+   must know more than the input: the input angle fits significantly worse than the best, or the
+   cluster is narrower than the input angle's own uncertainty (the prior's sigma; then the input
+   angle lies within the evidence's band, but the band is the sharper statement).  Otherwise the
+   view keeps its input angle, and the record says why with the numbers: several angles fit as
+   well, the best fits lie beyond the input's uncertainty, or the evidence is no sharper than the
+   input.
 
 A group that agrees with itself is not proof (issue 31): evidence that is biased the same way
 between every pair of neighbours (view-dependent sheen on a uniform coat) places each view
@@ -257,22 +260,22 @@ def _local_minima(x: np.ndarray, c: np.ndarray) -> list[int]:
     return idx
 
 
-def _clusters(offsets: list[float]) -> list[list[float]]:
+def _clusters(offsets: list[float], bound_deg: float) -> list[list[float]]:
+    """Runs of offsets no further apart than the grid step where they are (``SAME_DEG`` inside
+    the bound, ``STEP_OUT_DEG`` beyond it)."""
     out: list[list[float]] = []
     for o in sorted(offsets):
-        if out and o - out[-1][-1] <= SAME_DEG:
+        gap = SAME_DEG if min(abs(o), abs(out[-1][-1]) if out else abs(o)) <= bound_deg else STEP_OUT_DEG + 1e-6
+        if out and o - out[-1][-1] <= gap:
             out[-1].append(o)
         else:
             out.append([o])
     return out
 
 
-def decide(profile: Profile, solved_deg: float, bound_deg: float, window_deg: float) -> AngleDecision:
-    """Where view ``profile.k``'s angle comes from (the module docstring's step 4).
-
-    ``solved_deg``: the joint solve's angle minus the input angle; offsets are relative to the
-    input angle (the profile's model holds the solved angle, so it is shifted by ``-solved_deg``).
-    """
+def _profile(profile: Profile, solved_deg: float, bound_deg: float, window_deg: float):
+    """(grid offsets, their tile costs, candidate offset -> tile costs): the grid, its local minima
+    refined (the lowest ``MAX_REFINED``) and the solve's own angle."""
     base = math.radians(solved_deg)
     xs = grid(bound_deg, window_deg)
     B = np.array([profile.blocks(math.radians(x) - base) for x in xs])
@@ -293,33 +296,48 @@ def decide(profile: Profile, solved_deg: float, bound_deg: float, window_deg: fl
             h /= 2
         cand[x] = b
     cand[float(solved_deg)] = Bs
+    return xs, B, cand
+
+
+def decide(profile: Profile, solved_deg: float, bound_deg: float, window_deg: float,
+           sigma_deg: float) -> AngleDecision:
+    """Where view ``profile.k``'s angle comes from (the module docstring's step 4).
+
+    ``solved_deg``: the joint solve's angle minus the input angle; offsets are relative to the
+    input angle (the profile's model holds the solved angle, so it is shifted by ``-solved_deg``).
+    ``sigma_deg``: the input angle's own uncertainty (the prior's sigma): evidence that fits a band
+    of angles no narrower than that, the input angle among them, cannot beat the input.
+    """
+    xs, B, cand = _profile(profile, solved_deg, bound_deg, window_deg)
     best = min(cand, key=lambda o: cand[o].sum())
-    p = B[int(np.argmin(np.abs(xs)))]  # the input angle (the grid holds 0)
-    t_in = paired_t(p, cand[best])
+    t_in = paired_t(B[int(np.argmin(np.abs(xs)))], cand[best])  # the input angle (the grid holds 0)
     hyp = sorted(({"offset_deg": round(o, 3), "cost_above_best": round(float(b.sum() - cand[best].sum()), 2),
                    "t": round(paired_t(b, cand[best]), 2) if o != best else 0.0} for o, b in cand.items()),
-                 key=lambda h: h["cost_above_best"])
+                 key=lambda h: h["cost_above_best"])[:6]
     close = [o for o, b in cand.items() if o == best or paired_t(b, cand[best]) < T_SIGNIFICANT]
-    groups = _clusters(close)
+    close += [float(x) for x, b in zip(xs, B) if paired_t(b, cand[best]) < T_SIGNIFICANT]
+    groups = _clusters(close, bound_deg)
     inside = [g for g in groups if any(abs(o) <= bound_deg for o in g)]
-    listed = ", ".join(f"{g[0]:+.2f}" if len(g) == 1 else f"{g[0]:+.2f}..{g[-1]:+.2f}" for g in groups)
-    if t_in < T_SIGNIFICANT:
-        why = (f"the input angle fits within noise of the best ({best:+.2f} deg): t = {t_in:.1f} < "
-               f"{T_SIGNIFICANT:g}")
-        return AngleDecision(INPUT, 0.0, why, hyp[:6], t_in)
+    listed = ", ".join(f"{g[0]:+.2f}" if len(g) == 1 else f"{g[0]:+.2f}..{g[-1]:+.2f}" for g in groups[:6])
     if not inside:
-        why = (f"the angles that fit best ({listed} deg) lie beyond the input's uncertainty "
-               f"({bound_deg:.2f} deg)")
-        return AngleDecision(INPUT, 0.0, why, hyp[:6], t_in)
+        why = f"the angles that fit best ({listed} deg) lie beyond the input's uncertainty ({bound_deg:.2f} deg)"
+        return AngleDecision(INPUT, 0.0, why, hyp, t_in)
     if len(inside) > 1:
         why = f"{len(inside)} angles within the input's uncertainty fit within noise of each other ({listed} deg)"
-        return AngleDecision(INPUT, 0.0, why, hyp[:6], t_in)
+        return AngleDecision(INPUT, 0.0, why, hyp, t_in)
     group = inside[0]
     chosen = solved_deg if any(abs(o - solved_deg) <= SAME_DEG for o in group) else \
-        min(group, key=lambda o: cand[o].sum())
-    why = (f"one angle fits: {chosen:+.2f} deg from the input, which fits worse by t = {t_in:.1f}"
+        min((o for o in group if o in cand), key=lambda o: cand[o].sum(), default=best)
+    width = max(abs(o - chosen) for o in group)
+    if t_in < T_SIGNIFICANT and width >= sigma_deg:
+        why = (f"the input angle fits within noise of the best ({best:+.2f} deg, t = {t_in:.1f} < {T_SIGNIFICANT:g}), "
+               f"and the evidence fits a band of +-{width:.2f} deg, no sharper than the input's {sigma_deg:.2f} deg")
+        return AngleDecision(INPUT, 0.0, why, hyp, t_in)
+    why = (f"one angle fits: {chosen:+.2f} deg from the input (to +-{width:.2f} deg), the input angle "
+           + (f"worse by t = {t_in:.1f}" if t_in >= T_SIGNIFICANT else
+              f"within that band (t = {t_in:.1f}) but the input is only good to {sigma_deg:.2f} deg")
            + (f"; beyond the input's uncertainty also {listed} deg (ruled out by it)" if len(groups) > 1 else ""))
-    return AngleDecision(EVIDENCE, float(chosen), why, hyp[:6], t_in)
+    return AngleDecision(EVIDENCE, float(chosen), why, hyp, t_in)
 
 
 def drift(offsets_deg: np.ndarray, order: list[int], sigma_deg: float) -> tuple[float, list[int], float]:

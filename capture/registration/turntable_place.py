@@ -122,7 +122,7 @@ def _decide_all(model, views, matches, trusted, cfg, size, aprior, bound_deg) ->
             continue
         sigma = max([TS._geometry_sigma(views[k], views[j], size) for j in nb])
         prof = AN.Profile(model, views, matches, k, nb, gate, sigma)
-        out[k] = AN.decide(prof, math.degrees(off[k]), bound_deg, win)
+        out[k] = AN.decide(prof, math.degrees(off[k]), bound_deg, win, math.degrees(aprior.sigma))
     return out
 
 
@@ -173,6 +173,7 @@ def _hypotheses(model, views, matches, active, cfg, size, prior, aprior, pose_pr
         free = ([] if fixed else [0, 1, 2, 3]) + angle_cols
         for level in range(max(len(cfg.gates) - RESOLVE_GATES, 0), len(cfg.gates)):
             model = TS.solve_gate(model, views, matches, pairs, free, level, cfg, size, prior, aprior)
+        model = TS.refine_angles(model, views, matches, pairs, trusted, cfg, size, prior, aprior)
     trusted = [k for k in trusted if decisions[k].source == AN.EVIDENCE]
     shift = aprior.shift(model, trusted) if trusted else 0.0
     ang = model.angles.copy()
@@ -205,15 +206,14 @@ def _solve_gates(model, views, matches, pairs, active, cfg, size, prior, aprior=
     angles = TS._angle_columns(model, active, aprior)
     for level in range(len(cfg.gates)):
         model = TS.solve_gate(model, views, matches, pairs, [0, 1, 2, 3] + angles, level, cfg, size, prior, aprior)
-    if prior is None:
-        return model, False, ""
-    dev = prior.sigmas(model, size)
+    dev = prior.sigmas(model, size) if prior is not None else 0.0
     if dev <= TS.AXIS_AGREE_SIGMAS:
-        return model, False, ""
+        return TS.refine_angles(model, views, matches, pairs, active, cfg, size, prior, aprior), False, ""
     moved = prior.tilt_deg(model)
     model = start
     for level in range(len(cfg.gates)):
         model = TS.solve_gate(model, views, matches, pairs, angles, level, cfg, size, prior, aprior)
+    model = TS.refine_angles(model, views, matches, pairs, active, cfg, size, prior, aprior)
     return model, True, (f"the evidence tilted the axis by {moved:.2f} degrees ({dev:.0f} sigma of the nominal "
                          "ring's axis): the angles were solved about the ring's axis")
 

@@ -161,14 +161,20 @@ def test_decide_takes_the_one_clear_angle_and_falls_back_otherwise():
     def bump(x0, w=0.7):
         return lambda x: 1.0 - np.exp(-((x - x0) / w) ** 2)
 
-    d = AN.decide(profile(bump(1.2), 1.2), 1.2, 3.0, 15.0)
+    d = AN.decide(profile(bump(1.2), 1.2), 1.2, 3.0, 15.0, 1.0)
     assert d.source == AN.EVIDENCE and abs(d.offset_deg - 1.2) < 1e-9 and d.input_t > AN.T_SIGNIFICANT
-    d = AN.decide(profile(lambda x: min(bump(-2.0)(x), bump(1.5)(x)), 0.0), 0.0, 3.0, 15.0)
+    d = AN.decide(profile(lambda x: min(bump(-2.0)(x), bump(1.5)(x)), 0.0), 0.0, 3.0, 15.0, 1.0)
     assert d.source == AN.INPUT and "2 angles" in d.reason, d.reason
-    d = AN.decide(profile(lambda x: 0.0, 0.7), 0.7, 3.0, 15.0)
-    assert d.source == AN.INPUT and "fits within noise" in d.reason, d.reason
-    d = AN.decide(profile(lambda x: min(0.5 + 0.5 * bump(1.0)(x), bump(12.0)(x)), 1.0), 1.0, 3.0, 15.0)
+    d = AN.decide(profile(lambda x: 0.0, 0.7), 0.7, 3.0, 15.0, 1.0)
+    assert d.source == AN.INPUT and "fits within noise" in d.reason and "no sharper" in d.reason, d.reason
+    d = AN.decide(profile(lambda x: min(0.5 + 0.5 * bump(1.0)(x), bump(12.0)(x)), 1.0), 1.0, 3.0, 15.0, 1.0)
     assert d.source == AN.INPUT and "beyond the input's uncertainty" in d.reason, d.reason
+    # a broad minimum 0.3 degrees from the input: the input lies within its noise band (t < 3), but
+    # the band (+-0.3) is sharper than an input good to 1 degree, not than one good to 0.2
+    d = AN.decide(profile(bump(0.3, 3.0), 0.3), 0.3, 3.0, 15.0, 1.0)
+    assert d.source == AN.EVIDENCE and d.input_t < AN.T_SIGNIFICANT and abs(d.offset_deg - 0.3) < 1e-9, d.reason
+    d = AN.decide(profile(bump(0.3, 3.0), 0.3), 0.3, 3.0, 15.0, 0.2)
+    assert d.source == AN.INPUT and "no sharper" in d.reason, d.reason
 
 
 def test_drift_finds_a_run_of_views_moved_together():
