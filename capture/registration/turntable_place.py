@@ -100,6 +100,9 @@ def solve_turntable(scans, model: Turntable, off: dict, cfg: TS.TurntableConfig,
         records, axis = TS.evaluate(model, views, matches, pairs, active, cfg, size, prior, fixed, aprior)
         note = "; ".join(x for x in (note, why, "the range surface gave the axis nothing (fur): opposite views' "
                                      "silhouettes were added for the axis") if x)
+    if aprior is None or not _drifted(model, active, aprior):  # a drifted solve is not worth refining
+        model = TS.refine_angles(model, views, matches, pairs, active, cfg, size, prior, aprior)
+        records, axis = TS.evaluate(model, views, matches, pairs, active, cfg, size, prior, fixed, aprior)
     if aprior is not None:
         model, records, pairs = _hypotheses(model, views, matches, active, cfg, size, prior, aprior, pose_prior,
                                             records, fixed)
@@ -198,7 +201,8 @@ def _hypotheses(model, views, matches, active, cfg, size, prior, aprior, pose_pr
 
 
 def _solve_gates(model, views, matches, pairs, active, cfg, size, prior, aprior=None) -> tuple[Turntable, bool, str]:
-    """All gates, coarse to fine: (model, axis held fixed?, why).  When the evidence moves the axis
+    """All gates, coarse to fine (``solve_turntable`` then refines the angles alone once,
+    ``turntable_solve.refine_angles``): (model, axis held fixed?, why).  When the evidence moves the axis
     further from the nominal ring's than ``AXIS_AGREE_SIGMAS`` prior sigmas, it disagrees with
     the ring (fur: the coat's apparent surface moves with the viewpoint and tilts the axis), and
     the angles are solved again about the ring's axis."""
@@ -208,12 +212,11 @@ def _solve_gates(model, views, matches, pairs, active, cfg, size, prior, aprior=
         model = TS.solve_gate(model, views, matches, pairs, [0, 1, 2, 3] + angles, level, cfg, size, prior, aprior)
     dev = prior.sigmas(model, size) if prior is not None else 0.0
     if dev <= TS.AXIS_AGREE_SIGMAS:
-        return TS.refine_angles(model, views, matches, pairs, active, cfg, size, prior, aprior), False, ""
+        return model, False, ""
     moved = prior.tilt_deg(model)
     model = start
     for level in range(len(cfg.gates)):
         model = TS.solve_gate(model, views, matches, pairs, angles, level, cfg, size, prior, aprior)
-    model = TS.refine_angles(model, views, matches, pairs, active, cfg, size, prior, aprior)
     return model, True, (f"the evidence tilted the axis by {moved:.2f} degrees ({dev:.0f} sigma of the nominal "
                          "ring's axis): the angles were solved about the ring's axis")
 
