@@ -14,9 +14,10 @@ direction, seeded):
 * ``sfm``: the analytic object with a feature-rich solid texture, 36 views at 320x240 (SfM needs
   a short baseline; used for the ``colmap`` method).
 
-* ``plant`` / ``torus`` / ``furball`` / ``furball-curly`` / ``furrybunny`` with ``--data DIR``:
-  36-view 640x480 captures written once by ``furrow synth NAME -o DIR/NAME --depth-format exr``
-  (``furball-curly``: ``furrow synth furball --curly``, the harder fur ball of issue 22; made when
+* ``plant`` / ``torus`` / ``furball`` / ``furball-curly`` / ``furball-uniform`` / ``furrybunny`` with
+  ``--data DIR``: 36-view 640x480 captures written once by ``furrow synth NAME -o DIR/NAME
+  --depth-format exr`` (``furball-curly``: ``furrow synth furball --curly``, the harder fur ball of
+  issue 22; ``furball-uniform``: ``--coat uniform``, one coat on a sphere, issue 31; made when
   missing), given a consumer sensor's traits in memory (``--sensor mm``, the default: flying
   pixels on depth edges, z^2 noise, 16-bit millimetre quantisation;
   ``capture.registration.scenes.sensor_depth``).
@@ -53,10 +54,10 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 
 
-SCENES = ("control", "torus", "plant", "furball", "furball-curly", "furrybunny", "face", "sfm", "furball-board",
-          "plant-board", "torus-board")
+SCENES = ("control", "torus", "plant", "furball", "furball-curly", "furball-uniform", "furrybunny", "face", "sfm",
+          "furball-board", "plant-board", "torus-board")
 #: Data scenes written by ``furrow synth`` with extra flags (folder name -> (scene, flags)).
-SYNTH_VARIANTS = {"furball-curly": ("furball", ["--curly"])}
+SYNTH_VARIANTS = {"furball-curly": ("furball", ["--curly"]), "furball-uniform": ("furball", ["--coat", "uniform"])}
 RIGS = ("free", "turntable")
 METHODS = ("icp", "icp-geom", "colmap", "board")
 
@@ -112,10 +113,10 @@ def load_scene(name: str, views: int, width: int):
             rig = dataclasses.replace(SMALL_RIG, views_per_ring=views, width=480, height=360,
                                       elevations_deg=(50.0,), distance=0.65, fov_y_deg=40.0)
         params = {}
-        if name == "furball-curly":
-            from datasets_synthetic.fur_variants import CURLY
+        if name in ("furball-curly", "furball-uniform"):
+            from datasets_synthetic.fur_variants import CURLY, UNIFORM
 
-            name, params = "furball", dict(CURLY)
+            name, params = "furball", dict(CURLY if name == "furball-curly" else UNIFORM)
         cap = synthesize(SynthConfig(scene=name, rig=rig, supersample=2, scene_params=params), scene=scene)
         from capture.camera import Camera
         from capture.scan import Scan, ScanSet
@@ -215,7 +216,7 @@ def sfm_only(ss, gt, seed: int) -> dict:
             "reprojection_px": r.reprojection_px, "scale_umeyama": r.scale, "scale_depth_ratio": r.depth_ratio_scale}
 
 
-DATA_SCENES = ("plant", "torus", "furball", "furball-curly", "furrybunny")
+DATA_SCENES = ("plant", "torus", "furball", "furball-curly", "furball-uniform", "furrybunny")
 
 
 def true_poses(folder: Path, names: list[str]) -> list:
