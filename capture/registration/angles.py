@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from capture.registration import projective as PR
-from capture.registration.projective import _bilinear
+from capture.sampling import sample_image
 
 #: A residual counts up to this many of its sigmas (squared); an unmatched sample counts that much.
 TRUNCATE = 2.5
@@ -190,7 +190,7 @@ class Profile:
             ok = good & d.samples.color_valid
             if ok.any():
                 f = self.views[d.tgt].frame
-                res.append(_bilinear(f.intensity, uv[ok, 0], uv[ok, 1]) - d.samples.intensity[ok])
+                res.append(sample_image(f.intensity, uv[ok, 0], uv[ok, 1], "linear", "clamp") - d.samples.intensity[ok])
         r = np.concatenate(res) if res else np.zeros(0)
         return max(MAD_SIGMA * float(np.median(np.abs(r - np.median(r)))) if len(r) else 0.0, PR.COLOR_HUBER / 4)
 
@@ -209,7 +209,8 @@ class Profile:
             rc = np.full(len(cv), np.inf)
             ok = good & cv
             if ok.any():
-                rc[ok] = (_bilinear(tgt.frame.intensity, uv[ok, 0], uv[ok, 1]) - d.samples.intensity[ok]) / self.sigma_c
+                seen = sample_image(tgt.frame.intensity, uv[ok, 0], uv[ok, 1], "linear", "clamp")
+                rc[ok] = (seen - d.samples.intensity[ok]) / self.sigma_c
             cost = cost + np.where(cv, np.minimum(rc * rc, cap), 0.0)
             acc = np.bincount(d.tiles, weights=cost, minlength=d.n_tiles)
             acc += self._feature_blocks(d, T)

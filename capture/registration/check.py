@@ -33,6 +33,7 @@ from capture.camera import invert_rigid
 from capture.registration import evidence as EV
 from capture.registration import points as P
 from capture.registration import projective as PR
+from capture.sampling import nearest_pixel
 from capture.scan import Scan
 
 #: A reprojected sample agrees with view i when within this many depth-noise sigmas of its depth.
@@ -141,7 +142,7 @@ def _land(src: CheckView, tgt: CheckView, T: np.ndarray, size: float):
     u[front] = K[0, 0] * q[front, 0] / z[front] + K[0, 1] * q[front, 1] / z[front] + K[0, 2]
     v[front] = K[1, 1] * q[front, 1] / z[front] + K[1, 2]
     H, W = tgt.depth.shape
-    iu, iv = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
+    iu, iv = nearest_pixel(u), nearest_pixel(v)
     inside = front & (iu >= 0) & (iu < W) & (iv >= 0) & (iv < H)
     idx = np.nonzero(inside)[0]
     iu, iv, zq = iu[inside], iv[inside], z[inside]

@@ -48,6 +48,7 @@ import sys
 import time
 from pathlib import Path
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
@@ -323,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     if args.captures:
         rows = _captures(args, rows)
-        path.write_text(json.dumps(rows, indent=1))
+        write_json(path, rows)
         if args.json:
             print(json.dumps(rows, indent=1))
         return 0
@@ -348,7 +349,7 @@ def main(argv: list[str] | None = None) -> int:
                     r.update(scene=scene, rig=rig, load_seconds=load_s, sensor=args.sensor,
                              width=ss.scans[0].camera.width)
                     rows = [x for x in rows if _key(x) != _key(r)] + [r]
-                    path.write_text(json.dumps(rows, indent=1))
+                    write_json(path, rows)
                     if not args.json:
                         print(_fmt(r), flush=True)
         if args.sfm:
@@ -357,7 +358,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(r)
             if not args.json:
                 print(_fmt(r), flush=True)
-    path.write_text(json.dumps(rows, indent=1))
+    write_json(path, rows)
     plot(rows, args.out / "register.png")
     if args.json:
         print(json.dumps(rows, indent=1))
