@@ -36,7 +36,9 @@ rigid transform that best fits all poses to the truth, over every view (all are 
 ones kept or flagged at their input pose are scored there).  After the independent check
 (``capture.registration.verify``) each row counts the views registered / kept at input / flagged,
 and ``worse_max_deg``: the most a view ends worse than its input pose (both after the
-best-fitting rigid gauge).
+best-fitting rigid gauge).  With ``--captures`` (output in the input's frame) also without the
+rigid fit (``direct_*``, ``worse_max_direct_deg``: a view kept at its input scores exactly as its
+input), and the output poses (``poses``, cam_from_world).
 """
 
 from __future__ import annotations
@@ -255,6 +257,9 @@ def run_capture(folder: Path, pose_prior: str | None = None) -> dict:
 
     same = [bool(np.allclose(p, q, atol=1e-9)) for p, q in zip(poses, inp)]
     moved = [w for w, s in zip(worse, same) if not s]
+    # the output is in the input's frame: also scored without the rigid fit (a view kept at its input scores as it)
+    d_out = [report.transform_delta(o, g, c)[0] for o, g in zip(poses, gt)]
+    d_in = [report.transform_delta(i, g, c)[0] for i, g in zip(inp, gt)]
     names = [s.name for s in rep.scans]
     return {"scene": folder.name, "method": "auto", "rig": rep.rig, "perturb_deg": float("nan"),
             "seconds": time.perf_counter() - t0, "n_views": len(gt), "n_written": len(poses),
@@ -265,7 +270,12 @@ def run_capture(folder: Path, pose_prior: str | None = None) -> dict:
             "trans_median_mm": 1000 * e["trans_median_m"], "trans_max_mm": 1000 * e["trans_max_m"],
             "worse_max_deg": max(worse), "n_unchanged": sum(same),
             "worse_max_moved_deg": max(moved) if moved else None,
+            "direct_rot_median_deg": float(np.median(d_out)), "direct_rot_max_deg": max(d_out),
+            "direct_before_rot_median_deg": float(np.median(d_in)), "direct_before_rot_max_deg": max(d_in),
+            "worse_max_direct_deg": max(o - i for o, i in zip(d_out, d_in)),
+            "poses": [np.asarray(p).tolist() for p in poses],
             "status": {n: s.status for n, s in zip(names, rep.scans)},
+            "reason": {n: s.reason for n, s in zip(names, rep.scans) if s.status != "registered"},
             "view_rot_deg": dict(zip(names, e["rot_deg"])), "view_rot_in_deg": dict(zip(names, b["rot_deg"])),
             "check": dict(rep.check), "notes": list(rep.notes)}
 
@@ -280,7 +290,10 @@ def _captures(args, rows: list) -> list:
                   f"max {r['before_rot_max_deg']:.3f}  output med {r['rot_median_deg']:.3f} max "
                   f"{r['rot_max_deg']:.3f} deg  worst vs input {r['worse_max_deg']:+.3f} (moved views "
                   f"{r['worse_max_moved_deg'] if r['worse_max_moved_deg'] is not None else float('nan'):+.3f}, "
-                  f"{r['n_unchanged']} unchanged)  {r['seconds']:.0f}s",
+                  f"{r['n_unchanged']} unchanged)  without the rigid fit: input med "
+                  f"{r['direct_before_rot_median_deg']:.3f} max {r['direct_before_rot_max_deg']:.3f}, output med "
+                  f"{r['direct_rot_median_deg']:.3f} max {r['direct_rot_max_deg']:.3f}, worst vs input "
+                  f"{r['worse_max_direct_deg']:+.3f}  {r['seconds']:.0f}s",
                   flush=True)
     return rows
 
