@@ -101,6 +101,9 @@ class FurballParams:
     """Specular strength of the strands (Kajiya-Kay lobe)."""
     patches: int = 0
     """Dark and light melanin patches over the coat (``fur_variants.melanin_patches``; 0 = none)."""
+    coat: str = "tabby"
+    """Coat colour: ``tabby`` (stripes and a cream belly) or ``uniform`` (one brown coat, the same
+    from every side at coarse scale: ``fur_variants.uniform_coat``)."""
 
 
 def _sample_ellipsoid(rng, axes: np.ndarray, n: int) -> np.ndarray:
@@ -160,6 +163,12 @@ def build_furball(seed: int = 0, p: FurballParams = FurballParams()) -> Scene:
     paths = paths * scale[..., None]
     radii = p.root_radius + (p.tip_radius - p.root_radius) * s[None] * np.ones((S, 1))
     base = _coat_colour(rng, surf, axes)
+    if p.coat == "uniform":
+        from datasets_synthetic.fur_variants import uniform_coat
+
+        base = uniform_coat(seed, len(surf))
+    elif p.coat != "tabby":
+        raise ValueError(f"FurballParams.coat must be 'tabby' or 'uniform', got {p.coat!r}")
     if p.patches:
         from datasets_synthetic.fur_variants import melanin_patches
 

@@ -10,20 +10,35 @@ from pathlib import Path
 HELP = "register scans into one frame (Open3D ICP + pose graph, pycolmap SfM, ChArUco board)"
 DESCRIPTION = """Read a scan set, estimate refined camera poses and write a NEW scan set with the
 refined transform_matrix and a registration.json report (per-scan fitness, inlier RMSE,
-pose-graph consistency, flagged scans by name).  The input is never written over.
-Scans that cannot be registered are flagged and left out of the output (--keep-flagged
-keeps them with their input poses).
+pose-graph consistency, the status of every view and why).  The input is never written over.
+Every input view is written: registered, kept at its input pose, or flagged (at its input pose).
 
-Never worse than the input: every view is then judged by an independent check (depth and
-colour consistency with its neighbours, their samples reprojected through the depth) at its
-registered pose and at its nominal (input) pose; it keeps the registered pose when that is
-consistent and better, else its nominal pose when that is consistent, else it is flagged.  The
-report says per view "registered", "kept nominal" or "flagged", why, and both scores
+Bounded by the input (--pose-prior DEG,FRACTION): no view moves further from its input pose than
+the input's stated uncertainty, DEG degrees of turn and FRACTION of the camera's distance to the
+object of translation besides it.  The solvers use it as a prior and a bound; a registered pose
+beyond it is replaced by the input pose.  Defaults per rig:
+  turntable  3.5 x the input poses' scatter about the fitted ring (per axis), at least 1 deg / 1 %
+  free       10 deg / 10 %  (ICP + pose graph from the input poses)
+  board      3 deg / 3 % about the board's PnP poses;  colmap: 5 deg / 5 % about the SfM poses
+--init none asks for a global search instead: no prior, no bound.
+
+Near-symmetric objects (one uniform coat, the same from every side): a turntable view takes the
+angle its evidence gives only when that angle is the one answer within the bound and fits better
+than the input angle beyond the capture's own noise (a paired t over image tiles); when the input
+angle fits as well, or several angles do, it keeps its input angle on the fitted ring.  The report
+lists the hypotheses of every view ("angle").
+
+Never worse than the input: every placed view is then judged by an independent check (depth and
+colour agreement with its neighbours, their samples reprojected through the depth) at its
+registered pose and at its input pose against the same neighbours; it keeps the registered pose
+only when that explains the data better by t >= 3 over image tiles, else its input pose.  Views
+agreeing with each other prove nothing: the comparison is always with the input pose
 (--no-check skips the check).
 
-Exit status: 0 = every view placed and at least one improved, 3 = some views flagged,
-4 = nothing could be improved (no view took its registered pose: the output poses are the
-input poses; flagged views, if any, are named), 1 = error.
+Exit status: 0 = written, at least one view improved, none flagged ("kept at input" is not a
+failure: the evidence could not beat the input, the report says why); 3 = some views flagged
+(the registration found them wrong: a foreign object, off the rig, no accepted pair; written at
+their input pose); 4 = nothing could be improved (every view kept at its input pose); 1 = error.
 
 methods: icp   Open3D coarse ICP + projective point-to-plane ICP + pose graph (loop closure),
                FPFH+RANSAC fallback
@@ -38,8 +53,9 @@ rigs:    free       a pose per scan (the methods above)
          auto       turntable when the nominal poses lie on one circle about one axis
                     (said in the report), else free
 
-The report (console and registration.json) says per scan which evidence placed it
-(geometry, colour, silhouette, features, board) and with what residual."""
+The report (console and registration.json) says per scan its status, which evidence placed it
+(geometry, colour, silhouette, features, board, input angle), with what residual, how far it moved
+from its input pose, and the check's comparison."""
 
 #: Exit status when the output was written but some scans were flagged.
 EXIT_FLAGGED = 3
@@ -53,7 +69,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="output folder (must not exist, must not be the input)")
     p.add_argument("--method", choices=["auto", "icp", "colmap", "board"], default="auto")
     p.add_argument("--init", choices=["nominal", "none"], default="nominal",
-                   help="start from the input poses (nominal) or from nothing (global registration)")
+                   help="start from the input poses (nominal, bounded by --pose-prior) or from nothing (a global "
+                        "search, unbounded)")
+    p.add_argument("--pose-prior", default=None, metavar="DEG,FRACTION",
+                   help="the input poses' stated uncertainty: no view moves further from its input pose than DEG "
+                        "degrees of turn and FRACTION of its distance to the object besides (e.g. 2,0.02); default "
+                        "per rig (see above)")
     p.add_argument("--rig", choices=["auto", "free", "turntable"], default="auto",
                    help="pose model: a pose per scan (free), one axis + one angle per scan (turntable), "
                         "or detected from the nominal poses (auto, default)")
@@ -64,7 +85,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--board-z", type=float, default=None, help="height of the board plane in the world (m)")
     p.add_argument("--no-check", action="store_true",
                    help="skip the independent check of the registered poses against the nominal ones")
-    p.add_argument("--keep-flagged", action="store_true", help="keep flagged scans (input poses) in the output")
+    p.add_argument("--keep-flagged", action="store_true",
+                   help="(no effect: every input view is written, flagged ones at their input pose)")
     p.add_argument("--depth-format", choices=["png", "png-0.1mm", "exr"], default="png",
                    help="depth files: png (16-bit millimetres, default), png-0.1mm, or exr (float metres)")
     p.add_argument("--frames", default=None, help="frame selection, python slices: '0::2', '1,4,7'")
@@ -114,25 +136,23 @@ def evidence_table(rep):
     from rich.table import Table
 
     t = Table(title=f"registration ({rep.rig} rig): evidence per scan")
-    for c in ("scan", "status", "evidence", "angle sigma", "check nominal / registered", "residuals / reason"):
+    for c in ("scan", "status", "evidence", "angle sigma", "moved", "check t", "residuals / reason"):
         t.add_column(c)
     for s in rep.scans:
         sig = f"{s.angle_sigma_deg:.3f} deg" if math.isfinite(s.angle_sigma_deg) else ""
         status = s.status or ("registered" if s.registered else "flagged")
         if status == "flagged":
             status = "[yellow]flagged[/]"
-        text = _residual_text(s) if s.status == "registered" or (s.registered and not s.status) else s.reason
-        t.add_row(s.name, status, ", ".join(s.evidence), sig, _check_text(s.check), text)
+        moved = f"{s.move['rot_deg']:.2f} deg" if s.move else ""
+        text = _residual_text(s) if s.status == "registered" else s.reason
+        t.add_row(s.name, status, ", ".join(s.evidence), sig, moved, _check_text(s.check), text)
     return t
 
 
 def _check_text(check: dict) -> str:
-    """'score (peak?) / score (peak?)' of the independent check's two judgements."""
-    def one(j):
-        if not j:
-            return "-"
-        return f"{j['score']:.3f}" + ("" if j["consistent"] else " [red]x[/]")
-    return f"{one(check.get('nominal'))} / {one(check.get('registered'))}" if check else ""
+    """The independent check's t of the registered pose over the input pose."""
+    c = check.get("comparison") if check else None
+    return "" if not c else f"{c['t']:+.1f}" + ("" if c["better"] else " [yellow]<[/]")
 
 
 def _same_or_inside(a: Path, b: Path) -> bool:
@@ -144,6 +164,7 @@ def run(args, console) -> int:
     from capture import io as cio
     from capture.registration import icp as ICP
     from capture.registration import pipeline
+    from capture.registration.prior import parse_prior
     from furrow.console import StageTimer, fail, track
 
     src = args.scans if args.scans.is_dir() else args.scans.parent
@@ -153,14 +174,22 @@ def run(args, console) -> int:
     if args.out.exists():
         fail(f"{args.out}: already exists; choose a new output folder")
         return 1
+    try:
+        prior = parse_prior(args.pose_prior) if args.pose_prior else None
+    except ValueError as e:
+        fail(str(e))
+        return 2
+    if prior is not None and args.init == "none":
+        fail("--pose-prior bounds the moves from the input poses; --init none ignores them (a global search)")
+        return 2
     timer = StageTimer()
     with timer.stage("read"):
         ss = cio.read_scanset(args.scans, frames=args.frames, progress=track)
     with timer.stage(f"register ({args.method}, init {args.init})"):
         cfg = ICP.IcpConfig(colored=args.colored)
-        out, rep, _ = pipeline.register(ss, args.method, args.init, cfg, keep_flagged=args.keep_flagged,
+        out, rep, _ = pipeline.register(ss, args.method, args.init, cfg,
                                         board=parse_board(args.board, args.board_z), rig=args.rig, progress=track,
-                                        check=not args.no_check)
+                                        check=not args.no_check, pose_prior=prior)
     report = rep.to_json()
     report["input"] = str(args.scans)
     with timer.stage("write"):
@@ -173,20 +202,19 @@ def run(args, console) -> int:
     console.print(f"rig: {rep.rig} ({rep.rig_detection or 'not tested'})", highlight=False)
     for note in rep.notes:
         console.print(f"  {note}", highlight=False)
-    console.print(f"registered {k}/{n} scans with {rep.method}; wrote {path}", highlight=False)
-    if rep.check:
-        c = rep.check
-        console.print(f"independent check: {c['registered']} registered, {c['kept nominal']} kept nominal, "
-                      f"{c['flagged']} flagged; consistent views {c['consistent_nominal']} at the input poses, "
-                      f"{c['consistent_final']} now", highlight=False)
+    flagged, kept = rep.flagged, rep.kept
+    console.print(f"wrote all {n} views to {path}: {k} registered, {len(kept)} kept at their input pose, "
+                  f"{len(flagged)} flagged (at their input pose) with {rep.method}", highlight=False)
     for s in rep.scans:
-        if s.status == "kept nominal":
-            console.print(f"kept nominal {s.name}: {s.reason}", highlight=False)
-        elif not s.registered:
+        if s.status == "kept at input":
+            console.print(f"kept at input {s.name}: {s.reason}", highlight=False)
+        elif s.status == "flagged":
             console.print(f"[yellow]flagged[/] {s.name}: {s.reason}", highlight=False)
     if args.json:
         sys.stdout.write(json.dumps(report, indent=1) + "\n")
-    if rep.check and not rep.check["improved"]:
-        console.print("[yellow]nothing could be improved[/]: every placed view keeps its input pose", highlight=False)
+    if flagged:
+        return EXIT_FLAGGED
+    if k == 0:
+        console.print("[yellow]nothing could be improved[/]: every view keeps its input pose", highlight=False)
         return EXIT_NOT_IMPROVED
-    return 0 if k == n else EXIT_FLAGGED
+    return 0

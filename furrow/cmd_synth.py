@@ -103,6 +103,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "(default 0.8; --curly 2.5)")
     p.add_argument("--patches", type=int, default=None, help="furball: dark and light melanin patches over the coat "
                    "(default 0; --curly 14)")
+    p.add_argument("--coat", choices=["tabby", "uniform"], default=None,
+                   help="furball: tabby (stripes and a cream belly, default) or uniform (one brown coat on a "
+                        "spherical body, the same from every side at coarse scale: the near-symmetric hard case "
+                        "of registration, datasets_synthetic/fur_variants.py UNIFORM)")
     p.add_argument("--elevations", type=_floats, default=(15.0,),
                    help="ring elevations in degrees, comma-separated (views are split evenly; default 15, the "
                         "rig of the evaluation captures)")
@@ -259,16 +263,18 @@ def _auto_exposure(cap, args, cfg):
 
 
 def _fur_variant(args) -> dict:
-    """Scene overrides of --curly / --curl / --curl-turns / --patches (furball only)."""
-    from datasets_synthetic.fur_variants import CURLY
+    """Scene overrides of --curly / --coat / --curl / --curl-turns / --patches (furball only)."""
+    from datasets_synthetic.fur_variants import CURLY, UNIFORM
 
     over = dict(CURLY) if getattr(args, "curly", False) else {}
+    if getattr(args, "coat", None) == "uniform":
+        over.update(UNIFORM)
     for flag, key in (("curl", "curl"), ("curl_turns", "curl_turns"), ("patches", "patches")):
         v = getattr(args, flag, None)
         if v is not None:
             over[key] = v
     if over and args.name != "furball":
-        raise ValueError("--curly, --curl, --curl-turns and --patches apply to the furball only")
+        raise ValueError("--curly, --coat, --curl, --curl-turns and --patches apply to the furball only")
     if over.get("patches", 0) < 0:
         raise ValueError(f"--patches must be >= 0, got {over['patches']}")
     return over

@@ -3,8 +3,11 @@
 ``points`` (depth -> clouds), ``icp`` (Open3D multiway ICP + pose graph + FPFH fallback),
 ``colmap`` (pycolmap SfM + Umeyama), ``board`` (ChArUco PnP), ``report`` (thresholds,
 errors, registration.json), ``raycast`` (exact reference depth of a mesh), ``perturb``,
-``check`` / ``verify`` (the independent check of every placed view: registered, kept nominal
-or flagged, never worse than the input; issue 22).
+``turntable`` / ``turntable_solve`` / ``turntable_place`` (one axis, one angle per view),
+``prior`` (the input's stated uncertainty bounds every move; issue 31), ``angles`` (a turntable
+view's angle hypotheses: the evidence's angle only when it is the one clear answer and beats the
+input angle), ``check`` / ``verify`` (the independent check: a registered pose is kept only where
+it explains the data significantly better than the input pose; issues 22, 31).
 """
 
 import os as _os

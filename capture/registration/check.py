@@ -1,5 +1,5 @@
-"""An independent check of every placed view (issue 22): is its pose consistent with its
-neighbours by evidence that did not place it?
+"""An independent check of every placed view (issues 22, 31): does its pose explain the data
+better than its input pose, by evidence that did not place it?
 
 For an ordered pair (view i, neighbour j) at candidate poses, j's range samples are carried into
 view i through the relative pose and compared with what view i measured at the pixel they land on:
@@ -10,15 +10,16 @@ view i through the relative pose and compared with what view i measured at the p
   surface (free space view i saw through), behind it by less than ``OCCLUDED_FRAC`` of the object
   size, or on view i's background (outside its silhouette); further behind it is occluded and
   does not count;
-* **colour distribution**: the normalised cross-correlation of the blurred luminance of the
-  co-visible samples with view i's blurred luminance where they land (blurred by
-  ``COLOUR_BLUR_PX``: single strands do not repeat between views, the coat's pattern does).
+* **colour distribution**: the blurred luminance of the co-visible samples against view i's
+  blurred luminance where they land (blurred by ``COLOUR_BLUR_PX``: single strands do not repeat
+  between views, the coat's pattern does), as a normalised cross-correlation.
 
-A view's score is the mean over its neighbours of ``agreement + COLOUR_WEIGHT * ncc``.  A pose is
-*consistent* when it is at the peak of that score: no probe that moves the view by ``PROBE_DEG``
-about the object centre (or ``PROBE_FRAC`` of the object size along an axis) scores higher by
-more than ``PEAK_TOL``.  The check calibrates itself on each capture (fur and leaves give very
-different absolute scores; the peak is where the evidence is, whatever its height).
+A view's score (``view_score``) is the mean over its neighbours of ``agreement + COLOUR_WEIGHT *
+ncc``.  To compare two poses of one view against the same neighbours (``verify``), the same
+evidence is summed per image tile of the source view (``tile_scores``: +1 per agreeing sample,
+-1 per disagreeing one, plus ``COLOUR_WEIGHT`` times the product of the two luminances
+standardised per view), so that the difference of the two poses is a sample per tile and its
+paired t (``angles.paired_t``) says whether one is better beyond the capture's own noise.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from capture.camera import invert_rigid
 from capture.registration import evidence as EV
 from capture.registration import points as P
 from capture.registration import projective as PR
-from capture.rotations import rotation
+from capture.sampling import nearest_pixel
 from capture.scan import Scan
 
 #: A reprojected sample agrees with view i when within this many depth-noise sigmas of its depth.
@@ -51,17 +52,10 @@ SAMPLES = 12000
 NEIGHBOURS = 4
 #: Neighbours further apart than this (degrees between the viewing directions) are not used.
 MAX_NEIGHBOUR_DEG = 60.0
-#: Probe rotation (degrees about the object centre) and translation (fraction of object size).
-#: A pose more than about half a probe from the peak has a probe nearer it.  Measured on the
-#: synthetic fur ball (24 views, 320x240, mm sensor), views consistent of 24: at the true poses
-#: 24 (1-degree probes: 19); one view moved 1 / 2 / 3 degrees: 15 / 2 / 0 (1-degree probes:
-#: 1 / 0 / 3, the fur's score is flat 3 degrees out); every view moved 2 degrees: 0.
-PROBE_DEG = 2.0
-PROBE_FRAC = 0.02
-#: A pose is at the peak when no probe beats it by more than this (score units).
-PEAK_TOL = 0.002
 #: Fewer co-visible samples than this over all neighbours: nothing to judge by.
 MIN_COVISIBLE = 200
+#: Image tile (pixels at 640 across) of the paired comparison: one score-difference sample per tile.
+TILE_PX = 40
 
 
 @dataclass(frozen=True)
@@ -76,6 +70,8 @@ class CheckView:
         mask: (H, W) bool silhouette (object against the background).
         sigma_m: depth-noise sigma (metres) at the median depth.
         K: (3, 3) intrinsics.
+        tiles: (N,) the image tile of every sample (``TILE_PX``); ``n_tiles`` of them.
+        lum_mean, lum_std: the blurred luminance's mean and standard deviation over the silhouette.
     """
 
     points: np.ndarray
@@ -85,6 +81,10 @@ class CheckView:
     mask: np.ndarray
     sigma_m: float
     K: np.ndarray
+    tiles: np.ndarray | None = None
+    n_tiles: int = 1
+    lum_mean: float = 0.0
+    lum_std: float = 1.0
 
     def __post_init__(self) -> None:
         if self.points.ndim != 2 or self.points.shape[1] != 3 or len(self.lum) != len(self.points):
@@ -103,8 +103,14 @@ def prepare(scan: Scan, samples: int = SAMPLES) -> CheckView:
         keep = np.linspace(0, len(iy) - 1, samples).astype(np.int64)
         iy, ix = iy[keep], ix[keep]
     depth = np.where(np.asarray(scan.depth) > 0, np.asarray(scan.depth, np.float64), 0.0)
-    return CheckView(frame.points[iy, ix], lum[iy, ix], depth, lum, EV.silhouette_mask(scan), frame.depth_sigma_m,
-                     scan.camera.K)
+    mask = EV.silhouette_mask(scan)
+    t = max(4, int(round(TILE_PX * scan.camera.width / 640)))
+    nx = -(-scan.camera.width // t)
+    tiles = (iy // t) * nx + ix // t
+    inside = lum[mask] if mask.any() else lum.ravel()
+    return CheckView(frame.points[iy, ix], lum[iy, ix], depth, lum, mask, frame.depth_sigma_m, scan.camera.K,
+                     tiles.astype(np.int64), nx * -(-scan.camera.height // t), float(inside.mean()),
+                     max(float(inside.std()), 1e-6))
 
 
 @dataclass(frozen=True)
@@ -124,8 +130,9 @@ class PairScore:
         return self.agree / self.counted if self.counted else 0.0
 
 
-def pair_score(src: CheckView, tgt: CheckView, T: np.ndarray, size: float) -> PairScore:
-    """``src``'s samples carried into ``tgt`` by ``T`` (tgt_cam_from_src_cam)."""
+def _land(src: CheckView, tgt: CheckView, T: np.ndarray, size: float):
+    """Where ``src``'s samples land in ``tgt`` under ``T``: (indices of the samples inside the
+    image, their pixels (iv, iu), agreeing flags, counted flags)."""
     q = src.points @ T[:3, :3].T + T[:3, 3]
     z = q[:, 2]
     front = z > 1e-6
@@ -135,9 +142,10 @@ def pair_score(src: CheckView, tgt: CheckView, T: np.ndarray, size: float) -> Pa
     u[front] = K[0, 0] * q[front, 0] / z[front] + K[0, 1] * q[front, 1] / z[front] + K[0, 2]
     v[front] = K[1, 1] * q[front, 1] / z[front] + K[1, 2]
     H, W = tgt.depth.shape
-    iu, iv = np.rint(u).astype(np.int64), np.rint(v).astype(np.int64)
+    iu, iv = nearest_pixel(u), nearest_pixel(v)
     inside = front & (iu >= 0) & (iu < W) & (iv >= 0) & (iv < H)
-    iu, iv, zq, lum = iu[inside], iv[inside], z[inside], src.lum[inside]
+    idx = np.nonzero(inside)[0]
+    iu, iv, zq = iu[inside], iv[inside], z[inside]
     zt = tgt.depth[iv, iu]
     bg = ~tgt.mask[iv, iu]
     d = zq - zt
@@ -145,6 +153,13 @@ def pair_score(src: CheckView, tgt: CheckView, T: np.ndarray, size: float) -> Pa
     meas = zt > 0
     ok = meas & (np.abs(d) <= AGREE_SIGMAS * sigma)
     counted = (meas & (d <= OCCLUDED_FRAC * size)) | (bg & ~meas)
+    return idx, (iv, iu), ok, counted
+
+
+def pair_score(src: CheckView, tgt: CheckView, T: np.ndarray, size: float) -> PairScore:
+    """``src``'s samples carried into ``tgt`` by ``T`` (tgt_cam_from_src_cam)."""
+    idx, (iv, iu), ok, counted = _land(src, tgt, T, size)
+    lum = src.lum[idx]
     agree = int(ok.sum())
     ncc = _ncc(lum[ok], tgt.lum_img[iv[ok], iu[ok]])
     return PairScore(agree, int(counted.sum()) - agree, ncc)
@@ -189,46 +204,25 @@ def view_score(views: list[CheckView], i: int, pose_i: np.ndarray, poses: list, 
     return (s / n if n else 0.0), m
 
 
-def probes(pose: np.ndarray, centre: np.ndarray, size: float) -> list[np.ndarray]:
-    """The pose moved by +-``PROBE_DEG`` about three axes through ``centre`` (world) and by
-    +-``PROBE_FRAC`` of ``size`` along three axes (camera frame)."""
-    c_cam = pose[:3, :3] @ centre + pose[:3, 3]
+def tile_scores(src: CheckView, tgt: CheckView, T: np.ndarray, size: float) -> np.ndarray:
+    """(src.n_tiles,) per image tile of ``src``: agreeing minus disagreeing samples in ``tgt``
+    under ``T``, plus ``COLOUR_WEIGHT`` times the product of the standardised luminances of the
+    agreeing ones (the module docstring)."""
+    idx, (iv, iu), ok, counted = _land(src, tgt, T, size)
+    val = np.where(ok, 1.0, np.where(counted, -1.0, 0.0))
+    za = (src.lum[idx] - src.lum_mean) / src.lum_std
+    zb = (tgt.lum_img[iv, iu] - tgt.lum_mean) / tgt.lum_std
+    val = val + np.where(ok, COLOUR_WEIGHT * np.clip(za * zb, -4.0, 4.0), 0.0)
+    return np.bincount(src.tiles[idx], weights=val, minlength=src.n_tiles)
+
+
+def view_tiles(views: list[CheckView], i: int, pose_i: np.ndarray, poses: list, nbrs: list[int],
+               size: float) -> np.ndarray:
+    """View i at ``pose_i`` against ``nbrs`` at ``poses``: the tile scores of both directions of
+    every pair, concatenated (the same tiles for any ``pose_i``: a paired sample)."""
     out = []
-    for ax in np.eye(3):
-        for sgn in (1.0, -1.0):
-            M = np.eye(4)
-            M[:3, :3] = rotation(ax, math.radians(sgn * PROBE_DEG))
-            M[:3, 3] = c_cam - M[:3, :3] @ c_cam
-            out.append(M @ pose)
-            M = np.eye(4)
-            M[:3, 3] = sgn * PROBE_FRAC * size * ax
-            out.append(M @ pose)
-    return out
-
-
-@dataclass(frozen=True)
-class Judgement:
-    """The check's verdict on one candidate pose of one view."""
-
-    score: float
-    """Mean pair score against the neighbours (agreement fraction + ``COLOUR_WEIGHT`` * NCC)."""
-    best_probe: float
-    """Best score of the probes around it."""
-    covisible: int
-    """Agreeing samples over all neighbours."""
-
-    @property
-    def consistent(self) -> bool:
-        return self.covisible >= MIN_COVISIBLE and self.score >= self.best_probe - PEAK_TOL
-
-    def to_json(self) -> dict:
-        return {"score": round(self.score, 5), "best_probe": round(self.best_probe, 5), "covisible": self.covisible,
-                "consistent": self.consistent}
-
-
-def judge(views: list[CheckView], i: int, pose_i: np.ndarray, poses: list, nbrs: list[int], centre: np.ndarray,
-          size: float) -> Judgement:
-    """Score view i at ``pose_i`` and at its probes against ``nbrs`` (at ``poses``)."""
-    s, m = view_score(views, i, pose_i, poses, nbrs, size)
-    best = max(view_score(views, i, p, poses, nbrs, size)[0] for p in probes(pose_i, centre, size))
-    return Judgement(s, best, m)
+    for j in nbrs:
+        Tij = pose_i @ invert_rigid(poses[j])
+        out.append(tile_scores(views[j], views[i], Tij, size))
+        out.append(tile_scores(views[i], views[j], invert_rigid(Tij), size))
+    return np.concatenate(out) if out else np.zeros(0)

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import Camera
-from capture.registration.projective import _bilinear, point_twist_jacobian, projection_jacobian
+from capture.registration.projective import point_twist_jacobian, projection_jacobian
+from capture.sampling import nearest_pixel, sample_image
 from capture.scan import Scan
 
 #: A colour pixel differs from the background when a channel differs by more than this (linear).
@@ -110,8 +111,8 @@ def silhouette_equations(src: Silhouette, tgt: Silhouette, camera: Camera, T: np
     uv, _ = Camera(camera.K, np.eye(4), camera.width, camera.height).project(q)
     H, W = tgt.distance.shape
     inside = (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
-    r = np.where(inside, _bilinear(tgt.distance, uv[:, 0], uv[:, 1]), SILHOUETTE_CLIP_PX)
-    g = _bilinear(tgt.grad, uv[:, 0], uv[:, 1])
+    r = np.where(inside, sample_image(tgt.distance, uv[:, 0], uv[:, 1], "linear", "clamp"), SILHOUETTE_CLIP_PX)
+    g = sample_image(tgt.grad, uv[:, 0], uv[:, 1], "linear", "clamp")
     use = inside & (r > 0) & (r < SILHOUETTE_CLIP_PX)
     a = np.einsum("nk,nkj->nj", g[use], projection_jacobian(camera.K, q[use]))
     J = point_twist_jacobian(q[use], a) / sigma_px
@@ -145,8 +146,8 @@ def features(scan: Scan, mask: np.ndarray, depth: np.ndarray) -> Features:
     d = np.where(depth > 0, depth, np.nan).astype(np.float64)
     far = np.nanmax(d) * 4 if np.isfinite(d).any() else 1.0
     med = median_filter(np.where(np.isfinite(d), d, far), size=FEATURE_DEPTH_WINDOW)
-    iu = np.clip(np.rint(uv[:, 0]).astype(np.int64), 0, depth.shape[1] - 1)
-    iv = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, depth.shape[0] - 1)
+    iu = np.clip(nearest_pixel(uv[:, 0]), 0, depth.shape[1] - 1)
+    iv = np.clip(nearest_pixel(uv[:, 1]), 0, depth.shape[0] - 1)
     z = med[iv, iu]
     z = np.where(z < far, z, np.nan)
     cam = Camera(scan.camera.K, np.eye(4), scan.camera.width, scan.camera.height)

@@ -101,6 +101,11 @@ class IcpConfig:
     """Depth -> cloud conversion."""
     seed: int = 0
     """Seed of Open3D's RANSAC."""
+    correction_bound: tuple[float, float] | None = None
+    """Largest correction of a pair's relative pose from its initial guess: (degrees, fraction of
+    the object size); None = ``report.MAX_CORRECTION_DEG`` / ``MAX_CORRECTION_FRAC``.  The
+    pipeline sets it from the input's stated uncertainty (``prior.PosePrior``: both views of a
+    pair may be wrong by the bound)."""
 
 
 @dataclass(frozen=True)
@@ -178,11 +183,12 @@ def global_init(src, tgt, voxel: float, seed: int = 0) -> np.ndarray:
 
 
 def classify(fitness: float, rmse: float, correction: tuple[float, float] | None, size: float,
-             color_rmse: float = float("nan")) -> str:
+             color_rmse: float = float("nan"), bound: tuple[float, float] | None = None) -> str:
     """Status of a pair result against the thresholds of ``report.py`` (``color_rmse`` is
-    checked when finite, i.e. when the colour term is on)."""
-    if correction is not None and (correction[0] > R.MAX_CORRECTION_DEG
-                                   or correction[1] > R.MAX_CORRECTION_FRAC * size):
+    checked when finite, i.e. when the colour term is on); ``bound`` replaces the correction limits
+    (``IcpConfig.correction_bound``)."""
+    max_deg, max_frac = bound or (R.MAX_CORRECTION_DEG, R.MAX_CORRECTION_FRAC)
+    if correction is not None and (correction[0] > max_deg or correction[1] > max_frac * size):
         return "diverged"
     if fitness < R.MIN_FITNESS:
         return "low_fitness"
@@ -266,8 +272,8 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
         for _, _start, T in cands[: cfg.fine_candidates]:
             T, fit, rmse, info, crmse = fine_align(di.frame, dj.frame, T, cfg, size)
             corr = R.transform_delta(T, init, center_j)
-            results.append(PairResult(i, j, T, fit, rmse, info, "icp", classify(fit, rmse, corr, size, crmse),
-                                      corr[0], crmse))
+            status = classify(fit, rmse, corr, size, crmse, cfg.correction_bound)
+            results.append(PairResult(i, j, T, fit, rmse, info, "icp", status, corr[0], crmse))
         ok = [r for r in results if r.status == "ok"]
         if ok and cfg.color_scale_frac > 0 and all(math.isfinite(r.color_rmse) for r in ok):
             best = min(ok, key=lambda r: r.color_rmse)
@@ -284,7 +290,7 @@ def register_pair(di: ScanData, dj: ScanData, init: np.ndarray | None, voxels, c
         # with an initial guess, the global result must still agree with it within the
         # correction limits (a symmetric object offers many perfect-fitting global solutions)
         corr = R.transform_delta(T, init, center_j) if init is not None else None
-        st = classify(fit, rmse, corr, size, crmse)
+        st = classify(fit, rmse, corr, size, crmse, cfg.correction_bound)
         tried.append(PairResult(i, j, T, fit, rmse, info, "fpfh+icp", st, corr[0] if corr else float("nan"), crmse))
         if st == "ok":
             return tried[-1]
@@ -381,7 +387,8 @@ def _refine_edges(graph: PG.PoseGraph, data: list[ScanData], cfg: IcpConfig) -> 
         init = invert_rigid(graph.nodes[e.i]) @ graph.nodes[e.j]
         T, fit, rmse, info, crmse = fine_align(data[e.i].frame, data[e.j].frame, init, cfg, graph.size)
         corr = R.transform_delta(T, init, graph.centers[e.j])
-        if classify(fit, rmse, corr, graph.size, crmse) == "ok" and corr[0] < R.MAX_EDGE_RESIDUAL_DEG * 2:
+        ok = classify(fit, rmse, corr, graph.size, crmse, cfg.correction_bound) == "ok"
+        if ok and corr[0] < R.MAX_EDGE_RESIDUAL_DEG * 2:
             graph.replace_edge(e, replace(e, T=T, fitness=fit, rmse=rmse, information=info))
 
 

@@ -5,7 +5,12 @@ into the depth frame, then checked/refined by ICP), ``board`` (ChArUco PnP, then
 refinement), ``auto`` (board when a board is seen in most images, else ICP; with
 ``init="none"`` and more than a third of the scans flagged, SfM initialisation is tried).
 
-Flagged scans are left out of the returned scan set (not merged) unless ``keep_flagged``.
+Bounded by the input (issue 31): with ``init="nominal"`` no view moves further from its input pose
+than the input's stated uncertainty (``prior.PosePrior``, a default per rig), the solvers use it
+as a prior and a bound, and the independent check (``verify``) keeps a registered pose only where
+it explains the data significantly better than the input pose.  Every input view is in the
+returned scan set: registered, kept at its input pose, or flagged (at its input pose), each with
+its reason in the report.
 """
 
 from __future__ import annotations
@@ -16,8 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from capture.camera import Camera
+from capture.camera import Camera, invert_rigid
 from capture.registration import icp as ICP
+from capture.registration import prior as PR
 from capture.registration import report as R
 from capture.scan import Scan, ScanSet
 
@@ -28,11 +34,9 @@ AUTO_BOARD_FRACTION = 0.5
 AUTO_SFM_FLAGGED_FRACTION = 1 / 3
 
 
-def _with_poses(scanset: ScanSet, poses: list[np.ndarray], keep: list[bool]) -> ScanSet:
+def _with_poses(scanset: ScanSet, poses: list[np.ndarray]) -> ScanSet:
     scans = []
-    for s, p, k in zip(scanset.scans, poses, keep):
-        if not k:
-            continue
+    for s, p in zip(scanset.scans, poses):
         cam = s.camera
         scans.append(Scan(s.rgb, s.depth, Camera(cam.K, p, cam.width, cam.height, cam.name), s.name))
     return ScanSet(tuple(scans), scanset.bounds, dict(scanset.metadata))
@@ -117,22 +121,39 @@ def _board_gauge(scanset, out: ICP.IcpOutcome, board_init, notes) -> tuple[ICP.I
     return replace(out, cam_from_world=poses, registered=registered), set(by_board)
 
 
-def _register_free(scanset, method, init, cfg, board, notes):
-    """The per-scan-pose registration (ICP / board / SfM + ICP): (outcome, method used, board-only scans)."""
+def _bounded(cfg: ICP.IcpConfig, prior, scanset: ScanSet, poses) -> ICP.IcpConfig:
+    """``cfg`` with the pairs' correction bound from the prior (both views of a pair may be off by
+    it; a turn about the camera moves the object centre by the turn times the distance)."""
+    if prior is None:
+        return cfg
+    c = scanset.bounds.mean(axis=0)
+    dist = float(np.median([np.linalg.norm(invert_rigid(p)[:3, 3] - c) for p in poses]))
+    frac = 2 * (math.radians(prior.rot_deg) + prior.trans_frac) * dist / scanset.size
+    return replace(cfg, correction_bound=(min(R.MAX_CORRECTION_DEG, 2 * prior.rot_deg),
+                                          min(R.MAX_CORRECTION_FRAC, frac)))
+
+
+def _register_free(scanset, method, init, cfg, board, notes, pose_prior=None):
+    """The per-scan-pose registration (ICP / board / SfM + ICP): (outcome, method used, board-only
+    scans, the prior in force or None, the poses it bounds the result about)."""
     use_init = init == "nominal"
     init_poses, board_init, used = _initial_poses(scanset, method, board, notes)
     if init_poses is not None:
         use_init = True
-    out = ICP.register_icp(scanset, cfg, use_init=use_init, init_poses=init_poses)
+    ref = init_poses or [s.camera.cam_from_world for s in scanset.scans]
+    prior = (pose_prior or PR.default_prior("free", used)) if use_init else None
+    out = ICP.register_icp(scanset, _bounded(cfg, prior, scanset, ref), use_init=use_init, init_poses=init_poses)
     if method == "auto" and used == "icp" and not use_init and \
             sum(not r for r in out.registered) > AUTO_SFM_FLAGGED_FRACTION * len(scanset.scans):
         notes.append("too many scans flagged from global registration: retried from SfM poses")
-        out = ICP.register_icp(scanset, cfg, use_init=True, init_poses=_sfm_init(scanset, notes))
+        ref = _sfm_init(scanset, notes)
+        prior = pose_prior or PR.default_prior("free", "colmap")
+        out = ICP.register_icp(scanset, _bounded(cfg, prior, scanset, ref), use_init=True, init_poses=ref)
         used = "colmap"
     by_board: set = set()
     if used == "board" and board_init is not None:
         out, by_board = _board_gauge(scanset, out, board_init, notes)
-    return out, used, by_board
+    return out, used, by_board, prior, ref
 
 
 def _free_evidence(rep: R.RegistrationReport, out: ICP.IcpOutcome, cfg: ICP.IcpConfig, used: str,
@@ -156,13 +177,15 @@ def _free_evidence(rep: R.RegistrationReport, out: ICP.IcpOutcome, cfg: ICP.IcpC
             rec.residuals["colour"] = {"chroma_rmse": float(np.median(c))}
 
 
-def _register_turntable(scanset, fit, tcfg, notes, progress=None):
+def _register_turntable(scanset, fit, tcfg, notes, progress=None, pose_prior=None):
     """Turntable rig: (cam_from_world per scan, placed flags, report)."""
+    from capture.registration import turntable_place as TP
     from capture.registration import turntable_solve as TS
 
     t0 = time.perf_counter()
     tcfg = tcfg or TS.TurntableConfig()
-    out = TS.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress, fit.axis_sigma_deg)
+    out = TP.solve_turntable(scanset.scans, fit.model, fit.off, tcfg, scanset.size, progress, fit.axis_sigma_deg,
+                             pose_prior)
     placed = out.placed
     poses_in = [s.camera.cam_from_world for s in scanset.scans]
     model_poses = [out.model.pose(k) if placed[k] else None for k in range(len(placed))]
@@ -174,9 +197,12 @@ def _register_turntable(scanset, fit, tcfg, notes, progress=None):
                                rig_detection=fit.reason)
     for k, rec in enumerate(out.records):
         rep.scans.append(R.ScanRecord(names[k], rec.placed, reason=rec.reason, evidence=list(rec.evidence),
-                                      residuals=rec.residuals, angle_sigma_deg=rec.sigma_deg))
+                                      residuals=rec.residuals, angle_sigma_deg=rec.sigma_deg, angle=rec.angle))
+    by_evidence = sum(r.angle.get("source") == "evidence" for r in out.records)
     notes.append(f"turntable axis {np.round(out.model.axis, 4).tolist()} through "
-                 f"{np.round(out.model.point, 4).tolist()}; {sum(placed)}/{len(placed)} views placed")
+                 f"{np.round(out.model.point, 4).tolist()}; {sum(placed)}/{len(placed)} views on the ring"
+                 + (f", {by_evidence} at the angle their evidence gives, the others at their input angle"
+                    if pose_prior is not None else ""))
     if out.axis_note:
         notes.append(out.axis_note)
     notes.append("axis placed by " + ", ".join(f"{e} {v:.0%}" for e, v in
@@ -210,10 +236,29 @@ def choose_rig(scanset: ScanSet, rig: str, method: str, init: str, board=None):
     return fit, "turntable" if auto_ok else "free"
 
 
+def apply_bound(scanset: ScanSet, rep: R.RegistrationReport, poses: list[np.ndarray], registered: list[bool],
+                prior, reference: list[np.ndarray]) -> tuple[list[np.ndarray], list[bool]]:
+    """No view further from its input (``reference``) than the stated uncertainty: a registered pose
+    beyond it is replaced by the input pose (the solvers are bounded too; this is the last word)."""
+    centre = scanset.bounds.mean(axis=0)
+    poses, kept = list(poses), list(registered)
+    for k, rec in enumerate(rep.scans):
+        if not registered[k]:
+            continue
+        ok, text = PR.within(prior, poses[k], reference[k], centre)
+        rot, trans = PR.move(poses[k], reference[k], centre)
+        rec.move = {"rot_deg": round(rot, 4), "trans_frac": round(trans, 5), "within": ok}
+        if not ok:
+            poses[k] = scanset.scans[k].camera.cam_from_world
+            rec.status, rec.reason = KEPT, text + ": kept at its input pose"
+            kept[k] = False
+    return poses, kept
+
+
 def apply_check(scanset: ScanSet, rep: R.RegistrationReport, poses: list[np.ndarray], registered: list[bool],
-                progress=None) -> tuple[list[np.ndarray], list[bool]]:
-    """The independent check (``verify``): per view the registered pose, the nominal (input) one,
-    or flagged; the report's records say which, why, and both judgements."""
+                progress=None) -> list[np.ndarray]:
+    """The independent check (``verify``): per view its registered pose when that explains the data
+    significantly better than its input pose, else its input pose; the records say which and why."""
     from capture.registration import check as C
     from capture.registration import verify as V
 
@@ -223,37 +268,57 @@ def apply_check(scanset: ScanSet, rep: R.RegistrationReport, poses: list[np.ndar
     nominal = [s.camera.cam_from_world for s in scanset.scans]
     ver = V.verify(views, nominal, poses, registered, scanset.bounds.mean(axis=0), scanset.size)
     for rec, v in zip(rep.scans, ver.verdicts):
-        if v.status != V.REGISTERED:
-            rec.evidence = ["nominal pose"] if v.status == V.KEPT else []
-        rec.status, rec.check = v.status, v.to_json()
-        rec.reason = v.reason if v.status != V.REGISTERED else ""
-        if v.status == V.KEPT and not rec.registered:
-            rec.reason = "the registration did not place it; its nominal pose is consistent"
-        rec.registered = v.status != V.FLAGGED
-    rep.check = {"consistent_nominal": ver.consistent_nominal, "consistent_final": ver.consistent_final,
-                 "improved": ver.improved, **{s: sum(v.status == s for v in ver.verdicts)
-                                              for s in (V.REGISTERED, V.KEPT, V.FLAGGED)}}
+        if v.status == V.FLAGGED:
+            continue  # not placed (flagged, or kept by the bound): the status and reason stand
+        rec.check = v.to_json()
+        if v.status == V.KEPT and rec.status != KEPT:
+            rec.status, rec.reason = KEPT, v.reason
+        elif v.status == V.REGISTERED:
+            rec.status = REGISTERED
+    rep.check = {"improved": ver.improved, "t_better": V.T_BETTER,
+                 **{s: sum(r.status == s for r in rep.scans) for s in (REGISTERED, KEPT, FLAGGED)}}
     rep.notes.extend(ver.notes)
     rep.seconds["check"] = time.perf_counter() - t0
-    return ver.poses, ver.placed
+    return ver.poses
+
+
+REGISTERED, KEPT, FLAGGED = "registered", "kept at input", "flagged"
+
+
+def _solve(scanset, method, init, cfg, board, rig, turntable_config, progress, pose_prior, notes):
+    """The rig's solver: (poses, placed flags, report, prior in force, the poses it bounds about)."""
+    fit, use = choose_rig(scanset, rig, method, init, board)
+    inputs = [s.camera.cam_from_world for s in scanset.scans]
+    if use == "turntable":
+        prior = None if init == "none" else (pose_prior or PR.default_prior("turntable", method, fit))
+        poses, placed, rep = _register_turntable(scanset, fit, turntable_config, notes, progress, prior)
+        return poses, placed, rep, prior, inputs
+    out, used, by_board, prior, ref = _register_free(scanset, method, init, cfg, board, notes, pose_prior)
+    rep = _report_from_icp(scanset, out, used, init)
+    _free_evidence(rep, out, cfg, used, by_board)
+    if fit is not None:
+        rep.rig_detection = fit.reason
+    return out.cam_from_world, out.registered, rep, prior, ref
 
 
 def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", config: ICP.IcpConfig | None = None,
-             keep_flagged: bool = False, board=None, rig: str = "free", turntable_config=None,
-             progress=None, check: bool = True) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
+             board=None, rig: str = "free", turntable_config=None, progress=None, check: bool = True,
+             pose_prior: PR.PosePrior | None = None) -> tuple[ScanSet, R.RegistrationReport, list[np.ndarray]]:
     """Register ``scanset``.
 
     Args:
-        method: one of ``METHODS``. init: ``"nominal"`` (start from the input poses) or ``"none"``.
+        method: one of ``METHODS``. init: ``"nominal"`` (start from the input poses) or ``"none"``
+            (a global search, unbounded by the input).
         board: a ``board.BoardSpec`` for ``board``/``auto`` (None = the default synthetic board).
         rig: ``free`` (a pose per scan), ``turntable`` (one axis, one angle per scan:
-            ``turntable_solve``) or ``auto`` (turntable when the nominal poses describe one and
+            ``turntable_place``) or ``auto`` (turntable when the nominal poses describe one and
             the method is auto/icp from nominal poses).
-        check: judge every view's registered and nominal pose independently (``verify``) and
-            keep the consistent one (``init="nominal"`` only).
+        check: keep a registered pose only where it explains the data significantly better than
+            the input pose (``verify``; ``init="nominal"`` only).
+        pose_prior: the input's stated uncertainty (``prior.PosePrior``); None = the rig's default.
     Returns:
-        (registered scan set (flagged scans left out unless ``keep_flagged``), report,
-        cam_from_world per input scan (flagged scans keep their input pose)).
+        (scan set with every input view: registered, kept at or flagged at its input pose; report;
+        cam_from_world per input scan).
     """
     if method not in METHODS:
         raise ValueError(f"unknown registration method {method!r}; choose from {', '.join(METHODS)}")
@@ -262,26 +327,22 @@ def register(scanset: ScanSet, method: str = "auto", init: str = "nominal", conf
     cfg = config or ICP.IcpConfig()
     t0 = time.perf_counter()
     notes: list[str] = []
-    fit, use = choose_rig(scanset, rig, method, init, board)
-    if use == "turntable":
-        poses, registered, rep = _register_turntable(scanset, fit, turntable_config, notes, progress)
-        used = "turntable"
-    else:
-        out, used, by_board = _register_free(scanset, method, init, cfg, board, notes)
-        rep = _report_from_icp(scanset, out, used, init)
-        _free_evidence(rep, out, cfg, used, by_board)
-        if fit is not None:
-            rep.rig_detection = fit.reason
-        poses, registered = out.cam_from_world, out.registered
+    poses, registered, rep, prior, ref = _solve(scanset, method, init, cfg, board, rig, turntable_config, progress,
+                                                pose_prior, notes)
     rep.notes.extend(notes)
+    for rec, r in zip(rep.scans, registered):
+        rec.status = REGISTERED if r else FLAGGED
+    if prior is not None:
+        rep.pose_prior = prior.to_json()
+        rep.notes.append(f"every move bounded by {prior.rot_deg:.2f} deg / {100 * prior.trans_frac:.2f} % "
+                         f"({prior.source})")
+        poses, registered = apply_bound(scanset, rep, poses, registered, prior, ref)
     if check and init == "nominal":
-        poses, registered = apply_check(scanset, rep, poses, registered, progress)
+        poses = apply_check(scanset, rep, poses, registered, progress)
+    for rec in rep.scans:
+        rec.registered = rec.status == REGISTERED
     rep.seconds["total"] = time.perf_counter() - t0
-    if not any(registered):
-        raise RuntimeError(f"no scan could be placed ({rep.rig} rig): " +
-                           "; ".join(f"{s.name}: {s.reason}" for s in rep.scans[:3]))
-    keep = [True] * len(scanset.scans) if keep_flagged else list(registered)
-    result = _with_poses(scanset, poses, keep)
+    result = _with_poses(scanset, poses)
     result = replace(result, metadata={**scanset.metadata, "registration": {
-        "method": used, "init": init, "rig": rep.rig, "flagged": rep.flagged, "gauge": rep.gauge}})
+        "method": rep.method, "init": init, "rig": rep.rig, "flagged": rep.flagged, "gauge": rep.gauge}})
     return result, rep, poses

@@ -28,6 +28,7 @@ from capture.camera import Camera
 from capture.depth_normals import depth_normals
 from capture.registration import points as P
 from capture.registration import rangeimage as RI
+from capture.sampling import nearest_pixel, sample_image
 from capture.scan import Scan
 
 #: Minimum cosine between source and target normals for a projective correspondence.
@@ -128,22 +129,6 @@ def chroma(rgb: np.ndarray) -> np.ndarray:
     return (c[..., 0] - c[..., 2]) / (c.sum(axis=-1) + CHROMA_EPS)
 
 
-def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Sample (H, W[, C]) at continuous pixel coordinates (clamped to the image)."""
-    H, W = img.shape[:2]
-    u = np.clip(u, 0, W - 1.000001)
-    v = np.clip(v, 0, H - 1.000001)
-    u0 = np.floor(u).astype(np.int64)
-    v0 = np.floor(v).astype(np.int64)
-    a = u - u0
-    b = v - v0
-    if img.ndim == 3:
-        a = a[:, None]
-        b = b[:, None]
-    return ((1 - a) * (1 - b) * img[v0, u0] + a * (1 - b) * img[v0, u0 + 1]
-            + (1 - a) * b * img[v0 + 1, u0] + a * b * img[v0 + 1, u0 + 1])
-
-
 @dataclass
 class ProjectiveResult:
     """Outcome of :func:`projective_icp`."""
@@ -171,8 +156,8 @@ def associate(src_pts: np.ndarray, src_nrm: np.ndarray, tgt: DepthFrame, T: np.n
     zs = np.where(good, z, 1.0)
     uf = K[0, 0] * q[:, 0] / zs + K[0, 1] * q[:, 1] / zs + K[0, 2]
     vf = K[1, 1] * q[:, 1] / zs + K[1, 2]
-    u = np.rint(np.clip(uf, -1, 1e6)).astype(np.int64)
-    v = np.rint(np.clip(vf, -1, 1e6)).astype(np.int64)
+    u = nearest_pixel(np.clip(uf, -1, 1e6))
+    v = nearest_pixel(np.clip(vf, -1, 1e6))
     H, W = tgt.valid.shape
     good &= (u >= 0) & (u < W) & (v >= 0) & (v < H)
     u = np.where(good, u, 0)
@@ -221,8 +206,8 @@ def point_twist_jacobian(q: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 def _color_rows(q, uv, si, tgt: DepthFrame, color_scale: float):
     """Photometric rows (residual, Jacobian, Huber weight), all scaled to metres."""
-    rc = (_bilinear(tgt.intensity, uv[:, 0], uv[:, 1]) - si) * color_scale
-    g = _bilinear(tgt.grad, uv[:, 0], uv[:, 1])
+    rc = (sample_image(tgt.intensity, uv[:, 0], uv[:, 1], "linear", "clamp") - si) * color_scale
+    g = sample_image(tgt.grad, uv[:, 0], uv[:, 1], "linear", "clamp")
     a = np.einsum("nk,nkj->nj", g, projection_jacobian(tgt.camera.K, q))  # dI/dq
     Jc = point_twist_jacobian(q, a) * color_scale
     hc = COLOR_HUBER * color_scale
@@ -231,8 +216,8 @@ def _color_rows(q, uv, si, tgt: DepthFrame, color_scale: float):
 
 def _color_ok(samples: Samples, good: np.ndarray, uv: np.ndarray, tgt: DepthFrame) -> np.ndarray:
     H, W = tgt.color_valid.shape
-    cu = np.clip(np.rint(uv[:, 0]).astype(np.int64), 0, W - 1)
-    cv = np.clip(np.rint(uv[:, 1]).astype(np.int64), 0, H - 1)
+    cu = np.clip(nearest_pixel(uv[:, 0]), 0, W - 1)
+    cv = np.clip(nearest_pixel(uv[:, 1]), 0, H - 1)
     return samples.color_valid[good] & tgt.color_valid[cv, cu]
 
 
@@ -298,7 +283,7 @@ def alignment_stats(samples: Samples, tgt: DepthFrame, T: np.ndarray, gate: floa
     cok = _color_ok(samples, good, uvg, tgt)
     crmse = float("nan")
     if cok.sum() > 0:
-        rc = _bilinear(tgt.intensity, uvg[cok, 0], uvg[cok, 1]) - samples.intensity[good][cok]
+        rc = sample_image(tgt.intensity, uvg[cok, 0], uvg[cok, 1], "linear", "clamp") - samples.intensity[good][cok]
         crmse = float(np.sqrt(np.mean(np.minimum(np.abs(rc), COLOR_RMSE_CLIP) ** 2)))
     return float(good.sum()) / max(len(samples.points), 1), rmse, int(good.sum()), crmse
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.camera import Camera, cv_from_corner, cv_rotation_from_gl_axes, make_K
+from capture.sampling import nearest_pixel
 from capture.scan import Scan, ScanSet, bounds_from_points
 
 CAMERA_FIELDS = ("view_px view_py view_pz x_axisx x_axisy x_axisz y_axisx y_axisy y_axisz z_axisx z_axisy "
@@ -101,8 +102,8 @@ def rangemap_depth(pts_m: np.ndarray, camera: Camera) -> tuple[np.ndarray, float
     """Z-buffer the points (metres) into the camera: (depth (H, W) float32, fraction inside)."""
     uv, z = camera.project(pts_m)
     ok = np.isfinite(uv).all(axis=1) & (z > 0)
-    iu = np.rint(uv[ok, 0]).astype(np.int64)
-    iv = np.rint(uv[ok, 1]).astype(np.int64)
+    iu = nearest_pixel(uv[ok, 0])
+    iv = nearest_pixel(uv[ok, 1])
     zz = z[ok]
     inside = (iu >= 0) & (iu < camera.width) & (iv >= 0) & (iv < camera.height)
     depth = np.full(camera.height * camera.width, np.inf)

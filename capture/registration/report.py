@@ -2,7 +2,7 @@
 
 Every threshold that decides whether a registration is accepted is a named constant here,
 documented with its unit.  A pair registration is *accepted* only if it passes all of them;
-a scan is *flagged* (reported by name with its figures and left out of the output) when no
+a scan is *flagged* (reported by name with its figures, and written at its input pose) when no
 accepted, pose-graph-consistent pair connects it to the gauge scan.
 """
 
@@ -142,9 +142,17 @@ class ScanRecord:
     angle_sigma_deg: float = float("nan")
     """Turntable rig: standard deviation of its angle (degrees) from the inverse information."""
     status: str = ""
-    """After the independent check (``verify``): "registered", "kept nominal" or "flagged"."""
+    """"registered" (the output holds its registered pose), "kept at input" (the output holds its
+    input pose: the evidence could not beat it, see ``reason``) or "flagged" (kept at its input
+    pose, and the registration found it wrong: a foreign object, off the rig, no accepted pair)."""
     check: dict = field(default_factory=dict)
-    """The independent check's judgements of its nominal and registered pose (``verify.ViewVerdict``)."""
+    """The independent check's comparison of its registered and input pose (``verify.ViewVerdict``)."""
+    angle: dict = field(default_factory=dict)
+    """Turntable rig: where its angle comes from, the evidence or its input, with the hypotheses
+    that fit within noise (``angles.AngleDecision``)."""
+    move: dict = field(default_factory=dict)
+    """How far its registered pose is from its input pose, against the stated uncertainty
+    (``prior.move``): rot_deg, trans_frac, within."""
 
 
 @dataclass
@@ -165,12 +173,19 @@ class RegistrationReport:
     seconds: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     check: dict = field(default_factory=dict)
-    """Summary of the independent check: views per status, consistent views at the input poses
-    and in the result, and whether any view was improved."""
+    """Summary of the independent check: views per status and whether any view was improved."""
+    pose_prior: dict = field(default_factory=dict)
+    """The input's stated uncertainty that bounded every move (``prior.PosePrior``), or empty for a
+    global search (``--init none``)."""
 
     @property
     def flagged(self) -> list[str]:
-        return [s.name for s in self.scans if not s.registered]
+        return [s.name for s in self.scans if (s.status == "flagged" if s.status else not s.registered)]
+
+    @property
+    def kept(self) -> list[str]:
+        """Views kept at their input pose because the evidence could not beat it (not failures)."""
+        return [s.name for s in self.scans if s.status == "kept at input"]
 
     def to_json(self) -> dict:
         def clean(v):
@@ -184,8 +199,10 @@ class RegistrationReport:
 
         d = asdict(self)
         d["flagged"] = self.flagged
+        d["kept_at_input"] = self.kept
         d["n_scans"] = len(self.scans)
         d["n_registered"] = sum(s.registered for s in self.scans)
+        d["n_written"] = len(self.scans)
         return clean(d)
 
 

@@ -201,3 +201,58 @@ def with_sensor(scanset: ScanSet, seed: int = 0, **kw) -> ScanSet:
     scans = tuple(Scan(s.rgb, sensor_depth(s.depth, np.random.default_rng([seed, k]), **kw), s.camera, s.name)
                   for k, s in enumerate(scanset.scans))
     return ScanSet(scans, scanset.bounds, {**scanset.metadata, "sensor": {"seed": seed, **kw}})
+
+
+# ------------------------------------------------------------------ a near-symmetric object (issue 31)
+#: Radius of the symmetric test ball (metres).
+BALL_RADIUS = 0.09
+
+
+def symmetric_object() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices, faces, colours): a ball about +z painted in latitude bands only: it looks the same
+    from every turntable angle (the uniform fur ball of issue 31, without the fur)."""
+    rows, cols = 48, 96
+    th = np.linspace(0, np.pi, rows + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, cols, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    ring = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3)
+    v = BALL_RADIUS * np.concatenate([[[0, 0, 1]], ring, [[0, 0, -1]]])
+    idx = 1 + np.arange((rows - 1) * cols).reshape(rows - 1, cols)
+    nxt = np.roll(idx, -1, axis=1)
+    quads = [np.stack([idx[:-1], idx[1:], nxt[1:]], -1), np.stack([idx[:-1], nxt[1:], nxt[:-1]], -1)]
+    f = np.concatenate([q.reshape(-1, 3) for q in quads]
+                       + [np.stack([np.zeros(cols, int), idx[0], nxt[0]], -1),
+                          np.stack([np.full(cols, len(v) - 1), nxt[-1], idx[-1]], -1)])
+    return v, f, band_texture(v)
+
+
+def band_texture(p: np.ndarray) -> np.ndarray:
+    """Latitude bands (a function of height only): linear RGB in [0.1, 0.8]."""
+    z = np.asarray(p, np.float64)[:, 2]
+    t = 0.5 + 0.5 * np.sin(z * 90.0)
+    return np.stack([0.2 + 0.6 * t, 0.15 + 0.3 * t, 0.1 + 0.1 * t], axis=1).astype(np.float32)
+
+
+def symmetric_set(cameras: list[Camera], highlight: float = 0.0) -> ScanSet:
+    """Ray-cast :func:`symmetric_object` into every camera.  ``highlight`` > 0 adds a white
+    specular highlight of that strength from a light that turns with the camera (a turntable: the
+    object turns, camera and lights stand still): neighbouring views then look most alike at a
+    relative angle of zero, the wrong one."""
+    from capture.registration.raycast import raycast_scan
+
+    v, f, _ = symmetric_object()
+    scans = []
+    for cam in cameras:
+        def tex(p, cam=cam):
+            col = band_texture(p).astype(np.float64)
+            if highlight > 0:
+                n = p / np.linalg.norm(p, axis=1, keepdims=True)
+                light = cam.world_from_cam[:3, :3] @ np.array([0.4, -0.4, -1.0]) / np.sqrt(1.32)
+                view = cam.center - p
+                view /= np.linalg.norm(view, axis=1, keepdims=True)
+                h = view + light
+                h /= np.linalg.norm(h, axis=1, keepdims=True)
+                col += highlight * np.clip(np.sum(n * h, axis=1), 0, 1)[:, None] ** 40
+            return np.clip(col, 0, 1)
+        scans.append(raycast_scan(v, f, cam, None, name=cam.name, texture_fn=tex))
+    return ScanSet(tuple(scans), bounds_from_points(v, margin=0.02), {"generator": "capture.registration.scenes"})

@@ -346,3 +346,38 @@ def opposite_pairs(model: Turntable, active: list[int], tol_deg: float) -> list[
         return abs(math.degrees(d) - 180.0)
 
     return [(i, j) for i in active for j in active if i != j and off(i, j) <= tol_deg]
+
+
+@dataclass(frozen=True)
+class AnglePrior:
+    """The input angles as a measurement (issue 31): view k's angle ``centre[k]`` (radians) with
+    standard deviation ``sigma`` and a hard ``bound`` (radians) on its distance from it.  A shift
+    common to every angle changes no pose (``Turntable.pose`` depends on angle differences): it is
+    the gauge, and the bound applies to each angle's offset relative to the mean offset."""
+
+    centre: np.ndarray
+    sigma: float
+    bound: float
+
+    def shift(self, model: Turntable, active: list[int]) -> float:
+        """The common offset (radians) of the ``active`` views' angles from their centres."""
+        d = model.angles[active] - self.centre[active]
+        return float(np.mean(d)) if len(d) else 0.0
+
+    def offsets(self, model: Turntable, active: list[int]) -> np.ndarray:
+        """(N,) every angle's offset from its centre, less the common shift (radians)."""
+        return model.angles - self.centre - self.shift(model, active)
+
+    def system(self, model: Turntable) -> tuple[np.ndarray, np.ndarray]:
+        """(diagonal of H (N,), g (N,)): the prior's normal equations in the angle updates."""
+        w = self.sigma ** -2
+        d = np.nan_to_num(model.angles - self.centre)
+        return np.full(len(d), w), -w * d
+
+    def clamp(self, model: Turntable, active: list[int]) -> Turntable:
+        """The model with every active angle's offset (less the common shift) within the bound."""
+        c = self.shift(model, active)
+        ang = model.angles.copy()
+        a = np.asarray(active, np.int64)
+        ang[a] = self.centre[a] + c + np.clip(ang[a] - self.centre[a] - c, -self.bound, self.bound)
+        return replace(model, angles=ang)

@@ -1,38 +1,66 @@
-"""Never worse than the input (issue 22): every view keeps the pose that the independent check
-(``check``) finds consistent, the registered one or the nominal (input) one, or is flagged.
+"""Never worse than the input (issues 22, 31): a view keeps its registered pose only when that
+explains the data significantly better than its input pose, by the independent check's evidence
+(``check``); else it keeps its input pose, and the report says why with the numbers.
 
-1. Every view is judged at its nominal pose among the nominal poses, and (when the registration
-   placed it) at its registered pose among the registered poses.
-2. A view takes its registered pose when that is consistent and the nominal one is not, or scores
-   better by ``PREFER_MARGIN``; else its nominal pose when that is consistent; else it is flagged.
-   (Exact input poses therefore come back unchanged: the registered pose has to *win*.)
-3. The mixed result is judged again, each placed view against its placed neighbours, until no
-   view changes (``MAX_ROUNDS``): a view that is not consistent there (or scores below
-   ``MIN_RELATIVE_SCORE`` of the consistent views' median) tries its other pose, else is flagged.
-4. Across the capture the result is never worse than the input on that evidence: when fewer
-   views are consistent in the result than among the nominal poses, every view goes back to its
-   nominal judgement.
+Agreement with placed neighbours is not proof: a group of views placed wrong together agrees with
+itself (issue 31: a uniform fur ball, 8 views at other views' angles, all "consistent").  So the
+comparison is always relative to the input pose, against the same neighbours:
+
+1. Every view is scored at its registered pose and at its input pose against its neighbours
+   where the result puts them (``check.view_tiles``), tile by tile.
+2. It takes the registered pose when the tile differences' paired t is at least ``T_BETTER``
+   (the margin is the capture's own noise: fur and leaves differ by orders of magnitude), and
+   the co-visible evidence is enough (``check.MIN_COVISIBLE``).
+3. A view going back to its input pose moves its neighbours' reference: the result is judged
+   again until no view changes (``MAX_ROUNDS``).
+
+Views the registration did not place (flagged by their solver, with its reason) keep their input
+pose.  Exact input poses come back unchanged: a registered pose has to *win*.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from capture.registration import check as C
+from capture.registration.angles import paired_t
 
 REGISTERED = "registered"
-KEPT = "kept nominal"
+KEPT = "kept at input"
 FLAGGED = "flagged"
-#: The registered pose replaces a consistent nominal one only when it scores better by this much.
-PREFER_MARGIN = 0.01
-#: Rounds of re-judging the mixed result.
+#: The registered pose replaces the input pose when it scores better by this many standard errors
+#: (paired t over the image tiles of the view's pairs, both directions).
+T_BETTER = 3.0
+#: Rounds of re-judging the result.
 MAX_ROUNDS = 3
-#: In the mixed result a placed view must also score at least this fraction of the median score
-#: of the consistent views: a pose far off can sit on a flat stretch of the score (fur, 3 degrees
-#: out: 0.26-0.30 against 0.39-0.56 at the true poses), where no probe beats it.
-MIN_RELATIVE_SCORE = 0.7
+
+
+@dataclass
+class Comparison:
+    """The check's comparison of one view's registered and input poses (same neighbours)."""
+
+    registered_score: float
+    """Mean pair score at the registered pose (agreement fraction + ``COLOUR_WEIGHT`` * NCC)."""
+    input_score: float
+    """... and at the input pose."""
+    t: float
+    """Paired t of the tile scores, registered minus input (positive: the registered pose is better)."""
+    tiles: int
+    """Tiles with evidence at either pose."""
+    covisible: int
+    """Agreeing samples at the registered pose over all neighbours."""
+
+    @property
+    def better(self) -> bool:
+        return self.covisible >= C.MIN_COVISIBLE and self.t >= T_BETTER
+
+    def to_json(self) -> dict:
+        t = self.t if math.isfinite(self.t) else (1e9 if self.t > 0 else -1e9)
+        return {"registered_score": round(self.registered_score, 5), "input_score": round(self.input_score, 5),
+                "t": round(t, 2), "tiles": self.tiles, "covisible": self.covisible, "better": self.better}
 
 
 @dataclass
@@ -42,14 +70,11 @@ class ViewVerdict:
     status: str
     """``REGISTERED``, ``KEPT`` or ``FLAGGED``."""
     reason: str
-    nominal: C.Judgement | None = None
-    registered: C.Judgement | None = None
-    final: C.Judgement | None = None
-    """The judgement of the kept pose among the final poses."""
+    comparison: Comparison | None = None
 
     def to_json(self) -> dict:
         return {"status": self.status, "reason": self.reason,
-                **{k: getattr(self, k).to_json() for k in ("nominal", "registered", "final") if getattr(self, k)}}
+                **({"comparison": self.comparison.to_json()} if self.comparison else {})}
 
 
 @dataclass
@@ -57,12 +82,8 @@ class Verification:
     """Result of :func:`verify`."""
 
     poses: list[np.ndarray]
-    """cam_from_world per view (flagged views: their nominal pose)."""
+    """cam_from_world per view (views not registered: their input pose)."""
     verdicts: list[ViewVerdict]
-    consistent_nominal: int
-    """Views consistent among the nominal poses."""
-    consistent_final: int
-    """Views consistent (and placed) in the result."""
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -75,87 +96,55 @@ class Verification:
         return any(v.status == REGISTERED for v in self.verdicts)
 
 
-def _judge_all(views, poses, mask, centre, size, which=None) -> list[C.Judgement | None]:
-    use = [k for k in range(len(poses)) if mask[k]]
-    nb_all = C.neighbours([poses[k] for k in use], centre)
-    out: list = [None] * len(poses)
-    for a, k in enumerate(use):
-        if which is not None and k not in which:
-            continue
-        out[k] = C.judge(views, k, poses[k], poses, [use[b] for b in nb_all[a]], centre, size)
-    return out
+def compare(views, k: int, registered: np.ndarray, nominal: np.ndarray, poses: list, nbrs: list[int],
+            size: float) -> Comparison:
+    """View k at its ``registered`` and ``nominal`` pose against ``nbrs`` at ``poses``."""
+    a = C.view_tiles(views, k, registered, poses, nbrs, size)
+    b = C.view_tiles(views, k, nominal, poses, nbrs, size)
+    live = (a != 0) | (b != 0)
+    sa, m = C.view_score(views, k, registered, poses, nbrs, size)
+    sb, _ = C.view_score(views, k, nominal, poses, nbrs, size)
+    return Comparison(sa, sb, paired_t(a[live], b[live]), int(live.sum()), m)
 
 
-def _first_choice(jn: C.Judgement, jr: C.Judgement | None) -> tuple[str, str]:
-    if jr is not None and jr.consistent and (not jn.consistent or jr.score > jn.score + PREFER_MARGIN):
-        why = "the nominal pose is not consistent" if not jn.consistent else \
-            f"consistent, scores {jr.score - jn.score:+.3f} over the nominal pose"
-        return REGISTERED, why
-    if jn.consistent:
-        why = "the registration did not place it" if jr is None else (
-            "the registered pose is not consistent with its neighbours" if not jr.consistent else
-            f"the registered pose scores no better ({jr.score - jn.score:+.3f})")
-        return KEPT, why
-    return FLAGGED, _flag_reason(jn, jr)
-
-
-def _flag_reason(jn: C.Judgement, jr: C.Judgement | None) -> str:
-    def one(j: C.Judgement) -> str:
-        if j.covisible < C.MIN_COVISIBLE:
-            return f"too little co-visible surface ({j.covisible} samples)"
-        return (f"a pose {C.PROBE_DEG:g} deg / {100 * C.PROBE_FRAC:g} % away fits better "
-                f"({j.best_probe:.3f} > {j.score:.3f})")
-    text = "neither pose is consistent with its neighbours: nominal: " + one(jn)
-    return text + ("; registered: " + one(jr) if jr is not None else "; the registration did not place it")
+def _reason(c: Comparison) -> str:
+    if c.covisible < C.MIN_COVISIBLE:
+        return f"too little co-visible surface to judge it ({c.covisible} samples): kept at its input pose"
+    return (f"the registered pose does not explain the data significantly better than the input pose "
+            f"(t = {c.t:.1f} < {T_BETTER:g}; scores {c.registered_score:.3f} vs {c.input_score:.3f})")
 
 
 def verify(views: list[C.CheckView], nominal: list[np.ndarray], registered: list[np.ndarray], placed: list[bool],
            centre: np.ndarray, size: float) -> Verification:
-    """Decide per view between its nominal and registered pose (see the module docstring)."""
+    """Decide per view between its input (``nominal``) and ``registered`` pose (module docstring)."""
     n = len(nominal)
-    jn = _judge_all(views, nominal, [True] * n, centre, size)
-    jr = _judge_all(views, registered, placed, centre, size)
-    choice = [_first_choice(jn[k], jr[k]) for k in range(n)]
-    status = [c[0] for c in choice]
-    reason = [c[1] for c in choice]
-    final: list = [None] * n
+    use = [k for k in range(n) if placed[k] and not np.allclose(registered[k], nominal[k], atol=1e-12)]
+    status = {k: REGISTERED for k in use}
+    comp: dict = {}
     for _ in range(MAX_ROUNDS):
-        poses = [registered[k] if status[k] == REGISTERED else nominal[k] for k in range(n)]
-        final = _judge_all(views, poses, [s != FLAGGED for s in status], centre, size)
-        good = [final[k].score for k in range(n) if status[k] != FLAGGED and final[k].consistent]
-        floor = MIN_RELATIVE_SCORE * float(np.median(good)) if good else 0.0
+        poses = [registered[k] if status.get(k) == REGISTERED else nominal[k] for k in range(n)]
+        nb = C.neighbours(poses, centre)
         changed = False
-        for k in range(n):
-            if status[k] == FLAGGED or (final[k].consistent and final[k].score >= floor):
-                continue
-            changed = True
-            other = nominal[k] if status[k] == REGISTERED else (registered[k] if placed[k] else None)
-            if other is not None:
-                alt = _judge_all(views, [other if b == k else poses[b] for b in range(n)],
-                                 [s != FLAGGED for s in status], centre, size, which={k})[k]
-                if alt.consistent and alt.score >= floor:
-                    status[k] = KEPT if status[k] == REGISTERED else REGISTERED
-                    reason[k] = "the other pose is not consistent with its placed neighbours"
-                    continue
-            status[k] = FLAGGED
-            reason[k] = (f"not consistent with its placed neighbours (a pose {C.PROBE_DEG:g} deg away fits better: "
-                         f"{final[k].best_probe:.3f} > {final[k].score:.3f})" if not final[k].consistent else
-                         f"scores {final[k].score:.3f} against its placed neighbours, below {MIN_RELATIVE_SCORE:g} "
-                         f"of the consistent views' median")
+        for k in [k for k in use if status[k] == REGISTERED]:
+            comp[k] = compare(views, k, registered[k], nominal[k], poses, nb[k], size)
+            if not comp[k].better:
+                status[k] = KEPT
+                changed = True
         if not changed:
             break
-    poses = [registered[k] if status[k] == REGISTERED else nominal[k] for k in range(n)]
-    if changed:  # the last round changed something: judge the result as it stands
-        final = _judge_all(views, poses, [s != FLAGGED for s in status], centre, size)
-    n_nom = sum(j.consistent for j in jn)
-    n_fin = sum(status[k] != FLAGGED and final[k] is not None and final[k].consistent for k in range(n))
-    notes = []
-    if n_fin < n_nom:
-        notes.append(f"fewer views consistent after registration ({n_fin}) than at the input poses ({n_nom}): "
-                     "every view keeps its nominal judgement")
-        status = [KEPT if j.consistent else FLAGGED for j in jn]
-        reason = ["the registration as a whole is less consistent than the input" if j.consistent else
-                  _flag_reason(j, None) for j in jn]
-        poses, final, n_fin = list(nominal), jn, n_nom
-    verdicts = [ViewVerdict(status[k], reason[k], jn[k], jr[k], final[k]) for k in range(n)]
-    return Verification(poses, verdicts, n_nom, n_fin, notes)
+    poses = [registered[k] if status.get(k) == REGISTERED else nominal[k] for k in range(n)]
+    verdicts = []
+    for k in range(n):
+        if not placed[k]:
+            verdicts.append(ViewVerdict(FLAGGED, "the registration did not place it: kept at its input pose"))
+        elif k not in status:
+            verdicts.append(ViewVerdict(KEPT, "the registration left it at its input pose"))
+        elif status[k] == REGISTERED:
+            c = comp[k]
+            verdicts.append(ViewVerdict(REGISTERED, f"explains the data better than the input pose (t = {c.t:.1f}; "
+                                        f"scores {c.registered_score:.3f} vs {c.input_score:.3f})", c))
+        else:
+            verdicts.append(ViewVerdict(KEPT, _reason(comp[k]), comp[k]))
+    notes = [f"independent check: {sum(v.status == REGISTERED for v in verdicts)} views explain the data "
+             f"better than at their input pose (t >= {T_BETTER:g})"]
+    return Verification(poses, verdicts, notes)

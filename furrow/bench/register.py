@@ -14,22 +14,31 @@ direction, seeded):
 * ``sfm``: the analytic object with a feature-rich solid texture, 36 views at 320x240 (SfM needs
   a short baseline; used for the ``colmap`` method).
 
-* ``plant`` / ``torus`` / ``furball`` / ``furball-curly`` / ``furrybunny`` with ``--data DIR``:
-  36-view 640x480 captures written once by ``furrow synth NAME -o DIR/NAME --depth-format exr``
-  (``furball-curly``: ``furrow synth furball --curly``, the harder fur ball of issue 22; made when
+* ``plant`` / ``torus`` / ``furball`` / ``furball-curly`` / ``furball-uniform`` / ``furrybunny`` with
+  ``--data DIR``: 36-view 640x480 captures written once by ``furrow synth NAME -o DIR/NAME
+  --depth-format exr`` (``furball-curly``: ``furrow synth furball --curly``, the harder fur ball of
+  issue 22; ``furball-uniform``: ``--coat uniform``, one coat on a sphere, issue 31; made when
   missing), given a consumer sensor's traits in memory (``--sensor mm``, the default: flying
   pixels on depth edges, z^2 noise, 16-bit millimetre quantisation;
   ``capture.registration.scenes.sensor_depth``).
 
 ``--rigs free,turntable``: the per-scan-pose registration and the turntable prior
-(``turntable_solve``), each on the same perturbed poses.
+(``turntable_place``), each on the same perturbed poses.
+
+``--captures DIR,...``: ``furrow register``'s defaults on captures whose recorded poses are already
+perturbed and whose true poses are in ``gt/cameras_true.json`` (``furrow synth --pose-noise-deg``,
+or the independent path-traced hard cases of /work/cache/hardcases): every view is scored, the
+ones kept at their input pose too (issue 31: all views written; none worse than its input).
 
 Errors (``capture.registration.report.pose_errors``): rotation of cam_from_world and
 displacement of the object centre in camera coordinates (mm and % of the object size), after the
-rigid transform that best fits all placed poses to the truth, over the placed views; flagged
-views are counted, not scored.  After the independent check (``capture.registration.verify``)
-each row counts the views registered / kept nominal / flagged, and ``worse_max_deg``: the most a
-placed view ends worse than its input pose (both after the best-fitting rigid gauge).
+rigid transform that best fits all poses to the truth, over every view (all are written: the
+ones kept or flagged at their input pose are scored there).  After the independent check
+(``capture.registration.verify``) each row counts the views registered / kept at input / flagged,
+and ``worse_max_deg``: the most a view ends worse than its input pose (both after the
+best-fitting rigid gauge).  With ``--captures`` (output in the input's frame) also without the
+rigid fit (``direct_*``, ``worse_max_direct_deg``: a view kept at its input scores exactly as its
+input), and the output poses (``poses``, cam_from_world).
 """
 
 from __future__ import annotations
@@ -41,16 +50,17 @@ import sys
 import time
 from pathlib import Path
 
+from capture.atomic import write_json
 from furrow.bench import OUT_ROOT
 
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 
 
-SCENES = ("control", "torus", "plant", "furball", "furball-curly", "furrybunny", "face", "sfm", "furball-board",
-          "plant-board", "torus-board")
+SCENES = ("control", "torus", "plant", "furball", "furball-curly", "furball-uniform", "furrybunny", "face", "sfm",
+          "furball-board", "plant-board", "torus-board")
 #: Data scenes written by ``furrow synth`` with extra flags (folder name -> (scene, flags)).
-SYNTH_VARIANTS = {"furball-curly": ("furball", ["--curly"])}
+SYNTH_VARIANTS = {"furball-curly": ("furball", ["--curly"]), "furball-uniform": ("furball", ["--coat", "uniform"])}
 RIGS = ("free", "turntable")
 METHODS = ("icp", "icp-geom", "colmap", "board")
 
@@ -106,10 +116,10 @@ def load_scene(name: str, views: int, width: int):
             rig = dataclasses.replace(SMALL_RIG, views_per_ring=views, width=480, height=360,
                                       elevations_deg=(50.0,), distance=0.65, fov_y_deg=40.0)
         params = {}
-        if name == "furball-curly":
-            from datasets_synthetic.fur_variants import CURLY
+        if name in ("furball-curly", "furball-uniform"):
+            from datasets_synthetic.fur_variants import CURLY, UNIFORM
 
-            name, params = "furball", dict(CURLY)
+            name, params = "furball", dict(CURLY if name == "furball-curly" else UNIFORM)
         cap = synthesize(SynthConfig(scene=name, rig=rig, supersample=2, scene_params=params), scene=scene)
         from capture.camera import Camera
         from capture.scan import Scan, ScanSet
@@ -163,8 +173,7 @@ def run_one(ss, gt, method: str, deg: float, seed: int, rig: str = "free") -> di
         return {"method": method, "rig": rig, "perturb_deg": deg, "failed": f"{type(e).__name__}: {e}",
                 "seconds": time.perf_counter() - t0}
     secs = time.perf_counter() - t0
-    reg = [s.registered for s in rep.scans]
-    idx = [k for k in range(len(gt)) if reg[k]]
+    idx = list(range(len(gt)))  # every view is written (issue 31): registered, kept or flagged at its input
     e = report.pose_errors([poses[k] for k in idx], [gt[k] for k in idx], c, gauge=None) if len(idx) > 1 else None
     b = report.pose_errors(pert, gt, c, gauge=None)
     worse = [a - b["rot_deg"][k] for a, k in zip(e["rot_deg"], idx)] if e is not None else []
@@ -173,9 +182,12 @@ def run_one(ss, gt, method: str, deg: float, seed: int, rig: str = "free") -> di
         for ev in s.evidence:
             evidence[ev] = evidence.get(ev, 0) + 1
     out = {"method": method, "rig": rep.rig, "perturb_deg": deg, "perturb_frac": deg / 100, "seconds": secs,
-           "n_views": len(gt), "n_registered": len(idx), "flagged": rep.flagged, "size_m": size,
+           "n_views": len(gt), "n_written": len(idx),
+           "n_registered": sum(s.status == "registered" for s in rep.scans), "flagged": rep.flagged,
+           "kept": rep.kept, "size_m": size,
            "evidence_counts": evidence, "rig_detection": rep.rig_detection,
-           "before_rot_median_deg": b["rot_median_deg"], "before_trans_median_frac": b["trans_median_m"] / size,
+           "before_rot_median_deg": b["rot_median_deg"], "before_rot_max_deg": b["rot_max_deg"],
+           "before_trans_median_frac": b["trans_median_m"] / size,
            "check": dict(rep.check), "status": {s.name: s.status for s in rep.scans},
            "worse_max_deg": max(worse) if worse else None,
            "view_rot_deg": {rep.scans[k].name: e["rot_deg"][i] for i, k in enumerate(idx)} if e is not None else {},
@@ -207,7 +219,83 @@ def sfm_only(ss, gt, seed: int) -> dict:
             "reprojection_px": r.reprojection_px, "scale_umeyama": r.scale, "scale_depth_ratio": r.depth_ratio_scale}
 
 
-DATA_SCENES = ("plant", "torus", "furball", "furball-curly", "furrybunny")
+DATA_SCENES = ("plant", "torus", "furball", "furball-curly", "furball-uniform", "furrybunny")
+
+
+def true_poses(folder: Path, names: list[str]) -> list:
+    """cam_from_world per scan name from ``folder``/gt/cameras_true.json (matched by file stem)."""
+    from capture.camera import CV_TO_GL, invert_rigid
+
+    path = folder / "gt" / "cameras_true.json"
+    frames = json.loads(path.read_text())["frames"]
+    by = {Path(f.get("name") or f.get("file_path", "")).stem: f for f in frames}
+    missing = [n for n in names if Path(n).stem not in by]
+    if missing:
+        raise SystemExit(f"{path}: no true pose for {', '.join(missing[:3])}")
+    import numpy as np
+
+    return [invert_rigid(np.asarray(by[Path(n).stem]["transform_matrix"], np.float64) @ CV_TO_GL) for n in names]
+
+
+def run_capture(folder: Path, pose_prior: str | None = None) -> dict:
+    """``pipeline.register`` with ``furrow register``'s defaults on a capture with its true poses:
+    per view the rotation error in and out (after the rigid fit of all views to the truth)."""
+    from capture import io as cio
+    from capture.registration import pipeline, report
+    from capture.registration.prior import parse_prior
+
+    ss = cio.read_scanset(folder)
+    gt = true_poses(folder, [s.name for s in ss.scans])
+    inp = [s.camera.cam_from_world for s in ss.scans]
+    c = ss.bounds.mean(axis=0)
+    t0 = time.perf_counter()
+    prior = parse_prior(pose_prior) if pose_prior else None
+    _, rep, poses = pipeline.register(ss, "auto", "nominal", rig="auto", pose_prior=prior)
+    e, b = report.pose_errors(poses, gt, c, gauge=None), report.pose_errors(inp, gt, c, gauge=None)
+    worse = [o - i for o, i in zip(e["rot_deg"], b["rot_deg"])]
+    import numpy as np
+
+    same = [bool(np.allclose(p, q, atol=1e-9)) for p, q in zip(poses, inp)]
+    moved = [w for w, s in zip(worse, same) if not s]
+    # the output is in the input's frame: also scored without the rigid fit (a view kept at its input scores as it)
+    d_out = [report.transform_delta(o, g, c)[0] for o, g in zip(poses, gt)]
+    d_in = [report.transform_delta(i, g, c)[0] for i, g in zip(inp, gt)]
+    names = [s.name for s in rep.scans]
+    return {"scene": folder.name, "method": "auto", "rig": rep.rig, "perturb_deg": float("nan"),
+            "seconds": time.perf_counter() - t0, "n_views": len(gt), "n_written": len(poses),
+            "n_registered": sum(s.status == "registered" for s in rep.scans), "flagged": rep.flagged,
+            "kept": rep.kept, "pose_prior": rep.pose_prior, "size_m": ss.size,
+            "before_rot_median_deg": b["rot_median_deg"], "before_rot_max_deg": b["rot_max_deg"],
+            "rot_median_deg": e["rot_median_deg"], "rot_max_deg": e["rot_max_deg"],
+            "trans_median_mm": 1000 * e["trans_median_m"], "trans_max_mm": 1000 * e["trans_max_m"],
+            "worse_max_deg": max(worse), "n_unchanged": sum(same),
+            "worse_max_moved_deg": max(moved) if moved else None,
+            "direct_rot_median_deg": float(np.median(d_out)), "direct_rot_max_deg": max(d_out),
+            "direct_before_rot_median_deg": float(np.median(d_in)), "direct_before_rot_max_deg": max(d_in),
+            "worse_max_direct_deg": max(o - i for o, i in zip(d_out, d_in)),
+            "poses": [np.asarray(p).tolist() for p in poses],
+            "status": {n: s.status for n, s in zip(names, rep.scans)},
+            "reason": {n: s.reason for n, s in zip(names, rep.scans) if s.status != "registered"},
+            "view_rot_deg": dict(zip(names, e["rot_deg"])), "view_rot_in_deg": dict(zip(names, b["rot_deg"])),
+            "check": dict(rep.check), "notes": list(rep.notes)}
+
+
+def _captures(args, rows: list) -> list:
+    for d in [Path(x) for x in args.captures.split(",") if x]:
+        r = run_capture(d, args.pose_prior)
+        rows = [x for x in rows if x.get("scene") != r["scene"] or x.get("method") != "auto"] + [r]
+        if not args.json:
+            print(f"{r['scene']:28s} written {r['n_written']}/{r['n_views']} (registered {r['n_registered']}, "
+                  f"kept {len(r['kept'])}, flagged {len(r['flagged'])})  input med {r['before_rot_median_deg']:.3f} "
+                  f"max {r['before_rot_max_deg']:.3f}  output med {r['rot_median_deg']:.3f} max "
+                  f"{r['rot_max_deg']:.3f} deg  worst vs input {r['worse_max_deg']:+.3f} (moved views "
+                  f"{r['worse_max_moved_deg'] if r['worse_max_moved_deg'] is not None else float('nan'):+.3f}, "
+                  f"{r['n_unchanged']} unchanged)  without the rigid fit: input med "
+                  f"{r['direct_before_rot_median_deg']:.3f} max {r['direct_before_rot_max_deg']:.3f}, output med "
+                  f"{r['direct_rot_median_deg']:.3f} max {r['direct_rot_max_deg']:.3f}, worst vs input "
+                  f"{r['worse_max_direct_deg']:+.3f}  {r['seconds']:.0f}s",
+                  flush=True)
+    return rows
 
 
 def _args(argv):
@@ -227,6 +315,10 @@ def _args(argv):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--resume", action="store_true", help="keep the rows of an earlier register.json, run the rest")
     ap.add_argument("--sfm", action="store_true", help="also run SfM alone on every scene (5 degrees)")
+    ap.add_argument("--captures", default="", help="comma list of capture folders with gt/cameras_true.json: "
+                    "register each as given (furrow register's defaults) instead of --scenes")
+    ap.add_argument("--pose-prior", default=None, metavar="DEG,FRACTION", help="with --captures: furrow register's "
+                    "--pose-prior (default: the rig's)")
     ap.add_argument("-o", "--out", type=Path, default=OUT_ROOT / "bench" / "register")
     ap.add_argument("--json", action="store_true")
     return ap.parse_args(argv)
@@ -243,6 +335,12 @@ def main(argv: list[str] | None = None) -> int:
     done = {_key(r) for r in rows if "failed" not in r}
     degs = [float(x) for x in args.perturb.split(",") if x]
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.captures:
+        rows = _captures(args, rows)
+        write_json(path, rows)
+        if args.json:
+            print(json.dumps(rows, indent=1))
+        return 0
     for scene in [s for s in args.scenes.split(",") if s]:
         if scene not in SCENES:
             raise SystemExit(f"unknown scene {scene!r}; choose from {SCENES}")
@@ -264,7 +362,7 @@ def main(argv: list[str] | None = None) -> int:
                     r.update(scene=scene, rig=rig, load_seconds=load_s, sensor=args.sensor,
                              width=ss.scans[0].camera.width)
                     rows = [x for x in rows if _key(x) != _key(r)] + [r]
-                    path.write_text(json.dumps(rows, indent=1))
+                    write_json(path, rows)
                     if not args.json:
                         print(_fmt(r), flush=True)
         if args.sfm:
@@ -273,7 +371,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(r)
             if not args.json:
                 print(_fmt(r), flush=True)
-    path.write_text(json.dumps(rows, indent=1))
+    write_json(path, rows)
     plot(rows, args.out / "register.png")
     if args.json:
         print(json.dumps(rows, indent=1))
@@ -322,10 +420,10 @@ def _fmt(r: dict) -> str:
     if "rot_median_deg" not in r:
         return f"{head}  registered {r['n_registered']}/{r['n_views']}  {r['seconds']:.1f}s"
     ck = r.get("check") or {}
-    counts = (f"reg/kept/flag {ck.get('registered', '-')}/{ck.get('kept nominal', '-')}/{ck.get('flagged', '-')}  "
+    counts = (f"reg/kept/flag {ck.get('registered', '-')}/{ck.get('kept at input', '-')}/{ck.get('flagged', '-')}  "
               if ck else "")
     worse = f"worse by <= {r['worse_max_deg']:.3f} deg  " if r.get("worse_max_deg") is not None else ""
-    return (f"{head}  input {r['before_rot_median_deg']:.2f} deg  placed {r['n_registered']}/{r['n_views']}  "
+    return (f"{head}  input {r['before_rot_median_deg']:.2f} deg  written {r.get('n_written', '-')}/{r['n_views']}  "
             f"{counts}rot med {r['rot_median_deg']:.4f} max {r['rot_max_deg']:.4f} deg  {worse}"
             f"trans med {r['trans_median_mm']:.3f} mm max {r['trans_max_mm']:.3f} mm  {r['seconds']:.0f}s")
 

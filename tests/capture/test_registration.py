@@ -103,14 +103,18 @@ def test_impostor_scan_is_flagged_not_merged(control):
                   for s, p in zip(ss.scans, pert))
     out_set, rep, poses = pipeline.register(ScanSet(scans, ss.bounds), "icp", "nominal")
     assert rep.flagged == ["view003"]
-    assert [s.name for s in out_set.scans] == [f"view{k:03d}" for k in range(N_VIEWS) if k != 3]
+    # every input view is written (issue 31): the flagged one at its input pose
+    assert [s.name for s in out_set.scans] == [f"view{k:03d}" for k in range(N_VIEWS)]
+    assert np.allclose(out_set.scans[3].camera.cam_from_world, pert[3])
     rec = {s.name: s for s in rep.scans}["view003"]
     assert rec.best_fitness < R.MIN_FITNESS or "diverged" in rec.reason
     keep = [k for k in range(N_VIEWS) if k != 3]
     e = R.pose_errors([poses[k] for k in keep], [gt[k] for k in keep], c)
     assert e["rot_median_deg"] < 0.1
     js = rep.to_json()
-    assert js["flagged"] == ["view003"] and js["n_registered"] == N_VIEWS - 1
+    # the gauge scan keeps its input pose by construction: "kept at input"; the rest registered
+    assert js["flagged"] == ["view003"] and js["kept_at_input"] == ["view000"] and js["n_registered"] == N_VIEWS - 2
+    assert js["n_written"] == N_VIEWS
 
 
 def test_init_none_global_registration_from_nothing(control):
