@@ -1,0 +1,175 @@
+"""A moving camera's background plate: what the other views saw behind the object (issue 30).
+
+For a pixel p of view i near the object, the background behind it is a point X on p's ray beyond
+the object.  Its colour is looked up in the other views that saw X beside the object:
+
+* **hypotheses for X** (:func:`background_points`), tried in order: the support plane under the
+  object (``capture.extent``: the ray's hit, when it lies in front of the camera), then the room
+  at the depth the view measured around the object (inverse depth filled inwards by a push-pull
+  pyramid, so a wall or a slanted floor continues under the object), else a point at infinity in
+  p's direction (an environment far away: the background depends on the direction only, and the
+  views' pixels together form a panorama of it).
+* **a sample from view j** (:func:`gather_samples`) counts when X projects inside j's image onto
+  pixels that are all confidently background there (outside j's object depth and its band: all
+  four bilinear taps), and j's measured depth there agrees with X (the plane or room really is
+  there and is not hidden; for X at infinity, j measured nothing or something beyond the
+  object's region).  Its colour is j's, bilinear in linear light, times g_j / g_i (the views'
+  exposure gains, ``capture.plate``).
+* **the plate** is the per-channel median of the samples of the first hypothesis that has any
+  (:func:`reproject_plate`); a pixel without samples stays unknown (``known`` False).
+
+The views' pixels are looked up directly, not through a resampled panorama grid: one resampling,
+not two, and a point at infinity is just the direction of the project's one camera model.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from capture.camera import Camera
+
+#: A point "at infinity": this many metres along the ray (float64 keeps 1e-6 px of parallax).
+FAR_METRES = 1e6
+#: Depth agreement: |measured - expected| within this fraction of the expected z-depth (a D435's
+#: z-squared noise is 0.4 % at 1 m; plus the plane's fit).
+DEPTH_TOL = 0.03
+#: For a point at infinity, j's measurement must lie beyond this multiple of its distance to the
+#: focus centre + radius (else j sees something nearer: the table, clutter).
+FAR_MARGIN = 1.0
+#: The room hypothesis needs at least this fraction of the view's background ring with depth off the plane.
+ROOM_MIN_FRACTION = 0.3
+
+
+@dataclass(frozen=True)
+class PlateSource:
+    """What view j lends to the others' plates.
+
+    Attributes:
+        camera: its camera.
+        linear: (H, W, 3) float32 linear colour.
+        background: (H, W) bool, confidently background (outside its object depth and band).
+        depth: (H, W) float32 z-depth of its background (the capture's depth where it is not the
+            object: support, walls; 0 = none).
+        gain: (3,) float64 its exposure gain g (true colour = colour x g).
+        focus_far: z-depth beyond which its measurement counts as far (metres).
+    """
+
+    camera: Camera
+    linear: np.ndarray
+    background: np.ndarray
+    depth: np.ndarray
+    gain: np.ndarray
+    focus_far: float
+
+
+def bilinear_taps(uv: np.ndarray, W: int, H: int):
+    """(x0, y0, fx, fy, inside) of (N, 2) pixel coordinates: the top-left tap, the fractions and
+    whether all four taps lie inside the image."""
+    x0 = np.floor(uv[:, 0]).astype(np.int64)
+    y0 = np.floor(uv[:, 1]).astype(np.int64)
+    inside = (x0 >= 0) & (y0 >= 0) & (x0 + 1 < W) & (y0 + 1 < H)
+    x0 = np.clip(x0, 0, W - 2)
+    y0 = np.clip(y0, 0, H - 2)
+    return x0, y0, uv[:, 0] - x0, uv[:, 1] - y0, inside
+
+
+def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
+    """(N, 3) colours view ``src`` saw at world ``points`` (N, 3) in the exposure of the view whose
+    gain is ``gain_i``, NaN where the sample does not count (module docstring).  ``kind``:
+    'plane', 'room' or 'far' (what the points are)."""
+    cam = src.camera
+    H, W = src.background.shape
+    out = np.full((len(points), 3), np.nan, np.float32)
+    uv, z = cam.project(points)
+    ok = np.isfinite(uv).all(axis=1) & (z > 0)
+    uv = np.where(ok[:, None], uv, 0.0)
+    x0, y0, fx, fy, inside = bilinear_taps(uv, W, H)
+    ok &= inside
+    bg = src.background
+    ok &= bg[y0, x0] & bg[y0, x0 + 1] & bg[y0 + 1, x0] & bg[y0 + 1, x0 + 1]
+    xi = np.clip(np.round(uv[:, 0]).astype(np.int64), 0, W - 1)
+    yi = np.clip(np.round(uv[:, 1]).astype(np.int64), 0, H - 1)
+    d = src.depth[yi, xi]
+    if kind == "far":
+        ok &= (d <= 0) | (d > FAR_MARGIN * src.focus_far)
+    elif kind == "plane":
+        ok &= (d > 0) & (np.abs(d - z) <= DEPTH_TOL * z)
+    else:
+        ok &= (d <= 0) | (np.abs(d - z) <= DEPTH_TOL * z)
+    if not ok.any():
+        return out
+    k = np.flatnonzero(ok)
+    a, b, c, e = (src.linear[y0[k], x0[k]], src.linear[y0[k], x0[k] + 1], src.linear[y0[k] + 1, x0[k]],
+                  src.linear[y0[k] + 1, x0[k] + 1])
+    u, v = fx[k, None], fy[k, None]
+    col = (a * (1 - u) + b * u) * (1 - v) + (c * (1 - u) + e * u) * v
+    out[k] = col * (src.gain / gain_i)
+    return out
+
+
+def room_depth(depth: np.ndarray, ring: np.ndarray, off_plane: np.ndarray) -> np.ndarray | None:
+    """(H, W) z-depth of the room filled in under the object (inverse depth, push-pull from the
+    measured depth ``depth`` of the ``ring`` pixels that are ``off_plane``), or None when under
+    ROOM_MIN_FRACTION of the ring has such depth."""
+    from capture.matting_known import push_pull
+
+    have = ring & off_plane & (depth > 0)
+    if not ring.any() or have.sum() < ROOM_MIN_FRACTION * ring.sum():
+        return None
+    inv = np.where(have, 1.0 / np.maximum(depth, 1e-6), 0.0)
+    filled = push_pull(inv[..., None], have.astype(np.float64))[..., 0]
+    return np.where(filled > 0, 1.0 / np.maximum(filled, 1e-9), 0.0)
+
+
+def background_points(cam: Camera, pix: np.ndarray, plane: np.ndarray | None,
+                      room: np.ndarray | None) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Hypotheses for the background behind pixels ``pix`` (N, 2) (x, y ints) of ``cam``, in the
+    order tried: [(kind, points (N, 3), valid (N,) bool)] (module docstring)."""
+    rays_c = cam.pixel_rays(pix.astype(np.float64))
+    R = cam.world_from_cam[:3, :3]
+    rays = rays_c @ R.T  # world direction per unit z-depth
+    o = cam.center
+    hyps = []
+    if plane is not None:
+        den = rays @ plane[:3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = -(o @ plane[:3] + plane[3]) / den
+        valid = np.isfinite(t) & (t > 0)
+        hyps.append(("plane", o + rays * np.where(valid, t, 1.0)[:, None], valid))
+    if room is not None:
+        z = room[pix[:, 1], pix[:, 0]]
+        hyps.append(("room", o + rays * np.where(z > 0, z, 1.0)[:, None], z > 0))
+    unit = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    hyps.append(("far", o + unit * FAR_METRES, np.ones(len(pix), bool)))
+    return hyps
+
+
+def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: list[PlateSource],
+                    plane: np.ndarray | None, room: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(colour (N, 3) float32 linear in view i's exposure, known (N,) bool, samples (N,) int) of the
+    background behind pixels ``pix`` (N, 2) of camera ``cam`` from the ``sources`` (the other
+    views; module docstring)."""
+    n = len(pix)
+    colour = np.zeros((n, 3), np.float32)
+    known = np.zeros(n, bool)
+    count = np.zeros(n, np.int64)
+    for kind, pts, valid in background_points(cam, pix, plane, room):
+        todo = np.flatnonzero(valid & ~known)
+        if not len(todo) or not sources:
+            continue
+        s = np.stack([gather_samples(pts[todo], kind, src, gain_i) for src in sources])
+        have = np.isfinite(s[..., 0])
+        got = have.any(axis=0)
+        if not got.any():
+            continue
+        with warnings.catch_warnings():  # all-NaN columns: no sample there
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(s[:, got], axis=0)
+        idx = todo[got]
+        colour[idx] = med
+        known[idx] = True
+        count[idx] = have[:, got].sum(axis=0)
+    return colour, known, count
