@@ -59,13 +59,8 @@ def main(argv=None) -> dict:
     kept = split.kept
     if a.matte != "given":
         kept = ScanSet(tuple(Scan(s.rgb, s.depth, s.camera, s.name) for s in kept.scans), kept.bounds, kept.metadata)
-    user = None
-    if a.plates:
-        from capture.plate_io import read_user_plates
-
-        user = read_user_plates(Path(a.plates), kept.scans)
     prep = PrepareConfig(extent=a.extent == "1", matte=MatteConfig(mode=a.matte), plate=PlateConfig(mode=a.plate),
-                         user_plates=user)
+                         background_plates=a.plates)
     stage, times = timed()
     t = time.perf_counter()
     model, summ = build_model(kept, ModelConfig(prepare=prep), stage=stage)
