@@ -189,10 +189,9 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         if scan.alpha is None:
             raise ValueError(f"scan {scan.name!r}: --matte given but the capture has no matte (mask_path / RGBA)")
         a = np.asarray(scan.alpha, np.float32)
-        fg = _foreground(img, a)
         if plate is not None and plate.known.any():  # the room unmixed from the colour exactly where B is known
-            fg = unmixed(img, a, plate.background, plate.known, fg)
-        return Matte(a, fg, "given", 0.0)
+            return Matte(a, unmixed(img, a, plate.background, plate.known), "given", 0.0)
+        return Matte(a, _foreground(img, a), "given", 0.0)
     depth = scan.depth if object_depth is None else object_depth
     tri = depth_trimap(depth)
     mask = np.asarray(depth) > 0
@@ -212,13 +211,18 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
     return solve_matte(img, tri, "estimate", fallback=mask)
 
 
-def unmixed(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
-            fallback: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float32 straight colour F = B + (C - B) / alpha where the background B is ``known``
-    and alpha > 0 (capture.matting_known.exact_foreground), ``fallback`` elsewhere."""
-    from capture.matting_known import exact_foreground
+def unmixed(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 straight colour under a given ``alpha`` with the background known where
+    ``known``: capture.matting_known.foreground_colour (exact where B is known, the nearest exact
+    colours elsewhere), on the crop around alpha > 0."""
+    from capture.matting_known import foreground_colour
 
-    return exact_foreground(image, alpha, background, known, fallback).astype(np.float32)
+    fg = np.asarray(image, np.float32).copy()
+    box = _crop(np.where(np.asarray(alpha) > 0, UNKNOWN, BG))
+    if box is not None:
+        fg[box] = foreground_colour(np.asarray(image)[box], np.asarray(alpha)[box], np.asarray(background)[box],
+                                    np.asarray(known)[box], lambda C, a, need: _foreground(C, a))
+    return fg
 
 
 def backdrop_noise(image: np.ndarray, trimap: np.ndarray, backdrop: np.ndarray) -> float:
