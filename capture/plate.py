@@ -32,7 +32,6 @@ background, the plate is unknown and the matte falls back to the estimate withou
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,18 +52,6 @@ RING_FRACTION = 6 / 640
 RING_SAMPLES = 4000
 #: Views consulted per view (moving camera): the nearest by optical axis.
 NEIGHBOURS = 8
-#: Fixed camera: a pixel's plate needs this many frames that agree on its colour (robust_mode).
-FIXED_MIN_FRAMES = 3
-#: Fixed camera: pixels (on a regular grid) used for the first exposure gains.
-FIXED_GAIN_PIXELS = 20000
-#: Fixed camera: a frame lends samples where it has no object depth within this fraction of the width (2 px at 640).
-FIXED_EXCLUDE_FRACTION = 2 / 640
-#: Robust mode: samples within this (8-bit sRGB, largest channel) of each other agree; pixels per chunk.
-MODE_TOL = 3.0 / 255
-#: Robust mode: a rival cluster (no sample in common) weighing this fraction of the heaviest one makes
-#: the pixel unknown.
-MODE_AMBIGUOUS = 0.5
-MODE_CHUNK = 20000
 #: Gain fit: colours below this (linear, any channel) or above GAIN_BRIGHT are not used (quantisation, clipping).
 GAIN_DARK = 0.01
 GAIN_BRIGHT = 0.95
@@ -83,12 +70,14 @@ NOISE_MAX = 0.05
 
 @dataclass(frozen=True)
 class PlateConfig:
-    """Settings of :func:`background_plates`."""
+    """Settings of :func:`background_plates` (the pipeline's background plate stage)."""
 
     #: One of PLATE_MODES (module docstring); 'off' = no plate (the matte is estimated without one).
     mode: str = "auto"
     #: Views consulted per view when the camera moves (the nearest by optical axis).
     neighbours: int = NEIGHBOURS
+    #: Folder of plates the user shot (``--background-plates``; capture.plate_io), or None.
+    plates_dir: str | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in PLATE_MODES:
@@ -111,6 +100,8 @@ class Plate:
         error: median over held-back background pixels of the largest channel's |plate - colour| (linear;
             NaN without any).
         error_rmse: RMS over those pixels and channels (linear; NaN without any).
+        frame: None for a full-frame plate; (H, W, y0, x0) for a plate cropped to its known box
+            (:meth:`cropped`): ``background`` and ``known`` are then the box at (y0, x0).
     """
 
     background: np.ndarray
@@ -120,6 +111,32 @@ class Plate:
     band_known: float
     error: float
     error_rmse: float
+    frame: tuple | None = None
+
+    def cropped(self) -> Plate:
+        """The plate on the box around its known pixels, colour as float16 (what waits for the matte
+        stage); :meth:`full` gives it back at its (H, W)."""
+        rows, cols = np.flatnonzero(self.known.any(axis=1)), np.flatnonzero(self.known.any(axis=0))
+        H, W = self.known.shape
+        if not len(rows):
+            box = (0, 0, 0, 0)
+        else:
+            box = (int(rows[0]), int(cols[0]), int(rows[-1]) + 1, int(cols[-1]) + 1)
+        sl = (slice(box[0], box[2]), slice(box[1], box[3]))
+        return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
+                     self.band_known, self.error, self.error_rmse, (H, W, box[0], box[1]))
+
+    def full(self) -> Plate:
+        """The plate at its image's full (H, W) (itself when not cropped)."""
+        if self.frame is None:
+            return self
+        H, W, y0, x0 = self.frame
+        bg = np.zeros((H, W, 3), np.float32)
+        known = np.zeros((H, W), bool)
+        h, w = self.known.shape
+        bg[y0:y0 + h, x0:x0 + w] = self.background
+        known[y0:y0 + h, x0:x0 + w] = self.known
+        return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse)
 
     def record(self) -> dict:
         """JSON-able summary of the view's plate (model.json, the stage table)."""
@@ -146,28 +163,29 @@ class PlateView:
     depth: np.ndarray
 
 
-def _px(frac: float, width: int) -> int:
+def px(frac: float, width: int) -> int:
+    """Pixels of a fraction of the image width (at least 1)."""
     return max(1, int(round(frac * width)))
 
 
 def source_mask(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) bool confidently background: outside the object's depth dilated by SOURCE_BAND_FRACTION."""
     m = np.asarray(object_depth) > 0
-    return ~ndimage.binary_dilation(m, iterations=_px(SOURCE_BAND_FRACTION, m.shape[1]))
+    return ~ndimage.binary_dilation(m, iterations=px(SOURCE_BAND_FRACTION, m.shape[1]))
 
 
 def need_mask(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) bool pixels whose background the matte may ask for: the trimap's band and opaque
     pixels, widened as capture.matting_known widens it."""
     tri = depth_trimap(object_depth)
-    return ndimage.binary_dilation(tri > 0, iterations=_px(WIDEN_FRACTION, tri.shape[1]))
+    return ndimage.binary_dilation(tri > 0, iterations=px(WIDEN_FRACTION, tri.shape[1]))
 
 
 def ring_pixels(object_depth: np.ndarray) -> np.ndarray:
     """(N, 2) int (x, y) of the held-back ring: source pixels within RING_FRACTION of the source
     band's edge, at most RING_SAMPLES (evenly)."""
     src = source_mask(object_depth)
-    near = ndimage.binary_dilation(~src, iterations=_px(RING_FRACTION, src.shape[1]))
+    near = ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
     y, x = np.nonzero(src & near)
     if len(y) > RING_SAMPLES:
         k = np.linspace(0, len(y) - 1, RING_SAMPLES).round().astype(np.int64)
@@ -194,105 +212,6 @@ def fit_gains(observed: list[np.ndarray], predicted: list[np.ndarray], prior: np
     return np.exp(logg)
 
 
-def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(colour (N, 3), support (N,) int) of samples (K, N, 3) linear (NaN = none) per column: the
-    heaviest cluster (the sample whose agreeing samples, within MODE_TOL in 8-bit sRGB, weigh most;
-    ``weights`` (K, N), default 1), then the median of those; support = how many agree.  A needle
-    crossing a background pixel in some frames leaves samples spread between B and F; the frames
-    it missed agree to the noise, and they were further from the object (heavier)."""
-    from capture.scan import linear_to_srgb
-
-    K, N, _ = samples.shape
-    colour = np.full((N, 3), np.nan, np.float32)
-    support = np.zeros(N, np.int64)
-    for lo in range(0, N, MODE_CHUNK):
-        s = samples[:, lo:lo + MODE_CHUNK].astype(np.float32)
-        have = np.isfinite(s[..., 0])
-        w = have.astype(np.float32) if weights is None else np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0)
-        e = linear_to_srgb(np.nan_to_num(s))
-        close = (np.abs(e[:, None] - e[None]).max(axis=-1) <= MODE_TOL) & have[:, None] & have[None]
-        score = (close * w[None]).sum(axis=1)  # (K, n): weight of the samples agreeing with each
-        best = np.argmax(score, axis=0)  # (n,): the heaviest cluster's centre
-        cols = np.arange(s.shape[1])
-        members = close[best, :, cols].T  # (K, n): samples close to it
-        # a rival cluster apart from it nearly as heavy: the pixel is ambiguous (a needle that stayed put)
-        outside = ~members
-        rival = np.where(outside, ((close & outside[None]) * w[None]).sum(axis=1), 0.0).max(axis=0)
-        members &= (rival < MODE_AMBIGUOUS * score[best, cols])[None]
-        with warnings.catch_warnings():  # all-NaN columns: no sample there
-            warnings.simplefilter("ignore", RuntimeWarning)
-            colour[lo:lo + MODE_CHUNK] = np.nanmedian(np.where(members[..., None], s, np.nan), axis=0)
-        support[lo:lo + MODE_CHUNK] = members.sum(axis=0)
-    return colour, support
-
-
-def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
-    """(H, W) float32 weight of a frame's pixels as fixed-camera plate samples: 0 within
-    FIXED_EXCLUDE_FRACTION of the width of the object's depth (the robust mode takes out needles
-    the depth missed), rising to 1 at SOURCE_BAND_FRACTION (confidently background)."""
-    m = np.asarray(object_depth) > 0
-    W = m.shape[1]
-    if not m.any():
-        return np.ones(m.shape, np.float32)
-    d = ndimage.distance_transform_edt(~m)
-    w = np.clip(d / _px(SOURCE_BAND_FRACTION, W), 0.0, 1.0)
-    return np.where(d > _px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
-
-
-def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gains: np.ndarray,
-                     weights: list[np.ndarray] | None = None) -> np.ndarray:
-    """(N, 3) fixed-camera plate at pixels ``pix`` (N, 2) from every frame but ``i`` (None: all), in
-    the common exposure (colour x gain): the robust mode (:func:`robust_mode`) of the frames' samples
-    weighted by ``weights`` (default :func:`fixed_sample_weight`); NaN where fewer than
-    FIXED_MIN_FRAMES agree."""
-    x, y = pix[:, 0], pix[:, 1]
-    s = np.full((len(views), len(pix), 3), np.nan, np.float32)
-    w = np.zeros((len(views), len(pix)), np.float32)
-    for j, v in enumerate(views):
-        if j == i:
-            continue
-        w[j] = (fixed_sample_weight(v.object_depth) if weights is None else weights[j])[y, x]
-        ok = w[j] > 0
-        s[j, ok] = v.linear[y[ok], x[ok]] * gains[j]
-    col, support = robust_mode(s, w)
-    col[support < FIXED_MIN_FRAMES] = np.nan
-    return col
-
-
-def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray:
-    """(V, 3) exposure gains of a fixed camera's frames (true colour = colour x gain) from about
-    FIXED_GAIN_PIXELS pixels (a regular grid) that all frames may lend: each frame against the
-    per-pixel median of the frames (GAIN_PASSES times, the median taken over the gain-corrected frames)."""
-    H, W = weights[0].shape
-    k = max(1, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
-    common = np.logical_and.reduce([w >= 1 for w in weights])[::k, ::k]
-    obs = [v.linear[::k, ::k][common].astype(np.float64) for v in views]
-    gains = np.ones((len(views), 3))
-    if not common.any():
-        return gains
-    for _ in range(GAIN_PASSES):
-        med = np.median(np.stack([o * g for o, g in zip(obs, gains, strict=True)]), axis=0)
-        gains = fit_gains(obs, [med] * len(obs))
-    return gains
-
-
-def fixed_plates(views: list[PlateView], needs: list[np.ndarray], gains: np.ndarray) -> list[tuple]:
-    """Per view (colour (H, W, 3) in its own exposure, known (H, W)) of the fixed-camera plate on
-    the union of the views' ``needs`` (module docstring)."""
-    union = np.logical_or.reduce(needs)
-    y, x = np.nonzero(union)
-    weights = [fixed_sample_weight(v.object_depth) for v in views]
-    med = fixed_prediction(views, np.stack([x, y], axis=1), None, gains, weights)
-    out = []
-    for j, v in enumerate(views):
-        col = np.zeros(v.linear.shape, np.float32)
-        col[y, x] = np.nan_to_num(med / gains[j])
-        known = np.zeros(union.shape, bool)
-        known[y, x] = np.isfinite(med[:, 0])
-        out.append((col, known & needs[j]))
-    return out
-
-
 def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:
     """Indices of the ``k`` cameras other than ``i`` nearest to it by optical axis."""
     f = np.array([c.forward for c in cams])
@@ -301,38 +220,50 @@ def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:
     return [int(j) for j in np.argsort(ang)[:k] if np.isfinite(ang[j])]
 
 
-def _sources(views: list[PlateView], gains: np.ndarray, focus: tuple[np.ndarray, float]) -> list[PlateSource]:
-    center, radius = focus
-    out = []
-    for j, v in enumerate(views):
-        bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32)
-        far = float(v.camera.world_to_cam(center)[2] + radius)
-        out.append(PlateSource(v.camera, v.linear, source_mask(v.object_depth), bgd, gains[j], far))
-    return out
+@dataclass(frozen=True)
+class _Prep:
+    """What the plate stage works out once per view: its confidently background pixels (source
+    mask), the pixels it needs a plate at (need mask), its held-back ring (N, 2) and its room depth
+    under the object (or None)."""
+
+    source: np.ndarray
+    need: np.ndarray
+    ring: np.ndarray
+    room: np.ndarray | None
 
 
-def _room(v: PlateView, plane: np.ndarray | None) -> np.ndarray | None:
-    """The view's room depth under the object (capture.plate_reproject.room_depth)."""
+def _prepare(v: PlateView, plane: np.ndarray | None) -> _Prep:
+    src = source_mask(v.object_depth)
     bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth)
     pts, m = v.camera.depth_to_points(bgd)
     off = np.zeros(bgd.shape, bool)
     if len(pts):
         off[m] = True if plane is None else (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
-    src = source_mask(v.object_depth)
-    ring = src & ndimage.binary_dilation(~src, iterations=_px(RING_FRACTION, src.shape[1]))
-    return room_depth(bgd, ring, off)
+    ring = src & ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
+    return _Prep(src, need_mask(v.object_depth), ring_pixels(v.object_depth), room_depth(bgd, ring, off))
+
+
+def _sources(views: list[PlateView], pre: list[_Prep], gains: np.ndarray,
+             focus: tuple[np.ndarray, float]) -> list[PlateSource]:
+    center, radius = focus
+    out = []
+    for j, v in enumerate(views):
+        bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32)
+        far = float(v.camera.world_to_cam(center)[2] + radius)
+        out.append(PlateSource(v.camera, v.linear, pre[j].source, bgd, gains[j], far))
+    return out
 
 
 def panorama_prediction(views: list[PlateView], i: int, pix: np.ndarray, sources: list[PlateSource],
-                        plane: np.ndarray | None, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(colour (N, 3) in view i's exposure with NaN where unknown, samples (N,)) behind pixels
-    ``pix`` of view i from its ``k`` nearest other views."""
+                        plane: np.ndarray | None, k: int, room: np.ndarray | None) -> np.ndarray:
+    """(N, 3) colour behind pixels ``pix`` of view i in its exposure from its ``k`` nearest other
+    views (NaN where unknown; ``room``: its room depth, capture.plate_reproject.room_depth)."""
     cams = [v.camera for v in views]
     nb = [sources[j] for j in neighbour_order(cams, i, k)]
-    col, known, count = reproject_plate(cams[i], pix, sources[i].gain, nb, plane, _room(views[i], plane))
+    col, known, _ = reproject_plate(cams[i], pix, sources[i].gain, nb, plane, room)
     col = col.astype(np.float32)
     col[~known] = np.nan
-    return col, count
+    return col
 
 
 def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
@@ -344,26 +275,39 @@ def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
     return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
 
 
-def ring_errors(views: list[PlateView], rings: list[np.ndarray], mode: str, cfg: PlateConfig,
-                plane, focus) -> tuple[np.ndarray, list[tuple[float, float]]]:
-    """(gains (V, 3), per view (median error, RMS) of its held-back ring) for ``mode`` 'fixed' or
-    'panorama': predictions from the other views with unit gains, the gains fitted to them, the
-    predictions again with the gains."""
-    V = len(views)
-    gains = np.ones((V, 3))
-    obs = [v.linear[r[:, 1], r[:, 0]].astype(np.float64) for v, r in zip(views, rings, strict=True)]
-    weights = [fixed_sample_weight(v.object_depth) for v in views] if mode == "fixed" else None
+def _predict(mode: str, views, pre: list[_Prep], gains: np.ndarray, cfg: PlateConfig, plane, focus,
+             weights=None) -> list[np.ndarray]:
+    """Per view its held-back ring predicted from the other views (N_i, 3), in its own exposure."""
+    from capture.plate_fixed import fixed_prediction
+
     if mode == "fixed":
-        gains = fixed_gains(views, weights)
-    for step in range(1 + GAIN_PASSES):
-        if mode == "fixed":
-            pred = [fixed_prediction(views, r, i, gains, weights) / gains[i] for i, r in enumerate(rings)]
-        else:
-            src = _sources(views, gains, focus)
-            pred = [panorama_prediction(views, i, r, src, plane, cfg.neighbours)[0] for i, r in enumerate(rings)]
-        if step < GAIN_PASSES:
-            gains = fit_gains(obs, [p * gains[i] for i, p in enumerate(pred)], gains)
-    return gains, [_error(o, p) for o, p in zip(obs, pred, strict=True)]
+        return [fixed_prediction(views, p.ring, i, gains, weights) / gains[i] for i, p in enumerate(pre)]
+    src = _sources(views, pre, gains, focus)
+    return [panorama_prediction(views, i, p.ring, src, plane, cfg.neighbours, p.room) for i, p in enumerate(pre)]
+
+
+def choose_and_fit(views, pre: list[_Prep], cfg: PlateConfig, plane, focus):
+    """(mode, gains (V, 3), per view (median error, RMS) of its held-back ring, {mode tried: its
+    median error}): each mode tried ('fixed' / 'panorama', or the forced one) predicts every view's
+    ring from the other views (a fixed camera with the exposure gains of the pixels every frame
+    sees, capture.plate_fixed.fixed_gains; a moving one with unit gains); the one with the smaller
+    error wins (:func:`choose_mode`); its gains are then fitted to its predictions GAIN_PASSES times."""
+    from capture.plate_fixed import fixed_gains, fixed_sample_weight
+
+    obs = [v.linear[p.ring[:, 1], p.ring[:, 0]].astype(np.float64) for v, p in zip(views, pre, strict=True)]
+    weights = [fixed_sample_weight(v.object_depth) for v in views]
+    tried = {}
+    for m in (("fixed", "panorama") if cfg.mode == "auto" else (cfg.mode,)):
+        g = fixed_gains(views, weights) if m == "fixed" else np.ones((len(views), 3))
+        pred = _predict(m, views, pre, g, cfg, plane, focus, weights)
+        tried[m] = (g, pred, [_error(o, p) for o, p in zip(obs, pred, strict=True)])
+    mode = choose_mode({m: t[2] for m, t in tried.items()})
+    gains, pred, _ = tried[mode]
+    for _ in range(GAIN_PASSES):
+        gains = fit_gains(obs, [p * gains[i] for i, p in enumerate(pred)], gains)
+        pred = _predict(mode, views, pre, gains, cfg, plane, focus, weights)
+    errs = [_error(o, p) for o, p in zip(obs, pred, strict=True)]
+    return mode, gains, errs, {m: _summary(t[2]) for m, t in tried.items()}
 
 
 def choose_mode(errors: dict) -> str:
@@ -394,11 +338,11 @@ def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, f
                  err[0], err[1])
 
 
-def _panorama_plate(views, i, need, sources, plane, cfg) -> tuple[np.ndarray, np.ndarray]:
-    y, x = np.nonzero(need)
-    col, _ = panorama_prediction(views, i, np.stack([x, y], axis=1), sources, plane, cfg.neighbours)
+def _panorama_plate(views, i, pre: _Prep, sources, plane, cfg) -> tuple[np.ndarray, np.ndarray]:
+    y, x = np.nonzero(pre.need)
+    col = panorama_prediction(views, i, np.stack([x, y], axis=1), sources, plane, cfg.neighbours, pre.room)
     out = np.zeros(views[i].linear.shape, np.float32)
-    known = np.zeros(need.shape, bool)
+    known = np.zeros(pre.need.shape, bool)
     ok = np.isfinite(col[:, 0])
     out[y[ok], x[ok]] = col[ok]
     known[y[ok], x[ok]] = True
@@ -413,35 +357,36 @@ def background_plates(views: list[PlateView], cfg: PlateConfig | None = None, pl
     radius) of the region the rig looks at (default capture.extent.focus_region); ``user``: per
     view a (H, W, 3) linear plate the user shot (capture.plate_io)."""
     from capture.extent import focus_region
+    from capture.plate_fixed import fixed_plates
 
     cfg = cfg or PlateConfig()
     if cfg.mode == "off":
         return [None] * len(views), {"mode": "off"}
     if cfg.mode == "user" and user is None:
         raise ValueError("--plate user needs --background-plates DIR")
-    focus = focus or focus_region([v.camera for v in views])
-    rings = [ring_pixels(v.object_depth) for v in views]
-    needs = [need_mask(v.object_depth) for v in views]
-    errors, gains = {}, {}
     if user is not None and cfg.mode in ("auto", "user"):
-        mode = "user"
-        g = user_gains(views, user)
-        errs = [_error(v.linear[r[:, 1], r[:, 0]].astype(np.float64), np.asarray(u)[r[:, 1], r[:, 0]] / g[i])
-                for i, (v, r, u) in enumerate(zip(views, rings, user, strict=True))]
-        plates = [_plate(v, np.asarray(u, np.float32) / g[i], np.ones(needs[i].shape, bool), errs[i], "user")
-                  for i, (v, u) in enumerate(zip(views, user, strict=True))]
-        return plates, _record(mode, plates, g, {})
-    for m in (("fixed", "panorama") if cfg.mode == "auto" else (cfg.mode,)):
-        gains[m], errors[m] = ring_errors(views, rings, m, cfg, plane, focus)
-    mode = choose_mode(errors)
-    g = gains[mode]
+        return _user_plates(views, user)
+    focus = focus or focus_region([v.camera for v in views])
+    pre = [_prepare(v, plane) for v in views]
+    mode, g, errs, tried = choose_and_fit(views, pre, cfg, plane, focus)
     if mode == "fixed":
-        made = fixed_plates(views, needs, g)
+        made = fixed_plates(views, [p.need for p in pre], g)
     else:
-        src = _sources(views, g, focus)
-        made = [_panorama_plate(views, i, needs[i], src, plane, cfg) for i in range(len(views))]
-    plates = [_plate(v, c, k, errors[mode][i], mode) for i, (v, (c, k)) in enumerate(zip(views, made, strict=True))]
-    return plates, _record(mode, plates, g, {m: _summary(e) for m, e in errors.items()})
+        src = _sources(views, pre, g, focus)
+        made = [_panorama_plate(views, i, pre[i], src, plane, cfg) for i in range(len(views))]
+    plates = [_plate(v, c, k, errs[i], mode) for i, (v, (c, k)) in enumerate(zip(views, made, strict=True))]
+    return plates, _record(mode, plates, g, tried)
+
+
+def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:
+    """The user's plates in each view's exposure (:func:`user_gains`), their errors on the held-back ring."""
+    g = user_gains(views, user)
+    plates = []
+    for i, (v, u) in enumerate(zip(views, user, strict=True)):
+        r = ring_pixels(v.object_depth)
+        err = _error(v.linear[r[:, 1], r[:, 0]].astype(np.float64), np.asarray(u)[r[:, 1], r[:, 0]] / g[i])
+        plates.append(_plate(v, np.asarray(u, np.float32) / g[i], np.ones(v.object_depth.shape, bool), err, "user"))
+    return plates, _record("user", plates, g, {})
 
 
 def _summary(errs) -> float | None:

@@ -24,7 +24,6 @@ not two, and a point at infinity is just the direction of the project's one came
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -147,6 +146,17 @@ def background_points(cam: Camera, pix: np.ndarray, plane: np.ndarray | None,
     return hyps
 
 
+def nan_median(s: np.ndarray) -> np.ndarray:
+    """(N, C) per-column median over axis 0 of (K, N, C) samples, NaN = none: np.nanmedian's values
+    without its per-column Python loop (samples sorted, NaNs last); a column without any sample
+    gives a meaningless value (the caller masks it)."""
+    srt = np.sort(s, axis=0)
+    n = np.maximum(np.isfinite(s).sum(axis=0), 1)  # (N, C)
+    lo = np.take_along_axis(srt, ((n - 1) // 2)[None], axis=0)[0]
+    hi = np.take_along_axis(srt, (n // 2)[None], axis=0)[0]
+    return 0.5 * (lo + hi)
+
+
 def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: list[PlateSource],
                     plane: np.ndarray | None, room: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(colour (N, 3) float32 linear in view i's exposure, known (N,) bool, samples (N,) int) of the
@@ -165,9 +175,7 @@ def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: l
         got = have.any(axis=0)
         if not got.any():
             continue
-        with warnings.catch_warnings():  # all-NaN columns: no sample there
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(s[:, got], axis=0)
+        med = nan_median(s[:, got])
         idx = todo[got]
         colour[idx] = med
         known[idx] = True

@@ -19,6 +19,7 @@ import json
 import time
 from pathlib import Path
 
+from capture.extent import ExtentConfig
 from capture.io import read_scanset
 from capture.matting import MatteConfig
 from capture.plate import PlateConfig
@@ -26,8 +27,9 @@ from capture.scan import Scan, ScanSet
 from render import evaluate as ev
 from render.gl import gl_context
 from render.methods import RenderOptions
-from volume.build import ModelConfig, build_model
-from volume.prepare import PrepareConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import PipelineConfig
+from volume.pipeline.work import Hooks
 
 KEYS = ("psnr_masked", "ssim_masked", "sharpness", "hole_fraction", "psnr_white", "alpha_mse", "psnr")
 
@@ -59,11 +61,11 @@ def main(argv=None) -> dict:
     kept = split.kept
     if a.matte != "given":
         kept = ScanSet(tuple(Scan(s.rgb, s.depth, s.camera, s.name) for s in kept.scans), kept.bounds, kept.metadata)
-    prep = PrepareConfig(extent=a.extent == "1", matte=MatteConfig(mode=a.matte), plate=PlateConfig(mode=a.plate),
-                         background_plates=a.plates)
+    cfg = PipelineConfig(extent=ExtentConfig() if a.extent == "1" else None, matte=MatteConfig(mode=a.matte),
+                         plate=PlateConfig(mode=a.plate, plates_dir=a.plates))
     stage, times = timed()
     t = time.perf_counter()
-    model, summ = build_model(kept, ModelConfig(prepare=prep), stage=stage)
+    model, summ = build_model(kept, cfg, Hooks(row=stage))
     build_s = time.perf_counter() - t
     with gl_context() as ctx:
         res = ev.evaluate(ctx, model, split.held, RenderOptions(), ("gather", "points"),

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from capture.matting import UNKNOWN, depth_trimap
-from capture.plate import PlateConfig, PlateView, background_plates, fit_gains, robust_mode
+from capture.plate import PlateConfig, PlateView, background_plates, fit_gains
+from capture.plate_fixed import robust_mode
 from tests import plate_scenes as ps
 
 #: Orbit: the band's error with the plane, and the error without it must be at least this (parallax).
@@ -73,7 +74,7 @@ def test_turntable_needles_without_depth_do_not_enter_the_plate():
     the frames that agree on the room wherever they outnumber every group of frames in which the
     same coverage repeats, even when needles cover the pixel in most frames (where a plain median
     of the frames takes the needles in)."""
-    from capture.plate import fixed_sample_weight
+    from capture.plate_fixed import fixed_sample_weight
 
     views, room, alphas, _ = ps.turntable_capture()
     plates, _ = background_plates(views, PlateConfig(mode="fixed"))

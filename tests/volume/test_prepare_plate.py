@@ -1,4 +1,4 @@
-"""The plate and matte stages end to end (volume.prepare): nothing lost over black, the room taken out.
+"""The plate and matte stages end to end (volume/surroundings.py): nothing lost over black, the room taken out.
 
 Over black C = a F exactly, so the default matte (a detected black backdrop, solved with B = 0)
 must render the held-out views as ``--matte off`` does: measured on this capture (a 128x96 conifer,
@@ -16,8 +16,8 @@ from datasets_synthetic.lighting import LightingConfig
 from datasets_synthetic.rig import TurntableRig
 from datasets_synthetic.synth import SynthConfig, synthesize
 from render import evaluate as ev
-from volume.build import ModelConfig, build_model
-from volume.prepare import PrepareConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import FuseConfig, PipelineConfig
 from volume.pyramid import LoptConfig
 
 RIG = TurntableRig(views_per_ring=8, width=128, height=96)
@@ -34,7 +34,7 @@ def _kept_without_matte(scanset):
 
 
 def _scores(gl_ctx, kept, held, matte: str) -> dict:
-    cfg = ModelConfig(lopt=LoptConfig(max_res=64, min_res=8), prepare=PrepareConfig(matte=MatteConfig(mode=matte)))
+    cfg = PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=64, min_res=8)), matte=MatteConfig(mode=matte))
     model, summary = build_model(kept, cfg)
     res = ev.evaluate(gl_ctx, model, held, methods=("gather", "points"))
     return {"summary": summary, **res}
