@@ -1,4 +1,4 @@
-"""A soft alpha matte per view and the object's straight colour under it (issue 20).
+"""A soft alpha matte per view and the object's straight colour under it (issues 20 and 30).
 
 Needles and strands are mostly *partial* pixels: any rule that treats "has depth" as "is opaque"
 paints the background into the object.  :func:`matte_scan` gives each view a straight alpha matte
@@ -6,25 +6,29 @@ in [0, 1] and the foreground colour F (so that image = alpha F + (1 - alpha) B),
 path that applies (``MatteConfig.mode`` = ``auto``; or one forced):
 
 1. ``given``: the capture's own matte (``Scan.alpha``: transforms.json ``mask_path`` or an RGBA
-   image's alpha, ``capture.matte_io``).
+   image's alpha, ``capture.matte_io``); with the view's background plate its colour is unmixed
+   exactly, F = B + (C - B) / alpha (:func:`unmixed`).
 2. ``backdrop``: a known plain backdrop B (``MatteConfig.backdrop``; in ``auto`` also a backdrop
    detected from the view: the pixels certainly behind the object all within ``BACKDROP_TOL`` of
-   their median colour).  Pixels outside the object's depth whose colour is B are certainly
-   background, which tightens the trimap to the pixels that differ from B.
-3. ``estimate``: a trimap from the object's depth (:func:`depth_trimap`: opaque where the object's
+   their median colour), solved as a known background everywhere (:func:`solve_known`) with the
+   backdrop's own noise (:func:`backdrop_noise`): over black the premultiplied colour is the
+   photo itself, so a black capture renders as without a matte.
+3. ``plate``: the view's background plate (``capture.plate``, the pipeline's plate stage) where
+   it is known: alpha and F from C = a F + (1 - a) B with B known (``capture.matting_known``), the
+   closed-form Laplacian alone where it is not.
+4. ``estimate``: a trimap from the object's depth (:func:`depth_trimap`: opaque where the object's
    depth is dense, i.e. the depth mask eroded by ``ERODE_FRACTION`` of the width; background
    beyond a band of ``BAND_FRACTION`` of the width around it; unknown between, which covers the
    edges and every thin structure), then closed-form matting (Levin et al. 2008, pymatting's
-   ``estimate_alpha_cf``) on the crop around the unknown and opaque pixels.
+   ``estimate_alpha_cf``) on the crop around the unknown and opaque pixels, and pymatting's
+   ``estimate_foreground_ml`` (Germer et al. 2020) for the colour.
 
-In every path the colour is pymatting's ``estimate_foreground_ml`` (Germer et al. 2020) of the
-view under the matte, on the same crop; outside the crop alpha is 0 and F is the image.  All
-of it runs in linear light, where the compositing equation holds.  ``off`` gives None (the
-binary depth mask stays the only mask).
+Outside the crop alpha is 0 and F is the image.  All of it runs in linear light, where the
+compositing equation holds.  ``off`` gives None (the binary depth mask stays the only mask).
 
 :func:`closed_form_alpha_reference` is the slow numpy / scipy reference of the closed-form
 matte (the Laplacian built by loops over windows, a sparse direct solve) for tests of the
-pymatting path on small crops.
+pymatting path on small crops; ``capture.matting_known`` keeps its own twin.
 """
 
 from __future__ import annotations

@@ -23,8 +23,8 @@ from capture.scan import Scan, ScanSet, to_uint8_srgb
 from render import evaluate as ev
 from render.gl import gl_context
 from render.methods import RenderOptions, create_renderer
-from volume.build import ModelConfig, build_model
-from volume.prepare import PrepareConfig
+from volume.pipeline import build_model
+from volume.pipeline.config import PipelineConfig
 
 
 def _panel(img, label: str) -> np.ndarray:
@@ -55,8 +55,7 @@ def main(argv=None) -> None:
     s = ex.scans[k]
     m = matte_scan(s, s.depth, MatteConfig(), plates[k])
     plate_img = np.where(plates[k].known[..., None], plates[k].background, 0.0)
-    models = {name: build_model(kept, ModelConfig(prepare=PrepareConfig(matte=MatteConfig(mode=mode),
-                                                                        plate=PlateConfig(mode=plate))))[0]
+    models = {name: build_model(kept, PipelineConfig(matte=MatteConfig(mode=mode), plate=PlateConfig(mode=plate)))[0]
               for name, mode, plate in (("before", "estimate", "off"), ("after", "auto", "auto"))}
     held = split.held[a.held]
     with gl_context() as ctx:
