@@ -106,7 +106,7 @@ def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = 
 def push_pull(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """(h, w, C) ``values`` filled where ``weights`` (h, w) is 0 by a push-pull pyramid: each empty
     pixel gets the weighted mean of the nearest non-empty ones at the coarsest scale that has any
-    (normalised convolution, 2x2 box per level).  A map without any weight comes back as zeros."""
+    (normalised convolution: 2x2 box down, bilinear up).  A map without any weight comes back as zeros."""
     v = np.asarray(values, np.float64)
     w = np.asarray(weights, np.float64)
     if not w.any():
@@ -284,7 +284,9 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     blown = known & clipped(C, B) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
-    need = (a > 0) & ~ok & (a < OPAQUE_ALPHA)  # an opaque pixel is its own colour whatever B
+    # an opaque pixel is its own colour whatever B, unless B is blown out: then "opaque" is the depth's
+    # word for a pixel the photo cannot tell from the window
+    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
     if not need.any():
         return np.where(ok[..., None], F, C)
     sure = ok & (a >= REFINE_ALPHA)
