@@ -1,7 +1,7 @@
 """The background behind the object in every view (a clean plate), from the capture itself (issue 30).
 
 A partial pixel of a needle or a strand is C = a F + (1 - a) B: without B, even the true alpha leaves
-the room in F (PITFALLS: 19.4 dB held out with the true matte against 24.3 over black).  The capture
+the room in F (issue 30: 19.4 dB held out with the true matte against 24.3 over black).  The capture
 holds B: what one view's object hides, other views see beside it.  :func:`background_plates` gives
 every view a plate (B per pixel where known) by the first path that applies (``PlateConfig.mode``
 ``auto``, or one forced):
@@ -24,6 +24,12 @@ dilated by ``SOURCE_BAND_FRACTION`` of the width, twice the matting band.  Each 
 gain (auto exposure, white balance: colour = true colour / g) is fitted on those pixels
 (:func:`fit_gains`) so that one view's plate is drawn in its own exposure.
 
+The orchestration (:func:`background_plates`): every view is prepared once (:func:`prepare`: its
+masks, held-back ring and what each path reads of it, a :class:`PlateSet`); each path tried
+(:data:`PATHS`: its first gains, its prediction of every view's ring from the other views, its
+drawing of the plates) predicts the rings (a :class:`Trial`); the winner's gains are refitted on its
+own predictions GAIN_PASSES times (:func:`refit`); then it draws the plates.
+
 Every view's record says what share of its matting band got a known background and the plate's
 error on background pixels it was not built from (a ring of the view's own background pixels just
 outside the band, predicted from the other views only: leave one out).  Where no view saw the
@@ -40,7 +46,7 @@ from scipy import ndimage
 from capture.camera import Camera
 from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_known import WIDEN_FRACTION
-from capture.plate_reproject import PlateSource, reproject_plate, room_depth
+from capture.plate_reproject import room_depth
 
 #: Plate modes of PlateConfig.mode / ``furrow model --plate``.
 PLATE_MODES = ("auto", "user", "fixed", "panorama", "off")
@@ -181,10 +187,10 @@ def need_mask(object_depth: np.ndarray) -> np.ndarray:
     return ndimage.binary_dilation(tri > 0, iterations=px(WIDEN_FRACTION, tri.shape[1]))
 
 
-def ring_pixels(object_depth: np.ndarray) -> np.ndarray:
+def ring_pixels(object_depth: np.ndarray, source: np.ndarray | None = None) -> np.ndarray:
     """(N, 2) int (x, y) of the held-back ring: source pixels within RING_FRACTION of the source
-    band's edge, at most RING_SAMPLES (evenly)."""
-    src = source_mask(object_depth)
+    band's edge, at most RING_SAMPLES (evenly); ``source``: the view's :func:`source_mask` if known."""
+    src = source_mask(object_depth) if source is None else source
     near = ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
     y, x = np.nonzero(src & near)
     if len(y) > RING_SAMPLES:
@@ -212,58 +218,112 @@ def fit_gains(observed: list[np.ndarray], predicted: list[np.ndarray], prior: np
     return np.exp(logg)
 
 
-def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:
-    """Indices of the ``k`` cameras other than ``i`` nearest to it by optical axis."""
-    f = np.array([c.forward for c in cams])
-    ang = np.arccos(np.clip(f @ f[i], -1, 1))
-    ang[i] = np.inf
-    return [int(j) for j in np.argsort(ang)[:k] if np.isfinite(ang[j])]
-
-
 @dataclass(frozen=True)
-class _Prep:
-    """What the plate stage works out once per view: its confidently background pixels (source
-    mask), the pixels it needs a plate at (need mask), its held-back ring (N, 2) and its room depth
-    under the object (or None)."""
+class PreparedView:
+    """One view as every plate path reads it, worked out once (:func:`prepare`).
 
+    Attributes:
+        view: the view.
+        source: (H, W) bool, confidently background (:func:`source_mask`).
+        need: (H, W) bool, where the matte may ask for the plate (:func:`need_mask`).
+        ring: (N, 2) int (x, y) of its held-back ring (:func:`ring_pixels`).
+        observed: (N, 3) float64 its linear colour on the ring.
+        background_depth: (H, W) float32 the capture's depth where it is not the object (0 = none).
+        room: (H, W) z-depth of the room filled in under the object
+            (capture.plate_reproject.room_depth), or None (none measured, or no moving-camera path).
+        weight: (H, W) float32 its pixels' weight as fixed-camera samples
+            (capture.plate_fixed.fixed_sample_weight), or None (no fixed-camera path).
+    """
+
+    view: PlateView
     source: np.ndarray
     need: np.ndarray
     ring: np.ndarray
+    observed: np.ndarray
+    background_depth: np.ndarray
     room: np.ndarray | None
+    weight: np.ndarray | None
 
 
-def _prepare(v: PlateView, plane: np.ndarray | None) -> _Prep:
+@dataclass(frozen=True)
+class PlateSet:
+    """Every view prepared, and what the paths share.
+
+    Attributes:
+        views: the prepared views.
+        plane: (4,) the support plane (n, d; n . X + d = 0, metres) or None.
+        focus: (centre (3,), radius) of the region the rig looks at (metres).
+        neighbours: views consulted per view by the moving-camera path.
+    """
+
+    views: tuple[PreparedView, ...]
+    plane: np.ndarray | None
+    focus: tuple[np.ndarray, float]
+    neighbours: int
+
+    @property
+    def cameras(self) -> list[Camera]:
+        return [p.view.camera for p in self.views]
+
+
+def _paths(cfg: PlateConfig) -> tuple[str, ...]:
+    """The paths background_plates tries: both in 'auto', else the one forced."""
+    return ("fixed", "panorama") if cfg.mode == "auto" else (cfg.mode,)
+
+
+def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> PreparedView:
+    """The view's :class:`PreparedView`; the room depth only for the 'panorama' path, the sample
+    weights only for the 'fixed' one."""
+    from capture.plate_fixed import fixed_sample_weight
+
     src = source_mask(v.object_depth)
-    bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth)
-    pts, m = v.camera.depth_to_points(bgd)
-    off = np.zeros(bgd.shape, bool)
-    if len(pts):
-        off[m] = True if plane is None else (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
-    ring = src & ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
-    return _Prep(src, need_mask(v.object_depth), ring_pixels(v.object_depth), room_depth(bgd, ring, off))
+    bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32)
+    ring = ring_pixels(v.object_depth, src)
+    room = None
+    if "panorama" in paths:
+        pts, m = v.camera.depth_to_points(bgd)
+        off = np.zeros(bgd.shape, bool)
+        if len(pts):
+            off[m] = True if plane is None else (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
+        band = src & ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
+        room = room_depth(bgd, band, off)
+    weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
+    observed = np.asarray(v.linear[ring[:, 1], ring[:, 0]], np.float64)
+    return PreparedView(v, src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
 
 
-def _sources(views: list[PlateView], pre: list[_Prep], gains: np.ndarray,
-             focus: tuple[np.ndarray, float]) -> list[PlateSource]:
-    center, radius = focus
-    out = []
-    for j, v in enumerate(views):
-        bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32)
-        far = float(v.camera.world_to_cam(center)[2] + radius)
-        out.append(PlateSource(v.camera, v.linear, pre[j].source, bgd, gains[j], far))
-    return out
+def plate_set(views: list[PlateView], plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,
+              cfg: PlateConfig) -> PlateSet:
+    """Every view prepared (:func:`prepare`) for the paths ``cfg`` tries; ``focus`` default
+    capture.extent.focus_region of the cameras."""
+    from capture.extent import focus_region
+
+    focus = focus or focus_region([v.camera for v in views])
+    paths = _paths(cfg)
+    return PlateSet(tuple(prepare(v, plane, paths) for v in views), plane, focus, int(cfg.neighbours))
 
 
-def panorama_prediction(views: list[PlateView], i: int, pix: np.ndarray, sources: list[PlateSource],
-                        plane: np.ndarray | None, k: int, room: np.ndarray | None) -> np.ndarray:
-    """(N, 3) colour behind pixels ``pix`` of view i in its exposure from its ``k`` nearest other
-    views (NaN where unknown; ``room``: its room depth, capture.plate_reproject.room_depth)."""
-    cams = [v.camera for v in views]
-    nb = [sources[j] for j in neighbour_order(cams, i, k)]
-    col, known, _ = reproject_plate(cams[i], pix, sources[i].gain, nb, plane, room)
-    col = col.astype(np.float32)
-    col[~known] = np.nan
-    return col
+def path_functions(path: str):
+    """(first gains, ring prediction, plate drawing) of a path: each takes the PlateSet (and gains);
+    predictions and plates are in each view's own exposure."""
+    from capture import plate_fixed as pf
+    from capture import plate_reproject as pr
+
+    return {"fixed": (pf.fixed_start, pf.fixed_predict, pf.fixed_draw),
+            "panorama": (pr.panorama_start, pr.panorama_predict, pr.panorama_draw)}[path]
+
+
+# --- the orchestration ---
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One path's gains (V, 3), its prediction of every view's ring (list of (N_i, 3), NaN =
+    unknown) and per view (median of the largest channel's |error|, RMS) against the ring."""
+
+    gains: np.ndarray
+    predicted: list
+    errors: list
 
 
 def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
@@ -275,39 +335,21 @@ def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
     return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
 
 
-def _predict(mode: str, views, pre: list[_Prep], gains: np.ndarray, cfg: PlateConfig, plane, focus,
-             weights=None) -> list[np.ndarray]:
-    """Per view its held-back ring predicted from the other views (N_i, 3), in its own exposure."""
-    from capture.plate_fixed import fixed_prediction
-
-    if mode == "fixed":
-        return [fixed_prediction(views, p.ring, i, gains, weights) / gains[i] for i, p in enumerate(pre)]
-    src = _sources(views, pre, gains, focus)
-    return [panorama_prediction(views, i, p.ring, src, plane, cfg.neighbours, p.room) for i, p in enumerate(pre)]
+def _trial(ps: PlateSet, path: str, gains: np.ndarray | None = None) -> Trial:
+    """The path's prediction of every ring with ``gains`` (default the path's first gains)."""
+    start, predict, _ = path_functions(path)
+    g = start(ps) if gains is None else gains
+    pred = predict(ps, g)
+    return Trial(g, pred, [_error(p.observed, q) for p, q in zip(ps.views, pred, strict=True)])
 
 
-def choose_and_fit(views, pre: list[_Prep], cfg: PlateConfig, plane, focus):
-    """(mode, gains (V, 3), per view (median error, RMS) of its held-back ring, {mode tried: its
-    median error}): each mode tried ('fixed' / 'panorama', or the forced one) predicts every view's
-    ring from the other views (a fixed camera with the exposure gains of the pixels every frame
-    sees, capture.plate_fixed.fixed_gains; a moving one with unit gains); the one with the smaller
-    error wins (:func:`choose_mode`); its gains are then fitted to its predictions GAIN_PASSES times."""
-    from capture.plate_fixed import fixed_gains, fixed_sample_weight
-
-    obs = [v.linear[p.ring[:, 1], p.ring[:, 0]].astype(np.float64) for v, p in zip(views, pre, strict=True)]
-    weights = [fixed_sample_weight(v.object_depth) for v in views]
-    tried = {}
-    for m in (("fixed", "panorama") if cfg.mode == "auto" else (cfg.mode,)):
-        g = fixed_gains(views, weights) if m == "fixed" else np.ones((len(views), 3))
-        pred = _predict(m, views, pre, g, cfg, plane, focus, weights)
-        tried[m] = (g, pred, [_error(o, p) for o, p in zip(obs, pred, strict=True)])
-    mode = choose_mode({m: t[2] for m, t in tried.items()})
-    gains, pred, _ = tried[mode]
+def refit(ps: PlateSet, path: str, trial: Trial) -> Trial:
+    """The path's gains fitted to its own predictions GAIN_PASSES times (:func:`fit_gains`), each
+    pass predicting again with the new gains."""
     for _ in range(GAIN_PASSES):
-        gains = fit_gains(obs, [p * gains[i] for i, p in enumerate(pred)], gains)
-        pred = _predict(mode, views, pre, gains, cfg, plane, focus, weights)
-    errs = [_error(o, p) for o, p in zip(obs, pred, strict=True)]
-    return mode, gains, errs, {m: _summary(t[2]) for m, t in tried.items()}
+        common = [q * trial.gains[i] for i, q in enumerate(trial.predicted)]
+        trial = _trial(ps, path, fit_gains([p.observed for p in ps.views], common, trial.gains))
+    return trial
 
 
 def choose_mode(errors: dict) -> str:
@@ -315,6 +357,29 @@ def choose_mode(errors: dict) -> str:
     score = {m: np.nanmedian([e[0] for e in errs]) if np.isfinite([e[0] for e in errs]).any() else np.inf
              for m, errs in errors.items()}
     return min(score, key=lambda m: score[m])
+
+
+def background_plates(views: list[PlateView], cfg: PlateConfig | None = None, plane: np.ndarray | None = None,
+                      focus: tuple[np.ndarray, float] | None = None,
+                      user: list[np.ndarray] | None = None) -> tuple[list[Plate | None], dict]:
+    """(per view its Plate, or None for mode 'off'; record for model.json / the console) (module
+    docstring).  ``plane``: the support plane (capture.extent, (4,) or None); ``focus``: (centre,
+    radius) of the region the rig looks at (default capture.extent.focus_region); ``user``: per
+    view a (H, W, 3) linear plate the user shot (capture.plate_io)."""
+    cfg = cfg or PlateConfig()
+    if cfg.mode == "off":
+        return [None] * len(views), {"mode": "off"}
+    if cfg.mode == "user" and user is None:
+        raise ValueError("--plate user needs --background-plates DIR")
+    if user is not None and cfg.mode in ("auto", "user"):
+        return _user_plates(views, user)
+    ps = plate_set(views, plane, focus, cfg)
+    trials = {path: _trial(ps, path) for path in _paths(cfg)}
+    mode = choose_mode({path: t.errors for path, t in trials.items()})
+    fit = refit(ps, mode, trials[mode])
+    made = path_functions(mode)[2](ps, fit.gains)
+    plates = [_plate(p.view, c, k, err, mode) for p, (c, k), err in zip(ps.views, made, fit.errors, strict=True)]
+    return plates, _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
 
 
 def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
@@ -336,46 +401,6 @@ def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, f
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     return Plate(col.astype(np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
                  err[0], err[1])
-
-
-def _panorama_plate(views, i, pre: _Prep, sources, plane, cfg) -> tuple[np.ndarray, np.ndarray]:
-    y, x = np.nonzero(pre.need)
-    col = panorama_prediction(views, i, np.stack([x, y], axis=1), sources, plane, cfg.neighbours, pre.room)
-    out = np.zeros(views[i].linear.shape, np.float32)
-    known = np.zeros(pre.need.shape, bool)
-    ok = np.isfinite(col[:, 0])
-    out[y[ok], x[ok]] = col[ok]
-    known[y[ok], x[ok]] = True
-    return out, known
-
-
-def background_plates(views: list[PlateView], cfg: PlateConfig | None = None, plane: np.ndarray | None = None,
-                      focus: tuple[np.ndarray, float] | None = None,
-                      user: list[np.ndarray] | None = None) -> tuple[list[Plate | None], dict]:
-    """(per view its Plate, or None for mode 'off'; record for model.json / the console) (module
-    docstring).  ``plane``: the support plane (capture.extent, (4,) or None); ``focus``: (centre,
-    radius) of the region the rig looks at (default capture.extent.focus_region); ``user``: per
-    view a (H, W, 3) linear plate the user shot (capture.plate_io)."""
-    from capture.extent import focus_region
-    from capture.plate_fixed import fixed_plates
-
-    cfg = cfg or PlateConfig()
-    if cfg.mode == "off":
-        return [None] * len(views), {"mode": "off"}
-    if cfg.mode == "user" and user is None:
-        raise ValueError("--plate user needs --background-plates DIR")
-    if user is not None and cfg.mode in ("auto", "user"):
-        return _user_plates(views, user)
-    focus = focus or focus_region([v.camera for v in views])
-    pre = [_prepare(v, plane) for v in views]
-    mode, g, errs, tried = choose_and_fit(views, pre, cfg, plane, focus)
-    if mode == "fixed":
-        made = fixed_plates(views, [p.need for p in pre], g)
-    else:
-        src = _sources(views, pre, g, focus)
-        made = [_panorama_plate(views, i, pre[i], src, plane, cfg) for i in range(len(views))]
-    plates = [_plate(v, c, k, errs[i], mode) for i, (v, (c, k)) in enumerate(zip(views, made, strict=True))]
-    return plates, _record(mode, plates, g, tried)
 
 
 def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:

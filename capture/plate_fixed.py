@@ -7,7 +7,8 @@ each frame's object depth is from the pixel (:func:`fixed_sample_weight`), rejec
 when a rival cluster nearly as heavy disagrees (a needle that stayed put over several frames).  A
 median of all frames would take in the needles wherever they cover a pixel in half of them.  The
 frames' exposures (auto exposure) are fitted first on the pixels every frame sees
-(:func:`fixed_gains`).
+(:func:`fixed_gains`).  As a path of ``capture.plate`` (``capture.plate.path_functions``):
+:func:`fixed_start`, :func:`fixed_predict` and :func:`fixed_draw` on a ``capture.plate.PlateSet``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from capture.plate import GAIN_PASSES, SOURCE_BAND_FRACTION, PlateView, fit_gains, px
+from capture.plate import GAIN_PASSES, SOURCE_BAND_FRACTION, PlateSet, PlateView, fit_gains, px
 from capture.plate_reproject import nan_median
 
 #: A pixel's plate needs this many frames that agree on its colour (robust_mode).
@@ -49,7 +50,9 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple
         have = np.isfinite(s[..., 0])
         w = have.astype(np.float32) if weights is None else np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0)
         e = linear_to_srgb(np.nan_to_num(s))
-        close = (np.abs(e[:, None] - e[None]).max(axis=-1) <= MODE_TOL) & have[:, None] & have[None]
+        close = have[:, None] & have[None]  # (K, K, n): every channel within MODE_TOL (channel by channel:
+        for c in range(3):  # a (K, K, n, 3) array's max over its last axis took 3x as long)
+            close &= np.abs(e[None, :, :, c] - e[:, None, :, c]) <= MODE_TOL
         score = (close * w[None]).sum(axis=1)  # (K, n): weight of the samples agreeing with each
         best = np.argmax(score, axis=0)  # (n,): the heaviest cluster's centre
         cols = np.arange(s.shape[1])
@@ -115,16 +118,28 @@ def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray
     return gains
 
 
-def fixed_plates(views: list[PlateView], needs: list[np.ndarray], gains: np.ndarray) -> list[tuple]:
-    """Per view (colour (H, W, 3) in its own exposure, known (H, W)) of the fixed-camera plate on
-    the union of the views' ``needs`` (module docstring)."""
+def fixed_start(ps: PlateSet) -> np.ndarray:
+    """The fixed camera's first gains (:func:`fixed_gains` of the prepared views)."""
+    return fixed_gains([p.view for p in ps.views], [p.weight for p in ps.views])
+
+
+def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
+    """Per view its ring (N_i, 3) predicted from every other frame (leave one out), in its own exposure."""
+    views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
+    return [fixed_prediction(views, p.ring, i, gains, weights) / gains[i] for i, p in enumerate(ps.views)]
+
+
+def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per view (colour (H, W, 3) float32 in its own exposure, known (H, W)) of the fixed-camera
+    plate on the union of the views' need masks (module docstring): one robust mode per pixel."""
+    needs = [p.need for p in ps.views]
     union = np.logical_or.reduce(needs)
     y, x = np.nonzero(union)
-    weights = [fixed_sample_weight(v.object_depth) for v in views]
-    med = fixed_prediction(views, np.stack([x, y], axis=1), None, gains, weights)
+    med = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
+                           [p.weight for p in ps.views])
     out = []
-    for j, v in enumerate(views):
-        col = np.zeros(v.linear.shape, np.float32)
+    for j, p in enumerate(ps.views):
+        col = np.zeros(p.view.linear.shape, np.float32)
         col[y, x] = np.nan_to_num(med / gains[j])
         known = np.zeros(union.shape, bool)
         known[y, x] = np.isfinite(med[:, 0])

@@ -20,15 +20,23 @@ the object.  Its colour is looked up in the other views that saw X beside the ob
 
 The views' pixels are looked up directly, not through a resampled panorama grid: one resampling,
 not two, and a point at infinity is just the direction of the project's one camera model.
+
+As a path of ``capture.plate`` (``capture.plate.path_functions``): :func:`panorama_start`,
+:func:`panorama_predict` and :func:`panorama_draw` on a ``capture.plate.PlateSet``, each view
+consulting its ``neighbours`` nearest views by optical axis (:func:`neighbour_order`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from capture.camera import Camera
+
+if TYPE_CHECKING:
+    from capture.plate import PlateSet
 
 #: A point "at infinity": this many metres along the ray (float64 keeps 1e-6 px of parallax).
 FAR_METRES = 1e6
@@ -181,3 +189,55 @@ def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: l
         known[idx] = True
         count[idx] = have[:, got].sum(axis=0)
     return colour, known, count
+
+
+def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:
+    """Indices of the ``k`` cameras other than ``i`` nearest to it by optical axis."""
+    f = np.array([c.forward for c in cams])
+    ang = np.arccos(np.clip(f @ f[i], -1, 1))
+    ang[i] = np.inf
+    return [int(j) for j in np.argsort(ang)[:k] if np.isfinite(ang[j])]
+
+
+def panorama_sources(ps: PlateSet, gains: np.ndarray) -> list[PlateSource]:
+    """What every view lends to the others' plates, with its exposure gain."""
+    center, radius = ps.focus
+    return [PlateSource(p.view.camera, p.view.linear, p.source, p.background_depth, gains[j],
+                        float(p.view.camera.world_to_cam(center)[2] + radius)) for j, p in enumerate(ps.views)]
+
+
+def panorama_prediction(ps: PlateSet, i: int, pix: np.ndarray, sources: list[PlateSource]) -> np.ndarray:
+    """(N, 3) colour behind pixels ``pix`` (N, 2) of view i in its exposure from its
+    ``ps.neighbours`` nearest other views (NaN where unknown)."""
+    nb = [sources[j] for j in neighbour_order(ps.cameras, i, ps.neighbours)]
+    col, known, _ = reproject_plate(ps.views[i].view.camera, pix, sources[i].gain, nb, ps.plane, ps.views[i].room)
+    col = col.astype(np.float32)
+    col[~known] = np.nan
+    return col
+
+
+def panorama_start(ps: PlateSet) -> np.ndarray:
+    """The moving camera's first gains: 1 (the rings say more than any common pixel)."""
+    return np.ones((len(ps.views), 3))
+
+
+def panorama_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
+    """Per view its ring (N_i, 3) predicted from the other views, in its own exposure."""
+    src = panorama_sources(ps, gains)
+    return [panorama_prediction(ps, i, p.ring, src) for i, p in enumerate(ps.views)]
+
+
+def panorama_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per view (colour (H, W, 3) float32 in its exposure, known (H, W)) on its need mask."""
+    src = panorama_sources(ps, gains)
+    out = []
+    for i, p in enumerate(ps.views):
+        y, x = np.nonzero(p.need)
+        col = panorama_prediction(ps, i, np.stack([x, y], axis=1), src)
+        ok = np.isfinite(col[:, 0])
+        img = np.zeros(p.view.linear.shape, np.float32)
+        known = np.zeros(p.need.shape, bool)
+        img[y[ok], x[ok]] = col[ok]
+        known[y[ok], x[ok]] = True
+        out.append((img, known))
+    return out

@@ -9,7 +9,8 @@ stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
 * **background plate** (``capture.plate.background_plates``): the background behind the object in
   every view, from the other views (or the user's plates); a whole-set stage.  Each view's plate,
   cropped to where it is known, waits in ``work.parts["plates"]`` for the matte stage.  Skipped
-  (its record says so) when the matte mode reads no plate (off, estimate, backdrop).
+  (its record says so) when the matte mode reads no plate (off, estimate, backdrop) or, for the
+  auto matte, when every view shows a plain backdrop (the backdrop path reads none).
 * **matte** (``capture.matting.matte_scan``): each view gets a soft straight alpha matte and the
   object's straight colour under it, with its plate where there is one; the scan's colour becomes
   that foreground colour (float32 linear) and its ``alpha`` the matte, which
@@ -57,6 +58,8 @@ def plate_stage(work, cfg, ctx):
     plate in ``work.parts["plates"]`` (view index -> cropped capture.plate.Plate), the record."""
     if not _plates_wanted(ctx.config):
         return work.record("background plate", {"mode": "unused", "matte": ctx.config.matte.mode})
+    if ctx.config.matte.mode == "auto" and cfg.plates_dir is None and _all_plain(work.scans):
+        return work.record("background plate", {"mode": "unused", "matte": "auto: a plain backdrop in every view"})
     from capture.plate_io import read_user_plates
 
     captured = work.parts.get("captured") or work.scans
@@ -68,6 +71,14 @@ def plate_stage(work, cfg, ctx):
     del views
     store = {ref.index: p.cropped() for ref, p in zip(work.refs, plates, strict=True)}
     return work.made(plates=store, captured=None).record("background plate", rec)
+
+
+def _all_plain(scans) -> bool:
+    """Whether every view shows a plain backdrop (capture.matting.detect_backdrop): the auto matte
+    then takes the backdrop path and reads no plate."""
+    from capture.matting import depth_trimap, detect_backdrop
+
+    return all(s.alpha is None and detect_backdrop(s.linear_rgb, depth_trimap(s.depth)) is not None for s in scans)
 
 
 def matte_stage(work, cfg, ctx):
