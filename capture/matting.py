@@ -242,12 +242,12 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     """Matte of linear ``image`` (H, W, 3) with the background (H, W, 3) known where ``known``
     (capture.matting_known), solved on the crop around the trimap's band and opaque pixels grown
     by the widening; not converged: alpha from the per-pixel fit (the method says so)."""
-    from capture.matting_known import WIDEN_FRACTION, known_background_matte
+    from capture.matting_known import known_background_matte, widen_px
 
     H, W = trimap.shape
     alpha = np.zeros((H, W), np.float32)
     fg = np.asarray(image, np.float32).copy()
-    grown = ndimage.binary_dilation(trimap > BG, iterations=_px(WIDEN_FRACTION, W) + 1)
+    grown = ndimage.binary_dilation(trimap > BG, iterations=widen_px(W) + 1)
     box = _crop(np.where(grown, UNKNOWN, BG))
     if box is None:
         return Matte(alpha, fg, method, 0.0)

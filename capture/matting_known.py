@@ -88,6 +88,16 @@ CG_RTOL = 1e-5
 #: no depth pixel saw); 12 px at 640.
 WIDEN_FRACTION = 12 / 640
 WIDEN_ALPHA = 0.0
+#: ... and at least this many pixels (a small image: the bottom of a sphere whose depth the extent
+#: stage cut two rows short stayed background at 1 px, and the Laplacian dragged the sphere's alpha
+#: down to 0.53 from there).
+WIDEN_MIN_PX = 3
+
+
+def widen_px(width: int) -> int:
+    """Pixels of the trimap widening in an image (or crop) ``width`` wide: WIDEN_FRACTION of it, at
+    least WIDEN_MIN_PX."""
+    return max(WIDEN_MIN_PX, int(round(WIDEN_FRACTION * width)))
 
 
 def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = NOISE_ABS) -> np.ndarray:
@@ -171,10 +181,10 @@ def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.nd
 
 
 def widen_trimap(trimap: np.ndarray, lower: np.ndarray, known: np.ndarray) -> np.ndarray:
-    """``trimap`` with its background pixels near the unknown band (WIDEN_FRACTION of the width)
+    """``trimap`` with its background pixels near the unknown band (:func:`widen_px` of its width)
     made unknown where the known background cannot explain them (alpha bound above WIDEN_ALPHA)."""
     tri = np.asarray(trimap, np.float64).copy()
-    near = ndimage.binary_dilation(tri > BG, iterations=max(1, int(round(WIDEN_FRACTION * tri.shape[1]))))
+    near = ndimage.binary_dilation(tri > BG, iterations=widen_px(tri.shape[1]))
     grow = (tri <= BG) & near & np.asarray(known, bool) & (lower > WIDEN_ALPHA)
     tri[ndimage.binary_dilation(grow) & near & (tri <= BG) & np.asarray(known, bool)] = UNKNOWN
     return tri
@@ -276,7 +286,8 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     blown-out wall came out white, premultiplied colour 18.1 dB against the truth over black, 21.7 dB
     with the fill).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML
     foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view
-    saw behind, 10.6 dB held out against 20.1)."""
+    saw behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour
+    (:func:`_extended`)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     a = np.asarray(alpha, np.float64)
@@ -288,7 +299,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     # word for a pixel the photo cannot tell from the window
     need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
     if not need.any():
-        return np.where(ok[..., None], F, C)
+        return _extended(np.where(ok[..., None], F, C), a)
     sure = ok & (a >= REFINE_ALPHA)
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
@@ -299,7 +310,19 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     fb = np.asarray(fallback_fg(C, a, rest), np.float64) if rest.any() else C
     if fill.any():
         fb = np.where(fill[..., None], push_pull(F, sure.astype(np.float64)), fb)
-    return np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0)
+    return _extended(np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0), a)
+
+
+def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """``F`` with its alpha-0 pixels given the nearest sure object colour (a push-pull fill from the
+    pixels with alpha at least REFINE_ALPHA: a faint pixel's F = B + (C - B) / alpha carries its noise
+    times 1 / alpha), as pymatting's ML foreground extends it: a bilinear lookup across the object's
+    edge (the photometric stage's, a texture's) then mixes no background into the object's colour."""
+    zero = alpha <= 0
+    sure = alpha >= REFINE_ALPHA
+    if not zero.any() or not sure.any():
+        return F
+    return np.where(zero[..., None], push_pull(F, sure.astype(np.float64)), F)
 
 
 def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None = None) -> np.ndarray:

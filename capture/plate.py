@@ -45,7 +45,7 @@ from scipy import ndimage
 
 from capture.camera import Camera
 from capture.matting import UNKNOWN, depth_trimap
-from capture.matting_known import WIDEN_FRACTION
+from capture.matting_known import widen_px
 from capture.plate_reproject import room_depth
 
 #: Plate modes of PlateConfig.mode / ``furrow model --plate``.
@@ -184,7 +184,7 @@ def need_mask(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) bool pixels whose background the matte may ask for: the trimap's band and opaque
     pixels, widened as capture.matting_known widens it."""
     tri = depth_trimap(object_depth)
-    return ndimage.binary_dilation(tri > 0, iterations=px(WIDEN_FRACTION, tri.shape[1]))
+    return ndimage.binary_dilation(tri > 0, iterations=widen_px(tri.shape[1]))
 
 
 def ring_pixels(object_depth: np.ndarray, source: np.ndarray | None = None) -> np.ndarray:

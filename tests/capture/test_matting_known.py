@@ -136,3 +136,25 @@ def test_matte_scan_paths_with_a_plate():
     # over a black backdrop, detected: the backdrop path
     Cb, _, _, _, _ = ps.needle_composite(seed=0, background=np.zeros(3))
     assert matte_scan(_scan(_q(Cb), D)).method == "backdrop"
+
+
+def test_an_opaque_disc_whose_depth_misses_its_edge_stays_opaque():
+    """A flat opaque disc over a plain backdrop on a 64 x 48 image, its depth two rows short at the
+    bottom (as the extent stage cut a sphere): the widening reaches the disc's rows without depth
+    (WIDEN_MIN_PX), so no pixel of the disc is held at alpha 0 and the Laplacian keeps the disc
+    opaque (at a 1 px widening its alpha fell to 0.53 next to them); outside the disc the straight
+    colour is the disc's (a bilinear lookup across the edge mixes in no backdrop)."""
+    H, W = 48, 64
+    yy, xx = np.mgrid[0:H, 0:W]
+    disc = (xx - 32) ** 2 + (yy - 22) ** 2 <= 15 ** 2
+    Bc = np.array([0.24, 0.15, 0.09], np.float32)
+    Fc = np.array([0.64, 0.40, 0.24], np.float32)
+    C = _q(np.where(disc[..., None], Fc, Bc).astype(np.float32))
+    depth = np.where(disc & (yy <= 22 + 15 - 3), 0.5, 0.0).astype(np.float32)
+    B = np.broadcast_to(Bc, C.shape)
+    a, F, _, ok = known_background_matte(C, depth_trimap(depth), B, np.ones((H, W), bool), NOISE_8BIT_BLACK)
+    assert ok
+    assert a[disc].min() >= 0.99, np.percentile(a[disc], [0, 1, 5])
+    assert a[~ndimage.binary_dilation(disc)].max() <= 0.01
+    ring = ndimage.binary_dilation(disc, iterations=2) & ~disc & (a <= 0)
+    assert ring.sum() > 50 and np.abs(F[ring] - Fc).max() <= 0.01

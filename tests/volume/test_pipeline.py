@@ -142,7 +142,9 @@ def toy_stage(work, cfg, ctx):
 
 def test_a_stage_is_one_function_one_config_one_line(capture):
     """A new stage is a config field and one line (issue 30's background plate went in so, between
-    extent and matte); a toy one goes in after the plate."""
+    extent and matte); a toy one goes in after the plate.  The matte reads the plate (``--matte
+    plate``): the auto matte of this sphere over black takes the backdrop path and skips the plate."""
+    from capture.matting import MatteConfig
 
     @dataclass(frozen=True)
     class Config(PipelineConfig):
@@ -151,7 +153,7 @@ def test_a_stage_is_one_function_one_config_one_line(capture):
     at = ORDER.index("matte")
     stages = STAGES[:at] + (Stage("toy", "toy", SET, toy_stage, "toy", "tests"),) + STAGES[at:]
     names, hooks = _rows()
-    cfg = Config(fuse=FuseConfig(lopt=LoptConfig(max_res=16)), toy=ToyConfig(0.5))
+    cfg = Config(fuse=FuseConfig(lopt=LoptConfig(max_res=16)), toy=ToyConfig(0.5), matte=MatteConfig(mode="plate"))
     with run_pipeline(open_source(capture), cfg, hooks, stages) as run:
         assert run.work.records["toy"] == {"views": 8, "grey": 0.5}
         assert run.model is not None and "toy" in run.model.params["stages"]

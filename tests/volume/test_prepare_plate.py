@@ -47,6 +47,7 @@ def test_black_capture_scores_what_matte_off_scores(gl_ctx):
     auto = _scores(gl_ctx, kept, held, "auto")
     off = _scores(gl_ctx, kept, held, "off")
     assert auto["summary"]["surroundings"]["matte"]["methods"] == {"backdrop": len(kept)}
+    assert auto["summary"]["surroundings"]["plate"]["mode"] == "unused"  # the backdrop path reads no plate
     for m in ("gather", "points"):
         assert abs(auto[m]["psnr_masked"] - off[m]["psnr_masked"]) <= BLACK_PSNR_TOL, (m, auto[m], off[m])
         assert auto[m]["hole_fraction"] <= off[m]["hole_fraction"] + BLACK_HOLES_TOL
