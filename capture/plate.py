@@ -47,6 +47,7 @@ from capture.camera import Camera
 from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_known import widen_px
 from capture.plate_reproject import room_depth
+from capture.sampling import mask_box
 
 #: Plate modes of PlateConfig.mode / ``furrow model --plate``.
 PLATE_MODES = ("auto", "user", "fixed", "panorama", "off")
@@ -122,15 +123,11 @@ class Plate:
     def cropped(self) -> Plate:
         """The plate on the box around its known pixels, colour as float16 (what waits for the matte
         stage); :meth:`full` gives it back at its (H, W)."""
-        rows, cols = np.flatnonzero(self.known.any(axis=1)), np.flatnonzero(self.known.any(axis=0))
         H, W = self.known.shape
-        if not len(rows):
-            box = (0, 0, 0, 0)
-        else:
-            box = (int(rows[0]), int(cols[0]), int(rows[-1]) + 1, int(cols[-1]) + 1)
-        sl = (slice(box[0], box[2]), slice(box[1], box[3]))
+        r0, r1, c0, c1 = mask_box(self.known) or (0, 0, 0, 0)
+        sl = (slice(r0, r1), slice(c0, c1))
         return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
-                     self.band_known, self.error, self.error_rmse, (H, W, box[0], box[1]))
+                     self.band_known, self.error, self.error_rmse, (H, W, r0, c0))
 
     def full(self) -> Plate:
         """The plate at its image's full (H, W) (itself when not cropped)."""

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from capture.camera import Camera
+from capture.sampling import linear_taps, sample_image
 
 if TYPE_CHECKING:
     from capture.plate import PlateSet
@@ -72,48 +73,27 @@ class PlateSource:
     focus_far: float
 
 
-def bilinear_taps(uv: np.ndarray, W: int, H: int):
-    """(x0, y0, fx, fy, inside) of (N, 2) pixel coordinates: the top-left tap, the fractions and
-    whether all four taps lie inside the image."""
-    x0 = np.floor(uv[:, 0]).astype(np.int64)
-    y0 = np.floor(uv[:, 1]).astype(np.int64)
-    inside = (x0 >= 0) & (y0 >= 0) & (x0 + 1 < W) & (y0 + 1 < H)
-    x0 = np.clip(x0, 0, W - 2)
-    y0 = np.clip(y0, 0, H - 2)
-    return x0, y0, uv[:, 0] - x0, uv[:, 1] - y0, inside
-
-
 def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
     """(N, 3) colours view ``src`` saw at world ``points`` (N, 3) in the exposure of the view whose
     gain is ``gain_i``, NaN where the sample does not count (module docstring).  ``kind``:
     'plane', 'room' or 'far' (what the points are)."""
-    cam = src.camera
     H, W = src.background.shape
     out = np.full((len(points), 3), np.nan, np.float32)
-    uv, z = cam.project(points)
+    uv, z = src.camera.project(points)
     ok = np.isfinite(uv).all(axis=1) & (z > 0)
-    uv = np.where(ok[:, None], uv, 0.0)
-    x0, y0, fx, fy, inside = bilinear_taps(uv, W, H)
-    ok &= inside
-    bg = src.background
-    ok &= bg[y0, x0] & bg[y0, x0 + 1] & bg[y0 + 1, x0] & bg[y0 + 1, x0 + 1]
-    xi = np.clip(np.round(uv[:, 0]).astype(np.int64), 0, W - 1)
-    yi = np.clip(np.round(uv[:, 1]).astype(np.int64), 0, H - 1)
-    d = src.depth[yi, xi]
+    uv = np.where(ok[:, None], uv, -2.0)
+    for idx, inside, _ in linear_taps(uv[:, ::-1], (H, W), "zero"):  # all four taps inside and background
+        ok &= src.background[idx] & (True if inside is None else inside)
+    d = sample_image(src.depth, uv[:, 0], uv[:, 1], "nearest")
     if kind == "far":
         ok &= (d <= 0) | (d > FAR_MARGIN * src.focus_far)
     elif kind == "plane":
         ok &= (d > 0) & (np.abs(d - z) <= DEPTH_TOL * z)
     else:
         ok &= (d <= 0) | (np.abs(d - z) <= DEPTH_TOL * z)
-    if not ok.any():
-        return out
-    k = np.flatnonzero(ok)
-    a, b, c, e = (src.linear[y0[k], x0[k]], src.linear[y0[k], x0[k] + 1], src.linear[y0[k] + 1, x0[k]],
-                  src.linear[y0[k] + 1, x0[k] + 1])
-    u, v = fx[k, None], fy[k, None]
-    col = (a * (1 - u) + b * u) * (1 - v) + (c * (1 - u) + e * u) * v
-    out[k] = col * (src.gain / gain_i)
+    if ok.any():
+        k = np.flatnonzero(ok)
+        out[k] = sample_image(src.linear, uv[k, 0], uv[k, 1], "linear") * (src.gain / gain_i)
     return out
 
 

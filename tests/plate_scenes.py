@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.plate import PlateView
+from capture.sampling import cell_centres
 from tests import scenes
 
 #: Orbit scene: sphere radius, table height and half size (metres), camera ring.
@@ -95,7 +96,7 @@ def _needles(height: int, width: int, angle: float, rng, ss: int = 6, n: int = 4
     foreshortened), supersampled ``ss`` x ``ss``; the depth sees the core and needles at least
     a pixel wide at the pixel centre."""
     H, W = height * ss, width * ss
-    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    yy, xx = np.meshgrid(cell_centres(H), cell_centres(W), indexing="ij")  # supersample centres
     cy, cx = H / 2, W / 2
     cov = ((yy - cy) / (0.3 * H)) ** 2 + ((xx - cx) / (0.05 * W)) ** 2 < 1
     seen = cov.copy()
@@ -140,7 +141,7 @@ def needle_composite(height: int = 96, width: int = 128, n: int = 90, background
     pixels) over ``background`` (default :func:`room_image`); depth where the pixel centre hits."""
     rng = np.random.default_rng(seed)
     H, W = height * ss, width * ss
-    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    yy, xx = np.meshgrid(cell_centres(H), cell_centres(W), indexing="ij")  # supersample centres
     cy, cx = H / 2, W / 2
     core = ((yy - cy) / (0.18 * H)) ** 2 + ((xx - cx) / (0.08 * W)) ** 2 < 1
     cov = core.copy()
