@@ -373,10 +373,10 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     pre = {}
 
     def solve(A, b, x0):
-        if "M" not in pre:  # the passes differ in the data weights only: one preconditioner
-            pre["M"] = ichol(A)
         try:
-            with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout
+            with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout (`furrow model --json`)
+                if "M" not in pre:  # the passes differ in the data weights only: one preconditioner
+                    pre["M"] = ichol(A)
                 return cg(A, b, x0=x0, M=pre["M"], rtol=CG_RTOL, maxiter=CG_MAX_ITERATIONS), True
         except ValueError as e:  # "Conjugate gradient descent did not converge ..."
             if "converge" not in str(e):

@@ -85,6 +85,24 @@ def test_fast_path_matches_the_slow_reference():
     assert np.abs(Fa - Fr)[exact].max() <= 1e-2
 
 
+def test_pymatting_warnings_stay_off_stdout(monkeypatch, capsys):
+    """pymatting prints its preconditioner's warnings on stdout (the path-traced conifer's
+    Laplacian triggers one per view), which holds `furrow model --json`."""
+    import pymatting
+
+    real = pymatting.ichol
+
+    def loud(A, *args, **kwargs):
+        print("PERFORMANCE WARNING: Thresholded incomplete Cholesky decomposition failed")
+        return real(A, *args, **kwargs)
+
+    monkeypatch.setattr(pymatting, "ichol", loud)
+    C, B, A, F, D = ps.needle_composite(seed=0)
+    sl = (slice(30, 54), slice(40, 64))
+    known_background_matte(_q(C)[sl], depth_trimap(D)[sl], B[sl], np.ones((24, 24), bool))
+    assert capsys.readouterr().out == ""
+
+
 def test_alpha_bound_keeps_the_colour_in_range(monkeypatch):
     import capture.matting_known as mk
 
