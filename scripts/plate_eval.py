@@ -1,5 +1,7 @@
 """Held-out scores of gather and points with a chosen matte / plate setting, as ``furrow eval SCANS
---holdout 2`` scores them (issue 30 measurements; ``furrow eval`` cannot take --matte yet).
+--holdout 2`` scores them (issue 30 measurements; ``furrow eval`` takes --matte / --plate too but
+uses a given matte: for the default command line on a capture without mattes run it on the copy
+scripts/hide_mattes.py makes).
 
     PYTHONPATH=. .venv/bin/python scripts/plate_eval.py CAPTURE [MATTE [PLATE [EXTENT]]] [--plates DIR] [--out DIR]
 

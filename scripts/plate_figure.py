@@ -26,15 +26,58 @@ from render.methods import RenderOptions, create_renderer
 from volume.pipeline import build_model
 from volume.pipeline.config import PipelineConfig
 
+#: Margin (px) around the object's box when cropping, the sheet's largest width (px), and the low bits
+#: of each 8-bit channel dropped so that the README's PNG stays under 300 KB (6 bits: no visible banding
+#: on the path-traced frames' noise).
+CROP_MARGIN = 12
+MAX_WIDTH = 720
+DROP_BITS = 2
 
-def _panel(img, label: str) -> np.ndarray:
-    x = img if img.dtype == np.uint8 else to_uint8_srgb(np.repeat(img[..., None], 3, -1) if img.ndim == 2 else img)
-    return ev.labelled(np.ascontiguousarray(x), label)
+
+def _u8(img) -> np.ndarray:
+    """8-bit sRGB (H, W, 3) of a uint8 image, a linear colour image or a linear grey one."""
+    if img.dtype == np.uint8:
+        return img
+    return to_uint8_srgb(np.repeat(img[..., None], 3, -1) if img.ndim == 2 else img)
 
 
 def _frame(ctx, model, cam):
     with create_renderer("gather", ctx, model, RenderOptions()) as r:
         return r.render(cam).rgb
+
+
+def _box(masks, shape) -> tuple[slice, slice]:
+    """The union box of ``masks`` (H, W) bool, CROP_MARGIN wider, inside ``shape``."""
+    ys, xs = np.nonzero(np.any(masks, axis=0))
+    H, W = shape
+    return (slice(max(0, ys.min() - CROP_MARGIN), min(H, ys.max() + CROP_MARGIN + 1)),
+            slice(max(0, xs.min() - CROP_MARGIN), min(W, xs.max() + CROP_MARGIN + 1)))
+
+
+def _sheet(rows, labels, box) -> np.ndarray:
+    """Two rows of panels, each cropped to ``box`` and labelled, at most MAX_WIDTH wide."""
+    import cv2
+
+    sheet = np.concatenate([np.concatenate([ev.labelled(np.ascontiguousarray(_u8(x)[box]), t)
+                                            for x, t in zip(r, lab, strict=True)], 1)
+                            for r, lab in zip(rows, labels, strict=True)], 0)
+    if sheet.shape[1] > MAX_WIDTH:
+        h = round(sheet.shape[0] * MAX_WIDTH / sheet.shape[1])
+        sheet = cv2.resize(sheet, (MAX_WIDTH, h), interpolation=cv2.INTER_AREA)
+    return (sheet >> DROP_BITS) << DROP_BITS
+
+
+def _write(path: Path, sheet: np.ndarray) -> None:
+    """``sheet`` (H, W, 3) uint8 RGB as a PNG at the highest compression, written atomically."""
+    import cv2
+
+    from capture.atomic import atomic_write
+
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(sheet[..., ::-1]), [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    if not ok:
+        raise SystemExit(f"{path}: could not encode the PNG")
+    with atomic_write(path) as tmp:
+        Path(tmp).write_bytes(buf.tobytes())
 
 
 def main(argv=None) -> None:
@@ -43,7 +86,7 @@ def main(argv=None) -> None:
     p.add_argument("out")
     p.add_argument("--kept", type=int, default=0, help="index among the kept views")
     p.add_argument("--held", type=int, default=0, help="index among the held-out views")
-    p.add_argument("--crop", action="store_true", help="crop every panel to the object's box")
+    p.add_argument("--crop", action="store_true", help="crop every panel to the object's box (kept and held-out view)")
     a = p.parse_args(argv)
     split = ev.holdout_split(read_scanset(a.capture), 2, None)
     kept = ScanSet(tuple(Scan(s.rgb, s.depth, s.camera, s.name) for s in split.kept.scans), split.kept.bounds,
@@ -54,27 +97,19 @@ def main(argv=None) -> None:
     k = a.kept
     s = ex.scans[k]
     m = matte_scan(s, s.depth, MatteConfig(), plates[k])
-    plate_img = np.where(plates[k].known[..., None], plates[k].background, 0.0)
+    plate_img = np.where(plates[k].known[..., None], plates[k].background, 0.0).astype(np.float32)
     models = {name: build_model(kept, PipelineConfig(matte=MatteConfig(mode=mode), plate=PlateConfig(mode=plate)))[0]
               for name, mode, plate in (("before", "estimate", "off"), ("after", "auto", "auto"))}
     held = split.held[a.held]
     with gl_context() as ctx:
         frames = {n: _frame(ctx, mdl, held.camera) for n, mdl in models.items()}
-    top = [_panel(kept.scans[k].srgb8, "kept view"), _panel(plate_img.astype(np.float32), "its plate"),
-           _panel(np.clip(m.alpha, 0, 1) ** (1 / 2.2), "its matte")]
-    bottom = [_panel(held.srgb8, "held out (truth)"), _panel(frames["before"], "before (no plate)"),
-              _panel(frames["after"], "after (plate + matte)")]
-    sheet = np.concatenate([np.concatenate(top, 1), np.concatenate(bottom, 1)], 0)
-    if a.crop:
-        obj = np.concatenate([np.concatenate([kept.scans[k].depth > 0] * 3, 1)] * 2, 0)
-        ys, xs = np.nonzero(obj)
-        H, W = kept.scans[k].depth.shape
-        y0, y1 = max(0, ys.min() % H - 10), min(H, ys.max() % H + 10)
-        rows = [sheet[r * H + y0:r * H + y1] for r in range(2)]
-        sheet = np.concatenate(rows, 0)
-    from capture.imageio import write_png
-
-    write_png(Path(a.out), sheet)
+    H, W = s.depth.shape
+    box = _box([kept.scans[k].depth > 0, held.depth > 0], (H, W)) if a.crop else (slice(0, H), slice(0, W))
+    rows = [[kept.scans[k].srgb8, plate_img, np.clip(m.alpha, 0, 1).astype(np.float32) ** 2.2],
+            [held.srgb8, frames["before"], frames["after"]]]
+    labels = [["kept view (room)", "its plate (black: unknown)", "its matte"],
+              ["held out (truth)", "before: no plate", "after: plate + matte"]]
+    _write(Path(a.out), _sheet(rows, labels, box))
     print(a.out)
 
 
