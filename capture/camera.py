@@ -242,6 +242,12 @@ class Camera:
         return P
 
 
+def cam_from_world_of_transform(transform_matrix) -> np.ndarray:
+    """(4, 4) float64 OpenCV cam_from_world of a transforms.json / nerfstudio ``transform_matrix``
+    (OpenGL camera-to-world), as :meth:`Camera.from_nerfstudio` reads it (no rigidity check)."""
+    return invert_rigid(np.asarray(transform_matrix, np.float64) @ CV_TO_GL)
+
+
 def invert_rigid(m: np.ndarray) -> np.ndarray:
     """Inverse of a (4, 4) rigid transform."""
     out = np.eye(4)

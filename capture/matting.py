@@ -1,4 +1,4 @@
-"""A soft alpha matte per view and the object's straight colour under it (issue 20).
+"""A soft alpha matte per view and the object's straight colour under it (issues 20 and 30).
 
 Needles and strands are mostly *partial* pixels: any rule that treats "has depth" as "is opaque"
 paints the background into the object.  :func:`matte_scan` gives each view a straight alpha matte
@@ -6,25 +6,29 @@ in [0, 1] and the foreground colour F (so that image = alpha F + (1 - alpha) B),
 path that applies (``MatteConfig.mode`` = ``auto``; or one forced):
 
 1. ``given``: the capture's own matte (``Scan.alpha``: transforms.json ``mask_path`` or an RGBA
-   image's alpha, ``capture.matte_io``).
+   image's alpha, ``capture.matte_io``); with the view's background plate its colour is unmixed
+   exactly, F = B + (C - B) / alpha (:func:`unmixed`).
 2. ``backdrop``: a known plain backdrop B (``MatteConfig.backdrop``; in ``auto`` also a backdrop
    detected from the view: the pixels certainly behind the object all within ``BACKDROP_TOL`` of
-   their median colour).  Pixels outside the object's depth whose colour is B are certainly
-   background, which tightens the trimap to the pixels that differ from B.
-3. ``estimate``: a trimap from the object's depth (:func:`depth_trimap`: opaque where the object's
+   their median colour), solved as a known background everywhere (:func:`solve_known`) with the
+   backdrop's own noise (:func:`backdrop_noise`): over black the premultiplied colour is the
+   photo itself, so a black capture renders as without a matte.
+3. ``plate``: the view's background plate (``capture.plate``, the pipeline's plate stage) where
+   it is known: alpha and F from C = a F + (1 - a) B with B known (``capture.matting_known``), the
+   closed-form Laplacian alone where it is not.
+4. ``estimate``: a trimap from the object's depth (:func:`depth_trimap`: opaque where the object's
    depth is dense, i.e. the depth mask eroded by ``ERODE_FRACTION`` of the width; background
    beyond a band of ``BAND_FRACTION`` of the width around it; unknown between, which covers the
    edges and every thin structure), then closed-form matting (Levin et al. 2008, pymatting's
-   ``estimate_alpha_cf``) on the crop around the unknown and opaque pixels.
+   ``estimate_alpha_cf``) on the crop around the unknown and opaque pixels, and pymatting's
+   ``estimate_foreground_ml`` (Germer et al. 2020) for the colour.
 
-In every path the colour is pymatting's ``estimate_foreground_ml`` (Germer et al. 2020) of the
-view under the matte, on the same crop; outside the crop alpha is 0 and F is the image.  All
-of it runs in linear light, where the compositing equation holds.  ``off`` gives None (the
-binary depth mask stays the only mask).
+Outside the crop alpha is 0 and F is the image.  All of it runs in linear light, where the
+compositing equation holds.  ``off`` gives None (the binary depth mask stays the only mask).
 
 :func:`closed_form_alpha_reference` is the slow numpy / scipy reference of the closed-form
 matte (the Laplacian built by loops over windows, a sparse direct solve) for tests of the
-pymatting path on small crops.
+pymatting path on small crops; ``capture.matting_known`` keeps its own twin.
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ from scipy import ndimage
 from capture.scan import Scan
 
 #: Matting modes of MatteConfig.mode / ``furrow model --matte``.
-MATTE_MODES = ("auto", "given", "backdrop", "estimate", "off")
+MATTE_MODES = ("auto", "given", "backdrop", "plate", "estimate", "off")
 #: Opaque = the object's depth mask eroded by this fraction of the image width (2 px at 640).
 ERODE_FRACTION = 2 / 640
 #: Unknown band: this fraction of the width around the object's depth (4 px at 640; measured on the plant over
@@ -50,6 +54,10 @@ BAND_FRACTION = 4 / 640
 #: certain-background pixels that close to their median.
 BACKDROP_TOL = 0.02
 BACKDROP_PLAIN = 0.98
+#: Noise of a plain backdrop: this quantile of its certain pixels' difference from its colour,
+#: at least NOISE_FLOOR (one 8-bit sRGB step at black, linear).
+BACKDROP_NOISE_QUANTILE = 0.95
+NOISE_FLOOR = 1.0 / 255 / 12.92
 #: Pixels of margin around the crop that is matted (the matting windows are 3x3).
 CROP_PAD = 4
 #: Closed-form matting: regularisation epsilon of the Laplacian and the CG solver's tolerance.
@@ -171,10 +179,12 @@ def solve_matte(image: np.ndarray, trimap: np.ndarray, method: str, reference: b
     return Matte(alpha, np.clip(fg, 0.0, None).astype(np.float32), method, unknown)
 
 
-def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteConfig | None = None) -> Matte | None:
+def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteConfig | None = None,
+               plate=None) -> Matte | None:
     """The matte of ``scan`` (module docstring); ``object_depth`` = the object's depth after the
-    extent stage (default the scan's depth).  None for mode 'off'.  ValueError when a forced
-    path does not apply (no given matte, no backdrop named)."""
+    extent stage (default the scan's depth); ``plate``: the view's background plate
+    (capture.plate.Plate) or None.  None for mode 'off'.  ValueError when a forced path does not
+    apply (no given matte, no backdrop named, no plate)."""
     cfg = cfg or MatteConfig()
     if cfg.mode == "off":
         return None
@@ -183,6 +193,8 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         if scan.alpha is None:
             raise ValueError(f"scan {scan.name!r}: --matte given but the capture has no matte (mask_path / RGBA)")
         a = np.asarray(scan.alpha, np.float32)
+        if plate is not None and plate.known.any():  # the room unmixed from the colour exactly where B is known
+            return Matte(a, unmixed(img, a, plate.background, plate.known), "given", 0.0)
         return Matte(a, _foreground(img, a), "given", 0.0)
     depth = scan.depth if object_depth is None else object_depth
     tri = depth_trimap(depth)
@@ -190,12 +202,62 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
     backdrop = None if cfg.backdrop is None else np.asarray(cfg.backdrop, np.float64)
     if cfg.mode == "backdrop" and backdrop is None:
         raise ValueError("--matte backdrop needs --backdrop COLOUR")
+    if cfg.mode == "plate" and (plate is None or not plate.known.any()):
+        raise ValueError(f"scan {scan.name!r}: --matte plate but the view has no background plate")
     if cfg.mode == "auto" and backdrop is None:
         backdrop = detect_backdrop(img, tri)
     if backdrop is not None and cfg.mode in ("auto", "backdrop"):
-        plain = (np.max(np.abs(np.clip(img, 0, 1) - backdrop), axis=-1) <= BACKDROP_TOL) & (tri == UNKNOWN)
-        return solve_matte(img, np.where(plain, BG, tri), "backdrop", fallback=mask)
+        B = np.broadcast_to(np.asarray(backdrop, np.float32), img.shape)
+        return solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
+                           mask)
+    if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
+        return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask)
     return solve_matte(img, tri, "estimate", fallback=mask)
+
+
+def unmixed(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 straight colour under a given ``alpha`` with the background known where
+    ``known``: capture.matting_known.foreground_colour (exact where B is known, the nearest exact
+    colours elsewhere), on the crop around alpha > 0."""
+    from capture.matting_known import foreground_colour
+
+    fg = np.asarray(image, np.float32).copy()
+    box = _crop(np.where(np.asarray(alpha) > 0, UNKNOWN, BG))
+    if box is not None:
+        fg[box] = foreground_colour(np.asarray(image)[box], np.asarray(alpha)[box], np.asarray(background)[box],
+                                    np.asarray(known)[box], lambda C, a, need: _foreground(C, a))
+    return fg
+
+
+def backdrop_noise(image: np.ndarray, trimap: np.ndarray, backdrop: np.ndarray) -> float:
+    """Linear noise of a plain backdrop: the BACKDROP_NOISE_QUANTILE of its certain pixels' largest
+    channel difference from ``backdrop``, at least one 8-bit sRGB step at black."""
+    bg = np.asarray(image)[trimap == BG]
+    d = np.max(np.abs(bg - backdrop), axis=1) if len(bg) else np.zeros(1)
+    return float(max(np.quantile(d, BACKDROP_NOISE_QUANTILE), NOISE_FLOOR))
+
+
+def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray, noise: float,
+                method: str, fallback: np.ndarray) -> Matte:
+    """Matte of linear ``image`` (H, W, 3) with the background (H, W, 3) known where ``known``
+    (capture.matting_known), solved on the crop around the trimap's band and opaque pixels grown
+    by the widening; not converged: alpha from the per-pixel fit (the method says so)."""
+    from capture.matting_known import known_background_matte, widen_px
+
+    H, W = trimap.shape
+    alpha = np.zeros((H, W), np.float32)
+    fg = np.asarray(image, np.float32).copy()
+    grown = ndimage.binary_dilation(trimap > BG, iterations=widen_px(W) + 1)
+    box = _crop(np.where(grown, UNKNOWN, BG))
+    if box is None:
+        return Matte(alpha, fg, method, 0.0)
+    a, F, tri, ok = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
+                                           np.asarray(known)[box], noise)
+    alpha[box] = a
+    fg[box] = F
+    unknown = float(np.count_nonzero(tri == UNKNOWN)) / (H * W)
+    return Matte(alpha, np.clip(fg, 0.0, None).astype(np.float32), method if ok else f"{method} (not converged)",
+                 unknown)
 
 
 def _foreground(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:
@@ -219,12 +281,10 @@ def warm_up() -> None:
     solve_matte(img, tri, "estimate")
 
 
-def closed_form_alpha_reference(image: np.ndarray, trimap: np.ndarray, epsilon: float = CF_EPSILON) -> np.ndarray:
-    """Slow reference of the closed-form matte (Levin, Lischinski, Weiss 2008, 3x3 windows): the
-    matting Laplacian L built window by window, then L_U a_U = -R a_K with the known pixels fixed
-    (as pymatting solves it), by a sparse direct solve.  (h, w, 3) ``image`` in [0, 1]; keep it small."""
+def closed_form_laplacian_reference(image: np.ndarray, epsilon: float = CF_EPSILON):
+    """The matting Laplacian (Levin, Lischinski, Weiss 2008, 3x3 windows) of (h, w, 3) ``image``
+    in [0, 1], built window by window in numpy: (h w, h w) scipy CSR.  Keep it small."""
     from scipy.sparse import coo_matrix
-    from scipy.sparse.linalg import spsolve
 
     h, w, _ = image.shape
     idx = np.arange(h * w).reshape(h, w)
@@ -240,7 +300,17 @@ def closed_form_alpha_reference(image: np.ndarray, trimap: np.ndarray, epsilon: 
             rows.append(np.repeat(win, n))
             cols.append(np.tile(win, n))
             vals.append((np.eye(n) - g).ravel())
-    L = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), (h * w, h * w)).tocsr()
+    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), (h * w, h * w)).tocsr()
+
+
+def closed_form_alpha_reference(image: np.ndarray, trimap: np.ndarray, epsilon: float = CF_EPSILON) -> np.ndarray:
+    """Slow reference of the closed-form matte: :func:`closed_form_laplacian_reference`, then
+    L_U a_U = -R a_K with the known pixels fixed (as pymatting solves it), by a sparse direct
+    solve.  (h, w, 3) ``image`` in [0, 1]; keep it small."""
+    from scipy.sparse.linalg import spsolve
+
+    h, w, _ = image.shape
+    L = closed_form_laplacian_reference(image, epsilon)
     t = trimap.ravel()
     unk = t == UNKNOWN
     a = t.astype(np.float64).copy()

@@ -185,6 +185,11 @@ def _print_surroundings(console, rec: dict) -> None:
              f"the focus points){' kept' if ex['kept_support'] else ''}")
         console.print(f"extent: {plane}; depth removed: support {r['support']:.2%}, far {r['far']:.2%}, "
                       f"outside {r['outside']:.2%}, floaters {r.get('floaters', 0.0):.2%}", highlight=False)
+    pl = rec.get("plate", {})
+    if pl.get("mode") not in (None, "off", "unused"):
+        err = "none held back" if pl["error_median"] is None else f"{pl['error_median']:.4f} linear"
+        console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
+                      f"band (least {pl['band_known_min']:.1%}); error on held-back background {err}", highlight=False)
     m = rec.get("matte", {})
     if m.get("mode") not in (None, "off"):
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "

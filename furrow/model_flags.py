@@ -112,11 +112,25 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "by RANSAC in the depth and removed with far depth and clutter (capture/extent.py)")
     g.add_argument("--no-extent", action="store_true",
                    help="use the depth as captured: no support, far-depth or clutter removal at all")
-    g.add_argument("--matte", choices=["auto", "given", "backdrop", "estimate", "off"], default="auto",
+    g.add_argument("--matte", choices=["auto", "given", "backdrop", "plate", "estimate", "off"], default="auto",
                    help="soft alpha matte per view and the object's colour under it (capture/matting.py): auto "
-                        "(default: the capture's own matte, mask_path or RGBA alpha; else a plain backdrop, named "
-                        "or detected; else estimated from the depth by closed-form matting), given, backdrop, "
-                        "estimate, or off (the binary depth mask, as before)")
+                        "(default: the capture's own matte, mask_path or RGBA alpha, its colour unmixed from the "
+                        "background plate; else a plain backdrop, named or detected; else the background plate "
+                        "where it is known: C = a F + (1 - a) B solved with B, capture/matting_known.py; else "
+                        "estimated from the depth by closed-form matting), given, backdrop, plate, estimate, or "
+                        "off (the binary depth mask, as before)")
+    g.add_argument("--plate", choices=["auto", "user", "fixed", "panorama", "off"], default="auto",
+                   help="the background behind the object in every view, from the capture (capture/plate.py): "
+                        "auto (default: --background-plates when given; else whichever of fixed and panorama "
+                        "predicts the views' own background better), fixed (a camera that stood still while the "
+                        "object turned: each pixel's robust mode over the frames), panorama (a moving camera: "
+                        "the other views along each ray, with the support plane and the room's depth), user, or "
+                        "off; each view's share of the matting band with a known background and the plate's "
+                        "error on background pixels it was not built from go to the model report")
+    g.add_argument("--background-plates", default=None, metavar="DIR",
+                   help="plates you shot without the object (the same path, or a fixed camera): one image per "
+                        "frame named like the frame's colour image, or one image for every frame "
+                        "(capture/plate_io.py)")
     g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
                    help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
 
@@ -127,6 +141,7 @@ def pipeline_config(args, **save):
     from capture.extent import ExtentConfig
     from capture.matting import MatteConfig
     from capture.photometric import PhotometricConfig
+    from capture.plate import PlateConfig
     from capture.sources import ReadConfig, UndistortConfig
     from volume.fusion import FusionConfig
     from volume.mesh import MeshConfig
@@ -139,6 +154,7 @@ def pipeline_config(args, **save):
         views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
         matte=MatteConfig(mode=args.matte, backdrop=args.backdrop),
+        plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates),
         photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,

@@ -1,16 +1,24 @@
-"""The object apart from its surroundings, before fusion: the extent and matte stages of the
-pipeline (volume/pipeline/stages.py; issue 20).
+"""The object apart from its surroundings, before fusion: the extent, background plate and matte
+stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
 
 * **extent** (``capture.extent.remove_surroundings``): depth of the support plane, far depth and
   clutter set to 0, so that fusion, RGBz and every method see the object alone; the bounds shrink
-  to what is left.  A whole-set stage: the plane and the floater grid need every view.
+  to what is left.  A whole-set stage: the plane and the floater grid need every view.  When a
+  plate stage follows, the scans as captured (their depth of the table and the room) and the
+  plane wait for it in ``work.parts`` (``captured``, ``support``).
+* **background plate** (``capture.plate.background_plates``): the background behind the object in
+  every view, from the other views (or the user's plates); a whole-set stage.  Each view's plate,
+  cropped to where it is known, waits in ``work.parts["plates"]`` for the matte stage.  Skipped
+  (its record says so) when the matte mode reads no plate (off, estimate, backdrop) or, for the
+  auto matte, when every view shows a plain backdrop (the backdrop path reads none).
 * **matte** (``capture.matting.matte_scan``): each view gets a soft straight alpha matte and the
-  object's straight colour under it; the scan's colour becomes that foreground colour (float32
-  linear) and its ``alpha`` the matte, which ``volume.rgbz.build_rgbz`` stores in the model
-  (``RgbzImages.rgb`` / ``RgbzImages.alpha``).  A per-view stage (:func:`matte_view`, picklable);
-  pymatting's numba kernels are compiled once before the views (:func:`matte_warm_up`, the
-  "matte warm-up" row) so that the matte row's time is the matting's.  Mode 'off' keeps the
-  binary depth mask as the only one: a capture's own matte is dropped.
+  object's straight colour under it, with its plate where there is one; the scan's colour becomes
+  that foreground colour (float32 linear) and its ``alpha`` the matte, which
+  ``volume.rgbz.build_rgbz`` stores in the model (``RgbzImages.rgb`` / ``RgbzImages.alpha``).
+  Its views go through the runner's per-view map (:func:`matte_one`, picklable); pymatting's numba
+  kernels are compiled once before the views (the "matte warm-up" row) so that the matte row's time
+  is the matting's.  Mode 'off' keeps the binary depth mask as the only one: a capture's own matte
+  is dropped.
 
 Each reports its own numbers (the model report's ``surroundings``).
 """
@@ -18,19 +26,76 @@ Each reports its own numbers (the model report's ``surroundings``).
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
+from capture.plate import PlateView, background_plates
 from capture.scan import Scan
 from capture.scan_store import scan_has_alpha
+
+#: Matte modes that read no plate: the plate stage is skipped for them.
+NO_PLATE_MATTES = ("off", "estimate", "backdrop")
 
 
 def extent_stage(work, cfg, ctx):
     """The extent stage (cfg: capture.extent.ExtentConfig): the surroundings out of the depth (module docstring)."""
     ss, rep = remove_surroundings(work.scanset, cfg, ctx.keep)
-    return work.with_scanset(ss).record("extent", rep.record())
+    out = work.with_scanset(ss).record("extent", rep.record())
+    if _plates_wanted(ctx.config):
+        out = out.made(captured=work.scans, support=(rep.plane, (rep.focus_center, rep.focus_radius)))
+    return out
+
+
+def _plates_wanted(config) -> bool:
+    return config.plate is not None and config.plate.mode != "off" and config.matte.mode not in NO_PLATE_MATTES
+
+
+def plate_stage(work, cfg, ctx):
+    """The background plate stage (cfg: capture.plate.PlateConfig; module docstring): each view's
+    plate in ``work.parts["plates"]`` (view index -> cropped capture.plate.Plate), the record."""
+    if not _plates_wanted(ctx.config):
+        return work.record("background plate", {"mode": "unused", "matte": ctx.config.matte.mode})
+    if ctx.config.matte.mode == "auto" and cfg.plates_dir is None and _all_plain(work.scans):
+        return work.record("background plate", {"mode": "unused", "matte": "auto: a plain backdrop in every view"})
+    from capture.plate_io import read_user_plates
+
+    captured = work.parts.get("captured") or work.scans
+    plane, focus = work.parts.get("support") or (None, None)
+    user = None if cfg.plates_dir is None else read_user_plates(cfg.plates_dir, work.scans)
+    views = [PlateView(s.camera, s.linear_rgb.astype(np.float16), s.depth, c.depth)
+             for s, c in zip(work.scans, captured, strict=True)]
+    plates, rec = background_plates(views, cfg, plane, focus, user)
+    del views
+    store = {ref.index: p.cropped() for ref, p in zip(work.refs, plates, strict=True)}
+    return work.made(plates=store, captured=None).record("background plate", rec)
+
+
+def _all_plain(scans) -> bool:
+    """Whether every view shows a plain backdrop (capture.matting.detect_backdrop): the auto matte
+    then takes the backdrop path and reads no plate."""
+    from capture.matting import depth_trimap, detect_backdrop
+
+    return all(s.alpha is None and detect_backdrop(s.linear_rgb, depth_trimap(s.depth)) is not None for s in scans)
+
+
+def matte_stage(work, cfg, ctx):
+    """The matte stage (cfg: capture.matting.MatteConfig): its warm-up row, then every view through
+    :func:`matte_one` with its plate (module docstring), then the record (:func:`matte_record`)."""
+    with ctx.row("matte warm-up"):
+        matte_warm_up(cfg)
+    with ctx.row("matte"):
+        scans, notes = ctx.map_views(matte_one, work, (cfg, work.parts.get("plates") or {}), "matting")
+    return matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
+
+
+def matte_one(view, ref, arg):
+    """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, view index -> Plate))."""
+    cfg, plates = arg
+    plate = plates.get(ref.index)
+    return matte_view(view, ref, cfg, None if plate is None else plate.full())
 
 
 def matte_warm_up(cfg) -> None:
@@ -39,14 +104,14 @@ def matte_warm_up(cfg) -> None:
         warm_up()
 
 
-def matte_view(view, ref, cfg):
-    """The matte stage for one view (cfg: capture.matting.MatteConfig): (the scan with its
-    foreground colour and matte, note: method, seconds, unknown and partial fractions); mode 'off':
-    the scan without a matte, no note."""
+def matte_view(view, ref, cfg, plate=None):
+    """The matte stage for one view (cfg: capture.matting.MatteConfig; ``plate``: its background
+    plate or None): (the scan with its foreground colour and matte, note: method, seconds, unknown
+    and partial fractions); mode 'off': the scan without a matte, no note."""
     if cfg.mode == "off":
         return (Scan(view.rgb, view.depth, view.camera, view.name) if scan_has_alpha(view) else view), None
     t0 = time.perf_counter()
-    m = matte_scan(view, view.depth, cfg)
+    m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1)))}
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note

@@ -224,7 +224,7 @@ DATA_SCENES = ("plant", "torus", "furball", "furball-curly", "furball-uniform", 
 
 def true_poses(folder: Path, names: list[str]) -> list:
     """cam_from_world per scan name from ``folder``/gt/cameras_true.json (matched by file stem)."""
-    from capture.camera import CV_TO_GL, invert_rigid
+    from capture.camera import cam_from_world_of_transform
 
     path = folder / "gt" / "cameras_true.json"
     frames = json.loads(path.read_text())["frames"]
@@ -232,9 +232,7 @@ def true_poses(folder: Path, names: list[str]) -> list:
     missing = [n for n in names if Path(n).stem not in by]
     if missing:
         raise SystemExit(f"{path}: no true pose for {', '.join(missing[:3])}")
-    import numpy as np
-
-    return [invert_rigid(np.asarray(by[Path(n).stem]["transform_matrix"], np.float64) @ CV_TO_GL) for n in names]
+    return [cam_from_world_of_transform(by[Path(n).stem]["transform_matrix"]) for n in names]
 
 
 def run_capture(folder: Path, pose_prior: str | None = None) -> dict:

@@ -179,7 +179,7 @@ def add_sample(history, sample: Sample) -> list:
         elif not smp.moving and full < FULL_HISTORY:
             out.append(smp)
             full += 1
-    return out[::-1]
+    return list(reversed(out))  # back to oldest first (a list of samples, not image rows)
 
 
 def fit_cost(pixels, ms, fixed: float | None = None) -> tuple[float, float]:

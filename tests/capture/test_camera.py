@@ -7,7 +7,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from capture.camera import CV_TO_GL, Camera, CameraError, gl_ndc_depth_to_z, gl_rows_to_image, look_at, make_K
+from capture.camera import (
+    CV_TO_GL,
+    Camera,
+    CameraError,
+    cam_from_world_of_transform,
+    gl_ndc_depth_to_z,
+    gl_rows_to_image,
+    look_at,
+    make_K,
+)
 
 TOL = 1e-9
 
@@ -129,3 +138,11 @@ def test_invalid_intrinsics_rejected():
         Camera(make_K(-1, 100, 50, 50), np.eye(4), 100, 100)
     with pytest.raises(CameraError):
         Camera(make_K(100, 100, 50, 50), np.eye(4), 0, 100)
+
+
+def test_cam_from_world_of_transform_reads_what_to_nerfstudio_writes():
+    cam = Camera(make_K(100, 100, 49.5, 29.5), look_at([0.3, -1, 0.4], [0, 0.1, 0]), 100, 60)
+    got = cam_from_world_of_transform(cam.to_nerfstudio()["transform_matrix"])
+    assert np.allclose(got, cam.cam_from_world, atol=1e-12)
+    # OpenCV axes: the target lies in front of the camera, along its +z
+    assert got[2, :3] @ (np.array([0, 0.1, 0]) - cam.center) > 0

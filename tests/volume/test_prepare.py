@@ -47,7 +47,8 @@ def test_model_of_a_pot_on_a_table_holds_no_table(pot_on_table):
     z0 = pot_on_table.info["support"]["z0"]
     pot_r = 0.08  # the pot's radius is under 0.06 m; its foot is the only geometry allowed near the table
     model, summary, stages = _build(pot_on_table.scanset, matte=MatteConfig(mode="estimate"))
-    assert stages[stages.index("extent"):][:4] == ["extent", "matte warm-up", "matte", "photometric"]
+    assert stages[stages.index("extent"):][:5] == ["extent", "background plate", "matte warm-up", "matte",
+                                                   "photometric"]
     ex = summary["surroundings"]["extent"]
     assert ex["plane"] is not None and ex["removed_fraction"]["support"] > 0.3
     v = model.mesh_vertices

@@ -2,9 +2,9 @@
 the stage's ``key`` in volume/pipeline/stages.py) and the runner's own two settings.
 
 A stage whose config is None is off (``--no-extent``, ``--no-photometric``).  The reading stages'
-configs live beside their steps in capture/sources.py; extent, matte and photometric keep the
-configs of capture/extent.py, capture/matting.py and capture/photometric.py; mesh and RGBz those
-of volume/mesh.py and volume/rgbz.py.  The others are here.
+configs live beside their steps in capture/sources.py; extent, plate, matte and photometric keep the
+configs of capture/extent.py, capture/plate.py, capture/matting.py and capture/photometric.py; mesh
+and RGBz those of volume/mesh.py and volume/rgbz.py.  The others are here.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from pathlib import Path
 from capture.extent import ExtentConfig
 from capture.matting import MatteConfig
 from capture.photometric import PhotometricConfig
+from capture.plate import PlateConfig
 from capture.scan_store import SPILL_MODES
 from capture.sources import MatteReadConfig, ReadConfig, ResampleConfig, UndistortConfig, UnitsConfig
 from volume.fusion import FusionConfig
@@ -131,6 +132,8 @@ class PipelineConfig:
     """working scale: views scaled to the output size."""
     extent: ExtentConfig | None = field(default_factory=ExtentConfig)
     """extent: support plane, far depth, clutter and floaters out of the depth (None: ``--no-extent``)."""
+    plate: PlateConfig | None = field(default_factory=PlateConfig)
+    """background plate: the background behind the object per view, from the capture (None: off)."""
     matte: MatteConfig = field(default_factory=MatteConfig)
     """matte: alpha and the object's colour per view (mode 'off': the binary depth mask)."""
     photometric: PhotometricConfig | None = field(default_factory=PhotometricConfig)

@@ -26,8 +26,9 @@ def _params(work, pc) -> dict:
 
 
 def surroundings(work) -> dict:
-    """The extent and matte stages' records (what ran of them)."""
-    return jsonable({k: work.records[k] for k in ("extent", "matte") if k in work.records})
+    """The extent, background plate and matte stages' records (what ran of them; the plate's as ``plate``)."""
+    names = {"extent": "extent", "background plate": "plate", "matte": "matte"}
+    return jsonable({key: work.records[k] for k, key in names.items() if k in work.records})
 
 
 def assemble(work, pc) -> Model:

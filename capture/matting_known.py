@@ -1,0 +1,408 @@
+"""Matting with a known background (issue 30): alpha and the object's own colour from C = a F + (1 - a) B.
+
+With the background B under every pixel known (a clean plate, ``capture.plate``; a plain backdrop),
+the compositing equation leaves one unknown per pixel instead of four: the difference D = C - B
+lies along F - B, and only how far (1 / a) is open.  :func:`known_background_matte` closes it:
+
+1. **Bounds.**  F lies in [0, 1] per channel, so a >= max over channels of (C - B) / (1 - B) where
+   C > B and (B - C) / B where C < B, less the noise of C and of the plate (``NOISE_ABS``,
+   ``NOISE_REL`` of B): :func:`alpha_lower_bound`.
+2. **Candidate colours.**  Each pixel's F is sought among a few candidate colours: the colour of
+   the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
+   ``SOURCE_ALPHA``: their F is (C - (1 - a) B) / a at that bound), filled outwards by a push-pull
+   pyramid (:func:`push_pull`), and a palette of the view's sure foreground colours
+   (``PALETTE_SIZE``, k-means).  Per candidate P, alpha is the projection of D on P - B, clipped to
+   [bound, 1]; the candidate that explains C best (least residual) wins: sampling matting
+   (Wang & Cohen 2007; He et al. 2011) with the background a sample known exactly.
+3. **Smooth solve.**  Those per-pixel alphas enter the closed-form matting system (Levin et al.
+   2008; pymatting's Laplacian) as a data term weighted by how well the winning candidate is told
+   from B (``SEPARATION``) and how well it explains C (``RESIDUAL``): (L + lambda W) a = lambda W a_hat
+   with the trimap's opaque and background pixels fixed; where B is unknown W = 0 and the
+   Laplacian alone decides (today's estimate).  Then a >= bound again.
+4. **Colour.**  Where B is known and a > 0, F = B + (C - B) / a exactly: the
+   premultiplied colour a F = C - (1 - a) B reproduces the photo over B and, over black (B = 0), is
+   the photo itself, whatever a is.  Elsewhere F is pymatting's ML foreground (Germer et al. 2020).
+
+:func:`known_background_matte` is the fast path (pymatting's numba Laplacian, incomplete-Cholesky
+conjugate gradient); :func:`known_background_matte_reference` the slow numpy / scipy twin (the
+Laplacian built window by window, a sparse direct solve) for tests on small crops.  Both take an
+image, its trimap and its background: a function of the pixels alone, so that it can run on a
+downscaled crop (issue 32).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+import numpy as np
+from scipy import ndimage
+
+#: Trimap values (pymatting's convention, as capture.matting).
+BG, UNKNOWN, FG = 0.0, 0.5, 1.0
+#: Noise of the compositing equation (linear RGB): |C - B| up to NOISE_ABS + NOISE_REL * B per
+#: channel is no evidence of the object (8-bit sRGB steps, the plate's own error).
+NOISE_ABS = 0.004
+NOISE_REL = 0.03
+#: Pixels whose alpha bound is at least this are sure foreground colour sources (step 2).
+SOURCE_ALPHA = 0.85
+#: Refinement passes (step 2 again with the solved alphas above REFINE_ALPHA as colour sources).
+REFINE_PASSES = 0
+REFINE_ALPHA = 0.5
+#: Linear level at which a channel counts as clipped (8-bit sRGB 252).
+CLIP_LEVEL = 0.975
+#: Alpha from which a pixel whose background is not known is taken as opaque (F = C).
+OPAQUE_ALPHA = 0.999
+#: Where B is unknown but the nearest known plate is at least this bright (linear, largest channel),
+#: the partial pixels take the nearest sure colours (push-pull); before a darker one pymatting's ML
+#: foreground, whose error grows with B (step 4).
+FILL_BRIGHT = 0.15
+#: Fewer sure colour sources than this: the colour where B is not known is pymatting's estimate.
+MIN_SOURCES = 50
+#: Colours in the view's palette of sure foreground colours (k-means; step 2).
+PALETTE_SIZE = 6
+#: k-means: samples and iterations (seeded).
+PALETTE_SAMPLES = 4000
+PALETTE_ITERATIONS = 8
+PALETTE_SEED = 0
+#: Data-term confidence: a candidate that differs from B by SEPARATION (linear, Euclidean) gets
+#: half weight; a residual of RESIDUAL (linear) halves it again.
+SEPARATION = 0.05
+RESIDUAL = 0.03
+#: Weight lambda of the data term against the matting Laplacian.
+DATA_WEIGHT = 1.0
+#: Where the background is known, the depth's opaque pixels are unknown too, with a prior towards
+#: opaque of this weight (against DATA_WEIGHT x confidence): a gap between needles inside the
+#: depth's silhouette shows the background through it.
+OPAQUE_PRIOR = 0.05
+#: Closed-form Laplacian regularisation and window radius (as capture.matting).
+CF_EPSILON = 1e-7
+CF_RADIUS = 1
+#: Conjugate-gradient iterations before the solve gives up (then the per-pixel alphas stand), and its
+#: relative residual (the data term conditions the system: 1e-5 changes alpha by < 1e-3).
+CG_MAX_ITERATIONS = 2000
+CG_RTOL = 1e-5
+
+#: Trimap widening: a background pixel of the depth's trimap within this fraction of the image
+#: width of the unknown band whose alpha bound is above WIDEN_ALPHA becomes unknown (a needle
+#: no depth pixel saw); 12 px at 640.
+WIDEN_FRACTION = 12 / 640
+WIDEN_ALPHA = 0.0
+#: ... and at least this many pixels (a small image: the bottom of a sphere whose depth the extent
+#: stage cut two rows short stayed background at 1 px, and the Laplacian dragged the sphere's alpha
+#: down to 0.53 from there).
+WIDEN_MIN_PX = 3
+
+
+def widen_px(width: int) -> int:
+    """Pixels of the trimap widening in an image (or crop) ``width`` wide: WIDEN_FRACTION of it, at
+    least WIDEN_MIN_PX."""
+    return max(WIDEN_MIN_PX, int(round(WIDEN_FRACTION * width)))
+
+
+def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = NOISE_ABS) -> np.ndarray:
+    """(h, w) least alpha for which F = B + (C - B) / a stays in [0, 1] (step 1 of the module
+    docstring), with the noise allowance (``noise`` + NOISE_REL B, linear) taken off: 0 where C is
+    within noise of B."""
+    C = np.asarray(image, np.float64)
+    B = np.asarray(background, np.float64)
+    d = C - B
+    slack = np.abs(d) - (noise + NOISE_REL * B)
+    room = np.where(d > 0, 1.0 - B, B)
+    lo = np.where(slack > 0, slack / np.maximum(room, 1e-6), 0.0)
+    return np.clip(lo.max(axis=-1), 0.0, 1.0)
+
+
+def push_pull(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(h, w, C) ``values`` filled where ``weights`` (h, w) is 0 by a push-pull pyramid: each empty
+    pixel gets the weighted mean of the nearest non-empty ones at the coarsest scale that has any
+    (normalised convolution: 2x2 box down, bilinear up).  A map without any weight comes back as zeros."""
+    v = np.asarray(values, np.float64)
+    w = np.asarray(weights, np.float64)
+    if not w.any():
+        return np.zeros_like(v)
+    if min(w.shape) <= 1 or w.all():
+        return np.where(w[..., None] > 0, v, (v * w[..., None]).sum((0, 1)) / w.sum())
+    h, wd = w.shape
+    H2, W2 = h + h % 2, wd + wd % 2
+    vp = np.zeros((H2, W2) + v.shape[2:])
+    wp = np.zeros((H2, W2))
+    vp[:h, :wd] = v * w[..., None]
+    wp[:h, :wd] = w
+    ws = wp.reshape(H2 // 2, 2, W2 // 2, 2).sum((1, 3))
+    vs = vp.reshape(H2 // 2, 2, W2 // 2, 2, -1).sum((1, 3))
+    coarse = push_pull(np.where(ws[..., None] > 0, vs / np.maximum(ws, 1e-12)[..., None], 0.0), np.minimum(ws, 1.0))
+    up = ndimage.zoom(coarse, (2, 2) + (1,) * (coarse.ndim - 2), order=1, mode="nearest", grid_mode=True)[:h, :wd]
+    return np.where(w[..., None] > 0, v, up)
+
+
+def palette(colours: np.ndarray, k: int | None = None) -> np.ndarray:
+    """(<= k, 3) k-means centres of (N, 3) ``colours`` (seeded, PALETTE_SAMPLES of them at most;
+    k default PALETTE_SIZE)."""
+    c = np.asarray(colours, np.float64).reshape(-1, 3)
+    k = PALETTE_SIZE if k is None else k
+    if len(c) == 0 or k == 0:
+        return np.zeros((0, 3))
+    rng = np.random.default_rng(PALETTE_SEED)
+    if len(c) > PALETTE_SAMPLES:
+        c = c[rng.choice(len(c), PALETTE_SAMPLES, replace=False)]
+    k = min(k, len(c))
+    centres = c[rng.choice(len(c), k, replace=False)]
+    for _ in range(PALETTE_ITERATIONS):
+        lab = np.argmin(((c[:, None] - centres[None]) ** 2).sum(-1), axis=1)
+        for j in range(k):
+            if np.any(lab == j):
+                centres[j] = c[lab == j].mean(0)
+    return centres
+
+
+def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.ndarray,
+                    lower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel the best of the candidate colours (step 2): (alpha_hat (h, w), confidence (h, w)).
+    ``candidates`` (K, h, w, 3): per-pixel candidate colours (a palette colour broadcast)."""
+    C = np.asarray(image, np.float64)
+    B = np.asarray(background, np.float64)
+    D = C - B
+    best_res = np.full(C.shape[:2], np.inf)
+    a_hat = np.zeros(C.shape[:2])
+    sep = np.zeros(C.shape[:2])
+    for P in candidates:
+        E = P - B
+        e2 = (E * E).sum(-1)
+        de = (D * E).sum(-1)
+        a = np.clip(de / np.maximum(e2, 1e-9), lower, 1.0)
+        res = np.sqrt(((D - a[..., None] * E) ** 2).sum(-1))
+        better = res < best_res
+        best_res = np.where(better, res, best_res)
+        a_hat = np.where(better, a, a_hat)
+        sep = np.where(better, np.sqrt(e2), sep)
+    conf = (sep ** 2 / (sep ** 2 + SEPARATION ** 2)) * (RESIDUAL ** 2 / (best_res ** 2 + RESIDUAL ** 2))
+    return a_hat, np.where(np.isfinite(best_res), conf, 0.0)
+
+
+def widen_trimap(trimap: np.ndarray, lower: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """``trimap`` with its background pixels near the unknown band (:func:`widen_px` of its width)
+    made unknown where the known background cannot explain them (alpha bound above WIDEN_ALPHA)."""
+    tri = np.asarray(trimap, np.float64).copy()
+    near = ndimage.binary_dilation(tri > BG, iterations=widen_px(tri.shape[1]))
+    grow = (tri <= BG) & near & np.asarray(known, bool) & (lower > WIDEN_ALPHA)
+    tri[ndimage.binary_dilation(grow) & near & (tri <= BG) & np.asarray(known, bool)] = UNKNOWN
+    return tri
+
+
+def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, known: np.ndarray,
+                 noise: float) -> tuple[np.ndarray, np.ndarray]:
+    """(trimap solved, opaque prior (h, w) bool): the depth's ``trimap`` widened (:func:`widen_trimap`)
+    and its opaque pixels made unknown where the background is known (they keep a prior)."""
+    known = np.asarray(known, bool)
+    lower = np.where(known, alpha_lower_bound(image, background, noise), 0.0)
+    tri = widen_trimap(np.asarray(trimap, np.float64), lower, known)
+    opaque = (tri >= FG) & known
+    tri[opaque] = UNKNOWN
+    return tri, opaque
+
+
+def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
+              noise: float = NOISE_ABS, alpha: np.ndarray | None = None,
+              opaque: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(target alpha, weight, lower bound), each (h, w), of steps 1-2 for the unknown pixels of
+    ``trimap``; weight and bound are 0 where the background is not known.  ``alpha``: a previous
+    solve, whose pixels above REFINE_ALPHA become the colour sources; ``opaque``: pixels the depth
+    calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass)."""
+    C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
+    known = np.asarray(known, bool)
+    opaque = (trimap >= FG) if opaque is None else (np.asarray(opaque, bool) | (trimap >= FG))
+    lower = np.where(known, alpha_lower_bound(C, B, noise), 0.0)
+    if alpha is None:
+        # sure sources are taken as opaque (F = C): the depth's opaque pixels (their colour, even where
+        # a gap shows the room: with them left out the candidates were the darkest needles and alpha
+        # came out 0.06 low) and the pixels whose bound says nearly opaque
+        a_src = np.ones(C.shape[:2])
+        src = opaque | (known & (lower >= SOURCE_ALPHA))
+    else:
+        a_src = np.maximum(lower, alpha)
+        src = (trimap >= FG) | (a_src >= REFINE_ALPHA)
+    Fs = np.clip(np.where(known[..., None], B + (C - B) / np.maximum(a_src, 1e-6)[..., None], C), 0.0, 1.0)
+    cands = []
+    if src.any():
+        cands.append(push_pull(Fs, src.astype(np.float64)))
+        cands += [np.broadcast_to(p, C.shape) for p in palette(Fs[src])]
+    unk = trimap == UNKNOWN
+    if cands:
+        a_hat, conf = candidate_alpha(C, B, np.stack(cands), lower)
+        w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
+    else:
+        a_hat, w_data = np.zeros(C.shape[:2]), np.zeros(C.shape[:2])
+    w_op = np.where(opaque & unk, OPAQUE_PRIOR, 0.0)
+    w = w_data + w_op
+    target = np.where(w > 0, (w_data * a_hat + w_op) / np.maximum(w, 1e-12), 0.0)
+    return target, w, lower
+
+
+def _system(L, trimap: np.ndarray, a_hat: np.ndarray, weight: np.ndarray):
+    """(A, b, unknown mask) of (L_U + lambda W_U) a_U = -R a_K + lambda W_U a_hat_U (step 3)."""
+    from scipy.sparse import diags
+
+    t = trimap.ravel()
+    unk = t == UNKNOWN
+    fixed = (t >= FG).astype(np.float64)
+    L = L.tocsr()
+    w = weight.ravel()[unk]
+    A = L[unk][:, unk] + diags(w)
+    b = -L[unk][:, ~unk] @ fixed[~unk] + w * a_hat.ravel()[unk]
+    return A.tocsr(), b, unk
+
+
+def _alpha(trimap: np.ndarray, a_u: np.ndarray, unk: np.ndarray, lower: np.ndarray) -> np.ndarray:
+    """(h, w) alpha: the trimap's fixed values, the solved unknowns ``a_u`` kept above ``lower``."""
+    a = (trimap >= FG).astype(np.float64).ravel()
+    a[unk] = a_u
+    a = np.clip(np.maximum(a.reshape(trimap.shape), lower), 0.0, 1.0)
+    a[trimap <= BG] = 0.0
+    a[trimap >= FG] = 1.0
+    return a
+
+
+def _finish(image, trimap, background, known, a_u, unk, lower, fallback_fg) -> tuple[np.ndarray, np.ndarray]:
+    """(alpha, F) of step 4 from the solved unknown alphas ``a_u``."""
+    a = _alpha(trimap, a_u, unk, lower)
+    return a, foreground_colour(image, a, background, known, fallback_fg)
+
+
+def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
+    """(h, w) bool: pixels where the photo or the plate reaches CLIP_LEVEL in a channel.  There
+    C = a F + (1 - a) B no longer holds (the true B of a blown-out window is above 1), so B
+    counts as unknown there."""
+    return (np.asarray(image).max(axis=-1) >= CLIP_LEVEL) | (np.asarray(background).max(axis=-1) >= CLIP_LEVEL)
+
+
+def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
+                      fallback_fg) -> np.ndarray:
+    """(h, w, 3) float64 straight colour in [0, 1] (step 4): F = B + (C - B) / alpha where B is
+    ``known``, not :func:`clipped` and alpha > 0.  Where B is known but blown out, the colour of the
+    nearest pixels whose F is exact and alpha at least REFINE_ALPHA (a push-pull fill: the needle's
+    own colour; pymatting's estimate there takes the white window into F: a conifer before a
+    blown-out wall came out white, premultiplied colour 18.1 dB against the truth over black, 21.7 dB
+    with the fill).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML
+    foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view
+    saw behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour
+    (:func:`_extended`)."""
+    C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
+    a = np.asarray(alpha, np.float64)
+    known = np.asarray(known, bool)
+    blown = known & clipped(C, B) & (a > 0)
+    ok = known & ~blown & (a > 0)
+    F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
+    # an opaque pixel is its own colour whatever B, unless B is blown out: then "opaque" is the depth's
+    # word for a pixel the photo cannot tell from the window
+    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
+    if not need.any():
+        return _extended(np.where(ok[..., None], F, C), a)
+    sure = ok & (a >= REFINE_ALPHA)
+    fill = np.zeros(a.shape, bool)
+    if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
+        bright = push_pull(B, (known & ~blown).astype(np.float64)).max(axis=-1) >= FILL_BRIGHT if known.any() \
+            else np.zeros(a.shape, bool)
+        fill = need & (blown | bright)
+    rest = need & ~fill
+    fb = np.asarray(fallback_fg(C, a, rest), np.float64) if rest.any() else C
+    if fill.any():
+        fb = np.where(fill[..., None], push_pull(F, sure.astype(np.float64)), fb)
+    return _extended(np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0), a)
+
+
+def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """``F`` with its alpha-0 pixels given the nearest sure object colour (a push-pull fill from the
+    pixels with alpha at least REFINE_ALPHA: a faint pixel's F = B + (C - B) / alpha carries its noise
+    times 1 / alpha), as pymatting's ML foreground extends it: a bilinear lookup across the object's
+    edge (the photometric stage's, a texture's) then mixes no background into the object's colour."""
+    zero = alpha <= 0
+    sure = alpha >= REFINE_ALPHA
+    if not zero.any() or not sure.any():
+        return F
+    return np.where(zero[..., None], push_pull(F, sure.astype(np.float64)), F)
+
+
+def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None = None) -> np.ndarray:
+    """pymatting's ML foreground of ``image`` under ``alpha``, computed on the box around the
+    ``need`` (h, w) pixels only (the image elsewhere); None: everywhere."""
+    from pymatting import estimate_foreground_ml
+
+    from capture.matting import _crop
+
+    F = np.asarray(image, np.float64).copy()
+    box = _crop(np.where(need, UNKNOWN, BG)) if need is not None else (slice(None), slice(None))
+    if box is not None:
+        F[box] = estimate_foreground_ml(np.asarray(image, np.float64)[box], np.asarray(alpha, np.float64)[box])
+    return F
+
+
+def _passes(img, trimap, background, known, noise, laplacian, solve):
+    """Steps 1-3 (module docstring) with ``laplacian(img, unknown (h, w) bool)`` and
+    ``solve(A, b, x0 or None) -> (x, converged)``: (alpha_u, unknown mask (h w,), lower bound,
+    trimap solved, known as given (blown-out pixels included: step 4 tells them), converged)."""
+    given = np.asarray(known, bool)
+    known = given & ~clipped(img, background)
+    tri, opaque = solve_trimap(trimap, img, background, known, noise)
+    unk_map = tri == UNKNOWN
+    converged, a_prev = True, None
+    unk, a_u = unk_map.ravel(), np.zeros(0)
+    L = laplacian(img, unk_map) if unk_map.any() else None
+    for _ in range(1 + REFINE_PASSES if L is not None else 1):
+        a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque)
+        if L is None:
+            break
+        A, b, unk = _system(L, tri, a_hat, weight)
+        a_u, ok = solve(A, b, None if a_prev is None else a_prev.ravel()[unk])
+        if not ok:  # the per-pixel alphas of step 2 stand
+            a_u, converged = a_hat.ravel()[unk], False
+        a_prev = _alpha(tri, a_u, unk, lower)
+    return a_u, unk, lower, tri, given, converged
+
+
+def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
+                           noise: float = NOISE_ABS) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """(alpha (h, w), straight colour F (h, w, 3), the trimap solved (widened), converged) of
+    linear ``image`` (h, w, 3) under ``trimap`` (BG / UNKNOWN / FG) with the background
+    ``background`` (h, w, 3) known where ``known`` (h, w); ``noise``: linear noise of C - B (module
+    docstring).  Not converged: the per-pixel alphas of step 2 stand."""
+    from pymatting import cf_laplacian, cg, ichol
+
+    pre = {}
+
+    def solve(A, b, x0):
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout (`furrow model --json`)
+                if "M" not in pre:  # the passes differ in the data weights only: one preconditioner
+                    pre["M"] = ichol(A)
+                return cg(A, b, x0=x0, M=pre["M"], rtol=CG_RTOL, maxiter=CG_MAX_ITERATIONS), True
+        except ValueError as e:  # "Conjugate gradient descent did not converge ..."
+            if "converge" not in str(e):
+                raise
+            return None, False
+
+    img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    a_u, unk, lower, tri, known, ok = _passes(
+        img, trimap, background, known, noise,
+        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve)
+    a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground)
+    return a, F, tri, ok
+
+
+def known_background_matte_reference(image: np.ndarray, trimap: np.ndarray, background: np.ndarray,
+                                     known: np.ndarray, noise: float = NOISE_ABS) -> tuple[np.ndarray, np.ndarray]:
+    """The slow twin of :func:`known_background_matte` (same steps; the matting Laplacian built
+    window by window in numpy, a sparse direct solve; F where not exact: the image itself).
+    Small crops only."""
+    from scipy.sparse.linalg import spsolve
+
+    from capture.matting import closed_form_laplacian_reference
+
+    img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    a_u, unk, lower, tri, known, _ = _passes(
+        img, trimap, background, known, noise, lambda im, u: closed_form_laplacian_reference(im, CF_EPSILON),
+        lambda A, b, x0: (spsolve(A.tocsc(), b), True))
+    a, F = _finish(img, tri, background, known, a_u, unk, lower, lambda C, a, need: C)
+    return a, F

@@ -1,0 +1,425 @@
+"""The background behind the object in every view (a clean plate), from the capture itself (issue 30).
+
+A partial pixel of a needle or a strand is C = a F + (1 - a) B: without B, even the true alpha leaves
+the room in F (issue 30: 19.4 dB held out with the true matte against 24.3 over black).  The capture
+holds B: what one view's object hides, other views see beside it.  :func:`background_plates` gives
+every view a plate (B per pixel where known) by the first path that applies (``PlateConfig.mode``
+``auto``, or one forced):
+
+1. ``user``: plates the user shot (``furrow model --background-plates DIR``: the same path without
+   the object, or a fixed camera; ``capture.plate_io``), one per view.
+2. ``fixed``: the camera stood still while the object turned (a turntable shot): the background is
+   the same image in every frame; each pixel's plate is the median of the frames in which it is
+   confidently background (:func:`fixed_plates`).
+3. ``panorama``: the camera moved (an orbit, a phone): the background is looked up in the other
+   views along each pixel's ray, with the support plane and the room's depth for parallax and a
+   point at infinity for a far environment (``capture.plate_reproject``).
+
+``auto`` takes user plates when given, else tells ``fixed`` from ``panorama`` from the data: both
+predict a sample of every view's background pixels near the object from the other views, and the
+one with the smaller error wins (:func:`choose_mode`); nobody is asked whether the camera moved.
+
+"Confidently background" (``source`` mask) is outside the object's depth (after the extent stage)
+dilated by ``SOURCE_BAND_FRACTION`` of the width, twice the matting band.  Each view's exposure
+gain (auto exposure, white balance: colour = true colour / g) is fitted on those pixels
+(:func:`fit_gains`) so that one view's plate is drawn in its own exposure.
+
+The orchestration (:func:`background_plates`): every view is prepared once (:func:`prepare`: its
+masks, held-back ring and what each path reads of it, a :class:`PlateSet`); each path tried
+(:data:`PATHS`: its first gains, its prediction of every view's ring from the other views, its
+drawing of the plates) predicts the rings (a :class:`Trial`); the winner's gains are refitted on its
+own predictions GAIN_PASSES times (:func:`refit`); then it draws the plates.
+
+Every view's record says what share of its matting band got a known background and the plate's
+error on background pixels it was not built from (a ring of the view's own background pixels just
+outside the band, predicted from the other views only: leave one out).  Where no view saw the
+background, the plate is unknown and the matte falls back to the estimate without it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from capture.camera import Camera
+from capture.matting import UNKNOWN, depth_trimap
+from capture.matting_known import widen_px
+from capture.plate_reproject import room_depth
+from capture.sampling import mask_box
+
+#: Plate modes of PlateConfig.mode / ``furrow model --plate``.
+PLATE_MODES = ("auto", "user", "fixed", "panorama", "off")
+#: Confidently background: outside the object's depth dilated by this fraction of the width (8 px at 640).
+SOURCE_BAND_FRACTION = 8 / 640
+#: The held-back ring for the plate's error: background pixels this fraction of the width beyond the source band.
+RING_FRACTION = 6 / 640
+#: Most ring pixels per view used for errors and for telling the modes apart (an even subsample).
+RING_SAMPLES = 4000
+#: Views consulted per view (moving camera): the nearest by optical axis.
+NEIGHBOURS = 8
+#: Gain fit: colours below this (linear, any channel) or above GAIN_BRIGHT are not used (quantisation, clipping).
+GAIN_DARK = 0.01
+GAIN_BRIGHT = 0.95
+#: Gain fit: passes (predict, fit; the last prediction uses the last fit).
+GAIN_PASSES = 2
+#: A background depth point higher than this above the support plane is the room, not the support (metres).
+PLANE_OFF_METRES = 0.02
+#: Gain fit: least samples for a view's gain; fewer keeps gain 1.
+GAIN_MIN_SAMPLES = 200
+#: Noise passed to the matte: this multiple of the view's median held-back plate error ...
+NOISE_PER_ERROR = 1.5
+#: ... at least one 8-bit sRGB step at black (linear) and at most NOISE_MAX.
+NOISE_MIN = 1.0 / 255 / 12.92
+NOISE_MAX = 0.05
+
+
+@dataclass(frozen=True)
+class PlateConfig:
+    """Settings of :func:`background_plates` (the pipeline's background plate stage)."""
+
+    #: One of PLATE_MODES (module docstring); 'off' = no plate (the matte is estimated without one).
+    mode: str = "auto"
+    #: Views consulted per view when the camera moves (the nearest by optical axis).
+    neighbours: int = NEIGHBOURS
+    #: Folder of plates the user shot (``--background-plates``; capture.plate_io), or None.
+    plates_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.mode not in PLATE_MODES:
+            raise ValueError(f"plate mode must be one of {', '.join(PLATE_MODES)}, got {self.mode!r}")
+        if int(self.neighbours) < 1:
+            raise ValueError(f"plate neighbours must be >= 1, got {self.neighbours}")
+
+
+@dataclass(frozen=True)
+class Plate:
+    """One view's background plate.
+
+    Attributes:
+        background: (H, W, 3) float32 linear colour of the background in the view's own exposure
+            (0 where not known).
+        known: (H, W) bool, where the background is known.
+        noise: linear noise of C - B to allow in the matte (from the held-back error).
+        method: 'user', 'fixed', 'panorama' or 'none'.
+        band_known: fraction of the view's matting band (trimap unknown) with a known background.
+        error: median over held-back background pixels of the largest channel's |plate - colour| (linear;
+            NaN without any).
+        error_rmse: RMS over those pixels and channels (linear; NaN without any).
+        frame: None for a full-frame plate; (H, W, y0, x0) for a plate cropped to its known box
+            (:meth:`cropped`): ``background`` and ``known`` are then the box at (y0, x0).
+    """
+
+    background: np.ndarray
+    known: np.ndarray
+    noise: float
+    method: str
+    band_known: float
+    error: float
+    error_rmse: float
+    frame: tuple | None = None
+
+    def cropped(self) -> Plate:
+        """The plate on the box around its known pixels, colour as float16 (what waits for the matte
+        stage); :meth:`full` gives it back at its (H, W)."""
+        H, W = self.known.shape
+        r0, r1, c0, c1 = mask_box(self.known) or (0, 0, 0, 0)
+        sl = (slice(r0, r1), slice(c0, c1))
+        return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
+                     self.band_known, self.error, self.error_rmse, (H, W, r0, c0))
+
+    def full(self) -> Plate:
+        """The plate at its image's full (H, W) (itself when not cropped)."""
+        if self.frame is None:
+            return self
+        H, W, y0, x0 = self.frame
+        bg = np.zeros((H, W, 3), np.float32)
+        known = np.zeros((H, W), bool)
+        h, w = self.known.shape
+        bg[y0:y0 + h, x0:x0 + w] = self.background
+        known[y0:y0 + h, x0:x0 + w] = self.known
+        return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse)
+
+    def record(self) -> dict:
+        """JSON-able summary of the view's plate (model.json, the stage table)."""
+        return {"method": self.method, "band_known": round(self.band_known, 4),
+                "error": None if not np.isfinite(self.error) else round(self.error, 5),
+                "error_rmse": None if not np.isfinite(self.error_rmse) else round(self.error_rmse, 5),
+                "noise": round(self.noise, 5)}
+
+
+@dataclass(frozen=True)
+class PlateView:
+    """One view as the plate stage reads it.
+
+    Attributes:
+        camera: its camera.
+        linear: (H, W, 3) float32 linear colour.
+        object_depth: (H, W) float32 the object's depth (after the extent stage; 0 = not the object).
+        depth: (H, W) float32 the capture's depth (before the extent stage: the support, walls too).
+    """
+
+    camera: Camera
+    linear: np.ndarray
+    object_depth: np.ndarray
+    depth: np.ndarray
+
+
+def px(frac: float, width: int) -> int:
+    """Pixels of a fraction of the image width (at least 1)."""
+    return max(1, int(round(frac * width)))
+
+
+def source_mask(object_depth: np.ndarray) -> np.ndarray:
+    """(H, W) bool confidently background: outside the object's depth dilated by SOURCE_BAND_FRACTION."""
+    m = np.asarray(object_depth) > 0
+    return ~ndimage.binary_dilation(m, iterations=px(SOURCE_BAND_FRACTION, m.shape[1]))
+
+
+def need_mask(object_depth: np.ndarray) -> np.ndarray:
+    """(H, W) bool pixels whose background the matte may ask for: the trimap's band and opaque
+    pixels, widened as capture.matting_known widens it."""
+    tri = depth_trimap(object_depth)
+    return ndimage.binary_dilation(tri > 0, iterations=widen_px(tri.shape[1]))
+
+
+def ring_pixels(object_depth: np.ndarray, source: np.ndarray | None = None) -> np.ndarray:
+    """(N, 2) int (x, y) of the held-back ring: source pixels within RING_FRACTION of the source
+    band's edge, at most RING_SAMPLES (evenly); ``source``: the view's :func:`source_mask` if known."""
+    src = source_mask(object_depth) if source is None else source
+    near = ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
+    y, x = np.nonzero(src & near)
+    if len(y) > RING_SAMPLES:
+        k = np.linspace(0, len(y) - 1, RING_SAMPLES).round().astype(np.int64)
+        y, x = y[k], x[k]
+    return np.stack([x, y], axis=1)
+
+
+def _usable(c: np.ndarray) -> np.ndarray:
+    return np.all((c > GAIN_DARK) & (c < GAIN_BRIGHT), axis=-1)
+
+
+def fit_gains(observed: list[np.ndarray], predicted: list[np.ndarray], prior: np.ndarray | None = None) -> np.ndarray:
+    """(V, 3) exposure gains g (true colour = colour x g, median view 1 per channel) from each view's
+    observed background colours (N_i, 3) and the same pixels predicted from the other views in
+    the common exposure (N_i, 3), NaN rows = no prediction: g_i = median(predicted / observed).
+    Views with under GAIN_MIN_SAMPLES usable pairs keep their ``prior`` gain (default 1)."""
+    V = len(observed)
+    logg = np.zeros((V, 3)) if prior is None else np.log(np.asarray(prior, np.float64))
+    for i, (o, p) in enumerate(zip(observed, predicted, strict=True)):
+        ok = np.isfinite(p).all(axis=1) & _usable(o) & _usable(np.nan_to_num(p))
+        if ok.sum() >= GAIN_MIN_SAMPLES:
+            logg[i] = np.median(np.log(p[ok]) - np.log(o[ok]), axis=0)
+    logg -= np.median(logg, axis=0)
+    return np.exp(logg)
+
+
+@dataclass(frozen=True)
+class PreparedView:
+    """One view as every plate path reads it, worked out once (:func:`prepare`).
+
+    Attributes:
+        view: the view.
+        source: (H, W) bool, confidently background (:func:`source_mask`).
+        need: (H, W) bool, where the matte may ask for the plate (:func:`need_mask`).
+        ring: (N, 2) int (x, y) of its held-back ring (:func:`ring_pixels`).
+        observed: (N, 3) float64 its linear colour on the ring.
+        background_depth: (H, W) float32 the capture's depth where it is not the object (0 = none).
+        room: (H, W) z-depth of the room filled in under the object
+            (capture.plate_reproject.room_depth), or None (none measured, or no moving-camera path).
+        weight: (H, W) float32 its pixels' weight as fixed-camera samples
+            (capture.plate_fixed.fixed_sample_weight), or None (no fixed-camera path).
+    """
+
+    view: PlateView
+    source: np.ndarray
+    need: np.ndarray
+    ring: np.ndarray
+    observed: np.ndarray
+    background_depth: np.ndarray
+    room: np.ndarray | None
+    weight: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class PlateSet:
+    """Every view prepared, and what the paths share.
+
+    Attributes:
+        views: the prepared views.
+        plane: (4,) the support plane (n, d; n . X + d = 0, metres) or None.
+        focus: (centre (3,), radius) of the region the rig looks at (metres).
+        neighbours: views consulted per view by the moving-camera path.
+    """
+
+    views: tuple[PreparedView, ...]
+    plane: np.ndarray | None
+    focus: tuple[np.ndarray, float]
+    neighbours: int
+
+    @property
+    def cameras(self) -> list[Camera]:
+        return [p.view.camera for p in self.views]
+
+
+def _paths(cfg: PlateConfig) -> tuple[str, ...]:
+    """The paths background_plates tries: both in 'auto', else the one forced."""
+    return ("fixed", "panorama") if cfg.mode == "auto" else (cfg.mode,)
+
+
+def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> PreparedView:
+    """The view's :class:`PreparedView`; the room depth only for the 'panorama' path, the sample
+    weights only for the 'fixed' one."""
+    from capture.plate_fixed import fixed_sample_weight
+
+    src = source_mask(v.object_depth)
+    bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32)
+    ring = ring_pixels(v.object_depth, src)
+    room = None
+    if "panorama" in paths:
+        pts, m = v.camera.depth_to_points(bgd)
+        off = np.zeros(bgd.shape, bool)
+        if len(pts):
+            off[m] = True if plane is None else (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
+        band = src & ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
+        room = room_depth(bgd, band, off)
+    weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
+    observed = np.asarray(v.linear[ring[:, 1], ring[:, 0]], np.float64)
+    return PreparedView(v, src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
+
+
+def plate_set(views: list[PlateView], plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,
+              cfg: PlateConfig) -> PlateSet:
+    """Every view prepared (:func:`prepare`) for the paths ``cfg`` tries; ``focus`` default
+    capture.extent.focus_region of the cameras."""
+    from capture.extent import focus_region
+
+    focus = focus or focus_region([v.camera for v in views])
+    paths = _paths(cfg)
+    return PlateSet(tuple(prepare(v, plane, paths) for v in views), plane, focus, int(cfg.neighbours))
+
+
+def path_functions(path: str):
+    """(first gains, ring prediction, plate drawing) of a path: each takes the PlateSet (and gains);
+    predictions and plates are in each view's own exposure."""
+    from capture import plate_fixed as pf
+    from capture import plate_reproject as pr
+
+    return {"fixed": (pf.fixed_start, pf.fixed_predict, pf.fixed_draw),
+            "panorama": (pr.panorama_start, pr.panorama_predict, pr.panorama_draw)}[path]
+
+
+# --- the orchestration ---
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One path's gains (V, 3), its prediction of every view's ring (list of (N_i, 3), NaN =
+    unknown) and per view (median of the largest channel's |error|, RMS) against the ring."""
+
+    gains: np.ndarray
+    predicted: list
+    errors: list
+
+
+def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
+    """(median of the largest channel's |error|, RMS) over the predicted rows (NaN: none)."""
+    ok = np.isfinite(predicted).all(axis=1)
+    if not ok.any():
+        return float("nan"), float("nan")
+    d = np.abs(predicted[ok] - observed[ok])
+    return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
+
+
+def _trial(ps: PlateSet, path: str, gains: np.ndarray | None = None) -> Trial:
+    """The path's prediction of every ring with ``gains`` (default the path's first gains)."""
+    start, predict, _ = path_functions(path)
+    g = start(ps) if gains is None else gains
+    pred = predict(ps, g)
+    return Trial(g, pred, [_error(p.observed, q) for p, q in zip(ps.views, pred, strict=True)])
+
+
+def refit(ps: PlateSet, path: str, trial: Trial) -> Trial:
+    """The path's gains fitted to its own predictions GAIN_PASSES times (:func:`fit_gains`), each
+    pass predicting again with the new gains."""
+    for _ in range(GAIN_PASSES):
+        common = [q * trial.gains[i] for i, q in enumerate(trial.predicted)]
+        trial = _trial(ps, path, fit_gains([p.observed for p in ps.views], common, trial.gains))
+    return trial
+
+
+def choose_mode(errors: dict) -> str:
+    """The plate mode ('fixed' / 'panorama') whose held-back error (median over views) is smaller."""
+    score = {m: np.nanmedian([e[0] for e in errs]) if np.isfinite([e[0] for e in errs]).any() else np.inf
+             for m, errs in errors.items()}
+    return min(score, key=lambda m: score[m])
+
+
+def background_plates(views: list[PlateView], cfg: PlateConfig | None = None, plane: np.ndarray | None = None,
+                      focus: tuple[np.ndarray, float] | None = None,
+                      user: list[np.ndarray] | None = None) -> tuple[list[Plate | None], dict]:
+    """(per view its Plate, or None for mode 'off'; record for model.json / the console) (module
+    docstring).  ``plane``: the support plane (capture.extent, (4,) or None); ``focus``: (centre,
+    radius) of the region the rig looks at (default capture.extent.focus_region); ``user``: per
+    view a (H, W, 3) linear plate the user shot (capture.plate_io)."""
+    cfg = cfg or PlateConfig()
+    if cfg.mode == "off":
+        return [None] * len(views), {"mode": "off"}
+    if cfg.mode == "user" and user is None:
+        raise ValueError("--plate user needs --background-plates DIR")
+    if user is not None and cfg.mode in ("auto", "user"):
+        return _user_plates(views, user)
+    ps = plate_set(views, plane, focus, cfg)
+    trials = {path: _trial(ps, path) for path in _paths(cfg)}
+    mode = choose_mode({path: t.errors for path, t in trials.items()})
+    fit = refit(ps, mode, trials[mode])
+    made = path_functions(mode)[2](ps, fit.gains)
+    plates = [_plate(p.view, c, k, err, mode) for p, (c, k), err in zip(ps.views, made, fit.errors, strict=True)]
+    return plates, _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
+
+
+def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
+    """(V, 3) gain of each view relative to its user plate (the plate's exposure: gain 1), fitted on
+    the view's confidently background pixels."""
+    g = np.ones((len(views), 3))
+    for i, (v, u) in enumerate(zip(views, user, strict=True)):
+        m = source_mask(v.object_depth)
+        o = v.linear[m].astype(np.float64)
+        p = np.asarray(u, np.float64)[m]
+        ok = _usable(o) & _usable(p)
+        if ok.sum() >= GAIN_MIN_SAMPLES:
+            g[i] = np.exp(np.median(np.log(p[ok]) - np.log(o[ok]), axis=0))
+    return g
+
+
+def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str) -> Plate:
+    band = depth_trimap(v.object_depth) == UNKNOWN
+    noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
+    return Plate(col.astype(np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
+                 err[0], err[1])
+
+
+def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:
+    """The user's plates in each view's exposure (:func:`user_gains`), their errors on the held-back ring."""
+    g = user_gains(views, user)
+    plates = []
+    for i, (v, u) in enumerate(zip(views, user, strict=True)):
+        r = ring_pixels(v.object_depth)
+        err = _error(v.linear[r[:, 1], r[:, 0]].astype(np.float64), np.asarray(u)[r[:, 1], r[:, 0]] / g[i])
+        plates.append(_plate(v, np.asarray(u, np.float32) / g[i], np.ones(v.object_depth.shape, bool), err, "user"))
+    return plates, _record("user", plates, g, {})
+
+
+def _summary(errs) -> float | None:
+    e = [x[0] for x in errs if np.isfinite(x[0])]
+    return round(float(np.median(e)), 5) if e else None
+
+
+def _record(mode: str, plates: list[Plate], gains: np.ndarray, tried: dict) -> dict:
+    band = [p.band_known for p in plates]
+    return {"mode": mode, "tried_error": tried,
+            "band_known_mean": round(float(np.mean(band)), 4), "band_known_min": round(float(np.min(band)), 4),
+            "error_median": _summary([(p.error, p.error_rmse) for p in plates]),
+            "gains_ev": [[round(float(x), 3) for x in np.log2(g)] for g in gains],
+            "per_view": [p.record() for p in plates]}

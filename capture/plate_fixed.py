@@ -1,0 +1,147 @@
+"""A fixed camera's background plate: the same background in every frame (issue 30; capture.plate).
+
+A turntable shot keeps the camera still and turns the object: each pixel sees the room in the frames
+where the object is not in front of it.  Its plate is the robust mode of the frames' colours there
+(:func:`robust_mode`): the heaviest cluster of samples that agree to MODE_TOL, weighted by how far
+each frame's object depth is from the pixel (:func:`fixed_sample_weight`), rejected as ambiguous
+when a rival cluster nearly as heavy disagrees (a needle that stayed put over several frames).  A
+median of all frames would take in the needles wherever they cover a pixel in half of them.  The
+frames' exposures (auto exposure) are fitted first on the pixels every frame sees
+(:func:`fixed_gains`).  As a path of ``capture.plate`` (``capture.plate.path_functions``):
+:func:`fixed_start`, :func:`fixed_predict` and :func:`fixed_draw` on a ``capture.plate.PlateSet``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from capture.plate import GAIN_PASSES, SOURCE_BAND_FRACTION, PlateSet, PlateView, fit_gains, px
+from capture.plate_reproject import nan_median
+
+#: A pixel's plate needs this many frames that agree on its colour (robust_mode).
+FIXED_MIN_FRAMES = 3
+#: Pixels (on a regular grid) used for the first exposure gains.
+FIXED_GAIN_PIXELS = 20000
+#: A frame lends samples where it has no object depth within this fraction of the width (2 px at 640).
+FIXED_EXCLUDE_FRACTION = 2 / 640
+#: Robust mode: samples within this (8-bit sRGB, largest channel) of each other agree.
+MODE_TOL = 3.0 / 255
+#: Robust mode: a rival cluster (no sample in common) weighing this fraction of the heaviest one makes
+#: the pixel unknown.
+MODE_AMBIGUOUS = 0.5
+#: Robust mode: pixels per chunk (a K x K x chunk agreement array).
+MODE_CHUNK = 20000
+
+
+def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(colour (N, 3), support (N,) int) of samples (K, N, 3) linear (NaN = none) per column: the
+    heaviest cluster (the sample whose agreeing samples, within MODE_TOL in 8-bit sRGB, weigh most;
+    ``weights`` (K, N), default 1), then the median of those; support = how many agree.  A needle
+    crossing a background pixel in some frames leaves samples spread between B and F; the frames
+    it missed agree to the noise, and they were further from the object (heavier)."""
+    from capture.scan import linear_to_srgb
+
+    K, N, _ = samples.shape
+    colour = np.full((N, 3), np.nan, np.float32)
+    support = np.zeros(N, np.int64)
+    for lo in range(0, N, MODE_CHUNK):
+        s = samples[:, lo:lo + MODE_CHUNK].astype(np.float32)
+        have = np.isfinite(s[..., 0])
+        w = have.astype(np.float32) if weights is None else np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0)
+        e = linear_to_srgb(np.nan_to_num(s))
+        close = have[:, None] & have[None]  # (K, K, n): every channel within MODE_TOL (channel by channel:
+        for c in range(3):  # a (K, K, n, 3) array's max over its last axis took 3x as long)
+            close &= np.abs(e[None, :, :, c] - e[:, None, :, c]) <= MODE_TOL
+        score = (close * w[None]).sum(axis=1)  # (K, n): weight of the samples agreeing with each
+        best = np.argmax(score, axis=0)  # (n,): the heaviest cluster's centre
+        cols = np.arange(s.shape[1])
+        members = close[best, :, cols].T  # (K, n): samples close to it
+        # a rival cluster apart from it nearly as heavy: the pixel is ambiguous (a needle that stayed put)
+        outside = ~members
+        rival = np.where(outside, ((close & outside[None]) * w[None]).sum(axis=1), 0.0).max(axis=0)
+        members &= (rival < MODE_AMBIGUOUS * score[best, cols])[None]
+        n = members.sum(axis=0)
+        med = nan_median(np.where(members[..., None], s, np.nan))
+        colour[lo:lo + MODE_CHUNK] = np.where((n > 0)[:, None], med, np.nan)
+        support[lo:lo + MODE_CHUNK] = n
+    return colour, support
+
+
+def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
+    """(H, W) float32 weight of a frame's pixels as fixed-camera plate samples: 0 within
+    FIXED_EXCLUDE_FRACTION of the width of the object's depth (the robust mode takes out needles
+    the depth missed), rising to 1 at SOURCE_BAND_FRACTION (confidently background)."""
+    m = np.asarray(object_depth) > 0
+    W = m.shape[1]
+    if not m.any():
+        return np.ones(m.shape, np.float32)
+    d = ndimage.distance_transform_edt(~m)
+    w = np.clip(d / px(SOURCE_BAND_FRACTION, W), 0.0, 1.0)
+    return np.where(d > px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
+
+
+def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gains: np.ndarray,
+                     weights: list[np.ndarray] | None = None) -> np.ndarray:
+    """(N, 3) fixed-camera plate at pixels ``pix`` (N, 2) from every frame but ``i`` (None: all), in
+    the common exposure (colour x gain): the robust mode (:func:`robust_mode`) of the frames' samples
+    weighted by ``weights`` (default :func:`fixed_sample_weight`); NaN where fewer than
+    FIXED_MIN_FRAMES agree."""
+    x, y = pix[:, 0], pix[:, 1]
+    s = np.full((len(views), len(pix), 3), np.nan, np.float32)
+    w = np.zeros((len(views), len(pix)), np.float32)
+    for j, v in enumerate(views):
+        if j == i:
+            continue
+        w[j] = (fixed_sample_weight(v.object_depth) if weights is None else weights[j])[y, x]
+        ok = w[j] > 0
+        s[j, ok] = v.linear[y[ok], x[ok]] * gains[j]
+    col, support = robust_mode(s, w)
+    col[support < FIXED_MIN_FRAMES] = np.nan
+    return col
+
+
+def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray:
+    """(V, 3) exposure gains of a fixed camera's frames (true colour = colour x gain) from about
+    FIXED_GAIN_PIXELS pixels (a regular grid) that all frames may lend: each frame against the
+    per-pixel median of the frames (GAIN_PASSES times, the median taken over the gain-corrected frames)."""
+    H, W = weights[0].shape
+    k = max(1, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
+    common = np.logical_and.reduce([w >= 1 for w in weights])[::k, ::k]
+    obs = [v.linear[::k, ::k][common].astype(np.float64) for v in views]
+    gains = np.ones((len(views), 3))
+    if not common.any():
+        return gains
+    for _ in range(GAIN_PASSES):
+        med = np.median(np.stack([o * g for o, g in zip(obs, gains, strict=True)]), axis=0)
+        gains = fit_gains(obs, [med] * len(obs))
+    return gains
+
+
+def fixed_start(ps: PlateSet) -> np.ndarray:
+    """The fixed camera's first gains (:func:`fixed_gains` of the prepared views)."""
+    return fixed_gains([p.view for p in ps.views], [p.weight for p in ps.views])
+
+
+def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
+    """Per view its ring (N_i, 3) predicted from every other frame (leave one out), in its own exposure."""
+    views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
+    return [fixed_prediction(views, p.ring, i, gains, weights) / gains[i] for i, p in enumerate(ps.views)]
+
+
+def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per view (colour (H, W, 3) float32 in its own exposure, known (H, W)) of the fixed-camera
+    plate on the union of the views' need masks (module docstring): one robust mode per pixel."""
+    needs = [p.need for p in ps.views]
+    union = np.logical_or.reduce(needs)
+    y, x = np.nonzero(union)
+    med = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
+                           [p.weight for p in ps.views])
+    out = []
+    for j, p in enumerate(ps.views):
+        col = np.zeros(p.view.linear.shape, np.float32)
+        col[y, x] = np.nan_to_num(med / gains[j])
+        known = np.zeros(union.shape, bool)
+        known[y, x] = np.isfinite(med[:, 0])
+        out.append((col, known & needs[j]))
+    return out

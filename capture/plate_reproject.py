@@ -1,0 +1,223 @@
+"""A moving camera's background plate: what the other views saw behind the object (issue 30).
+
+For a pixel p of view i near the object, the background behind it is a point X on p's ray beyond
+the object.  Its colour is looked up in the other views that saw X beside the object:
+
+* **hypotheses for X** (:func:`background_points`), tried in order: the support plane under the
+  object (``capture.extent``: the ray's hit, when it lies in front of the camera), then the room
+  at the depth the view measured around the object (inverse depth filled inwards by a push-pull
+  pyramid, so a wall or a slanted floor continues under the object), else a point at infinity in
+  p's direction (an environment far away: the background depends on the direction only, and the
+  views' pixels together form a panorama of it).
+* **a sample from view j** (:func:`gather_samples`) counts when X projects inside j's image onto
+  pixels that are all confidently background there (outside j's object depth and its band: all
+  four bilinear taps), and j's measured depth there agrees with X (the plane or room really is
+  there and is not hidden; for X at infinity, j measured nothing or something beyond the
+  object's region).  Its colour is j's, bilinear in linear light, times g_j / g_i (the views'
+  exposure gains, ``capture.plate``).
+* **the plate** is the per-channel median of the samples of the first hypothesis that has any
+  (:func:`reproject_plate`); a pixel without samples stays unknown (``known`` False).
+
+The views' pixels are looked up directly, not through a resampled panorama grid: one resampling,
+not two, and a point at infinity is just the direction of the project's one camera model.
+
+As a path of ``capture.plate`` (``capture.plate.path_functions``): :func:`panorama_start`,
+:func:`panorama_predict` and :func:`panorama_draw` on a ``capture.plate.PlateSet``, each view
+consulting its ``neighbours`` nearest views by optical axis (:func:`neighbour_order`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from capture.camera import Camera
+from capture.sampling import linear_taps, sample_image
+
+if TYPE_CHECKING:
+    from capture.plate import PlateSet
+
+#: A point "at infinity": this many metres along the ray (float64 keeps 1e-6 px of parallax).
+FAR_METRES = 1e6
+#: Depth agreement: |measured - expected| within this fraction of the expected z-depth (a D435's
+#: z-squared noise is 0.4 % at 1 m; plus the plane's fit).
+DEPTH_TOL = 0.03
+#: For a point at infinity, j's measurement must lie beyond this multiple of its distance to the
+#: focus centre + radius (else j sees something nearer: the table, clutter).
+FAR_MARGIN = 1.0
+#: The room hypothesis needs at least this fraction of the view's background ring with depth off the plane.
+ROOM_MIN_FRACTION = 0.3
+
+
+@dataclass(frozen=True)
+class PlateSource:
+    """What view j lends to the others' plates.
+
+    Attributes:
+        camera: its camera.
+        linear: (H, W, 3) float32 linear colour.
+        background: (H, W) bool, confidently background (outside its object depth and band).
+        depth: (H, W) float32 z-depth of its background (the capture's depth where it is not the
+            object: support, walls; 0 = none).
+        gain: (3,) float64 its exposure gain g (true colour = colour x g).
+        focus_far: z-depth beyond which its measurement counts as far (metres).
+    """
+
+    camera: Camera
+    linear: np.ndarray
+    background: np.ndarray
+    depth: np.ndarray
+    gain: np.ndarray
+    focus_far: float
+
+
+def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
+    """(N, 3) colours view ``src`` saw at world ``points`` (N, 3) in the exposure of the view whose
+    gain is ``gain_i``, NaN where the sample does not count (module docstring).  ``kind``:
+    'plane', 'room' or 'far' (what the points are)."""
+    H, W = src.background.shape
+    out = np.full((len(points), 3), np.nan, np.float32)
+    uv, z = src.camera.project(points)
+    ok = np.isfinite(uv).all(axis=1) & (z > 0)
+    uv = np.where(ok[:, None], uv, -2.0)
+    for idx, inside, _ in linear_taps(uv[:, ::-1], (H, W), "zero"):  # all four taps inside and background
+        ok &= src.background[idx] & (True if inside is None else inside)
+    d = sample_image(src.depth, uv[:, 0], uv[:, 1], "nearest")
+    if kind == "far":
+        ok &= (d <= 0) | (d > FAR_MARGIN * src.focus_far)
+    elif kind == "plane":
+        ok &= (d > 0) & (np.abs(d - z) <= DEPTH_TOL * z)
+    else:
+        ok &= (d <= 0) | (np.abs(d - z) <= DEPTH_TOL * z)
+    if ok.any():
+        k = np.flatnonzero(ok)
+        out[k] = sample_image(src.linear, uv[k, 0], uv[k, 1], "linear") * (src.gain / gain_i)
+    return out
+
+
+def room_depth(depth: np.ndarray, ring: np.ndarray, off_plane: np.ndarray) -> np.ndarray | None:
+    """(H, W) z-depth of the room filled in under the object (inverse depth, push-pull from the
+    measured depth ``depth`` of the ``ring`` pixels that are ``off_plane``), or None when under
+    ROOM_MIN_FRACTION of the ring has such depth."""
+    from capture.matting_known import push_pull
+
+    have = ring & off_plane & (depth > 0)
+    if not ring.any() or have.sum() < ROOM_MIN_FRACTION * ring.sum():
+        return None
+    inv = np.where(have, 1.0 / np.maximum(depth, 1e-6), 0.0)
+    filled = push_pull(inv[..., None], have.astype(np.float64))[..., 0]
+    return np.where(filled > 0, 1.0 / np.maximum(filled, 1e-9), 0.0)
+
+
+def background_points(cam: Camera, pix: np.ndarray, plane: np.ndarray | None,
+                      room: np.ndarray | None) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Hypotheses for the background behind pixels ``pix`` (N, 2) (x, y ints) of ``cam``, in the
+    order tried: [(kind, points (N, 3), valid (N,) bool)] (module docstring)."""
+    rays_c = cam.pixel_rays(pix.astype(np.float64))
+    R = cam.world_from_cam[:3, :3]
+    rays = rays_c @ R.T  # world direction per unit z-depth
+    o = cam.center
+    hyps = []
+    if plane is not None:
+        den = rays @ plane[:3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = -(o @ plane[:3] + plane[3]) / den
+        valid = np.isfinite(t) & (t > 0)
+        hyps.append(("plane", o + rays * np.where(valid, t, 1.0)[:, None], valid))
+    if room is not None:
+        z = room[pix[:, 1], pix[:, 0]]
+        hyps.append(("room", o + rays * np.where(z > 0, z, 1.0)[:, None], z > 0))
+    unit = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    hyps.append(("far", o + unit * FAR_METRES, np.ones(len(pix), bool)))
+    return hyps
+
+
+def nan_median(s: np.ndarray) -> np.ndarray:
+    """(N, C) per-column median over axis 0 of (K, N, C) samples, NaN = none: np.nanmedian's values
+    without its per-column Python loop (samples sorted, NaNs last); a column without any sample
+    gives a meaningless value (the caller masks it)."""
+    srt = np.sort(s, axis=0)
+    n = np.maximum(np.isfinite(s).sum(axis=0), 1)  # (N, C)
+    lo = np.take_along_axis(srt, ((n - 1) // 2)[None], axis=0)[0]
+    hi = np.take_along_axis(srt, (n // 2)[None], axis=0)[0]
+    return 0.5 * (lo + hi)
+
+
+def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: list[PlateSource],
+                    plane: np.ndarray | None, room: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(colour (N, 3) float32 linear in view i's exposure, known (N,) bool, samples (N,) int) of the
+    background behind pixels ``pix`` (N, 2) of camera ``cam`` from the ``sources`` (the other
+    views; module docstring)."""
+    n = len(pix)
+    colour = np.zeros((n, 3), np.float32)
+    known = np.zeros(n, bool)
+    count = np.zeros(n, np.int64)
+    for kind, pts, valid in background_points(cam, pix, plane, room):
+        todo = np.flatnonzero(valid & ~known)
+        if not len(todo) or not sources:
+            continue
+        s = np.stack([gather_samples(pts[todo], kind, src, gain_i) for src in sources])
+        have = np.isfinite(s[..., 0])
+        got = have.any(axis=0)
+        if not got.any():
+            continue
+        med = nan_median(s[:, got])
+        idx = todo[got]
+        colour[idx] = med
+        known[idx] = True
+        count[idx] = have[:, got].sum(axis=0)
+    return colour, known, count
+
+
+def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:
+    """Indices of the ``k`` cameras other than ``i`` nearest to it by optical axis."""
+    f = np.array([c.forward for c in cams])
+    ang = np.arccos(np.clip(f @ f[i], -1, 1))
+    ang[i] = np.inf
+    return [int(j) for j in np.argsort(ang)[:k] if np.isfinite(ang[j])]
+
+
+def panorama_sources(ps: PlateSet, gains: np.ndarray) -> list[PlateSource]:
+    """What every view lends to the others' plates, with its exposure gain."""
+    center, radius = ps.focus
+    return [PlateSource(p.view.camera, p.view.linear, p.source, p.background_depth, gains[j],
+                        float(p.view.camera.world_to_cam(center)[2] + radius)) for j, p in enumerate(ps.views)]
+
+
+def panorama_prediction(ps: PlateSet, i: int, pix: np.ndarray, sources: list[PlateSource]) -> np.ndarray:
+    """(N, 3) colour behind pixels ``pix`` (N, 2) of view i in its exposure from its
+    ``ps.neighbours`` nearest other views (NaN where unknown)."""
+    nb = [sources[j] for j in neighbour_order(ps.cameras, i, ps.neighbours)]
+    col, known, _ = reproject_plate(ps.views[i].view.camera, pix, sources[i].gain, nb, ps.plane, ps.views[i].room)
+    col = col.astype(np.float32)
+    col[~known] = np.nan
+    return col
+
+
+def panorama_start(ps: PlateSet) -> np.ndarray:
+    """The moving camera's first gains: 1 (the rings say more than any common pixel)."""
+    return np.ones((len(ps.views), 3))
+
+
+def panorama_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
+    """Per view its ring (N_i, 3) predicted from the other views, in its own exposure."""
+    src = panorama_sources(ps, gains)
+    return [panorama_prediction(ps, i, p.ring, src) for i, p in enumerate(ps.views)]
+
+
+def panorama_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per view (colour (H, W, 3) float32 in its exposure, known (H, W)) on its need mask."""
+    src = panorama_sources(ps, gains)
+    out = []
+    for i, p in enumerate(ps.views):
+        y, x = np.nonzero(p.need)
+        col = panorama_prediction(ps, i, np.stack([x, y], axis=1), src)
+        ok = np.isfinite(col[:, 0])
+        img = np.zeros(p.view.linear.shape, np.float32)
+        known = np.zeros(p.need.shape, bool)
+        img[y[ok], x[ok]] = col[ok]
+        known[y[ok], x[ok]] = True
+        out.append((img, known))
+    return out

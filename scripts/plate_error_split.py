@@ -1,0 +1,72 @@
+"""Where the kept views' colour goes wrong before a room (issue 30): the premultiplied colour alpha x F
+of the default plate + matte on a room capture's kept views against the same renders over black (its
+black twin: the true premultiplied colour), split by what the plate knew behind each object pixel:
+the background known and not clipped, known but clipped (capture.matting_known.clipped), not known.
+Also with the true matte given (F from the same plate), which isolates the alpha's share.
+
+    PYTHONPATH=. .venv/bin/python scripts/plate_error_split.py ROOM_CAPTURE BLACK_TWIN [--frames 0::2]
+
+e.g. /work/cache/hardcases/conifer_room_turntable /work/cache/hardcases/conifer_black_turntable.
+Prints per class: its share of the object pixels (true or estimated alpha > 0), its share of the
+summed squared error, and the mean squared error (linear, summed over channels).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+
+import numpy as np
+
+from capture.extent import remove_surroundings
+from capture.io import read_scanset
+from capture.matting import MatteConfig, matte_scan, warm_up
+from capture.matting_known import clipped
+from capture.plate import PlateConfig, PlateView, background_plates
+from capture.scan import Scan
+
+CLASSES = ("B known, not clipped", "B known, clipped", "B not known")
+
+
+def _classes(scan, matte, plate) -> dict:
+    """Class name -> (H, W) bool over the object pixels of one view."""
+    obj = (scan.alpha > 0) | (matte.alpha > 0)
+    known = plate.known if plate is not None else np.zeros(obj.shape, bool)
+    bg = plate.background if plate is not None else np.zeros(scan.linear_rgb.shape, np.float32)
+    cl = clipped(scan.linear_rgb, bg)
+    return dict(zip(CLASSES, (obj & known & ~cl, obj & known & cl, obj & ~known), strict=True))
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("room")
+    p.add_argument("black")
+    p.add_argument("--frames", default="0::2", help="the kept frames (default 0::2, furrow eval --holdout 2)")
+    a = p.parse_args(argv)
+    warm_up()
+    ss, bs = read_scanset(a.room, a.frames), read_scanset(a.black, a.frames)
+    if any(s.alpha is None for s in ss.scans):
+        raise SystemExit(f"{a.room}: the kept frames need their true matte (mask_path)")
+    out, rep = remove_surroundings(ss)
+    views = [PlateView(o.camera, o.linear_rgb, o.depth, s.depth) for s, o in zip(ss.scans, out.scans, strict=True)]
+    plates, rec = background_plates(views, PlateConfig(), rep.plane, (rep.focus_center, rep.focus_radius))
+    err = {k: np.zeros(3) for k in CLASSES}  # estimated matte, true matte, pixels
+    for s, o, b, pl in zip(ss.scans, out.scans, bs.scans, plates, strict=True):
+        with contextlib.redirect_stdout(io.StringIO()):
+            est = matte_scan(Scan(s.rgb, s.depth, s.camera, s.name), o.depth, MatteConfig(), pl)
+            given = matte_scan(s, o.depth, MatteConfig(), pl)
+        truth = b.linear_rgb.astype(np.float64)
+        e = [((m.alpha[..., None] * m.foreground - truth) ** 2).sum(-1) for m in (est, given)]
+        for k, mask in _classes(s, est, pl).items():
+            err[k] += (e[0][mask].sum(), e[1][mask].sum(), mask.sum())
+    tot = sum(v[0] for v in err.values())
+    npx = sum(v[2] for v in err.values())
+    print(f"{a.room}: plate {rec['mode']}, band known {rec.get('band_known_mean')}")
+    for k, (e_est, e_true, n) in err.items():
+        print(f"  {k:22s} pixels {n / npx:6.1%}  error share {e_est / tot:6.1%}  mean {e_est / max(n, 1):.5f}"
+              f"  (true matte: mean {e_true / max(n, 1):.5f})")
+
+
+if __name__ == "__main__":
+    main()
