@@ -78,8 +78,9 @@ def add_model_arguments(p: argparse.ArgumentParser, frames: bool = True) -> None
                         "read back one view at a time, so that peak memory does not grow with the frames; auto "
                         "(default) spills when the frames would take over 128 MiB in memory (15 frames at "
                         "1280x960, 62 at 640x480); the model is the same either way")
-    g.add_argument("--view-workers", type=int, default=1, metavar="N",
-                   help="processes the per-view stages (reading, matte) run in (default 1: this process)")
+    g.add_argument("--view-workers", type=int, default=None, metavar="N",
+                   help="processes the views are worked on in, in parallel: reading, extent, matte, photometric "
+                        "pairs, RGBz (default: the machine's cores; 1 = all in this process; the model is the same)")
     g.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
@@ -146,6 +147,7 @@ def pipeline_config(args, **save):
     from volume.fusion import FusionConfig
     from volume.mesh import MeshConfig
     from volume.pipeline.config import FuseConfig, PipelineConfig, SaveConfig, ScaleConfig, SpheresConfig, ViewsConfig
+    from volume.pipeline.pool import cores
     from volume.pyramid import LoptConfig
 
     lopt = LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res))
@@ -159,7 +161,8 @@ def pipeline_config(args, **save):
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,
                                                                          level=args.mesh_level),
-        save=SaveConfig(**save), spill=args.spill, workers=args.view_workers)
+        save=SaveConfig(**save), spill=args.spill,
+        workers=args.view_workers if args.view_workers is not None else cores())
     return cfg.reference() if args.reference_pipeline else cfg
 
 
@@ -168,7 +171,7 @@ def pipeline_hooks(timer):
     from furrow.console import track
     from volume.pipeline.work import Hooks
 
-    return Hooks(row=timer.stage, view_row=partial(timer.stage, quiet=True), progress=track)
+    return Hooks(row=timer.stage, view_row=partial(timer.stage, quiet=True), progress=track, add=timer.add)
 
 
 def print_plan(console, cfg, source=None, title: str = "the pipeline") -> None:

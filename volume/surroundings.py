@@ -42,7 +42,7 @@ NO_PLATE_MATTES = ("off", "estimate", "backdrop")
 
 def extent_stage(work, cfg, ctx):
     """The extent stage (cfg: capture.extent.ExtentConfig): the surroundings out of the depth (module docstring)."""
-    ss, rep = remove_surroundings(work.scanset, cfg, ctx.keep)
+    ss, rep = remove_surroundings(work.scanset, cfg, ctx.keep, ctx.map_views)
     out = work.with_scanset(ss).record("extent", rep.record())
     if _plates_wanted(ctx.config):
         out = out.made(captured=work.scans, support=(rep.plane, (rep.focus_center, rep.focus_radius)))
