@@ -132,6 +132,13 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                    help="plates you shot without the object (the same path, or a fixed camera): one image per "
                         "frame named like the frame's colour image, or one image for every frame "
                         "(capture/plate_io.py)")
+    g.add_argument("--matte-resolution", choices=["full", "working"], default="full",
+                   help="where the matte estimated from the depth (not the backdrop or plate paths) is solved: full "
+                        "(default: closed-form matting on every pixel, "
+                        "the reference) or working (capture/matting_scale.py: on a copy scaled so that the object "
+                        "keeps 640 pixels and the image twice the depth's width, alpha and colour brought back by "
+                        "a guided filter on the full-size colour; many times faster on phone frames, alpha MSE "
+                        "0.003-0.008 against full size on the path-traced conifer at half size: docs/speed.md)")
     g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
                    help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
 
@@ -155,7 +162,7 @@ def pipeline_config(args, **save):
         read=ReadConfig(getattr(args, "frames", None)), undistort=UndistortConfig(args.undistort),
         views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
-        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop),
+        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution),
         plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates),
         photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
