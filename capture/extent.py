@@ -40,8 +40,8 @@ import numpy as np
 
 from capture.orbit import closest_point_to_axes, estimate_up
 from capture.sampling import cell_index
-from capture.scan import Scan, ScanSet, bounds_from_points, sampled_points
-from capture.scan_store import keep_in_memory
+from capture.scan import MAX_SAMPLED_POINTS, Scan, ScanSet, bounds_from_points
+from capture.view_map import or_serial
 
 #: Removal reasons, in the order they are decided.
 REASONS = ("support", "far", "outside", "floaters")
@@ -226,28 +226,6 @@ def _floater_cells(scan: Scan, lab: np.ndarray, origin: np.ndarray, voxel: float
     return keep, (ijk[:, 0] * n + ijk[:, 1]) * n + ijk[:, 2]
 
 
-def floater_grid(scans, labels_of, center: np.ndarray, radius: float):
-    """(object cells (n^3,) bool, origin, voxel, n) of the floater test (module docstring), one view
-    at a time (``labels_of(scan)``: its :func:`_labels`); None when no cell is seen often enough."""
-    from scipy import ndimage
-
-    voxel = FLOATER_VOXEL_FRACTION * radius
-    n = int(np.ceil(2 * radius / voxel)) + 1
-    origin = center - radius
-    hits = np.zeros(n ** 3, np.int32)
-    for s in scans:
-        hits[np.unique(_floater_cells(s, labels_of(s), origin, voxel, n)[1])] += 1
-    occ = (hits >= FLOATER_MIN_VIEWS).reshape(n, n, n)
-    comp, n_comp = ndimage.label(occ, structure=np.ones((3, 3, 3), bool))
-    if n_comp == 0:
-        return None
-    weight = ndimage.sum(hits.reshape(n, n, n), comp, np.arange(1, n_comp + 1))
-    obj = np.isin(comp, 1 + np.flatnonzero(weight >= FLOATER_KEEP_FRACTION * weight.max()))
-    if FLOATER_DILATE > 0:
-        obj = ndimage.binary_dilation(obj, np.ones((3, 3, 3), bool), iterations=FLOATER_DILATE)
-    return obj.ravel(), origin, voxel, n
-
-
 def floater_relabel(scan: Scan, lab: np.ndarray, grid) -> np.ndarray:
     """``lab`` with the kept depth pixels outside the object cells of ``grid`` (:func:`floater_grid`)
     set to the floaters' code."""
@@ -262,62 +240,120 @@ def floater_relabel(scan: Scan, lab: np.ndarray, grid) -> np.ndarray:
     return lab
 
 
-def floater_labels(scans, labs: list, center: np.ndarray, radius: float) -> list:
-    """``labs`` (per scan (H, W) int8 of :func:`_labels`) with the kept depth pixels that are floaters
-    (module docstring) set to their reason's code (:func:`floater_grid`, :func:`floater_relabel`)."""
-    scans = list(scans)
-    of = {id(s): lab for s, lab in zip(scans, labs, strict=True)}
-    grid = floater_grid(scans, lambda s: of[id(s)], center, radius)
-    return [floater_relabel(s, lab, grid) for s, lab in zip(scans, labs, strict=True)]
+def depth_count_view(scan, k, arg):
+    """Per view: its depth pixels (the sampling step of capture.scan.sampled_points)."""
+    return None, int(np.count_nonzero(scan.depth > 0))
 
 
-def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None, keep=None) -> tuple[ScanSet, ExtentReport]:
+def sampled_points_view(scan, k, step: int):
+    """Per view: every ``step``-th of its depth points in row-major order, as
+    ``capture.scan.sampled_points`` takes them (back-projected alone: the same values)."""
+    depth = np.asarray(scan.depth)
+    mask = np.isfinite(depth) & (depth > 0)
+    v, u = np.nonzero(mask)
+    v, u = v[::step], u[::step]
+    if not len(v):
+        return None, np.zeros((0, 3))
+    return None, scan.camera.unproject(np.stack([u, v], axis=-1).astype(np.float64), depth[v, u])
+
+
+def mapped_sampled_points(map_views, scans, max_points: int = MAX_SAMPLED_POINTS, counts=None) -> np.ndarray:
+    """``capture.scan.sampled_points`` of ``scans`` view by view through ``map_views`` (``counts``:
+    the views' depth pixels when known)."""
+    if counts is None:
+        counts = map_views(depth_count_view, scans, None, "extent: depth")[1]
+    step = max(1, -(-int(sum(counts)) // max(int(max_points), 1)))
+    pts = [p for p in map_views(sampled_points_view, scans, step, "extent: points")[1] if len(p)]
+    return np.concatenate(pts) if pts else np.zeros((0, 3))
+
+
+def floater_cells_view(scan, k, arg):
+    """Per view: the floater grid's cells its kept depth points fall in (unique flat indices)."""
+    labels, (origin, voxel, n) = arg
+    return None, np.unique(_floater_cells(scan, _labels(scan, *labels), origin, voxel, n)[1])
+
+
+def removal_view(scan, k, arg):
+    """Per view: (the scan with the removed depth at 0, or None when nothing is removed; its depth
+    pixels and the pixels removed per reason)."""
+    labels, grid = arg
+    if grid is not None:
+        grid = (np.unpackbits(grid[0], count=grid[4]).astype(bool), *grid[1:4])
+    lab = floater_relabel(scan, _labels(scan, *labels), grid)
+    counts = {r: int(np.count_nonzero(lab == k + 1)) for k, r in enumerate(REASONS)}
+    note = {"valid": int(np.count_nonzero(scan.valid)), **counts}
+    if not lab.any():
+        return None, note
+    note["kept"] = note["valid"] - int(np.count_nonzero(lab))
+    return Scan(scan.rgb, np.where(lab > 0, 0.0, scan.depth), scan.camera, scan.name, scan.alpha), note
+
+
+def floater_grid(map_views, scans, labels, center: np.ndarray, radius: float):
+    """(object cells (n^3,) bool, origin, voxel, n) of the floater test (module docstring), each
+    view's cells through ``map_views`` (``labels``: the arguments of its :func:`_labels` after the
+    scan); None when no cell is seen often enough."""
+    from scipy import ndimage
+
+    voxel = FLOATER_VOXEL_FRACTION * radius
+    n = int(np.ceil(2 * radius / voxel)) + 1
+    origin = center - radius
+    hits = np.zeros(n ** 3, np.int32)
+    for cells in map_views(floater_cells_view, scans, (labels, (origin, voxel, n)), "extent: floaters")[1]:
+        hits[cells] += 1
+    occ = (hits >= FLOATER_MIN_VIEWS).reshape(n, n, n)
+    comp, n_comp = ndimage.label(occ, structure=np.ones((3, 3, 3), bool))
+    if n_comp == 0:
+        return None
+    weight = ndimage.sum(hits.reshape(n, n, n), comp, np.arange(1, n_comp + 1))
+    obj = np.isin(comp, 1 + np.flatnonzero(weight >= FLOATER_KEEP_FRACTION * weight.max()))
+    if FLOATER_DILATE > 0:
+        obj = ndimage.binary_dilation(obj, np.ones((3, 3, 3), bool), iterations=FLOATER_DILATE)
+    return obj.ravel(), origin, voxel, n
+
+
+def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None, keep=None,
+                        map_views=None) -> tuple[ScanSet, ExtentReport]:
     """``scanset`` with the depth of everything but the object set to 0 (module docstring), its
     bounds shrunk to the remaining depth (never grown), and the report.  Colour and mattes are kept.
-    Views are labelled one at a time (twice with the floater test); ``keep`` takes each changed
-    scan (capture.scan_store)."""
+    Views are worked on one at a time, each pass through ``map_views(fn, scans, arg, description)
+    -> (views, notes)`` (capture.view_map; default: in this process, each changed scan through
+    ``keep``; the pipeline's runner gives its pool of processes): depth points for the plane,
+    floater cells, the removal, points for the bounds."""
     cfg = cfg or ExtentConfig()
-    keep = keep or keep_in_memory
+    map_views = or_serial(map_views, keep)
     cams = scanset.cameras
     up = estimate_up(cams)
     center, radius = focus_region(cams, cfg.focus_margin)
     thr = PLANE_DISTANCE_FRACTION * radius
-    allp = sampled_points(scanset.scans)
+    allp = mapped_sampled_points(map_views, scanset.scans)
     focus = allp[np.linalg.norm(allp - center, axis=1) <= radius]
     del allp
     plane, frac = fit_support_plane(focus, up, center, np.array([c.center for c in cams]), thr) \
         if len(focus) >= 3 else (None, 0.0)
     kept = plane is not None and cfg.keep_support
-    use_plane = None if kept else plane
-    scans, per_view = [], []
-    totals = dict.fromkeys(REASONS, 0)
-    n_valid = 0
-
-    def labels_of(s):
-        return _labels(s, center, radius, use_plane, SUPPORT_BAND * thr)
-
-    grid = floater_grid(scanset.scans, labels_of, center, radius) if cfg.floaters else None
-    for s in scanset.scans:
-        lab = floater_relabel(s, labels_of(s), grid)
-        nv = int(np.count_nonzero(s.valid))
-        n_valid += nv
-        counts = {r: int(np.count_nonzero(lab == k + 1)) for k, r in enumerate(REASONS)}
-        for r in REASONS:
-            totals[r] += counts[r]
-        per_view.append({r: (counts[r] / nv if nv else 0.0) for r in REASONS})
-        scans.append(s if not lab.any() else keep(Scan(s.rgb, np.where(lab > 0, 0.0, s.depth), s.camera, s.name,
-                                                       s.alpha)))
-    removed_any = any(sc is not s for sc, s in zip(scans, scanset.scans, strict=True))
-    out = ScanSet(tuple(scans), _shrunk_bounds(scanset.bounds, scans), scanset.metadata) if removed_any else scanset
+    labels = (center, radius, None if kept else plane, SUPPORT_BAND * thr)
+    grid = floater_grid(map_views, scanset.scans, labels, center, radius) if cfg.floaters else None
+    packed = None if grid is None else (np.packbits(grid[0]), *grid[1:], len(grid[0]))
+    scans, notes = map_views(removal_view, scanset.scans, (labels, packed), "extent: removal")
+    n_valid = sum(n["valid"] for n in notes)
+    totals = {r: sum(n[r] for n in notes) for r in REASONS}
+    per_view = tuple({r: (n[r] / n["valid"] if n["valid"] else 0.0) for r in REASONS} for n in notes)
+    removed_any = any("kept" in n for n in notes)
+    out = scanset
+    if removed_any:
+        counts = [n.get("kept", n["valid"]) for n in notes]
+        out = ScanSet(tuple(scans), _shrunk_bounds(scanset.bounds, mapped_sampled_points(map_views, scans,
+                                                                                          counts=counts)),
+                      scanset.metadata)
     removed = {r: (totals[r] / n_valid if n_valid else 0.0) for r in REASONS}
-    return out, ExtentReport(plane, frac, center, radius, up, removed, tuple(per_view), kept)
+    return out, ExtentReport(plane, frac, center, radius, up, removed, per_view, kept)
 
 
-def _shrunk_bounds(bounds: np.ndarray, scans) -> np.ndarray:
-    """``bounds`` intersected with the robust box of the scans' remaining depth (capture.io.auto_bounds)."""
+def _shrunk_bounds(bounds: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """``bounds`` intersected with the robust box of the scans' remaining depth points ``pts``
+    (capture.scan.sampled_points; capture.io.auto_bounds)."""
     from capture.io import AUTO_BOUNDS_MARGIN, AUTO_BOUNDS_PERCENTILES
 
-    pts = sampled_points(scans)
     if len(pts) < 2:
         return bounds
     lo, hi = np.percentile(pts, AUTO_BOUNDS_PERCENTILES[0], axis=0), np.percentile(pts, AUTO_BOUNDS_PERCENTILES[1],

@@ -44,6 +44,9 @@ from capture.scan import Scan
 
 #: Matting modes of MatteConfig.mode / ``furrow model --matte``.
 MATTE_MODES = ("auto", "given", "backdrop", "plate", "estimate", "off")
+#: Resolutions the estimated matte is solved at (MatteConfig.resolution / ``furrow model --matte-resolution``):
+#: ``full`` every pixel (the reference), ``working`` capture.matting_scale's working resolution.
+MATTE_RESOLUTIONS = ("full", "working")
 #: Opaque = the object's depth mask eroded by this fraction of the image width (2 px at 640).
 ERODE_FRACTION = 2 / 640
 #: Unknown band: this fraction of the width around the object's depth (4 px at 640; measured on the plant over
@@ -77,10 +80,18 @@ class MatteConfig:
     mode: str = "auto"
     #: Known plain backdrop, (3,) linear RGB in [0, 1] (``furrow model --backdrop``); None = none named.
     backdrop: tuple[float, float, float] | None = None
+    #: One of MATTE_RESOLUTIONS: the closed-form solve at full size, or at the working resolution
+    #: (capture.matting_scale: solved on a smaller copy, brought back by the fast guided filter).
+    resolution: str = "full"
+    #: Width (pixels) the depth was measured at when coarser than the colour (the scan set's
+    #: ``depth_size``; set by the pipeline), which the working resolution keeps twice; None = unknown.
+    depth_width: int | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MATTE_MODES:
             raise ValueError(f"matte mode must be one of {', '.join(MATTE_MODES)}, got {self.mode!r}")
+        if self.resolution not in MATTE_RESOLUTIONS:
+            raise ValueError(f"matte resolution must be one of {', '.join(MATTE_RESOLUTIONS)}, got {self.resolution!r}")
         if self.backdrop is not None:
             b = np.asarray(self.backdrop, float)
             if b.shape != (3,) or not np.all((b >= 0) & (b <= 1)):
@@ -96,12 +107,14 @@ class Matte:
         foreground: (H, W, 3) float32 linear straight colour of the object.
         method: 'given', 'backdrop' or 'estimate' (+ ' (not converged: depth mask)' when the solve failed).
         unknown_fraction: fraction of the view's pixels the trimap left unknown (0 for 'given').
+        scale: the resolution it was solved at over the view's (1: full size).
     """
 
     alpha: np.ndarray
     foreground: np.ndarray
     method: str
     unknown_fraction: float = 0.0
+    scale: float = 1.0
 
 
 def _px(frac: float, width: int) -> int:
@@ -212,7 +225,23 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
                            mask)
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
         return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask)
-    return solve_matte(img, tri, "estimate", fallback=mask)
+    return _solve_at(img, tri, "estimate", mask, cfg)
+
+
+def _solve_at(image: np.ndarray, trimap: np.ndarray, method: str, mask: np.ndarray, cfg: MatteConfig) -> Matte:
+    """:func:`solve_matte` at the resolution ``cfg`` asks (capture.matting_scale); a working solve that
+    does not converge falls back to the full-size depth mask as the full-size one does."""
+    from capture.matting_scale import matte_at_scale, working_scale
+
+    scale = working_scale(trimap, cfg.depth_width) if cfg.resolution == "working" else 1.0
+    if scale >= 1.0:
+        return solve_matte(image, trimap, method, fallback=mask)
+    alpha, fg, m = matte_at_scale(image, trimap, lambda i, t, b, k: solve_matte(i, t, method), scale)
+    unknown = float(np.mean(trimap == UNKNOWN))
+    if m is not None and "not converged" in m.method:
+        a = np.asarray(mask, np.float32)
+        return Matte(a, _foreground(image, a), f"{method} (not converged: depth mask)", unknown)
+    return Matte(alpha, fg, method, unknown, 1.0 if m is None or m.alpha.shape == trimap.shape else scale)
 
 
 def unmixed(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray) -> np.ndarray:

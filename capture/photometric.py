@@ -48,11 +48,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from capture.lens import remap_bilinear
 from capture.photometric_appearance import APPEARANCE_QUANTILE, colour_appearance_part, exposure_part
-from capture.photometric_cells import CellGrid, cell_grid, cell_ratios
-from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
-from capture.scan_store import keep_in_memory
+from capture.photometric_cells import cell_grid
+from capture.photometric_pairs import AUTO_STRIDE_PX, PairCells, measure_pairs
+from capture.scan import Scan, to_uint8_srgb
+from capture.view_map import PerView, or_serial
 
 #: Gauge choices besides a view name.
 GAUGES = ("median", "mean")
@@ -63,8 +63,6 @@ IRLS_STEPS = 6
 #: Floor of a pair's robust standard deviation (log units): keeps one very consistent pair from
 #: dominating the solve.
 SIGMA_FLOOR = 0.01
-#: Automatic sampling stride: one step per this many pixels of the shorter image side.
-AUTO_STRIDE_PX = 240
 #: How appearance is told from exposure (PhotometricConfig.appearance).
 APPEARANCE_MODES = ("auto", "colour", "smooth", "none")
 #: Systematic error of a pair's ratio (log units: view-dependent shading that does not average
@@ -72,8 +70,6 @@ APPEARANCE_MODES = ("auto", "colour", "smooth", "none")
 PAIR_BIAS = 0.01
 #: Weight of the temporary sum-to-zero row that makes the joint system full rank.
 GAUGE_ROW_WEIGHT = 1e3
-#: Views whose linear colour and usable mask stay in memory while the pairs are measured.
-PREP_CACHE_VIEWS = 8
 
 
 @dataclass(frozen=True)
@@ -199,70 +195,6 @@ def identity(scans) -> PhotometricResult:
     return PhotometricResult(tuple(s.name for s in scans), np.ones((len(scans), 3)), 0, 0, reference="off")
 
 
-# --------------------------------------------------------------------------- correspondences
-def _usable(scan: Scan, cfg: PhotometricConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(linear colour (H, W, 3) float32, (H, W) bool usable samples) of a view."""
-    import cv2
-
-    lin = scan.linear_rgb.astype(np.float32)
-    d = scan.depth
-    hi = cv2.dilate(d, np.ones((3, 3), np.uint8))
-    lo = cv2.erode(np.where(d > 0, d, np.inf).astype(np.float32), np.ones((3, 3), np.uint8))
-    ok = (d > 0) & np.isfinite(lo) & (hi - lo <= cfg.edge_tol * d)
-    ok &= np.all(lin <= srgb_to_linear(np.float32(cfg.max_srgb)), axis=2)
-    if scan.alpha is not None:
-        ok &= scan.alpha >= 1.0 - 1e-3
-    return lin, ok
-
-
-def _usable_cache(scans, cfg: PhotometricConfig):
-    """``prep(k)`` = :func:`_usable` of view k, the last PREP_CACHE_VIEWS views kept (the pairs run
-    view by view, so a capture's float colour is never held for every view at once)."""
-    from collections import OrderedDict
-
-    cache: OrderedDict = OrderedDict()
-
-    def prep(k: int):
-        if k in cache:
-            cache.move_to_end(k)
-        else:
-            cache[k] = _usable(scans[k], cfg)
-            while len(cache) > PREP_CACHE_VIEWS:
-                cache.popitem(last=False)
-        return cache[k]
-
-    return prep
-
-
-def pair_cells(si: Scan, sj: Scan, prep_i, prep_j, cfg: PhotometricConfig, grid: CellGrid):
-    """(cells (M,) int64, log ratios (M, 3) ``log c_j - log c_i`` of the cells (:func:`cell_ratios`),
-    correspondences (M,) int) of view i's samples seen again by view j (module docstring, step 1)."""
-    lin_i, ok_i = prep_i
-    lin_j, ok_j = prep_j
-    none = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64))
-    step = cfg.stride or max(1, min(ok_i.shape) // AUTO_STRIDE_PX)
-    vv, uu = np.nonzero(ok_i[::step, ::step])
-    vv, uu = vv * step, uu * step
-    if len(uu) == 0:
-        return none
-    pts = si.camera.unproject(np.stack([uu, vv], axis=1).astype(np.float64), si.depth[vv, uu].astype(np.float64))
-    pix, z = sj.camera.project(pts)
-    H, W = sj.depth.shape
-    with np.errstate(invalid="ignore"):
-        ni = np.floor(np.nan_to_num(pix, nan=-1.0) + 0.5).astype(np.int64)
-    inb = (z > 0) & (ni[:, 0] >= 0) & (ni[:, 0] < W) & (ni[:, 1] >= 0) & (ni[:, 1] < H)
-    pts, pix, ni, z, vv, uu = pts[inb], pix[inb], ni[inb], z[inb], vv[inb], uu[inb]
-    agree = ok_j[ni[:, 1], ni[:, 0]] & (np.abs(sj.depth[ni[:, 1], ni[:, 0]] - z) <= cfg.depth_tol * z)
-    if agree.sum() < cfg.min_samples:
-        return none
-    keys, inv, cnt = np.unique(grid.keys(pts[agree]), return_inverse=True, return_counts=True)
-    uvj = np.clip(pix[agree], 0, [W - 1, H - 1]).astype(np.float32)
-    cj = remap_bilinear(lin_j, uvj[:, :1], uvj[:, 1:]).reshape(-1, 3)
-    d = cell_ratios(lin_i[vv[agree], uu[agree]], cj, inv, len(keys), cfg.cell_trim)
-    ok = (cnt >= cfg.min_cell_samples) & np.all(np.isfinite(d), axis=1)
-    return keys[ok], d[ok], cnt[ok]
-
-
 def robust_location(r: np.ndarray, huber: float) -> tuple[np.ndarray, np.ndarray]:
     """Per column of (N, C) ``r``: (Huber M-estimate of the location, robust sigma)."""
     mu = np.median(r, axis=0)
@@ -272,44 +204,6 @@ def robust_location(r: np.ndarray, huber: float) -> tuple[np.ndarray, np.ndarray
         w = np.where(a <= 1, 1.0, 1.0 / np.maximum(a, 1e-12))
         mu = (w * r).sum(axis=0) / w.sum(axis=0)
     return mu, sigma
-
-
-def neighbour_pairs(scans, cfg: PhotometricConfig) -> list[tuple[int, int]]:
-    """(i, j) ordered pairs: each view with its ``neighbours`` nearest views by viewing direction."""
-    fwd = np.stack([s.camera.forward for s in scans])
-    cos = np.clip(fwd @ fwd.T, -1, 1)
-    np.fill_diagonal(cos, -np.inf)
-    lim = np.cos(np.radians(cfg.max_angle_deg))
-    pairs = set()
-    for i in range(len(scans)):
-        for j in np.argsort(-cos[i])[:cfg.neighbours]:
-            if cos[i, j] >= lim:
-                pairs.add((i, int(j)))
-    return sorted(pairs)
-
-
-@dataclass(frozen=True)
-class PairCells:
-    """One compared pair: views ``i``, ``j``; its cells' flat indices (M,), log ratios ``d`` (M, 3)
-    (log c_j - log c_i) and correspondences per cell (M,)."""
-
-    i: int
-    j: int
-    cells: np.ndarray
-    d: np.ndarray
-    samples: np.ndarray
-
-
-def measure_pairs(scans, cfg: PhotometricConfig, grid: CellGrid, progress=None) -> list[PairCells]:
-    """Every neighbour pair with at least ``min_cells`` cells (steps 1-2's data)."""
-    prep = _usable_cache(scans, cfg)
-    pairs = neighbour_pairs(scans, cfg)
-    out = []
-    for i, j in (progress(pairs, "photometric pairs") if progress else pairs):
-        cells, d, n = pair_cells(scans[i], scans[j], prep(i), prep(j), cfg, grid)
-        if len(cells) >= cfg.min_cells:
-            out.append(PairCells(i, j, cells, d, n))
-    return out
 
 
 # --------------------------------------------------------------------------- solve
@@ -392,9 +286,11 @@ def _gauge(x: np.ndarray, linked: np.ndarray, reference: str, names) -> np.ndarr
     return np.nan_to_num(x, nan=0.0)
 
 
-def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None, bounds=None) -> PhotometricResult:
+def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None, bounds=None,
+                   map_views=None) -> PhotometricResult:
     """Per-view gains of ``scans`` (module docstring); ``bounds`` (2, 3) metres: the cube of the cells
-    (default: from the views' depth)."""
+    (default: from the views' depth); ``map_views``: the passes over the views (capture.view_map;
+    default: in this process)."""
     from capture.photometric_check import check_alignment
 
     cfg = cfg or PhotometricConfig()
@@ -404,8 +300,8 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None, b
         raise ValueError(f"photometric reference {cfg.reference!r} is neither {' nor '.join(GAUGES)} nor a view name "
                          f"(views: {', '.join(names[:6])}{', ...' if len(names) > 6 else ''})")
     step = cfg.stride or max(1, min(scans[0].depth.shape) // AUTO_STRIDE_PX) if scans else 1
-    grid = cell_grid(scans, cfg.cell_res, bounds, cfg.cell_min_px * step)
-    pairs = measure_pairs(scans, cfg, grid, progress)
+    grid = cell_grid(scans, cfg.cell_res, bounds, cfg.cell_min_px * step, map_views)
+    pairs = measure_pairs(scans, cfg, grid, progress, map_views)
     forward = np.stack([s.camera.forward for s in scans])
     x, edges, resid, app = log_gains(len(scans), pairs, forward, cfg)
     linked = _connected(len(scans), edges)
@@ -420,17 +316,19 @@ def estimate_gains(scans, cfg: PhotometricConfig | None = None, progress=None, b
                              tuple(n for n, k in zip(names, linked) if not k), cfg.reference, resid, meta)
 
 
-def apply_gains(scans, gains: np.ndarray, keep=None) -> tuple[Scan, ...]:
-    """The scans with their linear colour multiplied by ``gains`` (V, 3); 8-bit sRGB stays 8-bit
-    (re-encoded, clipped), float linear stays float; a view with gain exactly 1 is untouched.
-    ``keep`` takes each new scan (capture.scan_store)."""
-    keep = keep or keep_in_memory
-    out = []
-    for s, g in zip(scans, np.asarray(gains, np.float64), strict=True):
-        if np.all(g == 1.0):
-            out.append(s)
-            continue
-        lin = s.linear_rgb * g.astype(np.float32)
-        rgb = to_uint8_srgb(lin) if s.rgb.dtype == np.uint8 else lin.astype(np.float32)
-        out.append(keep(Scan(rgb, s.depth, s.camera, s.name, s.alpha)))
-    return tuple(out)
+def gain_view(scan, k, g: np.ndarray):
+    """Per view: the scan with its linear colour times ``g`` (3,) (8-bit sRGB stays 8-bit, re-encoded
+    and clipped; float linear stays float), or None when ``g`` is exactly 1."""
+    if np.all(g == 1.0):
+        return None, None
+    lin = scan.linear_rgb * g.astype(np.float32)
+    rgb = to_uint8_srgb(lin) if scan.rgb.dtype == np.uint8 else lin.astype(np.float32)
+    return Scan(rgb, scan.depth, scan.camera, scan.name, scan.alpha), None
+
+
+def apply_gains(scans, gains: np.ndarray, keep=None, map_views=None) -> tuple[Scan, ...]:
+    """The scans with their linear colour multiplied by ``gains`` (V, 3) (:func:`gain_view`; a view with
+    gain exactly 1 is untouched), through ``map_views`` (capture.view_map; default: in this process,
+    ``keep`` taking each new scan: capture.scan_store)."""
+    g = np.asarray(gains, np.float64)
+    return or_serial(map_views, keep)(gain_view, list(scans), PerView(tuple(g)), "photometric gains")[0]

@@ -41,28 +41,33 @@ class CellGrid:
         return (ijk[:, 0] * self.res + ijk[:, 1]) * self.res + ijk[:, 2]
 
 
-def _depth_points(scans):
+def depth_points_view(s, k, arg):
+    """Per view: (world points (n, 3), their depths (n,), focal length) of every BOUNDS_STRIDE-th pixel."""
+    d = s.depth[::BOUNDS_STRIDE, ::BOUNDS_STRIDE]
+    vv, uu = np.nonzero(d > 0)
+    uv = np.stack([uu, vv], 1).astype(np.float64) * BOUNDS_STRIDE
+    return None, (s.camera.unproject(uv, d[vv, uu].astype(np.float64)), d[vv, uu].astype(np.float64),
+                  float(np.sqrt(s.camera.K[0, 0] * s.camera.K[1, 1])))
+
+
+def _depth_points(scans, map_views=None):
     """(world points (N, 3), their depths (N,), focal lengths (V,)) of every BOUNDS_STRIDE-th pixel."""
-    pts, dep, focal = [], [], []
-    for s in scans:
-        d = s.depth[::BOUNDS_STRIDE, ::BOUNDS_STRIDE]
-        vv, uu = np.nonzero(d > 0)
-        focal.append(float(np.sqrt(s.camera.K[0, 0] * s.camera.K[1, 1])))
-        if len(vv):
-            uv = np.stack([uu, vv], 1).astype(np.float64) * BOUNDS_STRIDE
-            pts.append(s.camera.unproject(uv, d[vv, uu].astype(np.float64)))
-            dep.append(d[vv, uu].astype(np.float64))
+    from capture.view_map import or_serial
+
+    per_view = or_serial(map_views)(depth_points_view, list(scans), None, "photometric cells")[1]
+    focal = np.asarray([f for _, _, f in per_view])
+    pts = [p for p, _, _ in per_view if len(p)]
     if not pts:
-        return np.zeros((0, 3)), np.zeros(0), np.asarray(focal)
-    return np.concatenate(pts), np.concatenate(dep), np.asarray(focal)
+        return np.zeros((0, 3)), np.zeros(0), focal
+    return np.concatenate(pts), np.concatenate([d for _, d, _ in per_view if len(d)]), focal
 
 
-def cell_grid(scans, res: int, bounds=None, min_px: float = 0.0) -> CellGrid:
+def cell_grid(scans, res: int, bounds=None, min_px: float = 0.0, map_views=None) -> CellGrid:
     """The cube of at most ``res``^3 cells over the box of the views' depth points (BOUNDS_PERCENTILES, every
     BOUNDS_STRIDE-th pixel, padded BOUNDS_PAD) within ``bounds`` ((2, 3) metres, or None); fewer
     cells when a cell would be narrower than ``min_px`` pixels at the views' median depth (small images:
-    a cell must hold samples enough to average)."""
-    pts, dep, focal = _depth_points(scans)
+    a cell must hold samples enough to average).  The views' points through ``map_views`` (capture.view_map)."""
+    pts, dep, focal = _depth_points(scans, map_views)
     if len(pts):
         lo, hi = np.percentile(pts, BOUNDS_PERCENTILES, axis=0)
         pad = BOUNDS_PAD * (hi - lo).max()

@@ -28,7 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from capture.photometric import MAD_TO_SIGMA, SIGMA_FLOOR, CellGrid, PairCells, PhotometricConfig, log_gains
+from capture.photometric import MAD_TO_SIGMA, SIGMA_FLOOR, PhotometricConfig, log_gains
+from capture.photometric_cells import CellGrid
+from capture.photometric_pairs import PairCells
 
 #: The three corrections, simplest first (module docstring).
 CHOICES = ("none", "ev", "full")

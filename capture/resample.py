@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.camera import resample_pixel_coords
-from capture.sampling import linear_taps, nearest_pixel
+from capture.sampling import _axis_taps, linear_taps, nearest_pixel
 
 #: Largest relative difference between W / w and H / h of a colour / depth pair.
 ASPECT_TOLERANCE = 0.01
@@ -96,10 +96,28 @@ def _guide_lo(guide: np.ndarray, w: int, h: int) -> np.ndarray:
 
 
 def _block(depth, glo, guide, rows, sx, sy):
-    """Resample colour rows ``rows`` (all columns); returns (depth block, edge, colour_decided, holes)."""
+    """Resample colour rows ``rows`` (all columns); returns (depth block, edge, colour_decided, holes).
+
+    Only the pixels with a measured depth sample among their four taps are computed (a phone frame's
+    background, half of it, has none): every other pixel is an edge pixel whose every choice is a
+    hole, so it is 0 and counted as one; the computed pixels are the same elementwise arithmetic as
+    over the whole block (:func:`upsample_depth_reference` is the rule pixel by pixel)."""
     h, w = depth.shape
     W = guide.shape[1]
-    Y, X = np.meshgrid(resample_pixel_coords(rows, 1 / sy), resample_pixel_coords(np.arange(W), 1 / sx), indexing="ij")
+    y, x = resample_pixel_coords(rows, 1 / sy), resample_pixel_coords(np.arange(W), 1 / sx)
+    (iy,), _, _ = zip(*_axis_taps(y[:, None], (h,), ("clamp",)))
+    (ix,), _, _ = zip(*_axis_taps(x[:, None], (w,), ("clamp",)))
+    measured = depth > 0
+    anyv = np.zeros((len(rows), W), bool)
+    for jj in iy:
+        for ii in ix:
+            anyv |= measured[jj[:, None], ii[None, :]]
+    out = np.zeros((len(rows), W), np.float64)
+    r, c = np.nonzero(anyv)
+    n_none = anyv.size - len(r)
+    if not len(r):
+        return out, n_none, 0, n_none
+    Y, X = y[r], x[c]
     taps = linear_taps(np.stack([Y, X], -1), (h, w), "clamp")  # the 2 x 2 depth samples, edge clamped
     idx = [ij for ij, _, _ in taps]
     b = np.stack([wt for _, _, wt in taps], -1)
@@ -107,22 +125,23 @@ def _block(depth, glo, guide, rows, sx, sy):
     valid = d > 0
     dmin = np.where(valid, d, np.inf).min(-1)
     edge = ~(valid.all(-1) & (d.max(-1) - dmin <= DISCONTINUITY_REL * dmin))
-    out = np.where(edge, 0.0, (b * d).sum(-1))
+    vals = np.where(edge, 0.0, (b * d).sum(-1))
     # joint-bilateral choice of the surface (module docstring), on the edge pixels only
     e = np.nonzero(edge)
     idx_e = [(j[e], i[e]) for j, i in idx]
     d_e, b_e, valid_e = d[e], b[e], valid[e]
     cols = np.stack([glo[j, i] for j, i in idx_e], -2)
     dist2 = np.stack([(Y[e] - j) ** 2 + (X[e] - i) ** 2 for j, i in idx_e], -1)
-    g = guide[rows][e][:, None, :]
+    g = guide[rows[r[e]], c[e]][:, None, :]
     score = np.exp(-dist2 / (2 * SIGMA_SPATIAL**2)) * np.exp(-((g - cols) ** 2).sum(-1) / (2 * SIGMA_COLOUR**2))
     win = np.argmax(score, -1)
     dwin = np.take_along_axis(d_e, win[:, None], -1)[:, 0]
     same = valid_e & (np.abs(d_e - dwin[:, None]) <= DISCONTINUITY_REL * dwin[:, None])
     bw = np.where(same, b_e + 1e-9, 0.0)
-    out[e] = np.where(dwin > 0, (bw * d_e).sum(-1) / np.maximum(bw.sum(-1), 1e-30), 0.0)
+    vals[e] = np.where(dwin > 0, (bw * d_e).sum(-1) / np.maximum(bw.sum(-1), 1e-30), 0.0)
+    out[r, c] = vals
     n_colour = int(np.count_nonzero((dwin > 0) & (win != np.argmin(dist2, -1))))
-    return out, len(dwin), n_colour, int(np.count_nonzero(dwin <= 0))
+    return out, n_none + len(dwin), n_colour, n_none + int(np.count_nonzero(dwin <= 0))
 
 
 def upsample_depth(depth: np.ndarray, guide: np.ndarray) -> tuple[np.ndarray, ResampleStats]:

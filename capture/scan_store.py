@@ -70,47 +70,101 @@ def _uncrop(c: np.ndarray, box) -> np.ndarray:
     return out
 
 
-class ScanSpill:
-    """A temporary folder of scans (module docstring); removed by :meth:`close` or on leaving ``with``."""
+def write_scan(f: Path, scan) -> SpilledScan:
+    """Write ``scan`` (a Scan or a SpilledScan) to the file ``f`` (via a temporary name, renamed) and
+    hand back the :class:`SpilledScan` that reads it (bound to this process's :func:`reader`; a
+    :class:`ScanSpill` adopts it).  What :meth:`ScanSpill.keep` does, callable in a worker process
+    that was handed a file name (:meth:`ScanSpill.reserve`)."""
+    f = Path(f)
+    depth, dbox = _crop(np.asarray(scan.depth))
+    rgb = np.asarray(scan.rgb)
+    arrays = {"rgb": rgb, "depth": depth, "depth_box": np.array(dbox, np.int64)}
+    alpha = scan.alpha
+    if alpha is not None:
+        a, abox = _crop(np.asarray(alpha))
+        arrays.update(alpha=a, alpha_box=np.array(abox, np.int64))
+    tmp = f.with_suffix(".tmp.npz")
+    np.savez(tmp, **arrays)
+    tmp.rename(f)
+    return SpilledScan(reader(), f, scan.camera, scan.name, alpha is not None, rgb.dtype)
 
-    def __init__(self, root: str | Path | None = None):
-        self.path = Path(tempfile.mkdtemp(prefix="furrow-scans-", dir=root))
-        self._n = 0
-        self._cache: OrderedDict[Path, Scan] = OrderedDict()
 
-    def keep(self, scan: Scan) -> SpilledScan:
-        """Write ``scan`` (a Scan or a SpilledScan) to the folder; the SpilledScan that reads it back."""
-        if isinstance(scan, SpilledScan) and scan.spill is self:
-            return scan
-        f = self.path / f"{self._n:06d}.npz"
-        self._n += 1
-        depth, dbox = _crop(np.asarray(scan.depth))
-        arrays = {"rgb": np.asarray(scan.rgb), "depth": depth, "depth_box": np.array(dbox, np.int64)}
-        if scan.alpha is not None:
-            alpha, abox = _crop(np.asarray(scan.alpha))
-            arrays.update(alpha=alpha, alpha_box=np.array(abox, np.int64))
-        tmp = f.with_suffix(".tmp.npz")
-        np.savez(tmp, **arrays)
-        tmp.rename(f)
-        return SpilledScan(self, f, scan.camera, scan.name, scan.alpha is not None, np.asarray(scan.rgb).dtype)
+class SpillReader:
+    """Reads spilled scans' arrays back, each one only when asked for, the last READ_CACHE_VIEWS
+    views' arrays kept (module docstring).  Owns nothing on disk: :class:`ScanSpill` is the reader
+    that owns its folder; a worker process reads the files it is handed with :func:`reader`."""
 
-    def load(self, sp: SpilledScan) -> Scan:
-        """The Scan ``sp`` reads (from the read cache when it was read lately)."""
-        f = sp.file
+    def __init__(self):
+        self._cache: OrderedDict[Path, dict] = OrderedDict()
+
+    def _arrays(self, f: Path) -> dict:
         if f in self._cache:
             self._cache.move_to_end(f)
             return self._cache[f]
-        if not self.path.is_dir():
-            raise RuntimeError(f"{self.path}: the scan spill folder was closed or removed; its scans are gone")
-        with np.load(f) as z:
-            rgb = z["rgb"]
-            depth = _uncrop(z["depth"], z["depth_box"])
-            alpha = _uncrop(z["alpha"], z["alpha_box"]) if "alpha" in z.files else None
-        scan = Scan(rgb, depth, sp.camera, sp.name, alpha)  # validated again: cheap next to the read
-        self._cache[f] = scan
+        if not f.parent.is_dir():
+            raise RuntimeError(f"{f.parent}: the scan spill folder was closed or removed; its scans are gone")
+        arrays = self._cache[f] = {}
         while len(self._cache) > READ_CACHE_VIEWS:
             self._cache.popitem(last=False)
-        return scan
+        return arrays
+
+    def array(self, sp: SpilledScan, key: str) -> np.ndarray | None:
+        """One array of ``sp`` ('rgb', 'depth' or 'alpha'; None for a missing matte), read alone."""
+        arrays = self._arrays(sp.file)
+        if key not in arrays:
+            with np.load(sp.file) as z:
+                if key == "rgb":
+                    arrays[key] = z["rgb"]
+                elif key + "_box" in z.files:
+                    arrays[key] = _uncrop(z[key], z[key + "_box"])
+                else:
+                    arrays[key] = None
+        return arrays[key]
+
+    def load(self, sp: SpilledScan) -> Scan:
+        """The Scan ``sp`` reads (from the read cache when it was read lately)."""
+        arrays = self._arrays(sp.file)
+        if "scan" not in arrays:
+            rgb, depth = self.array(sp, "rgb"), self.array(sp, "depth")
+            alpha = self.array(sp, "alpha") if sp.has_alpha else None
+            arrays["scan"] = Scan(rgb, depth, sp.camera, sp.name, alpha)  # validated again: cheap next to the read
+        return arrays["scan"]
+
+
+_READER: SpillReader | None = None
+
+
+def reader() -> SpillReader:
+    """This process's reader of spilled scans handed to it (a worker of the pipeline's pool)."""
+    global _READER
+    if _READER is None:
+        _READER = SpillReader()
+    return _READER
+
+
+class ScanSpill(SpillReader):
+    """A temporary folder of scans (module docstring); removed by :meth:`close` or on leaving ``with``."""
+
+    def __init__(self, root: str | Path | None = None):
+        super().__init__()
+        self.path = Path(tempfile.mkdtemp(prefix="furrow-scans-", dir=root))
+        self._n = 0
+
+    def reserve(self) -> Path:
+        """A new file name in the folder, for a scan written elsewhere (:func:`write_scan` in a worker)."""
+        f = self.path / f"{self._n:06d}.npz"
+        self._n += 1
+        return f
+
+    def keep(self, scan) -> SpilledScan:
+        """Write ``scan`` (a Scan or a SpilledScan) to the folder; the SpilledScan that reads it back.
+        A SpilledScan already in the folder (this spill's, or one a worker wrote there) is adopted as it is."""
+        if isinstance(scan, SpilledScan) and scan.file.parent == self.path:
+            if scan.spill is not self:
+                scan = SpilledScan(self, scan.file, scan.camera, scan.name, scan.has_alpha, scan.rgb_dtype)
+            return scan
+        sp = write_scan(self.reserve(), scan)
+        return SpilledScan(self, sp.file, sp.camera, sp.name, sp.has_alpha, sp.rgb_dtype)
 
     def close(self) -> None:
         self._cache.clear()
@@ -123,15 +177,23 @@ class ScanSpill:
         self.close()
 
 
+def _spilled_in_this_process(file, camera, name, has_alpha, rgb_dtype) -> SpilledScan:
+    return SpilledScan(reader(), Path(file), camera, name, has_alpha, rgb_dtype)
+
 
 class SpilledScan:
-    """A Scan on disk (module docstring): the same attributes, its arrays read on access."""
+    """A Scan on disk (module docstring): the same attributes, its arrays read on access (each
+    array alone: a stage that reads only the depth never reads the colour).  Pickled as its file
+    name and camera: a worker process reads it with its own :func:`reader`."""
 
     __slots__ = ("spill", "file", "camera", "name", "has_alpha", "rgb_dtype")
 
-    def __init__(self, spill: ScanSpill, file: Path, camera, name: str, has_alpha: bool, rgb_dtype):
+    def __init__(self, spill: SpillReader, file: Path, camera, name: str, has_alpha: bool, rgb_dtype):
         self.spill, self.file, self.camera, self.name = spill, file, camera, name
         self.has_alpha, self.rgb_dtype = has_alpha, np.dtype(rgb_dtype)
+
+    def __reduce__(self):
+        return _spilled_in_this_process, (str(self.file), self.camera, self.name, self.has_alpha, self.rgb_dtype.str)
 
     def load(self) -> Scan:
         """The Scan itself (in memory)."""
@@ -139,15 +201,15 @@ class SpilledScan:
 
     @property
     def rgb(self) -> np.ndarray:
-        return self.load().rgb
+        return self.spill.array(self, "rgb")
 
     @property
     def depth(self) -> np.ndarray:
-        return self.load().depth
+        return self.spill.array(self, "depth")
 
     @property
     def alpha(self) -> np.ndarray | None:
-        return self.load().alpha if self.has_alpha else None
+        return self.spill.array(self, "alpha") if self.has_alpha else None
 
     @property
     def linear_rgb(self) -> np.ndarray:

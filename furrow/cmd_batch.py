@@ -74,6 +74,8 @@ def run(args, console) -> int:
         import ray  # noqa: F401
     except ModuleNotFoundError:
         raise RuntimeError("furrow batch needs Ray: pip install 'furrow[cluster]'") from None
+    if args.view_workers is None:  # Ray already runs --workers captures at once: each in one process
+        args.view_workers = 1
     cfg = CaptureConfig(pipeline=pipeline_config(args), holdout=args.holdout, orbit_frames=args.orbit_frames,
                         fps=args.fps, allow_flagged=args.allow_flagged)
     missing = [str(c) for c in args.captures if not c.exists()]

@@ -12,6 +12,8 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
+from volume.pipeline.pool import peak_rss_mb, reset_peak_rss
+
 #: Width used when stderr is not a terminal (logs, CI): wide enough for the result tables.
 LOG_WIDTH = 140
 console = Console(stderr=True, width=None if sys.stderr.isatty() else LOG_WIDTH)
@@ -46,31 +48,6 @@ def track(items: Iterable[T], description: str, total: int | None = None) -> Ite
         yield from prog.track(items, total=total, description=description)
 
 
-def reset_peak_rss() -> bool:
-    """Reset the kernel's resident-set high-water mark of this process (Linux ``clear_refs`` 5);
-    False where that is not possible (then :func:`peak_rss_mb` is the peak since the start)."""
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-        return True
-    except OSError:
-        return False
-
-
-def peak_rss_mb() -> float:
-    """Peak resident memory (MiB) of this process since the start or the last :func:`reset_peak_rss`."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
 class StageTimer:
     """Times named stages: wall seconds, process CPU seconds (all threads) and peak resident
     memory (MiB) reached inside the stage; ``table()`` renders the closing per-stage table."""
@@ -95,6 +72,12 @@ class StageTimer:
             self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - t0
             self.cpu_seconds[name] = self.cpu_seconds.get(name, 0.0) + time.process_time() - c0
             self.peak_mb[name] = max(self.peak_mb.get(name, 0.0), peak_rss_mb())
+
+    def add(self, name: str, seconds: float, cpu_seconds: float, peak_mb: float = 0.0) -> None:
+        """Add time measured elsewhere to row ``name`` (per-view stages in worker processes)."""
+        self.seconds[name] = self.seconds.get(name, 0.0) + seconds
+        self.cpu_seconds[name] = self.cpu_seconds.get(name, 0.0) + cpu_seconds
+        self.peak_mb[name] = max(self.peak_mb.get(name, 0.0), peak_mb)
 
     def table(self, title: str = "stage timings") -> Table:
         t = Table(title=title)

@@ -78,8 +78,9 @@ def add_model_arguments(p: argparse.ArgumentParser, frames: bool = True) -> None
                         "read back one view at a time, so that peak memory does not grow with the frames; auto "
                         "(default) spills when the frames would take over 128 MiB in memory (15 frames at "
                         "1280x960, 62 at 640x480); the model is the same either way")
-    g.add_argument("--view-workers", type=int, default=1, metavar="N",
-                   help="processes the per-view stages (reading, matte) run in (default 1: this process)")
+    g.add_argument("--view-workers", type=int, default=None, metavar="N",
+                   help="processes the views are worked on in, in parallel: reading, extent, matte, photometric "
+                        "pairs, RGBz (default: the machine's cores; 1 = all in this process; the model is the same)")
     g.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
@@ -131,6 +132,13 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                    help="plates you shot without the object (the same path, or a fixed camera): one image per "
                         "frame named like the frame's colour image, or one image for every frame "
                         "(capture/plate_io.py)")
+    g.add_argument("--matte-resolution", choices=["full", "working"], default="full",
+                   help="where the matte estimated from the depth (not the backdrop or plate paths) is solved: full "
+                        "(default: closed-form matting on every pixel, "
+                        "the reference) or working (capture/matting_scale.py: on a copy scaled so that the object "
+                        "keeps 640 pixels and the image twice the depth's width, alpha and colour brought back by "
+                        "a guided filter on the full-size colour; many times faster on phone frames, alpha MSE "
+                        "0.003-0.008 against full size on the path-traced conifer at half size: docs/speed.md)")
     g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
                    help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
 
@@ -146,6 +154,7 @@ def pipeline_config(args, **save):
     from volume.fusion import FusionConfig
     from volume.mesh import MeshConfig
     from volume.pipeline.config import FuseConfig, PipelineConfig, SaveConfig, ScaleConfig, SpheresConfig, ViewsConfig
+    from volume.pipeline.pool import cores
     from volume.pyramid import LoptConfig
 
     lopt = LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res))
@@ -153,13 +162,14 @@ def pipeline_config(args, **save):
         read=ReadConfig(getattr(args, "frames", None)), undistort=UndistortConfig(args.undistort),
         views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
-        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop),
+        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution),
         plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates),
         photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,
                                                                          level=args.mesh_level),
-        save=SaveConfig(**save), spill=args.spill, workers=args.view_workers)
+        save=SaveConfig(**save), spill=args.spill,
+        workers=args.view_workers if args.view_workers is not None else cores())
     return cfg.reference() if args.reference_pipeline else cfg
 
 
@@ -168,7 +178,7 @@ def pipeline_hooks(timer):
     from furrow.console import track
     from volume.pipeline.work import Hooks
 
-    return Hooks(row=timer.stage, view_row=partial(timer.stage, quiet=True), progress=track)
+    return Hooks(row=timer.stage, view_row=partial(timer.stage, quiet=True), progress=track, add=timer.add)
 
 
 def print_plan(console, cfg, source=None, title: str = "the pipeline") -> None:

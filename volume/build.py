@@ -185,7 +185,8 @@ def rgbz_stage(work, cfg, ctx):
     level = work.parts["fused"].level(ctx.config.mesh_res)
     with ctx.row("rgbz"):
         rgbz, holes = build_rgbz(work.scanset, verts, faces, level, cfg, lambda it: ctx.track(it, "rgbz"),
-                                 Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None)
+                                 Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None,
+                                 ctx.map_views)
     with ctx.row("mesh colour"):
         colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
                                      level.voxel_size) if len(verts) else None

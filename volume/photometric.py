@@ -20,10 +20,10 @@ def photometric_stage(work, cfg, ctx):
     than 2 views."""
     if len(work.scans) < 2:
         return work.record("photometric", None)
-    res = estimate_gains(work.scans, cfg, ctx.progress, bounds=work.bounds)
+    res = estimate_gains(work.scans, cfg, ctx.progress, bounds=work.bounds, map_views=ctx.map_views)
     check = res.meta.get("check")
     if check:
         log = logging.getLogger("furrow.capture")
         (log.warning if check["chosen"] == "none" else log.info)("photometric alignment: %s", check["reason"])
-    scans = apply_gains(work.scans, res.gains, ctx.keep)
+    scans = apply_gains(work.scans, res.gains, ctx.keep, ctx.map_views)
     return replace(work, scans=scans).record("photometric", {**res.record(), "config": asdict(cfg)})

@@ -28,7 +28,8 @@ frames (the store of every model before issue 24, kept as the reference).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
@@ -37,6 +38,7 @@ from capture.raycast import raycast_depth
 from capture.sampling import index_coords, sample_grid
 from capture.scan import ScanSet
 from capture.scan_store import scan_has_alpha
+from capture.view_map import or_serial
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
 from volume.rgbz_store import CropFile, RgbzCrop, save_crops
 
@@ -124,49 +126,72 @@ def geometry_depth(verts: np.ndarray, faces: np.ndarray, cam, mesh_depth: str = 
     return raycast_depth(verts, faces, [cam])[0]
 
 
+def rgbz_view(scan, n, arg):
+    """Per view (``arg``: (verts, faces, level, RgbzConfig, with_alpha, folder or None)): (None, (its
+    RgbzCrop -- or, with a folder, the file it is written to --, its hole statistics)), steps 1-3 of
+    the module docstring; the compact store."""
+    verts, faces, level, cfg, with_alpha, folder = arg
+    crop, stats = _one_view(scan, verts, faces, level, cfg, with_alpha)
+    crop = crop if folder is None else crop.save(Path(folder) / f"rgbz_view_{n:06d}.npz")
+    return None, (crop, stats)
+
+
+def _one_view(scan, verts, faces, level, cfg, with_alpha):
+    """(the view's RgbzCrop, or its cleaned depth for the dense store when ``with_alpha`` is None;
+    its hole statistics)."""
+    cam = scan.camera
+    geo = geometry_depth(verts, faces, cam, cfg.mesh_depth)
+    comb = combine_depth(scan.depth, geo, cam, level, cfg.agree_voxels * level.voxel_size, cfg.keep_measured)
+    before = hole_fraction(comb)
+    closed = close_holes(comb, cfg.closing_px)
+    stats = {"view": scan.name, "holes_before": before, "holes_after": hole_fraction(closed)}
+    if with_alpha is None:
+        return closed, stats
+    alpha = scan.alpha if scan.alpha is not None or not with_alpha else (closed > 0).astype(np.float32)
+    return RgbzCrop.encode(scan.rgb, closed, alpha), stats
+
+
 def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: SdfLevel,
-               cfg: RgbzConfig | None = None, progress=None, crop_file=None) -> tuple[RgbzImages, list[dict]]:
+               cfg: RgbzConfig | None = None, progress=None, crop_file=None,
+               map_views=None) -> tuple[RgbzImages, list[dict]]:
     """RgbzImages for every scan's camera and per-view hole statistics
     ``[{"view", "holes_before", "holes_after"}]`` (fractions, see :func:`hole_fraction`).
 
-    ``crop_file`` (a path; compact store only): each view's crop is written there as soon as it is
-    made (volume.rgbz_store.save_crops) and the store reads it back view by view, so the crops of
-    a capture are never all held in memory."""
+    ``crop_file`` (a path; compact store only): the crops are written there (volume.rgbz_store.save_crops)
+    and the store reads them back view by view, so the crops of a capture are never all held in
+    memory: each view's crop waits in a file of its own beside ``crop_file`` until it is written.
+    ``map_views``: the pass over the views (capture.view_map, :func:`rgbz_view`; default: in this process)."""
     cfg = cfg or RgbzConfig()
     cams = [s.camera for s in scanset.scans]
     sizes = {(c.width, c.height) for c in cams}
     if len(sizes) != 1:
         raise ValueError(f"RGBz images need one image size for all cameras, got {sorted(sizes)}")
-    tol = cfg.agree_voxels * level.voxel_size
-    dense = cfg.store == "dense"
-    W, H = sizes.pop()
-    depth = np.zeros((len(cams), H, W), RGBZ_STORAGE) if dense else None
     with_alpha = any(scan_has_alpha(s) for s in scanset.scans)
+    if cfg.store == "dense":
+        return _dense(scanset, verts, faces, level, cfg, with_alpha, progress)
+    if cfg.keep_measured:  # the level's distances are read only to test measured depth (keep_measured False)
+        level = replace(level, values=None, surface=level.surface[:0])
+    folder = None if crop_file is None else Path(crop_file).parent
+    arg = (verts, faces, level, cfg, with_alpha, folder)
+    notes = or_serial(map_views, progress=(lambda it, d: progress(it)) if progress else None)(
+        rgbz_view, list(scanset.scans), arg, "rgbz")[1]
+    stats = [st for _, st in notes]
+    if crop_file is None:
+        return RgbzImages.from_crops(cams, [c for c, _ in notes]), stats
+    save_crops(crop_file, (RgbzCrop.load(c, remove=True) for c, _ in notes), with_alpha)
+    return RgbzImages.from_crops(cams, CropFile(crop_file)), stats
+
+
+def _dense(scanset, verts, faces, level, cfg, with_alpha, progress):
+    """The dense store (the reference): full float16 frames."""
+    n_views = len(scanset.scans)
+    cam = scanset.scans[0].camera
+    depth = np.zeros((n_views, cam.height, cam.width), RGBZ_STORAGE)
     stats = []
-
-    def views():
-        it = range(len(cams))
-        for n in (progress(it) if progress else it):
-            scan = scanset.scans[n]
-            geo = geometry_depth(verts, faces, cams[n], cfg.mesh_depth)
-            comb = combine_depth(scan.depth, geo, cams[n], level, tol, cfg.keep_measured)
-            before = hole_fraction(comb)
-            closed = close_holes(comb, cfg.closing_px)
-            stats.append({"view": scan.name, "holes_before": before, "holes_after": hole_fraction(closed)})
-            alpha = scan.alpha if scan.alpha is not None or not with_alpha else (closed > 0).astype(np.float32)
-            if dense:
-                depth[n] = closed
-            else:
-                yield RgbzCrop.encode(scan.rgb, closed, alpha)
-
-    if not dense:
-        if crop_file is None:
-            return RgbzImages.from_crops(cams, list(views())), stats
-        save_crops(crop_file, views(), with_alpha)
-        return RgbzImages.from_crops(cams, CropFile(crop_file)), stats
-    for _ in views():
-        pass
+    for n in (progress(range(n_views)) if progress else range(n_views)):
+        depth[n], st = _one_view(scanset.scans[n], verts, faces, level, cfg, None)
+        stats.append(st)
     rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
     alpha = np.stack([s.alpha if s.alpha is not None else (depth[n] > 0).astype(np.float32)
                       for n, s in enumerate(scanset.scans)]) if with_alpha else None
-    return RgbzImages(rgb, depth, tuple(cams), alpha), stats
+    return RgbzImages(rgb, depth, tuple(s.camera for s in scanset.scans), alpha), stats

@@ -135,6 +135,31 @@ class RgbzCrop:
         a = None if self.alpha is None else self.alpha.astype(np.float32) / np.float32(255)
         return _SRGB_LUT[self.srgb], z, a
 
+    def save(self, path: Path) -> Path:
+        """Write the crop to its own file (uncompressed npz; a view's crop waiting to join the model's
+        store, volume.rgbz.build_rgbz); ``path``."""
+        arrays = {"rect": np.asarray(self.rect, np.int64), "srgb": self.srgb, "depth": self.depth,
+                  "range": np.array([self.z0, self.dz], np.float64)}
+        if self.alpha is not None:
+            arrays["alpha"] = self.alpha
+        tmp = Path(path).with_suffix(".tmp.npz")
+        np.savez(tmp, **arrays)
+        tmp.rename(path)
+        return Path(path)
+
+    @classmethod
+    def load(cls, crop, remove: bool = False) -> RgbzCrop:
+        """``crop`` itself, or the crop read from the file :meth:`save` wrote (removed after reading
+        when ``remove``)."""
+        if isinstance(crop, RgbzCrop):
+            return crop
+        with np.load(crop) as z:
+            out = cls(tuple(int(v) for v in z["rect"]), z["srgb"], z["depth"], float(z["range"][0]),
+                      float(z["range"][1]), z["alpha"] if "alpha" in z.files else None)
+        if remove:
+            Path(crop).unlink()
+        return out
+
     @property
     def nbytes(self) -> int:
         return self.srgb.nbytes + self.depth.nbytes + (0 if self.alpha is None else self.alpha.nbytes)

@@ -42,7 +42,7 @@ NO_PLATE_MATTES = ("off", "estimate", "backdrop")
 
 def extent_stage(work, cfg, ctx):
     """The extent stage (cfg: capture.extent.ExtentConfig): the surroundings out of the depth (module docstring)."""
-    ss, rep = remove_surroundings(work.scanset, cfg, ctx.keep)
+    ss, rep = remove_surroundings(work.scanset, cfg, ctx.keep, ctx.map_views)
     out = work.with_scanset(ss).record("extent", rep.record())
     if _plates_wanted(ctx.config):
         out = out.made(captured=work.scans, support=(rep.plane, (rep.focus_center, rep.focus_radius)))
@@ -83,7 +83,9 @@ def _all_plain(scans) -> bool:
 
 def matte_stage(work, cfg, ctx):
     """The matte stage (cfg: capture.matting.MatteConfig): its warm-up row, then every view through
-    :func:`matte_one` with its plate (module docstring), then the record (:func:`matte_record`)."""
+    :func:`matte_one` with its plate (module docstring), then the record (:func:`matte_record`).
+    The views' config carries the depth's measured width (:func:`matte_given`)."""
+    cfg = matte_given(cfg, work)
     with ctx.row("matte warm-up"):
         matte_warm_up(cfg)
     with ctx.row("matte"):
@@ -104,6 +106,15 @@ def matte_warm_up(cfg) -> None:
         warm_up()
 
 
+def matte_given(cfg, work):
+    """The matte config the views get: with the width the depth was measured at (the scan set's
+    ``depth_size``) when it is known and the views' working resolution may use it."""
+    size = (work.metadata or {}).get("depth_size")
+    if cfg.resolution != "working" or not size:
+        return cfg
+    return replace(cfg, depth_width=int(size[0]))
+
+
 def matte_view(view, ref, cfg, plate=None):
     """The matte stage for one view (cfg: capture.matting.MatteConfig; ``plate``: its background
     plate or None): (the scan with its foreground colour and matte, note: method, seconds, unknown
@@ -112,7 +123,7 @@ def matte_view(view, ref, cfg, plate=None):
         return (Scan(view.rgb, view.depth, view.camera, view.name) if scan_has_alpha(view) else view), None
     t0 = time.perf_counter()
     m = matte_scan(view, view.depth, cfg, plate)
-    note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction,
+    note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1)))}
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note
 
@@ -126,6 +137,7 @@ def matte_record(work, notes: dict, cfg):
     sec = [x["seconds"] for x in n]
     return work.record("matte", {
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
+        "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
         "seconds_per_view": round(float(np.mean(sec)), 4), "seconds_per_view_max": round(float(np.max(sec)), 4),
         "unknown_fraction_mean": round(float(np.mean([x["unknown"] for x in n])), 5),
         "partial_fraction_mean": round(float(np.mean([x["partial"] for x in n])), 5)})

@@ -8,13 +8,18 @@ memory or on disk.  A cameras stage (view selection) works on the cameras the so
 any image, so the views it drops are never read.  Reading makes the scan set: the capture's bounds
 or the robust box of the depth, and the metadata of what reading did (capture/sources.finish_scanset).
 
-``workers > 1`` maps the per-view stages over a pool of processes (each view's result comes back and
-is kept here, one at a time, in view order: the spill store's memory bound holds for the main
-process; each worker holds one view).
+``workers > 1`` maps the per-view stages, and the per-view passes of whole-set stages
+(``ctx.map_views``: extent, photometric, RGBz), over one pool of processes for the run
+(volume/pipeline/pool.py).  At most 2 x workers views are in flight; a spilled view goes to a
+worker as its file name and comes back as one (the worker reads and writes the spill folder), a
+view in memory goes and comes back pickled, and the results are kept in view order, so the model
+is the same as with one process.  The per-view stages' rows of the stage table are made from the
+workers' own times: each stage's share of their summed wall time, of the pool's wall time.
 """
 
 from __future__ import annotations
 
+import time
 from contextlib import nullcontext
 from dataclasses import replace
 from functools import partial
@@ -23,6 +28,7 @@ from pathlib import Path
 from capture.scan import ScanSet, select_indices
 from capture.scan_store import spill_for
 from capture.sources import FrameRef, Source, finish_scanset
+from capture.view_map import arg_of
 from volume.pipeline.config import PipelineConfig
 from volume.pipeline.stages import CAMERAS, SET, STAGES, VIEW
 from volume.pipeline.work import Context, Hooks, Work
@@ -43,25 +49,29 @@ def _start(source, cfg: PipelineConfig) -> Work:
     return Work(src, src.frames)
 
 
-def _view_items(work: Work):
-    """What the first per-view step gets: nothing before reading (it reads the frame), else the view."""
-    return [None] * len(work.refs) if work.scans is None else list(work.scans)
+def _view_items(views):
+    """(what the first per-view step gets, the refs): a Work's views (nothing before reading: the
+    step reads the frame) and FrameRefs, or a sequence of scans and their positions."""
+    if isinstance(views, Work):
+        return ([None] * len(views.refs) if views.scans is None else list(views.scans)), list(views.refs)
+    return list(views), list(range(len(views)))
+
+
+def _steps_of(steps, k: int):
+    """``steps`` with each argument as view ``k`` gets it (capture.view_map.PerView)."""
+    return [(st, fn, arg_of(cfg, k), row) for st, fn, cfg, row in steps]
 
 
 def _apply(steps, view, ref):
-    """``view`` through ``steps`` [(stage, fn, cfg, row)]: (the view, the notes)."""
+    """``view`` through ``steps`` [(stage, fn, cfg, row)]: (the view, the notes); a step that gives
+    None for the view left it unchanged."""
     notes = []
     for _, fn, cfg, row in steps:
         with row():
-            view, note = fn(view, ref, cfg)
+            out, note = fn(view, ref, cfg)
+        view = view if out is None else out
         notes.append(note)
     return view, notes
-
-
-def _apply_loaded(steps, view, ref):
-    """:func:`_apply` in a worker process (no stage-table row there; ``steps``: [(fn, cfg)]): a
-    spilled view arrives as its Scan."""
-    return _apply([(None, fn, cfg, nullcontext) for fn, cfg in steps], view, ref)
 
 
 class Run:
@@ -71,6 +81,7 @@ class Run:
     def __init__(self, work: Work, cfg: PipelineConfig, hooks: Hooks):
         self.work, self.cfg, self.hooks = work, cfg, hooks
         self.spill, self._spill_decided = None, False
+        self._pool = None
 
     # ------------------------------------------------------------------ what the stages made
     @property
@@ -85,6 +96,9 @@ class Run:
 
     # ------------------------------------------------------------------ resources
     def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
         if self.spill is not None:
             self.spill.close()
 
@@ -162,9 +176,10 @@ class Run:
                 with self.hooks.row(f"{st.name} warm-up"):
                     st.before(cfg)
         desc = f"reading {len(w.refs)} views" if from_files else ", ".join(st.name for st in todo)
-        pooled = self.cfg.workers > 1 and len(w.refs) > 1  # the per-view rows are timed in the workers: one row here
-        with self.hooks.row(f"{', '.join(st.name for st in todo)} ({self.cfg.workers} processes)") if pooled \
-                else nullcontext():
+        if self._pooled(len(w.refs)) and self.hooks.add is None:  # no rows from the workers' times: one row
+            with self.hooks.row(f"{', '.join(st.name for st in todo)} ({self.cfg.workers} processes)"):
+                scans, notes = self._map(steps, w, desc)
+        else:
             scans, notes = self._map(steps, w, desc)
         w = replace(w, scans=scans)
         by_stage = {st.name: [n[k] for n in notes] for k, st in enumerate(todo)}
@@ -176,42 +191,68 @@ class Run:
                 w = st.reduce(w, by_stage, cfg)
         self.work = w
 
-    def map_views(self, fn, work: Work, arg, description: str):
-        """``fn(view, ref, arg) -> (view, note)`` over every view of ``work`` (Context.map_views)."""
-        scans, notes = self._map([(None, fn, arg, nullcontext)], work, description)
+    def map_views(self, fn, views, arg, description: str):
+        """``fn(view, ref, arg) -> (view, note)`` over ``views`` (a Work, or a sequence of scans whose
+        ref is their position), each changed view kept (None: unchanged); (views, notes)
+        (Context.map_views)."""
+        scans, notes = self._map([(None, fn, arg, nullcontext)], views, description)
         return scans, [n[0] for n in notes]
 
-    def _map(self, steps, work: Work, description: str):
-        """(kept views, per-view notes): every view through ``steps``, in this process or a pool."""
-        items = _view_items(work)
+    def _pooled(self, n_views: int) -> bool:
+        return self.cfg.workers > 1 and n_views > 1
+
+    def _map(self, steps, views, description: str):
+        """(kept views, per-view notes): every view through ``steps``, in this process or the pool."""
+        items, refs = _view_items(views)
+        self._decide_spill()
         out, notes = [], []
         hooks_track = self.hooks.progress or (lambda it, d: it)
-        if self.cfg.workers > 1 and len(items) > 1:
-            results = self._pool_map(steps, items, work.refs)
+        if self._pooled(len(items)):
+            results = self._pool_map(steps, items, refs)
         else:
-            results = (_apply(steps, v, ref) for v, ref in zip(items, work.refs, strict=True))
-        for view, n in hooks_track(results, description):
-            out.append(self.keep(view))
+            results = (_apply(_steps_of(steps, k), v, ref) for k, (v, ref) in enumerate(zip(items, refs, strict=True)))
+        for k, (view, n) in enumerate(hooks_track(results, description)):
+            out.append(self.keep(items[k] if view is None else view))
             notes.append(n)
         return tuple(out), notes
 
     def _pool_map(self, steps, items, refs):
-        """The views through ``steps`` in ``cfg.workers`` processes, yielded in view order; at most
-        2 x workers views are in flight (each is loaded from the spill folder only when submitted)."""
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+        """The views through ``steps`` in the pool, yielded in view order; at most 2 x workers views
+        in flight (module docstring); the stage table gets the per-view stages' rows (:meth:`_rows`)."""
+        from volume.pipeline.pool import apply_steps, peak_rss_mb, reset_peak_rss, start_pool
 
-        from capture.scan_store import SpilledScan
+        if self._pool is None:
+            self._pool = start_pool(self.cfg.workers)
+        rows = steps[0][0] is not None and self.hooks.add is not None
+        times, peaks = [[0.0, 0.0] for _ in steps], {}
+        if rows:  # a whole-set stage's own row keeps its peak
+            reset_peak_rss()
+        t0, c0 = time.perf_counter(), time.process_time()
+        queue, k = [], 0
+        while k < len(items) or queue:
+            while k < len(items) and len(queue) < 2 * self.cfg.workers:
+                out_file = self.spill.reserve() if self.spill is not None else None
+                plain = [(fn, cfg) for _, fn, cfg, _ in _steps_of(steps, k)]
+                queue.append(self._pool.submit(apply_steps, plain, items[k], refs[k], out_file))
+                k += 1
+            view, notes, step_times, (pid, peak) = queue.pop(0).result()
+            for acc, (wall, cpu) in zip(times, step_times, strict=True):
+                acc[0] += wall
+                acc[1] += cpu
+            peaks[pid] = max(peaks.get(pid, 0.0), peak)
+            yield view, notes
+        if rows:
+            self._rows(steps, times, time.perf_counter() - t0, time.process_time() - c0,
+                       peak_rss_mb() + sum(peaks.values()))
 
-        plain = [(fn, cfg) for _, fn, cfg, _ in steps]
-        with ProcessPoolExecutor(self.cfg.workers, mp_context=mp.get_context("spawn")) as pool:
-            queue, k = [], 0
-            while k < len(items) or queue:
-                while k < len(items) and len(queue) < 2 * self.cfg.workers:
-                    v = items[k].load() if isinstance(items[k], SpilledScan) else items[k]
-                    queue.append(pool.submit(_apply_loaded, plain, v, refs[k]))
-                    k += 1
-                yield queue.pop(0).result()
+    def _rows(self, steps, times, wall: float, cpu_main: float, peak_mb: float) -> None:
+        """The per-view stages' rows from the workers' times (module docstring): each stage's share
+        of their summed wall time, of the pool's ``wall``; CPU: the workers' own plus that share of
+        the main process's; peak: the main process's plus each worker's (an upper bound)."""
+        total = sum(t[0] for t in times) or 1.0
+        for (st, _, _, _), (w, c) in zip(steps, times, strict=True):
+            share = w / total
+            self.hooks.add(st.row_name(self.cfg), wall * share, c + cpu_main * share, peak_mb)
 
 
 def run_pipeline(source: Source | ScanSet, cfg: PipelineConfig | None = None, hooks: Hooks | None = None,

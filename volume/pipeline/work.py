@@ -72,6 +72,10 @@ class Hooks:
     """A row entered once per view and summed (``StageTimer.stage(name, quiet=True)``); None = ``row``."""
     progress: Callable[[Iterable, str], Iterable] | None = None
     """``progress(items, description)``: a progress bar over a loop (``furrow.console.track``)."""
+    add: Callable[[str, float, float, float], None] | None = None
+    """``add(row, seconds, cpu_seconds, peak_mb)``: time measured elsewhere added to a row (per-view
+    stages run in worker processes, volume/pipeline/runner.py; ``StageTimer.add``); None = one row
+    for the pooled per-view stages together."""
 
 
 @dataclass(frozen=True)
@@ -85,9 +89,11 @@ class Context:
         row: a timed row of the stage table, for a stage that names its own rows (``rows=True``).
         progress: ``progress(items, description)`` or None.
         work_dir: the spill folder (RGBz crops are streamed there), or None.
-        map_views: ``map_views(step, work, arg, description) -> (scans, notes)``: a per-view step
-            ``step(view, ref, arg) -> (view, note)`` over every view, each result kept; the runner's
-            own per-view loop (one place to run views in parallel).
+        map_views: ``map_views(step, views, arg, description) -> (scans, notes)``: a per-view step
+            ``step(view, ref, arg) -> (view, note)`` (a top-level function: it may run in a worker
+            process) over every view of ``views`` (a Work, or a sequence of scans whose ref is their
+            position), each changed view kept (None: unchanged); the runner's own per-view loop (one
+            place to run views in parallel, ``--view-workers``).
     """
 
     config: object

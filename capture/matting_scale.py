@@ -1,0 +1,181 @@
+"""Matting at the resolution it needs (issue 32): solve on a smaller copy, bring alpha and colour back
+guided by the full-resolution image.
+
+A phone frame is 1920x1440 while the depth that draws its trimap (capture.matting.depth_trimap) was
+measured at 256x192: a closed-form solve over the frame's 2.8 million pixels (11.7 s a view, 231 s
+the worst) mostly re-derives, pixel by pixel, what a coarser solve already knows.  Here the solve
+(any ``solve(image, trimap, background, known) -> Matte`` of capture.matting: the closed-form
+estimate, the known-background matte) runs on the crop around the trimap's unknown and opaque
+pixels scaled by :func:`working_scale`, and its alpha and foreground colour come back to full
+resolution by the **fast guided filter** (He & Sun 2015, "Fast Guided Filter"): the guided filter's
+local linear model q = a . I + b (I the colour image, a (3,) and b per window) is fitted at the
+working resolution against the downscaled image, its coefficients upsampled bilinearly and applied
+to the full-resolution image, so that every edge of the full-resolution colour is an edge of the
+alpha.  The full-resolution trimap still rules where it is sure (opaque 1, background 0), and an
+opaque pixel's colour is the pixel's own (C = F where alpha = 1).
+
+The working scale (:func:`working_scale`) keeps the object's box at least ``OBJECT_WORK_PX``
+pixels on its longer side and the image at least ``DEPTH_OVERSAMPLE`` times the width the depth
+was measured at (when known): never finer than the frame, never coarser than what drew the
+trimap or what shows the object's shape.  A scale above ``FULL_SIZE_ABOVE`` solves at full size
+(the saving would not pay for the resampling).
+
+:func:`matte_at_scale` at scale 1 is the solve itself (the full-size reference).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: The object's box (trimap's unknown and opaque pixels) keeps at least this many pixels along its
+#: longer side at the working resolution.
+OBJECT_WORK_PX = 640
+#: ... and the working image is at least this many times the width the depth was measured at.
+DEPTH_OVERSAMPLE = 2.0
+#: Scales above this solve at full size.
+FULL_SIZE_ABOVE = 0.8
+#: Fast guided filter: window radius at the working resolution (pixels) and regularisation epsilon
+#: (linear colour squared).
+GUIDE_RADIUS = 2
+GUIDE_EPS = 1e-4
+#: Margin (full-resolution pixels) around the trimap's unknown and opaque pixels that is solved.
+CROP_PAD = 8
+#: Trimap values (pymatting's convention, as capture.matting).
+BG, UNKNOWN, FG = 0.0, 0.5, 1.0
+#: A working pixel is sure (opaque or background) when this share of its footprint is (area average).
+SURE_SHARE = 1.0 - 1e-6
+#: Alpha from which a pixel is opaque: its colour is the image's.
+OPAQUE_ALPHA = 1.0 - 1e-3
+
+
+def object_box(trimap: np.ndarray, pad: int = CROP_PAD) -> tuple[slice, slice] | None:
+    """(rows, cols) of the box around the trimap's unknown and opaque pixels grown by ``pad``; None without any."""
+    ys, xs = np.nonzero(np.asarray(trimap) > BG)
+    if not len(ys):
+        return None
+    H, W = np.shape(trimap)
+    return (slice(max(0, ys.min() - pad), min(H, ys.max() + pad + 1)),
+            slice(max(0, xs.min() - pad), min(W, xs.max() + pad + 1)))
+
+
+def working_scale(trimap: np.ndarray, depth_width: int | None = None, object_px: int = OBJECT_WORK_PX,
+                  depth_oversample: float = DEPTH_OVERSAMPLE) -> float:
+    """The scale (<= 1) a view's matte is solved at (module docstring): the larger of ``object_px`` over
+    the object box's longer side and ``depth_oversample`` x ``depth_width`` over the image width; 1
+    above FULL_SIZE_ABOVE, for no object, or ``object_px`` 0 (the full-size reference)."""
+    box = object_box(trimap, 0)
+    if box is None or object_px <= 0:
+        return 1.0
+    side = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
+    s = object_px / side
+    if depth_width:
+        s = max(s, depth_oversample * depth_width / np.shape(trimap)[1])
+    return 1.0 if s > FULL_SIZE_ABOVE else float(s)
+
+
+def _resize(a: np.ndarray, w: int, h: int, interpolation) -> np.ndarray:
+    import cv2
+
+    out = cv2.resize(np.ascontiguousarray(a, np.float32), (w, h), interpolation=interpolation)
+    return out if out.ndim == np.ndim(a) else out[..., None]
+
+
+def downscale_trimap(trimap: np.ndarray, w: int, h: int) -> np.ndarray:
+    """(h, w) trimap of a (H, W) one: a working pixel is opaque (background) when its whole footprint
+    is, otherwise unknown."""
+    import cv2
+
+    t = np.asarray(trimap)
+    fg = _resize((t >= FG).astype(np.float32), w, h, cv2.INTER_AREA)
+    bg = _resize((t <= BG).astype(np.float32), w, h, cv2.INTER_AREA)
+    out = np.full((h, w), UNKNOWN)
+    out[bg >= SURE_SHARE] = BG
+    out[fg >= SURE_SHARE] = FG
+    return out
+
+
+def _box(a: np.ndarray, r: int) -> np.ndarray:
+    import cv2
+
+    out = cv2.boxFilter(a, -1, (2 * r + 1, 2 * r + 1), normalize=True, borderType=cv2.BORDER_REFLECT)
+    return out if out.ndim == a.ndim else out[..., None]  # OpenCV drops a single channel
+
+
+def guided_coefficients(guide: np.ndarray, target: np.ndarray, r: int = GUIDE_RADIUS,
+                        eps: float = GUIDE_EPS) -> tuple[np.ndarray, np.ndarray]:
+    """The colour guided filter's mean coefficients (a (h, w, C, 3), b (h, w, C)) of ``target``
+    (h, w, C) guided by ``guide`` (h, w, 3): q = a . I + b (He, Sun, Tang 2013, eq. 14-16, with the
+    3x3 covariance of the guide in each window)."""
+    I = np.asarray(guide, np.float64)
+    p = np.asarray(target, np.float64)
+    mI = _box(I, r)
+    mp = _box(p, r)
+    II = np.einsum("hwi,hwj->hwij", I, I).reshape(*I.shape[:2], 9)
+    cov = _box(II, r).reshape(*I.shape[:2], 3, 3) - np.einsum("hwi,hwj->hwij", mI, mI)
+    cov += eps * np.eye(3)
+    Ip = np.einsum("hwi,hwc->hwci", I, p).reshape(*I.shape[:2], -1)
+    cIp = _box(Ip, r).reshape(*p.shape, 3) - np.einsum("hwc,hwi->hwci", mp, mI)
+    a = np.linalg.solve(cov[:, :, None], cIp[..., None])[..., 0]          # (h, w, C, 3)
+    b = mp - np.einsum("hwci,hwi->hwc", a, mI)
+    C = p.shape[2]
+    ma = _box(a.reshape(*I.shape[:2], C * 3), r).reshape(a.shape)
+    return ma, _box(b, r)
+
+
+def guided_upsample(guide_lo: np.ndarray, target_lo: np.ndarray, guide: np.ndarray, r: int = GUIDE_RADIUS,
+                    eps: float = GUIDE_EPS) -> np.ndarray:
+    """``target_lo`` (h, w, C) brought to the size of ``guide`` (H, W, 3) by the fast guided filter
+    (module docstring): coefficients at (h, w), upsampled bilinearly, applied to ``guide``; (H, W, C)."""
+    import cv2
+
+    H, W = guide.shape[:2]
+    a, b = guided_coefficients(guide_lo, target_lo, r, eps)
+    C = b.shape[2]
+    a_up = _resize(a.reshape(*a.shape[:2], C * 3), W, H, cv2.INTER_LINEAR).reshape(H, W, C, 3)
+    b_up = _resize(b, W, H, cv2.INTER_LINEAR).reshape(H, W, C)
+    return np.einsum("hwci,hwi->hwc", a_up, np.asarray(guide, np.float32)) + b_up
+
+
+def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, background: np.ndarray | None = None,
+                   known: np.ndarray | None = None):
+    """(alpha (H, W) float32, foreground (H, W, 3) float32, the working solve's Matte) of linear
+    ``image`` (H, W, 3) under ``trimap`` (H, W), solved at ``scale`` (module docstring) by
+    ``solve(image, trimap, background, known) -> Matte`` (``background`` (H, W, 3) and ``known`` (H, W)
+    bool: the known background, downscaled with the image; None when there is none).  Outside the
+    box of the trimap's unknown and opaque pixels alpha is 0 and the colour is the image's.  A
+    working trimap left without opaque pixels (an object thin all over) is solved at full size."""
+    import cv2
+
+    img = np.asarray(image, np.float32)
+    H, W = trimap.shape
+    if scale >= 1.0:
+        m = solve(img, trimap, background, known)
+        return np.asarray(m.alpha, np.float32), np.asarray(m.foreground, np.float32), m
+    alpha = np.zeros((H, W), np.float32)
+    fg = img.copy()
+    box = object_box(trimap)
+    if box is None:
+        return alpha, fg, None
+    ci, ct = np.clip(img[box], 0.0, 1.0), trimap[box]
+    h_full, w_full = ct.shape
+    w, h = max(1, round(w_full * scale)), max(1, round(h_full * scale))
+    lo = _resize(ci, w, h, cv2.INTER_AREA)
+    bg_lo = known_lo = None
+    if background is not None:
+        bg_lo = _resize(np.asarray(background, np.float32)[box], w, h, cv2.INTER_AREA)
+        known_lo = _resize(np.asarray(known, np.float32)[box], w, h, cv2.INTER_AREA) >= SURE_SHARE
+    tri_lo = downscale_trimap(ct, w, h)
+    if np.any(ct >= FG) and not np.any(tri_lo >= FG):  # no footprint wholly opaque: thin all over
+        return matte_at_scale(image, trimap, solve, 1.0, background, known)
+    m = solve(lo, tri_lo, bg_lo, known_lo)
+    target = np.concatenate([np.asarray(m.alpha, np.float32)[..., None], np.asarray(m.foreground, np.float32)], -1)
+    up = guided_upsample(lo, target, ci)
+    a = np.clip(up[..., 0], 0.0, 1.0)
+    a[ct >= FG] = 1.0
+    a[ct <= BG] = 0.0
+    f = np.clip(up[..., 1:], 0.0, None)
+    opaque = a >= OPAQUE_ALPHA
+    f[opaque] = ci[opaque]
+    alpha[box] = a
+    fg[box] = np.where((a > 0)[..., None], f, img[box])
+    return alpha, fg, m
