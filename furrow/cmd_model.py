@@ -188,8 +188,10 @@ def _print_surroundings(console, rec: dict) -> None:
     pl = rec.get("plate", {})
     if pl.get("mode") not in (None, "off", "unused"):
         err = "none held back" if pl["error_median"] is None else f"{pl['error_median']:.4f} linear"
+        scale = f"; made at {pl['working_scale']:.2f} x the views' size (memory)" if "working_scale" in pl else ""
         console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
-                      f"band (least {pl['band_known_min']:.1%}); error on held-back background {err}", highlight=False)
+                      f"band (least {pl['band_known_min']:.1%}); error on held-back background {err}{scale}",
+                      highlight=False)
     m = rec.get("matte", {})
     if m.get("mode") not in (None, "off"):
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "

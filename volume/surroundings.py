@@ -8,7 +8,9 @@ stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
   plane wait for it in ``work.parts`` (``captured``, ``support``).
 * **background plate** (``capture.plate.background_plates``): the background behind the object in
   every view, from the other views (or the user's plates); a whole-set stage.  Each view's plate,
-  cropped to where it is known, waits in ``work.parts["plates"]`` for the matte stage.  Skipped
+  cropped to where it is known, waits in ``work.parts["plates"]`` for the matte stage; a capture
+  too large to hold at once gets its plates at a working scale (capture.plate_scale), brought to
+  each view's size when the matte stage reads them.  Skipped
   (its record says so) when the matte mode reads no plate (off, estimate, backdrop) or, for the
   auto matte, when every view shows a plain backdrop (the backdrop path reads none).
 * **matte** (``capture.matting.matte_scan``): each view gets a soft straight alpha matte and the
@@ -33,6 +35,7 @@ import numpy as np
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
 from capture.plate import PlateView, background_plates
+from capture.plate_scale import grow_plate, plate_scale, shrink_view
 from capture.scan import Scan
 from capture.scan_store import scan_has_alpha
 
@@ -65,12 +68,25 @@ def plate_stage(work, cfg, ctx):
     captured = work.parts.get("captured") or work.scans
     plane, focus = work.parts.get("support") or (None, None)
     user = None if cfg.plates_dir is None else read_user_plates(cfg.plates_dir, work.scans)
-    views = [PlateView(s.camera, s.linear_rgb.astype(np.float16), s.depth, c.depth)
-             for s, c in zip(work.scans, captured, strict=True)]
+    views, scale = _plate_views(work.scans, captured, len(work.refs), user is None)
     plates, rec = background_plates(views, cfg, plane, focus, user)
     del views
+    if scale < 1.0:
+        rec = {**rec, "working_scale": round(scale, 4)}
     store = {ref.index: p.cropped() for ref, p in zip(work.refs, plates, strict=True)}
     return work.made(plates=store, captured=None).record("background plate", rec)
+
+
+def _plate_views(scans, captured, n: int, may_shrink: bool) -> tuple[list[PlateView], float]:
+    """The plate stage's views, read one by one and shrunk to the working scale of
+    capture.plate_scale when all ``n`` at full size would pass its memory budget (never for user
+    plates, which are at the views' size); (views, scale)."""
+    views, scale = [], 1.0
+    for s, c in zip(scans, captured, strict=True):
+        if not views and may_shrink:
+            scale = plate_scale(n, *s.depth.shape[:2])
+        views.append(shrink_view(PlateView(s.camera, s.linear_rgb.astype(np.float16), s.depth, c.depth), scale))
+    return views, scale
 
 
 def _all_plain(scans) -> bool:
@@ -97,7 +113,9 @@ def matte_one(view, ref, arg):
     """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, view index -> Plate))."""
     cfg, plates = arg
     plate = plates.get(ref.index)
-    return matte_view(view, ref, cfg, None if plate is None else plate.full())
+    if plate is not None:
+        plate = grow_plate(plate, *view.depth.shape[:2])
+    return matte_view(view, ref, cfg, plate)
 
 
 def matte_warm_up(cfg) -> None:

@@ -1,0 +1,65 @@
+"""Background plates of large captures at a working resolution (capture/plate.py holds the method).
+
+The plate stage reads every view at once (colour, the object's depth and the capture's depth:
+about 14 bytes a pixel). A phone capture of 200 views at 1920x1440 would need 7.7 GB, far over the
+model's memory bound, so past :data:`PLATE_VIEW_BUDGET_BYTES` every view is shrunk by one factor
+(colour by area, depths by nearest sample, the object's depth grown first so that no object pixel
+is taken for background), the plates are made at that size, and each plate is brought back to its
+view's size only when the matte stage reads it (:func:`grow_plate`: background bilinear, known
+pixels nearest and shrunk by one working pixel, so a known pixel never borrows an unknown one).
+The background is the room seen out of focus behind the object, so the working plate loses little;
+the stage's record says at which scale the plates were made.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from capture.plate import Plate, PlateView
+
+#: Bytes of prepared views the plate stage may hold at once (beyond it the views are shrunk).
+PLATE_VIEW_BUDGET_BYTES = 1 << 30
+#: Bytes a pixel costs in the plate stage (float16 colour, float32 object depth and capture depth).
+PLATE_BYTES_PER_PIXEL = 14
+#: Smallest working scale (below it the plate would no longer resolve the room behind a needle).
+PLATE_MIN_SCALE = 0.2
+
+
+def plate_scale(views: int, height: int, width: int, budget: int = PLATE_VIEW_BUDGET_BYTES) -> float:
+    """The factor the plate stage shrinks ``views`` views of ``height`` x ``width`` by (1: full size)."""
+    need = float(views) * height * width * PLATE_BYTES_PER_PIXEL
+    if need <= budget:
+        return 1.0
+    return max(PLATE_MIN_SCALE, math.sqrt(budget / need))
+
+
+def shrink_view(view: PlateView, scale: float) -> PlateView:
+    """``view`` at ``scale`` (its camera :meth:`Camera.scaled`); the object's depth is max-filtered
+    over a working pixel's footprint before it is sampled, so the object only grows."""
+    if scale >= 1.0:
+        return view
+    cam = view.camera.scaled(scale)
+    size = (cam.width, cam.height)
+    linear = cv2.resize(np.asarray(view.linear, np.float32), size, interpolation=cv2.INTER_AREA)
+    foot = int(math.ceil(1.0 / scale)) + 1
+    grown = ndimage.maximum_filter(np.asarray(view.object_depth, np.float32), size=foot)
+    obj = cv2.resize(grown, size, interpolation=cv2.INTER_NEAREST)
+    depth = cv2.resize(np.asarray(view.depth, np.float32), size, interpolation=cv2.INTER_NEAREST)
+    return PlateView(cam, linear.astype(np.float16), obj, depth)
+
+
+def grow_plate(plate: Plate, height: int, width: int) -> Plate:
+    """``plate`` (full frame at a working size) at ``height`` x ``width``; itself when it has that size."""
+    plate = plate.full()
+    h, w = plate.known.shape
+    if (h, w) == (height, width):
+        return plate
+    known = ndimage.binary_erosion(plate.known, structure=np.ones((3, 3), bool))
+    bg = cv2.resize(np.asarray(plate.background, np.float32), (width, height), interpolation=cv2.INTER_LINEAR)
+    k = cv2.resize(known.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
+    bg[~k] = 0.0
+    return Plate(bg, k, plate.noise, plate.method, plate.band_known, plate.error, plate.error_rmse)
