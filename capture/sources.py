@@ -205,8 +205,8 @@ def read_images(view, ref: FrameRef, cfg: ReadConfig) -> tuple[RawFrame, None]:
     rgb = read_color(rgb_path)
     cam = ref.captured
     if rgb.shape[:2] != (cam.height, cam.width):
-        raise ScanIOError(f"{rgb_path}: image is {rgb.shape[1]}x{rgb.shape[0]} but its camera says "
-                          f"{cam.width}x{cam.height}")
+        raise ScanIOError(f"{rgb_path}: image is {rgb.shape[1]}x{rgb.shape[0]} but its camera ({ref.where}) "
+                          f"says {cam.width}x{cam.height}")
     if ref.depth is None:
         return RawFrame(rgb, np.zeros((cam.height, cam.width), np.float32), None, True), None
     depth_path = resolve_file(ref.depth, "depth file", ref.where)

@@ -115,7 +115,8 @@ def test_corrupt_png_named(scan_dir):
 
 
 @pytest.mark.parametrize("rel, img, msg", [
-    ("images/f001.png", np.zeros((10, 10, 3), np.uint8), r"f001.png: image is 10x10 but its camera says 40x30"),
+    ("images/f001.png", np.zeros((10, 10, 3), np.uint8),
+     r"f001.png: image is 10x10 but its camera \(.*transforms\.json frame 1\) says 40x30"),
     ("depth/f001.png", np.ones((30, 41), np.uint16), r"depth/f001.png: depth is 41x30"),
     ("depth/f000.png", np.zeros((30, 40), np.uint16), r"depth/f000.png: depth is all zero"),
 ], ids=["size_mismatch", "depth_size_mismatch", "all_zero_depth"])
