@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.matting import UNKNOWN, depth_trimap
 from capture.plate import PlateView
 from capture.sampling import cell_centres
 from tests import scenes
@@ -162,3 +163,13 @@ def needle_composite(height: int = 96, width: int = 128, n: int = 90, background
     C = alpha[..., None] * F + (1 - alpha[..., None]) * B
     depth = np.where(cov[ss // 2::ss, ss // 2::ss], 0.5, 0.0).astype(np.float32)
     return C.astype(np.float32), np.asarray(B, np.float32), alpha.astype(np.float32), F.astype(np.float32), depth
+
+def band_error(views, plates, truths) -> tuple[float, float]:
+    """(median over views of the band's median largest-channel |plate - truth| where known, mean band known)."""
+    errs, known = [], []
+    for v, p, t in zip(views, plates, truths, strict=True):
+        band = depth_trimap(v.object_depth) == UNKNOWN
+        k = band & p.known
+        errs.append(float(np.median(np.abs(p.background - t).max(axis=-1)[k])) if k.any() else np.inf)
+        known.append(k.sum() / band.sum())
+    return float(np.median(errs)), float(np.mean(known))

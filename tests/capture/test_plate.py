@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capture.matting import UNKNOWN, depth_trimap
 from capture.plate import PlateConfig, PlateView, background_plates, fit_gains
 from capture.plate_fixed import robust_mode
 from tests import plate_scenes as ps
@@ -26,15 +25,6 @@ TURNTABLE_KNOWN_MIN = 0.45
 GAIN_TOL_EV = 0.01
 
 
-def _band_error(views, plates, truths) -> tuple[float, float]:
-    """(median over views of the band's median largest-channel |plate - truth| where known, mean band known)."""
-    errs, known = [], []
-    for v, p, t in zip(views, plates, truths, strict=True):
-        band = depth_trimap(v.object_depth) == UNKNOWN
-        k = band & p.known
-        errs.append(float(np.median(np.abs(p.background - t).max(axis=-1)[k])) if k.any() else np.inf)
-        known.append(k.sum() / band.sum())
-    return float(np.median(errs)), float(np.mean(known))
 
 
 @pytest.fixture(scope="module")
@@ -47,14 +37,14 @@ def test_orbit_plate_is_the_room_and_the_table_behind_the_object(orbit):
     plane = np.array([0.0, 0.0, 1.0, -ps.TABLE_Z])
     plates, rec = background_plates(views, PlateConfig(), plane)
     assert rec["mode"] == "panorama"  # told from the data: the fixed-camera plate predicts nothing here
-    err, known = _band_error(views, plates, truth)
+    err, known = ps.band_error(views, plates, truth)
     assert err <= ORBIT_TOL and known >= ORBIT_KNOWN_MIN, (err, known)
     assert rec["band_known_mean"] == pytest.approx(known, abs=1e-3)
     # the plate's own held-back error is reported per view and small
     assert all(p["error"] is not None and p["error"] <= ORBIT_TOL for p in rec["per_view"])
     # without the plane the table behind the object is taken for a far room: parallax, a wrong plate
     flat, _ = background_plates(views, PlateConfig(), None)
-    assert _band_error(views, flat, truth)[0] >= ORBIT_NO_PLANE_MIN
+    assert ps.band_error(views, flat, truth)[0] >= ORBIT_NO_PLANE_MIN
 
 
 def test_turntable_plate_from_a_fixed_camera_with_auto_exposure():
@@ -63,7 +53,7 @@ def test_turntable_plate_from_a_fixed_camera_with_auto_exposure():
     plates, rec = background_plates(views, PlateConfig())
     assert rec["mode"] == "fixed"
     truth = [room / g for g in gains]  # each frame's plate in its own exposure
-    err, known = _band_error(views, plates, truth)
+    err, known = ps.band_error(views, plates, truth)
     assert err <= TURNTABLE_TOL and known >= TURNTABLE_KNOWN_MIN, (err, known)
     want = np.log2(gains / np.median(gains, axis=0))
     assert np.allclose(rec["gains_ev"], want, atol=GAIN_TOL_EV)

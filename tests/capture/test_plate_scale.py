@@ -38,14 +38,6 @@ def _resampling_floor(views, truths, scale: float) -> float:
     return float(np.median(errs))
 
 
-def _band(views, plates, truths):
-    errs, known = [], []
-    for v, p, t in zip(views, plates, truths, strict=True):
-        band = depth_trimap(v.object_depth) == UNKNOWN
-        k = band & p.known
-        errs.append(float(np.median(np.abs(p.background - t).max(axis=-1)[k])) if k.any() else np.inf)
-        known.append(k.sum() / band.sum())
-    return float(np.median(errs)), float(np.mean(known))
 
 
 def test_scale_follows_the_memory_budget():
@@ -64,8 +56,8 @@ def test_half_size_plates_match_the_room_behind_the_object():
     assert rec["mode"] == rec_full["mode"] == "panorama"
     H, W = views[0].object_depth.shape
     grown = [grow_plate(p.cropped(), H, W) for p in small]
-    err, known = _band(views, grown, truth)
-    err_full, known_full = _band(views, full, truth)
+    err, known = ps.band_error(views, grown, truth)
+    err_full, known_full = ps.band_error(views, full, truth)
     floor = _resampling_floor(views, truth, 0.5)
     assert err <= floor + WORKING_TOL, (err, floor, err_full)
     assert known >= known_full - KNOWN_LOSS_MAX, (known, known_full)
