@@ -164,6 +164,7 @@ def needle_composite(height: int = 96, width: int = 128, n: int = 90, background
     depth = np.where(cov[ss // 2::ss, ss // 2::ss], 0.5, 0.0).astype(np.float32)
     return C.astype(np.float32), np.asarray(B, np.float32), alpha.astype(np.float32), F.astype(np.float32), depth
 
+
 def band_error(views, plates, truths) -> tuple[float, float]:
     """(median over views of the band's median largest-channel |plate - truth| where known, mean band known)."""
     errs, known = [], []
