@@ -20,6 +20,7 @@ The README names the captures and the commands that made its pictures.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -42,8 +43,6 @@ def _sheet_columns(sheet: Path, columns: int = 2) -> Image.Image:
     bottom: their error maps, so the sheet is two images high)."""
     img = Image.open(sheet).convert("RGB")
     w, h = img.size
-    import json
-
     methods = json.loads((sheet.parent.parent / "eval.json").read_text())["methods"]
     cw, ch = w // (len(methods) + 1), h // 2
     return img.crop((0, 0, columns * cw, ch))
