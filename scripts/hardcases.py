@@ -11,7 +11,7 @@ and written in furrow's scan format with the true coverage matte of every view (
   furball_uniform_relit                                    fur ball under forest, truth under city
   conifer_room_table_ae_lens                               room + table + auto exposure + OPENCV lens
   conifer_black_lens                                       the OPENCV lens alone (twin: conifer_black_turntable)
-  fur_similar_bg                                           brown fur before brown bricks
+  fur_similar_bg              (+ fur_black_similar)        brown fur before brown bricks
   furball_uniform_ae          (+ furball_uniform_fixed)    auto exposure on the uniform fur ball
   furball_uniform_orbit                                    the fur ball, camera circling
 

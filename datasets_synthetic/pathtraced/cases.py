@@ -18,7 +18,8 @@ conifer_room_table_ae_lens     conifer in the courtyard on a table (in colour an
                                ``conifer_black_turntable`` (same cameras, no room, table, jitter or lens)
 conifer_black_lens             the conifer over black through the OPENCV lens alone, at the spp of its pinhole
                                twin ``conifer_black_turntable`` (same cameras, samples, light)
-fur_similar_bg                 the fur ball before the courtyard's brown brick floor, room kept / black held
+fur_similar_bg                 the fur ball before the courtyard's brown brick floor, room kept / black held; and
+                               ``fur_black_similar``, the same renders over black
 furball_uniform_ae             the turntable fur ball's images with auto exposure on the kept views, true
                                poses; ``furball_uniform_fixed``: the same images at fixed exposure
 =============================  =============================================================================
@@ -283,9 +284,12 @@ def conifer_black_lens(opts: Options, log=print) -> list[dict]:
 def fur_similar_bg(opts: Options, log=print) -> list[dict]:
     """Case f: the brown fur ball before the courtyard's brown bricks, room kept / black held."""
     spec = case_spec("fur_similar_bg", opts)
+    got = _render(spec, opts, log)
     return [_write("fur_similar_bg", "uniform brown fur ball before the courtyard's brown brick floor (similar "
                    "colour), turntable; views 0::2 show the room, 1::2 over black", spec, Layout(ROOM_FRAMES),
-                   _render(spec, opts, log), opts, log=log)]
+                   got, opts, log=log),
+            _write("fur_black_similar", "the same renders as fur_similar_bg, every view over black (its black twin)",
+                   spec, Layout(None), got, opts, log=log)]
 
 
 def furball_ae(opts: Options, log=print) -> list[dict]:
