@@ -107,6 +107,8 @@ class Plate:
         error: median over held-back background pixels of the largest channel's |plate - colour| (linear;
             NaN without any).
         error_rmse: RMS over those pixels and channels (linear; NaN without any).
+        band_estimated: the part of ``band_known`` whose background no frame saw clean but the
+            frames' lines gave (capture.plate_lines; fixed camera only).
         frame: None for a full-frame plate; (H, W, y0, x0) for a plate cropped to its known box
             (:meth:`cropped`): ``background`` and ``known`` are then the box at (y0, x0).
     """
@@ -118,6 +120,7 @@ class Plate:
     band_known: float
     error: float
     error_rmse: float
+    band_estimated: float = 0.0
     frame: tuple | None = None
 
     def cropped(self) -> Plate:
@@ -127,7 +130,7 @@ class Plate:
         r0, r1, c0, c1 = mask_box(self.known) or (0, 0, 0, 0)
         sl = (slice(r0, r1), slice(c0, c1))
         return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
-                     self.band_known, self.error, self.error_rmse, (H, W, r0, c0))
+                     self.band_known, self.error, self.error_rmse, self.band_estimated, (H, W, r0, c0))
 
     def full(self) -> Plate:
         """The plate at its image's full (H, W) (itself when not cropped)."""
@@ -139,11 +142,13 @@ class Plate:
         h, w = self.known.shape
         bg[y0:y0 + h, x0:x0 + w] = self.background
         known[y0:y0 + h, x0:x0 + w] = self.known
-        return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse)
+        return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse,
+                     self.band_estimated)
 
     def record(self) -> dict:
         """JSON-able summary of the view's plate (model.json, the stage table)."""
         return {"method": self.method, "band_known": round(self.band_known, 4),
+                "band_estimated": round(self.band_estimated, 4),
                 "error": None if not np.isfinite(self.error) else round(self.error, 5),
                 "error_rmse": None if not np.isfinite(self.error_rmse) else round(self.error_rmse, 5),
                 "noise": round(self.noise, 5)}
@@ -375,7 +380,8 @@ def background_plates(views: list[PlateView], cfg: PlateConfig | None = None, pl
     mode = choose_mode({path: t.errors for path, t in trials.items()})
     fit = refit(ps, mode, trials[mode])
     made = path_functions(mode)[2](ps, fit.gains)
-    plates = [_plate(p.view, c, k, err, mode) for p, (c, k), err in zip(ps.views, made, fit.errors, strict=True)]
+    plates = [_plate(p.view, m[0], m[1], err, mode, m[2] if len(m) > 2 else None)
+              for p, m, err in zip(ps.views, made, fit.errors, strict=True)]
     return plates, _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
 
 
@@ -393,11 +399,13 @@ def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
     return g
 
 
-def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str) -> Plate:
+def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,
+           estimated: np.ndarray | None = None) -> Plate:
     band = depth_trimap(v.object_depth) == UNKNOWN
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
+    est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
     return Plate(col.astype(np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
-                 err[0], err[1])
+                 err[0], err[1], band_estimated=est)
 
 
 def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:
@@ -420,6 +428,7 @@ def _record(mode: str, plates: list[Plate], gains: np.ndarray, tried: dict) -> d
     band = [p.band_known for p in plates]
     return {"mode": mode, "tried_error": tried,
             "band_known_mean": round(float(np.mean(band)), 4), "band_known_min": round(float(np.min(band)), 4),
+            "band_estimated_mean": round(float(np.mean([p.band_estimated for p in plates])), 4),
             "error_median": _summary([(p.error, p.error_rmse) for p in plates]),
             "gains_ev": [[round(float(x), 3) for x in np.log2(g)] for g in gains],
             "per_view": [p.record() for p in plates]}

@@ -30,6 +30,8 @@ MODE_TOL = 3.0 / 255
 #: Robust mode: a rival cluster (no sample in common) weighing this fraction of the heaviest one makes
 #: the pixel unknown.
 MODE_AMBIGUOUS = 0.5
+#: Where no frame saw a pixel's background clean, solve it from the frames' lines (capture.plate_lines).
+FIXED_ESTIMATE_UNSEEN = True
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
 
@@ -129,19 +131,43 @@ def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     return [fixed_prediction(views, p.ring, i, gains, weights) / gains[i] for i, p in enumerate(ps.views)]
 
 
-def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per view (colour (H, W, 3) float32 in its own exposure, known (H, W)) of the fixed-camera
-    plate on the union of the views' need masks (module docstring): one robust mode per pixel."""
+def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per view (colour (H, W, 3) float32 in its own exposure, known (H, W), estimated (H, W)) of the
+    fixed-camera plate on the union of the views' need masks (module docstring): one robust mode per
+    pixel; where that finds none, the background solved from the frames' lines
+    (:func:`unseen_fill`; ``estimated``, a subset of ``known``)."""
     needs = [p.need for p in ps.views]
     union = np.logical_or.reduce(needs)
     y, x = np.nonzero(union)
     med = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
                            [p.weight for p in ps.views])
+    est = unseen_fill(ps, gains, y, x, med) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
     out = []
     for j, p in enumerate(ps.views):
         col = np.zeros(p.view.linear.shape, np.float32)
         col[y, x] = np.nan_to_num(med / gains[j])
         known = np.zeros(union.shape, bool)
         known[y, x] = np.isfinite(med[:, 0])
-        out.append((col, known & needs[j]))
+        estimated = np.zeros(union.shape, bool)
+        estimated[y, x] = est
+        out.append((col, known & needs[j], estimated & needs[j]))
     return out
+
+
+def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray) -> np.ndarray:
+    """Fill ``med`` (N, 3) (the plate at pixels ``y``, ``x`` in the common exposure; NaN = unknown) in
+    place where the frames' lines give the background (capture.plate_lines); (N,) bool where they did."""
+    from capture.matting import FG, depth_trimap
+    from capture.plate_lines import object_palette, unseen_background
+
+    samples = np.stack([p.view.linear[y, x] * g for p, g in zip(ps.views, gains, strict=True)]).astype(np.float32)
+    opaque = np.stack([depth_trimap(p.view.object_depth)[y, x] >= FG for p in ps.views])
+    pal = object_palette(samples, med, opaque)
+    todo = ~np.isfinite(med[:, 0])
+    est = np.zeros(len(y), bool)
+    if not todo.any() or len(pal) == 0:
+        return est
+    b = unseen_background(samples[:, todo], pal)
+    est[np.flatnonzero(todo)[np.isfinite(b[:, 0])]] = True
+    med[est] = b[np.isfinite(b[:, 0])]
+    return est

@@ -62,4 +62,5 @@ def grow_plate(plate: Plate, height: int, width: int) -> Plate:
     bg = cv2.resize(np.asarray(plate.background, np.float32), (width, height), interpolation=cv2.INTER_LINEAR)
     k = cv2.resize(known.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
     bg[~k] = 0.0
-    return Plate(bg, k, plate.noise, plate.method, plate.band_known, plate.error, plate.error_rmse)
+    return Plate(bg, k, plate.noise, plate.method, plate.band_known, plate.error, plate.error_rmse,
+                 plate.band_estimated)

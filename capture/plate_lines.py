@@ -1,0 +1,137 @@
+"""A fixed camera's background where no frame saw it clean: solved from the frames' lines (issue 30).
+
+On a turntable the trunk and the crown's core stand partly before the same screen pixels in every
+frame, so the fixed-camera plate (``capture.plate_fixed``) finds no clean samples there and the
+matte has to guess alpha without B: on the path-traced conifer those pixels were half the object
+and 96 % of its colour error.  Yet the frames hold B: at a pixel p every frame sees
+C_i = a_i F_i + (1 - a_i) B_p with the SAME B_p and a coverage a_i that changes as the object turns,
+so the frames' colours lie on segments from B_p towards the object's colours.  B_p is the common
+end of those segments (:func:`line_vertex`):
+
+1. **Object colours.**  A palette (``capture.matting_known.palette``) of the frames' sure object
+   colours: pixels of the depth's opaque core whose alpha bound against the known plate is at least
+   ``matting_known.SOURCE_ALPHA`` (:func:`object_palette`).
+2. **The vertex.**  Each frame's sample is a candidate for B_p; a candidate explains another sample
+   when that sample lies near a segment from the candidate to a palette colour.  The candidate with
+   the least summed (capped) squared distance wins: a sample part-covered by the object explains
+   only the samples more covered than itself, the clean one explains all.  B_p is the mean of the
+   median of the samples within LINE_AGREE of it.
+3. **When it cannot beat doing nothing** the pixel stays unknown (the matte then estimates alpha
+   without B, as before): the frames' lines disagree (RMS residual above LINE_MAX_RESIDUAL, e.g. a
+   pixel before a moving shadow), fewer than LINE_MIN_FRAMES samples, the vertex no farther than
+   LINE_MIN_SEPARATION from an object colour (the trunk covers p in every frame: its colour is no
+   background), or too few sure object colours for a palette (LINE_MIN_SOURCES).  A vertex that is
+   blown out (a channel at ``matting_known.CLIP_LEVEL``) is kept whatever its residual: clipping
+   bends the segments, and the matte treats a blown-out background as such (alpha from the
+   Laplacian, the colour of the nearest exact pixels instead of one pulled towards the window).
+
+The result is marked ``estimated`` in the plate's record (the share of the band it filled).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from capture.plate_reproject import nan_median
+
+#: Samples this far (linear, Euclidean) from the nearest segment count as unexplained by a candidate
+#: (the capped squared distance of step 2: one stray frame, a needle of a colour outside the palette,
+#: costs no more than this).
+LINE_CAP = 0.05
+#: RMS over the frames of the winning candidate's (capped) distances above which the lines disagree
+#: and B stays unknown (linear).  On the path-traced conifer turntable 0.01 separated the estimates
+#: within 0.01 of the true background (median) from the blown-out ones; 0.02 leaves margin for noise.
+LINE_MAX_RESIDUAL = 0.02
+#: The median of the samples within this (linear, largest channel) of the winning candidate is B.
+LINE_AGREE = 0.02
+#: Least samples (frames) at a pixel for an estimate.
+LINE_MIN_FRAMES = 3
+#: The vertex must differ from every palette colour by this much (linear, Euclidean): else the pixel
+#: is covered in every frame and its colour is the object's.
+LINE_MIN_SEPARATION = 0.05
+#: Least sure object colours for the palette (step 1).
+LINE_MIN_SOURCES = 20
+#: Pixels per chunk (a K x K x chunk array per palette colour).
+LINE_CHUNK = 4000
+
+
+def segment_distance(samples: np.ndarray, start: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """(K, N) distance of each sample (K, N, 3) to the nearest segment from ``start`` (N, 3) to one of
+    ``ends`` (P, 3) (Euclidean, linear)."""
+    best = np.full(samples.shape[:2], np.inf)
+    v = samples - start[None]
+    for p in ends:
+        e = p[None] - start  # (N, 3)
+        e2 = np.maximum((e * e).sum(-1), 1e-12)
+        t = np.clip((v * e[None]).sum(-1) / e2[None], 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(v - t[..., None] * e[None], axis=-1))
+    return best
+
+
+def _vertex_chunk(s: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`line_vertex` on one chunk (K, n, 3) without NaN checks beyond the samples' own."""
+    K, n, _ = s.shape
+    have = np.isfinite(s[..., 0])
+    s0 = np.nan_to_num(s)
+    cost = np.full((K, n), np.inf)
+    for c in range(K):
+        dist = np.minimum(segment_distance(s0, s0[c], pal), LINE_CAP)
+        cost[c] = np.where(have[c], np.where(have, dist * dist, 0.0).sum(0), np.inf)
+    best = np.argmin(cost, axis=0)
+    cols = np.arange(n)
+    cand = s0[best, cols]
+    agree = have & (np.abs(s0 - cand[None]).max(-1) <= LINE_AGREE)
+    colour = nan_median(np.where(agree[..., None], s0, np.nan))
+    residual = np.sqrt(cost[best, cols] / np.maximum(have.sum(0), 1))
+    return colour, residual
+
+
+def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(B (N, 3), residual (N,)) of linear ``samples`` (K, N, 3) (frames x pixels, NaN = no sample)
+    and the object colours ``pal`` (P, 3): per pixel the common end of the segments the samples lie
+    on (module docstring, step 2), and the RMS of the samples' capped distances to its segments.
+    Only the estimator; :func:`unseen_background` applies the checks of step 3."""
+    s = np.asarray(samples, np.float64)
+    pal = np.asarray(pal, np.float64).reshape(-1, 3)
+    N = s.shape[1]
+    colour = np.full((N, 3), np.nan)
+    residual = np.full(N, np.inf)
+    if len(pal) == 0:
+        return colour, residual
+    for lo in range(0, N, LINE_CHUNK):
+        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal)
+    return colour, residual
+
+
+def unseen_background(samples: np.ndarray, pal: np.ndarray) -> np.ndarray:
+    """(N, 3) linear background of each pixel whose ``samples`` (K, N, 3) (NaN = none) lie on
+    segments towards the object colours ``pal`` (P, 3); NaN where the estimate cannot beat doing
+    nothing (module docstring, step 3)."""
+    from capture.matting_known import CLIP_LEVEL
+
+    s = np.asarray(samples, np.float64)
+    pal = np.asarray(pal, np.float64).reshape(-1, 3)
+    out = np.full((s.shape[1], 3), np.nan)
+    if len(pal) == 0 or s.shape[1] == 0:
+        return out
+    B, res = line_vertex(s, pal)
+    enough = np.isfinite(s[..., 0]).sum(0) >= LINE_MIN_FRAMES
+    apart = np.linalg.norm(B[:, None] - pal[None], axis=-1).min(-1) >= LINE_MIN_SEPARATION
+    blown = B.max(-1) >= CLIP_LEVEL
+    ok = enough & apart & ((res <= LINE_MAX_RESIDUAL) | blown)
+    out[ok] = B[ok]
+    return out
+
+
+def object_palette(samples: np.ndarray, plate: np.ndarray, opaque: np.ndarray) -> np.ndarray:
+    """(P, 3) palette of the frames' sure object colours (module docstring, step 1) from the frames'
+    linear samples (K, N, 3) of N pixels in one exposure, the plate there (N, 3; NaN = not known)
+    and where the depth calls them opaque (K, N) bool; (0, 3) with fewer than LINE_MIN_SOURCES."""
+    from capture.matting_known import SOURCE_ALPHA, alpha_lower_bound, palette
+
+    s = np.asarray(samples, np.float64)
+    b = np.asarray(plate, np.float64)
+    k = np.asarray(opaque, bool) & np.isfinite(b[None, :, 0]) & np.isfinite(s[..., 0])
+    kk, nn = np.nonzero(k)
+    src = s[kk, nn][alpha_lower_bound(s[kk, nn], b[nn]) >= SOURCE_ALPHA] if len(kk) else np.zeros((0, 3))
+    return palette(src) if len(src) >= LINE_MIN_SOURCES else np.zeros((0, 3))
