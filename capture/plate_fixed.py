@@ -167,7 +167,7 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     est = np.zeros(len(y), bool)
     if not todo.any() or len(pal) == 0:
         return est
-    b = unseen_background(samples[:, todo], pal)
+    b = unseen_background(samples[:, todo], pal, opaque[:, todo])
     est[np.flatnonzero(todo)[np.isfinite(b[:, 0])]] = True
     med[est] = b[np.isfinite(b[:, 0])]
     return est

@@ -18,12 +18,15 @@ end of those segments (:func:`line_vertex`):
    median of the samples within LINE_AGREE of it.
 3. **When it cannot beat doing nothing** the pixel stays unknown (the matte then estimates alpha
    without B, as before): the frames' lines disagree (RMS residual above LINE_MAX_RESIDUAL, e.g. a
-   pixel before a moving shadow), fewer than LINE_MIN_FRAMES samples, the vertex no farther than
-   LINE_MIN_SEPARATION from an object colour (the trunk covers p in every frame: its colour is no
-   background), or too few sure object colours for a palette (LINE_MIN_SOURCES).  A vertex that is
-   blown out (a channel at ``matting_known.CLIP_LEVEL``) is kept whatever its residual: clipping
-   bends the segments, and the matte treats a blown-out background as such (alpha from the
-   Laplacian, the colour of the nearest exact pixels instead of one pulled towards the window).
+   pixel before a moving shadow), fewer than LINE_MIN_FRAMES samples, or no frame in which the
+   depth leaves the pixel free agrees with the vertex (the trunk covers p in every frame: its
+   colour is no background; a separation from the object colours instead rejected the shaded
+   bricks behind the conifer's core, whose brown is a needle colour too), or too few sure object
+   colours for a palette (LINE_MIN_SOURCES).  Clipping bends the lines: a blown-out vertex (a
+   channel at ``matting_known.CLIP_LEVEL``) is kept whatever its residual, and where the lines
+   disagree and some frames are blown out, B is their median; the matte treats a blown-out
+   background as such (alpha from the Laplacian, the colour of the nearest exact pixels instead of
+   one pulled towards the window).
 
 The result is marked ``estimated`` in the plate's record (the share of the band it filled).
 """
@@ -46,9 +49,6 @@ LINE_MAX_RESIDUAL = 0.02
 LINE_AGREE = 0.02
 #: Least samples (frames) at a pixel for an estimate.
 LINE_MIN_FRAMES = 3
-#: The vertex must differ from every palette colour by this much (linear, Euclidean): else the pixel
-#: is covered in every frame and its colour is the object's.
-LINE_MIN_SEPARATION = 0.05
 #: Least sure object colours for the palette (step 1).
 LINE_MIN_SOURCES = 20
 #: Pixels per chunk (a K x K x chunk array per palette colour).
@@ -103,9 +103,10 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.nd
     return colour, residual
 
 
-def unseen_background(samples: np.ndarray, pal: np.ndarray) -> np.ndarray:
+def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) linear background of each pixel whose ``samples`` (K, N, 3) (NaN = none) lie on
-    segments towards the object colours ``pal`` (P, 3); NaN where the estimate cannot beat doing
+    segments towards the object colours ``pal`` (P, 3); ``opaque`` (K, N) bool: where the frame's
+    depth calls the pixel opaque object (None: nowhere).  NaN where the estimate cannot beat doing
     nothing (module docstring, step 3)."""
     from capture.matting_known import CLIP_LEVEL
 
@@ -115,10 +116,17 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray) -> np.ndarray:
     if len(pal) == 0 or s.shape[1] == 0:
         return out
     B, res = line_vertex(s, pal)
-    enough = np.isfinite(s[..., 0]).sum(0) >= LINE_MIN_FRAMES
-    apart = np.linalg.norm(B[:, None] - pal[None], axis=-1).min(-1) >= LINE_MIN_SEPARATION
-    blown = B.max(-1) >= CLIP_LEVEL
-    ok = enough & apart & ((res <= LINE_MAX_RESIDUAL) | blown)
+    have = np.isfinite(s[..., 0])
+    enough = have.sum(0) >= LINE_MIN_FRAMES
+    agree = have & (np.abs(np.nan_to_num(s) - B[None]).max(-1) <= LINE_AGREE)
+    seen = agree.any(0) if opaque is None else (agree & ~np.asarray(opaque, bool)).any(0)
+    # clipping bends the lines: where they disagree and a frame is blown out, the background is
+    # (the median of) the blown-out samples, which the matte treats as such
+    hot = have & (np.nan_to_num(s).max(-1) >= CLIP_LEVEL)
+    bent = (res > LINE_MAX_RESIDUAL) & hot.any(0) & (B.max(-1) < CLIP_LEVEL)
+    if bent.any():
+        B[bent] = nan_median(np.where(hot[:, bent, None], s[:, bent], np.nan))
+    ok = enough & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | (B.max(-1) >= CLIP_LEVEL))
     out[ok] = B[ok]
     return out
 
