@@ -167,7 +167,8 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     est = np.zeros(len(y), bool)
     if not todo.any() or len(pal) == 0:
         return est
-    b = unseen_background(samples[:, todo], pal, opaque[:, todo])
+    covered = np.stack([p.view.object_depth[y[todo], x[todo]] > 0 for p in ps.views])
+    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered)
     est[np.flatnonzero(todo)[np.isfinite(b[:, 0])]] = True
     med[est] = b[np.isfinite(b[:, 0])]
     return est

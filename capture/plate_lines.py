@@ -10,7 +10,7 @@ end of those segments (:func:`line_vertex`):
 
 1. **Object colours.**  A palette (``capture.matting_known.palette``) of the frames' sure object
    colours: pixels of the depth's opaque core whose alpha bound against the known plate is at least
-   ``matting_known.SOURCE_ALPHA`` (:func:`object_palette`).
+   ``matting_known.SOURCE_ALPHA``, and pixels opaque in every frame (:func:`object_palette`).
 2. **The vertex.**  Each frame's sample is a candidate for B_p; a candidate explains another sample
    when that sample lies near a segment from the candidate to a palette colour.  The candidate with
    the least summed (capped) squared distance wins: a sample part-covered by the object explains
@@ -18,15 +18,18 @@ end of those segments (:func:`line_vertex`):
    median of the samples within LINE_AGREE of it.
 3. **When it cannot beat doing nothing** the pixel stays unknown (the matte then estimates alpha
    without B, as before): the frames' lines disagree (RMS residual above LINE_MAX_RESIDUAL, e.g. a
-   pixel before a moving shadow), fewer than LINE_MIN_FRAMES samples, or no frame in which the
-   depth leaves the pixel free agrees with the vertex (the trunk covers p in every frame: its
-   colour is no background; a separation from the object colours instead rejected the shaded
-   bricks behind the conifer's core, whose brown is a needle colour too), or too few sure object
-   colours for a palette (LINE_MIN_SOURCES).  Clipping bends the lines: a blown-out vertex (a
-   channel at ``matting_known.CLIP_LEVEL``) is kept whatever its residual, and where the lines
-   disagree and some frames are blown out, B is their median; the matte treats a blown-out
-   background as such (alpha from the Laplacian, the colour of the nearest exact pixels instead of
-   one pulled towards the window).
+   pixel before a moving shadow), fewer than LINE_MIN_FRAMES samples, all samples alike (nothing
+   moved across the pixel: a core's edge covering it by the same part in every frame looks the
+   same as a clean pixel next to it), too few sure object colours
+   for a palette (LINE_MIN_SOURCES), or the vertex is the object's: every frame agreeing with it
+   calls the pixel opaque in its depth, or it lies within LINE_MIN_SEPARATION of an object colour
+   and every frame agreeing with it has object depth there (the trunk covers p in every frame).  A
+   separation from the object colours alone rejected the shaded bricks behind the conifer's core,
+   brown like a needle, and leaving those unknown cost more than the estimate.  Clipping bends the
+   lines: a blown-out vertex (a channel at ``matting_known.CLIP_LEVEL``) is kept whatever its
+   residual, and where the lines disagree and some frames are blown out, B is their median; the
+   matte treats a blown-out background as such (alpha from the Laplacian, the colour of the
+   nearest exact pixels instead of one pulled towards the window).
 
 The result is marked ``estimated`` in the plate's record (the share of the band it filled).
 """
@@ -49,6 +52,9 @@ LINE_MAX_RESIDUAL = 0.02
 LINE_AGREE = 0.02
 #: Least samples (frames) at a pixel for an estimate.
 LINE_MIN_FRAMES = 3
+#: A vertex this close to an object colour (linear, Euclidean) that agrees only with frames whose
+#: depth sees the object at the pixel is the object (an opaque core before it in every frame).
+LINE_MIN_SEPARATION = 0.05
 #: Least sure object colours for the palette (step 1).
 LINE_MIN_SOURCES = 20
 #: Pixels per chunk (a K x K x chunk array per palette colour).
@@ -103,11 +109,13 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.nd
     return colour, residual
 
 
-def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray | None = None) -> np.ndarray:
+def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray | None = None,
+                      covered: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) linear background of each pixel whose ``samples`` (K, N, 3) (NaN = none) lie on
     segments towards the object colours ``pal`` (P, 3); ``opaque`` (K, N) bool: where the frame's
-    depth calls the pixel opaque object (None: nowhere).  NaN where the estimate cannot beat doing
-    nothing (module docstring, step 3)."""
+    depth calls the pixel opaque (its trimap's sure object), ``covered``: where the depth sees the
+    object there at all (None: nowhere).  NaN where the estimate cannot beat doing nothing (module
+    docstring, step 3)."""
     from capture.matting_known import CLIP_LEVEL
 
     s = np.asarray(samples, np.float64)
@@ -120,13 +128,17 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     enough = have.sum(0) >= LINE_MIN_FRAMES
     agree = have & (np.abs(np.nan_to_num(s) - B[None]).max(-1) <= LINE_AGREE)
     seen = agree.any(0) if opaque is None else (agree & ~np.asarray(opaque, bool)).any(0)
+    if covered is not None:  # an object colour seen only where the depth saw the object: the object
+        apart = np.linalg.norm(B[:, None] - pal[None], axis=-1).min(-1) >= LINE_MIN_SEPARATION
+        seen &= apart | (agree & ~np.asarray(covered, bool)).any(0)
     # clipping bends the lines: where they disagree and a frame is blown out, the background is
     # (the median of) the blown-out samples, which the matte treats as such
     hot = have & (np.nan_to_num(s).max(-1) >= CLIP_LEVEL)
     bent = (res > LINE_MAX_RESIDUAL) & hot.any(0) & (B.max(-1) < CLIP_LEVEL)
     if bent.any():
         B[bent] = nan_median(np.where(hot[:, bent, None], s[:, bent], np.nan))
-    ok = enough & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | (B.max(-1) >= CLIP_LEVEL))
+    moved = (have & ~agree).any(0)  # a frame unlike the vertex: else no evidence of what lies behind
+    ok = enough & moved & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | (B.max(-1) >= CLIP_LEVEL))
     out[ok] = B[ok]
     return out
 
@@ -134,12 +146,18 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
 def object_palette(samples: np.ndarray, plate: np.ndarray, opaque: np.ndarray) -> np.ndarray:
     """(P, 3) palette of the frames' sure object colours (module docstring, step 1) from the frames'
     linear samples (K, N, 3) of N pixels in one exposure, the plate there (N, 3; NaN = not known)
-    and where the depth calls them opaque (K, N) bool; (0, 3) with fewer than LINE_MIN_SOURCES."""
+    and where the depth calls them opaque (K, N) bool: where the plate is known, the opaque samples
+    whose alpha bound is at least SOURCE_ALPHA; where it is not, the pixels opaque in every frame
+    (an opaque core that never moves off them).  (0, 3) with fewer than LINE_MIN_SOURCES."""
     from capture.matting_known import SOURCE_ALPHA, alpha_lower_bound, palette
 
     s = np.asarray(samples, np.float64)
     b = np.asarray(plate, np.float64)
-    k = np.asarray(opaque, bool) & np.isfinite(b[None, :, 0]) & np.isfinite(s[..., 0])
-    kk, nn = np.nonzero(k)
-    src = s[kk, nn][alpha_lower_bound(s[kk, nn], b[nn]) >= SOURCE_ALPHA] if len(kk) else np.zeros((0, 3))
+    opaque = np.asarray(opaque, bool) & np.isfinite(s[..., 0])
+    known = np.isfinite(b[:, 0])
+    kk, nn = np.nonzero(opaque & known[None])
+    src = [s[kk, nn][alpha_lower_bound(s[kk, nn], b[nn]) >= SOURCE_ALPHA]] if len(kk) else []
+    core = opaque.all(0) & ~known
+    src.append(s[:, core].reshape(-1, 3))
+    src = np.concatenate(src)
     return palette(src) if len(src) >= LINE_MIN_SOURCES else np.zeros((0, 3))
