@@ -27,7 +27,8 @@ end of those segments (:func:`line_vertex`):
    separation from the object colours alone rejected the shaded bricks behind the conifer's core,
    brown like a needle, and leaving those unknown cost more than the estimate.  Clipping bends the
    lines: a blown-out vertex (a channel at ``matting_known.CLIP_LEVEL``) is kept whatever its
-   residual, and where the lines disagree and some frames are blown out, B is their median; the
+   residual, and where the lines disagree and at least LINE_MIN_HOT frames are blown out alike (their
+   median is blown out too), B is that median; the
    matte treats a blown-out background as such (alpha from the Laplacian, the colour of the
    nearest exact pixels instead of one pulled towards the window).
 
@@ -50,6 +51,8 @@ LINE_CAP = 0.05
 LINE_MAX_RESIDUAL = 0.02
 #: The median of the samples within this (linear, largest channel) of the winning candidate is B.
 LINE_AGREE = 0.02
+#: Least blown-out samples for a blown-out background where the lines disagree (step 3).
+LINE_MIN_HOT = 2
 #: Least samples (frames) at a pixel for an estimate.
 LINE_MIN_FRAMES = 3
 #: A vertex this close to an object colour (linear, Euclidean) that agrees only with frames whose
@@ -134,9 +137,10 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     # clipping bends the lines: where they disagree and a frame is blown out, the background is
     # (the median of) the blown-out samples, which the matte treats as such
     hot = have & (np.nan_to_num(s).max(-1) >= CLIP_LEVEL)
-    bent = (res > LINE_MAX_RESIDUAL) & hot.any(0) & (B.max(-1) < CLIP_LEVEL)
-    if bent.any():
+    bent = (res > LINE_MAX_RESIDUAL) & (hot.sum(0) >= LINE_MIN_HOT) & (B.max(-1) < CLIP_LEVEL)
+    if bent.any():  # ... when the blown-out samples' median is blown out too (they clip alike)
         B[bent] = nan_median(np.where(hot[:, bent, None], s[:, bent], np.nan))
+        bent &= B.max(-1) >= CLIP_LEVEL
     moved = (have & ~agree).any(0)  # a frame unlike the vertex: else no evidence of what lies behind
     ok = enough & moved & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | (B.max(-1) >= CLIP_LEVEL))
     out[ok] = B[ok]
