@@ -20,17 +20,16 @@ end of those segments (:func:`line_vertex`):
    without B, as before): the frames' lines disagree (RMS residual above LINE_MAX_RESIDUAL, e.g. a
    pixel before a moving shadow), fewer than LINE_MIN_FRAMES samples, all samples alike (nothing
    moved across the pixel: a core's edge covering it by the same part in every frame looks the
-   same as a clean pixel next to it), too few sure object colours
-   for a palette (LINE_MIN_SOURCES), or the vertex is the object's: every frame agreeing with it
-   calls the pixel opaque in its depth, or it lies within LINE_MIN_SEPARATION of an object colour
-   and every frame agreeing with it has object depth there (the trunk covers p in every frame).  A
-   separation from the object colours alone rejected the shaded bricks behind the conifer's core,
-   brown like a needle, and leaving those unknown cost more than the estimate.  Clipping bends the
-   lines: a blown-out vertex (a channel at ``matting_known.CLIP_LEVEL``) is kept whatever its
-   residual, and where the lines disagree and at least LINE_MIN_HOT frames are blown out alike (their
-   median is blown out too), B is that median; the
-   matte treats a blown-out background as such (alpha from the Laplacian, the colour of the
-   nearest exact pixels instead of one pulled towards the window).
+   same as a clean pixel next to it), too few sure object colours for a palette
+   (LINE_MIN_SOURCES), or the vertex is the object's: every frame agreeing with it calls the pixel
+   opaque in its depth, or it lies within LINE_MIN_SEPARATION of an object colour and every frame
+   agreeing with it has object depth there (the trunk covers p in every frame).  A separation from
+   the object colours alone rejected the shaded bricks behind the conifer's core, brown like a
+   needle, and leaving those unknown cost more than the estimate.  Clipping (a channel at
+   ``matting_known.CLIP_LEVEL``) bends the lines: where they disagree and at least LINE_MIN_HOT
+   frames (LINE_HOT_SHARE of them) are blown out alike (their median is blown out too), B is that
+   median; the matte treats a blown-out background as such (alpha from the Laplacian, the colour of the nearest exact
+   pixels instead of one pulled towards the window).
 
 The result is marked ``estimated`` in the plate's record (the share of the band it filled).
 """
@@ -51,8 +50,12 @@ LINE_CAP = 0.05
 LINE_MAX_RESIDUAL = 0.02
 #: The median of the samples within this (linear, largest channel) of the winning candidate is B.
 LINE_AGREE = 0.02
-#: Least blown-out samples for a blown-out background where the lines disagree (step 3).
-LINE_MIN_HOT = 2
+#: Least blown-out samples for a blown-out background where the lines disagree (step 3; with 2,
+#: 8 % of pixels of random colours passed) ...
+LINE_MIN_HOT = 3
+#: ... and at least this share of the pixel's frames (with 3 frames of 12, 4 % of pixels of random
+#: colours passed; behind the conifer's crown 11 of 18 frames were blown out).
+LINE_HOT_SHARE = 1 / 3
 #: Least samples (frames) at a pixel for an estimate.
 LINE_MIN_FRAMES = 3
 #: A vertex this close to an object colour (linear, Euclidean) that agrees only with frames whose
@@ -137,12 +140,12 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     # clipping bends the lines: where they disagree and a frame is blown out, the background is
     # (the median of) the blown-out samples, which the matte treats as such
     hot = have & (np.nan_to_num(s).max(-1) >= CLIP_LEVEL)
-    bent = (res > LINE_MAX_RESIDUAL) & (hot.sum(0) >= LINE_MIN_HOT) & (B.max(-1) < CLIP_LEVEL)
+    bent = (res > LINE_MAX_RESIDUAL) & (hot.sum(0) >= np.maximum(LINE_MIN_HOT, LINE_HOT_SHARE * have.sum(0)))
     if bent.any():  # ... when the blown-out samples' median is blown out too (they clip alike)
         B[bent] = nan_median(np.where(hot[:, bent, None], s[:, bent], np.nan))
         bent &= B.max(-1) >= CLIP_LEVEL
     moved = (have & ~agree).any(0)  # a frame unlike the vertex: else no evidence of what lies behind
-    ok = enough & moved & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | (B.max(-1) >= CLIP_LEVEL))
+    ok = enough & moved & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | bent)
     out[ok] = B[ok]
     return out
 
