@@ -206,8 +206,8 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         if scan.alpha is None:
             raise ValueError(f"scan {scan.name!r}: --matte given but the capture has no matte (mask_path / RGBA)")
         a = np.asarray(scan.alpha, np.float32)
-        if plate is not None and plate.known.any():  # the room unmixed from the colour exactly where B is known
-            return Matte(a, unmixed(img, a, plate.background, plate.known), "given", 0.0)
+        if plate is not None and plate.seen().any():  # the room unmixed from the colour where a frame saw B
+            return Matte(a, unmixed(img, a, plate.background, plate.seen()), "given", 0.0)
         return Matte(a, _foreground(img, a), "given", 0.0)
     depth = scan.depth if object_depth is None else object_depth
     tri = depth_trimap(depth)

@@ -110,7 +110,9 @@ class Plate:
         band_estimated: the part of ``band_known`` whose background no frame saw clean but the
             frames' lines gave (capture.plate_lines; fixed camera only).
         frame: None for a full-frame plate; (H, W, y0, x0) for a plate cropped to its known box
-            (:meth:`cropped`): ``background`` and ``known`` are then the box at (y0, x0).
+            (:meth:`cropped`): ``background``, ``known`` and ``estimated`` are then the box at (y0, x0).
+        estimated: (H, W) bool or None, the known pixels whose background came from the frames' lines
+            (capture.plate_lines), not from a frame that saw it clean; None = none.
     """
 
     background: np.ndarray
@@ -122,6 +124,14 @@ class Plate:
     error_rmse: float
     band_estimated: float = 0.0
     frame: tuple | None = None
+    estimated: np.ndarray | None = None
+
+    def seen(self) -> np.ndarray:
+        """(H, W) bool: the known pixels some frame (or the user's plate) saw clean (``known`` less
+        ``estimated``).  A matte given by the user unmixes the colour only there: with the true
+        matte of the path-traced conifer turntable the lines' estimate cost 2.8 dB held out (25.79
+        -> 22.95), while the known-background matte gains from it."""
+        return self.known if self.estimated is None else self.known & ~self.estimated
 
     def cropped(self) -> Plate:
         """The plate on the box around its known pixels, colour as float16 (what waits for the matte
@@ -130,7 +140,8 @@ class Plate:
         r0, r1, c0, c1 = mask_box(self.known) or (0, 0, 0, 0)
         sl = (slice(r0, r1), slice(c0, c1))
         return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
-                     self.band_known, self.error, self.error_rmse, self.band_estimated, (H, W, r0, c0))
+                     self.band_known, self.error, self.error_rmse, self.band_estimated, (H, W, r0, c0),
+                     None if self.estimated is None else self.estimated[sl].copy())
 
     def full(self) -> Plate:
         """The plate at its image's full (H, W) (itself when not cropped)."""
@@ -142,8 +153,12 @@ class Plate:
         h, w = self.known.shape
         bg[y0:y0 + h, x0:x0 + w] = self.background
         known[y0:y0 + h, x0:x0 + w] = self.known
+        est = None
+        if self.estimated is not None:
+            est = np.zeros((H, W), bool)
+            est[y0:y0 + h, x0:x0 + w] = self.estimated
         return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse,
-                     self.band_estimated)
+                     self.band_estimated, estimated=est)
 
     def record(self) -> dict:
         """JSON-able summary of the view's plate (model.json, the stage table)."""
@@ -405,7 +420,7 @@ def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, f
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
     return Plate(col.astype(np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
-                 err[0], err[1], band_estimated=est)
+                 err[0], err[1], band_estimated=est, estimated=estimated)
 
 
 def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:

@@ -62,5 +62,7 @@ def grow_plate(plate: Plate, height: int, width: int) -> Plate:
     bg = cv2.resize(np.asarray(plate.background, np.float32), (width, height), interpolation=cv2.INTER_LINEAR)
     k = cv2.resize(known.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
     bg[~k] = 0.0
+    est = None if plate.estimated is None else \
+        cv2.resize(plate.estimated.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
     return Plate(bg, k, plate.noise, plate.method, plate.band_known, plate.error, plate.error_rmse,
-                 plate.band_estimated)
+                 plate.band_estimated, estimated=None if est is None else est & k)
