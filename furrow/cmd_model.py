@@ -189,8 +189,10 @@ def _print_surroundings(console, rec: dict) -> None:
     if pl.get("mode") not in (None, "off", "unused"):
         err = "none held back" if pl["error_median"] is None else f"{pl['error_median']:.4f} linear"
         scale = f"; made at {pl['working_scale']:.2f} x the views' size (memory)" if "working_scale" in pl else ""
+        est = pl.get("band_estimated_mean", 0.0)
+        lines = f", {est:.1%} of it solved from the frames' lines (no frame saw it clean)" if est else ""
         console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
-                      f"band (least {pl['band_known_min']:.1%}); error on held-back background {err}{scale}",
+                      f"band (least {pl['band_known_min']:.1%}){lines}; error on held-back background {err}{scale}",
                       highlight=False)
     m = rec.get("matte", {})
     if m.get("mode") not in (None, "off"):
