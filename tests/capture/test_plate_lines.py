@@ -3,12 +3,13 @@ the true background of seeded scenes.
 
 Pixel scene (:func:`_lines_scene`): 400 pixels, 12 frames, each frame's colour a mixture of the
 pixel's background and one of 4 dark object colours with coverage uniform in [0, 0.9], two frames
-clean.  Measured (seeds 0-2): exact colours 100 % filled, median error 0, largest 0.0091; 8-bit
-sRGB colours 100 % filled, median 0.0024, largest 0.0114 (the photo's own quantisation of B).
-Random colours: 0.25-0.5 % filled; colours all alike or all object colours: none.
+clean.  Measured (seeds 0-2): exact colours 100 % filled, median error 2e-8 (float32), largest
+0.0039; 8-bit sRGB colours 100 % filled, median 0.0024, largest 0.0058 (the photo's own quantisation
+of B).  Random colours: 0.25-0.5 % filled; colours all alike or all object colours: none.
 
 Turntable (tests/plate_scenes.turntable_capture, seed 0): the plate knew 0.48 of the band; the
-lines add 0.39, exact (median 0) where some frame saw the room clean.  Where no frame did (an
+lines add 0.40 (0.46 -> 0.87 with auto exposure), exact (median 0) where some frame saw the room
+clean.  Where no frame did (an
 opaque core's edge covers the pixel by 0.4-0.8 in every frame) the least covered frame is taken:
 those pixels are outside this tolerance and reported in docs/matting.md.
 """
@@ -26,7 +27,7 @@ from capture.scan import srgb_to_linear, to_uint8_srgb
 from tests import plate_scenes as ps
 
 #: Largest error (linear, largest channel) of the solved background: exact colours, 8-bit colours.
-EXACT_TOL = 0.015
+EXACT_TOL = 0.01
 EXACT_MEDIAN_TOL = 1e-6
 QUANTISED_MEDIAN_TOL = 0.004
 #: Most of the pixels of random colours that may get a background.
