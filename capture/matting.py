@@ -44,7 +44,8 @@ from capture.scan import Scan
 
 #: Matting modes of MatteConfig.mode / ``furrow model --matte``.
 MATTE_MODES = ("auto", "given", "backdrop", "plate", "estimate", "off")
-#: Resolutions the estimated matte is solved at (MatteConfig.resolution / ``furrow model --matte-resolution``):
+#: Resolutions the estimated and the known-background matte are solved at (MatteConfig.resolution /
+#: ``furrow model --matte-resolution``):
 #: ``full`` every pixel (the reference), ``working`` capture.matting_scale's working resolution.
 MATTE_RESOLUTIONS = ("full", "working")
 #: Opaque = the object's depth mask eroded by this fraction of the image width (2 px at 640).
@@ -222,9 +223,9 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
     if backdrop is not None and cfg.mode in ("auto", "backdrop"):
         B = np.broadcast_to(np.asarray(backdrop, np.float32), img.shape)
         return solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
-                           mask)
+                           mask, cfg)
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
-        return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask)
+        return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg)
     return _solve_at(img, tri, "estimate", mask, cfg)
 
 
@@ -267,11 +268,14 @@ def backdrop_noise(image: np.ndarray, trimap: np.ndarray, backdrop: np.ndarray) 
 
 
 def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray, noise: float,
-                method: str, fallback: np.ndarray) -> Matte:
+                method: str, fallback: np.ndarray, cfg: MatteConfig | None = None) -> Matte:
     """Matte of linear ``image`` (H, W, 3) with the background (H, W, 3) known where ``known``
     (capture.matting_known), solved on the crop around the trimap's band and opaque pixels grown
-    by the widening; not converged: alpha from the per-pixel fit (the method says so)."""
+    by the widening; not converged: alpha from the per-pixel fit (the method says so).  With
+    ``cfg.resolution`` 'working' alpha is solved at capture.matting_scale's working scale
+    (``known_matte_at_scale``: the colour still exact at full size where the background is known)."""
     from capture.matting_known import known_background_matte, widen_px
+    from capture.matting_scale import known_matte_at_scale, working_scale
 
     H, W = trimap.shape
     alpha = np.zeros((H, W), np.float32)
@@ -280,13 +284,18 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     box = _crop(np.where(grown, UNKNOWN, BG))
     if box is None:
         return Matte(alpha, fg, method, 0.0)
-    a, F, tri, ok = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
-                                           np.asarray(known)[box], noise)
+    scale = working_scale(trimap, cfg.depth_width) if cfg is not None and cfg.resolution == "working" else 1.0
+    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box) if scale < 1.0 else None
+    if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
+        scale = 1.0
+        out = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
+                                     np.asarray(known)[box], noise)
+    a, F, tri, ok = out
     alpha[box] = a
     fg[box] = F
     unknown = float(np.count_nonzero(tri == UNKNOWN)) / (H * W)
     return Matte(alpha, np.clip(fg, 0.0, None).astype(np.float32), method if ok else f"{method} (not converged)",
-                 unknown)
+                 unknown, scale)
 
 
 def _foreground(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:

@@ -21,6 +21,17 @@ trimap or what shows the object's shape.  A scale above ``FULL_SIZE_ABOVE`` solv
 (the saving would not pay for the resampling).
 
 :func:`matte_at_scale` at scale 1 is the solve itself (the full-size reference).
+
+:func:`known_matte_at_scale` is the same for the known-background matte (capture.matting_known; the
+plate and backdrop paths): alpha is solved on the working copy (image, trimap, background and where
+it is known, all downscaled) and brought back by the fast guided filter, and the trimap it is held
+to at full resolution is the known-background path's own (widened where the background cannot
+explain a pixel, opaque pixels open where the background is known), with alpha kept above the
+full-resolution bound of the compositing equation.  The colour is then made **at full
+resolution** where the background is known: F = B + (C - B) / alpha exactly, so the premultiplied
+colour alpha F = C - (1 - alpha) B reproduces the photo (capture.matting_known.foreground_colour,
+step 4); only where the background is not known does the upsampled working colour stand in for
+pymatting's foreground.
 """
 
 from __future__ import annotations
@@ -38,6 +49,10 @@ FULL_SIZE_ABOVE = 0.8
 #: (linear colour squared).
 GUIDE_RADIUS = 2
 GUIDE_EPS = 1e-4
+#: Known-background matte at the working scale: weight of each full-resolution pixel's own alpha
+#: (the compositing equation solved with the upsampled colour, capture.matting_known.candidate_alpha,
+#: times its confidence) against the upsampled alpha; 0 = the upsampled alpha alone.
+REFINE_WEIGHT = 16
 #: Margin (full-resolution pixels) around the trimap's unknown and opaque pixels that is solved.
 CROP_PAD = 8
 #: Trimap values (pymatting's convention, as capture.matting).
@@ -136,6 +151,21 @@ def guided_upsample(guide_lo: np.ndarray, target_lo: np.ndarray, guide: np.ndarr
     return np.einsum("hwci,hwi->hwc", a_up, np.asarray(guide, np.float32)) + b_up
 
 
+def _working_copy(img: np.ndarray, box, scale: float, background, known):
+    """(crop in [0, 1], its working copy, (w, h), background and known at the working size or None)."""
+    import cv2
+
+    ci = np.clip(img[box], 0.0, 1.0)
+    h_full, w_full = ci.shape[:2]
+    w, h = max(1, round(w_full * scale)), max(1, round(h_full * scale))
+    lo = _resize(ci, w, h, cv2.INTER_AREA)
+    bg_lo = known_lo = None
+    if background is not None:
+        bg_lo = _resize(np.asarray(background, np.float32)[box], w, h, cv2.INTER_AREA)
+        known_lo = _resize(np.asarray(known, np.float32)[box], w, h, cv2.INTER_AREA) >= SURE_SHARE
+    return ci, lo, (w, h), bg_lo, known_lo
+
+
 def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, background: np.ndarray | None = None,
                    known: np.ndarray | None = None):
     """(alpha (H, W) float32, foreground (H, W, 3) float32, the working solve's Matte) of linear
@@ -144,8 +174,6 @@ def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, b
     bool: the known background, downscaled with the image; None when there is none).  Outside the
     box of the trimap's unknown and opaque pixels alpha is 0 and the colour is the image's.  A
     working trimap left without opaque pixels (an object thin all over) is solved at full size."""
-    import cv2
-
     img = np.asarray(image, np.float32)
     H, W = trimap.shape
     if scale >= 1.0:
@@ -156,14 +184,8 @@ def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, b
     box = object_box(trimap)
     if box is None:
         return alpha, fg, None
-    ci, ct = np.clip(img[box], 0.0, 1.0), trimap[box]
-    h_full, w_full = ct.shape
-    w, h = max(1, round(w_full * scale)), max(1, round(h_full * scale))
-    lo = _resize(ci, w, h, cv2.INTER_AREA)
-    bg_lo = known_lo = None
-    if background is not None:
-        bg_lo = _resize(np.asarray(background, np.float32)[box], w, h, cv2.INTER_AREA)
-        known_lo = _resize(np.asarray(known, np.float32)[box], w, h, cv2.INTER_AREA) >= SURE_SHARE
+    ct = trimap[box]
+    ci, lo, (w, h), bg_lo, known_lo = _working_copy(img, box, scale, background, known)
     tri_lo = downscale_trimap(ct, w, h)
     if np.any(ct >= FG) and not np.any(tri_lo >= FG):  # no footprint wholly opaque: thin all over
         return matte_at_scale(image, trimap, solve, 1.0, background, known)
@@ -179,3 +201,92 @@ def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, b
     alpha[box] = a
     fg[box] = np.where((a > 0)[..., None], f, img[box])
     return alpha, fg, m
+
+
+def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
+                         noise: float, scale: float, box) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
+    """(alpha (h, w), straight colour F (h, w, 3), the full-resolution trimap solved, converged) of the
+    known-background matte (capture.matting_known.known_background_matte's result on the crop ``box``
+    of linear ``image`` (H, W, 3), ``trimap``, ``background`` (H, W, 3) known where ``known`` (H, W),
+    ``noise``) solved at ``scale`` < 1 (module docstring); None when the working trimap keeps no
+    opaque pixel (an object thin all over: solve it at full size)."""
+    from capture.matting_known import (
+        alpha_lower_bound,
+        clipped,
+        known_background_matte,
+        solve_trimap,
+    )
+
+    img = np.asarray(image, np.float32)
+    ct = np.asarray(trimap)[box]
+    ci, lo, (w, h), bg_lo, known_lo = _working_copy(img, box, scale, background, known)
+    tri_lo = downscale_trimap(ct, w, h)
+    if np.any(ct >= FG) and not np.any(tri_lo >= FG):
+        return None
+    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise)
+    B = np.clip(np.asarray(background, np.float32)[box], 0.0, 1.0)
+    given = np.asarray(known, bool)[box]
+    sure = given & ~clipped(ci, B)
+    tri, _ = solve_trimap(ct, ci, B, sure, noise)  # the full-resolution trimap the fast path is held to
+    target = np.concatenate([np.asarray(a_lo, np.float32)[..., None], np.asarray(f_lo, np.float32)], -1)
+    up = guided_upsample(lo, target, ci)
+    lower = np.where(sure, alpha_lower_bound(ci, B, noise), 0.0)
+    f_up = np.clip(up[..., 1:], 0.0, 1.0)
+    a = np.clip(up[..., 0], 0.0, 1.0)
+    if REFINE_WEIGHT > 0:
+        a = _refine_known(a, ci, B, f_up, lower, sure & (tri == UNKNOWN), ct >= FG, scale)
+    a = np.maximum(a, lower)
+    a[tri <= BG] = 0.0
+    a[tri >= FG] = 1.0
+    F = _full_colour(ci, a, B, given, f_up)
+    return a.astype(np.float32), F, tri, ok
+
+
+def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up: np.ndarray, lower: np.ndarray,
+                  where: np.ndarray, opaque: np.ndarray, scale: float) -> np.ndarray:
+    """The upsampled alpha ``a`` (h, w) pulled, at the ``where`` pixels (known background, unknown),
+    towards each pixel's own alpha from the compositing equation (capture.matting_known.candidate_alpha)
+    by REFINE_WEIGHT x its confidence.  The candidate colours are the full-resolution path's (step 2 of
+    capture.matting_known): the nearest sure colour (the depth's ``opaque`` pixels and those whose
+    bound is above SOURCE_ALPHA, their own colour; filled outwards by a push-pull pyramid from
+    ``scale``) and a palette of the sure colours, with the upsampled colour ``f_up``."""
+    import cv2
+
+    from capture.matting_known import SOURCE_ALPHA, candidate_alpha, palette, push_pull
+
+    if not where.any():
+        return a
+    src = opaque | ((lower >= SOURCE_ALPHA) & where)
+    cands = [f_up[where]]
+    if src.any():
+        h, w = a.shape
+        lo_w, lo_h = max(1, round(w * scale)), max(1, round(h * scale))
+        wt = _resize(src.astype(np.float32), lo_w, lo_h, cv2.INTER_AREA)
+        v = _resize(image * src[..., None], lo_w, lo_h, cv2.INTER_AREA) / np.maximum(wt, 1e-6)[..., None]
+        near = _resize(np.asarray(push_pull(v, np.minimum(wt, 1.0)), np.float32), w, h, cv2.INTER_LINEAR)
+        near = np.where(src[..., None], image, near)
+        cands += [near[where]] + [np.broadcast_to(p, cands[0].shape) for p in palette(image[src])]
+    C, B = image[where], background[where]
+    a_px, conf = candidate_alpha(C[:, None], B[:, None], np.stack(cands)[:, :, None], lower[where][:, None])
+    wgt = REFINE_WEIGHT * conf[:, 0]
+    out = a.copy()
+    out[where] = (a[where] + wgt * a_px[:, 0]) / (1.0 + wgt)
+    return out
+
+
+def _full_colour(image: np.ndarray, a: np.ndarray, background: np.ndarray, known: np.ndarray,
+                 f_up: np.ndarray) -> np.ndarray:
+    """(h, w, 3) straight colour at full resolution (capture.matting_known.foreground_colour's rules):
+    F = B + (C - B) / alpha exactly where the background is ``known``, not blown out and alpha > 0;
+    an opaque pixel of unknown background its own colour; everywhere else (the background not known
+    or blown out, alpha 0) the working solve's colour ``f_up``, brought up by the guided filter (the
+    working solve made it by the same rules: pymatting's foreground, the fills of the nearest sure
+    colours)."""
+    from capture.matting_known import OPAQUE_ALPHA as KNOWN_OPAQUE
+    from capture.matting_known import clipped
+
+    blown = known & clipped(image, background) & (a > 0)
+    ok = known & ~blown & (a > 0)
+    F = np.clip(background + (image - background) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
+    own = (a >= KNOWN_OPAQUE) & ~ok & ~blown
+    return np.where(ok[..., None], F, np.where(own[..., None], image, f_up))
