@@ -80,7 +80,9 @@ def add_model_arguments(p: argparse.ArgumentParser, frames: bool = True) -> None
                         "1280x960, 62 at 640x480); the model is the same either way")
     g.add_argument("--view-workers", type=int, default=None, metavar="N",
                    help="processes the views are worked on in, in parallel: reading, extent, matte, photometric "
-                        "pairs, RGBz (default: the machine's cores; 1 = all in this process; the model is the same)")
+                        "pairs, RGBz (default: the machine's cores when a view's work pays for starting them: "
+                        "views of 1 M pixels or more, or a quarter of that with a matte to solve; else 1; "
+                        "volume/pipeline/pool.py; 1 = all in this process; the model is the same)")
     g.add_argument("--reference-pipeline", action="store_true",
                    help="build with the slow reference paths (numpy fusion passes, mesh on the finest level with "
                         "pymeshlab decimation, Open3D ray cast, every level completed): for benchmarks and checks")
@@ -154,7 +156,7 @@ def pipeline_config(args, **save):
     from volume.fusion import FusionConfig
     from volume.mesh import MeshConfig
     from volume.pipeline.config import FuseConfig, PipelineConfig, SaveConfig, ScaleConfig, SpheresConfig, ViewsConfig
-    from volume.pipeline.pool import cores
+    from volume.pipeline.pool import AUTO_WORKERS
     from volume.pyramid import LoptConfig
 
     lopt = LoptConfig(max_res=args.max_res, alpha=args.alpha, t=args.t, min_res=min(8, args.max_res))
@@ -169,7 +171,7 @@ def pipeline_config(args, **save):
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,
                                                                          level=args.mesh_level),
         save=SaveConfig(**save), spill=args.spill,
-        workers=args.view_workers if args.view_workers is not None else cores())
+        workers=args.view_workers if args.view_workers is not None else AUTO_WORKERS)
     return cfg.reference() if args.reference_pipeline else cfg
 
 

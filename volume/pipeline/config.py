@@ -153,13 +153,14 @@ class PipelineConfig:
     spill: str = "auto"
     """Runner: where the views wait between stages (``--spill``: auto, always, never; capture/scan_store.py)."""
     workers: int = 1
-    """Runner: processes the per-view stages are mapped over (1 = in this process)."""
+    """Runner: processes the per-view stages are mapped over (1 = in this process; 0 = the machine's
+    cores where the per-view work pays for a pool, else 1: volume/pipeline/pool.workers_for)."""
 
     def __post_init__(self) -> None:
         if self.spill not in SPILL_MODES:
             raise ValueError(f"--spill must be one of {', '.join(SPILL_MODES)}, got {self.spill!r}")
-        if self.workers < 1:
-            raise ValueError(f"workers must be >= 1, got {self.workers}")
+        if self.workers < 0:
+            raise ValueError(f"workers must be >= 1 (or 0: by the pool rule), got {self.workers}")
 
     @property
     def mesh_res(self) -> int:

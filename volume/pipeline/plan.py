@@ -80,7 +80,7 @@ def plan_text(cfg: PipelineConfig | None = None, stages=STAGES) -> str:
     for r in plan_rows(cfg, stages):
         lines.append(f"{r['n']:2d}. {r['name']:<{NAME_WIDTH}} {'on ' if r['on'] else 'off'}  {r['kind']:<9}  "
                      f"{r['settings']}")
-    lines.append(f"runner: spill={cfg.spill!r}, workers={cfg.workers}")
+    lines.append(f"runner: spill={cfg.spill!r}, workers={cfg.workers or 'auto (pool rule)'}")
     return "\n".join(lines)
 
 

@@ -5,6 +5,14 @@ the thread caps are in its environment before numpy, OpenCV or numba are importe
 N workers gets ``cores // N`` threads (numba, OpenMP / BLAS, OpenCV), so that N workers on a
 machine of N cores do not fight over them.
 
+The default (``--view-workers`` not given: ``PipelineConfig.workers`` = ``AUTO_WORKERS``) starts a pool
+only where it pays (:func:`pool_pays`): starting the spawned workers and sending each view to
+them cost about 6 s on this 2-core machine, more than an 18-view 640x480 capture with its mattes
+given spends per view (16 s with two workers against 9-10 s in one process, docs/speed.md).  A
+view's work is counted in pixels, a matte that is solved (not given, not off) as
+``SOLVED_MATTE_WORK`` times its pixels; the pool starts when a view's work reaches
+``POOL_MIN_VIEW_WORK``.  An explicit ``--view-workers N`` always gets N.
+
 A task is :func:`apply_steps`: one view through a list of per-view steps ``fn(view, ref, cfg) ->
 (view, note)``.  What it hands back is small when it can be: a view no step changed comes back as
 None (the runner keeps the one it has), and a changed view is written to the spill folder in the
@@ -18,6 +26,16 @@ from __future__ import annotations
 import os
 import time
 
+#: ``PipelineConfig.workers`` value meaning "the machine's cores where a pool pays" (:func:`pool_pays`).
+AUTO_WORKERS = 0
+#: A view's work (pixels; a solved matte's pixels count SOLVED_MATTE_WORK times) from which the
+#: default starts a pool: 640x480 views with their mattes given (0.31 M) stay in one process, the same
+#: views with a matte solved (1.2 M) or any 1280x960 view (1.2 M) go to the pool.
+POOL_MIN_VIEW_WORK = 1_000_000
+#: A matte solved per view (closed form, known background) costs this many times a given matte's
+#: per-view work in pixels (measured on the 640x480 conifer: the matte stage 14-26 s for 18 views
+#: solved against 0.04 s a view given; the pool won 1.3-1.5x there).
+SOLVED_MATTE_WORK = 4.0
 #: Environment variables that set the threads of numba, OpenMP / BLAS libraries in a worker.
 THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -53,6 +71,33 @@ def peak_rss_mb() -> float:
     import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def pool_pays(pixels_per_view: float, matte_solved: bool) -> bool:
+    """Whether the default starts a pool for views of ``pixels_per_view`` (mean) whose matte is
+    solved or not (module docstring)."""
+    work = pixels_per_view * (SOLVED_MATTE_WORK if matte_solved else 1.0)
+    return work >= POOL_MIN_VIEW_WORK
+
+
+def matte_solved(mode: str, refs) -> bool:
+    """Whether the matte stage solves a matte for the views ``refs`` (capture.sources.FrameRef) in
+    matte ``mode``: not for 'off' and 'given', nor for 'auto' when every frame names its matte file
+    (an RGBA image's own alpha is not known before reading: counted as solved)."""
+    if mode in ("off", "given"):
+        return False
+    return not (mode == "auto" and refs and all(r.mask is not None for r in refs))
+
+
+def workers_for(workers: int, refs, matte_mode: str) -> int:
+    """The processes a run maps its views over: ``workers`` when given (>= 1), for AUTO_WORKERS the
+    machine's cores when the pool pays (:func:`pool_pays`) for ``refs``' mean pixels, else 1."""
+    if workers != AUTO_WORKERS:
+        return workers
+    if not refs:
+        return 1
+    pixels = sum(r.camera.width * r.camera.height for r in refs) / len(refs)
+    return cores() if pool_pays(pixels, matte_solved(matte_mode, refs)) else 1
 
 
 def init_worker(threads: int) -> None:

@@ -82,6 +82,9 @@ class Run:
         self.work, self.cfg, self.hooks = work, cfg, hooks
         self.spill, self._spill_decided = None, False
         self._pool = None
+        from volume.pipeline.pool import workers_for
+
+        self.workers = workers_for(cfg.workers, work.refs, cfg.matte.mode)
 
     # ------------------------------------------------------------------ what the stages made
     @property
@@ -177,7 +180,7 @@ class Run:
                     st.before(cfg)
         desc = f"reading {len(w.refs)} views" if from_files else ", ".join(st.name for st in todo)
         if self._pooled(len(w.refs)) and self.hooks.add is None:  # no rows from the workers' times: one row
-            with self.hooks.row(f"{', '.join(st.name for st in todo)} ({self.cfg.workers} processes)"):
+            with self.hooks.row(f"{', '.join(st.name for st in todo)} ({self.workers} processes)"):
                 scans, notes = self._map(steps, w, desc)
         else:
             scans, notes = self._map(steps, w, desc)
@@ -199,7 +202,7 @@ class Run:
         return scans, [n[0] for n in notes]
 
     def _pooled(self, n_views: int) -> bool:
-        return self.cfg.workers > 1 and n_views > 1
+        return self.workers > 1 and n_views > 1
 
     def _map(self, steps, views, description: str):
         """(kept views, per-view notes): every view through ``steps``, in this process or the pool."""
@@ -222,7 +225,7 @@ class Run:
         from volume.pipeline.pool import apply_steps, peak_rss_mb, reset_peak_rss, start_pool
 
         if self._pool is None:
-            self._pool = start_pool(self.cfg.workers)
+            self._pool = start_pool(self.workers)
         rows = steps[0][0] is not None and self.hooks.add is not None
         times, peaks = [[0.0, 0.0] for _ in steps], {}
         if rows:  # a whole-set stage's own row keeps its peak
@@ -230,7 +233,7 @@ class Run:
         t0, c0 = time.perf_counter(), time.process_time()
         queue, k = [], 0
         while k < len(items) or queue:
-            while k < len(items) and len(queue) < 2 * self.cfg.workers:
+            while k < len(items) and len(queue) < 2 * self.workers:
                 out_file = self.spill.reserve() if self.spill is not None else None
                 plain = [(fn, cfg) for _, fn, cfg, _ in _steps_of(steps, k)]
                 queue.append(self._pool.submit(apply_steps, plain, items[k], refs[k], out_file))
