@@ -34,6 +34,14 @@ MODE_AMBIGUOUS = 0.5
 FIXED_ESTIMATE_UNSEEN = True
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
+#: Frames each view's ring prediction (leave one out: the plate's error, the exposure refit) takes its
+#: robust mode from at most (evenly spaced over the capture): its cost grows with their square per
+#: pixel and with the views, so a 200-frame capture would cost 37 times a 60-frame one.  The plate
+#: itself (fixed_draw) takes every frame.  Captures of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
+FIXED_MAX_FRAMES = 64
+#: Robust mode: entries of the K x K x chunk agreement array at most (the chunk shrinks with K^2:
+#: 64 frames keep MODE_CHUNK pixels; 200 would take 3.2 GB per float temporary).
+MODE_PAIRS = 64 * 64 * MODE_CHUNK
 
 
 def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -47,10 +55,11 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple
     K, N, _ = samples.shape
     colour = np.full((N, 3), np.nan, np.float32)
     support = np.zeros(N, np.int64)
-    for lo in range(0, N, MODE_CHUNK):
-        s = samples[:, lo:lo + MODE_CHUNK].astype(np.float32)
+    chunk = max(1, min(MODE_CHUNK, MODE_PAIRS // max(1, K * K)))
+    for lo in range(0, N, chunk):
+        s = samples[:, lo:lo + chunk].astype(np.float32)
         have = np.isfinite(s[..., 0])
-        w = have.astype(np.float32) if weights is None else np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0)
+        w = have.astype(np.float32) if weights is None else np.where(have, weights[:, lo:lo + chunk], 0.0)
         e = linear_to_srgb(np.nan_to_num(s))
         close = have[:, None] & have[None]  # (K, K, n): every channel within MODE_TOL (channel by channel:
         for c in range(3):  # a (K, K, n, 3) array's max over its last axis took 3x as long)
@@ -65,8 +74,8 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple
         members &= (rival < MODE_AMBIGUOUS * score[best, cols])[None]
         n = members.sum(axis=0)
         med = nan_median(np.where(members[..., None], s, np.nan))
-        colour[lo:lo + MODE_CHUNK] = np.where((n > 0)[:, None], med, np.nan)
-        support[lo:lo + MODE_CHUNK] = n
+        colour[lo:lo + chunk] = np.where((n > 0)[:, None], med, np.nan)
+        support[lo:lo + chunk] = n
     return colour, support
 
 
@@ -83,21 +92,32 @@ def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
     return np.where(d > px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
 
 
+def mode_frames(n: int, i: int | None) -> list[int]:
+    """The frames (of ``n``, all but ``i``) whose samples the robust mode takes: every one, or
+    FIXED_MAX_FRAMES of them evenly spaced when there are more."""
+    frames = [j for j in range(n) if j != i]
+    if len(frames) <= FIXED_MAX_FRAMES:
+        return frames
+    pick = np.unique(np.round(np.linspace(0, len(frames) - 1, FIXED_MAX_FRAMES)).astype(int))
+    return [frames[k] for k in pick]
+
+
 def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gains: np.ndarray,
-                     weights: list[np.ndarray] | None = None) -> np.ndarray:
-    """(N, 3) fixed-camera plate at pixels ``pix`` (N, 2) from every frame but ``i`` (None: all), in
+                     weights: list[np.ndarray] | None = None, frames: list[int] | None = None) -> np.ndarray:
+    """(N, 3) fixed-camera plate at pixels ``pix`` (N, 2) from the ``frames`` (default every frame but
+    ``i``; None: all), in
     the common exposure (colour x gain): the robust mode (:func:`robust_mode`) of the frames' samples
     weighted by ``weights`` (default :func:`fixed_sample_weight`); NaN where fewer than
     FIXED_MIN_FRAMES agree."""
     x, y = pix[:, 0], pix[:, 1]
-    s = np.full((len(views), len(pix), 3), np.nan, np.float32)
-    w = np.zeros((len(views), len(pix)), np.float32)
-    for j, v in enumerate(views):
-        if j == i:
-            continue
-        w[j] = (fixed_sample_weight(v.object_depth) if weights is None else weights[j])[y, x]
-        ok = w[j] > 0
-        s[j, ok] = v.linear[y[ok], x[ok]] * gains[j]
+    frames = [j for j in range(len(views)) if j != i] if frames is None else frames
+    s = np.full((len(frames), len(pix), 3), np.nan, np.float32)
+    w = np.zeros((len(frames), len(pix)), np.float32)
+    for row, j in enumerate(frames):
+        v = views[j]
+        w[row] = (fixed_sample_weight(v.object_depth) if weights is None else weights[j])[y, x]
+        ok = w[row] > 0
+        s[row, ok] = v.linear[y[ok], x[ok]] * gains[j]
     col, support = robust_mode(s, w)
     col[support < FIXED_MIN_FRAMES] = np.nan
     return col
@@ -126,9 +146,11 @@ def fixed_start(ps: PlateSet) -> np.ndarray:
 
 
 def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
-    """Per view its ring (N_i, 3) predicted from every other frame (leave one out), in its own exposure."""
+    """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_MAX_FRAMES of
+    them at most, :func:`mode_frames`), in its own exposure."""
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
-    return [fixed_prediction(views, p.ring, i, gains, weights) / gains[i] for i, p in enumerate(ps.views)]
+    return [fixed_prediction(views, p.ring, i, gains, weights, mode_frames(len(views), i)) / gains[i]
+            for i, p in enumerate(ps.views)]
 
 
 def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:

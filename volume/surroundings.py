@@ -38,6 +38,7 @@ from capture.plate import PlateView, background_plates
 from capture.plate_scale import grow_plate, plate_scale, shrink_view
 from capture.scan import Scan
 from capture.scan_store import scan_has_alpha
+from capture.view_map import PerView
 
 #: Matte modes that read no plate: the plate stage is skipped for them.
 NO_PLATE_MATTES = ("off", "estimate", "backdrop")
@@ -104,15 +105,16 @@ def matte_stage(work, cfg, ctx):
     cfg = matte_given(cfg, work)
     with ctx.row("matte warm-up"):
         matte_warm_up(cfg)
+    plates = work.parts.get("plates") or {}
+    per_view = PerView([(cfg, plates.get(ref.index)) for ref in work.refs])  # a worker gets its view's plate only
     with ctx.row("matte"):
-        scans, notes = ctx.map_views(matte_one, work, (cfg, work.parts.get("plates") or {}), "matting")
+        scans, notes = ctx.map_views(matte_one, work, per_view, "matting")
     return matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
 
 
 def matte_one(view, ref, arg):
-    """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, view index -> Plate))."""
-    cfg, plates = arg
-    plate = plates.get(ref.index)
+    """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, the view's Plate or None))."""
+    cfg, plate = arg
     if plate is not None:
         plate = grow_plate(plate, *view.depth.shape[:2])
     return matte_view(view, ref, cfg, plate)

@@ -127,3 +127,28 @@ def test_plate_view_shapes_are_what_the_stage_passes():
     views, _ = ps.orbit_capture(n=2)
     v = views[0]
     assert isinstance(v, PlateView) and v.linear.shape[:2] == v.object_depth.shape == v.depth.shape
+
+
+def test_fixed_plate_of_many_frames_takes_its_mode_from_a_subset(monkeypatch):
+    """capture.plate_fixed.FIXED_MAX_FRAMES: a capture with more frames predicts each view's ring from
+    that many frames evenly spaced (the cost grows with their square); the plate stays the room, and
+    a robust mode in small chunks (MODE_PAIRS) is the same."""
+    from capture import plate_fixed
+    from capture.plate_fixed import mode_frames
+
+    assert mode_frames(5, 2) == [0, 1, 3, 4] and mode_frames(3, None) == [0, 1, 2]
+    monkeypatch.setattr(plate_fixed, "FIXED_MAX_FRAMES", 8)
+    picked = mode_frames(24, 5)
+    assert len(picked) == 8 and 5 not in picked and picked[0] == 0 and picked[-1] == 23
+    views, room, _, _ = ps.turntable_capture(n=24)
+    plates, rec = background_plates(views, PlateConfig())
+    assert rec["mode"] == "fixed"
+    err, known = ps.band_error(views, plates, [room] * len(views))
+    assert err <= TURNTABLE_TOL and known >= TURNTABLE_KNOWN_MIN, (err, known)
+    s = np.random.default_rng(0).random((12, 500, 3)).astype(np.float32)
+    s[:7] = s[0]  # seven frames agree
+    want = robust_mode(s)
+    monkeypatch.setattr(plate_fixed, "MODE_PAIRS", 12 * 12 * 7)  # chunks of 7 pixels
+    got = robust_mode(s)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
