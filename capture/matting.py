@@ -81,9 +81,10 @@ class MatteConfig:
     mode: str = "auto"
     #: Known plain backdrop, (3,) linear RGB in [0, 1] (``furrow model --backdrop``); None = none named.
     backdrop: tuple[float, float, float] | None = None
-    #: One of MATTE_RESOLUTIONS: the closed-form solve at full size, or at the working resolution
-    #: (capture.matting_scale: solved on a smaller copy, brought back by the fast guided filter).
-    resolution: str = "full"
+    #: One of MATTE_RESOLUTIONS: the solve at the working resolution (capture.matting_scale: on a
+    #: smaller copy, brought back by the fast guided filter; full size for objects under ~800 pixels),
+    #: or at full size (the reference).
+    resolution: str = "working"
     #: Width (pixels) the depth was measured at when coarser than the colour (the scan set's
     #: ``depth_size``; set by the pipeline), which the working resolution keeps twice; None = unknown.
     depth_width: int | None = None

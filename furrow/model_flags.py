@@ -134,13 +134,14 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                    help="plates you shot without the object (the same path, or a fixed camera): one image per "
                         "frame named like the frame's colour image, or one image for every frame "
                         "(capture/plate_io.py)")
-    g.add_argument("--matte-resolution", choices=["full", "working"], default="full",
-                   help="where the matte estimated from the depth (not the backdrop or plate paths) is solved: full "
-                        "(default: closed-form matting on every pixel, "
-                        "the reference) or working (capture/matting_scale.py: on a copy scaled so that the object "
-                        "keeps 640 pixels and the image twice the depth's width, alpha and colour brought back by "
-                        "a guided filter on the full-size colour; many times faster on phone frames, alpha MSE "
-                        "0.003-0.008 against full size on the path-traced conifer at half size: docs/speed.md)")
+    g.add_argument("--matte-resolution", choices=["full", "working"], default="working",
+                   help="where a solved matte (estimated from the depth, or with a known background: plate, "
+                        "backdrop) is solved: working (default; capture/matting_scale.py: on a copy scaled so that "
+                        "the object keeps 640 pixels and the image twice the depth's width, alpha brought back by a "
+                        "guided filter on the full-size colour, the colour exact at full size where the background "
+                        "is known; objects under 800 pixels, e.g. every 640x480 capture, are solved at full size "
+                        "bit for bit; alpha MSE 0.0007-0.0015 against full size on phone frames: docs/speed.md) or "
+                        "full (closed-form matting on every pixel, the reference)")
     g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
                    help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
 

@@ -130,7 +130,7 @@ def test_matte_scan_at_the_working_resolution(case, monkeypatch):
     assert m.scale == 0.5 and m.method == "estimate"
     np.testing.assert_array_equal(m.alpha, a)
     np.testing.assert_array_equal(m.foreground, f)
-    ref = matte_scan(scan, depth, MatteConfig(mode="estimate"))
+    ref = matte_scan(scan, depth, MatteConfig(mode="estimate", resolution="full"))
     assert ref.scale == 1.0
     np.testing.assert_array_equal(ref.alpha, full.alpha)
 
@@ -144,7 +144,7 @@ def test_matte_config_takes_the_depth_width_from_the_scan_set():
         metadata = {"depth_size": [256, 192]}
 
     assert matte_given(cfg, W()).depth_width == 256
-    assert matte_given(MatteConfig(), W()).depth_width is None  # full size: nothing to tie
+    assert matte_given(MatteConfig(resolution="full"), W()).depth_width is None  # full size: nothing to tie
     W.metadata = {}
     assert matte_given(cfg, W()).depth_width is None
     with pytest.raises(ValueError, match="matte resolution"):
@@ -190,6 +190,10 @@ def _working_known(case, monkeypatch, scale=0.5):
     C, B, A, D, known, tri, _ = case
     monkeypatch.setattr(matting_scale, "working_scale", lambda trimap, depth_width=None: scale)
     return solve_known(C, tri, B, known, 0.004, "plate", D > 0, MatteConfig(resolution="working"))
+
+
+def test_the_working_resolution_is_the_default():
+    assert MatteConfig().resolution == "working"
 
 
 def test_known_background_matte_at_the_working_resolution(known_case, monkeypatch):
