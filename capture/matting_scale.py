@@ -166,6 +166,19 @@ def _working_copy(img: np.ndarray, box, scale: float, background, known):
     return ci, lo, (w, h), bg_lo, known_lo
 
 
+def guided_upsample_at(guide_lo: np.ndarray, target_lo: np.ndarray, guide: np.ndarray, where: np.ndarray,
+                       r: int = GUIDE_RADIUS, eps: float = GUIDE_EPS) -> np.ndarray:
+    """:func:`guided_upsample` at the ``where`` (H, W) pixels of ``guide`` only: (N, C)."""
+    import cv2
+
+    H, W = guide.shape[:2]
+    a, b = guided_coefficients(guide_lo, target_lo, r, eps)
+    C = b.shape[2]
+    a_up = _resize(a.reshape(*a.shape[:2], C * 3), W, H, cv2.INTER_LINEAR)[where].reshape(-1, C, 3)
+    b_up = _resize(b, W, H, cv2.INTER_LINEAR)[where].reshape(-1, C)
+    return np.einsum("nci,ni->nc", a_up, np.asarray(guide, np.float32)[where]) + b_up
+
+
 def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, background: np.ndarray | None = None,
                    known: np.ndarray | None = None):
     """(alpha (H, W) float32, foreground (H, W, 3) float32, the working solve's Matte) of linear
@@ -210,6 +223,8 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     of linear ``image`` (H, W, 3), ``trimap``, ``background`` (H, W, 3) known where ``known`` (H, W),
     ``noise``) solved at ``scale`` < 1 (module docstring); None when the working trimap keeps no
     opaque pixel (an object thin all over: solve it at full size)."""
+    import cv2
+
     from capture.matting_known import (
         alpha_lower_bound,
         clipped,
@@ -228,13 +243,20 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     given = np.asarray(known, bool)[box]
     sure = given & ~clipped(ci, B)
     tri, _ = solve_trimap(ct, ci, B, sure, noise)  # the full-resolution trimap the fast path is held to
+    # the guided filter where alpha is open (the band); elsewhere alpha is the trimap's and the colour
+    # (alpha 0: the object's colour extended; opaque: the pixel's own) the working one, bilinear
+    band = tri == UNKNOWN
     target = np.concatenate([np.asarray(a_lo, np.float32)[..., None], np.asarray(f_lo, np.float32)], -1)
-    up = guided_upsample(lo, target, ci)
-    lower = np.where(sure, alpha_lower_bound(ci, B, noise), 0.0)
-    f_up = np.clip(up[..., 1:], 0.0, 1.0)
-    a = np.clip(up[..., 0], 0.0, 1.0)
+    up = guided_upsample_at(lo, target, ci, band)
+    f_up = np.clip(_resize(np.asarray(f_lo, np.float32), *ci.shape[1::-1], cv2.INTER_LINEAR), 0.0, 1.0)
+    f_up[band] = np.clip(up[:, 1:], 0.0, 1.0)
+    a = np.zeros(ct.shape, np.float32)
+    a[band] = np.clip(up[:, 0], 0.0, 1.0)
+    open_ = band & sure
+    lower = np.zeros(ct.shape, np.float32)
+    lower[open_] = alpha_lower_bound(ci[open_], B[open_], noise)
     if REFINE_WEIGHT > 0:
-        a = _refine_known(a, ci, B, f_up, lower, sure & (tri == UNKNOWN), ct >= FG, scale)
+        a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, scale)
     a = np.maximum(a, lower)
     a[tri <= BG] = 0.0
     a[tri >= FG] = 1.0

@@ -13,6 +13,7 @@ from capture.matting_scale import (
     FULL_SIZE_ABOVE,
     downscale_trimap,
     guided_upsample,
+    guided_upsample_at,
     matte_at_scale,
     working_scale,
 )
@@ -93,6 +94,15 @@ def test_guided_upsampling_is_exact_for_a_linear_function_of_the_guide():
     A, c = np.array([0.5, -0.25, 0.8]), 0.1
     got = guided_upsample(lo, (lo @ A + c)[..., None], guide, r=2, eps=1e-12)[..., 0]
     np.testing.assert_allclose(got, guide @ A + c, atol=1e-4)
+
+
+def test_guided_upsampling_at_some_pixels_is_the_same():
+    rng = np.random.default_rng(2)
+    guide = rng.random((48, 64, 3)).astype(np.float32)
+    lo, target = guide[::2, ::2], rng.random((24, 32, 2)).astype(np.float32)
+    where = rng.random((48, 64)) < 0.3
+    np.testing.assert_allclose(guided_upsample_at(lo, target, guide, where),
+                               guided_upsample(lo, target, guide)[where], atol=1e-5)
 
 
 def test_downscaled_trimap_is_sure_only_where_the_whole_footprint_is():
