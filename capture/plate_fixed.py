@@ -36,8 +36,9 @@ FIXED_ESTIMATE_UNSEEN = True
 MODE_CHUNK = 20000
 #: Frames each view's ring prediction (leave one out: the plate's error, the exposure refit) takes its
 #: robust mode from at most (evenly spaced over the capture): its cost grows with their square per
-#: pixel and with the views, so a 200-frame capture would cost 37 times a 60-frame one.  The plate
-#: itself (fixed_draw) takes every frame.  Captures of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
+#: pixel and with the views, so a 200-frame capture would cost 37 times a 60-frame one.  The plate's
+#: robust mode (fixed_draw) takes every frame; its lines' estimate (unseen_fill) these too.  Captures
+#: of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
 FIXED_MAX_FRAMES = 64
 #: Robust mode: entries of the K x K x chunk agreement array at most (the chunk shrinks with K^2:
 #: 64 frames keep MODE_CHUNK pixels; 200 would take 3.2 GB per float temporary).
@@ -178,18 +179,22 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.nda
 
 def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray) -> np.ndarray:
     """Fill ``med`` (N, 3) (the plate at pixels ``y``, ``x`` in the common exposure; NaN = unknown) in
-    place where the frames' lines give the background (capture.plate_lines); (N,) bool where they did."""
+    place where the frames' lines give the background (capture.plate_lines); (N,) bool where they did.
+    The lines take FIXED_MAX_FRAMES frames at most (:func:`mode_frames`): every candidate vertex is
+    scored against every frame, so the cost grows with the square of the frames."""
     from capture.matting import FG, depth_trimap
     from capture.plate_lines import object_palette, unseen_background
 
-    samples = np.stack([p.view.linear[y, x] * g for p, g in zip(ps.views, gains, strict=True)]).astype(np.float32)
-    opaque = np.stack([depth_trimap(p.view.object_depth)[y, x] >= FG for p in ps.views])
+    frames = mode_frames(len(ps.views), None)  # its cost grows with the square of the frames
+    views = [ps.views[j] for j in frames]
+    samples = np.stack([ps.views[j].view.linear[y, x] * gains[j] for j in frames]).astype(np.float32)
+    opaque = np.stack([depth_trimap(p.view.object_depth)[y, x] >= FG for p in views])
     pal = object_palette(samples, med, opaque)
     todo = ~np.isfinite(med[:, 0])
     est = np.zeros(len(y), bool)
     if not todo.any() or len(pal) == 0:
         return est
-    covered = np.stack([p.view.object_depth[y[todo], x[todo]] > 0 for p in ps.views])
+    covered = np.stack([p.view.object_depth[y[todo], x[todo]] > 0 for p in views])
     b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered)
     est[np.flatnonzero(todo)[np.isfinite(b[:, 0])]] = True
     med[est] = b[np.isfinite(b[:, 0])]
