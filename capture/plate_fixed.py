@@ -34,11 +34,11 @@ MODE_AMBIGUOUS = 0.5
 FIXED_ESTIMATE_UNSEEN = True
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
-#: Frames each view's ring prediction (leave one out: the plate's error, the exposure refit) takes its
-#: robust mode from at most (evenly spaced over the capture): its cost grows with their square per
-#: pixel and with the views, so a 200-frame capture would cost 37 times a 60-frame one.  The plate's
-#: robust mode (fixed_draw) takes every frame; its lines' estimate (unseen_fill) these too.  Captures
-#: of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
+#: Frames the fixed camera's robust modes take at most (evenly spaced over the capture): the plate
+#: itself (fixed_draw), its lines' estimate (unseen_fill) and each view's ring prediction (leave one
+#: out: the plate's error, the exposure refit).  A mode's cost grows with the square of the frames per
+#: pixel (a 200-frame phone capture's plate took 297 s of its 12.5 minutes with every frame); 64
+#: frames of one background are plenty.  Captures of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
 FIXED_MAX_FRAMES = 64
 #: Robust mode: entries of the K x K x chunk agreement array at most (the chunk shrinks with K^2:
 #: 64 frames keep MODE_CHUNK pixels; 200 would take 3.2 GB per float temporary).
@@ -163,7 +163,7 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.nda
     union = np.logical_or.reduce(needs)
     y, x = np.nonzero(union)
     med = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
-                           [p.weight for p in ps.views])
+                           [p.weight for p in ps.views], mode_frames(len(ps.views), None))
     est = unseen_fill(ps, gains, y, x, med) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
     out = []
     for j, p in enumerate(ps.views):

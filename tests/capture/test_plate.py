@@ -130,9 +130,9 @@ def test_plate_view_shapes_are_what_the_stage_passes():
 
 
 def test_fixed_plate_of_many_frames_takes_its_mode_from_a_subset(monkeypatch):
-    """capture.plate_fixed.FIXED_MAX_FRAMES: a capture with more frames predicts each view's ring from
-    that many frames evenly spaced (the cost grows with their square); the plate stays the room, and
-    a robust mode in small chunks (MODE_PAIRS) is the same."""
+    """capture.plate_fixed.FIXED_MAX_FRAMES: a capture with more frames draws its plate and predicts
+    each view's ring from that many frames evenly spaced (the cost grows with their square); the plate
+    (here from 8 of 24 frames) stays the room, and a robust mode in small chunks (MODE_PAIRS) is the same."""
     from capture import plate_fixed
     from capture.plate_fixed import mode_frames
 
