@@ -34,12 +34,16 @@ MODE_AMBIGUOUS = 0.5
 FIXED_ESTIMATE_UNSEEN = True
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
-#: Frames the fixed camera's robust modes take at most (evenly spaced over the capture): the plate
-#: itself (fixed_draw), its lines' estimate (unseen_fill) and each view's ring prediction (leave one
-#: out: the plate's error, the exposure refit).  A mode's cost grows with the square of the frames per
-#: pixel (a 200-frame phone capture's plate took 297 s of its 12.5 minutes with every frame); 64
-#: frames of one background are plenty.  Captures of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
+#: Frames the fixed camera's plate (its robust mode, fixed_draw) takes at most, evenly spaced over the
+#: capture: a mode's cost grows with the square of the frames per pixel (a 200-frame phone capture's
+#: plate stage took 297 s of its 12.5 minutes with every frame); 64 frames of one background are
+#: plenty.  Captures of up to FIXED_MAX_FRAMES + 1 frames: unchanged.
 FIXED_MAX_FRAMES = 64
+#: ... and the frames the per-view work takes at most: each view's ring prediction (200 views x the
+#: refit's rounds: 53 % of the phone capture's plate stage at 64 frames) and the lines' estimate
+#: (every candidate vertex against every frame: 24 %).  Captures of up to FIXED_RING_FRAMES + 1
+#: frames (the 18 kept views of a 36-view capture): unchanged.
+FIXED_RING_FRAMES = 32
 #: Robust mode: entries of the K x K x chunk agreement array at most (the chunk shrinks with K^2:
 #: 64 frames keep MODE_CHUNK pixels; 200 would take 3.2 GB per float temporary).
 MODE_PAIRS = 64 * 64 * MODE_CHUNK
@@ -93,13 +97,14 @@ def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
     return np.where(d > px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
 
 
-def mode_frames(n: int, i: int | None) -> list[int]:
+def mode_frames(n: int, i: int | None, cap: int | None = None) -> list[int]:
     """The frames (of ``n``, all but ``i``) whose samples the robust mode takes: every one, or
-    FIXED_MAX_FRAMES of them evenly spaced when there are more."""
+    ``cap`` (default FIXED_MAX_FRAMES) of them evenly spaced when there are more."""
+    cap = FIXED_MAX_FRAMES if cap is None else cap
     frames = [j for j in range(n) if j != i]
-    if len(frames) <= FIXED_MAX_FRAMES:
+    if len(frames) <= cap:
         return frames
-    pick = np.unique(np.round(np.linspace(0, len(frames) - 1, FIXED_MAX_FRAMES)).astype(int))
+    pick = np.unique(np.round(np.linspace(0, len(frames) - 1, cap)).astype(int))
     return [frames[k] for k in pick]
 
 
@@ -147,10 +152,11 @@ def fixed_start(ps: PlateSet) -> np.ndarray:
 
 
 def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
-    """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_MAX_FRAMES of
+    """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_RING_FRAMES of
     them at most, :func:`mode_frames`), in its own exposure."""
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
-    return [fixed_prediction(views, p.ring, i, gains, weights, mode_frames(len(views), i)) / gains[i]
+    return [fixed_prediction(views, p.ring, i, gains, weights, mode_frames(len(views), i, FIXED_RING_FRAMES))
+            / gains[i]
             for i, p in enumerate(ps.views)]
 
 
@@ -180,12 +186,12 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.nda
 def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray) -> np.ndarray:
     """Fill ``med`` (N, 3) (the plate at pixels ``y``, ``x`` in the common exposure; NaN = unknown) in
     place where the frames' lines give the background (capture.plate_lines); (N,) bool where they did.
-    The lines take FIXED_MAX_FRAMES frames at most (:func:`mode_frames`): every candidate vertex is
+    The lines take FIXED_RING_FRAMES frames at most (:func:`mode_frames`): every candidate vertex is
     scored against every frame, so the cost grows with the square of the frames."""
     from capture.matting import FG, depth_trimap
     from capture.plate_lines import object_palette, unseen_background
 
-    frames = mode_frames(len(ps.views), None)  # its cost grows with the square of the frames
+    frames = mode_frames(len(ps.views), None, FIXED_RING_FRAMES)  # its cost grows with frames^2
     views = [ps.views[j] for j in frames]
     samples = np.stack([ps.views[j].view.linear[y, x] * gains[j] for j in frames]).astype(np.float32)
     opaque = np.stack([depth_trimap(p.view.object_depth)[y, x] >= FG for p in views])

@@ -131,15 +131,18 @@ def test_plate_view_shapes_are_what_the_stage_passes():
 
 def test_fixed_plate_of_many_frames_takes_its_mode_from_a_subset(monkeypatch):
     """capture.plate_fixed.FIXED_MAX_FRAMES: a capture with more frames draws its plate and predicts
-    each view's ring from that many frames evenly spaced (the cost grows with their square); the plate
-    (here from 8 of 24 frames) stays the room, and a robust mode in small chunks (MODE_PAIRS) is the same."""
+    each view's ring from that many frames evenly spaced (FIXED_RING_FRAMES for the rings; the cost
+    grows with their square); the plate (here from 8 of 24 frames, the rings from 6) stays the room,
+    and a robust mode in small chunks (MODE_PAIRS) is the same."""
     from capture import plate_fixed
     from capture.plate_fixed import mode_frames
 
     assert mode_frames(5, 2) == [0, 1, 3, 4] and mode_frames(3, None) == [0, 1, 2]
     monkeypatch.setattr(plate_fixed, "FIXED_MAX_FRAMES", 8)
+    monkeypatch.setattr(plate_fixed, "FIXED_RING_FRAMES", 6)
     picked = mode_frames(24, 5)
     assert len(picked) == 8 and 5 not in picked and picked[0] == 0 and picked[-1] == 23
+    assert len(mode_frames(24, 5, 6)) == 6 and mode_frames(7, 3, 6) == [0, 1, 2, 4, 5, 6]
     views, room, _, _ = ps.turntable_capture(n=24)
     plates, rec = background_plates(views, PlateConfig())
     assert rec["mode"] == "fixed"
