@@ -25,8 +25,10 @@ FAST = ["--max-res", "16", "--mesh-level", "16", "--max-views", "1", "--supersam
 @pytest.fixture(scope="module")
 def capture(tmp_path_factory):
     ss = make_scanset(sphere_scene(), scan_ring(12, 64, 48), noise=0.0005)
-    # two kept views over-exposed by a third of a stop: --no-photometric matters
-    scans = tuple(Scan(s.linear_rgb * np.float32(1.26 if i in (2, 4) else 1.0), s.depth, s.camera, s.name)
+    # two kept views over-exposed by half a stop: --no-photometric matters (at a third of a stop, since the
+    # known-background matte's CF_EPSILON 1e-5, the fit left 2.4 of no alignment's 7.4 on these 64x48 views and
+    # the held-back check kept the views as they are)
+    scans = tuple(Scan(s.linear_rgb * np.float32(1.41 if i in (2, 4) else 1.0), s.depth, s.camera, s.name)
                   for i, s in enumerate(ss.scans))
     out = tmp_path_factory.mktemp("eval") / "sphere"
     write_transforms(ScanSet(scans, ss.bounds, ss.metadata), out, lens=LENS)
