@@ -11,9 +11,11 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
    the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
    ``SOURCE_ALPHA``: their F is (C - (1 - a) B) / a at that bound), filled outwards by a push-pull
    pyramid (:func:`push_pull`), and a palette of the view's sure foreground colours
-   (``PALETTE_SIZE``, k-means).  Per candidate P, alpha is the projection of D on P - B, clipped to
-   [bound, 1]; the candidate that explains C best (least residual) wins: sampling matting
-   (Wang & Cohen 2007; He et al. 2011) with the background a sample known exactly.
+   (``PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``).  Per
+   candidate P, alpha is the projection of D on P - B, clipped to [bound, 1]; the candidate that
+   explains C best (least residual) wins, a palette colour only by ``PALETTE_MARGIN`` over the
+   nearest sure colour: sampling matting (Wang & Cohen 2007; He et al. 2011) with the background a
+   sample known exactly.
 3. **Smooth solve.**  Those per-pixel alphas enter the closed-form matting system (Levin et al.
    2008; pymatting's Laplacian) as a data term weighted by how well the winning candidate is told
    from B (``SEPARATION``) and how well it explains C (``RESIDUAL``): (L + lambda W) a = lambda W a_hat
@@ -46,11 +48,21 @@ NOISE_ABS = 0.004
 NOISE_REL = 0.03
 #: Pixels whose alpha bound is at least this are sure foreground colour sources (step 2).
 SOURCE_ALPHA = 0.85
+#: The sure colour sources only where the background is known (step 2; the depth's opaque pixels
+#: before a blown-out window or a background no frame gave are left out: a needle over the window
+#: there is a pale mixture).  Path-traced conifer turntable, 6 kept views, the partial band's alpha
+#: MSE where B was seen / estimated, with PALETTE_MARGIN 0.02: all sources 0.0057 / 0.0062, only
+#: where B is known 0.0022 / 0.0049, leaving out only blown-out photo pixels and those before a
+#: blown-out B whose bound against it is below SOURCE_ALPHA 0.0039 / 0.0055.
+SOURCES_KNOWN_ONLY = True
 #: Refinement passes (step 2 again with the solved alphas above REFINE_ALPHA as colour sources).
 REFINE_PASSES = 0
 REFINE_ALPHA = 0.5
 #: Linear level at which a channel counts as clipped (8-bit sRGB 252).
 CLIP_LEVEL = 0.975
+#: Where the plate is blown out and the photo is not, alpha is kept above the bound against the plate
+#: (:func:`blown_bound`; the matte's alpha there is the Laplacian's, the data term still leaves it out).
+BLOWN_BOUND = True
 #: Alpha from which a pixel whose background is not known is taken as opaque (F = C).
 OPAQUE_ALPHA = 0.999
 #: Where B is unknown but the nearest known plate is at least this bright (linear, largest channel),
@@ -69,10 +81,19 @@ PALETTE_SEED = 0
 #: half weight; a residual of RESIDUAL (linear) halves it again.
 SEPARATION = 0.05
 RESIDUAL = 0.03
+#: A palette colour wins over the nearest sure colour only when its residual is smaller by this
+#: (linear): along the line from B through C every colour explains C exactly, so before a bright
+#: room the dark needle colours of the palette all fit a partial pixel within noise and the first
+#: by chance set its alpha.  Path-traced conifer turntable, 6 kept views, the partial band's alpha
+#: MSE where B was seen / estimated: margin 0 0.0067 / 0.0072, 0.01 0.0030 / 0.0055, 0.02
+#: 0.0022 / 0.0049, 0.04 and no palette 0.0022 / 0.0049-0.0050; on tests/plate_scenes.needle_composite
+#: (green needles by a brown core: the nearest sure colour is often the core's) no palette cost
+#: +20 % alpha MSE, the margin 0.02 -2 % to +1 %.
+PALETTE_MARGIN = 0.02
 #: Step 2's candidates include the colour each pixel's window of lines meets at over a textured
 #: known background (capture.matting_window), in windows of radius WINDOW_RADIUS.  Off: on the
-#: path-traced conifer turntable it changed the kept views' alpha MSE by less than 1e-4 (the window
-#: fit passed in 10-13 % of the band, its colour error 0.10 median against the nearest sure colour's
+#: path-traced conifer turntable it left the kept views' alpha MSE as it was (the fit passed its
+#: checks in 10-13 % of the band, its colour error 0.10 median against the nearest sure colour's
 #: 0.045) for 0.15 s a view; on tests/plate_scenes.needle_composite it cut alpha MSE by 10-30 %.
 WINDOW_CANDIDATE = False
 WINDOW_RADIUS = 3
@@ -169,22 +190,26 @@ def palette(colours: np.ndarray, k: int | None = None) -> np.ndarray:
 
 
 def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.ndarray,
-                    lower: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    lower: np.ndarray, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Per pixel the best of the candidate colours (step 2): (alpha_hat (h, w), confidence (h, w)).
-    ``candidates`` (K, h, w, 3): per-pixel candidate colours (a palette colour broadcast)."""
+    ``candidates`` (K, h, w, 3): per-pixel candidate colours (a palette colour broadcast); a
+    candidate after the first wins only with a residual smaller by ``margin``."""
     C = np.asarray(image, np.float64)
     B = np.asarray(background, np.float64)
     D = C - B
     best_res = np.full(C.shape[:2], np.inf)
     a_hat = np.zeros(C.shape[:2])
     sep = np.zeros(C.shape[:2])
-    for P in candidates:
+    best_cost = np.full(C.shape[:2], np.inf)
+    for k, P in enumerate(candidates):
         E = P - B
         e2 = (E * E).sum(-1)
         de = (D * E).sum(-1)
         a = np.clip(de / np.maximum(e2, 1e-9), lower, 1.0)
         res = np.sqrt(((D - a[..., None] * E) ** 2).sum(-1))
-        better = res < best_res
+        cost = res + (margin if k else 0.0)
+        better = cost < best_cost
+        best_cost = np.where(better, cost, best_cost)
         best_res = np.where(better, res, best_res)
         a_hat = np.where(better, a, a_hat)
         sep = np.where(better, np.sqrt(e2), sep)
@@ -229,9 +254,11 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     if alpha is None:
         # sure sources are taken as opaque (F = C): the depth's opaque pixels (their colour, even where
         # a gap shows the room: with them left out the candidates were the darkest needles and alpha
-        # came out 0.06 low) and the pixels whose bound says nearly opaque
+        # came out 0.06 low) and the pixels whose bound says nearly opaque; both only where the
+        # background is known: before a blown-out window or a background no frame gave, a depth-opaque
+        # pixel may be a needle over the window (white sources: issue 30 third round, docs/matting.md)
         a_src = np.ones(C.shape[:2])
-        src = opaque | (known & (lower >= SOURCE_ALPHA))
+        src = (opaque | (known & (lower >= SOURCE_ALPHA))) & (known | (not SOURCES_KNOWN_ONLY))
     else:
         a_src = np.maximum(lower, alpha)
         src = (trimap >= FG) | (a_src >= REFINE_ALPHA)
@@ -244,7 +271,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     if cands and WINDOW_CANDIDATE:
         cands += _window_candidate(C, B, known, known & unk)
     if cands:
-        a_hat, conf = candidate_alpha(C, B, np.stack(cands), lower)
+        a_hat, conf = candidate_alpha(C, B, np.stack(cands), lower, PALETTE_MARGIN)
         w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
     else:
         a_hat, w_data = np.zeros(C.shape[:2]), np.zeros(C.shape[:2])
@@ -298,6 +325,19 @@ def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
     C = a F + (1 - a) B no longer holds (the true B of a blown-out window is above 1), so B
     counts as unknown there."""
     return (np.asarray(image).max(axis=-1) >= CLIP_LEVEL) | (np.asarray(background).max(axis=-1) >= CLIP_LEVEL)
+
+
+def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, noise: float) -> np.ndarray:
+    """(h, w) least alpha at the ``where`` pixels whose plate is blown out (:func:`clipped`) but whose
+    photo is not: the true background there is at least the plate, so the bound against the plate
+    (:func:`alpha_lower_bound`; darker than it, C - B < 0, needs alpha >= (B - C) / B, which only
+    grows with B) still holds; 0 elsewhere and with BLOWN_BOUND off."""
+    C = np.asarray(image, np.float64)
+    use = np.asarray(where, bool) & (C.max(axis=-1) < CLIP_LEVEL) & (np.asarray(background).max(axis=-1) >= CLIP_LEVEL)
+    if not BLOWN_BOUND or not use.any():
+        return np.zeros(C.shape[:2])
+    B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
+    return np.where(use, alpha_lower_bound(C, B, noise), 0.0)
 
 
 def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
@@ -368,6 +408,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve):
     trimap solved, known as given (blown-out pixels included: step 4 tells them), converged)."""
     given = np.asarray(known, bool)
     known = given & ~clipped(img, background)
+    floor = blown_bound(img, background, given & ~known, noise)
     tri, opaque = solve_trimap(trimap, img, background, known, noise)
     unk_map = tri == UNKNOWN
     converged, a_prev = True, None
@@ -375,6 +416,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve):
     L = laplacian(img, unk_map) if unk_map.any() else None
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
         a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque)
+        lower = np.maximum(lower, floor)
         if L is None:
             break
         A, b, unk = _system(L, tri, a_hat, weight)

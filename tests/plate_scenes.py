@@ -136,16 +136,20 @@ def turntable_capture(n: int = 12, width: int = 96, height: int = 72, gains=None
     return views, room, alphas, F
 
 
-def needle_composite(height: int = 96, width: int = 128, n: int = 90, background=None, seed: int = 0, ss: int = 8):
+def needle_composite(height: int = 96, width: int = 128, n: int = 90, background=None, seed: int = 0, ss: int = 8,
+                     shade: float = 0.0):
     """(image C (H, W, 3), background B, true alpha (H, W), straight colour F (H, W, 3), object depth
     (H, W) float32): an opaque brown core and ``n`` green needles 0.25-1.4 px wide (mostly partial
-    pixels) over ``background`` (default :func:`room_image`); depth where the pixel centre hits."""
+    pixels) over ``background`` (default :func:`room_image`; an (H, W, 3) array is taken as it is);
+    depth where the pixel centre hits.  ``shade``: each needle's colour is scaled by its own factor
+    in [1 - shade, 1] (lit and shaded needles: colours along one direction from a bright room)."""
     rng = np.random.default_rng(seed)
     H, W = height * ss, width * ss
     yy, xx = np.meshgrid(cell_centres(H), cell_centres(W), indexing="ij")  # supersample centres
     cy, cx = H / 2, W / 2
     core = ((yy - cy) / (0.18 * H)) ** 2 + ((xx - cx) / (0.08 * W)) ** 2 < 1
     cov = core.copy()
+    lit = np.ones(cov.shape)
     for _ in range(n):
         a0 = rng.uniform(0, 2 * np.pi)
         r0 = rng.uniform(0.0, 0.35) * H
@@ -153,10 +157,15 @@ def needle_composite(height: int = 96, width: int = 128, n: int = 90, background
         ang = a0 + rng.normal(0, 0.6)
         d = rng.uniform(0.05, 0.15) * H * np.array([np.sin(ang), np.cos(ang)])
         t = np.clip(((yy - p0[0]) * d[0] + (xx - p0[1]) * d[1]) / (d @ d), 0, 1)
-        cov |= np.hypot(yy - p0[0] - t * d[0], xx - p0[1] - t * d[1]) < rng.uniform(0.25, 1.4) * ss / 2
+        line = np.hypot(yy - p0[0] - t * d[0], xx - p0[1] - t * d[1]) < rng.uniform(0.25, 1.4) * ss / 2
+        cov |= line
+        if shade:
+            lit[line & ~core] = rng.uniform(1 - shade, 1)
     alpha = cov.reshape(height, ss, width, ss).mean((1, 3))
     y, x = np.mgrid[0:height, 0:width] / height
     F = np.stack([0.08 + 0.06 * np.sin(5 * x), 0.25 + 0.15 * np.cos(4 * y), 0.05 + 0.03 * x], -1)
+    if shade:  # the mean factor of the covered subsamples
+        F = F * ((lit * cov).reshape(height, ss, width, ss).sum((1, 3)) / np.maximum(alpha * ss * ss, 1))[..., None]
     c = core.reshape(height, ss, width, ss).mean((1, 3))[..., None]
     F = F * (1 - c) + np.array([0.3, 0.12, 0.05]) * c
     B = room_image(width, height, seed) if background is None else np.broadcast_to(background, F.shape)
