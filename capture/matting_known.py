@@ -217,6 +217,32 @@ def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.nd
     return a_hat, np.where(np.isfinite(best_res), conf, 0.0)
 
 
+def colour_sources(opaque: np.ndarray, known: np.ndarray, lower: np.ndarray) -> np.ndarray:
+    """(h, w) bool: step 2's sure foreground colour sources, taken as opaque (F = C): the depth's
+    ``opaque`` pixels (their colour, even where a gap shows the room: with them left out the
+    candidates were the darkest needles and alpha came out 0.06 low) and the pixels whose bound
+    ``lower`` says nearly opaque (SOURCE_ALPHA); both only where the background is ``known``
+    (SOURCES_KNOWN_ONLY): before a blown-out window or a background no frame gave, a depth-opaque
+    pixel may be a needle over the window (white sources: issue 30 third round, docs/matting.md).
+    Shared by the full-size path (:func:`data_term`) and the working-resolution one
+    (capture.matting_scale)."""
+    known = np.asarray(known, bool)
+    src = np.asarray(opaque, bool) | (known & (np.asarray(lower) >= SOURCE_ALPHA))
+    return src & known if SOURCES_KNOWN_ONLY else src
+
+
+def fit_candidates(image: np.ndarray, background: np.ndarray, nearest: np.ndarray, sources: np.ndarray,
+                   lower: np.ndarray, extra=()) -> tuple[np.ndarray, np.ndarray]:
+    """Step 2's choice (:func:`candidate_alpha`): (alpha_hat, confidence) of ``image`` (..., 3) before
+    ``background`` from the nearest sure colour ``nearest`` (same shape) first, then the palette of
+    the sources' colours ``sources`` (N, 3) and any ``extra`` candidates (same shape as ``image``),
+    each of which wins over it only by PALETTE_MARGIN.  Shared by the full-size path and the
+    working-resolution one (capture.matting_scale)."""
+    shape = np.shape(image)
+    cands = [nearest] + [np.broadcast_to(p, shape) for p in palette(sources)] + list(extra)
+    return candidate_alpha(image, background, np.stack(cands), lower, PALETTE_MARGIN)
+
+
 def widen_trimap(trimap: np.ndarray, lower: np.ndarray, known: np.ndarray) -> np.ndarray:
     """``trimap`` with its background pixels near the unknown band (:func:`widen_px` of its width)
     made unknown where the known background cannot explain them (alpha bound above WIDEN_ALPHA)."""
@@ -252,26 +278,16 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     opaque = (trimap >= FG) if opaque is None else (np.asarray(opaque, bool) | (trimap >= FG))
     lower = np.where(known, alpha_lower_bound(C, B, noise), 0.0)
     if alpha is None:
-        # sure sources are taken as opaque (F = C): the depth's opaque pixels (their colour, even where
-        # a gap shows the room: with them left out the candidates were the darkest needles and alpha
-        # came out 0.06 low) and the pixels whose bound says nearly opaque; both only where the
-        # background is known: before a blown-out window or a background no frame gave, a depth-opaque
-        # pixel may be a needle over the window (white sources: issue 30 third round, docs/matting.md)
         a_src = np.ones(C.shape[:2])
-        src = (opaque | (known & (lower >= SOURCE_ALPHA))) & (known | (not SOURCES_KNOWN_ONLY))
+        src = colour_sources(opaque, known, lower)
     else:
         a_src = np.maximum(lower, alpha)
         src = (trimap >= FG) | (a_src >= REFINE_ALPHA)
     Fs = np.clip(np.where(known[..., None], B + (C - B) / np.maximum(a_src, 1e-6)[..., None], C), 0.0, 1.0)
-    cands = []
-    if src.any():
-        cands.append(push_pull(Fs, src.astype(np.float64)))
-        cands += [np.broadcast_to(p, C.shape) for p in palette(Fs[src])]
     unk = trimap == UNKNOWN
-    if cands and WINDOW_CANDIDATE:
-        cands += _window_candidate(C, B, known, known & unk)
-    if cands:
-        a_hat, conf = candidate_alpha(C, B, np.stack(cands), lower, PALETTE_MARGIN)
+    if src.any():
+        extra = _window_candidate(C, B, known, known & unk) if WINDOW_CANDIDATE else []
+        a_hat, conf = fit_candidates(C, B, push_pull(Fs, src.astype(np.float64)), Fs[src], lower, extra)
         w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
     else:
         a_hat, w_data = np.zeros(C.shape[:2]), np.zeros(C.shape[:2])

@@ -27,7 +27,10 @@ plate and backdrop paths): alpha is solved on the working copy (image, trimap, b
 it is known, all downscaled) and brought back by the fast guided filter, and the trimap it is held
 to at full resolution is the known-background path's own (widened where the background cannot
 explain a pixel, opaque pixels open where the background is known), with alpha kept above the
-full-resolution bound of the compositing equation.  The colour is then made **at full
+full-resolution bound of the compositing equation (and, where the plate is blown out and the photo
+is not, the bound against the plate: capture.matting_known.blown_bound).  Before that each pixel's
+own alpha is pulled in by step 2 of capture.matting_known at full resolution, with the full-size
+path's candidates and rule (its colour_sources and fit_candidates, shared).  The colour is then made **at full
 resolution** where the background is known: F = B + (C - B) / alpha exactly, so the premultiplied
 colour alpha F = C - (1 - alpha) B reproduces the photo (capture.matting_known.foreground_colour,
 step 4); only where the background is not known does the upsampled working colour stand in for
@@ -227,6 +230,7 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
 
     from capture.matting_known import (
         alpha_lower_bound,
+        blown_bound,
         clipped,
         known_background_matte,
         solve_trimap,
@@ -256,8 +260,9 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     lower = np.zeros(ct.shape, np.float32)
     lower[open_] = alpha_lower_bound(ci[open_], B[open_], noise)
     if REFINE_WEIGHT > 0:
-        a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, scale)
-    a = np.maximum(a, lower)
+        a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, sure, scale)
+    # the full-size path's alpha floor where the plate is blown out and the photo is not
+    a = np.maximum(np.maximum(a, lower), blown_bound(ci, B, band & given & ~sure, noise))
     a[tri <= BG] = 0.0
     a[tri >= FG] = 1.0
     F = _full_colour(ci, a, B, given, f_up)
@@ -265,21 +270,23 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
 
 
 def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up: np.ndarray, lower: np.ndarray,
-                  where: np.ndarray, opaque: np.ndarray, scale: float) -> np.ndarray:
+                  where: np.ndarray, opaque: np.ndarray, known: np.ndarray, scale: float) -> np.ndarray:
     """The upsampled alpha ``a`` (h, w) pulled, at the ``where`` pixels (known background, unknown),
-    towards each pixel's own alpha from the compositing equation (capture.matting_known.candidate_alpha)
-    by REFINE_WEIGHT x its confidence.  The candidate colours are the full-resolution path's (step 2 of
-    capture.matting_known): the nearest sure colour (the depth's ``opaque`` pixels and those whose
-    bound is above SOURCE_ALPHA, their own colour; filled outwards by a push-pull pyramid from
-    ``scale``) and a palette of the sure colours, with the upsampled colour ``f_up``."""
+    towards each pixel's own alpha from the compositing equation by REFINE_WEIGHT x its confidence.
+    The candidates and the rule that picks one are the full-size path's (step 2 of
+    capture.matting_known: :func:`~capture.matting_known.colour_sources`, the depth's ``opaque``
+    pixels and those whose bound is above SOURCE_ALPHA, only where the background is ``known``;
+    :func:`~capture.matting_known.fit_candidates`, the nearest sure colour, filled outwards by a
+    push-pull pyramid from ``scale``, before the palette of the sure colours, which wins only by
+    PALETTE_MARGIN), with the upsampled colour ``f_up`` one more candidate behind the same margin."""
     import cv2
 
-    from capture.matting_known import SOURCE_ALPHA, candidate_alpha, palette, push_pull
+    from capture.matting_known import candidate_alpha, colour_sources, fit_candidates, push_pull
 
     if not where.any():
         return a
-    src = opaque | ((lower >= SOURCE_ALPHA) & where)
-    cands = [f_up[where]]
+    src = colour_sources(opaque, known, lower)
+    C, B, lo = image[where][:, None], background[where][:, None], lower[where][:, None]
     if src.any():
         h, w = a.shape
         lo_w, lo_h = max(1, round(w * scale)), max(1, round(h * scale))
@@ -287,9 +294,9 @@ def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up
         v = _resize(image * src[..., None], lo_w, lo_h, cv2.INTER_AREA) / np.maximum(wt, 1e-6)[..., None]
         near = _resize(np.asarray(push_pull(v, np.minimum(wt, 1.0)), np.float32), w, h, cv2.INTER_LINEAR)
         near = np.where(src[..., None], image, near)
-        cands += [near[where]] + [np.broadcast_to(p, cands[0].shape) for p in palette(image[src])]
-    C, B = image[where], background[where]
-    a_px, conf = candidate_alpha(C[:, None], B[:, None], np.stack(cands)[:, :, None], lower[where][:, None])
+        a_px, conf = fit_candidates(C, B, near[where][:, None], image[src], lo, [f_up[where][:, None]])
+    else:
+        a_px, conf = candidate_alpha(C, B, f_up[where][None, :, None], lo)
     wgt = REFINE_WEIGHT * conf[:, 0]
     out = a.copy()
     out[where] = (a[where] + wgt * a_px[:, 0]) / (1.0 + wgt)
