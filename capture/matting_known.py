@@ -11,7 +11,8 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
    the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
    ``SOURCE_ALPHA``: their F is (C - (1 - a) B) / a at that bound), filled outwards by a push-pull
    pyramid (:func:`push_pull`), and a palette of the view's sure foreground colours
-   (``PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``).  Per
+   (``PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``;
+   :func:`colour_sources` and :func:`fit_candidates`, shared with capture.matting_scale).  Per
    candidate P, alpha is the projection of D on P - B, clipped to [bound, 1]; the candidate that
    explains C best (least residual) wins, a palette colour only by ``PALETTE_MARGIN`` over the
    nearest sure colour: sampling matting (Wang & Cohen 2007; He et al. 2011) with the background a
