@@ -174,8 +174,9 @@ class Run:
         """A whole-set stage's row of the stage table (the command's ``hooks.row``); its peak memory
         is the main process's plus, when its per-view passes ran in the pool, each worker's peak in
         them (an upper bound, as for the per-view stages: :meth:`_rows`)."""
-        from volume.pipeline.pool import peak_rss_mb
+        from volume.pipeline.pool import peak_rss_mb, release_free_memory
 
+        release_free_memory()  # what earlier stages freed is not this row's
         outer, self._set_peaks = self._set_peaks, {}
         try:
             with self.hooks.row(name):
