@@ -38,7 +38,7 @@ background, the plate is unknown and the matte falls back to the estimate withou
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
@@ -240,8 +240,9 @@ class PreparedView:
     """One view as every plate path reads it, worked out once (:func:`prepare`).
 
     Attributes:
-        view: the view.
-        source: (H, W) bool, confidently background (:func:`source_mask`).
+        view: the view, without its capture's ``depth`` (None: ``background_depth`` holds what is read).
+        source: (H, W) bool, confidently background (:func:`source_mask`); None once a path that does
+            not read it is chosen (:meth:`PlateSet.for_path`, as ``background_depth``).
         need: (H, W) bool, where the matte may ask for the plate (:func:`need_mask`).
         ring: (N, 2) int (x, y) of its held-back ring (:func:`ring_pixels`).
         observed: (N, 3) float64 its linear colour on the ring.
@@ -282,6 +283,19 @@ class PlateSet:
     def cameras(self) -> list[Camera]:
         return [p.view.camera for p in self.views]
 
+    def for_path(self, path: str) -> PlateSet:
+        """The set with only what ``path`` reads (:data:`PATH_READS`): the chosen path's gains refit
+        and drawing no longer hold the other path's per-view arrays (at 200 phone views the room
+        depths alone are 8 bytes a working pixel)."""
+        drop = {k: None for k in PATH_ONLY if k not in PATH_READS[path]}
+        return replace(self, views=tuple(replace(p, **drop) for p in self.views))
+
+
+#: The per-view arrays of a PreparedView that one path alone reads (the rest every path reads) ...
+PATH_ONLY = ("source", "background_depth", "room", "weight")
+#: ... and which of them each path reads (PlateSet.for_path drops the others once the path is chosen).
+PATH_READS = {"fixed": ("weight",), "panorama": ("source", "background_depth", "room")}
+
 
 def _paths(cfg: PlateConfig) -> tuple[str, ...]:
     """The paths background_plates tries: both in 'auto', else the one forced."""
@@ -306,18 +320,21 @@ def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> P
         room = room_depth(bgd, band, off)
     weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
     observed = np.asarray(v.linear[ring[:, 1], ring[:, 0]], np.float64)
-    return PreparedView(v, src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
+    # the capture's depth is read here only (background_depth keeps what the paths need of it)
+    return PreparedView(replace(v, depth=None), src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
 
 
-def plate_set(views: list[PlateView], plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,
+def plate_set(views, plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,
               cfg: PlateConfig) -> PlateSet:
-    """Every view prepared (:func:`prepare`) for the paths ``cfg`` tries; ``focus`` default
+    """Every view prepared (:func:`prepare`) for the paths ``cfg`` tries; ``views``: PlateViews, any
+    iterable (read once, so that a generator's views need not all wait at once); ``focus`` default
     capture.extent.focus_region of the cameras."""
     from capture.extent import focus_region
 
-    focus = focus or focus_region([v.camera for v in views])
     paths = _paths(cfg)
-    return PlateSet(tuple(prepare(v, plane, paths) for v in views), plane, focus, int(cfg.neighbours))
+    prepared = tuple(prepare(v, plane, paths) for v in views)
+    focus = focus or focus_region([p.view.camera for p in prepared])
+    return PlateSet(prepared, plane, focus, int(cfg.neighbours))
 
 
 def path_functions(path: str):
@@ -376,27 +393,34 @@ def choose_mode(errors: dict) -> str:
     return min(score, key=lambda m: score[m])
 
 
-def background_plates(views: list[PlateView], cfg: PlateConfig | None = None, plane: np.ndarray | None = None,
+def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray | None = None,
                       focus: tuple[np.ndarray, float] | None = None,
-                      user: list[np.ndarray] | None = None) -> tuple[list[Plate | None], dict]:
+                      user: list[np.ndarray] | None = None, crop: bool = False) -> tuple[list[Plate | None], dict]:
     """(per view its Plate, or None for mode 'off'; record for model.json / the console) (module
-    docstring).  ``plane``: the support plane (capture.extent, (4,) or None); ``focus``: (centre,
-    radius) of the region the rig looks at (default capture.extent.focus_region); ``user``: per
-    view a (H, W, 3) linear plate the user shot (capture.plate_io)."""
+    docstring).  ``views``: a list of PlateViews (mode 'off', user plates), else any iterable of them
+    (read once: :func:`plate_set`).  ``plane``: the support plane (capture.extent, (4,) or None);
+    ``focus``: (centre, radius) of the region the rig looks at (default capture.extent.focus_region);
+    ``user``: per view a (H, W, 3) linear plate the user shot (capture.plate_io); ``crop``: each plate
+    cropped to its known box (:meth:`Plate.cropped`) as soon as it is drawn, so that full-frame plates
+    never wait together (the same plates as cropping them afterwards)."""
     cfg = cfg or PlateConfig()
     if cfg.mode == "off":
         return [None] * len(views), {"mode": "off"}
     if cfg.mode == "user" and user is None:
         raise ValueError("--plate user needs --background-plates DIR")
     if user is not None and cfg.mode in ("auto", "user"):
-        return _user_plates(views, user)
+        plates, rec = _user_plates(views, user)
+        return ([p.cropped() for p in plates] if crop else plates), rec
     ps = plate_set(views, plane, focus, cfg)
     trials = {path: _trial(ps, path) for path in _paths(cfg)}
     mode = choose_mode({path: t.errors for path, t in trials.items()})
+    ps = ps.for_path(mode)
     fit = refit(ps, mode, trials[mode])
-    made = path_functions(mode)[2](ps, fit.gains)
-    plates = [_plate(p.view, m[0], m[1], err, mode, m[2] if len(m) > 2 else None)
-              for p, m, err in zip(ps.views, made, fit.errors, strict=True)]
+    made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time
+    plates = []
+    for p, m, err in zip(ps.views, made, fit.errors, strict=True):
+        plate = _plate(p.view, m[0], m[1], err, mode, m[2] if len(m) > 2 else None)
+        plates.append(plate.cropped() if crop else plate)
     return plates, _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
 
 
@@ -419,7 +443,7 @@ def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, f
     band = depth_trimap(v.object_depth) == UNKNOWN
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
-    return Plate(col.astype(np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
+    return Plate(np.asarray(col, np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
                  err[0], err[1], band_estimated=est, estimated=estimated)
 
 

@@ -44,9 +44,11 @@ FIXED_MAX_FRAMES = 64
 #: (every candidate vertex against every frame: 24 %).  Captures of up to FIXED_RING_FRAMES + 1
 #: frames (the 18 kept views of a 36-view capture): unchanged.
 FIXED_RING_FRAMES = 32
-#: Robust mode: entries of the K x K x chunk agreement array at most (the chunk shrinks with K^2:
-#: 64 frames keep MODE_CHUNK pixels; 200 would take 3.2 GB per float temporary).
-MODE_PAIRS = 64 * 64 * MODE_CHUNK
+#: Robust mode: entries of the K x K x chunk agreement array at most (the chunk shrinks with K^2;
+#: 200 frames at MODE_CHUNK pixels would take 3.2 GB per float temporary).  64 frames take 5,000
+#: pixels a chunk: its float32 temporaries 82 MB each (at 20,000 they were 328 MB, a third of the
+#: phone capture's plate stage peak above its views); the result does not depend on the chunk.
+MODE_PAIRS = 64 * 64 * 5000
 
 
 def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -160,10 +162,10 @@ def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
             for i, p in enumerate(ps.views)]
 
 
-def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Per view (colour (H, W, 3) float32 in its own exposure, known (H, W), estimated (H, W)) of the
-    fixed-camera plate on the union of the views' need masks (module docstring): one robust mode per
-    pixel; where that finds none, the background solved from the frames' lines
+def fixed_draw(ps: PlateSet, gains: np.ndarray):
+    """Per view, one at a time (an iterator), (colour (H, W, 3) float32 in its own exposure, known
+    (H, W), estimated (H, W)) of the fixed-camera plate on the union of the views' need masks
+    (module docstring): one robust mode per pixel; where that finds none, the background solved from the frames' lines
     (:func:`unseen_fill`; ``estimated``, a subset of ``known``)."""
     needs = [p.need for p in ps.views]
     union = np.logical_or.reduce(needs)
@@ -171,16 +173,19 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.nda
     med = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
                            [p.weight for p in ps.views], mode_frames(len(ps.views), None))
     est = unseen_fill(ps, gains, y, x, med) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
-    out = []
+    return _fixed_views(ps, gains, needs, union.shape, y, x, med, est)
+
+
+def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est):
+    """fixed_draw's plates, one view at a time (a generator: the caller may crop each before the next)."""
     for j, p in enumerate(ps.views):
         col = np.zeros(p.view.linear.shape, np.float32)
         col[y, x] = np.nan_to_num(med / gains[j])
-        known = np.zeros(union.shape, bool)
+        known = np.zeros(shape, bool)
         known[y, x] = np.isfinite(med[:, 0])
-        estimated = np.zeros(union.shape, bool)
+        estimated = np.zeros(shape, bool)
         estimated[y, x] = est
-        out.append((col, known & needs[j], estimated & needs[j]))
-    return out
+        yield col, known & needs[j], estimated & needs[j]
 
 
 def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray) -> np.ndarray:

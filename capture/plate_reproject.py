@@ -207,10 +207,10 @@ def panorama_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     return [panorama_prediction(ps, i, p.ring, src) for i, p in enumerate(ps.views)]
 
 
-def panorama_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per view (colour (H, W, 3) float32 in its exposure, known (H, W)) on its need mask."""
+def panorama_draw(ps: PlateSet, gains: np.ndarray):
+    """Per view, one at a time (a generator), (colour (H, W, 3) float32 in its exposure, known (H, W))
+    on its need mask."""
     src = panorama_sources(ps, gains)
-    out = []
     for i, p in enumerate(ps.views):
         y, x = np.nonzero(p.need)
         col = panorama_prediction(ps, i, np.stack([x, y], axis=1), src)
@@ -219,5 +219,4 @@ def panorama_draw(ps: PlateSet, gains: np.ndarray) -> list[tuple[np.ndarray, np.
         known = np.zeros(p.need.shape, bool)
         img[y[ok], x[ok]] = col[ok]
         known[y[ok], x[ok]] = True
-        out.append((img, known))
-    return out
+        yield img, known

@@ -144,15 +144,43 @@ def _block(depth, glo, guide, rows, sx, sy):
     return out, n_none + len(dwin), n_colour, n_none + int(np.count_nonzero(dwin <= 0))
 
 
-def upsample_depth(depth: np.ndarray, guide: np.ndarray) -> tuple[np.ndarray, ResampleStats]:
+def upsample_depth(depth: np.ndarray, guide: np.ndarray, fast: bool = True) -> tuple[np.ndarray, ResampleStats]:
     """Edge-aware resampling of a low-resolution z-depth map to the colour camera (module docstring).
 
     Args:
         depth: (h, w) float z-depth in metres, 0 = no measurement.
         guide: (H, W, 3) colour of the same view, float in [0, 1] (sRGB-encoded values).
+        fast: the compiled loop (capture.resample_kernel), else the vectorised numpy path
+            (:func:`upsample_depth_numpy`, its twin: the same depth, tests/capture/test_resample.py).
     Returns:
         (H, W) float32 depth in metres (0 = none) and the :class:`ResampleStats`.
     """
+    if not fast:
+        return upsample_depth_numpy(depth, guide)
+    from capture.resample_kernel import upsample_depth_kernel
+
+    depth, guide, (h, w), (H, W), (sx, sy), glo = _inputs(depth, guide)
+    out, edge, colour, holes = upsample_depth_kernel(depth, glo, guide, sx, sy, DISCONTINUITY_REL, SIGMA_SPATIAL,
+                                                     SIGMA_COLOUR)
+    return out, ResampleStats((w, h), (W, H), (sx, sy), edge, colour, holes)
+
+
+def _inputs(depth, guide):
+    """(depth float64 with 0 for none, guide float32, (h, w), (H, W), (sx, sy), the guide averaged
+    over each depth pixel) of :func:`upsample_depth`'s arguments; ResampleError on bad shapes."""
+    depth = np.asarray(depth, np.float64)
+    guide = np.asarray(guide, np.float32)
+    if depth.ndim != 2 or guide.ndim != 3 or guide.shape[2] != 3:
+        raise ResampleError(f"expected (h, w) depth and (H, W, 3) colour, got {depth.shape} and {guide.shape}")
+    h, w = depth.shape
+    H, W = guide.shape[:2]
+    sx, sy = depth_scale((h, w), (H, W))
+    depth = np.where(np.isfinite(depth) & (depth > 0), depth, 0.0)
+    return depth, guide, (h, w), (H, W), (sx, sy), _guide_lo(guide, w, h)
+
+
+def upsample_depth_numpy(depth: np.ndarray, guide: np.ndarray) -> tuple[np.ndarray, ResampleStats]:
+    """:func:`upsample_depth` vectorised in numpy blocks of BLOCK_ROWS rows (the compiled loop's twin)."""
     depth = np.asarray(depth, np.float64)
     guide = np.asarray(guide, np.float32)
     if depth.ndim != 2 or guide.ndim != 3 or guide.shape[2] != 3:

@@ -69,25 +69,21 @@ def plate_stage(work, cfg, ctx):
     captured = work.parts.get("captured") or work.scans
     plane, focus = work.parts.get("support") or (None, None)
     user = None if cfg.plates_dir is None else read_user_plates(cfg.plates_dir, work.scans)
-    views, scale = _plate_views(work.scans, captured, len(work.refs), user is None)
-    plates, rec = background_plates(views, cfg, plane, focus, user)
-    del views
+    scale = plate_scale(len(work.refs), *work.scans[0].depth.shape[:2]) if user is None and work.scans else 1.0
+    views = _plate_views(work.scans, captured, scale)
+    plates, rec = background_plates(views if user is None else list(views), cfg, plane, focus, user, crop=True)
     if scale < 1.0:
         rec = {**rec, "working_scale": round(scale, 4)}
-    store = {ref.index: p.cropped() for ref, p in zip(work.refs, plates, strict=True)}
+    store = dict(zip((ref.index for ref in work.refs), plates, strict=True))
     return work.made(plates=store, captured=None).record("background plate", rec)
 
 
-def _plate_views(scans, captured, n: int, may_shrink: bool) -> tuple[list[PlateView], float]:
-    """The plate stage's views, read one by one and shrunk to the working scale of
-    capture.plate_scale when all ``n`` at full size would pass its memory budget (never for user
-    plates, which are at the views' size); (views, scale)."""
-    views, scale = [], 1.0
+def _plate_views(scans, captured, scale: float):
+    """The plate stage's views, read one at a time (a generator) and shrunk to ``scale`` (the working
+    scale of capture.plate_scale: below 1 when all the views at full size would pass its memory
+    budget; never for user plates, which are at the views' size)."""
     for s, c in zip(scans, captured, strict=True):
-        if not views and may_shrink:
-            scale = plate_scale(n, *s.depth.shape[:2])
-        views.append(shrink_view(PlateView(s.camera, s.linear_rgb.astype(np.float16), s.depth, c.depth), scale))
-    return views, scale
+        yield shrink_view(PlateView(s.camera, s.linear_rgb.astype(np.float16), s.depth, c.depth), scale)
 
 
 def _all_plain(scans) -> bool:

@@ -155,3 +155,57 @@ def test_fixed_plate_of_many_frames_takes_its_mode_from_a_subset(monkeypatch):
     got = robust_mode(s)
     np.testing.assert_array_equal(got[0], want[0])
     np.testing.assert_array_equal(got[1], want[1])
+
+
+def _same_plate(a, b):
+    assert a.frame == b.frame and a.method == b.method
+    np.testing.assert_array_equal(a.background, b.background)
+    np.testing.assert_array_equal(a.known, b.known)
+    assert (a.estimated is None) == (b.estimated is None)
+    if a.estimated is not None:
+        np.testing.assert_array_equal(a.estimated, b.estimated)
+    assert (a.noise, a.band_known, a.band_estimated) == (b.noise, b.band_known, b.band_estimated)
+    np.testing.assert_array_equal([a.error, a.error_rmse], [b.error, b.error_rmse])
+
+
+@pytest.mark.parametrize("scene", ["turntable", "orbit"])
+def test_plates_cropped_as_drawn_from_views_read_once_are_the_same(scene):
+    """The plate stage's lean path (issue 32's 4 GB): views from a generator (read once), the other
+    path's arrays dropped once a path is chosen, each plate cropped as soon as it is drawn: the same
+    plates, bit for bit, as every view in a list and the full plates cropped afterwards."""
+    from capture.plate import PATH_ONLY, PATH_READS, plate_set
+
+    if scene == "turntable":
+        views, _, _, _ = ps.turntable_capture(n=12)
+        plane = None
+    else:
+        views, _ = ps.orbit_capture(n=12)
+        plane = np.array([0.0, 0.0, 1.0, -ps.TABLE_Z])
+    full, rec_full = background_plates(views, PlateConfig(), plane)
+    lean, rec = background_plates((v for v in views), PlateConfig(), plane, crop=True)
+    assert rec == rec_full and rec["mode"] == ("fixed" if scene == "turntable" else "panorama")
+    for a, b in zip(lean, full, strict=True):
+        assert a.frame is not None
+        _same_plate(a, b.cropped())
+    # what the chosen path keeps: its own arrays, none of the other's, and no capture depth
+    kept = plate_set(views, plane, None, PlateConfig()).for_path(rec["mode"]).views[0]
+    assert kept.view.depth is None
+    assert all((getattr(kept, k) is not None) == (k in PATH_READS[rec["mode"]]) for k in PATH_ONLY if k != "room")
+
+
+def test_robust_mode_with_weights_does_not_depend_on_the_chunk(monkeypatch):
+    """capture.plate_fixed.MODE_PAIRS bounds the robust mode's temporaries; the weighted mode is the
+    same bit for bit in any chunk."""
+    from capture import plate_fixed
+
+    rng = np.random.default_rng(4)
+    s = rng.random((40, 900, 3)).astype(np.float32)
+    s[:15] = s[0] + rng.normal(0.0, 0.002, (15, 900, 3)).astype(np.float32)
+    s[rng.random((40, 900)) < 0.2] = np.nan
+    w = rng.random((40, 900)).astype(np.float32)
+    want = robust_mode(s, w)
+    for pairs in (40 * 40 * 7, 40 * 40 * 333):
+        monkeypatch.setattr(plate_fixed, "MODE_PAIRS", pairs)
+        got = robust_mode(s, w)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])

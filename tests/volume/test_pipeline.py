@@ -127,6 +127,28 @@ def test_process_workers_give_the_same_views(capture):
             np.testing.assert_array_equal(x, y)
 
 
+def test_whole_set_rows_count_their_workers_memory(capture):
+    """Issue 32's peak: a whole-set stage whose per-view passes ran in the pool (extent, the matte)
+    has the workers' peaks added to its row (each worker's own peak in the row: an upper bound); a
+    stage that sends nothing to the pool (the plate, the fuse levels) keeps the main process's."""
+    from furrow.console import StageTimer
+
+    upto = STAGES[:ORDER.index("matte") + 1]
+    timer = StageTimer()
+    added = {}
+
+    def add(name, seconds, cpu, peak):
+        added[name] = peak
+        timer.add(name, seconds, cpu, peak)
+
+    hooks = Hooks(row=timer.stage, add=add)
+    with run_pipeline(open_source(capture), PipelineConfig(workers=2), hooks, upto):
+        pass
+    assert {"extent", "matte"} <= set(added) and "background plate" not in added and "working scale" not in added
+    for name in ("extent", "matte"):
+        assert timer.peak_mb[name] == added[name] > 0
+
+
 @dataclass(frozen=True)
 class ToyConfig:
     """A toy stage's settings."""

@@ -73,6 +73,22 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def release_free_memory() -> bool:
+    """Hand the C heap's free pages back to the system (glibc ``malloc_trim``); False where there is
+    none.  numpy's arrays of a few MB come from the heap once glibc's mmap threshold has grown
+    past them, so after a stage that made and freed many (the plate stage's views and plates) the
+    process kept them as its own: in the 60-view phone capture the main process entered the matte
+    stage at 2012 MiB without it and at 486 MiB with it (docs/speed.md)."""
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    try:
+        return bool(ctypes.CDLL(name).malloc_trim(0)) if name else False
+    except (OSError, AttributeError):
+        return False
+
+
 def pool_pays(pixels_per_view: float, matte_solved: bool) -> bool:
     """Whether the default starts a pool for views of ``pixels_per_view`` (mean) whose matte is
     solved or not (module docstring)."""
@@ -124,6 +140,7 @@ def apply_steps(steps, view, ref, out_file=None):
 
         cv2.setNumThreads(int(os.environ.get("OMP_NUM_THREADS", "1")))
         os.environ["_FURROW_CV_THREADS_SET"] = "1"
+    release_free_memory()  # the last task's freed pages: not this task's peak
     reset_peak_rss()
     start, notes, times = view, [], []
     for fn, cfg in steps:

@@ -14,13 +14,16 @@ or the robust box of the depth, and the metadata of what reading did (capture/so
 worker as its file name and comes back as one (the worker reads and writes the spill folder), a
 view in memory goes and comes back pickled, and the results are kept in view order, so the model
 is the same as with one process.  The per-view stages' rows of the stage table are made from the
-workers' own times: each stage's share of their summed wall time, of the pool's wall time.
+workers' own times: each stage's share of their summed wall time, of the pool's wall time.  A
+row's peak memory counts the workers too: the main process's peak plus each worker's peak in the
+row's views (an upper bound), for the per-view stages and for the whole-set stages' passes in
+the pool (extent, matte, photometric, RGBz).
 """
 
 from __future__ import annotations
 
 import time
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
@@ -82,6 +85,7 @@ class Run:
         self.work, self.cfg, self.hooks = work, cfg, hooks
         self.spill, self._spill_decided = None, False
         self._pool = None
+        self._set_peaks = None  # in a whole-set stage: its workers' peak MiB by process id
         from volume.pipeline.pool import workers_for
 
         self.workers = workers_for(cfg.workers, work.refs, cfg.matte.mode)
@@ -124,7 +128,7 @@ class Run:
 
     def context(self) -> Context:
         self._decide_spill()
-        return Context(self.cfg, self.keep, self.hooks.row, self.hooks.progress,
+        return Context(self.cfg, self.keep, self.row, self.hooks.progress,
                        self.spill.path if self.spill is not None else None, self.map_views)
 
     # ------------------------------------------------------------------ running
@@ -157,13 +161,34 @@ class Run:
         self.work = replace(w, refs=tuple(w.refs[k] for k in kept), scans=scans).record(st.name, rec)
 
     def whole(self, st, cfg) -> None:
-        """A whole-set stage, in its row (or its own rows)."""
+        """A whole-set stage, in its row (or its own rows), each row through :meth:`row`."""
         ctx = self.context()
         if st.rows:
             self.work = st.fn(self.work, cfg, ctx)
             return
-        with self.hooks.row(st.row_name(self.cfg)):
+        with self.row(st.row_name(self.cfg)):
             self.work = st.fn(self.work, cfg, ctx)
+
+    @contextmanager
+    def row(self, name: str):
+        """A whole-set stage's row of the stage table (the command's ``hooks.row``); its peak memory
+        is the main process's plus, when its per-view passes ran in the pool, each worker's peak in
+        them (an upper bound, as for the per-view stages: :meth:`_rows`)."""
+        from volume.pipeline.pool import peak_rss_mb, release_free_memory
+
+        release_free_memory()  # what earlier stages freed is not this row's
+        outer, self._set_peaks = self._set_peaks, {}
+        try:
+            with self.hooks.row(name):
+                yield
+            peak_main = peak_rss_mb()  # the row's own: the stage table reset the mark at its start
+        finally:
+            peaks, self._set_peaks = self._set_peaks, outer
+            if outer is not None:
+                for pid, mb in peaks.items():
+                    outer[pid] = max(outer.get(pid, 0.0), mb)
+        if peaks and self.hooks.add is not None:
+            self.hooks.add(name, 0.0, 0.0, peak_main + sum(peaks.values()))
 
     def views(self, pending) -> None:
         """Queued per-view stages, view by view (module docstring); reading ends in the scan set."""
@@ -243,6 +268,8 @@ class Run:
                 acc[0] += wall
                 acc[1] += cpu
             peaks[pid] = max(peaks.get(pid, 0.0), peak)
+            if self._set_peaks is not None:
+                self._set_peaks[pid] = max(self._set_peaks.get(pid, 0.0), peak)
             yield view, notes
         if rows:
             self._rows(steps, times, time.perf_counter() - t0, time.process_time() - c0,
