@@ -131,6 +131,10 @@ def start_pool(workers: int):
                                initargs=(max(1, cores() // workers),))
 
 
+#: The steps of this worker's last task (by name): the heap is trimmed when they change.
+_LAST_STEPS: tuple = ()
+
+
 def apply_steps(steps, view, ref, out_file=None):
     """``view`` through ``steps`` [(fn, cfg)] in a worker: (the view: None when no step changed it,
     a capture.scan_store.SpilledScan when written to ``out_file``, else the Scan; the notes; per step
@@ -140,7 +144,11 @@ def apply_steps(steps, view, ref, out_file=None):
 
         cv2.setNumThreads(int(os.environ.get("OMP_NUM_THREADS", "1")))
         os.environ["_FURROW_CV_THREADS_SET"] = "1"
-    release_free_memory()  # the last task's freed pages: not this task's peak
+    global _LAST_STEPS
+    kind = tuple(getattr(fn, "__qualname__", repr(fn)) for fn, _ in steps)
+    if kind != _LAST_STEPS:  # a new stage: the last one's freed pages are not this stage's peak
+        release_free_memory()  # (not every task: pages handed back are faulted in again, sys time)
+        _LAST_STEPS = kind
     reset_peak_rss()
     start, notes, times = view, [], []
     for fn, cfg in steps:
