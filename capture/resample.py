@@ -181,15 +181,7 @@ def _inputs(depth, guide):
 
 def upsample_depth_numpy(depth: np.ndarray, guide: np.ndarray) -> tuple[np.ndarray, ResampleStats]:
     """:func:`upsample_depth` vectorised in numpy blocks of BLOCK_ROWS rows (the compiled loop's twin)."""
-    depth = np.asarray(depth, np.float64)
-    guide = np.asarray(guide, np.float32)
-    if depth.ndim != 2 or guide.ndim != 3 or guide.shape[2] != 3:
-        raise ResampleError(f"expected (h, w) depth and (H, W, 3) colour, got {depth.shape} and {guide.shape}")
-    h, w = depth.shape
-    H, W = guide.shape[:2]
-    sx, sy = depth_scale((h, w), (H, W))
-    depth = np.where(np.isfinite(depth) & (depth > 0), depth, 0.0)
-    glo = _guide_lo(guide, w, h)
+    depth, guide, (h, w), (H, W), (sx, sy), glo = _inputs(depth, guide)
     out = np.zeros((H, W), np.float32)
     edge = colour = holes = 0
     for r0 in range(0, H, BLOCK_ROWS):
