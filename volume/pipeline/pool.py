@@ -23,6 +23,7 @@ too, for the stage table.
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 
@@ -78,15 +79,25 @@ def release_free_memory() -> bool:
     none.  numpy's arrays of a few MB come from the heap once glibc's mmap threshold has grown
     past them, so after a stage that made and freed many (the plate stage's views and plates) the
     process kept them as its own: in the 60-view phone capture the main process entered the matte
-    stage at 2012 MiB without it and at 486 MiB with it (docs/speed.md)."""
+    stage at 2012 MiB without it and at 486 MiB with it (docs/speed.md).  Also after the fusion's
+    threads (volume.build: +200-350 MiB of peak without it)."""
+    libc = _libc()
+    try:
+        return bool(libc.malloc_trim(0)) if libc is not None else False
+    except AttributeError:
+        return False
+
+
+@functools.lru_cache(maxsize=1)
+def _libc():
+    """The C library (ctypes), looked up once (find_library runs ldconfig), or None."""
     import ctypes
     import ctypes.util
 
-    name = ctypes.util.find_library("c")
     try:
-        return bool(ctypes.CDLL(name).malloc_trim(0)) if name else False
-    except (OSError, AttributeError):
-        return False
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    except OSError:
+        return None
 
 
 def pool_pays(pixels_per_view: float, matte_solved: bool) -> bool:
