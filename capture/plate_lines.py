@@ -85,30 +85,48 @@ def segment_distance(samples: np.ndarray, start: np.ndarray, ends: np.ndarray) -
     return best
 
 
-def _vertex_chunk(s: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`line_vertex` on one chunk (K, n, 3) without NaN checks beyond the samples' own."""
-    K, n, _ = s.shape
+def _vertex_chunk(s: np.ndarray, pal: np.ndarray, fast: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`line_vertex` on one chunk (K, n, 3) without NaN checks beyond the samples' own; ``fast``:
+    the winners from the compiled loop (capture.plate_lines_kernel), else from the numpy reference."""
     have = np.isfinite(s[..., 0])
     s0 = np.nan_to_num(s)
+    best, cost = (_winners_compiled if fast else _winners_numpy)(s0, have, pal)
+    cols = np.arange(s.shape[1])
+    cand = s0[best, cols]
+    agree = have & (np.abs(s0 - cand[None]).max(-1) <= LINE_AGREE)
+    colour = nan_median(np.where(agree[..., None], s0, np.nan))
+    residual = np.sqrt(cost / np.maximum(have.sum(0), 1))
+    return colour, residual
+
+
+def _winners_numpy(s0: np.ndarray, have: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(winning candidate (n,), its cost (n,)) of step 2, every candidate's cost in numpy (the
+    reference of capture.plate_lines_kernel): samples ``s0`` (K, n, 3) with NaN zeroed, ``have`` (K, n)."""
+    K, n, _ = s0.shape
     cost = np.full((K, n), np.inf)
     for c in range(K):
         dist = np.minimum(segment_distance(s0, s0[c], pal), LINE_CAP)
         cost[c] = np.where(have[c], np.where(have, dist * dist, 0.0).sum(0), np.inf)
     best = np.argmin(cost, axis=0)
-    cols = np.arange(n)
-    cand = s0[best, cols]
-    agree = have & (np.abs(s0 - cand[None]).max(-1) <= LINE_AGREE)
-    colour = nan_median(np.where(agree[..., None], s0, np.nan))
-    residual = np.sqrt(cost[best, cols] / np.maximum(have.sum(0), 1))
-    return colour, residual
+    return best, cost[best, np.arange(n)]
 
 
-def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _winners_compiled(s0: np.ndarray, have: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_winners_numpy` from the compiled loop (capture.plate_lines_kernel.vertex_costs)."""
+    from capture.plate_lines_kernel import vertex_costs
+
+    best, cost = vertex_costs(np.ascontiguousarray(s0, np.float32), np.ascontiguousarray(have),
+                              np.ascontiguousarray(pal, np.float32), float(LINE_CAP))
+    return np.maximum(best, 0), cost  # no sample at all: numpy's argmin of all-inf is 0
+
+
+def line_vertex(samples: np.ndarray, pal: np.ndarray, fast: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(B (N, 3), residual (N,)) of linear ``samples`` (K, N, 3) (frames x pixels, NaN = no sample)
     and the object colours ``pal`` (P, 3): per pixel the common end of the segments the samples lie
     on (module docstring, step 2), and the RMS of the samples' capped distances to its segments.
     Only the estimator; :func:`unseen_background` applies the checks of step 3.  Computed in
-    float32 (float64 took 1.7x as long; colours are 8-bit to 16-bit data)."""
+    float32 (float64 took 1.7x as long; colours are 8-bit to 16-bit data).  ``fast``: the compiled
+    loop (capture.plate_lines_kernel), else the numpy reference (the same winners and costs)."""
     s = np.asarray(samples, np.float32)
     pal = np.asarray(pal, np.float32).reshape(-1, 3)
     N = s.shape[1]
@@ -117,7 +135,7 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.nd
     if len(pal) == 0:
         return colour, residual
     for lo in range(0, N, LINE_CHUNK):
-        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal)
+        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal, fast)
     return colour, residual
 
 

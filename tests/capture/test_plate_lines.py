@@ -78,6 +78,25 @@ def test_the_vertex_explains_every_sample_and_a_mixture_does_not():
     assert np.median(np.abs(Bm - B).max(-1)) > 0.01
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_compiled_vertex_equals_the_numpy_reference(seed):
+    """capture.plate_lines_kernel against the numpy path: the same winners and costs bit for bit,
+    with missing samples, tied candidates (a frame repeated), quantised and random colours."""
+    C, _, pal = _lines_scene(seed, n=300, frames=10)
+    rng = np.random.default_rng(seed + 10)
+    q = srgb_to_linear(to_uint8_srgb(C) / np.float32(255.0)).astype(np.float64)
+    rand = rng.uniform(0, 1, C.shape)
+    for samples in (C, q, rand):
+        s = samples.copy()
+        s[rng.uniform(size=s.shape[:2]) < 0.2] = np.nan  # frames without a sample
+        s[:, :5] = np.nan  # pixels without any
+        s[3] = s[1]  # tied candidates: the first must win, as numpy's argmin
+        (Bf, rf), (Bn, rn) = line_vertex(s, pal), line_vertex(s, pal, fast=False)
+        np.testing.assert_array_equal(rf, rn)
+        np.testing.assert_array_equal(Bf, Bn)
+    assert np.isinf(rf[:5]).all()
+
+
 def test_it_falls_back_when_it_cannot_beat_doing_nothing():
     C, B, pal = _lines_scene(1)
     rng = np.random.default_rng(5)
