@@ -312,10 +312,9 @@ def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> P
     ring = ring_pixels(v.object_depth, src)
     room = None
     if "panorama" in paths:
-        pts, m = v.camera.depth_to_points(bgd)
-        off = np.zeros(bgd.shape, bool)
-        if len(pts):
-            off[m] = True if plane is None else (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
+        off = bgd > 0
+        if plane is not None:  # without forming the points (Camera.plane_distance)
+            off &= np.nan_to_num(v.camera.plane_distance(bgd, plane), nan=-np.inf) > PLANE_OFF_METRES
         band = src & ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
         room = room_depth(bgd, band, off)
     weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
