@@ -135,6 +135,9 @@ def test_sampled_points_stride(fur):
     # a regular sample: the robust box moves by little (metres)
     lo, hi = np.percentile(full, [0.5, 99.5], axis=0), np.percentile(part, [0.5, 99.5], axis=0)
     assert np.max(np.abs(lo - hi)) < 0.01
+    # only the sampled pixels back-projected: the rows of every scan's points()[::k] (the reference)
+    k = -(-len(full) // (len(full) // 4))
+    np.testing.assert_array_equal(part, np.concatenate([s.points()[::k] for s in fur.scans]))
 
 
 def test_auto_bounds_hold_the_object_and_little_more(fur):
