@@ -112,6 +112,8 @@ def test_view_selection_reads_no_image_of_a_dropped_view(capture, monkeypatch):
         assert len(run.work.scans) == 3 and run.work.records["view selection"]["kept"] == 3
     assert len(read) == 3  # 3 of 8 frames read
     assert names.index("view selection") < names.index("read")  # the cameras alone, first
+    # the bounds from the depth (the capture gives none) have their own row after reading: no time unshown
+    assert names.index("read") < names.index("bounds") < names.index("working scale")
 
 
 def test_process_workers_give_the_same_views(capture):

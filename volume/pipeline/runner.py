@@ -212,7 +212,8 @@ class Run:
         w = replace(w, scans=scans)
         by_stage = {st.name: [n[k] for n in notes] for k, st in enumerate(todo)}
         if from_files:
-            ss = finish_scanset(w.source, scans, by_stage)
+            with self.hooks.row("bounds"):  # the robust box of every view's depth when the capture has none
+                ss = finish_scanset(w.source, scans, by_stage)
             w = replace(w, bounds=ss.bounds, metadata=ss.metadata)
         for st, _, cfg, _ in steps:
             if st.reduce is not None:
