@@ -73,6 +73,11 @@ NOISE_PER_ERROR = 1.5
 #: ... at least one 8-bit sRGB step at black (linear) and at most NOISE_MAX.
 NOISE_MIN = 1.0 / 255 / 12.92
 NOISE_MAX = 0.05
+#: The photo's ceiling (linear): a prediction above it is compared as the sensor recorded it (a plate
+#: drawn into a brighter frame's exposure exceeds 1 where that frame is blown out; the held-back
+#: error then measured the clipping, 0.026 median on the conifer with auto exposure, not the plate,
+#: and set the matte's noise allowance from it).
+SENSOR_MAX = 1.0
 
 
 @dataclass(frozen=True)
@@ -361,11 +366,12 @@ class Trial:
 
 
 def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
-    """(median of the largest channel's |error|, RMS) over the predicted rows (NaN: none)."""
+    """(median of the largest channel's |error|, RMS) over the predicted rows (NaN: none), the
+    prediction clipped to the sensor's ceiling (SENSOR_MAX) as the photo is."""
     ok = np.isfinite(predicted).all(axis=1)
     if not ok.any():
         return float("nan"), float("nan")
-    d = np.abs(predicted[ok] - observed[ok])
+    d = np.abs(np.minimum(predicted[ok], SENSOR_MAX) - observed[ok])
     return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
 
 
