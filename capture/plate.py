@@ -422,12 +422,22 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     mode = choose_mode({path: t.errors for path, t in trials.items()})
     ps = ps.for_path(mode)
     fit = refit(ps, mode, trials[mode])
+    exposure = None
+    if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
+        from capture.plate_fixed import fixed_exposure_check
+
+        exposure = fixed_exposure_check(ps, fit.gains)
+        if exposure["chosen"] == "plate":
+            exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
+        elif not np.all(fit.gains == 1.0):
+            fit = _trial(ps, mode, np.ones_like(fit.gains))
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time
     plates = []
     for p, m, err in zip(ps.views, made, fit.errors, strict=True):
         plate = _plate(p.view, m[0], m[1], err, mode, m[2] if len(m) > 2 else None)
         plates.append(plate.cropped() if crop else plate)
-    return plates, _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
+    rec = _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
+    return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
 
 def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:

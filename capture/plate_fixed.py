@@ -196,6 +196,45 @@ def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray
     return gains
 
 
+def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
+    """Whether a fixed camera's exposure gains (V, 3) beat none on background pixels neither fit saw:
+    the grid of :func:`fixed_gains` shifted by half its step, where every frame is confidently
+    background and no frame is dark or blown out (capture.plate GAIN_DARK / GAIN_BRIGHT).  Per view,
+    the mean largest-channel |log(colour x gain) - log(median of the other frames)| with the gains and
+    with none; the gains win a view when theirs is smaller.  Accepted (``chosen`` 'plate') when they
+    win at least V / 2 + sqrt(V) of the V views (a sign test: two standard errors above chance),
+    else 'none': the gains cannot be told from noise (a capture at fixed exposure).  A fixed camera
+    sees one static background, so these gains are each frame's exposure (auto exposure, white
+    balance: the camera scales the whole frame), the object's included (volume/photometric.py)."""
+    from capture.plate import _usable
+
+    views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
+    V = len(views)
+    H, W = weights[0].shape
+    k = max(2, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
+    sl = (slice(k // 2, None, k), slice(k // 2, None, k))
+    common = np.logical_and.reduce([w >= 1 for w in weights])[sl]
+    obs = np.stack([v.linear[sl][common].astype(np.float64) for v in views])  # (V, N, 3)
+    obs = obs[:, np.all(_usable(obs), axis=0)]
+    need = int(np.ceil(V / 2 + np.sqrt(V)))
+    rec = {"chosen": "none", "views": V, "wins": 0, "needed": need, "pixels": int(obs.shape[1])}
+    if V < FIXED_MIN_FRAMES or obs.shape[1] < FIXED_GAIN_PIXELS // 100:
+        return {**rec, "reason": "too few frames or background pixels that every frame sees"}
+
+    def error(g):
+        lg = np.log(obs) + np.log(np.asarray(g, np.float64))[:, None]
+        return np.array([np.abs(lg[i] - np.median(np.delete(lg, i, axis=0), axis=0)).max(-1).mean()
+                         for i in range(V)])
+
+    fit, none = error(gains), error(np.ones((V, 3)))
+    wins = int((fit < none).sum())
+    ok = wins >= need
+    verdict = f"at least {need}: taken" if ok else f"fewer than {need}: kept the views as they are"
+    return {**rec, "chosen": "plate" if ok else "none", "wins": wins,
+            "error_fitted": round(float(np.median(fit)), 5), "error_none": round(float(np.median(none)), 5),
+            "reason": f"the background's gains beat none in {wins} of {V} views on held-back pixels ({verdict})"}
+
+
 def fixed_start(ps: PlateSet) -> np.ndarray:
     """The fixed camera's first gains (:func:`fixed_gains` of the prepared views)."""
     return fixed_gains([p.view for p in ps.views], [p.weight for p in ps.views])
