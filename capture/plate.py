@@ -73,6 +73,11 @@ NOISE_PER_ERROR = 1.5
 #: ... at least one 8-bit sRGB step at black (linear) and at most NOISE_MAX.
 NOISE_MIN = 1.0 / 255 / 12.92
 NOISE_MAX = 0.05
+#: The photo's ceiling (linear): a prediction above it is compared as the sensor recorded it (a plate
+#: drawn into a brighter frame's exposure exceeds 1 where that frame is blown out; the held-back
+#: error then measured the clipping, 0.026 median on the conifer with auto exposure, not the plate,
+#: and set the matte's noise allowance from it).
+SENSOR_MAX = 1.0
 
 
 @dataclass(frozen=True)
@@ -360,11 +365,12 @@ class Trial:
 
 
 def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
-    """(median of the largest channel's |error|, RMS) over the predicted rows (NaN: none)."""
+    """(median of the largest channel's |error|, RMS) over the predicted rows (NaN: none), the
+    prediction clipped to the sensor's ceiling (SENSOR_MAX) as the photo is."""
     ok = np.isfinite(predicted).all(axis=1)
     if not ok.any():
         return float("nan"), float("nan")
-    d = np.abs(predicted[ok] - observed[ok])
+    d = np.abs(np.minimum(predicted[ok], SENSOR_MAX) - observed[ok])
     return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
 
 
@@ -415,12 +421,22 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     mode = choose_mode({path: t.errors for path, t in trials.items()})
     ps = ps.for_path(mode)
     fit = refit(ps, mode, trials[mode])
+    exposure = None
+    if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
+        from capture.plate_fixed import fixed_exposure_check
+
+        exposure = fixed_exposure_check(ps, fit.gains)
+        if exposure["chosen"] == "plate":
+            exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
+        elif not np.all(fit.gains == 1.0):
+            fit = _trial(ps, mode, np.ones_like(fit.gains))
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time
     plates = []
     for p, m, err in zip(ps.views, made, fit.errors, strict=True):
         plate = _plate(p.view, m[0], m[1], err, mode, m[2] if len(m) > 2 else None)
         plates.append(plate.cropped() if crop else plate)
-    return plates, _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
+    rec = _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
+    return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
 
 def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:

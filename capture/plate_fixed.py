@@ -7,7 +7,11 @@ each frame's object depth is from the pixel (:func:`fixed_sample_weight`), rejec
 when a rival cluster nearly as heavy disagrees (a needle that stayed put over several frames).  A
 median of all frames would take in the needles wherever they cover a pixel in half of them.  The
 frames' exposures (auto exposure) are fitted first on the pixels every frame sees
-(:func:`fixed_gains`).  As a path of ``capture.plate`` (``capture.plate.path_functions``):
+(:func:`fixed_gains`).  A sample blown out in its own frame (a channel at
+``matting_known.CLIP_LEVEL``: the sunlit wall) is no measurement of the background, only a lower bound
+on it: under auto exposure 1.0 x gain differs from frame to frame, and drawn into a darker frame it
+fell below the clip level as if it were the exact background (:func:`censored_mode`).  As a path of
+``capture.plate`` (``capture.plate.path_functions``):
 :func:`fixed_start`, :func:`fixed_predict` and :func:`fixed_draw` on a ``capture.plate.PlateSet``.
 """
 
@@ -32,6 +36,11 @@ MODE_TOL = 3.0 / 255
 MODE_AMBIGUOUS = 0.5
 #: Where no frame saw a pixel's background clean, solve it from the frames' lines (capture.plate_lines).
 FIXED_ESTIMATE_UNSEEN = True
+#: A frame's sample blown out in its own exposure (a channel at matting_known.CLIP_LEVEL) is a lower
+#: bound on the background, not a sample of it (:func:`censored_mode`).  Off: every sample a
+#: measurement, as before (under auto exposure the conifer with table, AE and lens lost 2.5 dB held
+#: out with the true matte: docs/matting.md, issue 30 fourth round).
+FIXED_CENSOR_CLIPPED = True
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
 #: Frames the fixed camera's plate (its robust mode, fixed_draw) takes at most, evenly spaced over the
@@ -86,6 +95,26 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple
     return colour, support
 
 
+def censored_mode(samples: np.ndarray, weights: np.ndarray | None, hot: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(colour (N, 3), support (N,), bound (N,) bool) of samples (K, N, 3) in the common exposure
+    (NaN = none) of which ``hot`` (K, N) were blown out in their own frame: the robust mode
+    (:func:`robust_mode`) of the others, raised channel by channel to the largest blown-out sample
+    (a blown-out sample is at most the background: the sensor stopped there); where fewer than
+    FIXED_MIN_FRAMES others agree but at least FIXED_MIN_FRAMES samples are blown out, that largest
+    one, flagged ``bound`` (only a lower bound: drawn into a frame where it falls below the clip
+    level, the background there is not known).  NaN where neither holds."""
+    hot = np.asarray(hot, bool) & np.isfinite(samples[..., 0])
+    free = np.where(hot[..., None], np.nan, samples)
+    col, support = robust_mode(free, None if weights is None else np.where(hot, 0.0, weights))
+    n_hot = hot.sum(axis=0)
+    lb = np.where(hot[..., None], samples, -np.inf).max(axis=0)  # -inf where no sample is blown out
+    ok = support >= FIXED_MIN_FRAMES
+    bound = ~ok & (n_hot >= FIXED_MIN_FRAMES)
+    col = np.where(ok[:, None], np.maximum(col, lb), np.where(bound[:, None], lb, np.nan)).astype(np.float32)
+    return col, np.where(ok, support, np.where(bound, n_hot, support)), bound
+
+
 def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) float32 weight of a frame's pixels as fixed-camera plate samples: 0 within
     FIXED_EXCLUDE_FRACTION of the width of the object's depth (the robust mode takes out needles
@@ -111,24 +140,43 @@ def mode_frames(n: int, i: int | None, cap: int | None = None) -> list[int]:
 
 
 def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gains: np.ndarray,
-                     weights: list[np.ndarray] | None = None, frames: list[int] | None = None) -> np.ndarray:
-    """(N, 3) fixed-camera plate at pixels ``pix`` (N, 2) from the ``frames`` (default every frame but
-    ``i``; None: all), in
-    the common exposure (colour x gain): the robust mode (:func:`robust_mode`) of the frames' samples
-    weighted by ``weights`` (default :func:`fixed_sample_weight`); NaN where fewer than
-    FIXED_MIN_FRAMES agree."""
+                     weights: list[np.ndarray] | None = None, frames: list[int] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """((N, 3) fixed-camera plate at pixels ``pix`` (N, 2), (N,) bool only a lower bound) from the
+    ``frames`` (default every frame but ``i``; None: all), in the common exposure (colour x gain):
+    the robust mode (:func:`robust_mode`) of the frames' samples weighted by ``weights`` (default
+    :func:`fixed_sample_weight`), with the samples blown out in their own frame as lower bounds
+    (:func:`censored_mode`, FIXED_CENSOR_CLIPPED); NaN where fewer than FIXED_MIN_FRAMES agree."""
+    from capture.matting_known import CLIP_LEVEL
+
     x, y = pix[:, 0], pix[:, 1]
     frames = [j for j in range(len(views)) if j != i] if frames is None else frames
     s = np.full((len(frames), len(pix), 3), np.nan, np.float32)
     w = np.zeros((len(frames), len(pix)), np.float32)
+    hot = np.zeros((len(frames), len(pix)), bool)
     for row, j in enumerate(frames):
         v = views[j]
         w[row] = (fixed_sample_weight(v.object_depth) if weights is None else weights[j])[y, x]
         ok = w[row] > 0
-        s[row, ok] = v.linear[y[ok], x[ok]] * gains[j]
+        c = v.linear[y[ok], x[ok]]
+        s[row, ok] = c * gains[j]
+        hot[row, ok] = c.max(axis=-1) >= CLIP_LEVEL
+    if FIXED_CENSOR_CLIPPED:
+        col, _, bound = censored_mode(s, w, hot)
+        return col, bound
     col, support = robust_mode(s, w)
     col[support < FIXED_MIN_FRAMES] = np.nan
-    return col
+    return col, np.zeros(len(pix), bool)
+
+
+def in_view(col: np.ndarray, bound: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """The plate ``col`` (N, 3) of the common exposure in a view of exposure ``gain`` (3,); NaN where
+    it is only a lower ``bound`` that falls below the clip level there (not known)."""
+    from capture.matting_known import CLIP_LEVEL
+
+    out = col / gain
+    out[bound & (np.nan_to_num(out).max(axis=-1) < CLIP_LEVEL)] = np.nan
+    return out
 
 
 def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray:
@@ -148,6 +196,45 @@ def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray
     return gains
 
 
+def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
+    """Whether a fixed camera's exposure gains (V, 3) beat none on background pixels neither fit saw:
+    the grid of :func:`fixed_gains` shifted by half its step, where every frame is confidently
+    background and no frame is dark or blown out (capture.plate GAIN_DARK / GAIN_BRIGHT).  Per view,
+    the mean largest-channel |log(colour x gain) - log(median of the other frames)| with the gains and
+    with none; the gains win a view when theirs is smaller.  Accepted (``chosen`` 'plate') when they
+    win at least V / 2 + sqrt(V) of the V views (a sign test: two standard errors above chance),
+    else 'none': the gains cannot be told from noise (a capture at fixed exposure).  A fixed camera
+    sees one static background, so these gains are each frame's exposure (auto exposure, white
+    balance: the camera scales the whole frame), the object's included (volume/photometric.py)."""
+    from capture.plate import _usable
+
+    views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
+    V = len(views)
+    H, W = weights[0].shape
+    k = max(2, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
+    sl = (slice(k // 2, None, k), slice(k // 2, None, k))
+    common = np.logical_and.reduce([w >= 1 for w in weights])[sl]
+    obs = np.stack([v.linear[sl][common].astype(np.float64) for v in views])  # (V, N, 3)
+    obs = obs[:, np.all(_usable(obs), axis=0)]
+    need = int(np.ceil(V / 2 + np.sqrt(V)))
+    rec = {"chosen": "none", "views": V, "wins": 0, "needed": need, "pixels": int(obs.shape[1])}
+    if V < FIXED_MIN_FRAMES or obs.shape[1] < FIXED_GAIN_PIXELS // 100:
+        return {**rec, "reason": "too few frames or background pixels that every frame sees"}
+
+    def error(g):
+        lg = np.log(obs) + np.log(np.asarray(g, np.float64))[:, None]
+        return np.array([np.abs(lg[i] - np.median(np.delete(lg, i, axis=0), axis=0)).max(-1).mean()
+                         for i in range(V)])
+
+    fit, none = error(gains), error(np.ones((V, 3)))
+    wins = int((fit < none).sum())
+    ok = wins >= need
+    verdict = f"at least {need}: taken" if ok else f"fewer than {need}: kept the views as they are"
+    return {**rec, "chosen": "plate" if ok else "none", "wins": wins,
+            "error_fitted": round(float(np.median(fit)), 5), "error_none": round(float(np.median(none)), 5),
+            "reason": f"the background's gains beat none in {wins} of {V} views on held-back pixels ({verdict})"}
+
+
 def fixed_start(ps: PlateSet) -> np.ndarray:
     """The fixed camera's first gains (:func:`fixed_gains` of the prepared views)."""
     return fixed_gains([p.view for p in ps.views], [p.weight for p in ps.views])
@@ -157,8 +244,8 @@ def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_RING_FRAMES of
     them at most, :func:`mode_frames`), in its own exposure."""
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
-    return [fixed_prediction(views, p.ring, i, gains, weights, mode_frames(len(views), i, FIXED_RING_FRAMES))
-            / gains[i]
+    return [in_view(*fixed_prediction(views, p.ring, i, gains, weights, mode_frames(len(views), i, FIXED_RING_FRAMES)),
+                    gains[i])
             for i, p in enumerate(ps.views)]
 
 
@@ -170,35 +257,41 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray):
     needs = [p.need for p in ps.views]
     union = np.logical_or.reduce(needs)
     y, x = np.nonzero(union)
-    med = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
-                           [p.weight for p in ps.views], mode_frames(len(ps.views), None))
-    est = unseen_fill(ps, gains, y, x, med) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
-    return _fixed_views(ps, gains, needs, union.shape, y, x, med, est)
+    med, bound = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
+                                  [p.weight for p in ps.views], mode_frames(len(ps.views), None))
+    est = unseen_fill(ps, gains, y, x, med, bound) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
+    return _fixed_views(ps, gains, needs, union.shape, y, x, med, est, bound)
 
 
-def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est):
+def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound):
     """fixed_draw's plates, one view at a time (a generator: the caller may crop each before the next)."""
     for j, p in enumerate(ps.views):
+        here = in_view(med, bound, gains[j])
         col = np.zeros(p.view.linear.shape, np.float32)
-        col[y, x] = np.nan_to_num(med / gains[j])
+        col[y, x] = np.nan_to_num(here)
         known = np.zeros(shape, bool)
-        known[y, x] = np.isfinite(med[:, 0])
+        known[y, x] = np.isfinite(here[:, 0])
         estimated = np.zeros(shape, bool)
         estimated[y, x] = est
         yield col, known & needs[j], estimated & needs[j]
 
 
-def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray) -> np.ndarray:
+def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray,
+                bound: np.ndarray | None = None) -> np.ndarray:
     """Fill ``med`` (N, 3) (the plate at pixels ``y``, ``x`` in the common exposure; NaN = unknown) in
     place where the frames' lines give the background (capture.plate_lines); (N,) bool where they did.
+    ``bound`` (N,) bool, when given, is set in place where the fill is only a lower bound (a blown-out
+    background; FIXED_CENSOR_CLIPPED: the samples blown out in their own frame say so).
     The lines take FIXED_RING_FRAMES frames at most (:func:`mode_frames`): every candidate vertex is
     scored against every frame, so the cost grows with the square of the frames."""
     from capture.matting import FG, depth_trimap
+    from capture.matting_known import CLIP_LEVEL
     from capture.plate_lines import object_palette, unseen_background
 
     frames = mode_frames(len(ps.views), None, FIXED_RING_FRAMES)  # its cost grows with frames^2
     views = [ps.views[j] for j in frames]
-    samples = np.stack([ps.views[j].view.linear[y, x] * gains[j] for j in frames]).astype(np.float32)
+    own = np.stack([ps.views[j].view.linear[y, x] for j in frames])
+    samples = np.stack([o * gains[j] for o, j in zip(own, frames, strict=True)]).astype(np.float32)
     opaque = np.stack([depth_trimap(p.view.object_depth)[y, x] >= FG for p in views])
     pal = object_palette(samples, med, opaque)
     todo = ~np.isfinite(med[:, 0])
@@ -206,7 +299,12 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     if not todo.any() or len(pal) == 0:
         return est
     covered = np.stack([p.view.object_depth[y[todo], x[todo]] > 0 for p in views])
-    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered)
-    est[np.flatnonzero(todo)[np.isfinite(b[:, 0])]] = True
-    med[est] = b[np.isfinite(b[:, 0])]
+    hot = own[:, todo].max(axis=-1) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None
+    hot_bound = np.zeros(int(todo.sum()), bool)
+    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered, hot, hot_bound)
+    filled = np.isfinite(b[:, 0])
+    est[np.flatnonzero(todo)[filled]] = True
+    med[est] = b[filled]
+    if bound is not None:
+        bound[np.flatnonzero(todo)[filled]] = hot_bound[filled]
     return est

@@ -140,27 +140,30 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray, fast: bool = True) -> tupl
 
 
 def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray | None = None,
-                      covered: np.ndarray | None = None) -> np.ndarray:
+                      covered: np.ndarray | None = None, hot: np.ndarray | None = None,
+                      bound: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) linear background of each pixel whose ``samples`` (K, N, 3) (NaN = none) lie on
     segments towards the object colours ``pal`` (P, 3); ``opaque`` (K, N) bool: where the frame's
     depth calls the pixel opaque (its trimap's sure object), ``covered``: where the depth sees the
     object there at all (None: nowhere).  NaN where the estimate cannot beat doing nothing (module
-    docstring, step 3)."""
+    docstring, step 3).  ``hot`` (K, N) bool: the samples blown out in their own frame; given, they
+    are lower bounds, not points of the lines (:func:`_censored_background`), and ``bound`` (N,) bool,
+    when given, is set where the result is only such a bound.  None: one exposure, the samples at
+    CLIP_LEVEL here are the blown-out ones (as before auto exposure was told apart)."""
     from capture.matting_known import CLIP_LEVEL
 
     s = np.asarray(samples, np.float64)
     pal = np.asarray(pal, np.float64).reshape(-1, 3)
     out = np.full((s.shape[1], 3), np.nan)
+    if bound is not None:
+        bound[:] = False
     if len(pal) == 0 or s.shape[1] == 0:
         return out
+    if hot is not None:
+        return _censored_background(s, pal, opaque, covered, np.asarray(hot, bool), bound)
     B, res = line_vertex(s, pal)
     have = np.isfinite(s[..., 0])
-    enough = have.sum(0) >= LINE_MIN_FRAMES
-    agree = have & (np.abs(np.nan_to_num(s) - B[None]).max(-1) <= LINE_AGREE)
-    seen = agree.any(0) if opaque is None else (agree & ~np.asarray(opaque, bool)).any(0)
-    if covered is not None:  # an object colour seen only where the depth saw the object: the object
-        apart = np.linalg.norm(B[:, None] - pal[None], axis=-1).min(-1) >= LINE_MIN_SEPARATION
-        seen &= apart | (agree & ~np.asarray(covered, bool)).any(0)
+    enough, agree, seen = _evidence(s, B, pal, opaque, covered)
     # clipping bends the lines: where they disagree and a frame is blown out, the background is
     # (the median of) the blown-out samples, which the matte treats as such
     hot = have & (np.nan_to_num(s).max(-1) >= CLIP_LEVEL)
@@ -171,6 +174,45 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     moved = (have & ~agree).any(0)  # a frame unlike the vertex: else no evidence of what lies behind
     ok = enough & moved & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | bent)
     out[ok] = B[ok]
+    return out
+
+
+def _evidence(s, B, pal, opaque, covered):
+    """(enough frames (N,), samples agreeing with the vertex (K, N), vertex seen as background (N,))
+    of step 3 for samples ``s`` (K, N, 3) and vertices ``B`` (N, 3)."""
+    have = np.isfinite(s[..., 0])
+    enough = have.sum(0) >= LINE_MIN_FRAMES
+    agree = have & (np.abs(np.nan_to_num(s) - B[None]).max(-1) <= LINE_AGREE)
+    seen = agree.any(0) if opaque is None else (agree & ~np.asarray(opaque, bool)).any(0)
+    if covered is not None:  # an object colour seen only where the depth saw the object: the object
+        apart = np.linalg.norm(B[:, None] - pal[None], axis=-1).min(-1) >= LINE_MIN_SEPARATION
+        seen &= apart | (agree & ~np.asarray(covered, bool)).any(0)
+    return enough, agree, seen
+
+
+def _censored_background(s, pal, opaque, covered, hot, bound) -> np.ndarray:
+    """:func:`unseen_background` with the samples blown out in their own frame (``hot``) as lower
+    bounds (auto exposure: 1.0 x gain differs from frame to frame in the common exposure): the vertex
+    of the other samples' lines, refused where it is darker than a blown-out sample by more than
+    LINE_AGREE in a channel (the sensor stopped at or below the background); where the lines
+    disagree, are too few or are so refused, and at least LINE_MIN_HOT samples (LINE_HOT_SHARE of
+    them) are blown out, the largest blown-out sample, a bound (``bound``)."""
+    have_all = np.isfinite(s[..., 0])
+    hot = hot & have_all
+    free = np.where(hot[..., None], np.nan, s)
+    B, res = line_vertex(free, pal)
+    have = np.isfinite(free[..., 0])
+    enough, agree, seen = _evidence(free, B, pal, opaque, covered)
+    lb = np.where(hot[..., None], s, -np.inf).max(axis=0)
+    darker = (np.nan_to_num(B, nan=-np.inf) < lb - LINE_AGREE).any(-1)
+    moved = (have & ~agree).any(0)
+    vertex = enough & moved & seen & (res <= LINE_MAX_RESIDUAL) & ~darker
+    bent = ~vertex & (hot.sum(0) >= np.maximum(LINE_MIN_HOT, LINE_HOT_SHARE * have_all.sum(0)))
+    out = np.full((s.shape[1], 3), np.nan)
+    out[vertex] = B[vertex]
+    out[bent] = lb[bent]
+    if bound is not None:
+        bound[:] = bent
     return out
 
 

@@ -118,10 +118,11 @@ def _needles(height: int, width: int, angle: float, rng, ss: int = 6, n: int = 4
     return alpha.astype(np.float32), seen[ss // 2::ss, ss // 2::ss]
 
 
-def turntable_capture(n: int = 12, width: int = 96, height: int = 72, gains=None, seed: int = 0):
+def turntable_capture(n: int = 12, width: int = 96, height: int = 72, gains=None, seed: int = 0, room=None):
     """(plate views, true background (H, W, 3), true alphas, colours of the object (3,)) of the
-    turntable scene (module docstring); ``gains`` (n, 3): each frame's exposure (colour / gain)."""
-    room = room_image(width, height, seed)
+    turntable scene (module docstring); ``gains`` (n, 3): each frame's exposure (colour / gain);
+    ``room`` (H, W, 3): the background (default :func:`room_image`; above 1 the photos clip)."""
+    room = room_image(width, height, seed) if room is None else np.asarray(room, np.float32)
     cams = scenes.ring_cameras(n, width, height, radius=RING_RADIUS, elevations=(15.0,), fov_deg=40.0)
     F = np.array([0.08, 0.3, 0.06], np.float32)
     views, alphas = [], []

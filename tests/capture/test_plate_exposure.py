@@ -1,0 +1,77 @@
+"""A fixed camera's exposure from its background (capture.plate_fixed.fixed_exposure_check) and its use
+as the photometric alignment (volume/photometric.py).
+
+Seeded turntable scenes (tests/plate_scenes.py, 8-bit photos): with the hard cases' auto exposure
+(0.35 EV, white balance 0.06) the background's gains win all 12 views on held-back pixels (10 needed)
+and match the true exposures to 0.0002-0.0013 EV RMS per channel (seeds 0-2); at fixed exposure, and
+with gains of pure noise (0.002 EV, below 8-bit steps), the check keeps the views as they are (0 wins).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture.photometric import PhotometricConfig
+from capture.plate import PlateConfig, background_plates, plate_set
+from capture.plate_fixed import fixed_exposure_check
+from capture.scan import linear_to_srgb, srgb_to_linear
+from tests import plate_scenes as ps
+from volume.photometric import plate_result
+
+#: Auto exposure of the scene (datasets_synthetic.pathtraced.cases.AUTO_EXPOSURE).
+EV_SIGMA, WB_SIGMA = 0.35, 0.06
+#: RMS (EV, per channel) of the accepted gains against the true exposures.
+GAIN_TOL_EV = 0.005
+
+
+def _eight_bit(views):
+    from dataclasses import replace
+
+    return [replace(v, linear=srgb_to_linear(np.round(linear_to_srgb(v.linear) * 255) / 255).astype(np.float32))
+            for v in views]
+
+
+def _scene(seed, sigma_ev=EV_SIGMA, sigma_wb=WB_SIGMA):
+    rng = np.random.default_rng(seed + 20)
+    gains = 2.0 ** rng.normal(0.0, sigma_ev, (12, 1)) * np.exp(rng.normal(0.0, sigma_wb, (12, 3)))
+    views, *_ = ps.turntable_capture(gains=gains, seed=seed)
+    return _eight_bit(views), gains
+
+
+def _rms_ev(got, gains):
+    d = np.log2(np.asarray(got)) - np.log2(gains)  # both: true colour = photo x gain
+    d -= np.median(d, axis=0)
+    return np.sqrt((d ** 2).mean(axis=0))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_auto_exposure_is_measured_on_the_background(seed):
+    views, gains = _scene(seed)
+    plates, rec = background_plates(views, PlateConfig())
+    ex = rec["exposure"]
+    assert ex["chosen"] == "plate" and ex["wins"] == len(views), ex
+    assert np.all(_rms_ev(ex["gains"], gains) <= GAIN_TOL_EV), _rms_ev(ex["gains"], gains)
+    # as the photometric alignment, in the gauge asked for: the reference view keeps its colour
+    scans = [type("S", (), {"name": f"v{i}"})() for i in range(len(views))]
+    res = plate_result(scans, ex, PhotometricConfig(reference="v3"))
+    assert np.allclose(res.gains[3], 1.0)
+    assert np.allclose(res.gains / res.gains[3], np.asarray(ex["gains"]) / np.asarray(ex["gains"])[3])
+    assert res.record()["check"]["chosen"] == "plate"
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.002])
+def test_no_exposure_to_find_keeps_the_views_as_they_are(sigma):
+    views, gains = _scene(0, sigma, 0.0)
+    plates, rec = background_plates(views, PlateConfig())
+    ex = rec["exposure"]
+    assert ex["chosen"] == "none" and "gains" not in ex, ex
+    assert np.all(np.asarray(rec["gains_ev"]) == 0.0)  # drawn with none: the plate falls back
+
+
+def test_the_check_refuses_gains_that_do_not_fit_the_frames():
+    views, gains = _scene(1)
+    s = plate_set(views, None, None, PlateConfig())
+    assert fixed_exposure_check(s, gains)["chosen"] == "plate"  # the scene: true colour = photo x gain
+    wrong = np.exp(np.random.default_rng(5).normal(0.0, 0.3, gains.shape))
+    assert fixed_exposure_check(s, wrong)["chosen"] == "none"
