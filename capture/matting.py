@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from capture.matting_fast import channel_max
 from capture.scan import Scan
 
 #: Matting modes of MatteConfig.mode / ``furrow model --matte``.
@@ -142,7 +143,7 @@ def detect_backdrop(image: np.ndarray, trimap: np.ndarray) -> np.ndarray | None:
     if len(bg) < 16:
         return None
     med = np.median(bg, axis=0)
-    close = np.max(np.abs(bg - med), axis=1) <= BACKDROP_TOL
+    close = channel_max(np.abs(bg - med)) <= BACKDROP_TOL
     return med if close.mean() >= BACKDROP_PLAIN else None
 
 
@@ -264,7 +265,7 @@ def backdrop_noise(image: np.ndarray, trimap: np.ndarray, backdrop: np.ndarray) 
     """Linear noise of a plain backdrop: the BACKDROP_NOISE_QUANTILE of its certain pixels' largest
     channel difference from ``backdrop``, at least one 8-bit sRGB step at black."""
     bg = np.asarray(image)[trimap == BG]
-    d = np.max(np.abs(bg - backdrop), axis=1) if len(bg) else np.zeros(1)
+    d = channel_max(np.abs(bg - backdrop)) if len(bg) else np.zeros(1)
     return float(max(np.quantile(d, BACKDROP_NOISE_QUANTILE), NOISE_FLOOR))
 
 
