@@ -38,9 +38,8 @@ import io
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
-from capture.matting_fast import channel_max
+from capture.matting_fast import channel_max, dilate, erode
 from capture.scan import Scan
 
 #: Matting modes of MatteConfig.mode / ``furrow model --matte``.
@@ -128,8 +127,8 @@ def depth_trimap(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) float64 trimap (BG / UNKNOWN / FG) from the object's (H, W) depth (0 = none) (module docstring)."""
     m = np.asarray(object_depth) > 0
     W = m.shape[1]
-    fg = ndimage.binary_erosion(m, iterations=_px(ERODE_FRACTION, W), border_value=0)
-    near = ndimage.binary_dilation(m, iterations=_px(BAND_FRACTION, W))
+    fg = erode(m, _px(ERODE_FRACTION, W))  # ndimage.binary_erosion(m, iterations=..., border_value=0)
+    near = dilate(m, _px(BAND_FRACTION, W))  # ndimage.binary_dilation(m, iterations=...)
     tri = np.full(m.shape, BG)
     tri[near] = UNKNOWN
     tri[fg] = FG
@@ -282,7 +281,7 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     H, W = trimap.shape
     alpha = np.zeros((H, W), np.float32)
     fg = np.asarray(image, np.float32).copy()
-    grown = ndimage.binary_dilation(trimap > BG, iterations=widen_px(W) + 1)
+    grown = dilate(trimap > BG, widen_px(W) + 1)  # ndimage.binary_dilation(..., iterations=...)
     box = _crop(np.where(grown, UNKNOWN, BG))
     if box is None:
         return Matte(alpha, fg, method, 0.0)

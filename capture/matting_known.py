@@ -41,7 +41,7 @@ import io
 import numpy as np
 from scipy import ndimage
 
-from capture.matting_fast import channel_max, channel_sum, zoom2
+from capture.matting_fast import channel_max, channel_sum, dilate, zoom2
 
 #: Trimap values (pymatting's convention, as capture.matting).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
@@ -252,9 +252,9 @@ def widen_trimap(trimap: np.ndarray, lower: np.ndarray, known: np.ndarray) -> np
     """``trimap`` with its background pixels near the unknown band (:func:`widen_px` of its width)
     made unknown where the known background cannot explain them (alpha bound above WIDEN_ALPHA)."""
     tri = np.asarray(trimap, np.float64).copy()
-    near = ndimage.binary_dilation(tri > BG, iterations=widen_px(tri.shape[1]))
+    near = dilate(tri > BG, widen_px(tri.shape[1]))  # ndimage.binary_dilation(..., iterations=...)
     grow = (tri <= BG) & near & np.asarray(known, bool) & (lower > WIDEN_ALPHA)
-    tri[ndimage.binary_dilation(grow) & near & (tri <= BG) & np.asarray(known, bool)] = UNKNOWN
+    tri[dilate(grow) & near & (tri <= BG) & np.asarray(known, bool)] = UNKNOWN
     return tri
 
 

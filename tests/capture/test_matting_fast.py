@@ -36,3 +36,17 @@ def test_zoom2_is_ndimage_zoom(shape):
         assert np.array_equal(zoom2(c, h, w), ref[:h, :w])
     with pytest.raises(ValueError):
         zoom2(c, 2 * shape[0] + 1, 1)
+
+
+@pytest.mark.parametrize("iterations", [1, 2, 6, 37])
+def test_dilate_and_erode_are_ndimage(iterations):
+    from capture.matting_fast import dilate, erode
+
+    rng = np.random.default_rng(3)
+    blobs = ndimage.gaussian_filter(rng.random((301, 257)), 6) > 0.5
+    for m in (blobs, rng.random((64, 80)) > 0.97, np.ones((9, 7), bool), np.zeros((5, 5), bool)):
+        m = m.copy()
+        m[0, :3] = True  # at the border
+        assert np.array_equal(dilate(m, iterations), ndimage.binary_dilation(m, iterations=iterations))
+        assert np.array_equal(erode(m, iterations), ndimage.binary_erosion(m, iterations=iterations, border_value=0))
+        assert dilate(m, iterations).dtype == bool
