@@ -85,15 +85,26 @@ def segment_distance(samples: np.ndarray, start: np.ndarray, ends: np.ndarray) -
     return best
 
 
-def _vertex_chunk(s: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`line_vertex` on one chunk (K, n, 3) without NaN checks beyond the samples' own."""
-    K, n, _ = s.shape
-    have = np.isfinite(s[..., 0])
-    s0 = np.nan_to_num(s)
+def vertex_costs_reference(s0: np.ndarray, have: np.ndarray, pal: np.ndarray) -> np.ndarray:
+    """(K, n) cost of each frame's sample (K, n, 3; NaN set to 0, ``have`` where there is one) as the
+    pixel's vertex: the capped squared distances of the samples to its segments, summed (step 2).
+    The numpy reference of capture.plate_lines_kernel.vertex_costs (the same values)."""
+    K, n, _ = s0.shape
     cost = np.full((K, n), np.inf)
     for c in range(K):
         dist = np.minimum(segment_distance(s0, s0[c], pal), LINE_CAP)
         cost[c] = np.where(have[c], np.where(have, dist * dist, 0.0).sum(0), np.inf)
+    return cost
+
+
+def _vertex_chunk(s: np.ndarray, pal: np.ndarray, fast: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`line_vertex` on one chunk (K, n, 3) without NaN checks beyond the samples' own."""
+    from capture.plate_lines_kernel import vertex_costs
+
+    K, n, _ = s.shape
+    have = np.isfinite(s[..., 0])
+    s0 = np.nan_to_num(s)
+    cost = vertex_costs(s0, have, pal, LINE_CAP) if fast else vertex_costs_reference(s0, have, pal)
     best = np.argmin(cost, axis=0)
     cols = np.arange(n)
     cand = s0[best, cols]
@@ -103,12 +114,13 @@ def _vertex_chunk(s: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return colour, residual
 
 
-def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def line_vertex(samples: np.ndarray, pal: np.ndarray, fast: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(B (N, 3), residual (N,)) of linear ``samples`` (K, N, 3) (frames x pixels, NaN = no sample)
     and the object colours ``pal`` (P, 3): per pixel the common end of the segments the samples lie
     on (module docstring, step 2), and the RMS of the samples' capped distances to its segments.
     Only the estimator; :func:`unseen_background` applies the checks of step 3.  Computed in
-    float32 (float64 took 1.7x as long; colours are 8-bit to 16-bit data)."""
+    float32 (float64 took 1.7x as long; colours are 8-bit to 16-bit data).  ``fast``: the candidates'
+    costs in one compiled loop (capture.plate_lines_kernel), else in numpy (the same values)."""
     s = np.asarray(samples, np.float32)
     pal = np.asarray(pal, np.float32).reshape(-1, 3)
     N = s.shape[1]
@@ -117,7 +129,7 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.nd
     if len(pal) == 0:
         return colour, residual
     for lo in range(0, N, LINE_CHUNK):
-        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal)
+        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal, fast)
     return colour, residual
 
 
