@@ -127,3 +127,32 @@ def view_labels(depth: np.ndarray, camera, center: np.ndarray, radius: float, pl
             np.asarray(plane if has_plane else np.zeros(4), np.float64), float(band), z_center,
             np.asarray(origin, np.float64), float(voxel), int(n), obj_arr, mode, lab, seen)
     return lab, (np.flatnonzero(seen) if mode == MARK_CELLS else None)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _above(depth, K, R, t, plane, offset, out):
+    H, W = depth.shape
+    for v in range(H):
+        for u in range(W):
+            d32 = depth[v, u]
+            if not (np.isfinite(d32) and d32 > 0):
+                continue
+            p0, p1, p2 = _ray(np.float64(u), np.float64(v), np.float64(d32), K)
+            x = _rotate(p0, p1, p2, R, t, 0)
+            y = _rotate(p0, p1, p2, R, t, 1)
+            z = _rotate(p0, p1, p2, R, t, 2)
+            out[v, u] = _height(x, y, z, plane) > offset
+
+
+def above_plane(depth: np.ndarray, camera, plane: np.ndarray, offset: float) -> np.ndarray:
+    """(H, W) bool: the depth pixels whose world point lies more than ``offset`` above ``plane``
+    (``pts @ plane[:3] + plane[3] > offset`` of ``camera.depth_to_points(depth)``, in the loop's
+    arithmetic: module docstring); False where there is no depth."""
+    depth = np.ascontiguousarray(depth)
+    if depth.dtype not in (np.float32, np.float64):
+        depth = depth.astype(np.float64)
+    out = np.zeros(depth.shape, np.bool_)
+    wfc = camera.world_from_cam
+    _above(depth, np.ascontiguousarray(camera.K, np.float64), np.ascontiguousarray(wfc[:3, :3], np.float64),
+           np.ascontiguousarray(wfc[:3, 3], np.float64), np.asarray(plane, np.float64), float(offset), out)
+    return out
