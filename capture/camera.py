@@ -176,26 +176,6 @@ class Camera:
         uv = np.stack([u, v], axis=-1).astype(np.float64)
         return self.unproject(uv, depth[mask]), mask
 
-    def plane_distance(self, depth: np.ndarray, plane: np.ndarray) -> np.ndarray:
-        """(H, W) float64 signed distance (metres) to the plane n . X + d = 0 (``plane`` (4,), n a
-        unit normal) of each pixel's point back-projected at z-depth ``depth`` (H, W); NaN where
-        there is no depth.  :meth:`depth_to_points` and the plane in one affine step, without the
-        points: X = C + z R r(u, v) with the ray r affine in the pixel, so n . X + d =
-        z (R^T n) . r(u, v) + (n . C + d)."""
-        depth = np.asarray(depth, np.float64)
-        if depth.shape != (self.height, self.width):
-            raise CameraError(f"depth shape {depth.shape} does not match camera {self.height}x{self.width}")
-        n = np.asarray(plane[:3], np.float64)
-        wfc = self.world_from_cam
-        m = wfc[:3, :3].T @ n
-        K = self.K
-        y = ((np.arange(self.height, dtype=np.float64) - K[1, 2]) / K[1, 1])[:, None]
-        x = (np.arange(self.width, dtype=np.float64)[None, :] - K[0, 2] - K[0, 1] * y) / K[0, 0]
-        slope = m[0] * x + (m[1] * y + m[2])
-        out = depth * slope + (n @ wfc[:3, 3] + float(plane[3]))
-        out[~(np.isfinite(depth) & (depth > 0))] = np.nan
-        return out
-
     def footprint(self, depth: float) -> float:
         """Approximate side (metres) of one pixel at z-depth ``depth`` (mean of fx, fy)."""
         return float(depth) * 2.0 / (self.K[0, 0] + self.K[1, 1])

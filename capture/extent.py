@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from capture.extent_kernel import view_labels
 from capture.orbit import closest_point_to_axes, estimate_up
 from capture.sampling import cell_index
 from capture.scan import MAX_SAMPLED_POINTS, Scan, ScanSet, bounds_from_points
@@ -87,6 +88,10 @@ class ExtentConfig:
     focus_margin: float = FOCUS_MARGIN
     #: Remove floaters (depth apart from the object's connected occupancy; module docstring).
     floaters: bool = True
+    #: Label each view's pixels in one compiled loop (capture.extent_kernel.view_labels); False: the
+    #: numpy reference (:func:`_labels`, :func:`_floater_cells`, :func:`floater_relabel`), the same
+    #: labels (tests/capture/test_extent.py states the tolerance).
+    fast: bool = True
 
     def __post_init__(self) -> None:
         if not self.focus_margin > 0:
@@ -245,41 +250,58 @@ def depth_count_view(scan, k, arg):
     return None, int(np.count_nonzero(scan.depth > 0))
 
 
-def sampled_points_view(scan, k, step: int):
+def sampled_points_view(scan, k, arg):
     """Per view: every ``step``-th of its depth points in row-major order, as
-    ``capture.scan.sampled_points`` takes them (back-projected alone: the same values)."""
+    ``capture.scan.sampled_points`` takes them (back-projected alone: the same values); ``arg``:
+    the step, or (step, centre, radius) to keep only those within ``radius`` of ``centre`` (the
+    focus region's points, each tested alone as over all views' points: the same points)."""
+    step, sphere = (arg, None) if np.isscalar(arg) else (arg[0], arg[1:])
     depth = np.asarray(scan.depth)
     mask = np.isfinite(depth) & (depth > 0)
     v, u = np.nonzero(mask)
     v, u = v[::step], u[::step]
     if not len(v):
         return None, np.zeros((0, 3))
-    return None, scan.camera.unproject(np.stack([u, v], axis=-1).astype(np.float64), depth[v, u])
+    pts = scan.camera.unproject(np.stack([u, v], axis=-1).astype(np.float64), depth[v, u])
+    if sphere is not None:
+        pts = pts[np.linalg.norm(pts - sphere[0], axis=1) <= sphere[1]]
+    return None, pts
 
 
-def mapped_sampled_points(map_views, scans, max_points: int = MAX_SAMPLED_POINTS, counts=None) -> np.ndarray:
+def mapped_sampled_points(map_views, scans, max_points: int = MAX_SAMPLED_POINTS, counts=None,
+                          sphere=None) -> np.ndarray:
     """``capture.scan.sampled_points`` of ``scans`` view by view through ``map_views`` (``counts``:
-    the views' depth pixels when known)."""
+    the views' depth pixels when known; ``sphere``: (centre, radius) to keep only the points within
+    it, tested in each view's pass)."""
     if counts is None:
         counts = map_views(depth_count_view, scans, None, "extent: depth")[1]
     step = max(1, -(-int(sum(counts)) // max(int(max_points), 1)))
-    pts = [p for p in map_views(sampled_points_view, scans, step, "extent: points")[1] if len(p)]
+    arg = step if sphere is None else (step, *sphere)
+    pts = [p for p in map_views(sampled_points_view, scans, arg, "extent: points")[1] if len(p)]
     return np.concatenate(pts) if pts else np.zeros((0, 3))
 
 
 def floater_cells_view(scan, k, arg):
-    """Per view: the floater grid's cells its kept depth points fall in (unique flat indices)."""
-    labels, (origin, voxel, n) = arg
-    return None, np.unique(_floater_cells(scan, _labels(scan, *labels), origin, voxel, n)[1])
+    """Per view: the floater grid's cells its kept depth points fall in (unique flat indices);
+    ``arg``: (the :func:`_labels` arguments after the scan, (origin, voxel, n), ExtentConfig.fast)."""
+    labels, cells, fast = arg
+    if fast:
+        return None, view_labels(scan.depth, scan.camera, *labels, cells=cells)[1]
+    return None, np.unique(_floater_cells(scan, _labels(scan, *labels), *cells)[1])
 
 
 def removal_view(scan, k, arg):
     """Per view: (the scan with the removed depth at 0, or None when nothing is removed; its depth
-    pixels and the pixels removed per reason)."""
-    labels, grid = arg
+    pixels and the pixels removed per reason); ``arg``: (the :func:`_labels` arguments after the
+    scan, the packed floater grid or None, ExtentConfig.fast)."""
+    labels, grid, fast = arg
     if grid is not None:
         grid = (np.unpackbits(grid[0], count=grid[4]).astype(bool), *grid[1:4])
-    lab = floater_relabel(scan, _labels(scan, *labels), grid)
+    if fast:
+        lab = view_labels(scan.depth, scan.camera, *labels, cells=None if grid is None else grid[1:],
+                          obj=None if grid is None else grid[0])[0]
+    else:
+        lab = floater_relabel(scan, _labels(scan, *labels), grid)
     counts = {r: int(np.count_nonzero(lab == k + 1)) for k, r in enumerate(REASONS)}
     note = {"valid": int(np.count_nonzero(scan.valid)), **counts}
     if not lab.any():
@@ -288,17 +310,17 @@ def removal_view(scan, k, arg):
     return Scan(scan.rgb, np.where(lab > 0, 0.0, scan.depth), scan.camera, scan.name, scan.alpha), note
 
 
-def floater_grid(map_views, scans, labels, center: np.ndarray, radius: float):
+def floater_grid(map_views, scans, labels, center: np.ndarray, radius: float, fast: bool = True):
     """(object cells (n^3,) bool, origin, voxel, n) of the floater test (module docstring), each
     view's cells through ``map_views`` (``labels``: the arguments of its :func:`_labels` after the
-    scan); None when no cell is seen often enough."""
+    scan; ``fast``: ExtentConfig.fast); None when no cell is seen often enough."""
     from scipy import ndimage
 
     voxel = FLOATER_VOXEL_FRACTION * radius
     n = int(np.ceil(2 * radius / voxel)) + 1
     origin = center - radius
     hits = np.zeros(n ** 3, np.int32)
-    for cells in map_views(floater_cells_view, scans, (labels, (origin, voxel, n)), "extent: floaters")[1]:
+    for cells in map_views(floater_cells_view, scans, (labels, (origin, voxel, n), fast), "extent: floaters")[1]:
         hits[cells] += 1
     occ = (hits >= FLOATER_MIN_VIEWS).reshape(n, n, n)
     comp, n_comp = ndimage.label(occ, structure=np.ones((3, 3, 3), bool))
@@ -325,16 +347,14 @@ def remove_surroundings(scanset: ScanSet, cfg: ExtentConfig | None = None, keep=
     up = estimate_up(cams)
     center, radius = focus_region(cams, cfg.focus_margin)
     thr = PLANE_DISTANCE_FRACTION * radius
-    allp = mapped_sampled_points(map_views, scanset.scans)
-    focus = allp[np.linalg.norm(allp - center, axis=1) <= radius]
-    del allp
+    focus = mapped_sampled_points(map_views, scanset.scans, sphere=(center, radius))
     plane, frac = fit_support_plane(focus, up, center, np.array([c.center for c in cams]), thr) \
         if len(focus) >= 3 else (None, 0.0)
     kept = plane is not None and cfg.keep_support
     labels = (center, radius, None if kept else plane, SUPPORT_BAND * thr)
-    grid = floater_grid(map_views, scanset.scans, labels, center, radius) if cfg.floaters else None
+    grid = floater_grid(map_views, scanset.scans, labels, center, radius, cfg.fast) if cfg.floaters else None
     packed = None if grid is None else (np.packbits(grid[0]), *grid[1:], len(grid[0]))
-    scans, notes = map_views(removal_view, scanset.scans, (labels, packed), "extent: removal")
+    scans, notes = map_views(removal_view, scanset.scans, (labels, packed, cfg.fast), "extent: removal")
     n_valid = sum(n["valid"] for n in notes)
     totals = {r: sum(n[r] for n in notes) for r in REASONS}
     per_view = tuple({r: (n[r] / n["valid"] if n["valid"] else 0.0) for r in REASONS} for n in notes)

@@ -38,8 +38,8 @@ import io
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
+from capture.matting_fast import channel_max, dilate, erode
 from capture.scan import Scan
 
 #: Matting modes of MatteConfig.mode / ``furrow model --matte``.
@@ -127,8 +127,8 @@ def depth_trimap(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) float64 trimap (BG / UNKNOWN / FG) from the object's (H, W) depth (0 = none) (module docstring)."""
     m = np.asarray(object_depth) > 0
     W = m.shape[1]
-    fg = ndimage.binary_erosion(m, iterations=_px(ERODE_FRACTION, W), border_value=0)
-    near = ndimage.binary_dilation(m, iterations=_px(BAND_FRACTION, W))
+    fg = erode(m, _px(ERODE_FRACTION, W))  # ndimage.binary_erosion(m, iterations=..., border_value=0)
+    near = dilate(m, _px(BAND_FRACTION, W))  # ndimage.binary_dilation(m, iterations=...)
     tri = np.full(m.shape, BG)
     tri[near] = UNKNOWN
     tri[fg] = FG
@@ -142,7 +142,7 @@ def detect_backdrop(image: np.ndarray, trimap: np.ndarray) -> np.ndarray | None:
     if len(bg) < 16:
         return None
     med = np.median(bg, axis=0)
-    close = np.max(np.abs(bg - med), axis=1) <= BACKDROP_TOL
+    close = channel_max(np.abs(bg - med)) <= BACKDROP_TOL
     return med if close.mean() >= BACKDROP_PLAIN else None
 
 
@@ -264,7 +264,7 @@ def backdrop_noise(image: np.ndarray, trimap: np.ndarray, backdrop: np.ndarray) 
     """Linear noise of a plain backdrop: the BACKDROP_NOISE_QUANTILE of its certain pixels' largest
     channel difference from ``backdrop``, at least one 8-bit sRGB step at black."""
     bg = np.asarray(image)[trimap == BG]
-    d = np.max(np.abs(bg - backdrop), axis=1) if len(bg) else np.zeros(1)
+    d = channel_max(np.abs(bg - backdrop)) if len(bg) else np.zeros(1)
     return float(max(np.quantile(d, BACKDROP_NOISE_QUANTILE), NOISE_FLOOR))
 
 
@@ -281,7 +281,7 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     H, W = trimap.shape
     alpha = np.zeros((H, W), np.float32)
     fg = np.asarray(image, np.float32).copy()
-    grown = ndimage.binary_dilation(trimap > BG, iterations=widen_px(W) + 1)
+    grown = dilate(trimap > BG, widen_px(W) + 1)  # ndimage.binary_dilation(..., iterations=...)
     box = _crop(np.where(grown, UNKNOWN, BG))
     if box is None:
         return Matte(alpha, fg, method, 0.0)

@@ -41,6 +41,8 @@ import io
 import numpy as np
 from scipy import ndimage
 
+from capture.matting_fast import channel_max, channel_sum, dilate, zoom2
+
 #: Trimap values (pymatting's convention, as capture.matting).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
 #: Noise of the compositing equation (linear RGB): |C - B| up to NOISE_ABS + NOISE_REL * B per
@@ -144,7 +146,7 @@ def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = 
     slack = np.abs(d) - (noise + NOISE_REL * B)
     room = np.where(d > 0, 1.0 - B, B)
     lo = np.where(slack > 0, slack / np.maximum(room, 1e-6), 0.0)
-    return np.clip(lo.max(axis=-1), 0.0, 1.0)
+    return np.clip(channel_max(lo), 0.0, 1.0)
 
 
 def push_pull(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -166,7 +168,8 @@ def push_pull(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     ws = wp.reshape(H2 // 2, 2, W2 // 2, 2).sum((1, 3))
     vs = vp.reshape(H2 // 2, 2, W2 // 2, 2, -1).sum((1, 3))
     coarse = push_pull(np.where(ws[..., None] > 0, vs / np.maximum(ws, 1e-12)[..., None], 0.0), np.minimum(ws, 1.0))
-    up = ndimage.zoom(coarse, (2, 2) + (1,) * (coarse.ndim - 2), order=1, mode="nearest", grid_mode=True)[:h, :wd]
+    up = zoom2(coarse, h, wd) if coarse.ndim == 3 else \
+        ndimage.zoom(coarse, (2, 2) + (1,) * (coarse.ndim - 2), order=1, mode="nearest", grid_mode=True)[:h, :wd]
     return np.where(w[..., None] > 0, v, up)
 
 
@@ -193,7 +196,8 @@ def palette(colours: np.ndarray, k: int | None = None) -> np.ndarray:
 def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.ndarray,
                     lower: np.ndarray, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Per pixel the best of the candidate colours (step 2): (alpha_hat (h, w), confidence (h, w)).
-    ``candidates`` (K, h, w, 3): per-pixel candidate colours (a palette colour broadcast); a
+    ``candidates`` (K, h, w, 3), or a sequence of K such arrays: per-pixel candidate colours (a palette
+    colour broadcast); a
     candidate after the first wins only with a residual smaller by ``margin``."""
     C = np.asarray(image, np.float64)
     B = np.asarray(background, np.float64)
@@ -204,10 +208,10 @@ def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.nd
     best_cost = np.full(C.shape[:2], np.inf)
     for k, P in enumerate(candidates):
         E = P - B
-        e2 = (E * E).sum(-1)
-        de = (D * E).sum(-1)
+        e2 = channel_sum(E * E)
+        de = channel_sum(D * E)
         a = np.clip(de / np.maximum(e2, 1e-9), lower, 1.0)
-        res = np.sqrt(((D - a[..., None] * E) ** 2).sum(-1))
+        res = np.sqrt(channel_sum((D - a[..., None] * E) ** 2))
         cost = res + (margin if k else 0.0)
         better = cost < best_cost
         best_cost = np.where(better, cost, best_cost)
@@ -241,16 +245,16 @@ def fit_candidates(image: np.ndarray, background: np.ndarray, nearest: np.ndarra
     working-resolution one (capture.matting_scale)."""
     shape = np.shape(image)
     cands = [nearest] + [np.broadcast_to(p, shape) for p in palette(sources)] + list(extra)
-    return candidate_alpha(image, background, np.stack(cands), lower, PALETTE_MARGIN)
+    return candidate_alpha(image, background, cands, lower, PALETTE_MARGIN)  # a list: np.stack copied them all
 
 
 def widen_trimap(trimap: np.ndarray, lower: np.ndarray, known: np.ndarray) -> np.ndarray:
     """``trimap`` with its background pixels near the unknown band (:func:`widen_px` of its width)
     made unknown where the known background cannot explain them (alpha bound above WIDEN_ALPHA)."""
     tri = np.asarray(trimap, np.float64).copy()
-    near = ndimage.binary_dilation(tri > BG, iterations=widen_px(tri.shape[1]))
+    near = dilate(tri > BG, widen_px(tri.shape[1]))  # ndimage.binary_dilation(..., iterations=...)
     grow = (tri <= BG) & near & np.asarray(known, bool) & (lower > WIDEN_ALPHA)
-    tri[ndimage.binary_dilation(grow) & near & (tri <= BG) & np.asarray(known, bool)] = UNKNOWN
+    tri[dilate(grow) & near & (tri <= BG) & np.asarray(known, bool)] = UNKNOWN
     return tri
 
 
@@ -341,7 +345,7 @@ def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
     """(h, w) bool: pixels where the photo or the plate reaches CLIP_LEVEL in a channel.  There
     C = a F + (1 - a) B no longer holds (the true B of a blown-out window is above 1), so B
     counts as unknown there."""
-    return (np.asarray(image).max(axis=-1) >= CLIP_LEVEL) | (np.asarray(background).max(axis=-1) >= CLIP_LEVEL)
+    return (channel_max(image) >= CLIP_LEVEL) | (channel_max(background) >= CLIP_LEVEL)
 
 
 def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, noise: float) -> np.ndarray:
@@ -350,7 +354,7 @@ def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, no
     (:func:`alpha_lower_bound`; darker than it, C - B < 0, needs alpha >= (B - C) / B, which only
     grows with B) still holds; 0 elsewhere and with BLOWN_BOUND off."""
     C = np.asarray(image, np.float64)
-    use = np.asarray(where, bool) & (C.max(axis=-1) < CLIP_LEVEL) & (np.asarray(background).max(axis=-1) >= CLIP_LEVEL)
+    use = np.asarray(where, bool) & (channel_max(C) < CLIP_LEVEL) & (channel_max(background) >= CLIP_LEVEL)
     if not BLOWN_BOUND or not use.any():
         return np.zeros(C.shape[:2])
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
@@ -383,7 +387,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     sure = ok & (a >= REFINE_ALPHA)
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
-        bright = push_pull(B, (known & ~blown).astype(np.float64)).max(axis=-1) >= FILL_BRIGHT if known.any() \
+        bright = channel_max(push_pull(B, (known & ~blown).astype(np.float64))) >= FILL_BRIGHT if known.any() \
             else np.zeros(a.shape, bool)
         fill = need & (blown | bright)
     rest = need & ~fill

@@ -41,10 +41,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import ndimage
 
 from capture.camera import Camera
 from capture.matting import UNKNOWN, depth_trimap
+from capture.matting_fast import dilate
 from capture.matting_known import widen_px
 from capture.plate_reproject import room_depth
 from capture.sampling import mask_box
@@ -199,21 +199,21 @@ def px(frac: float, width: int) -> int:
 def source_mask(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) bool confidently background: outside the object's depth dilated by SOURCE_BAND_FRACTION."""
     m = np.asarray(object_depth) > 0
-    return ~ndimage.binary_dilation(m, iterations=px(SOURCE_BAND_FRACTION, m.shape[1]))
+    return ~dilate(m, px(SOURCE_BAND_FRACTION, m.shape[1]))  # ndimage.binary_dilation(m, iterations=...)
 
 
 def need_mask(object_depth: np.ndarray) -> np.ndarray:
     """(H, W) bool pixels whose background the matte may ask for: the trimap's band and opaque
     pixels, widened as capture.matting_known widens it."""
     tri = depth_trimap(object_depth)
-    return ndimage.binary_dilation(tri > 0, iterations=widen_px(tri.shape[1]))
+    return dilate(tri > 0, widen_px(tri.shape[1]))  # ndimage.binary_dilation(..., iterations=...)
 
 
 def ring_pixels(object_depth: np.ndarray, source: np.ndarray | None = None) -> np.ndarray:
     """(N, 2) int (x, y) of the held-back ring: source pixels within RING_FRACTION of the source
     band's edge, at most RING_SAMPLES (evenly); ``source``: the view's :func:`source_mask` if known."""
     src = source_mask(object_depth) if source is None else source
-    near = ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
+    near = dilate(~src, px(RING_FRACTION, src.shape[1]))  # ndimage.binary_dilation(..., iterations=...)
     y, x = np.nonzero(src & near)
     if len(y) > RING_SAMPLES:
         k = np.linspace(0, len(y) - 1, RING_SAMPLES).round().astype(np.int64)
@@ -317,15 +317,30 @@ def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> P
     ring = ring_pixels(v.object_depth, src)
     room = None
     if "panorama" in paths:
-        off = bgd > 0
-        if plane is not None:  # without forming the points (Camera.plane_distance)
-            off &= np.nan_to_num(v.camera.plane_distance(bgd, plane), nan=-np.inf) > PLANE_OFF_METRES
-        band = src & ndimage.binary_dilation(~src, iterations=px(RING_FRACTION, src.shape[1]))
+        off = _off_plane(v.camera, bgd, plane)
+        band = src & dilate(~src, px(RING_FRACTION, src.shape[1]))
         room = room_depth(bgd, band, off)
     weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
     observed = np.asarray(v.linear[ring[:, 1], ring[:, 0]], np.float64)
     # the capture's depth is read here only (background_depth keeps what the paths need of it)
     return PreparedView(replace(v, depth=None), src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
+
+
+def _off_plane(cam, depth: np.ndarray, plane: np.ndarray | None, fast: bool = True) -> np.ndarray:
+    """(H, W) bool: the ``depth`` pixels off the support ``plane`` (more than PLANE_OFF_METRES above
+    it; every depth pixel without a plane).  ``fast``: capture.extent_kernel.above_plane (one
+    compiled loop), else the numpy back-projection (the same pixels: tests/capture/test_plate.py)."""
+    if plane is None:
+        return np.isfinite(depth) & (depth > 0)
+    if fast:
+        from capture.extent_kernel import above_plane
+
+        return above_plane(depth, cam, plane, PLANE_OFF_METRES)
+    pts, m = cam.depth_to_points(depth)
+    off = np.zeros(depth.shape, bool)
+    if len(pts):
+        off[m] = (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
+    return off
 
 
 def plate_set(views, plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,

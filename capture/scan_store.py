@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.sampling import mask_box
-from capture.scan import Scan, srgb_to_linear, to_uint8_srgb
+from capture.scan import Scan, srgb8_to_linear, to_uint8_srgb
 
 #: Views whose arrays stay in memory after being read (each is at most colour + depth + matte).
 READ_CACHE_VIEWS = 4
@@ -214,7 +214,7 @@ class SpilledScan:
     @property
     def linear_rgb(self) -> np.ndarray:
         rgb = self.rgb
-        return srgb_to_linear(rgb.astype(np.float32) / 255.0) if rgb.dtype == np.uint8 else rgb
+        return srgb8_to_linear(rgb) if rgb.dtype == np.uint8 else rgb
 
     @property
     def srgb8(self) -> np.ndarray:

@@ -147,24 +147,3 @@ def test_cam_from_world_of_transform_reads_what_to_nerfstudio_writes():
     # OpenCV axes: the target lies in front of the camera, along its +z
     assert got[2, :3] @ (np.array([0, 0.1, 0]) - cam.center) > 0
 
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_plane_distance_equals_the_back_projected_points(seed):
-    """Camera.plane_distance (affine, no points) against depth_to_points and the plane (the
-    reference) on a skewed camera; no depth (0, NaN, inf) is NaN."""
-    rng = np.random.default_rng(seed)
-    K = make_K(300.0, 320.0, 31.3, 22.7)
-    K[0, 1] = 4.5
-    M = np.eye(4)
-    M[:3, :3] = rotation_from_quat(rng.normal(size=4))
-    M[:3, 3] = rng.uniform(-2, 2, 3)
-    cam = Camera(K, M, 64, 48)
-    depth = rng.uniform(0.2, 3.0, (48, 64))
-    depth[rng.uniform(size=depth.shape) < 0.2] = 0.0
-    depth[0, :3] = (np.nan, np.inf, -1.0)
-    n = rng.normal(size=3)
-    plane = np.append(n / np.linalg.norm(n), rng.uniform(-1, 1))
-    got = cam.plane_distance(depth, plane)
-    pts, mask = cam.depth_to_points(depth)
-    assert np.isnan(got[~mask]).all() and np.isfinite(got[mask]).all()
-    np.testing.assert_allclose(got[mask], pts @ plane[:3] + plane[3], rtol=0, atol=1e-12)

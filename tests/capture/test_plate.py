@@ -209,3 +209,29 @@ def test_robust_mode_with_weights_does_not_depend_on_the_chunk(monkeypatch):
         got = robust_mode(s, w)
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
+
+
+def test_off_plane_pixels_compiled_equal_numpy():
+    """capture.plate._off_plane: the compiled loop (capture.extent_kernel.above_plane) and the numpy
+    back-projection mark the same pixels, and the heights it tests against PLANE_OFF_METRES straddle
+    it (a table seen obliquely, the room behind, holes and NaN)."""
+    from capture.camera import Camera, look_at
+    from capture.plate import PLANE_OFF_METRES, _off_plane
+
+    rng = np.random.default_rng(4)
+    W, H = 320, 240
+    K = np.array([[300.0, 0.0, W / 2 - 0.5], [0.0, 300.0, H / 2 - 0.5], [0.0, 0.0, 1.0]])
+    plane = np.array([0.01, -0.02, 1.0, 0.15])
+    plane[:3] /= np.linalg.norm(plane[:3])
+    for k in range(4):
+        eye = (0.7 * np.cos(k), 0.7 * np.sin(k), 0.35)
+        cam = Camera(K, look_at(eye, (0.0, 0.0, -0.1)), W, H)
+        depth = rng.uniform(0.3, 1.5, (H, W)).astype(np.float32)
+        depth[rng.random((H, W)) < 0.1] = 0.0
+        depth[5, 7] = np.nan
+        pts, m = cam.depth_to_points(depth)
+        h = pts @ plane[:3] + plane[3]
+        assert (h > PLANE_OFF_METRES).any() and (h <= PLANE_OFF_METRES).any()
+        fast = _off_plane(cam, depth, plane)
+        assert np.array_equal(fast, _off_plane(cam, depth, plane, fast=False))
+        assert np.array_equal(_off_plane(cam, depth, None), m)

@@ -171,3 +171,19 @@ def test_the_matte_before_the_solved_background_beats_the_one_without(seed, monk
         scores[flag] = (np.mean(prem), np.mean(mse))
     assert scores[True][0] <= MATTE_PREMUL_RATIO * scores[False][0], scores
     assert scores[True][1] <= MATTE_ALPHA_RATIO * scores[False][1], scores
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_compiled_vertex_equals_the_numpy_path_on_degenerate_segments(seed):
+    """line_vertex with and without the compiled loop, bit for bit: the pixel scene with missing
+    samples (NaN), quantised colours, duplicate samples and a palette colour equal to a sample (a
+    zero-length segment)."""
+    C, _, pal = _lines_scene(seed, n=300, frames=9)
+    rng = np.random.default_rng(seed)
+    C[rng.random(C.shape[:2]) < 0.15] = np.nan
+    C[:, :50] = srgb_to_linear(to_uint8_srgb(np.nan_to_num(C[:, :50])) / np.float32(255.0))
+    C[1, 60:70] = C[0, 60:70]
+    C[2, 80] = (0.3, 0.2, 0.1)
+    pal = np.concatenate([pal, C[2, 80][None]])
+    for a, b in zip(line_vertex(C, pal), line_vertex(C, pal, fast=False), strict=True):
+        assert np.array_equal(a, b, equal_nan=True)

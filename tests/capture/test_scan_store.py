@@ -170,3 +170,15 @@ def test_sampled_points_do_not_keep_every_scans_points():
     tracemalloc.stop()
     assert len(pts) <= 1000 + len(scans)
     assert peak < 8 * one, (peak, one)  # measured: 4.7x (back-projection temporaries); 19.6x with the views kept
+
+
+def test_linear_colour_lookup_equals_the_srgb_formula():
+    """capture.scan.srgb8_to_linear (Scan.linear_rgb, SpilledScan.linear_rgb) is srgb_to_linear of
+    the 8-bit codes over 255, bit for bit, on a frame-sized image and on small odd ones."""
+    from capture.scan import srgb8_to_linear, srgb_to_linear
+
+    rng = np.random.default_rng(0)
+    for shape in [(1440, 1920, 3), (7, 5, 3), (1, 1, 3), (256,)]:
+        x = np.arange(256, dtype=np.uint8) if shape == (256,) else rng.integers(0, 256, shape).astype(np.uint8)
+        got = srgb8_to_linear(x)
+        assert got.dtype == np.float32 and np.array_equal(got, srgb_to_linear(x.astype(np.float32) / 255.0))

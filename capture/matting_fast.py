@@ -1,0 +1,111 @@
+"""Faster twins of numpy expressions in the matting paths (capture/matting.py, capture/matting_known.py,
+capture/matting_scale.py; issue 32), each giving the same values bit for bit as the expression it
+replaces (tests/capture/test_matting_fast.py holds each against it).
+
+A 1920x1440 phone view spent about a quarter of its matte in numpy reductions over the three
+colour channels (``x.max(axis=-1)``, ``(a * b).sum(-1)``: numpy's reduction over a short inner axis
+runs an outer loop per pixel) and in ``scipy.ndimage.zoom``'s general spline code for the 2x
+bilinear step of the push-pull fill (docs/speed.md, round 4).
+
+* :func:`channel_max`: ``x.max(axis=-1)`` as elementwise maxima of the channels (exact: a maximum
+  rounds nothing; NaN propagates as in ``max``).
+* :func:`channel_sum`: ``x.sum(-1)`` of three channels as ``(x0 + x1) + x2``, the order numpy's
+  reduction takes over a last axis of three (checked against it in the tests).
+* :func:`dilate`, :func:`erode`: ``ndimage.binary_dilation`` / ``binary_erosion`` of a 2-D mask
+  with the default cross, ``iterations`` times, the outside 0 (``border_value=0``), as OpenCV's
+  morphology with the same cross and a constant 0 border (a set operation: nothing to round).
+* :func:`zoom2`: ``scipy.ndimage.zoom(c, (2, 2, 1), order=1, mode="nearest", grid_mode=True)[:h, :w]``
+  as one compiled loop: each output pixel sums its four taps in ndimage's order, each tap its value
+  times the row weight times the column weight (0.25 / 0.75: the grid-mode coordinate of a 2x zoom).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+def channel_max(x: np.ndarray) -> np.ndarray:
+    """``x.max(axis=-1)`` (module docstring)."""
+    x = np.asarray(x)
+    if x.ndim == 0 or x.shape[-1] < 2:
+        return x.max(axis=-1)
+    out = np.maximum(x[..., 0], x[..., 1])
+    for k in range(2, x.shape[-1]):
+        np.maximum(out, x[..., k], out=out)
+    return out
+
+
+def channel_sum(x: np.ndarray) -> np.ndarray:
+    """``x.sum(-1)`` of an array of three channels (module docstring); other widths go to numpy."""
+    x = np.asarray(x)
+    if x.ndim == 0 or x.shape[-1] != 3 or x.dtype.kind != "f":
+        return x.sum(-1)
+    out = x[..., 0] + x[..., 1]
+    out += x[..., 2]
+    return out
+
+
+#: The 3x3 cross (scipy.ndimage.generate_binary_structure(2, 1)) as an OpenCV kernel.
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+
+
+def dilate(mask: np.ndarray, iterations: int = 1) -> np.ndarray:
+    """``ndimage.binary_dilation(mask, iterations=iterations)`` of a 2-D mask (module docstring)."""
+    import cv2
+
+    m = np.asarray(mask, bool)
+    if m.ndim != 2 or iterations < 1 or m.size == 0:
+        from scipy import ndimage
+
+        return ndimage.binary_dilation(m, iterations=iterations)
+    return cv2.dilate(m.view(np.uint8), _CROSS, iterations=int(iterations), borderType=cv2.BORDER_CONSTANT,
+                      borderValue=0).view(bool)
+
+
+def erode(mask: np.ndarray, iterations: int = 1) -> np.ndarray:
+    """``ndimage.binary_erosion(mask, iterations=iterations, border_value=0)`` of a 2-D mask (module docstring)."""
+    import cv2
+
+    m = np.asarray(mask, bool)
+    if m.ndim != 2 or iterations < 1 or m.size == 0:
+        from scipy import ndimage
+
+        return ndimage.binary_erosion(m, iterations=iterations, border_value=0)
+    return cv2.erode(m.view(np.uint8), _CROSS, iterations=int(iterations), borderType=cv2.BORDER_CONSTANT,
+                     borderValue=0).view(bool)
+
+
+@njit(cache=True, nogil=True)
+def _zoom2(c, h, w):
+    n0, n1, nc = c.shape
+    out = np.empty((h, w, nc), np.float64)
+    for i in range(h):
+        y0 = (i - 1) // 2 if i % 2 == 0 else i // 2  # floor(i / 2 - 0.25)
+        wy1 = 0.75 if i % 2 == 0 else 0.25
+        wy0 = 1.0 - wy1
+        a0 = min(max(y0, 0), n0 - 1)
+        a1 = min(max(y0 + 1, 0), n0 - 1)
+        for j in range(w):
+            x0 = (j - 1) // 2 if j % 2 == 0 else j // 2
+            wx1 = 0.75 if j % 2 == 0 else 0.25
+            wx0 = 1.0 - wx1
+            b0 = min(max(x0, 0), n1 - 1)
+            b1 = min(max(x0 + 1, 0), n1 - 1)
+            for k in range(nc):
+                t = 0.0
+                t += c[a0, b0, k] * wy0 * wx0
+                t += c[a0, b1, k] * wy0 * wx1
+                t += c[a1, b0, k] * wy1 * wx0
+                t += c[a1, b1, k] * wy1 * wx1
+                out[i, j, k] = t
+    return out
+
+
+def zoom2(coarse: np.ndarray, h: int, w: int) -> np.ndarray:
+    """(h, w, C) float64: ``ndimage.zoom(coarse, (2, 2, 1), order=1, mode="nearest",
+    grid_mode=True)[:h, :w]`` of a (h2, w2, C) ``coarse`` with h <= 2 h2, w <= 2 w2 (module docstring)."""
+    c = np.ascontiguousarray(coarse, np.float64)
+    if c.ndim != 3 or h > 2 * c.shape[0] or w > 2 * c.shape[1]:
+        raise ValueError(f"zoom2 takes (h2, w2, C) to at most (2 h2, 2 w2), got {c.shape} to {(h, w)}")
+    return _zoom2(c, int(h), int(w))

@@ -1,0 +1,52 @@
+"""capture.matting_fast: each twin against the numpy / scipy expression it replaces, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from capture.matting_fast import channel_max, channel_sum, zoom2
+
+
+@pytest.mark.parametrize("shape", [(517, 613, 3), (40001, 1, 3), (7, 3), (5, 4, 1), (9, 2)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_channel_max_is_numpy_max(shape, dtype):
+    x = np.random.default_rng(0).normal(size=shape).astype(dtype)
+    x.flat[3] = np.nan
+    assert np.array_equal(channel_max(x), x.max(axis=-1), equal_nan=True)
+    assert channel_max(x).dtype == x.max(axis=-1).dtype
+
+
+@pytest.mark.parametrize("shape", [(517, 613, 3), (40001, 1, 3), (1000, 3), (6, 4)])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_channel_sum_is_numpy_sum(shape, dtype):
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=shape).astype(dtype), rng.normal(size=shape).astype(dtype)
+    for x in (a * b, (a - b) ** 2, np.broadcast_to(a[:1], shape) * b):
+        got, ref = channel_sum(x), x.sum(-1)
+        assert got.dtype == ref.dtype and np.array_equal(got, ref)
+
+
+@pytest.mark.parametrize("shape", [(57, 43, 3), (1, 9, 3), (8, 1, 4), (1, 1, 3), (200, 151, 1)])
+def test_zoom2_is_ndimage_zoom(shape):
+    c = np.random.default_rng(2).random(shape)
+    ref = ndimage.zoom(c, (2, 2, 1), order=1, mode="nearest", grid_mode=True)
+    for h, w in ((2 * shape[0], 2 * shape[1]), (2 * shape[0] - 1, max(1, 2 * shape[1] - 1))):
+        assert np.array_equal(zoom2(c, h, w), ref[:h, :w])
+    with pytest.raises(ValueError):
+        zoom2(c, 2 * shape[0] + 1, 1)
+
+
+@pytest.mark.parametrize("iterations", [1, 2, 6, 37])
+def test_dilate_and_erode_are_ndimage(iterations):
+    from capture.matting_fast import dilate, erode
+
+    rng = np.random.default_rng(3)
+    blobs = ndimage.gaussian_filter(rng.random((301, 257)), 6) > 0.5
+    for m in (blobs, rng.random((64, 80)) > 0.97, np.ones((9, 7), bool), np.zeros((5, 5), bool)):
+        m = m.copy()
+        m[0, :3] = True  # at the border
+        assert np.array_equal(dilate(m, iterations), ndimage.binary_dilation(m, iterations=iterations))
+        assert np.array_equal(erode(m, iterations), ndimage.binary_erosion(m, iterations=iterations, border_value=0))
+        assert dilate(m, iterations).dtype == bool
