@@ -69,6 +69,13 @@ def _distance(x, y, z, c):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _world(u, v, d, K, R, t):
+    """World point (x, y, z) of pixel (u, v) at z-depth ``d`` (float64): its ray, then the pose."""
+    p0, p1, p2 = _ray(np.float64(u), np.float64(v), d, K)
+    return _rotate(p0, p1, p2, R, t, 0), _rotate(p0, p1, p2, R, t, 1), _rotate(p0, p1, p2, R, t, 2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _cell(x, y, z, origin, voxel, n):
     """Flat index of the floater grid's cell of a world point (capture.sampling.cell_index, clipped)."""
     i = min(max(np.int64(np.floor((x - origin[0]) / voxel)), 0), n - 1)
@@ -87,10 +94,7 @@ def _kernel(depth, K, R, t, center, radius, has_plane, plane, band, z_center, or
             if not (np.isfinite(d32) and d32 > 0):
                 continue
             d = np.float64(d32)
-            p0, p1, p2 = _ray(np.float64(u), np.float64(v), d, K)
-            x = _rotate(p0, p1, p2, R, t, 0)
-            y = _rotate(p0, p1, p2, R, t, 1)
-            z = _rotate(p0, p1, p2, R, t, 2)
+            x, y, z = _world(u, v, d, K, R, t)
             if has_plane and _height(x, y, z, plane) < band:
                 lab[v, u] = SUPPORT
             elif _distance(x, y, z, center) > radius:
@@ -137,10 +141,7 @@ def _above(depth, K, R, t, plane, offset, out):
             d32 = depth[v, u]
             if not (np.isfinite(d32) and d32 > 0):
                 continue
-            p0, p1, p2 = _ray(np.float64(u), np.float64(v), np.float64(d32), K)
-            x = _rotate(p0, p1, p2, R, t, 0)
-            y = _rotate(p0, p1, p2, R, t, 1)
-            z = _rotate(p0, p1, p2, R, t, 2)
+            x, y, z = _world(u, v, np.float64(d32), K, R, t)
             out[v, u] = _height(x, y, z, plane) > offset
 
 
