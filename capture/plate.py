@@ -46,7 +46,7 @@ from capture.camera import Camera
 from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
-from capture.plate_reproject import room_depth
+from capture.plate_reproject import off_plane, room_depth
 from capture.sampling import mask_box
 
 #: Plate modes of PlateConfig.mode / ``furrow model --plate``.
@@ -64,8 +64,6 @@ GAIN_DARK = 0.01
 GAIN_BRIGHT = 0.95
 #: Gain fit: passes (predict, fit; the last prediction uses the last fit).
 GAIN_PASSES = 2
-#: A background depth point higher than this above the support plane is the room, not the support (metres).
-PLANE_OFF_METRES = 0.02
 #: Gain fit: least samples for a view's gain; fewer keeps gain 1.
 GAIN_MIN_SAMPLES = 200
 #: Noise passed to the matte: this multiple of the view's median held-back plate error ...
@@ -317,30 +315,13 @@ def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> P
     ring = ring_pixels(v.object_depth, src)
     room = None
     if "panorama" in paths:
-        off = _off_plane(v.camera, bgd, plane)
+        off = off_plane(v.camera, bgd, plane)
         band = src & dilate(~src, px(RING_FRACTION, src.shape[1]))
         room = room_depth(bgd, band, off)
     weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
     observed = np.asarray(v.linear[ring[:, 1], ring[:, 0]], np.float64)
     # the capture's depth is read here only (background_depth keeps what the paths need of it)
     return PreparedView(replace(v, depth=None), src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
-
-
-def _off_plane(cam, depth: np.ndarray, plane: np.ndarray | None, fast: bool = True) -> np.ndarray:
-    """(H, W) bool: the ``depth`` pixels off the support ``plane`` (more than PLANE_OFF_METRES above
-    it; every depth pixel without a plane).  ``fast``: capture.extent_kernel.above_plane (one
-    compiled loop), else the numpy back-projection (the same pixels: tests/capture/test_plate.py)."""
-    if plane is None:
-        return np.isfinite(depth) & (depth > 0)
-    if fast:
-        from capture.extent_kernel import above_plane
-
-        return above_plane(depth, cam, plane, PLANE_OFF_METRES)
-    pts, m = cam.depth_to_points(depth)
-    off = np.zeros(depth.shape, bool)
-    if len(pts):
-        off[m] = (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
-    return off
 
 
 def plate_set(views, plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,

@@ -51,6 +51,10 @@ FAR_MARGIN = 1.0
 ROOM_MIN_FRACTION = 0.3
 
 
+#: A background depth point higher than this above the support plane is the room, not the support (metres).
+PLANE_OFF_METRES = 0.02
+
+
 @dataclass(frozen=True)
 class PlateSource:
     """What view j lends to the others' plates.
@@ -95,6 +99,23 @@ def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.n
         k = np.flatnonzero(ok)
         out[k] = sample_image(src.linear, uv[k, 0], uv[k, 1], "linear") * (src.gain / gain_i)
     return out
+
+
+def off_plane(cam, depth: np.ndarray, plane: np.ndarray | None, fast: bool = True) -> np.ndarray:
+    """(H, W) bool: the ``depth`` pixels off the support ``plane`` (more than PLANE_OFF_METRES above
+    it; every depth pixel without a plane).  ``fast``: capture.extent_kernel.above_plane (one
+    compiled loop), else the numpy back-projection (the same pixels: tests/capture/test_plate.py)."""
+    if plane is None:
+        return np.isfinite(depth) & (depth > 0)
+    if fast:
+        from capture.extent_kernel import above_plane
+
+        return above_plane(depth, cam, plane, PLANE_OFF_METRES)
+    pts, m = cam.depth_to_points(depth)
+    off = np.zeros(depth.shape, bool)
+    if len(pts):
+        off[m] = (pts @ plane[:3] + plane[3]) > PLANE_OFF_METRES
+    return off
 
 
 def room_depth(depth: np.ndarray, ring: np.ndarray, off_plane: np.ndarray) -> np.ndarray | None:

@@ -212,11 +212,11 @@ def test_robust_mode_with_weights_does_not_depend_on_the_chunk(monkeypatch):
 
 
 def test_off_plane_pixels_compiled_equal_numpy():
-    """capture.plate._off_plane: the compiled loop (capture.extent_kernel.above_plane) and the numpy
+    """capture.plate_reproject.off_plane: the compiled loop (capture.extent_kernel.above_plane) and the numpy
     back-projection mark the same pixels, and the heights it tests against PLANE_OFF_METRES straddle
     it (a table seen obliquely, the room behind, holes and NaN)."""
     from capture.camera import Camera, look_at
-    from capture.plate import PLANE_OFF_METRES, _off_plane
+    from capture.plate_reproject import PLANE_OFF_METRES, off_plane
 
     rng = np.random.default_rng(4)
     W, H = 320, 240
@@ -232,6 +232,6 @@ def test_off_plane_pixels_compiled_equal_numpy():
         pts, m = cam.depth_to_points(depth)
         h = pts @ plane[:3] + plane[3]
         assert (h > PLANE_OFF_METRES).any() and (h <= PLANE_OFF_METRES).any()
-        fast = _off_plane(cam, depth, plane)
-        assert np.array_equal(fast, _off_plane(cam, depth, plane, fast=False))
-        assert np.array_equal(_off_plane(cam, depth, None), m)
+        fast = off_plane(cam, depth, plane)
+        assert np.array_equal(fast, off_plane(cam, depth, plane, fast=False))
+        assert np.array_equal(off_plane(cam, depth, None), m)
