@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -110,6 +110,7 @@ class Matte:
         method: 'given', 'backdrop' or 'estimate' (+ ' (not converged: depth mask)' when the solve failed).
         unknown_fraction: fraction of the view's pixels the trimap left unknown (0 for 'given').
         scale: the resolution it was solved at over the view's (1: full size).
+        notes: the solver's record (capture.matting_known: ``blind_prior``).
     """
 
     alpha: np.ndarray
@@ -117,6 +118,7 @@ class Matte:
     method: str
     unknown_fraction: float = 0.0
     scale: float = 1.0
+    notes: dict = field(default_factory=dict)
 
 
 def _px(frac: float, width: int) -> int:
@@ -281,6 +283,7 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     H, W = trimap.shape
     alpha = np.zeros((H, W), np.float32)
     fg = np.asarray(image, np.float32).copy()
+    notes: dict = {}
     grown = ndimage.binary_dilation(trimap > BG, iterations=widen_px(W) + 1)
     box = _crop(np.where(grown, UNKNOWN, BG))
     if box is None:
@@ -290,13 +293,13 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
         scale = 1.0
         out = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
-                                     np.asarray(known)[box], noise)
+                                     np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes)
     a, F, tri, ok = out
     alpha[box] = a
     fg[box] = F
     unknown = float(np.count_nonzero(tri == UNKNOWN)) / (H * W)
     return Matte(alpha, np.clip(fg, 0.0, None).astype(np.float32), method if ok else f"{method} (not converged)",
-                 unknown, scale)
+                 unknown, scale, notes)
 
 
 def _foreground(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:

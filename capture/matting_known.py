@@ -70,6 +70,13 @@ OPAQUE_ALPHA = 0.999
 #: the partial pixels take the nearest sure colours (push-pull); before a darker one pymatting's ML
 #: foreground, whose error grows with B (step 4).
 FILL_BRIGHT = 0.15
+#: Where B is blown out or not known, the colour is filled (push-pull) from the pixels whose exact
+#: F = B + (C - B) / a has alpha at least this: the sure colours of step 2 (the plate's error enters
+#: F times (1 - a) / a).  Was REFINE_ALPHA (0.5) until alpha before a blown-out wall came right
+#: (capture.matting_blind): the conifer turntable's kept views, premultiplied colour MSE of the
+#: blown-out pixels against the black twin (6 views) 0.0015 at 0.5, 0.0007 at 0.7, 0.0006 at 0.85,
+#: 0.0004 at 0.95; taken as SOURCE_ALPHA rather than tuned on that capture.
+FILL_ALPHA = SOURCE_ALPHA
 #: Fewer sure colour sources than this: the colour where B is not known is pymatting's estimate.
 MIN_SOURCES = 50
 #: Colours in the view's palette of sure foreground colours (k-means; step 2).
@@ -380,7 +387,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
-    sure = ok & (a >= REFINE_ALPHA)
+    sure = ok & (a >= FILL_ALPHA)
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
         bright = push_pull(B, (known & ~blown).astype(np.float64)).max(axis=-1) >= FILL_BRIGHT if known.any() \
@@ -419,10 +426,14 @@ def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None
     return F
 
 
-def _passes(img, trimap, background, known, noise, laplacian, solve):
+def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None):
     """Steps 1-3 (module docstring) with ``laplacian(img, unknown (h, w) bool)`` and
     ``solve(A, b, x0 or None) -> (x, converged)``: (alpha_u, unknown mask (h w,), lower bound,
-    trimap solved, known as given (blown-out pixels included: step 4 tells them), converged)."""
+    trimap solved, known as given (blown-out pixels included: step 4 tells them), converged).
+    ``mask``: the object's depth (h, w) bool, for the prior where the photo is blown out
+    (capture.matting_blind); its record goes into ``record`` (a dict) when given."""
+    from capture.matting_blind import blind_prior
+
     given = np.asarray(known, bool)
     known = given & ~clipped(img, background)
     floor = blown_bound(img, background, given & ~known, noise)
@@ -434,6 +445,9 @@ def _passes(img, trimap, background, known, noise, laplacian, solve):
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
         a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque)
         lower = np.maximum(lower, floor)
+        a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask)
+        if record is not None:
+            record["blind_prior"] = rec
         if L is None:
             break
         A, b, unk = _system(L, tri, a_hat, weight)
@@ -445,11 +459,14 @@ def _passes(img, trimap, background, known, noise, laplacian, solve):
 
 
 def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
-                           noise: float = NOISE_ABS) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+                           noise: float = NOISE_ABS, mask: np.ndarray | None = None,
+                           record: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """(alpha (h, w), straight colour F (h, w, 3), the trimap solved (widened), converged) of
     linear ``image`` (h, w, 3) under ``trimap`` (BG / UNKNOWN / FG) with the background
     ``background`` (h, w, 3) known where ``known`` (h, w); ``noise``: linear noise of C - B (module
-    docstring).  Not converged: the per-pixel alphas of step 2 stand."""
+    docstring).  Not converged: the per-pixel alphas of step 2 stand.  ``mask``: the object's depth
+    (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
+    ``record``: a dict that gets its record."""
     from pymatting import cf_laplacian, cg, ichol
 
     pre = {}
@@ -468,13 +485,14 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, ok = _passes(
         img, trimap, background, known, noise,
-        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve)
+        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground)
     return a, F, tri, ok
 
 
 def known_background_matte_reference(image: np.ndarray, trimap: np.ndarray, background: np.ndarray,
-                                     known: np.ndarray, noise: float = NOISE_ABS) -> tuple[np.ndarray, np.ndarray]:
+                                     known: np.ndarray, noise: float = NOISE_ABS,
+                                     mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The slow twin of :func:`known_background_matte` (same steps; the matting Laplacian built
     window by window in numpy, a sparse direct solve; F where not exact: the image itself).
     Small crops only."""
@@ -485,6 +503,6 @@ def known_background_matte_reference(image: np.ndarray, trimap: np.ndarray, back
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, _ = _passes(
         img, trimap, background, known, noise, lambda im, u: closed_form_laplacian_reference(im, CF_EPSILON),
-        lambda A, b, x0: (spsolve(A.tocsc(), b), True))
+        lambda A, b, x0: (spsolve(A.tocsc(), b), True), mask)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, lambda C, a, need: C)
     return a, F
