@@ -289,7 +289,8 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     if box is None:
         return Matte(alpha, fg, method, 0.0)
     scale = working_scale(trimap, cfg.depth_width) if cfg is not None and cfg.resolution == "working" else 1.0
-    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box) if scale < 1.0 else None
+    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes) \
+        if scale < 1.0 else None
     if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
         scale = 1.0
         out = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
