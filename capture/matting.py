@@ -73,13 +73,14 @@ CG_MAX_ITERATIONS = 2000
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
 
 
-#: With a plate, the straight colour is unmixed only where a frame saw the background clean (as for a
-#: given matte, capture.plate.Plate.seen; elsewhere capture.matting_known.foreground_colour's fill);
-#: the alpha still uses the frames' lines' estimate.  Held out (issue 30 fifth round, docs/matting.md):
-#: conifer turntable 23.97 -> 24.35 dB, room + table + AE + lens 22.85 -> 24.18, fur before similar
-#: bricks 23.07 -> 23.16.  Not a win everywhere: on seeded needle scenes it wins where the lines'
-#: estimate errs by std 0.027 (premultiplied error 0.0175 -> 0.0108-0.0141) and loses where it errs by
-#: 0.009 (0.0082-0.0089 -> 0.0157-0.0199); the plate does not report the lines' own error yet.
+#: With a plate, the straight colour is unmixed only where a frame saw the background clean or it is
+#: blown out (as for a given matte, capture.plate.Plate.seen; elsewhere
+#: capture.matting_known.foreground_colour's fill); the alpha still uses the frames' lines' estimate.
+#: Held out (issue 30 fifth round, docs/matting.md): conifer turntable 23.97 -> 24.59 dB, room +
+#: table + AE + lens 22.85 -> 24.46, fur before similar bricks 23.07 -> 23.16; +0.35-0.41 CPU-s a view
+#: (the colour computed twice).  Not a win everywhere: on seeded needle scenes it wins where the
+#: lines' estimate errs by std 0.027 and loses where it errs by 0.009; the plate does not report the
+#: lines' own error yet.
 COLOUR_FROM_SEEN = True
 
 
@@ -240,7 +241,11 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
         m = solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg)
         if COLOUR_FROM_SEEN and plate.estimated is not None and plate.estimated.any():
-            m = replace(m, foreground=unmixed(img, m.alpha, plate.background, plate.seen()))
+            from capture.matting_known import clipped
+
+            # blown-out pixels stay known: their colour is the sure pixels' fill, not pymatting's
+            sure_b = plate.seen() | (plate.known & clipped(img, plate.background))
+            m = replace(m, foreground=unmixed(img, m.alpha, plate.background, sure_b))
         return m
     return _solve_at(img, tri, "estimate", mask, cfg)
 
