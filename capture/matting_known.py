@@ -10,7 +10,7 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
 2. **Candidate colours.**  Each pixel's F is sought among a few candidate colours: the colour of
    the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
    ``SOURCE_ALPHA``: their F is (C - (1 - a) B) / a at that bound), filled outwards by a push-pull
-   pyramid (:func:`push_pull`), and a palette of the view's sure foreground colours
+   pyramid (:func:`capture.fill.push_pull`), and a palette of the view's sure foreground colours
    (``PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``;
    :func:`colour_sources` and :func:`fit_candidates`, shared with capture.matting_scale).  Per
    candidate P, alpha is the projection of D on P - B, clipped to [bound, 1]; the candidate that
@@ -39,9 +39,9 @@ import contextlib
 import io
 
 import numpy as np
-from scipy import ndimage
 
-from capture.matting_fast import channel_max, channel_sum, dilate, zoom2
+from capture.fill import push_pull
+from capture.matting_fast import channel_max, channel_sum, dilate
 
 #: Trimap values (pymatting's convention, as capture.matting).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
@@ -72,6 +72,13 @@ OPAQUE_ALPHA = 0.999
 #: the partial pixels take the nearest sure colours (push-pull); before a darker one pymatting's ML
 #: foreground, whose error grows with B (step 4).
 FILL_BRIGHT = 0.15
+#: Where B is blown out or not known, the colour is filled (push-pull) from the pixels whose exact
+#: F = B + (C - B) / a has alpha at least this: the sure colours of step 2 (the plate's error enters
+#: F times (1 - a) / a).  Was REFINE_ALPHA (0.5) until alpha before a blown-out wall came right
+#: (capture.matting_blind): the conifer turntable's kept views, premultiplied colour MSE of the
+#: blown-out pixels against the black twin (6 views) 0.0015 at 0.5, 0.0007 at 0.7, 0.0006 at 0.85,
+#: 0.0004 at 0.95; taken as SOURCE_ALPHA rather than tuned on that capture.
+FILL_ALPHA = SOURCE_ALPHA
 #: Fewer sure colour sources than this: the colour where B is not known is pymatting's estimate.
 MIN_SOURCES = 50
 #: Colours in the view's palette of sure foreground colours (k-means; step 2).
@@ -147,30 +154,6 @@ def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = 
     room = np.where(d > 0, 1.0 - B, B)
     lo = np.where(slack > 0, slack / np.maximum(room, 1e-6), 0.0)
     return np.clip(channel_max(lo), 0.0, 1.0)
-
-
-def push_pull(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """(h, w, C) ``values`` filled where ``weights`` (h, w) is 0 by a push-pull pyramid: each empty
-    pixel gets the weighted mean of the nearest non-empty ones at the coarsest scale that has any
-    (normalised convolution: 2x2 box down, bilinear up).  A map without any weight comes back as zeros."""
-    v = np.asarray(values, np.float64)
-    w = np.asarray(weights, np.float64)
-    if not w.any():
-        return np.zeros_like(v)
-    if min(w.shape) <= 1 or w.all():
-        return np.where(w[..., None] > 0, v, (v * w[..., None]).sum((0, 1)) / w.sum())
-    h, wd = w.shape
-    H2, W2 = h + h % 2, wd + wd % 2
-    vp = np.zeros((H2, W2) + v.shape[2:])
-    wp = np.zeros((H2, W2))
-    vp[:h, :wd] = v * w[..., None]
-    wp[:h, :wd] = w
-    ws = wp.reshape(H2 // 2, 2, W2 // 2, 2).sum((1, 3))
-    vs = vp.reshape(H2 // 2, 2, W2 // 2, 2, -1).sum((1, 3))
-    coarse = push_pull(np.where(ws[..., None] > 0, vs / np.maximum(ws, 1e-12)[..., None], 0.0), np.minimum(ws, 1.0))
-    up = zoom2(coarse, h, wd) if coarse.ndim == 3 else \
-        ndimage.zoom(coarse, (2, 2) + (1,) * (coarse.ndim - 2), order=1, mode="nearest", grid_mode=True)[:h, :wd]
-    return np.where(w[..., None] > 0, v, up)
 
 
 def palette(colours: np.ndarray, k: int | None = None) -> np.ndarray:
@@ -384,7 +367,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
-    sure = ok & (a >= REFINE_ALPHA)
+    sure = ok & (a >= FILL_ALPHA)
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
         bright = channel_max(push_pull(B, (known & ~blown).astype(np.float64))) >= FILL_BRIGHT if known.any() \
@@ -423,10 +406,14 @@ def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None
     return F
 
 
-def _passes(img, trimap, background, known, noise, laplacian, solve):
+def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None):
     """Steps 1-3 (module docstring) with ``laplacian(img, unknown (h, w) bool)`` and
     ``solve(A, b, x0 or None) -> (x, converged)``: (alpha_u, unknown mask (h w,), lower bound,
-    trimap solved, known as given (blown-out pixels included: step 4 tells them), converged)."""
+    trimap solved, known as given (blown-out pixels included: step 4 tells them), converged).
+    ``mask``: the object's depth (h, w) bool, for the prior where the photo is blown out
+    (capture.matting_blind); its record goes into ``record`` (a dict) when given."""
+    from capture.matting_blind import blind_prior
+
     given = np.asarray(known, bool)
     known = given & ~clipped(img, background)
     floor = blown_bound(img, background, given & ~known, noise)
@@ -438,6 +425,9 @@ def _passes(img, trimap, background, known, noise, laplacian, solve):
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
         a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque)
         lower = np.maximum(lower, floor)
+        a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask)
+        if record is not None:
+            record["blind_prior"] = rec
         if L is None:
             break
         A, b, unk = _system(L, tri, a_hat, weight)
@@ -449,11 +439,14 @@ def _passes(img, trimap, background, known, noise, laplacian, solve):
 
 
 def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
-                           noise: float = NOISE_ABS) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+                           noise: float = NOISE_ABS, mask: np.ndarray | None = None,
+                           record: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """(alpha (h, w), straight colour F (h, w, 3), the trimap solved (widened), converged) of
     linear ``image`` (h, w, 3) under ``trimap`` (BG / UNKNOWN / FG) with the background
     ``background`` (h, w, 3) known where ``known`` (h, w); ``noise``: linear noise of C - B (module
-    docstring).  Not converged: the per-pixel alphas of step 2 stand."""
+    docstring).  Not converged: the per-pixel alphas of step 2 stand.  ``mask``: the object's depth
+    (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
+    ``record``: a dict that gets its record."""
     from pymatting import cf_laplacian, cg, ichol
 
     pre = {}
@@ -472,13 +465,14 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, ok = _passes(
         img, trimap, background, known, noise,
-        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve)
+        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground)
     return a, F, tri, ok
 
 
 def known_background_matte_reference(image: np.ndarray, trimap: np.ndarray, background: np.ndarray,
-                                     known: np.ndarray, noise: float = NOISE_ABS) -> tuple[np.ndarray, np.ndarray]:
+                                     known: np.ndarray, noise: float = NOISE_ABS,
+                                     mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The slow twin of :func:`known_background_matte` (same steps; the matting Laplacian built
     window by window in numpy, a sparse direct solve; F where not exact: the image itself).
     Small crops only."""
@@ -489,6 +483,6 @@ def known_background_matte_reference(image: np.ndarray, trimap: np.ndarray, back
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, _ = _passes(
         img, trimap, background, known, noise, lambda im, u: closed_form_laplacian_reference(im, CF_EPSILON),
-        lambda A, b, x0: (spsolve(A.tocsc(), b), True))
+        lambda A, b, x0: (spsolve(A.tocsc(), b), True), mask)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, lambda C, a, need: C)
     return a, F

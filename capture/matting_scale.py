@@ -220,12 +220,15 @@ def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, b
 
 
 def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
-                         noise: float, scale: float, box) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
+                         noise: float, scale: float, box, mask: np.ndarray | None = None,
+                         record: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
     """(alpha (h, w), straight colour F (h, w, 3), the full-resolution trimap solved, converged) of the
     known-background matte (capture.matting_known.known_background_matte's result on the crop ``box``
     of linear ``image`` (H, W, 3), ``trimap``, ``background`` (H, W, 3) known where ``known`` (H, W),
     ``noise``) solved at ``scale`` < 1 (module docstring); None when the working trimap keeps no
-    opaque pixel (an object thin all over: solve it at full size)."""
+    opaque pixel (an object thin all over: solve it at full size).  ``mask`` (H, W): the object's
+    depth, downscaled (area, half covered) for the prior where the photo is blown out
+    (capture.matting_blind), whose record goes into ``record``."""
     import cv2
 
     from capture.matting_known import (
@@ -242,7 +245,9 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     tri_lo = downscale_trimap(ct, w, h)
     if np.any(ct >= FG) and not np.any(tri_lo >= FG):
         return None
-    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise)
+    mask_lo = None if mask is None else \
+        _resize(np.asarray(mask, np.float32)[box], w, h, cv2.INTER_AREA) >= 0.5
+    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise, mask_lo, record)
     B = np.clip(np.asarray(background, np.float32)[box], 0.0, 1.0)
     given = np.asarray(known, bool)[box]
     sure = given & ~clipped(ci, B)
@@ -281,7 +286,8 @@ def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up
     PALETTE_MARGIN), with the upsampled colour ``f_up`` one more candidate behind the same margin."""
     import cv2
 
-    from capture.matting_known import candidate_alpha, colour_sources, fit_candidates, push_pull
+    from capture.fill import push_pull
+    from capture.matting_known import candidate_alpha, colour_sources, fit_candidates
 
     if not where.any():
         return a

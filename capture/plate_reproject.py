@@ -122,7 +122,7 @@ def room_depth(depth: np.ndarray, ring: np.ndarray, off_plane: np.ndarray) -> np
     """(H, W) z-depth of the room filled in under the object (inverse depth, push-pull from the
     measured depth ``depth`` of the ``ring`` pixels that are ``off_plane``), or None when under
     ROOM_MIN_FRACTION of the ring has such depth."""
-    from capture.matting_known import push_pull
+    from capture.fill import push_pull
 
     have = ring & off_plane & (depth > 0)
     if not ring.any() or have.sum() < ROOM_MIN_FRACTION * ring.sum():

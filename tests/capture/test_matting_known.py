@@ -14,12 +14,12 @@ import pytest
 from scipy import ndimage
 
 from capture.camera import Camera, make_K
+from capture.fill import push_pull
 from capture.matting import MatteConfig, depth_trimap, matte_scan, solve_known, solve_matte
 from capture.matting_known import (
     alpha_lower_bound,
     known_background_matte,
     known_background_matte_reference,
-    push_pull,
 )
 from capture.plate import Plate
 from capture.scan import Scan, srgb_to_linear, to_uint8_srgb

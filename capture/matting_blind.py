@@ -1,0 +1,96 @@
+"""Alpha where the photo is blown out (issue 30, fifth round): a prior from the depth's coverage.
+
+Where a channel of the photo is clipped (``CLIP_LEVEL``), C = a F + (1 - a) B says almost nothing
+about alpha: behind a needle before a sunlit wall, a pixel half covered is as white as an empty one.
+capture.matting_known gives such pixels no data term, and the matting Laplacian carries the alpha of
+the dark pixels around them in: on the path-traced conifer turntable the kept views' band pixels
+whose photo is blown out had alpha 0.06-0.13 where the truth was 0.25 (87 % of the kept views' alpha
+squared error; with the true alpha there the held-out view gained 2.2 dB, docs/matting.md fifth round).
+
+The depth still saw the needles there.  :func:`blind_prior` learns, per view, the alpha expected
+from the depth's local coverage (the share of pixels with object depth in a
+(2 COVERAGE_RADIUS + 1)^2 box; a table of COVERAGE_BINS quantile bins, each its weighted mean) on the
+pixels where the background is known and the data term is sure of alpha, and gives it to the blown-out
+pixels as a data term of weight R^2: the share of alpha's variance the table explains on held-back
+known pixels (a checkerboard of HOLDOUT_BLOCK blocks, fitted on one colour, scored on the other).
+Where it explains nothing (R^2 <= 0), too few pixels train it (MIN_TRAIN) or there is nothing to
+fill, no prior is given and the record says why.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+#: Switch of the prior (capture.matting_known step 3); off: the Laplacian alone decides there.
+BLIND_PRIOR = True
+#: Linear level at which a photo channel counts as blown out (capture.matting_known.CLIP_LEVEL).
+CLIP_LEVEL = 0.975
+#: Radius of the coverage box (3 x 3: on the conifer turntable, 3 kept views, the table fitted on
+#: the known band predicted the blown-out pixels' true alpha with R^2 0.60-0.65 at 3 x 3, 0.50-0.58 at
+#: 5 x 5, 0.33-0.42 at 9 x 9, 0.21-0.25 from depth > 0 alone, 0.04-0.08 from the distance to the
+#: trimap's background).
+COVERAGE_RADIUS = 1
+#: Quantile bins of the coverage table.
+COVERAGE_BINS = 16
+#: Fewest training pixels (each half of the checkerboard) for a table.
+MIN_TRAIN = 200
+#: Side (pixels) of the checkerboard blocks that split the training pixels for the R^2 check.
+HOLDOUT_BLOCK = 16
+#: Training pixels need a data-term weight of at least this (capture.matting_known's confidence).
+MIN_CONFIDENCE = 0.25
+
+
+def coverage(mask: np.ndarray, radius: int = COVERAGE_RADIUS) -> np.ndarray:
+    """(h, w) share of pixels with object depth (``mask``) in each pixel's (2 radius + 1)^2 box."""
+    return ndimage.uniform_filter(np.asarray(mask, np.float64), 2 * radius + 1, mode="constant")
+
+
+def _table(x: np.ndarray, y: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Per bin of ``x`` (edges: COVERAGE_BINS - 1 inner edges) the ``w``-weighted mean of ``y`` (the
+    overall mean in an empty bin)."""
+    b = np.digitize(x, edges)
+    n = len(edges) + 1
+    sw = np.bincount(b, w, n)
+    sy = np.bincount(b, w * y, n)
+    mean = (w * y).sum() / max(w.sum(), 1e-12)
+    return np.where(sw > 0, sy / np.maximum(sw, 1e-12), mean)
+
+
+def _r2(x, y, w, edges, fit, test) -> float:
+    """Weighted R^2 on ``test`` of the table fitted on ``fit``."""
+    t = _table(x[fit], y[fit], w[fit], edges)
+    pred = t[np.digitize(x[test], edges)]
+    yt, wt = y[test], w[test]
+    mu = (wt * yt).sum() / wt.sum()
+    var = (wt * (yt - mu) ** 2).sum()
+    return float(1.0 - (wt * (pred - yt) ** 2).sum() / max(var, 1e-12))
+
+
+def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weight: np.ndarray,
+                mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(target, weight, record): the data term (``target``, ``weight``, each (h, w), of
+    capture.matting_known.data_term) with the coverage prior (module docstring) added at the
+    ``unknown`` pixels whose photo ``image`` is blown out and which have no data term; ``mask``: the
+    object's depth (h, w) bool (None: no prior)."""
+    C = np.asarray(image)
+    blind = np.asarray(unknown, bool) & (C.max(axis=-1) >= CLIP_LEVEL) & (weight <= 0)
+    rec = {"blind": int(blind.sum())}
+    if not BLIND_PRIOR or mask is None or not blind.any():
+        return target, weight, dict(rec, used=False, reason="off" if not BLIND_PRIOR else
+                                    "no depth" if mask is None else "nothing blown out")
+    cov = coverage(mask)
+    train = np.asarray(unknown, bool) & (weight >= MIN_CONFIDENCE) & (C.max(axis=-1) < CLIP_LEVEL)
+    yy, xx = np.nonzero(train)
+    half = ((yy // HOLDOUT_BLOCK + xx // HOLDOUT_BLOCK) % 2).astype(bool)
+    rec["train"] = int(train.sum())
+    if min(half.sum(), (~half).sum()) < MIN_TRAIN:
+        return target, weight, dict(rec, used=False, reason="too few known pixels")
+    x, y, w = cov[train], target[train], weight[train]
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, COVERAGE_BINS + 1)[1:-1]))
+    r2 = 0.5 * (_r2(x, y, w, edges, half, ~half) + _r2(x, y, w, edges, ~half, half))
+    rec["r2"] = round(r2, 4)
+    if r2 <= 0:
+        return target, weight, dict(rec, used=False, reason="coverage explains nothing on held-back pixels")
+    prior = _table(x, y, w, edges)[np.digitize(cov, edges)]
+    return np.where(blind, prior, target), np.where(blind, r2, weight), dict(rec, used=True)

@@ -1,0 +1,164 @@
+"""The prior for alpha where the photo is blown out (capture.matting_blind; issue 30 fifth round)
+against the exact truth of seeded needle scenes (tests/plate_scenes.needle_composite, shade 0.7)
+before a bright room with a window of linear WINDOW_LEVEL left of column 54 (the plate says 1): the
+partial needles there are as white as the window in the 8-bit photo.
+
+Measured (alpha MSE over the object and band pixels whose photo is blown out, prior off / on):
+window 3.0, seeds 0-3: 0.093 / 0.060, 0.089 / 0.064, 0.094 / 0.059, 0.097 / 0.064; window 6.0:
+0.135 / 0.093, 0.131 / 0.098, 0.145 / 0.096, 0.139 / 0.093 (0.65-0.75x); held-back R^2 of the
+coverage table 0.71-0.79.  The colour fill from SOURCE_ALPHA instead of 0.5 (FILL_ALPHA) moved the
+premultiplied colour there by less than 3 % either way on these scenes (their F is smooth and the
+plate exact; it is the plate's error that the higher threshold keeps out: docs/matting.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture import matting_blind as mb
+from capture import matting_known as mk
+from capture.matting import depth_trimap, solve_known
+from capture.scan import srgb_to_linear, to_uint8_srgb
+from tests import plate_scenes as ps
+
+WINDOW_COLUMNS = 54
+#: Alpha MSE with the prior at most this fraction of the one without, per seed (measured 0.65-0.75x).
+BEAT_BLIND = 0.8
+
+
+def _q(x):
+    return srgb_to_linear(to_uint8_srgb(np.clip(x, 0.0, 1.0)) / np.float32(255.0))
+
+
+def _scene(seed: int, level: float | None):
+    room = 0.45 + 0.5 * ps.room_image(128, 96, seed)
+    if level is not None:
+        room[:, :WINDOW_COLUMNS] = level
+    C, B, A, F, D = ps.needle_composite(seed=seed, background=room, shade=0.7)
+    return _q(C), np.clip(B, 0.0, 1.0), A, F, D
+
+
+def _solve(C, plate, D, mask=None):
+    tri = depth_trimap(D)
+    return solve_known(C, tri, plate, np.ones(C.shape[:2], bool), 0.004, "plate", D > 0 if mask is None else mask)
+
+
+@pytest.mark.parametrize("seed,level", [(0, 3.0), (1, 3.0), (2, 6.0)])
+def test_the_coverage_prior_brings_blown_out_alpha_nearer_the_truth(monkeypatch, seed, level):
+    C, plate, A, F, D = _scene(seed, level)
+    region = ((A > 0) | (depth_trimap(D) > 0)) & (C.max(-1) >= mk.CLIP_LEVEL)
+    assert region.sum() > 300
+    on = _solve(C, plate, D)
+    rec = on.notes["blind_prior"]
+    assert rec["used"] and rec["r2"] > 0.5, rec
+    monkeypatch.setattr(mb, "BLIND_PRIOR", False)
+    off = _solve(C, plate, D)
+    assert off.notes["blind_prior"] == {"blind": rec["blind"], "used": False, "reason": "off"}
+    mse_on, mse_off = (float(np.mean((m.alpha - A)[region] ** 2)) for m in (on, off))
+    assert mse_on <= BEAT_BLIND * mse_off, (mse_on, mse_off)
+
+
+def test_nothing_blown_out_changes_nothing(monkeypatch):
+    C, plate, A, F, D = _scene(0, None)
+    assert C.max() < mk.CLIP_LEVEL
+    on = _solve(C, plate, D)
+    assert on.notes["blind_prior"]["reason"] == "nothing blown out"
+    monkeypatch.setattr(mb, "BLIND_PRIOR", False)
+    off = _solve(C, plate, D)
+    np.testing.assert_array_equal(on.alpha, off.alpha)
+    np.testing.assert_array_equal(on.foreground, off.foreground)
+
+
+def test_a_depth_that_says_nothing_is_refused(monkeypatch):
+    """A depth mask unrelated to the needles (seeded noise outside the trimap's own band): the
+    coverage table explains nothing on held-back pixels, so no prior is given (the same alpha as
+    with the prior off) and the record says why."""
+    C, plate, A, F, D = _scene(1, 3.0)
+    noise = np.random.default_rng(5).random(D.shape) < 0.5
+    on = _solve(C, plate, D, mask=noise)
+    rec = on.notes["blind_prior"]
+    assert not rec["used"] and rec["r2"] <= 0 and "explains nothing" in rec["reason"], rec
+    monkeypatch.setattr(mb, "BLIND_PRIOR", False)
+    off = _solve(C, plate, D, mask=noise)
+    np.testing.assert_array_equal(on.alpha, off.alpha)
+
+
+def test_the_table_recovers_a_known_relation():
+    """blind_prior on constructed data: alpha = 0.8 x coverage where the background is known, the
+    blown-out pixels get that relation back (exactly where a quantile bin holds one of the ten
+    coverage levels of a 3 x 3 box) and weight R^2 near 1."""
+    rng = np.random.default_rng(0)
+    mask = rng.random((120, 160)) < 0.4
+    cov = mb.coverage(mask)
+    truth = 0.8 * cov
+    img = np.full((120, 160, 3), 0.3)
+    img[:, :40] = 1.0  # blown out
+    unknown = np.ones((120, 160), bool)
+    weight = np.where(img.max(-1) < mb.CLIP_LEVEL, 1.0, 0.0)
+    target = np.where(weight > 0, truth, 0.0)
+    t, w, rec = mb.blind_prior(img, unknown, target, weight, mask)
+    assert rec["used"] and rec["r2"] > 0.95, rec
+    blind = img.max(-1) >= mb.CLIP_LEVEL
+    err = np.abs(t - truth)[blind]
+    assert np.median(err) <= 1e-9 and err.mean() <= 0.02  # most bins hold one coverage level
+    assert np.allclose(w[blind], rec["r2"], atol=1e-4) and np.array_equal(t[~blind], target[~blind])
+
+
+#: The working-resolution path (capture.matting_scale, scale 0.5; 192 x 256 scenes, 160 needles, a
+#: window of 3.0 left of column 100): alpha MSE where the photo is blown out with the depth handed
+#: down at most this fraction of the one without (measured seeds 0-2: 0.0586 -> 0.0510, 0.0593 ->
+#: 0.0535, 0.0623 -> 0.0552, i.e. 0.87-0.90x).
+BEAT_BLIND_WORKING = 0.95
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_working_resolution_gets_the_prior_too(seed):
+    from capture.matting_scale import known_matte_at_scale
+
+    room = 0.45 + 0.5 * ps.room_image(256, 192, seed)
+    room[:, :100] = 3.0
+    C, B, A, F, D = ps.needle_composite(192, 256, 160, seed=seed, background=room, shade=0.7)
+    C, plate, tri = _q(C), np.clip(B, 0.0, 1.0), depth_trimap(D)
+    region = ((A > 0) | (tri > 0)) & (C.max(-1) >= mk.CLIP_LEVEL)
+    box = (slice(None), slice(None))
+    mse, recs = [], []
+    for mask in (None, D > 0):
+        rec: dict = {}
+        a = known_matte_at_scale(C, tri, plate, np.ones(A.shape, bool), 0.004, 0.5, box, mask, rec)[0]
+        mse.append(float(np.mean((a - A)[region] ** 2)))
+        recs.append(rec["blind_prior"])
+    assert recs[0]["reason"] == "no depth" and recs[1]["used"], recs
+    assert mse[1] <= BEAT_BLIND_WORKING * mse[0], mse
+
+
+#: capture.matting.COLOUR_FROM_SEEN on seeded needle scenes (nothing blown out) (seeds 0-2, shade 0 / 0.7) whose plate's
+#: right half is "estimated" (the frames' lines) with a smooth error of std 0.027: premultiplied colour
+#: error there, off / on, 0.0177 / 0.0141 and 0.0175 / 0.0108 (measured); at std 0.009 it loses,
+#: 0.0089 / 0.0199 and 0.0082 / 0.0157 (not asserted: the known limit, docs/matting.md fifth round).
+BEAT_SEEN = 0.85
+
+
+@pytest.mark.parametrize("shade", [0.0, 0.7])
+def test_colour_from_seen_beats_unmixing_through_a_poor_estimate(monkeypatch, shade):
+    from scipy import ndimage
+
+    from capture import matting as mt
+    from capture.matting import MatteConfig, matte_scan
+    from capture.plate import Plate
+    from tests.capture.test_matting_known import _scan
+
+    err = {True: [], False: []}
+    for seed in range(3):
+        room = 0.45 + 0.5 * ps.room_image(128, 96, seed)
+        C, B, A, F, D = ps.needle_composite(seed=seed, background=room, shade=shade)
+        est = np.zeros(A.shape, bool)
+        est[:, 64:] = True
+        off = 9.0 * ndimage.gaussian_filter(np.random.default_rng(seed).normal(0, 0.03, B.shape), (3, 3, 0))
+        plate = Plate(np.clip(B + np.where(est[..., None], off, 0), 0, 1).astype(np.float32),
+                      np.ones(A.shape, bool), 0.004, "fixed", 1.0, 0.0, 0.0, estimated=est)
+        for on in (False, True):
+            monkeypatch.setattr(mt, "COLOUR_FROM_SEEN", on)
+            m = matte_scan(_scan(_q(C), D), cfg=MatteConfig(mode="plate"), plate=plate)
+            reg = est & ((A > 0) | (m.alpha > 0))
+            err[on].append(float(np.abs(m.alpha[..., None] * m.foreground - A[..., None] * F)[reg].mean()))
+    assert np.mean(err[True]) <= BEAT_SEEN * np.mean(err[False]), err
