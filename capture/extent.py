@@ -41,7 +41,7 @@ import numpy as np
 from capture.extent_kernel import view_labels
 from capture.orbit import closest_point_to_axes, estimate_up
 from capture.sampling import cell_index
-from capture.scan import MAX_SAMPLED_POINTS, Scan, ScanSet, bounds_from_points
+from capture.scan import MAX_SAMPLED_POINTS, Scan, ScanSet, bounds_from_points, every_kth_point
 from capture.view_map import or_serial
 
 #: Removal reasons, in the order they are decided.
@@ -256,14 +256,8 @@ def sampled_points_view(scan, k, arg):
     the step, or (step, centre, radius) to keep only those within ``radius`` of ``centre`` (the
     focus region's points, each tested alone as over all views' points: the same points)."""
     step, sphere = (arg, None) if np.isscalar(arg) else (arg[0], arg[1:])
-    depth = np.asarray(scan.depth)
-    mask = np.isfinite(depth) & (depth > 0)
-    v, u = np.nonzero(mask)
-    v, u = v[::step], u[::step]
-    if not len(v):
-        return None, np.zeros((0, 3))
-    pts = scan.camera.unproject(np.stack([u, v], axis=-1).astype(np.float64), depth[v, u])
-    if sphere is not None:
+    pts = every_kth_point(scan, step)
+    if sphere is not None and len(pts):
         pts = pts[np.linalg.norm(pts - sphere[0], axis=1) <= sphere[1]]
     return None, pts
 

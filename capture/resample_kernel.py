@@ -54,6 +54,16 @@ def _edge_choice(depth, glo, guide, v, u, y, x, jj, ii, b, d, rel, two_ss2, two_
 
 
 @njit(cache=True, nogil=True)
+def _taps(c, f, n):
+    """(lower tap, upper tap, both clamped to [0, n); the weight of the upper; the position) of
+    colour pixel ``c`` on an axis of ``n`` depth samples, ``f`` depth samples a colour pixel (pixel
+    centres aligned)."""
+    p = f * (c + 0.5) - 0.5
+    lp = np.floor(p)
+    return min(max(int(lp), 0), n - 1), min(max(int(lp) + 1, 0), n - 1), p - lp, p
+
+
+@njit(cache=True, nogil=True)
 def _kernel(depth, glo, guide, fy, fx, rel, two_ss2, two_sr2):
     h, w = depth.shape
     H, W = guide.shape[0], guide.shape[1]
@@ -66,17 +76,9 @@ def _kernel(depth, glo, guide, fy, fx, rel, two_ss2, two_sr2):
     b = np.empty(4, np.float64)
     d = np.empty(4, np.float64)
     for v in range(H):
-        y = fy * (v + 0.5) - 0.5
-        ly = np.floor(y)
-        ty = y - ly
-        j0 = min(max(int(ly), 0), h - 1)
-        j1 = min(max(int(ly) + 1, 0), h - 1)
+        j0, j1, ty, y = _taps(v, fy, h)
         for u in range(W):
-            x = fx * (u + 0.5) - 0.5
-            lx = np.floor(x)
-            tx = x - lx
-            i0 = min(max(int(lx), 0), w - 1)
-            i1 = min(max(int(lx) + 1, 0), w - 1)
+            i0, i1, tx, x = _taps(u, fx, w)
             jj[0], jj[1], jj[2], jj[3] = j0, j0, j1, j1
             ii[0], ii[1], ii[2], ii[3] = i0, i1, i0, i1
             b[0] = (1.0 * (1.0 - ty)) * (1.0 - tx)

@@ -184,3 +184,17 @@ def band_error(views, plates, truths) -> tuple[float, float]:
         errs.append(float(np.median(np.abs(p.background - t).max(axis=-1)[k])) if k.any() else np.inf)
         known.append(k.sum() / band.sum())
     return float(np.median(errs)), float(np.mean(known))
+
+
+def switched_alpha_mse(monkeypatch, module, flag: str, C, tri, B, A, D, region) -> dict:
+    """{False: alpha MSE in ``region``, True: ...} of the known-background matte (the plate ``B``
+    known everywhere, noise 0.004, the depth ``D``'s mask) with ``module.flag`` off and on: a
+    matting rule against the true alpha ``A`` without it."""
+    from capture.matting import solve_known
+
+    mse = {}
+    for on in (False, True):
+        monkeypatch.setattr(module, flag, on)
+        m = solve_known(C, tri, B, np.ones(A.shape, bool), 0.004, "plate", D > 0)
+        mse[on] = float(np.mean((m.alpha - A)[region] ** 2))
+    return mse

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture import matting_known as mk
-from capture.matting import depth_trimap, solve_known
+from capture.matting import depth_trimap
 from capture.matting_window import window_foreground, window_foreground_reference
 from capture.scan import srgb_to_linear, to_uint8_srgb
 from tests import plate_scenes as ps
@@ -65,9 +65,5 @@ def test_the_candidate_helps_the_needles(monkeypatch):
     C = srgb_to_linear(to_uint8_srgb(C) / np.float32(255.0))
     tri = depth_trimap(D)
     region = (A > 0) | (tri > 0)
-    mse = {}
-    for on in (False, True):
-        monkeypatch.setattr(mk, "WINDOW_CANDIDATE", on)
-        m = solve_known(C, tri, B, np.ones(A.shape, bool), 0.004, "plate", D > 0)
-        mse[on] = float(np.mean((m.alpha - A)[region] ** 2))
+    mse = ps.switched_alpha_mse(monkeypatch, mk, "WINDOW_CANDIDATE", C, tri, B, A, D, region)
     assert mse[True] <= NEEDLE_BEAT * mse[False], mse
