@@ -360,7 +360,8 @@ def compact(model: Model, margin: int | None = None) -> Model:
     from volume.rgbz_store import RgbzCrop
 
     r = model.rgbz
-    crops = [RgbzCrop.encode(*r.view(n), margin=margin) for n in range(len(r))]
+    m = r.measured
+    crops = [RgbzCrop.encode(*r.view(n), margin=margin, measured=None if m is None else m[n]) for n in range(len(r))]
     return replace(model, rgbz=RgbzImages.from_crops(r.cameras, crops))
 
 
@@ -369,7 +370,7 @@ def densified(model: Model) -> Model:
     from dataclasses import replace
 
     r = model.rgbz
-    return replace(model, rgbz=RgbzImages(r.rgb, r.depth, r.cameras, r.alpha))
+    return replace(model, rgbz=RgbzImages(r.rgb, r.depth, r.cameras, r.alpha, measured=r.measured))
 
 
 def sun_sky_env(h: int = 32, sun=(0.6, -0.3, 0.75), ambient: float = 0.3, sky: float = 0.2, power: float = 40.0,

@@ -12,9 +12,11 @@ On disk a model is a folder::
       pyramid.npz    level_<L>_surface (N,3) int32, level_<L>_values (L,L,L) float32 (optional;
                      float16 above VALUES_FULL_MAX_RES), compressed
       rgbz.npz       compact (version 2, volume.rgbz_store): per view a crop around the object,
-                     8-bit sRGB, 16-bit depth over the view's range, 8-bit alpha, compressed,
-                     read view by view; or dense (version 1): rgb (N,H,W,3) float16 linear,
-                     depth (N,H,W) float16 metres (float32 read too), alpha (N,H,W) float16
+                     8-bit sRGB, 16-bit depth over the view's range, 8-bit alpha, bool
+                     measured (where the depth is the capture's, not the fill; optional),
+                     compressed, read view by view; or dense (version 1): rgb (N,H,W,3) float16
+                     linear, depth (N,H,W) float16 metres (float32 read too), alpha (N,H,W)
+                     float16, measured (N,H,W) bool (optional)
       spheres.npz    centers (N,3) float64, radii (N,) float64
       mesh.npz       vertices (V,3) float32, faces (F,3) int32, colors (V,3) float32 (optional)
       capture_env.npz  radiance (H,2H,3) float32 linear: the capture's lighting (optional; only
@@ -351,8 +353,9 @@ def save_model(model: Model, folder) -> Path:
                        model.rgbz.has_alpha)
         else:
             rgbz = {"rgb": model.rgbz.rgb, "depth": model.rgbz.depth}
-            if model.rgbz.alpha is not None:
-                rgbz["alpha"] = model.rgbz.alpha
+            for k in ("alpha", "measured"):
+                if getattr(model.rgbz, k) is not None:
+                    rgbz[k] = getattr(model.rgbz, k)
             np.savez(tmp / "rgbz.npz", **rgbz)
         np.savez(tmp / "spheres.npz", centers=model.spheres.centers, radii=model.spheres.radii)
         mesh = {"vertices": model.mesh_vertices, "faces": model.mesh_faces}
@@ -415,7 +418,7 @@ def _rgbz(path: Path, cams) -> RgbzImages:
     if compact:
         return RgbzImages.from_crops(cams, CropFile(path))
     rz = _npz(path.parent, path.name)
-    return RgbzImages(rz["rgb"], rz["depth"], cams, rz.get("alpha"))
+    return RgbzImages(rz["rgb"], rz["depth"], cams, rz.get("alpha"), measured=rz.get("measured"))
 
 
 def load_model(folder) -> Model:

@@ -145,10 +145,18 @@ def _one_view(scan, verts, faces, level, cfg, with_alpha):
     before = hole_fraction(comb)
     closed = close_holes(comb, cfg.closing_px)
     stats = {"view": scan.name, "holes_before": before, "holes_after": hole_fraction(closed)}
+    measured = measured_depth(scan.depth, closed)
     if with_alpha is None:
-        return closed, stats
+        return (closed, measured), stats
     alpha = scan.alpha if scan.alpha is not None or not with_alpha else (closed > 0).astype(np.float32)
-    return RgbzCrop.encode(scan.rgb, closed, alpha), stats
+    return RgbzCrop.encode(scan.rgb, closed, alpha, measured=measured), stats
+
+
+def measured_depth(measured: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """(H, W) bool: where the RGBz ``depth`` is the capture's ``measured`` depth (not the geometry's
+    fill or the closing): what a renderer may let win over the fill (render.gather)."""
+    m = np.asarray(measured, np.float32)
+    return (m > 0) & (np.asarray(depth, np.float32) == m)
 
 
 def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: SdfLevel,
@@ -187,11 +195,12 @@ def _dense(scanset, verts, faces, level, cfg, with_alpha, progress):
     n_views = len(scanset.scans)
     cam = scanset.scans[0].camera
     depth = np.zeros((n_views, cam.height, cam.width), RGBZ_STORAGE)
+    measured = np.zeros(depth.shape, bool)
     stats = []
     for n in (progress(range(n_views)) if progress else range(n_views)):
-        depth[n], st = _one_view(scanset.scans[n], verts, faces, level, cfg, None)
+        (depth[n], measured[n]), st = _one_view(scanset.scans[n], verts, faces, level, cfg, None)
         stats.append(st)
     rgb = np.stack([s.linear_rgb.astype(RGBZ_STORAGE) for s in scanset.scans])
     alpha = np.stack([s.alpha if s.alpha is not None else (depth[n] > 0).astype(np.float32)
                       for n, s in enumerate(scanset.scans)]) if with_alpha else None
-    return RgbzImages(rgb, depth, tuple(s.camera for s in scanset.scans), alpha), stats
+    return RgbzImages(rgb, depth, tuple(s.camera for s in scanset.scans), alpha, measured=measured), stats

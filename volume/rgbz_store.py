@@ -78,6 +78,9 @@ class RgbzCrop:
         depth: (h, w) uint16 quantised z-depth: 0 = none, q >= 1 means z0 + (q - 1) * dz metres.
         z0: metres, the depth of code 1; dz: metres per code (> 0).
         alpha: (h, w) uint8 straight alpha (255 = opaque), or None.
+        measured: (h, w) bool, the pixels whose depth is the capture's own measurement (not the
+            geometry's fill or the closing, volume.rgbz), or None = every pixel with depth (the
+            models before it was kept).
     """
 
     rect: tuple
@@ -86,6 +89,7 @@ class RgbzCrop:
     z0: float
     dz: float
     alpha: np.ndarray | None = None
+    measured: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         x0, y0, w, h = (int(v) for v in self.rect)
@@ -97,6 +101,9 @@ class RgbzCrop:
             raise ModelError(f"RgbzCrop: depth must be ({h},{w}) uint16, got {self.depth.shape} {self.depth.dtype}")
         if self.alpha is not None and (self.alpha.shape != (h, w) or self.alpha.dtype != np.uint8):
             raise ModelError(f"RgbzCrop: alpha must be ({h},{w}) uint8, got {self.alpha.shape} {self.alpha.dtype}")
+        if self.measured is not None and (self.measured.shape != (h, w) or self.measured.dtype != bool):
+            m = self.measured
+            raise ModelError(f"RgbzCrop: measured must be ({h},{w}) bool, got {m.shape} {m.dtype}")
         if not (np.isfinite(self.z0) and self.z0 >= 0 and np.isfinite(self.dz) and self.dz > 0):
             raise ModelError(f"RgbzCrop: depth range z0 {self.z0}, dz {self.dz} must be finite, dz > 0")
         object.__setattr__(self, "rect", (x0, y0, w, h))
@@ -105,10 +112,11 @@ class RgbzCrop:
 
     @classmethod
     def encode(cls, rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray | None = None,
-               margin: int | None = None) -> RgbzCrop:
+               margin: int | None = None, measured: np.ndarray | None = None) -> RgbzCrop:
         """Crop of one full frame: ``rgb`` (H, W, 3) linear float or uint8 sRGB, ``depth`` (H, W)
-        metres (0 = none), ``alpha`` (H, W) in [0, 1] or None; the rectangle holds every pixel
-        with depth or alpha, grown by ``margin`` (default :func:`crop_margin_px`)."""
+        metres (0 = none), ``alpha`` (H, W) in [0, 1] or None, ``measured`` (H, W) bool or None;
+        the rectangle holds every pixel with depth or alpha, grown by ``margin`` (default
+        :func:`crop_margin_px`)."""
         depth = np.asarray(depth, np.float32)
         H, W = depth.shape
         keep = depth > 0
@@ -125,8 +133,9 @@ class RgbzCrop:
         dz = max(span / (DEPTH_LEVELS - 1), np.finfo(np.float32).tiny, z0 * 1e-9)
         q = np.where(has, np.round((d - z0) / dz) + 1, 0)
         a = None if alpha is None else np.round(np.clip(np.asarray(alpha, np.float32)[sl], 0, 1) * 255).astype(np.uint8)
+        m = None if measured is None else np.ascontiguousarray(np.asarray(measured, bool)[sl] & has)
         return cls((x0, y0, w, h), np.ascontiguousarray(srgb), np.clip(q, 0, DEPTH_LEVELS).astype(np.uint16),
-                   z0, dz, a)
+                   z0, dz, a, m)
 
     def decode(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(rgb (h, w, 3) float32 linear, depth (h, w) float32 metres, alpha (h, w) float32 or None)."""
@@ -140,8 +149,9 @@ class RgbzCrop:
         store, volume.rgbz.build_rgbz); ``path``."""
         arrays = {"rect": np.asarray(self.rect, np.int64), "srgb": self.srgb, "depth": self.depth,
                   "range": np.array([self.z0, self.dz], np.float64)}
-        if self.alpha is not None:
-            arrays["alpha"] = self.alpha
+        for k in ("alpha", "measured"):
+            if getattr(self, k) is not None:
+                arrays[k] = getattr(self, k)
         tmp = Path(path).with_suffix(".tmp.npz")
         np.savez(tmp, **arrays)
         tmp.rename(path)
@@ -155,20 +165,20 @@ class RgbzCrop:
             return crop
         with np.load(crop) as z:
             out = cls(tuple(int(v) for v in z["rect"]), z["srgb"], z["depth"], float(z["range"][0]),
-                      float(z["range"][1]), z["alpha"] if "alpha" in z.files else None)
+                      float(z["range"][1]), *(z[k] if k in z.files else None for k in ("alpha", "measured")))
         if remove:
             Path(crop).unlink()
         return out
 
     @property
     def nbytes(self) -> int:
-        return self.srgb.nbytes + self.depth.nbytes + (0 if self.alpha is None else self.alpha.nbytes)
+        return sum(a.nbytes for a in (self.srgb, self.depth, self.alpha, self.measured) if a is not None)
 
 
 def save_crops(path: Path, crops, with_alpha: bool) -> None:
     """Write crops (an iterable, consumed one at a time) as a compressed npz: member
     ``COMPACT_KEY`` (N, 4) int64 rectangles, ``ranges`` (N, 2) float64 (z0, dz), and per view
-    ``v<n>_srgb``, ``v<n>_depth`` (+ ``v<n>_alpha``)."""
+    ``v<n>_srgb``, ``v<n>_depth`` (+ ``v<n>_alpha``; + ``v<n>_measured`` where the crop has it)."""
     import zipfile
 
     rects, ranges = [], []
@@ -180,6 +190,8 @@ def save_crops(path: Path, crops, with_alpha: bool) -> None:
             _member(zf, f"v{n}_depth", c.depth)
             if with_alpha:
                 _member(zf, f"v{n}_alpha", c.alpha if c.alpha is not None else np.full(c.depth.shape, 255, np.uint8))
+            if c.measured is not None:
+                _member(zf, f"v{n}_measured", c.measured)
         _member(zf, COMPACT_KEY, np.asarray(rects, np.int64).reshape(-1, 4))
         _member(zf, "ranges", np.asarray(ranges, np.float64).reshape(-1, 2))
 
@@ -211,8 +223,9 @@ class CropFile:
         try:
             with np.load(self.path, allow_pickle=False) as z:
                 a = z[f"v{n}_alpha"] if self.has_alpha else None
+                m = z[f"v{n}_measured"] if f"v{n}_measured" in z.files else None
                 return RgbzCrop(tuple(self.rects[n]), z[f"v{n}_srgb"], z[f"v{n}_depth"], float(self.ranges[n, 0]),
-                                float(self.ranges[n, 1]), a)
+                                float(self.ranges[n, 1]), a, m)
         except ModelError as e:
             raise ModelError(f"{self.path}: view {n}: {e}") from None
         except Exception as e:  # missing member, corrupt zip
@@ -235,18 +248,28 @@ class RgbzImages:
         cameras: N cameras (OpenCV convention), all of size W x H.
         alpha: optional (N, H, W) straight alpha matte of the object per camera in [0, 1]
             (RGBZ_STORAGE); None = binary (has geometry depth = opaque).
+        measured (:meth:`measured_mask`): per view, the pixels whose depth the capture measured
+            (not the geometry's fill); None = every pixel with depth.
     A compact store (module docstring) decodes rgb / depth / alpha on first access.
     """
 
-    def __init__(self, rgb=None, depth=None, cameras=(), alpha=None, *, crops=None):
+    def __init__(self, rgb=None, depth=None, cameras=(), alpha=None, *, crops=None, measured=None):
         cams = tuple(cameras)
         object.__setattr__(self, "cameras", cams)
         object.__setattr__(self, "_crops", crops)
         object.__setattr__(self, "_dense", None)
+        object.__setattr__(self, "_measured", None)
         if crops is not None:
             _check_crops(cams, crops)
             return
         object.__setattr__(self, "_dense", _dense(rgb, depth, cams, alpha))
+        if measured is not None:
+            m = np.asarray(measured, bool)
+            if m.shape != self._dense[1].shape:
+                raise ModelError(f"RgbzImages: measured must be {self._dense[1].shape}, got {m.shape}")
+            m = m & (self._dense[1] > 0)
+            m.setflags(write=False)
+            object.__setattr__(self, "_measured", m)
 
     def __setattr__(self, name, value):
         raise AttributeError(f"RgbzImages is frozen (cannot set {name})")
@@ -307,6 +330,30 @@ class RgbzImages:
                     None if alpha is None else alpha[n].astype(np.float32))
         c = self.encoded(n)
         return (c.rect, *c.decode())
+
+    def measured_mask(self, n: int) -> np.ndarray | None:
+        """(h, w) bool on view n's crop (:meth:`crop`'s rectangle): the pixels whose depth the
+        capture measured; None = every pixel with depth (a model built before the mask was kept)."""
+        if self._crops is None:
+            return None if self._measured is None else self._measured[n]
+        return self.encoded(n).measured
+
+    @property
+    def measured(self) -> np.ndarray | None:
+        """(N, H, W) bool full frames of :meth:`measured_mask`, or None when no view has a mask."""
+        if self._crops is None:
+            return self._measured
+        W, H = self.size
+        out = np.zeros((len(self), H, W), bool)
+        found = False
+        for i, (x0, y0, w, h) in enumerate(self.rects):
+            m = self.measured_mask(i)
+            if m is None:
+                m = self.crop(i)[2] > 0
+            else:
+                found = True
+            out[i, y0:y0 + h, x0:x0 + w] = m
+        return out if found else None
 
     def view(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """View n as full frames (rgb (H, W, 3), depth (H, W), alpha (H, W) or None), float32."""

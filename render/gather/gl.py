@@ -49,6 +49,12 @@ def shader_defines(cfg: gr.GatherConfig, has_alpha: bool = False) -> dict:
             "CUBIC_A": f"{gr.CUBIC_A:.9e}", "HAS_ALPHA": int(has_alpha)}
 
 
+def fill_offset(far: float) -> float:
+    """Metres added to the fill's z in pass 1 (module docstring): beyond any z of the frame (its
+    far plane), small enough that float32 keeps the z to ~1e-7 of it."""
+    return 2.0 * float(far) + 1.0
+
+
 class GatherRenderer(Renderer):
     """Owns the GPU buffers and programs of the gather method for one model.
 
@@ -76,8 +82,11 @@ class GatherRenderer(Renderer):
         self.centre = self.bounds.mean(axis=0)
         self.image_size = rgbz.size
         self.crops = self.own(CropTextures(ctx, rgbz, resident))
+        self.rgbz = rgbz
         #: per view: points in its vertex buffer, -1 while the view is not resident (:meth:`load`)
         self.counts = np.full(len(self.cameras), -1, int)
+        #: per view: of those, the measured ones (first in the buffer; the rest is the fill)
+        self.measured_counts = np.zeros(len(self.cameras), int)
         self._point_vaos: dict[int, object] = {}
         self.point_bytes = 0
         has_alpha = self.crops.matte is not None
@@ -94,7 +103,17 @@ class GatherRenderer(Renderer):
         self.crops.load(todo, on_load=self._load_points, on_evict=self._drop_points)
 
     def _load_points(self, i, rect, rgb, depth, alpha) -> None:
-        pts = np.ascontiguousarray(pr.back_project_crop(self.cameras[i], rect, rgb, depth).points, np.float32)
+        m = self.rgbz.measured_mask(i) if self.cfg.measured_first else None
+        if m is None:
+            pts = pr.back_project_crop(self.cameras[i], rect, rgb, depth).points
+            self.measured_counts[i] = len(pts)
+        else:
+            d = np.asarray(depth)
+            meas = pr.back_project_crop(self.cameras[i], rect, rgb, np.where(m, d, 0)).points
+            fill = pr.back_project_crop(self.cameras[i], rect, rgb, np.where(m, 0, d)).points
+            self.measured_counts[i] = len(meas)
+            pts = np.concatenate([meas, fill])
+        pts = np.ascontiguousarray(pts, np.float32)
         self.counts[i] = len(pts)
         if len(pts):
             vbo = self.own(self.ctx.buffer(pts.tobytes()))
@@ -135,7 +154,7 @@ class GatherRenderer(Renderer):
         idx, ang = pr.nearest_views(eye, self.cameras, self.centre, max(cfg.k_depth, cfg.k_blend))
         return idx[: cfg.k_depth], idx[: cfg.k_blend], 1.0 / np.maximum(ang[: cfg.k_blend], pr.ANGLE_EPS)
 
-    def _depth_pass(self, eye: Camera, cams, near: float, far: float):
+    def _depth_pass(self, eye: Camera, cams, near: float, far: float, fill_offset: float):
         ctx = self.ctx
         tgt = self.target(eye.width, eye.height, colours=(1,), depth=False)
         tgt.fbo.use()
@@ -150,15 +169,22 @@ class GatherRenderer(Renderer):
         p["view_proj"].write(mat4_bytes(eye.gl_projection(near, far) @ eye.gl_view()))
         p["eye_z_row"].value = tuple(float(x) for x in eye.cam_from_world[2])
         for i in cams:
-            if self.counts[i] > 0:
-                self._point_vaos[int(i)][1].render(ctx.POINTS, vertices=int(self.counts[i]))
+            n, nm = int(self.counts[i]), int(self.measured_counts[i])
+            if n > 0:
+                vao = self._point_vaos[int(i)][1]
+                p["z_offset"].value = 0.0
+                if nm:
+                    vao.render(ctx.POINTS, vertices=nm)
+                p["z_offset"].value = fill_offset
+                if n > nm:
+                    vao.render(ctx.POINTS, vertices=n - nm, first=nm)
         # the context may be shared (tests, the viewer): leave its state as found
         ctx.point_size = prev_point_size
         ctx.blend_equation = ctx.FUNC_ADD
         ctx.disable(ctx.BLEND)
         return tgt
 
-    def _gather_pass(self, eye: Camera, zt, blend, weights):
+    def _gather_pass(self, eye: Camera, zt, blend, weights, fill_offset: float):
         ctx = self.ctx
         K = self.cfg.k_blend
         tgt = self.target(eye.width, eye.height, colours=(4,), depth=False)
@@ -170,6 +196,7 @@ class GatherRenderer(Renderer):
         self.tex.use(1)
         p = self.prog
         p["front_z"].value = 0
+        p["fill_offset"].value = fill_offset
         p["rgbz"].value = 1
         if self.alpha_tex is not None:
             self.alpha_tex.use(2)
@@ -202,13 +229,15 @@ class GatherRenderer(Renderer):
         depth_cams, blend, weights = self.views(eye)
         self.load(np.concatenate([depth_cams, blend]))
         near, far = near_far(eye, self.bounds)
+        off = fill_offset(far)
         with FrameTimer(self.ctx) as t:
-            zt = self._depth_pass(eye, depth_cams, near, far)
-            ct = self._gather_pass(eye, zt, blend, weights)
+            zt = self._depth_pass(eye, depth_cams, near, far, off)
+            ct = self._gather_pass(eye, zt, blend, weights, off)
         stats = FrameStats(t.ms, t.cpu_ms, supersample=1, facets=int(self.counts[depth_cams].sum()))
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         rgba = gl_rows_to_image(ct.read_colour(0))
         z = gl_rows_to_image(zt.read_colour(0))
+        z = np.where(z >= off, z - off, z)
         drawn = rgba[..., 3] > 0
         return Frame(rgba[..., :3], rgba[..., 3], np.where(drawn, z, 0.0), stats)

@@ -7,7 +7,13 @@ Per frame, for an eye E (docs/methods.md §1.9; measured in docs/novel_views.md)
 1. **Depth** (:func:`front_depth`): the points of the ``k_depth`` kept cameras nearest to E in
    viewing angle (``render.points.reference.nearest_views``) are splatted into E in
    ``splat_px`` x ``splat_px``-pixel splats; a pixel's depth is the nearest splatted z, and a
-   pixel no splat covers stays empty (this is the frame's coverage).
+   pixel no splat covers stays empty (this is the frame's coverage).  With a model that kept
+   which depth the capture measured (volume.rgbz.measured_depth) and ``measured_first``, the
+   measured points win: a pixel takes the nearest splatted z of the geometry's fill (the fused
+   surface written into the pixels nothing was measured at, volume.rgbz) only where no measured
+   point lands (:func:`measured_first_depth`).  The fill lies on the fused surface, which wraps a
+   conifer's crown in front of its trunk: drawn in one z-buffer it hid the trunk the photos see
+   through the needles (docs/novel_views.md, "Measured depth first").
 2. **Colour** (:func:`gather`): the pixel's point X (its centre at that depth) is projected
    into the ``k_blend`` nearest cameras; each gives its colour image resampled at the
    projection (bilinear by default, capture.sampling.sample_image; Catmull-Rom bicubic,
@@ -65,6 +71,9 @@ class GatherConfig:
     """Soft visibility width (metres of z-depth): a few 1-mm depth units of an RGB-D sensor."""
     vis_floor: float = 0.2
     """Smallest visibility weight of a camera whose image contains the point."""
+    measured_first: bool = True
+    """The measured points win the depth over the geometry's fill (module docstring, step 1);
+    False: one z-buffer of all points (the rule before)."""
     resample: str = "linear"
     """Colour resampling: "linear" (bilinear, 2 x 2 texels) or "cubic" (Catmull-Rom, 4 x 4; keeps
     more contrast, sharpness +0.1, but -0.15 to -0.2 dB on every scene and size measured)."""
@@ -98,6 +107,14 @@ def front_depth(eye: Camera, clouds, side: int) -> tuple[np.ndarray, int]:
             np.minimum.at(front, pix, z[ok[i]])
     front = front.reshape(H, W)
     return np.where(np.isfinite(front), front, 0.0), n
+
+
+def measured_first_depth(eye: Camera, measured_clouds, fill_clouds, side: int) -> tuple[np.ndarray, int]:
+    """:func:`front_depth` of ``measured_clouds``, and where none of their splats lands, of
+    ``fill_clouds`` (module docstring, step 1); the points in front of the eye of both."""
+    zm, n = front_depth(eye, measured_clouds, side)
+    zf, nf = front_depth(eye, fill_clouds, side)
+    return np.where(zm > 0, zm, zf), n + nf
 
 
 def cubic_weights(t: np.ndarray, a: float = CUBIC_A) -> np.ndarray:
@@ -184,15 +201,25 @@ def gather(eye: Camera, depth: np.ndarray, views, weights, cfg: GatherConfig) ->
 
 
 def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray,
-                 cfg: GatherConfig | None = None, alpha: np.ndarray | None = None):
+                 cfg: GatherConfig | None = None, alpha: np.ndarray | None = None,
+                 measured: np.ndarray | None = None):
     """The gather method's frame for ``eye`` (module docstring): (rgb (H, W, 3) float32 linear
     premultiplied (over black), alpha (H, W) float32 in [0, 1] (0 / 1 without a matte), depth
     (H, W) float32 z-depth, 0 = empty, points splatted).  ``clouds``:
     ``points_reference.back_project`` of (cameras, rgb, depth); ``alpha``: the views' (N, H, W)
-    straight matte or None; ``cfg`` default GatherConfig()."""
+    straight matte or None; ``measured``: the views' (N, H, W) bool measured depth
+    (volume.rgbz_store.RgbzImages.measured) or None = all; ``cfg`` default GatherConfig()."""
     cfg = cfg or GatherConfig()
     idx, ang = pr.nearest_views(eye, cameras, centre, max(cfg.k_depth, cfg.k_blend))
-    z, n = front_depth(eye, [clouds[i] for i in idx[: cfg.k_depth]], cfg.splat_px)
+    dv = idx[: cfg.k_depth]
+    if measured is not None and cfg.measured_first:
+        m = np.asarray(measured, bool)[dv]
+        d = np.asarray(depth)[dv]
+        cams = [cameras[i] for i in dv]
+        z, n = measured_first_depth(eye, pr.back_project(cams, rgb[dv], np.where(m, d, 0)),
+                                    pr.back_project(cams, rgb[dv], np.where(m, 0, d)), cfg.splat_px)
+    else:
+        z, n = front_depth(eye, [clouds[i] for i in dv], cfg.splat_px)
     blend = idx[: cfg.k_blend]
     w = 1.0 / np.maximum(ang[: cfg.k_blend], pr.ANGLE_EPS)
     views = [(cameras[i], premultiply(rgb[i], None if alpha is None else alpha[i]), depth[i]) for i in blend]

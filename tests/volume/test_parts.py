@@ -134,6 +134,21 @@ def test_build_rgbz_fills_holes_and_keeps_agreeing_depth():
         e = np.abs(d[filled] - ref[filled])  # holes filled by the geometry (grazing edge pixels: larger)
         assert np.median(e) < 0.15 * lv.voxel_size and np.mean(e < 0.3 * lv.voxel_size) >= 0.9
         assert st["holes_after"] <= st["holes_before"]
+    # the pixels whose depth the capture measured are kept apart from the fill (render.gather), alike
+    # in the compact and the dense store
+    dense, _ = build_rgbz(ss, v, f, lv, RgbzConfig(store="dense"))
+    want = np.stack([s.depth > 0 for s in ss.scans])
+    assert (rgbz.depth > 0).sum() > want.sum()  # something was filled
+    np.testing.assert_array_equal(rgbz.measured, want)
+    np.testing.assert_array_equal(dense.measured, want)
+
+
+def test_measured_depth_by_hand():
+    from volume.rgbz import measured_depth
+
+    m = np.array([[0.0, 0.5, 0.7], [0.2, 0.0, 0.4]], np.float32)
+    d = np.array([[0.3, 0.5, 0.6], [0.2, 0.9, 0.0]], np.float32)
+    np.testing.assert_array_equal(measured_depth(m, d), [[False, True, False], [True, False, False]])
 
 
 def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):

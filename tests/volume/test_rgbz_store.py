@@ -140,3 +140,34 @@ def test_fine_level_values_stored_as_half(tmp_path):
     assert got.dtype == np.float32
     np.testing.assert_allclose(got, fine, rtol=2.0 ** -11, atol=2.0 ** -25)  # float16 subnormals near 0
     np.testing.assert_array_equal(back.pyramid.level(8).values, m.pyramid.level(8).values)
+
+
+def test_measured_mask_round_trips(tmp_path):
+    """The measured-depth mask (volume.rgbz.measured_depth) through a crop, its file, the compact
+    store's file and a saved model, compact and dense; a store without it says None."""
+    from dataclasses import replace
+
+    from volume.rgbz_store import save_crops
+
+    srgb, depth, alpha = _views(3)
+    rng = np.random.default_rng(5)
+    meas = (rng.random(depth.shape) < 0.5) & (depth > 0)
+    crops = [RgbzCrop.encode(srgb[i], depth[i], alpha[i], measured=meas[i]) for i in range(3)]
+    assert RgbzCrop.load(crops[0].save(tmp_path / "c.npz")).measured.tolist() == crops[0].measured.tolist()
+    save_crops(tmp_path / "r.npz", crops, True)
+    cams = _cams(3, 40, 30)
+    for r in (RgbzImages.from_crops(cams, crops), RgbzImages.from_crops(cams, CropFile(tmp_path / "r.npz"))):
+        np.testing.assert_array_equal(r.measured, meas)
+    dense = RgbzImages(srgb_to_linear(srgb / np.float32(255)), depth, cams, alpha, measured=meas | (depth > 0.45))
+    np.testing.assert_array_equal(dense.measured, (meas | (depth > 0.45)) & (depth > 0))
+    for i, r in enumerate((RgbzImages.from_crops(cams, crops), dense)):
+        m = make_model()
+        m = replace(m, rgbz=r)
+        save_model(m, tmp_path / f"m{i}")
+        np.testing.assert_array_equal(load_model(tmp_path / f"m{i}").rgbz.measured, r.measured)
+    assert RgbzImages.from_crops(cams, [RgbzCrop.encode(srgb[i], depth[i]) for i in range(3)]).measured is None
+    assert RgbzImages(dense.rgb, dense.depth, cams).measured is None
+    with pytest.raises(ModelError, match="measured"):
+        RgbzImages(dense.rgb, dense.depth, cams, measured=meas[:2])
+    with pytest.raises(ModelError, match="measured"):
+        RgbzCrop(crops[0].rect, crops[0].srgb, crops[0].depth, crops[0].z0, crops[0].dz, None, crops[0].measured[1:])

@@ -9,6 +9,7 @@
 // Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A, HAS_ALPHA.
 #include "framebuffer_row.glsl"
 uniform sampler2D front_z;       // pass 1 (framebuffer rows), Z_EMPTY where no splat landed
+uniform float fill_offset;       // added to the fill's z in pass 1 (render/gather/gl.py)
 uniform sampler2DArray rgbz;     // layer i: linear rgb + z-depth (m, 0 = none) of kept view i's crop
 #if HAS_ALPHA
 uniform sampler2DArray matte;    // layer i: straight alpha of kept view i's crop
@@ -75,6 +76,7 @@ COL resample(int l, ivec4 r, vec2 uv, ivec2 size) {
 void main() {
     float z = texelFetch(front_z, ivec2(gl_FragCoord.xy), 0).r;
     if (!(z < Z_EMPTY)) discard;
+    if (z >= fill_offset) z -= fill_offset;
     ivec2 pix = image_pixel(gl_FragCoord.xy, height);
     float yn = (float(pix.y) - eye_intr.w) / eye_intr.y;
     float xn = (float(pix.x) - eye_intr.z - eye_skew * yn) / eye_intr.x;
