@@ -242,9 +242,12 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         return solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
                            mask, cfg)
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
-        gated = COLOUR_FROM_SEEN and plate.estimated is not None and plate.estimated.any()
+        from capture.matting_colour import GATE_SEEN
+
+        est = plate.estimated if plate.estimated is not None else np.zeros(plate.known.shape, bool)
+        gated = COLOUR_FROM_SEEN and (GATE_SEEN or est.any())
         return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg,
-                           (plate.estimated, plate.sigma) if gated else None)
+                           (est, plate.sigma) if gated else None)
     return _solve_at(img, tri, "estimate", mask, cfg)
 
 

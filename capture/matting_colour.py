@@ -10,17 +10,23 @@ the lines err by std 0.009 and the fill when they err by 0.027 (docs/matting.md,
 :func:`colour_gate` chooses per pixel by the expected error of the premultiplied colour a F (what a
 render over black shows) of each branch:
 
-* unmixing: (1 - a) x sigma_B, with sigma_B the plate's own uncertainty of the lines' vertex
-  (``Plate.sigma``: capture.plate_lines.vertex_sigma, Euclidean over the channels);
-* the fill: a x sigma_F, with sigma_F the fill's error measured in the same view on held-back sure
-  colours (:func:`fill_error`: the exact colours of pixels whose background was seen and whose alpha
-  is at least FILL_ALPHA, a checkerboard of HOLD_BLOCK-pixel blocks, each half filled from the other).
+* unmixing: a F = C - (1 - a) B_est is off by (a - a_true) B - (1 - a) dB: expected squared error
+  (1 - a)^2 sigma_B^2 + sigma_a^2 |B|^2, with sigma_B the plate's own uncertainty of the lines' vertex
+  (``Plate.sigma``: capture.plate_lines, held to the lines' real error on held-back pixels);
+* the fill: a F_fill is off by a (F_fill - F) + (a - a_true) F: a^2 sigma_F^2 + sigma_a^2 |F_fill|^2,
+  with sigma_F the fill's error measured in the same view on held-back sure colours (:func:`fill_error`:
+  the exact colours of pixels whose background was seen and whose alpha is at least FILL_ALPHA, a
+  checkerboard of HOLD_BLOCK-pixel blocks, each half filled from the other);
+* sigma_a, the alpha's error, measured in the view where B was seen (:func:`alpha_error`, a lower
+  bound) and scaled up where B lies nearer the colour than there (:func:`alpha_variance`).
 
-A pixel is unmixed when its expected error is below the fill's; otherwise it is filled.  When the fill's
-error cannot be measured (fewer than HOLD_MIN sure colours in a half) or the plate reports no sigma,
-the rule cannot tell which wins and falls back to filling every estimated pixel (the fifth round's
-COLOUR_FROM_SEEN rule) and says so.  The record (``Matte.notes['colour']``) counts the pixels that
-took each branch.
+Before a bright room the alpha's term decides: an alpha 0.05 off moves the unmixed colour by 0.05 |B|
+and the filled one by 0.05 |F|.  A pixel is unmixed when its expected error is below the fill's;
+otherwise it is filled (and with GATE_SEEN the same choice where B was seen, sigma_B 0).  When the
+fill's or the alpha's error cannot be measured (fewer than HOLD_MIN pixels), or the plate reports no
+sigma (or inf: not measured), the rule cannot tell which wins and falls back to filling every estimated
+pixel (the fifth round's COLOUR_FROM_SEEN rule) and says so.  The record (``Matte.notes['colour']``)
+counts the pixels that took each branch.
 """
 
 from __future__ import annotations
@@ -40,6 +46,12 @@ HOLD_MIN = MIN_SOURCES
 #: Unmixing wins where its expected premultiplied error (1 - a) sigma_B is below UNMIX_RATIO times
 #: the fill's, a sigma_F: both are expected errors of the same quantity, compared as they are (1: not tuned).
 UNMIX_RATIO = 1.0
+#: The same choice where a frame saw B clean (sigma_B 0: only the alpha's error against the fill's; the
+#: fill's own sources, alpha >= FILL_ALPHA, stay unmixed; before a dark background step 4's fill is
+#: pymatting's).  Held out (gather masked PSNR, docs/matting.md sixth round), off / on: conifer
+#: turntable 24.59 / 24.64, orbit 25.88 / 26.09, room + table + AE + lens 24.43 / 24.57; restricted to
+#: backgrounds bright enough for the push-pull fill (whose error sigma_F is): 24.65, 26.05, 24.49.
+GATE_SEEN = True
 #: An estimated background of unknown uncertainty (the plate's sigma inf: a blown-out bound, or its
 #: held-back check could not run) counts as this uncertain (linear): never unmixed.
 SIGMA_UNKNOWN = 1e3
@@ -109,27 +121,32 @@ def colour_gate(estimated: np.ndarray, sigma: np.ndarray | None, record: dict | 
         seen = known & ~est & ~hot
         F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
         sure = seen & (a >= FILL_ALPHA)
-        sigma_f = fill_error(F, sure) if sigma is not None and open_.any() else None
+        measure = (open_.any() and sigma is not None) or (GATE_SEEN and seen.any())
+        sigma_f = fill_error(F, sure) if measure else None
         sigma_a = None
         if sigma_f is not None:
             Ff = push_pull(F, sure.astype(np.float64))
             sigma_a = alpha_error(C, a, B, Ff, seen & (a > 0) & (a < FILL_ALPHA), sigma_f)
-        unmix = np.zeros(a.shape, bool)
+        unmix = drop = np.zeros(a.shape, bool)
         if sigma_a is not None:  # the alpha's error enters a F as (a - a_true) B unmixed, (a - a_true) F filled
-            s_b = np.minimum(np.nan_to_num(np.asarray(sigma, np.float64), nan=np.inf), SIGMA_UNKNOWN)
+            s_b = SIGMA_UNKNOWN if sigma is None else \
+                np.minimum(np.nan_to_num(np.asarray(sigma, np.float64), nan=np.inf), SIGMA_UNKNOWN)
             var_a = alpha_variance(sigma_a, ((B - Ff) ** 2).sum(-1))
             e_unmix = ((1.0 - a) * s_b) ** 2 + var_a * (B ** 2).sum(-1)
             e_fill = (a * sigma_f) ** 2 + var_a * (Ff ** 2).sum(-1)
             unmix = open_ & (e_unmix < UNMIX_RATIO ** 2 * e_fill)
+            if GATE_SEEN:  # where B was seen (sigma_B 0) the same comparison; the fill's sources stay unmixed
+                drop = seen & (a > 0) & (a < FILL_ALPHA) & (var_a * (B ** 2).sum(-1) >= UNMIX_RATIO ** 2 * e_fill)
         rec = {"estimated": int(open_.sum()), "unmixed": int(unmix.sum()), "filled": int((open_ & ~unmix).sum()),
+               "seen_filled": int(drop.sum()),
                "sigma_fill": None if sigma_f is None else round(sigma_f, 5),
                "sigma_alpha": None if sigma_a is None else round(sigma_a[0], 5)}
-        if sigma_a is None and open_.any():
+        if open_.any() and (sigma is None or sigma_a is None):
             rec["reason"] = "no sigma from the plate" if sigma is None else \
                 "too few sure colours to measure the fill" if sigma_f is None else \
                 "too few partial pixels before a seen background to measure the alpha"
         if record is not None:
             record["colour"] = rec
-        return known & ~(open_ & ~unmix)
+        return known & ~(open_ & ~unmix) & ~drop
 
     return gate

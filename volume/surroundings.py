@@ -159,7 +159,8 @@ def matte_record(work, notes: dict, cfg):
              "reasons": sorted({b["reason"] for b in bp if not b["used"]}),
              "r2": [b["r2"] for b in bp if "r2" in b], "blind_pixels": sum(b["blind"] for b in bp)}
     col = [x["colour"] for x in n if "colour" in x]
-    colour = {"views": len(col), **{k: sum(c[k] for c in col) for k in ("estimated", "unmixed", "filled")},
+    counts = ("estimated", "unmixed", "filled", "seen_filled")
+    colour = {"views": len(col), **{k: sum(c.get(k, 0) for c in col) for k in counts},
               "reasons": sorted({c["reason"] for c in col if "reason" in c}),
               "sigma_fill": [c["sigma_fill"] for c in col], "sigma_alpha": [c.get("sigma_alpha") for c in col]}
     return work.record("matte", {"blind_prior": blind, "colour": colour,
