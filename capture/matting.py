@@ -82,7 +82,8 @@ BG, UNKNOWN, FG = 0.0, 0.5, 1.0
 #: once, in the known-background matte's own colour step.  Off: unmixed everywhere B is known.
 #: Held out, the fifth round's fill-everywhere rule (docs/matting.md): conifer turntable 23.97 ->
 #: 24.59 dB, room + table + AE + lens 22.85 -> 24.46, fur before similar bricks 23.07 -> 23.16; the
-#: sixth round's per-pixel choice: docs/matting.md.
+#: sixth round's per-pixel choice, with capture.matting_colour.GATE_SEEN the same choice where B was
+#: seen (also for panorama plates): 24.64, 24.57, 23.16, orbit 25.88 -> 26.09 (docs/matting.md).
 COLOUR_FROM_SEEN = True
 
 
