@@ -15,7 +15,8 @@ path that applies (``MatteConfig.mode`` = ``auto``; or one forced):
    photo itself, so a black capture renders as without a matte.
 3. ``plate``: the view's background plate (``capture.plate``, the pipeline's plate stage) where
    it is known: alpha and F from C = a F + (1 - a) B with B known (``capture.matting_known``), the
-   closed-form Laplacian alone where it is not.
+   closed-form Laplacian alone where it is not; where B is the frames' lines' estimate the colour is
+   unmixed or filled per pixel by the expected error of each (``capture.matting_colour``).
 4. ``estimate``: a trimap from the object's depth (:func:`depth_trimap`: opaque where the object's
    depth is dense, i.e. the depth mask eroded by ``ERODE_FRACTION`` of the width; background
    beyond a band of ``BAND_FRACTION`` of the width around it; unknown between, which covers the
@@ -35,7 +36,7 @@ from __future__ import annotations
 
 import contextlib
 import io
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -73,14 +74,16 @@ CG_MAX_ITERATIONS = 2000
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
 
 
-#: With a plate, the straight colour is unmixed only where a frame saw the background clean or it is
-#: blown out (as for a given matte, capture.plate.Plate.seen; elsewhere
-#: capture.matting_known.foreground_colour's fill); the alpha still uses the frames' lines' estimate.
-#: Held out (issue 30 fifth round, docs/matting.md): conifer turntable 23.97 -> 24.59 dB, room +
-#: table + AE + lens 22.85 -> 24.46, fur before similar bricks 23.07 -> 23.16; +0.35-0.41 CPU-s a view
-#: (the colour computed twice).  Not a win everywhere: on seeded needle scenes it wins where the
-#: lines' estimate errs by std 0.027 and loses where it errs by 0.009; the plate does not report the
-#: lines' own error yet.
+#: With a plate, where the background is the frames' lines' estimate (capture.plate.Plate.estimated)
+#: the straight colour is unmixed only where its expected error, (1 - a) x the plate's sigma, is below
+#: the fill's, measured in the view (capture.matting_colour.colour_gate), and filled elsewhere
+#: (capture.matting_known.foreground_colour's fill); a plate without sigma: filled everywhere there
+#: (the fifth round's rule, the record says so).  The alpha still uses the lines' estimate.  Computed
+#: once, in the known-background matte's own colour step.  Off: unmixed everywhere B is known.
+#: Held out, the fifth round's fill-everywhere rule (docs/matting.md): conifer turntable 23.97 ->
+#: 24.59 dB, room + table + AE + lens 22.85 -> 24.46, fur before similar bricks 23.07 -> 23.16; the
+#: sixth round's per-pixel choice, with capture.matting_colour.GATE_SEEN the same choice where B was
+#: seen (also for panorama plates): 24.64, 24.57, 23.16, orbit 25.88 -> 26.09 (docs/matting.md).
 COLOUR_FROM_SEEN = True
 
 
@@ -121,7 +124,8 @@ class Matte:
         method: 'given', 'backdrop' or 'estimate' (+ ' (not converged: depth mask)' when the solve failed).
         unknown_fraction: fraction of the view's pixels the trimap left unknown (0 for 'given').
         scale: the resolution it was solved at over the view's (1: full size).
-        notes: the solver's record (capture.matting_known: ``blind_prior``).
+        notes: the solver's record (capture.matting_known: ``blind_prior``; capture.matting_colour:
+            ``colour``, how many estimated-background pixels were unmixed and filled).
     """
 
     alpha: np.ndarray
@@ -239,14 +243,12 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         return solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
                            mask, cfg)
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
-        m = solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg)
-        if COLOUR_FROM_SEEN and plate.estimated is not None and plate.estimated.any():
-            from capture.matting_known import clipped
+        from capture.matting_colour import GATE_SEEN
 
-            # blown-out pixels stay known: their colour is the sure pixels' fill, not pymatting's
-            sure_b = plate.seen() | (plate.known & clipped(img, plate.background))
-            m = replace(m, foreground=unmixed(img, m.alpha, plate.background, sure_b))
-        return m
+        est = plate.estimated if plate.estimated is not None else np.zeros(plate.known.shape, bool)
+        gated = COLOUR_FROM_SEEN and (GATE_SEEN or est.any())
+        return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg,
+                           (est, plate.sigma) if gated else None)
     return _solve_at(img, tri, "estimate", mask, cfg)
 
 
@@ -289,13 +291,16 @@ def backdrop_noise(image: np.ndarray, trimap: np.ndarray, backdrop: np.ndarray) 
 
 
 def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray, noise: float,
-                method: str, fallback: np.ndarray, cfg: MatteConfig | None = None) -> Matte:
+                method: str, fallback: np.ndarray, cfg: MatteConfig | None = None, estimated=None) -> Matte:
     """Matte of linear ``image`` (H, W, 3) with the background (H, W, 3) known where ``known``
     (capture.matting_known), solved on the crop around the trimap's band and opaque pixels grown
     by the widening; not converged: alpha from the per-pixel fit (the method says so).  With
     ``cfg.resolution`` 'working' alpha is solved at capture.matting_scale's working scale
-    (``known_matte_at_scale``: the colour still exact at full size where the background is known)."""
-    from capture.matting_known import known_background_matte, widen_px
+    (``known_matte_at_scale``: the colour still exact at full size where the background is known).
+    ``estimated``: (where the background is the frames' lines' estimate (H, W), its uncertainty (H, W)
+    or None) for the colour's per-pixel choice (capture.matting_colour; its record in the notes)."""
+    from capture.matting_colour import colour_gate
+    from capture.matting_known import foreground_colour, known_background_matte, widen_px
     from capture.matting_scale import known_matte_at_scale, working_scale
 
     H, W = trimap.shape
@@ -307,12 +312,17 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     if box is None:
         return Matte(alpha, fg, method, 0.0)
     scale = working_scale(trimap, cfg.depth_width) if cfg is not None and cfg.resolution == "working" else 1.0
+    gate = None if estimated is None else colour_gate(
+        np.asarray(estimated[0])[box], None if estimated[1] is None else np.asarray(estimated[1])[box], notes)
     out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes) \
         if scale < 1.0 else None
     if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
         scale = 1.0
         out = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
-                                     np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes)
+                                     np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes, gate)
+    elif gate is not None:  # the working solve's colour unmixed every known pixel: the choice at full size
+        ci, bi, ki, Fw = np.asarray(image)[box], np.asarray(background)[box], np.asarray(known)[box], out[1]
+        out = (out[0], foreground_colour(ci, out[0], bi, gate(ci, out[0], bi, ki), lambda C, a, need: Fw), *out[2:])
     a, F, tri, ok = out
     alpha[box] = a
     fg[box] = F

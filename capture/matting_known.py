@@ -25,6 +25,7 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
 4. **Colour.**  Where B is known and a > 0, F = B + (C - B) / a exactly: the
    premultiplied colour a F = C - (1 - a) B reproduces the photo over B and, over black (B = 0), is
    the photo itself, whatever a is.  Elsewhere F is pymatting's ML foreground (Germer et al. 2020).
+   Where B is the frames' lines' estimate, capture.matting_colour chooses per pixel (``colour``).
 
 :func:`known_background_matte` is the fast path (pymatting's numba Laplacian, incomplete-Cholesky
 conjugate gradient); :func:`known_background_matte_reference` the slow numpy / scipy twin (the
@@ -318,10 +319,12 @@ def _alpha(trimap: np.ndarray, a_u: np.ndarray, unk: np.ndarray, lower: np.ndarr
     return a
 
 
-def _finish(image, trimap, background, known, a_u, unk, lower, fallback_fg) -> tuple[np.ndarray, np.ndarray]:
-    """(alpha, F) of step 4 from the solved unknown alphas ``a_u``."""
+def _finish(image, trimap, background, known, a_u, unk, lower, fallback_fg, colour=None):
+    """(alpha, F) of step 4 from the solved unknown alphas ``a_u``; ``colour(image, alpha, background,
+    known)``: where B counts as known for the colour (capture.matting_colour.colour_gate; None: ``known``)."""
     a = _alpha(trimap, a_u, unk, lower)
-    return a, foreground_colour(image, a, background, known, fallback_fg)
+    return a, foreground_colour(image, a, background, known if colour is None else colour(image, a, background, known),
+                                fallback_fg)
 
 
 def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
@@ -440,13 +443,14 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
 
 def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
                            noise: float = NOISE_ABS, mask: np.ndarray | None = None,
-                           record: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+                           record: dict | None = None, colour=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """(alpha (h, w), straight colour F (h, w, 3), the trimap solved (widened), converged) of
     linear ``image`` (h, w, 3) under ``trimap`` (BG / UNKNOWN / FG) with the background
     ``background`` (h, w, 3) known where ``known`` (h, w); ``noise``: linear noise of C - B (module
     docstring).  Not converged: the per-pixel alphas of step 2 stand.  ``mask``: the object's depth
     (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
-    ``record``: a dict that gets its record."""
+    ``record``: a dict that gets its record; ``colour``: step 4's rule for where B counts as known
+    (:func:`_finish`)."""
     from pymatting import cf_laplacian, cg, ichol
 
     pre = {}
@@ -466,7 +470,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     a_u, unk, lower, tri, known, ok = _passes(
         img, trimap, background, known, noise,
         lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record)
-    a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground)
+    a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground, colour)
     return a, F, tri, ok
 
 

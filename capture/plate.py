@@ -116,6 +116,9 @@ class Plate:
             (:meth:`cropped`): ``background``, ``known`` and ``estimated`` are then the box at (y0, x0).
         estimated: (H, W) bool or None, the known pixels whose background came from the frames' lines
             (capture.plate_lines), not from a frame that saw it clean; None = none.
+        sigma: (H, W) float32 or None, the uncertainty of the ``estimated`` background (linear,
+            Euclidean over the channels; capture.plate_lines.vertex_sigma; inf where it is a blown-out
+            bound), 0 elsewhere; None = not reported (the matte then fills every estimated pixel's colour).
     """
 
     background: np.ndarray
@@ -128,6 +131,7 @@ class Plate:
     band_estimated: float = 0.0
     frame: tuple | None = None
     estimated: np.ndarray | None = None
+    sigma: np.ndarray | None = None
 
     def seen(self) -> np.ndarray:
         """(H, W) bool: the known pixels some frame (or the user's plate) saw clean (``known`` less
@@ -144,7 +148,8 @@ class Plate:
         sl = (slice(r0, r1), slice(c0, c1))
         return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
                      self.band_known, self.error, self.error_rmse, self.band_estimated, (H, W, r0, c0),
-                     None if self.estimated is None else self.estimated[sl].copy())
+                     None if self.estimated is None else self.estimated[sl].copy(),
+                     None if self.sigma is None else self.sigma[sl].copy())
 
     def full(self) -> Plate:
         """The plate at its image's full (H, W) (itself when not cropped)."""
@@ -156,12 +161,15 @@ class Plate:
         h, w = self.known.shape
         bg[y0:y0 + h, x0:x0 + w] = self.background
         known[y0:y0 + h, x0:x0 + w] = self.known
-        est = None
+        est = sig = None
         if self.estimated is not None:
             est = np.zeros((H, W), bool)
             est[y0:y0 + h, x0:x0 + w] = self.estimated
+        if self.sigma is not None:
+            sig = np.zeros((H, W), np.float32)
+            sig[y0:y0 + h, x0:x0 + w] = self.sigma
         return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse,
-                     self.band_estimated, estimated=est)
+                     self.band_estimated, estimated=est, sigma=sig)
 
     def record(self) -> dict:
         """JSON-able summary of the view's plate (model.json, the stage table)."""
@@ -169,7 +177,12 @@ class Plate:
                 "band_estimated": round(self.band_estimated, 4),
                 "error": None if not np.isfinite(self.error) else round(self.error, 5),
                 "error_rmse": None if not np.isfinite(self.error_rmse) else round(self.error_rmse, 5),
-                "noise": round(self.noise, 5)}
+                "noise": round(self.noise, 5), "sigma_median": self._sigma_median()}
+
+    def _sigma_median(self) -> float | None:
+        """Median of ``sigma`` over the finite estimated pixels (None without any)."""
+        s = np.zeros(0) if self.sigma is None or self.estimated is None else np.asarray(self.sigma)[self.estimated]
+        return round(float(np.median(s[np.isfinite(s)])), 5) if np.isfinite(s).any() else None
 
 
 @dataclass(frozen=True)
@@ -429,7 +442,7 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time
     plates = []
     for p, m, err in zip(ps.views, made, fit.errors, strict=True):
-        plate = _plate(p.view, m[0], m[1], err, mode, m[2] if len(m) > 2 else None)
+        plate = _plate(p.view, m[0], m[1], err, mode, *m[2:])
         plates.append(plate.cropped() if crop else plate)
     rec = _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
@@ -450,12 +463,12 @@ def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
 
 
 def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,
-           estimated: np.ndarray | None = None) -> Plate:
+           estimated: np.ndarray | None = None, sigma: np.ndarray | None = None) -> Plate:
     band = depth_trimap(v.object_depth) == UNKNOWN
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
     return Plate(np.asarray(col, np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
-                 err[0], err[1], band_estimated=est, estimated=estimated)
+                 err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma)
 
 
 def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:

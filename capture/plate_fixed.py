@@ -259,12 +259,14 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray):
     y, x = np.nonzero(union)
     med, bound = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
                                   [p.weight for p in ps.views], mode_frames(len(ps.views), None))
-    est = unseen_fill(ps, gains, y, x, med, bound) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
-    return _fixed_views(ps, gains, needs, union.shape, y, x, med, est, bound)
+    sigma = np.full(len(y), np.nan)  # the lines' uncertainty (capture.plate_lines.vertex_sigma)
+    est = unseen_fill(ps, gains, y, x, med, bound, sigma) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
+    return _fixed_views(ps, gains, needs, union.shape, y, x, med, est, bound, sigma)
 
 
-def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound):
-    """fixed_draw's plates, one view at a time (a generator: the caller may crop each before the next)."""
+def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound, sigma):
+    """fixed_draw's plates, one view at a time (a generator: the caller may crop each before the next);
+    each also with the lines' uncertainty (H, W) float32 in its own exposure (0 where not estimated)."""
     for j, p in enumerate(ps.views):
         here = in_view(med, bound, gains[j])
         col = np.zeros(p.view.linear.shape, np.float32)
@@ -273,17 +275,32 @@ def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound):
         known[y, x] = np.isfinite(here[:, 0])
         estimated = np.zeros(shape, bool)
         estimated[y, x] = est
-        yield col, known & needs[j], estimated & needs[j]
+        unc = np.zeros(shape, np.float32)
+        unc[y, x] = np.where(est, sigma / float(np.mean(gains[j])), 0.0)
+        yield col, known & needs[j], estimated & needs[j], np.where(known & needs[j], unc, 0.0)
+
+
+def _sigma_scale(views, y, x, samples, pal, med, opaque, own) -> float | None:
+    """capture.plate_lines.held_back_scale at the pixels ``y``, ``x`` of ``views`` (the samples the robust
+    mode could use: weight > 0)."""
+    from capture.matting_known import CLIP_LEVEL
+    from capture.plate_lines import held_back_scale
+
+    usable = np.stack([p.weight[y, x] > 0 for p in views])
+    covered = np.stack([p.view.object_depth[y, x] > 0 for p in views])
+    hot = own.max(axis=-1) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None
+    return held_back_scale(samples, pal, med, usable, opaque, covered, hot)
 
 
 def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray,
-                bound: np.ndarray | None = None) -> np.ndarray:
+                bound: np.ndarray | None = None, sigma: np.ndarray | None = None) -> np.ndarray:
     """Fill ``med`` (N, 3) (the plate at pixels ``y``, ``x`` in the common exposure; NaN = unknown) in
     place where the frames' lines give the background (capture.plate_lines); (N,) bool where they did.
     ``bound`` (N,) bool, when given, is set in place where the fill is only a lower bound (a blown-out
     background; FIXED_CENSOR_CLIPPED: the samples blown out in their own frame say so).
     The lines take FIXED_RING_FRAMES frames at most (:func:`mode_frames`): every candidate vertex is
-    scored against every frame, so the cost grows with the square of the frames."""
+    scored against every frame, so the cost grows with the square of the frames.  ``sigma`` (N,), when
+    given, is set in place to the fill's uncertainty (capture.plate_lines.vertex_sigma) where it filled."""
     from capture.matting import FG, depth_trimap
     from capture.matting_known import CLIP_LEVEL
     from capture.plate_lines import object_palette, unseen_background
@@ -301,8 +318,12 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     covered = np.stack([p.view.object_depth[y[todo], x[todo]] > 0 for p in views])
     hot = own[:, todo].max(axis=-1) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None
     hot_bound = np.zeros(int(todo.sum()), bool)
-    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered, hot, hot_bound)
+    unc = np.full(int(todo.sum()), np.nan)
+    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered, hot, hot_bound, unc)
     filled = np.isfinite(b[:, 0])
+    if sigma is not None:  # the lines' sigma held to their error where the robust mode knew the background
+        scale = _sigma_scale(views, y, x, samples, pal, med, opaque, own)
+        sigma[np.flatnonzero(todo)[filled]] = unc[filled] * (np.inf if scale is None else scale)
     est[np.flatnonzero(todo)[filled]] = True
     med[est] = b[filled]
     if bound is not None:

@@ -68,6 +68,13 @@ LINE_MIN_SEPARATION = 0.05
 #: with table, auto exposure and lens found 20, and its held-out score gained 0.08 dB from the core's
 #: colours added to them).
 LINE_MIN_SOURCES = 50
+#: Least uncertainty of a line vertex (linear, Euclidean; :func:`vertex_sigma`): the median of 8-bit
+#: samples (one sRGB step at mid grey is about 0.004 linear per channel).
+LINE_SIGMA_FLOOR = 0.004
+#: Held-back check of the vertex's uncertainty (:func:`held_back_scale`): at most this many pixels whose
+#: background the robust mode knew (evenly spaced), and at least LINE_CALIBRATE_MIN of them solved.
+LINE_CALIBRATE_PIXELS = 3000
+LINE_CALIBRATE_MIN = 200
 #: Pixels per chunk (a K x K x chunk array per palette colour).
 LINE_CHUNK = 4000
 
@@ -141,7 +148,7 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray, fast: bool = True) -> tupl
 
 def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray | None = None,
                       covered: np.ndarray | None = None, hot: np.ndarray | None = None,
-                      bound: np.ndarray | None = None) -> np.ndarray:
+                      bound: np.ndarray | None = None, sigma: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) linear background of each pixel whose ``samples`` (K, N, 3) (NaN = none) lie on
     segments towards the object colours ``pal`` (P, 3); ``opaque`` (K, N) bool: where the frame's
     depth calls the pixel opaque (its trimap's sure object), ``covered``: where the depth sees the
@@ -149,7 +156,9 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     docstring, step 3).  ``hot`` (K, N) bool: the samples blown out in their own frame; given, they
     are lower bounds, not points of the lines (:func:`_censored_background`), and ``bound`` (N,) bool,
     when given, is set where the result is only such a bound.  None: one exposure, the samples at
-    CLIP_LEVEL here are the blown-out ones (as before auto exposure was told apart)."""
+    CLIP_LEVEL here are the blown-out ones (as before auto exposure was told apart).  ``sigma`` (N,)
+    float, when given, is set to each result's uncertainty (:func:`vertex_sigma`; inf where the
+    result is a blown-out median or bound, NaN where there is none)."""
     from capture.matting_known import CLIP_LEVEL
 
     s = np.asarray(samples, np.float64)
@@ -157,10 +166,12 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     out = np.full((s.shape[1], 3), np.nan)
     if bound is not None:
         bound[:] = False
+    if sigma is not None:
+        sigma[:] = np.nan
     if len(pal) == 0 or s.shape[1] == 0:
         return out
     if hot is not None:
-        return _censored_background(s, pal, opaque, covered, np.asarray(hot, bool), bound)
+        return _censored_background(s, pal, opaque, covered, np.asarray(hot, bool), bound, sigma)
     B, res = line_vertex(s, pal)
     have = np.isfinite(s[..., 0])
     enough, agree, seen = _evidence(s, B, pal, opaque, covered)
@@ -174,7 +185,16 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     moved = (have & ~agree).any(0)  # a frame unlike the vertex: else no evidence of what lies behind
     ok = enough & moved & (seen | bent) & ((res <= LINE_MAX_RESIDUAL) | bent)
     out[ok] = B[ok]
+    if sigma is not None:
+        sigma[ok] = np.where(bent[ok], np.inf, vertex_sigma(res[ok]))
     return out
+
+
+def vertex_sigma(residual: np.ndarray) -> np.ndarray:
+    """(N,) uncertainty of a line vertex (linear, Euclidean over the channels): its RMS residual
+    (:func:`line_vertex`; a vertex off the true background by d leaves the partly covered samples
+    about d from its segments), at least LINE_SIGMA_FLOOR."""
+    return np.maximum(np.asarray(residual, np.float64), LINE_SIGMA_FLOOR)
 
 
 def _evidence(s, B, pal, opaque, covered):
@@ -190,7 +210,7 @@ def _evidence(s, B, pal, opaque, covered):
     return enough, agree, seen
 
 
-def _censored_background(s, pal, opaque, covered, hot, bound) -> np.ndarray:
+def _censored_background(s, pal, opaque, covered, hot, bound, sigma=None) -> np.ndarray:
     """:func:`unseen_background` with the samples blown out in their own frame (``hot``) as lower
     bounds (auto exposure: 1.0 x gain differs from frame to frame in the common exposure): the vertex
     of the other samples' lines, refused where it is darker than a blown-out sample by more than
@@ -213,6 +233,9 @@ def _censored_background(s, pal, opaque, covered, hot, bound) -> np.ndarray:
     out[bent] = lb[bent]
     if bound is not None:
         bound[:] = bent
+    if sigma is not None:
+        sigma[vertex] = vertex_sigma(res[vertex])
+        sigma[bent] = np.inf
     return out
 
 
@@ -235,3 +258,35 @@ def object_palette(samples: np.ndarray, plate: np.ndarray, opaque: np.ndarray) -
     if len(src) < LINE_MIN_SOURCES:  # the core's colours mixed into a full palette cost the conifer 0.19 dB
         src = np.concatenate([src, s[:, opaque.all(0) & ~known].reshape(-1, 3)])
     return palette(src) if len(src) >= LINE_MIN_SOURCES else np.zeros((0, 3))
+
+
+def held_back_scale(samples: np.ndarray, pal: np.ndarray, truth: np.ndarray, usable: np.ndarray,
+                    opaque: np.ndarray | None = None, covered: np.ndarray | None = None,
+                    hot: np.ndarray | None = None) -> float | None:
+    """How far the lines' error exceeds their :func:`vertex_sigma`, measured where it is known: at
+    pixels whose background ``truth`` (N, 3; NaN = not known) the robust mode took from the samples
+    ``usable`` (K, N) bool, those samples are hidden and the rest (each pixel then looks like one no
+    frame saw clean) solved by :func:`unseen_background` (``opaque``, ``covered``, ``hot`` as there);
+    the RMS of the (Euclidean) errors over the RMS of their sigma.  At most LINE_CALIBRATE_PIXELS
+    pixels (evenly spaced); None with fewer than LINE_CALIBRATE_MIN solved (the uncertainty is then
+    not known)."""
+    from capture.matting_known import CLIP_LEVEL
+
+    s = np.asarray(samples, np.float64)
+    t = np.asarray(truth, np.float64)
+    usable = np.asarray(usable, bool)
+    rest = np.isfinite(s[..., 0]) & ~usable
+    cand = np.flatnonzero(np.isfinite(t[:, 0]) & (np.nan_to_num(t).max(-1) < CLIP_LEVEL) & usable.any(0)
+                          & (rest.sum(0) >= LINE_MIN_FRAMES))
+    if len(cand) < LINE_CALIBRATE_MIN:
+        return None
+    cand = cand[np.unique(np.linspace(0, len(cand) - 1, min(len(cand), LINE_CALIBRATE_PIXELS)).astype(int))]
+    pick = (lambda m: None if m is None else np.asarray(m, bool)[:, cand])
+    sig = np.full(len(cand), np.nan)
+    hid = np.where(rest[:, cand, None], s[:, cand], np.nan)
+    b = unseen_background(hid, pal, pick(opaque), pick(covered), pick(hot), None, sig)
+    ok = np.isfinite(b[:, 0]) & np.isfinite(sig)
+    if ok.sum() < LINE_CALIBRATE_MIN:
+        return None
+    err2 = ((b[ok] - t[cand][ok]) ** 2).sum(-1)
+    return float(np.sqrt(err2.mean() / np.mean(sig[ok] ** 2)))

@@ -64,5 +64,8 @@ def grow_plate(plate: Plate, height: int, width: int) -> Plate:
     bg[~k] = 0.0
     est = None if plate.estimated is None else \
         cv2.resize(plate.estimated.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
+    sig = None if plate.sigma is None else \
+        cv2.resize(np.asarray(plate.sigma, np.float32), (width, height), interpolation=cv2.INTER_NEAREST)
     return Plate(bg, k, plate.noise, plate.method, plate.band_known, plate.error, plate.error_rmse,
-                 plate.band_estimated, estimated=None if est is None else est & k)
+                 plate.band_estimated, estimated=None if est is None else est & k,
+                 sigma=None if sig is None else np.where(k, sig, 0.0).astype(np.float32))

@@ -141,8 +141,9 @@ def matte_view(view, ref, cfg, plate=None):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1)))}
-    if m.notes.get("blind_prior"):
-        note["blind_prior"] = m.notes["blind_prior"]
+    for key in ("blind_prior", "colour"):
+        if m.notes.get(key):
+            note[key] = m.notes[key]
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note
 
 
@@ -157,7 +158,12 @@ def matte_record(work, notes: dict, cfg):
     blind = {"views": len(bp), "used": sum(b["used"] for b in bp),
              "reasons": sorted({b["reason"] for b in bp if not b["used"]}),
              "r2": [b["r2"] for b in bp if "r2" in b], "blind_pixels": sum(b["blind"] for b in bp)}
-    return work.record("matte", {"blind_prior": blind,
+    col = [x["colour"] for x in n if "colour" in x]
+    counts = ("estimated", "unmixed", "filled", "seen_filled")
+    colour = {"views": len(col), **{k: sum(c.get(k, 0) for c in col) for k in counts},
+              "reasons": sorted({c["reason"] for c in col if "reason" in c}),
+              "sigma_fill": [c["sigma_fill"] for c in col], "sigma_alpha": [c.get("sigma_alpha") for c in col]}
+    return work.record("matte", {"blind_prior": blind, "colour": colour,
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
         "seconds_per_view": round(float(np.mean(sec)), 4), "seconds_per_view_max": round(float(np.max(sec)), 4),

@@ -134,7 +134,9 @@ def test_the_working_resolution_gets_the_prior_too(seed):
 #: capture.matting.COLOUR_FROM_SEEN on seeded needle scenes (nothing blown out) (seeds 0-2, shade 0 / 0.7) whose plate's
 #: right half is "estimated" (the frames' lines) with a smooth error of std 0.027: premultiplied colour
 #: error there, off / on, 0.0177 / 0.0141 and 0.0175 / 0.0108 (measured); at std 0.009 it loses,
-#: 0.0089 / 0.0199 and 0.0082 / 0.0157 (not asserted: the known limit, docs/matting.md fifth round).
+#: 0.0089 / 0.0199 and 0.0082 / 0.0157.  Its plate reports no sigma, so this is the sixth round's
+#: fallback (fill every estimated pixel); the per-pixel choice with the plate's sigma, which wins at
+#: both errors, is tests/capture/test_matting_colour.py's.
 BEAT_SEEN = 0.85
 
 

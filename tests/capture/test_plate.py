@@ -164,6 +164,9 @@ def _same_plate(a, b):
     assert (a.estimated is None) == (b.estimated is None)
     if a.estimated is not None:
         np.testing.assert_array_equal(a.estimated, b.estimated)
+    assert (a.sigma is None) == (b.sigma is None)
+    if a.sigma is not None:
+        np.testing.assert_array_equal(a.sigma, b.sigma)
     assert (a.noise, a.band_known, a.band_estimated) == (b.noise, b.band_known, b.band_estimated)
     np.testing.assert_array_equal([a.error, a.error_rmse], [b.error, b.error_rmse])
 
@@ -187,6 +190,9 @@ def test_plates_cropped_as_drawn_from_views_read_once_are_the_same(scene):
     for a, b in zip(lean, full, strict=True):
         assert a.frame is not None
         _same_plate(a, b.cropped())
+        if scene == "turntable":  # the lines' uncertainty travels with the crop and back
+            assert a.sigma is not None and a.full().sigma.shape == b.known.shape
+            np.testing.assert_array_equal(a.full().sigma, b.sigma)
     # what the chosen path keeps: its own arrays, none of the other's, and no capture depth
     kept = plate_set(views, plane, None, PlateConfig()).for_path(rec["mode"]).views[0]
     assert kept.view.depth is None
