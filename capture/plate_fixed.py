@@ -58,16 +58,24 @@ FIXED_RING_FRAMES = 32
 #: pixels a chunk: its float32 temporaries 82 MB each (at 20,000 they were 328 MB, a third of the
 #: phone capture's plate stage peak above its views); the result does not depend on the chunk.
 MODE_PAIRS = 64 * 64 * 5000
+#: Robust mode by capture.plate_mode_kernel's compiled loop a pixel (the same values bit for bit as the
+#: numpy path, kept as robust_mode(fast=False); 72 views of 1280x960: docs/speed.md round 5).
+MODE_COMPILED = True
 
 
-def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None,
+                fast: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(colour (N, 3), support (N,) int) of samples (K, N, 3) linear (NaN = none) per column: the
     heaviest cluster (the sample whose agreeing samples, within MODE_TOL in 8-bit sRGB, weigh most;
     ``weights`` (K, N), default 1), then the median of those; support = how many agree.  A needle
     crossing a background pixel in some frames leaves samples spread between B and F; the frames
-    it missed agree to the noise, and they were further from the object (heavier)."""
+    it missed agree to the noise, and they were further from the object (heavier).  ``fast`` (default
+    MODE_COMPILED): capture.plate_mode_kernel's loop a pixel, equal bit for bit to the numpy path
+    (``fast=False``, the reference)."""
     from capture.scan import linear_to_srgb
 
+    if (MODE_COMPILED if fast is None else fast) and (weights is None or np.asarray(weights).dtype == np.float32):
+        return _robust_mode_compiled(samples, weights)  # (float64 weights: numpy sums in float64)
     K, N, _ = samples.shape
     colour = np.full((N, 3), np.nan, np.float32)
     support = np.zeros(N, np.int64)
@@ -93,6 +101,21 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple
         colour[lo:lo + chunk] = np.where((n > 0)[:, None], med, np.nan)
         support[lo:lo + chunk] = n
     return colour, support
+
+
+def _robust_mode_compiled(samples: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`robust_mode` by capture.plate_mode_kernel (the same values)."""
+    from capture.plate_mode_kernel import mode_median, mode_members
+    from capture.scan import linear_to_srgb
+
+    s = np.asarray(samples, np.float32)
+    have = np.isfinite(s[..., 0])
+    w = have.astype(np.float32) if weights is None else np.where(have, weights, 0.0).astype(np.float32)
+    # np.fmax(s, 0): NaN to 0 as nan_to_num, and negative or infinite samples clip the same in linear_to_srgb
+    members = mode_members(linear_to_srgb(np.fmax(s, 0.0)), have, w, MODE_TOL, MODE_AMBIGUOUS)
+    n = members.sum(axis=0)
+    colour = np.where((n > 0)[:, None], mode_median(s, members), np.nan).astype(np.float32)
+    return colour, n.astype(np.int64)
 
 
 def censored_mode(samples: np.ndarray, weights: np.ndarray | None, hot: np.ndarray
