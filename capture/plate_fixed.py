@@ -170,6 +170,7 @@ def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gai
     the robust mode (:func:`robust_mode`) of the frames' samples weighted by ``weights`` (default
     :func:`fixed_sample_weight`), with the samples blown out in their own frame as lower bounds
     (:func:`censored_mode`, FIXED_CENSOR_CLIPPED); NaN where fewer than FIXED_MIN_FRAMES agree."""
+    from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
 
     x, y = pix[:, 0], pix[:, 1]
@@ -183,7 +184,7 @@ def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gai
         ok = w[row] > 0
         c = v.linear[y[ok], x[ok]]
         s[row, ok] = c * gains[j]
-        hot[row, ok] = c.max(axis=-1) >= CLIP_LEVEL
+        hot[row, ok] = channel_max(c) >= CLIP_LEVEL  # c.max(axis=-1)
     if FIXED_CENSOR_CLIPPED:
         col, _, bound = censored_mode(s, w, hot)
         return col, bound
