@@ -108,14 +108,20 @@ def _robust_mode_compiled(samples: np.ndarray, weights: np.ndarray | None) -> tu
     from capture.plate_mode_kernel import mode_median, mode_members
     from capture.scan import linear_to_srgb
 
-    s = np.asarray(samples, np.float32)
-    have = np.isfinite(s[..., 0])
-    w = have.astype(np.float32) if weights is None else np.where(have, weights, 0.0).astype(np.float32)
-    # np.fmax(s, 0): NaN to 0 as nan_to_num, and negative or infinite samples clip the same in linear_to_srgb
-    members = mode_members(linear_to_srgb(np.fmax(s, 0.0)), have, w, MODE_TOL, MODE_AMBIGUOUS)
-    n = members.sum(axis=0)
-    colour = np.where((n > 0)[:, None], mode_median(s, members), np.nan).astype(np.float32)
-    return colour, n.astype(np.int64)
+    K, N, _ = samples.shape
+    colour = np.full((N, 3), np.nan, np.float32)
+    support = np.zeros(N, np.int64)
+    for lo in range(0, N, MODE_CHUNK):  # the temporaries of a chunk only (K x MODE_CHUNK x 3)
+        s = np.asarray(samples[:, lo:lo + MODE_CHUNK], np.float32)
+        have = np.isfinite(s[..., 0])
+        w = have.astype(np.float32) if weights is None else \
+            np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0).astype(np.float32)
+        # np.fmax(s, 0): NaN to 0 as nan_to_num; negative or infinite samples clip the same in linear_to_srgb
+        members = mode_members(linear_to_srgb(np.fmax(s, 0.0)), have, w, MODE_TOL, MODE_AMBIGUOUS)
+        n = members.sum(axis=0)
+        colour[lo:lo + MODE_CHUNK] = np.where((n > 0)[:, None], mode_median(s, members), np.nan)
+        support[lo:lo + MODE_CHUNK] = n
+    return colour, support
 
 
 def censored_mode(samples: np.ndarray, weights: np.ndarray | None, hot: np.ndarray

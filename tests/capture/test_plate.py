@@ -266,6 +266,14 @@ def test_the_compiled_robust_mode_equals_the_numpy_reference():
     finally:
         plate_fixed.MODE_PAIRS = pairs
     np.testing.assert_array_equal(robust_mode(s[:, :50], w[:, :50], fast=True)[0], want[0])
+    chunk = plate_fixed.MODE_CHUNK
+    try:
+        plate_fixed.MODE_CHUNK = 7  # the compiled path's chunks
+        got = robust_mode(s[:, :50], w[:, :50], fast=True)
+    finally:
+        plate_fixed.MODE_CHUNK = chunk
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], robust_mode(s[:, :50], w[:, :50], fast=False)[1])
 
 
 def test_linear_to_srgb_in_place_is_the_expression():
