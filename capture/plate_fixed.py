@@ -61,6 +61,9 @@ MODE_PAIRS = 64 * 64 * 5000
 #: Robust mode by capture.plate_mode_kernel's compiled loop a pixel (the same values bit for bit as the
 #: numpy path, kept as robust_mode(fast=False); 72 views of 1280x960: docs/speed.md round 5).
 MODE_COMPILED = True
+#: The sample weights' distances to the object (fixed_sample_weight) by OpenCV's exact Euclidean distance
+#: transform (20-30x scipy's on a 1280x960 frame; the same values, tests/capture/test_plate.py).
+EDT_OPENCV = True
 
 
 def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None,
@@ -144,17 +147,31 @@ def censored_mode(samples: np.ndarray, weights: np.ndarray | None, hot: np.ndarr
     return col, np.where(ok, support, np.where(bound, n_hot, support)), bound
 
 
-def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
+def fixed_sample_weight(object_depth: np.ndarray, fast: bool | None = None) -> np.ndarray:
     """(H, W) float32 weight of a frame's pixels as fixed-camera plate samples: 0 within
     FIXED_EXCLUDE_FRACTION of the width of the object's depth (the robust mode takes out needles
-    the depth missed), rising to 1 at SOURCE_BAND_FRACTION (confidently background)."""
+    the depth missed), rising to 1 at SOURCE_BAND_FRACTION (confidently background).  ``fast``
+    (default EDT_OPENCV): the distances from OpenCV (:func:`_edt_opencv`), the same values as
+    ``fast=False`` (scipy's, the reference)."""
     m = np.asarray(object_depth) > 0
     W = m.shape[1]
     if not m.any():
         return np.ones(m.shape, np.float32)
-    d = ndimage.distance_transform_edt(~m)
+    d = _edt_opencv(m) if (EDT_OPENCV if fast is None else fast) else ndimage.distance_transform_edt(~m)
     w = np.clip(d / px(SOURCE_BAND_FRACTION, W), 0.0, 1.0)
     return np.where(d > px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
+
+
+def _edt_opencv(mask: np.ndarray) -> np.ndarray:
+    """``ndimage.distance_transform_edt(~mask)`` of a 2-D bool mask: OpenCV's exact Euclidean distance
+    (DIST_MASK_PRECISE) in float32, squared and rounded to the integer squared distance it is, then its
+    float64 square root as scipy takes it (float32 keeps the integers below 2^24 exactly enough to round
+    back: 0 differences measured up to the far corner of a 1280x960 frame, and past SOURCE_BAND_FRACTION
+    of the width the weight is 1 whatever the rounding)."""
+    import cv2
+
+    d32 = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.sqrt(np.rint(d32.astype(np.float64) ** 2))
 
 
 def mode_frames(n: int, i: int | None, cap: int | None = None) -> list[int]:

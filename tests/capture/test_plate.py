@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from capture.plate import PlateConfig, PlateView, background_plates, fit_gains
 from capture.plate_fixed import robust_mode
@@ -274,6 +275,26 @@ def test_the_compiled_robust_mode_equals_the_numpy_reference():
         plate_fixed.MODE_CHUNK = chunk
     np.testing.assert_array_equal(got[0], want[0])
     np.testing.assert_array_equal(got[1], robust_mode(s[:, :50], w[:, :50], fast=False)[1])
+
+
+def test_sample_weights_by_opencv_equal_scipys():
+    """capture.plate_fixed.fixed_sample_weight with OpenCV's distances (EDT_OPENCV) against scipy's
+    (fast=False), bit for bit: an object, scattered needles, one pixel in a corner (the largest
+    distances of a 1280x960 frame), a dense random mask, an object touching the border."""
+    from capture.plate_fixed import _edt_opencv, fixed_sample_weight
+
+    rng = np.random.default_rng(5)
+    masks = [np.zeros((960, 1280), bool) for _ in range(5)]
+    masks[0][400:520, 600:660] = True
+    masks[1][rng.random((960, 1280)) < 1e-4] = True
+    masks[2][0, 0] = True
+    masks[3] = rng.random((960, 1280)) < 0.3
+    masks[4][:300, 1000:] = True
+    for m in masks:
+        depth = np.where(m, 1.5, 0.0).astype(np.float32)
+        got, want = fixed_sample_weight(depth, fast=True), fixed_sample_weight(depth, fast=False)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+        assert np.array_equal(_edt_opencv(m), ndimage.distance_transform_edt(~m))
 
 
 def test_linear_to_srgb_in_place_is_the_expression():
