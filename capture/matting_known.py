@@ -125,7 +125,13 @@ CF_RADIUS = 1
 #: Conjugate-gradient iterations before the solve gives up (then the per-pixel alphas stand), and its
 #: relative residual (the data term conditions the system: 1e-5 changes alpha by < 1e-3).
 CG_MAX_ITERATIONS = 2000
-CG_RTOL = 1e-5
+CG_RTOL = 1e-6
+#: The incomplete Cholesky preconditioner (pymatting's ichol) drops entries below this.  pymatting's
+#: default 1e-4 with CG_RTOL 1e-5 was the solve before issue 32's round 5; 3e-3 with 1e-6 builds in
+#: about half the time and takes 11-12 iterations for 3, as close to the exact solve on phone views
+#: (largest alpha error 1-3e-4 either way; docs/speed.md round 5; tests/capture/test_matting_known.py).
+#: 3e-2 no longer factors without pymatting's diagonal shifts (a second build).
+ICHOL_DISCARD = 3e-3
 
 #: Trimap widening: a background pixel of the depth's trimap within this fraction of the image
 #: width of the unknown band whose alpha bound is above WIDEN_ALPHA becomes unknown (a needle
@@ -459,7 +465,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout (`furrow model --json`)
                 if "M" not in pre:  # the passes differ in the data weights only: one preconditioner
-                    pre["M"] = ichol(A)
+                    pre["M"] = ichol(A, discard_threshold=ICHOL_DISCARD)
                 return cg(A, b, x0=x0, M=pre["M"], rtol=CG_RTOL, maxiter=CG_MAX_ITERATIONS), True
         except ValueError as e:  # "Conjugate gradient descent did not converge ..."
             if "converge" not in str(e):

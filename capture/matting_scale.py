@@ -120,10 +120,11 @@ def _box(a: np.ndarray, r: int) -> np.ndarray:
 
 
 def guided_coefficients(guide: np.ndarray, target: np.ndarray, r: int = GUIDE_RADIUS,
-                        eps: float = GUIDE_EPS) -> tuple[np.ndarray, np.ndarray]:
+                        eps: float = GUIDE_EPS, fast: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The colour guided filter's mean coefficients (a (h, w, C, 3), b (h, w, C)) of ``target``
     (h, w, C) guided by ``guide`` (h, w, 3): q = a . I + b (He, Sun, Tang 2013, eq. 14-16, with the
-    3x3 covariance of the guide in each window)."""
+    3x3 covariance of the guide in each window).  ``fast``: the 3x3 solves by
+    capture.guided_kernel.solve_spd3 (within its SOLVE_RTOL of ``fast=False``, LAPACK's, the reference)."""
     I = np.asarray(guide, np.float64)
     p = np.asarray(target, np.float64)
     mI = _box(I, r)
@@ -133,7 +134,12 @@ def guided_coefficients(guide: np.ndarray, target: np.ndarray, r: int = GUIDE_RA
     cov += eps * np.eye(3)
     Ip = np.einsum("hwi,hwc->hwci", I, p).reshape(*I.shape[:2], -1)
     cIp = _box(Ip, r).reshape(*p.shape, 3) - np.einsum("hwc,hwi->hwci", mp, mI)
-    a = np.linalg.solve(cov[:, :, None], cIp[..., None])[..., 0]          # (h, w, C, 3)
+    if fast:
+        from capture.guided_kernel import solve_spd3
+
+        a = solve_spd3(cov, cIp)                                           # (h, w, C, 3)
+    else:
+        a = np.linalg.solve(cov[:, :, None], cIp[..., None])[..., 0]
     b = mp - np.einsum("hwci,hwi->hwc", a, mI)
     C = p.shape[2]
     ma = _box(a.reshape(*I.shape[:2], C * 3), r).reshape(a.shape)

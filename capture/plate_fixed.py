@@ -58,16 +58,27 @@ FIXED_RING_FRAMES = 32
 #: pixels a chunk: its float32 temporaries 82 MB each (at 20,000 they were 328 MB, a third of the
 #: phone capture's plate stage peak above its views); the result does not depend on the chunk.
 MODE_PAIRS = 64 * 64 * 5000
+#: Robust mode by capture.plate_mode_kernel's compiled loop a pixel (the same values bit for bit as the
+#: numpy path, kept as robust_mode(fast=False); 72 views of 1280x960: docs/speed.md round 5).
+MODE_COMPILED = True
+#: The sample weights' distances to the object (fixed_sample_weight) by OpenCV's exact Euclidean distance
+#: transform (20-30x scipy's on a 1280x960 frame; the same values, tests/capture/test_plate.py).
+EDT_OPENCV = True
 
 
-def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None,
+                fast: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(colour (N, 3), support (N,) int) of samples (K, N, 3) linear (NaN = none) per column: the
     heaviest cluster (the sample whose agreeing samples, within MODE_TOL in 8-bit sRGB, weigh most;
     ``weights`` (K, N), default 1), then the median of those; support = how many agree.  A needle
     crossing a background pixel in some frames leaves samples spread between B and F; the frames
-    it missed agree to the noise, and they were further from the object (heavier)."""
+    it missed agree to the noise, and they were further from the object (heavier).  ``fast`` (default
+    MODE_COMPILED): capture.plate_mode_kernel's loop a pixel, equal bit for bit to the numpy path
+    (``fast=False``, the reference)."""
     from capture.scan import linear_to_srgb
 
+    if (MODE_COMPILED if fast is None else fast) and (weights is None or np.asarray(weights).dtype == np.float32):
+        return _robust_mode_compiled(samples, weights)  # (float64 weights: numpy sums in float64)
     K, N, _ = samples.shape
     colour = np.full((N, 3), np.nan, np.float32)
     support = np.zeros(N, np.int64)
@@ -95,6 +106,27 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None) -> tuple
     return colour, support
 
 
+def _robust_mode_compiled(samples: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`robust_mode` by capture.plate_mode_kernel (the same values)."""
+    from capture.plate_mode_kernel import mode_median, mode_members
+    from capture.scan import linear_to_srgb
+
+    K, N, _ = samples.shape
+    colour = np.full((N, 3), np.nan, np.float32)
+    support = np.zeros(N, np.int64)
+    for lo in range(0, N, MODE_CHUNK):  # the temporaries of a chunk only (K x MODE_CHUNK x 3)
+        s = np.asarray(samples[:, lo:lo + MODE_CHUNK], np.float32)
+        have = np.isfinite(s[..., 0])
+        w = have.astype(np.float32) if weights is None else \
+            np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0).astype(np.float32)
+        # np.fmax(s, 0): NaN to 0 as nan_to_num; negative or infinite samples clip the same in linear_to_srgb
+        members = mode_members(linear_to_srgb(np.fmax(s, 0.0)), have, w, MODE_TOL, MODE_AMBIGUOUS)
+        n = members.sum(axis=0)
+        colour[lo:lo + MODE_CHUNK] = np.where((n > 0)[:, None], mode_median(s, members), np.nan)
+        support[lo:lo + MODE_CHUNK] = n
+    return colour, support
+
+
 def censored_mode(samples: np.ndarray, weights: np.ndarray | None, hot: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(colour (N, 3), support (N,), bound (N,) bool) of samples (K, N, 3) in the common exposure
@@ -115,17 +147,31 @@ def censored_mode(samples: np.ndarray, weights: np.ndarray | None, hot: np.ndarr
     return col, np.where(ok, support, np.where(bound, n_hot, support)), bound
 
 
-def fixed_sample_weight(object_depth: np.ndarray) -> np.ndarray:
+def fixed_sample_weight(object_depth: np.ndarray, fast: bool | None = None) -> np.ndarray:
     """(H, W) float32 weight of a frame's pixels as fixed-camera plate samples: 0 within
     FIXED_EXCLUDE_FRACTION of the width of the object's depth (the robust mode takes out needles
-    the depth missed), rising to 1 at SOURCE_BAND_FRACTION (confidently background)."""
+    the depth missed), rising to 1 at SOURCE_BAND_FRACTION (confidently background).  ``fast``
+    (default EDT_OPENCV): the distances from OpenCV (:func:`_edt_opencv`), the same values as
+    ``fast=False`` (scipy's, the reference)."""
     m = np.asarray(object_depth) > 0
     W = m.shape[1]
     if not m.any():
         return np.ones(m.shape, np.float32)
-    d = ndimage.distance_transform_edt(~m)
+    d = _edt_opencv(m) if (EDT_OPENCV if fast is None else fast) else ndimage.distance_transform_edt(~m)
     w = np.clip(d / px(SOURCE_BAND_FRACTION, W), 0.0, 1.0)
     return np.where(d > px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
+
+
+def _edt_opencv(mask: np.ndarray) -> np.ndarray:
+    """``ndimage.distance_transform_edt(~mask)`` of a 2-D bool mask: OpenCV's exact Euclidean distance
+    (DIST_MASK_PRECISE) in float32, squared and rounded to the integer squared distance it is, then its
+    float64 square root as scipy takes it (float32 keeps the integers below 2^24 exactly enough to round
+    back: 0 differences measured up to the far corner of a 1280x960 frame, and past SOURCE_BAND_FRACTION
+    of the width the weight is 1 whatever the rounding)."""
+    import cv2
+
+    d32 = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.sqrt(np.rint(d32.astype(np.float64) ** 2))
 
 
 def mode_frames(n: int, i: int | None, cap: int | None = None) -> list[int]:
@@ -147,6 +193,7 @@ def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gai
     the robust mode (:func:`robust_mode`) of the frames' samples weighted by ``weights`` (default
     :func:`fixed_sample_weight`), with the samples blown out in their own frame as lower bounds
     (:func:`censored_mode`, FIXED_CENSOR_CLIPPED); NaN where fewer than FIXED_MIN_FRAMES agree."""
+    from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
 
     x, y = pix[:, 0], pix[:, 1]
@@ -160,7 +207,7 @@ def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gai
         ok = w[row] > 0
         c = v.linear[y[ok], x[ok]]
         s[row, ok] = c * gains[j]
-        hot[row, ok] = c.max(axis=-1) >= CLIP_LEVEL
+        hot[row, ok] = channel_max(c) >= CLIP_LEVEL  # c.max(axis=-1)
     if FIXED_CENSOR_CLIPPED:
         col, _, bound = censored_mode(s, w, hot)
         return col, bound

@@ -38,8 +38,14 @@ def srgb8_to_linear(rgb: np.ndarray) -> np.ndarray:
 
 def linear_to_srgb(c: np.ndarray) -> np.ndarray:
     """Linear values -> sRGB-encoded in [0, 1] (clipped)."""
-    c = np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0)
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1 / 2.4) - 0.055).astype(np.float32)
+    # ``np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1 / 2.4) - 0.055)`` of the clipped
+    # float32 c, operation for operation in place (the same float32 values: tests/capture/test_plate.py)
+    c = np.asarray(np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0), np.float32)
+    out = np.power(c, 1 / 2.4, out=np.empty_like(c))
+    np.multiply(out, 1.055, out=out)
+    np.subtract(out, 0.055, out=out)
+    np.multiply(c, 12.92, out=out, where=c <= 0.0031308)
+    return out
 
 
 def to_uint8_srgb(linear: np.ndarray) -> np.ndarray:

@@ -34,6 +34,9 @@ F_TOL = 0.03
 BLACK_ALPHA_MSE_TOL = 0.02
 #: Fast path against the slow reference (alpha).
 TWIN_TOL = 1e-3
+#: The round-5 preconditioner and CG tolerance against the solve before them and a tight solve (largest
+#: alpha difference; measured on phone views 1-3e-4, docs/speed.md round 5).
+PRECOND_TOL = 1e-3
 NOISE_8BIT_BLACK = 1.0 / 255 / 12.92
 
 
@@ -83,6 +86,28 @@ def test_fast_path_matches_the_slow_reference():
     assert ok and np.abs(a - r).max() <= TWIN_TOL
     exact = known & (a > 0)
     assert np.abs(Fa - Fr)[exact].max() <= 1e-2
+
+
+def test_the_preconditioner_and_tolerance_against_pymattings_default(monkeypatch):
+    """capture.matting_known.ICHOL_DISCARD with CG_RTOL (round 5) against the solve before it (pymatting's
+    discard threshold 1e-4, CG_RTOL 1e-5) and against a tight solve (1e-4, 1e-10), on the whole needle
+    scene: alpha within PRECOND_TOL of both, and no further from the tight solve than the old one plus
+    PRECOND_TOL / 4."""
+    from capture import matting_known as mk
+
+    C, B, A, F, D = ps.needle_composite(seed=1)
+    C, tri, known = _q(C), depth_trimap(D), np.ones(A.shape, bool)
+    known[:10] = False
+    runs = {}
+    for name, disc, rtol in (("new", mk.ICHOL_DISCARD, mk.CG_RTOL), ("old", 1e-4, 1e-5), ("tight", 1e-4, 1e-10)):
+        monkeypatch.setattr(mk, "ICHOL_DISCARD", disc)
+        monkeypatch.setattr(mk, "CG_RTOL", rtol)
+        runs[name] = known_background_matte(C, tri, B, known, 0.004, D > 0)
+        assert runs[name][3]
+    new, old, tight = (runs[k][0] for k in ("new", "old", "tight"))
+    assert np.abs(new - old).max() <= PRECOND_TOL and np.abs(new - tight).max() <= PRECOND_TOL
+    assert np.abs(new - tight).max() <= np.abs(old - tight).max() + PRECOND_TOL / 4
+    assert np.abs(new - old).max() > 0  # the two solves differ: the test compares something
 
 
 def test_pymatting_warnings_stay_off_stdout(monkeypatch, capsys):

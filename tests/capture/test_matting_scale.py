@@ -96,6 +96,34 @@ def test_guided_upsampling_is_exact_for_a_linear_function_of_the_guide():
     np.testing.assert_allclose(got, guide @ A + c, atol=1e-4)
 
 
+@pytest.mark.parametrize("kind", ["random", "flat", "edges"])
+def test_the_compiled_3x3_solves_are_lapacks(kind):
+    """capture.guided_kernel.solve_spd3 against np.linalg.solve (guided_coefficients(fast=False)),
+    within SOLVE_RTOL of the largest coefficient: noise, a flat guide (the epsilon alone keeps the
+    covariance invertible) and hard colour edges."""
+    from capture.guided_kernel import SOLVE_RTOL, solve_spd3
+
+    rng = np.random.default_rng(7)
+    guide = rng.random((60, 80, 3))
+    if kind == "flat":
+        guide = np.full((60, 80, 3), 0.3) + 1e-4 * guide
+    elif kind == "edges":
+        guide = np.where((np.arange(80) // 9 % 2)[None, :, None] == 1, [0.9, 0.1, 0.4], [0.05, 0.6, 0.2]) \
+            * (1 + 0.01 * guide)
+    target = rng.random((60, 80, 4))
+    for eps in (1e-4, 1e-7):
+        a, b = matting_scale.guided_coefficients(guide, target, eps=eps)
+        a_ref, b_ref = matting_scale.guided_coefficients(guide, target, eps=eps, fast=False)
+        scale = np.abs(a_ref).max()
+        assert np.abs(a - a_ref).max() <= SOLVE_RTOL * scale
+        assert np.abs(b - b_ref).max() <= SOLVE_RTOL * max(scale, np.abs(b_ref).max())
+    cov = rng.random((5, 6, 3, 3))
+    cov = cov @ cov.transpose(0, 1, 3, 2) + 0.1 * np.eye(3)
+    rhs = rng.normal(size=(5, 6, 2, 3))
+    ref = np.linalg.solve(cov[:, :, None], rhs[..., None])[..., 0]
+    np.testing.assert_allclose(solve_spd3(cov, rhs), ref, rtol=0, atol=SOLVE_RTOL * np.abs(ref).max())
+
+
 def test_guided_upsampling_at_some_pixels_is_the_same():
     rng = np.random.default_rng(2)
     guide = rng.random((48, 64, 3)).astype(np.float32)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from capture.plate import PlateConfig, PlateView, background_plates, fit_gains
 from capture.plate_fixed import robust_mode
@@ -215,6 +216,109 @@ def test_robust_mode_with_weights_does_not_depend_on_the_chunk(monkeypatch):
         got = robust_mode(s, w)
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
+
+
+def _mode_cases():
+    """Samples (K, N, 3) and weights (K, N) or None: noise around a background with needles, quantised
+    colours (many ties between clusters of equal weight, samples exactly MODE_TOL apart), rival clusters
+    (ambiguous pixels), missing samples, a single pixel and a single frame."""
+    rng = np.random.default_rng(11)
+    s = rng.random((40, 700, 3)).astype(np.float32)
+    s[:15] = s[0] + rng.normal(0.0, 0.002, (15, 700, 3)).astype(np.float32)
+    s[15:24] = s[15] + rng.normal(0.0, 0.002, (9, 700, 3)).astype(np.float32)  # a rival nearly as heavy
+    s[rng.random((40, 700)) < 0.2] = np.nan
+    s[30, :5, 1], s[31, 5:10, 2] = np.inf, -0.5  # an infinite and a negative channel (nan_to_num, fmax)
+    yield s, rng.random((40, 700)).astype(np.float32)
+    yield s, None
+    from capture.scan import srgb8_to_linear
+
+    q = srgb8_to_linear(rng.integers(100, 109, (24, 500, 3)).astype(np.uint8)).astype(np.float32)
+    q[rng.random((24, 500)) < 0.1] = np.nan
+    yield q, None
+    yield q, np.round(rng.random((24, 500)) * 4).astype(np.float32) / 4
+    yield s[:, :1], rng.random((40, 1)).astype(np.float32)
+    yield s[:1], None
+    yield np.full((6, 30, 3), np.nan, np.float32), None
+    # samples exactly MODE_TOL apart in float32 sRGB (0 and float32(3 / 255), whose float64 is above it):
+    # numpy compares in float32, so they agree
+    edge = np.zeros((7, 4, 3), np.float32)
+    edge[:3] = np.float32(0.000910581)  # linear_to_srgb: float32(3 / 255)
+    edge[5:, :2] = np.nan
+    yield edge, None
+    # weight 0 everywhere a frame has a sample: numpy's argmax takes the first frame, here one without
+    # a sample (no members) in the first column, one with in the second
+    zero = np.full((5, 2, 3), 0.4, np.float32)
+    zero[0, 0] = np.nan
+    yield zero, np.zeros((5, 2), np.float32)
+
+
+def test_the_compiled_robust_mode_equals_the_numpy_reference():
+    """capture.plate_mode_kernel through robust_mode(fast=True) against robust_mode(fast=False), bit for
+    bit (colour with its NaNs, support), in chunks of one pixel and of all of them."""
+    from capture import plate_fixed
+
+    for s, w in _mode_cases():
+        want = robust_mode(s, w, fast=False)
+        got = robust_mode(s, w, fast=True)
+        assert got[0].dtype == want[0].dtype and got[1].dtype == want[1].dtype
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+    s, w = next(_mode_cases())
+    col = robust_mode(s, w, fast=False)[0][:, 0]
+    assert 0.1 < np.isnan(col).mean() < 0.9  # the case has both kept and ambiguous pixels
+    pairs = plate_fixed.MODE_PAIRS
+    try:
+        plate_fixed.MODE_PAIRS = 40 * 40
+        want = robust_mode(s[:, :50], w[:, :50], fast=False)
+    finally:
+        plate_fixed.MODE_PAIRS = pairs
+    np.testing.assert_array_equal(robust_mode(s[:, :50], w[:, :50], fast=True)[0], want[0])
+    chunk = plate_fixed.MODE_CHUNK
+    try:
+        plate_fixed.MODE_CHUNK = 7  # the compiled path's chunks
+        got = robust_mode(s[:, :50], w[:, :50], fast=True)
+    finally:
+        plate_fixed.MODE_CHUNK = chunk
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], robust_mode(s[:, :50], w[:, :50], fast=False)[1])
+
+
+def test_sample_weights_by_opencv_equal_scipys():
+    """capture.plate_fixed.fixed_sample_weight with OpenCV's distances (EDT_OPENCV) against scipy's
+    (fast=False), bit for bit: an object, scattered needles, one pixel in a corner (the largest
+    distances of a 1280x960 frame), a dense random mask, an object touching the border."""
+    from capture.plate_fixed import _edt_opencv, fixed_sample_weight
+
+    rng = np.random.default_rng(5)
+    masks = [np.zeros((960, 1280), bool) for _ in range(5)]
+    masks[0][400:520, 600:660] = True
+    masks[1][rng.random((960, 1280)) < 1e-4] = True
+    masks[2][0, 0] = True
+    masks[3] = rng.random((960, 1280)) < 0.3
+    masks[4][:300, 1000:] = True
+    for m in masks:
+        depth = np.where(m, 1.5, 0.0).astype(np.float32)
+        got, want = fixed_sample_weight(depth, fast=True), fixed_sample_weight(depth, fast=False)
+        assert got.dtype == want.dtype and np.array_equal(got, want)
+        assert np.array_equal(_edt_opencv(m), ndimage.distance_transform_edt(~m))
+
+
+def test_linear_to_srgb_in_place_is_the_expression():
+    """capture.scan.linear_to_srgb computes in place; its values are the float32 expression's, bit for bit,
+    over a spread of float32 bit patterns (negative, subnormal, above 1, inf, NaN) and for 0-d input."""
+    from capture.scan import linear_to_srgb
+
+    def expression(c):
+        c = np.clip(np.asarray(c, dtype=np.float32), 0.0, 1.0)
+        return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1 / 2.4) - 0.055).astype(np.float32)
+
+    x = np.arange(0, 2 ** 31, 9973, dtype=np.uint32).view(np.float32)
+    x = np.concatenate([x, -x, np.float32([np.nan, np.inf, 0.0031308, 1.0])])
+    with np.errstate(invalid="ignore"):
+        got, want = linear_to_srgb(x), expression(x)
+    assert got.dtype == np.float32 and np.array_equal(got, want, equal_nan=True)
+    for v in (np.float32(0.2), 0.5, [0.001, 0.7], np.random.default_rng(0).random((5, 4, 3))):
+        assert np.shape(linear_to_srgb(v)) == np.shape(v) and np.array_equal(linear_to_srgb(v), expression(v))
 
 
 def test_off_plane_pixels_compiled_equal_numpy():
