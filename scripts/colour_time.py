@@ -42,7 +42,7 @@ def branch(on):
 fs = {"main": main_rule, "seen_off": branch(False), "branch": branch(True)}
 res = {k: [] for k in fs}
 for r in range(rounds):
-    order = list(fs) if r % 2 == 0 else list(fs)[::-1]
+    order = list(fs) if r % 2 == 0 else list(reversed(list(fs)))
     for k in order:
         t = time.process_time()
         with contextlib.redirect_stdout(io.StringIO()):
