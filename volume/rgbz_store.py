@@ -219,6 +219,16 @@ class CropFile:
     def __len__(self) -> int:
         return len(self.rects)
 
+    def measured(self, n: int) -> np.ndarray | None:
+        """View n's measured-depth mask alone (RgbzCrop.measured; None when the file has none), without
+        decoding its colour and depth again (a renderer that has its crop reads this beside it)."""
+        try:
+            with np.load(self.path, allow_pickle=False) as z:
+                key = f"v{n}_measured"
+                return z[key] if key in z.files else None
+        except Exception as e:  # corrupt zip
+            raise ModelError(f"{self.path}: cannot read view {n}'s measured mask ({type(e).__name__}: {e})") from None
+
     def crop(self, n: int) -> RgbzCrop:
         try:
             with np.load(self.path, allow_pickle=False) as z:
@@ -336,7 +346,9 @@ class RgbzImages:
         capture measured; None = every pixel with depth (a model built before the mask was kept)."""
         if self._crops is None:
             return None if self._measured is None else self._measured[n]
-        return self.encoded(n).measured
+        if isinstance(self._crops, CropFile):
+            return self._crops.measured(n)
+        return self._crops[n].measured
 
     @property
     def measured(self) -> np.ndarray | None:
