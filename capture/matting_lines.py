@@ -64,8 +64,16 @@ MIN_CONDITION = 0.0015
 #: Gauss-Newton steps (each moves F at most MAX_STEP, linear Euclidean).
 GN_ITERATIONS = 6
 MAX_STEP = 0.1
-#: Master switch (capture.matting.solve_known's plate branch).
+#: Per-view windows (capture.matting.solve_known's plate branch): off.  On the conifer turntable's
+#: kept views the window's colour erred twice the matte's (median |F - F_true| 0.075 against 0.037):
+#: within 31 px the room behind the crown varies by 0.05, about as much as the needles' own colour
+#: (0.025), so the lines barely cross (docs/matting.md, seventh round).
 LINES = False
+#: Across the views (the matte stage, volume.surroundings): each 3D cell's partial pixels, every one
+#: before its own view's background (:func:`cell_colours`).
+CELLS = True
+#: Cubes per the partial pixels' extent (the orbit's held out with 16 and 32: the same digits).
+CELLS_PER_EXTENT = 16
 
 _PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
@@ -110,12 +118,13 @@ def _pack(M6: np.ndarray) -> np.ndarray:
     return M
 
 
-def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gsum) -> tuple[np.ndarray, np.ndarray]:
-    """The colour shared by each sample's group (module docstring) for N samples: ``C``, ``B`` (N, 3),
-    line weights ``w`` (N,), the matte's ``alpha`` (N,) (the start only), and ``gsum``: (N, k) per-sample
-    values -> (N, k) the totals over each sample's group (a window's box sum, a 3D cell's sum).
-    Returns (F (N, 3) its group's colour, sigma^2 (N,) its expected squared error as the sample's own
-    colour; inf where too few lines, M singular or ill-conditioned (smallest eigenvalue under
+def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gsum, group: np.ndarray):
+    """The colour shared by each group of samples (module docstring) for N samples: ``C``, ``B`` (N, 3),
+    line weights ``w`` (N,), the matte's ``alpha`` (N,) (the start only); ``gsum``: (N, k) per-sample
+    values -> (K, k) the totals of the K groups (a window's box sum: K = N, a 3D cell's sum), ``group``
+    (N,) each sample's own group (whose colour its alpha and line direction are taken from).
+    Returns (F (K, 3), sigma^2 (K,) the expected squared error of a group's colour as one of its
+    samples' own; inf where too few lines, M singular or ill-conditioned (smallest eigenvalue under
     MIN_CONDITION of the largest: the backgrounds too alike to tell F along the lines), or too few
     lines with the colour beyond the photo)."""
     C, B, w = (np.asarray(x, np.float64) for x in (C, B, w))
@@ -128,19 +137,21 @@ def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gs
     ok = (n >= MIN_LINES - 0.5) & (S[:, 3] > 0)
     good = ok
     for it in range(GN_ITERATIONS + 1):
-        d, fb = C - B, F - B
+        d, fb = C - B, F[group] - B
         n2 = np.maximum((fb ** 2).sum(-1), 1e-12)
         imp = (d * fb).sum(-1) / n2
         a = np.clip(imp, 0.0, 1.0)
         r = d - a[:, None] * fb
         v = fb / np.sqrt(n2)[:, None]
         wa2 = w * a ** 2
-        Q = wa2[:, None, None] * (np.eye(3) - v[:, :, None] * v[:, None, :])
-        T = gsum(np.concatenate([np.stack([Q[:, i, j] for i, j in _PAIRS], 1), (w * a)[:, None] * r,
-                                 (w * (r ** 2).sum(-1))[:, None], wa2[:, None]], 1))
+        Q = [wa2 * ((i == j) - v[:, i] * v[:, j]) for i, j in _PAIRS]
+        T = gsum(np.concatenate([np.stack(Q, 1), (w * a)[:, None] * r, (w * (r ** 2).sum(-1))[:, None],
+                                 wa2[:, None]], 1))
         M = _pack(T[:, :6])
-        ev = np.linalg.eigvalsh(M)
-        good = ok & (ev[:, 0] > MIN_CONDITION * np.maximum(ev[:, 2], 1e-30))
+        good = ok.copy()
+        if ok.any():
+            ev = np.linalg.eigvalsh(M[ok])
+            good[ok] = ev[:, 0] > MIN_CONDITION * np.maximum(ev[:, 2], 1e-30)
         if it == GN_ITERATIONS:
             break
         step = np.zeros(F.shape)
@@ -149,7 +160,7 @@ def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gs
         F = np.clip(F + step * np.minimum(1.0, MAX_STEP / np.maximum(norm, 1e-12)), 0.0, 1.0)
     beyond = gsum((lines & (imp >= 0.0) & (imp <= IMPLIED_MAX)).astype(np.float64)[:, None])[:, 0]
     keep = good & (beyond >= VALID_SHARE * n)
-    sig2 = np.full(len(C), np.inf)
+    sig2 = np.full(len(F), np.inf)
     if keep.any():
         rss, wa2s = T[keep, 9], T[keep, 10]
         var = rss / np.maximum(2.0 * n[keep] - 3.0, 1.0) * np.trace(np.linalg.inv(M[keep]), axis1=1, axis2=2)
@@ -165,7 +176,8 @@ def line_colour(C: np.ndarray, B: np.ndarray, w: np.ndarray, size: int, alpha: n
     def gsum(x):
         return _box(x.reshape(h, wd, -1), size).reshape(h * wd, -1)
 
-    F, sig2 = group_fit(np.reshape(C, (-1, 3)), np.reshape(B, (-1, 3)), np.ravel(w), np.ravel(alpha), gsum)
+    F, sig2 = group_fit(np.reshape(C, (-1, 3)), np.reshape(B, (-1, 3)), np.ravel(w), np.ravel(alpha), gsum,
+                        np.arange(h * wd))
     return F.reshape(h, wd, 3), np.where(where, sig2.reshape(h, wd), np.inf)
 
 
@@ -174,14 +186,16 @@ def cell_colour(points: np.ndarray, cell: float, C: np.ndarray, B: np.ndarray, w
     (world units) its 3D point ``points`` (N, 3) falls in: the partial pixels of every view that see
     the same part of the object, each before its own view's background."""
     ijk = np.floor((np.asarray(points, np.float64) - np.min(points, 0)) / cell).astype(np.int64)
-    _, inv = np.unique(ijk, axis=0, return_inverse=True)
+    dims = ijk.max(0) + 1
+    _, inv = np.unique((ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2], return_inverse=True)
     inv = inv.ravel()
     K = int(inv.max()) + 1 if len(inv) else 0
 
     def gsum(x):
-        return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)[inv]
+        return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
-    return group_fit(C, B, w, alpha, gsum)
+    F, sig2 = group_fit(C, B, w, alpha, gsum, inv)
+    return F[inv], sig2[inv]
 
 
 def _sigma_b(est: np.ndarray, sigma: np.ndarray | None) -> np.ndarray:
@@ -242,3 +256,72 @@ def refine_colour(image, alpha, background, known, estimated, sigma, colour, unm
     if record is not None:
         record["lines"] = rec
     return out
+
+
+def line_samples(camera, image, background, known, alpha, colour, object_depth) -> dict | None:
+    """One view's partial pixels (0 < alpha < FILL_ALPHA) for :func:`cell_colours`: their flat pixel
+    ``index``, 3D ``pts`` (the object's depth, filled by push-pull where a needle missed the pixel
+    centre), the photo ``C``, background ``B`` (clipped to [0, 1]), the matte's ``a`` and colour ``F0``,
+    and ``usable`` (B known and not blown out); float32.  None when there is none."""
+    from capture.fill import push_pull
+
+    a = np.asarray(alpha, np.float64)
+    part = (a > 0) & (a < FILL_ALPHA)
+    dep = np.asarray(object_depth, np.float64)
+    if not part.any() or not (dep > 0).any():
+        return None
+    filled = push_pull(dep[..., None], (dep > 0).astype(np.float64))[..., 0]
+    pts, mask = camera.depth_to_points(np.where(part, filled, 0.0))
+    C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
+    B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
+    use = np.asarray(known, bool) & ~clipped(C, B)
+    f32 = np.float32
+    return {"index": np.flatnonzero(mask).astype(np.int64), "pts": pts.astype(f32), "C": C[mask].astype(f32),
+            "B": B[mask].astype(f32), "a": a[mask].astype(f32), "F0": np.asarray(colour)[mask].astype(f32),
+            "usable": use[mask]}
+
+
+def cell_colours(samples: list, sigma_alpha: list | None = None, cells: int = CELLS_PER_EXTENT) -> tuple[list, dict]:
+    """The colour of every view's partial pixels from the lines of its 3D cell across the views
+    (:func:`cell_colour`, cubes of 1 / ``cells`` of the samples' extent), used at a pixel where its
+    expected error is below the unmixed colour's, sigma_a |B - F| / a with ``sigma_alpha`` the view's
+    alpha error (capture.matting_colour.alpha_error; None: not measured, the view keeps its colour;
+    no list: every usable cell's colour).  Per view (flat indices, colours (n, 3)) or None, and the
+    record (pixels, those in a usable cell, those given its colour, why none)."""
+    have = [s for s in samples if s is not None]
+    rec = {"cells": cells, "pixels": int(sum(len(s["a"]) for s in have)), "crossed": 0, "coloured": 0}
+    if not have:
+        return [None] * len(samples), {**rec, "reason": "no partial pixels with depth"}
+    cat = {k: np.concatenate([s[k] for s in have]).astype(np.float64 if k != "usable" else bool)
+           for k in ("pts", "C", "B", "a", "F0", "usable")}
+    al = line_alpha(cat["C"], cat["B"], np.median(cat["F0"], 0))
+    w = line_weights(al, cat["usable"], np.zeros(len(al)))
+    extent = float((cat["pts"].max(0) - cat["pts"].min(0)).max())
+    if extent <= 0 or int((w > 0).sum()) < MIN_LINES:
+        return [None] * len(samples), {**rec, "reason": "too few partial pixels before a known background"}
+    F, sig2 = cell_colour(cat["pts"], extent / cells, cat["C"], cat["B"], w, cat["a"])
+    ok = np.isfinite(sig2)
+    out, off, blind = [], 0, 0
+    for v, s in enumerate(samples):
+        if s is None:
+            out.append(None)
+            continue
+        k = slice(off, off + len(s["a"]))
+        off += len(s["a"])
+        sa = None if sigma_alpha is None else sigma_alpha[v]
+        use = ok[k].copy()
+        if sigma_alpha is not None:
+            blind += int(sa is None)
+            a2 = np.maximum(cat["a"][k], 1e-6) ** 2
+            unmix2 = 0.0 if sa is None else sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) / a2
+            use &= sig2[k] < unmix2
+        rec["coloured"] += int(use.sum())
+        out.append((s["index"][use], F[k][use].astype(np.float32)) if use.any() else None)
+    rec["crossed"] = int(ok.sum())
+    if blind:
+        rec["views_without_alpha_error"] = blind
+    if not ok.any():
+        rec["reason"] = "the lines cross in no cell (too few, or the backgrounds behind them too alike)"
+    else:
+        rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[ok]))), 5)
+    return out, rec
