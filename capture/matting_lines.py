@@ -281,9 +281,12 @@ def line_samples(camera, image, background, known, alpha, colour, object_depth) 
             "usable": use[mask]}
 
 
-def cell_colours(samples: list, sigma_alpha: list | None = None, cells: int = CELLS_PER_EXTENT) -> tuple[list, dict]:
+def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
+                 cells: int = CELLS_PER_EXTENT) -> tuple[list, dict]:
     """The colour of every view's partial pixels from the lines of its 3D cell across the views
-    (:func:`cell_colour`, cubes of 1 / ``cells`` of the samples' extent), used at a pixel where its
+    (:func:`cell_colour`, cubes of 1 / ``cells`` of the samples' extent; ``gains`` (V, 3): the views'
+    exposure gains, capture.plate.fit_gains, true colour = colour x gain: the lines are crossed in the
+    common exposure and each view's colour brought back to its own), used at a pixel where its
     expected error is below the unmixed colour's, sigma_a |B - F| / a with ``sigma_alpha`` the view's
     alpha error (capture.matting_colour.alpha_error; None: not measured, the view keeps its colour;
     no list: every usable cell's colour).  Per view (flat indices, colours (n, 3)) or None, and the
@@ -292,7 +295,9 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, cells: int = CE
     rec = {"cells": cells, "pixels": int(sum(len(s["a"]) for s in have)), "crossed": 0, "coloured": 0}
     if not have:
         return [None] * len(samples), {**rec, "reason": "no partial pixels with depth"}
-    cat = {k: np.concatenate([s[k] for s in have]).astype(np.float64 if k != "usable" else bool)
+    g = np.ones((len(samples), 3)) if gains is None else np.asarray(gains, np.float64)
+    cat = {k: np.concatenate([s[k] * (g[v] if k in ("C", "B", "F0") else 1) for v, s in enumerate(samples)
+                              if s is not None]).astype(np.float64 if k != "usable" else bool)
            for k in ("pts", "C", "B", "a", "F0", "usable")}
     al = line_alpha(cat["C"], cat["B"], np.median(cat["F0"], 0))
     w = line_weights(al, cat["usable"], np.zeros(len(al)))
@@ -316,7 +321,7 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, cells: int = CE
             unmix2 = 0.0 if sa is None else sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) / a2
             use &= sig2[k] < unmix2
         rec["coloured"] += int(use.sum())
-        out.append((s["index"][use], F[k][use].astype(np.float32)) if use.any() else None)
+        out.append((s["index"][use], (F[k][use] / g[v]).astype(np.float32)) if use.any() else None)
     rec["crossed"] = int(ok.sum())
     if blind:
         rec["views_without_alpha_error"] = blind

@@ -114,19 +114,21 @@ def matte_stage(work, cfg, ctx):
     if any(x is not None for x in samples):
         with ctx.row("matte colour across views"):
             sa = [None if n is None else (n.get("colour") or {}).get("sigma_alpha") for n in notes]
-            scans, cells = cell_colour_stage(scans, samples, sa, ctx.keep)
+            ev = (work.records.get("background plate") or {}).get("gains_ev")
+            gains = 2.0 ** np.asarray(ev, np.float64) if ev is not None and len(ev) == len(samples) else None
+            scans, cells = cell_colour_stage(scans, samples, sa, gains, ctx.keep)
     out = matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
     return out if cells is None else out.record("matte", {**out.records["matte"], "cells": cells})
 
 
-def cell_colour_stage(scans, samples, sigma_alpha, keep):
+def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
     """Every view's partial pixels given their 3D cell's colour from the lines across the views where
     it is expected to beat the unmixed colour (capture.matting_lines.cell_colours; ``samples``: each
     view's line samples or None, ``sigma_alpha``: each view's alpha error from its colour record or
-    None): (the scans, the record)."""
+    None, ``gains``: the plate's exposure gains (V, 3) or None): (the scans, the record)."""
     from capture.matting_lines import cell_colours
 
-    colours, rec = cell_colours(samples, sigma_alpha)
+    colours, rec = cell_colours(samples, sigma_alpha, gains)
     out = list(scans)
     for k, c in enumerate(colours):
         if c is None:

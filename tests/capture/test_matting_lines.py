@@ -129,3 +129,19 @@ def test_a_view_keeps_its_colour_where_the_cell_is_not_expected_to_beat_unmixing
     assert len(colours[1][0]) >= 0.95 * (len(A) - half)  # sigma_a 0.1: unmixing errs 0.1 |B - F| / a
     colours, rec = ml.cell_colours(samples, [1e-5, 1e-5], cells=2)  # an alpha this sure: unmix everywhere
     assert colours == [None, None] and rec["coloured"] == 0 and rec["crossed"] > 0
+
+
+def test_views_at_other_exposures_cross_in_the_common_one_and_get_their_own_colour_back():
+    pts, C, B, A, F = _cells(0, 6, textured=True)
+    odd = (np.arange(len(A)) // 60) % 2 == 1  # the odd views of every cell: another camera, darker
+    gain = np.array([1.0, 1.6, 1.25])  # true colour = its colour x gain
+
+    def view(k, g):
+        return {"index": np.flatnonzero(k), "pts": pts[k], "C": C[k] / g, "B": B[k] / g, "a": A[k],
+                "F0": F[k] / g, "usable": np.ones(int(k.sum()), bool)}
+
+    samples = [view(~odd, np.ones(3)), view(odd, gain)]
+    with_gains, _ = ml.cell_colours(samples, gains=[np.ones(3), gain], cells=2)
+    without, _ = ml.cell_colours(samples, cells=2)
+    err = [np.median(np.linalg.norm(c[1][1] - F[c[1][0]] / gain, axis=-1)) for c in (with_gains, without)]
+    assert err[0] <= CELL_TOL < err[1]
