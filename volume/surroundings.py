@@ -126,7 +126,7 @@ def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
     it is expected to beat the unmixed colour (capture.matting_lines.cell_colours; ``samples``: each
     view's line samples or None, ``sigma_alpha``: each view's alpha error from its colour record or
     None, ``gains``: the plate's exposure gains (V, 3) or None): (the scans, the record)."""
-    from capture.matting_lines import cell_colours
+    from capture.matting_lines import CELL_ALPHA, cell_colours
 
     colours, rec = cell_colours(samples, sigma_alpha, gains)
     out = list(scans)
@@ -136,7 +136,11 @@ def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
         s = out[k]
         rgb = np.array(s.rgb, np.float32)
         rgb.reshape(-1, 3)[c[0]] = c[1]
-        out[k] = keep(Scan(rgb, s.depth, s.camera, s.name, s.alpha))
+        alpha = s.alpha
+        if CELL_ALPHA:
+            alpha = np.array(alpha, np.float32)
+            alpha.reshape(-1)[c[0]] = c[2]
+        out[k] = keep(Scan(rgb, s.depth, s.camera, s.name, alpha))
     return tuple(out), rec
 
 

@@ -8,7 +8,8 @@ alpha off by 0.05 (RMS): median |F - F_true| of the window's colour at the parti
 Before a uniform background no window's colour is used (the lines are parallel).
 
 Cells (across views): each cell's pixels seen before the backgrounds of several views; recovered
-within 0.01 (measured 0.0009-0.0013); one background per cell (every view sees the same): none used.
+within 0.01 (measured 0.0009-0.0013); one background per cell (every view sees the same): none used;
+a darker camera crossed in the common exposure 0.0011 (without the plate's gains 0.036).
 """
 
 from __future__ import annotations
@@ -113,7 +114,8 @@ def test_cell_colours_hands_each_view_its_own_pixels():
                 "F0": F[k], "usable": np.ones(k.stop - k.start, bool)} for k in (slice(0, half), slice(half, len(A)))]
     colours, rec = ml.cell_colours([samples[0], None, samples[1]], cells=2)
     assert colours[1] is None and rec["coloured"] >= 0.99 * len(A)  # a corner point may make a cell of its own
-    for (idx, col), s, k in zip((colours[0], colours[2]), samples, (slice(0, half), slice(half, len(A))), strict=True):
+    halves = (slice(0, half), slice(half, len(A)))
+    for (idx, col, _), s, k in zip((colours[0], colours[2]), samples, halves, strict=True):
         pos = np.searchsorted(s["index"], idx)
         assert len(idx) >= 0.98 * len(s["index"]) and np.array_equal(s["index"][pos], idx)
         assert np.median(np.linalg.norm(col - F[k][pos], axis=-1)) <= CELL_TOL
