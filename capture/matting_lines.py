@@ -36,10 +36,10 @@ lines (docs/matting.md, seventh round).
 object's depth: :func:`line_samples`, the matte stage's views; volume.surroundings crosses them after
 the last view): the same needles are seen before different parts of the room.  The lines are crossed
 in the plate's common exposure (its gains), and a pixel takes its cell's colour where the cell's
-expected error is below the unmixed colour's, sigma_a |B - F| / a (the view's alpha error from
-capture.matting_colour; a view without one keeps its colour).  Held out, the conifer turntable 24.80 ->
-25.01 dB, orbit 26.22 -> 26.61, room + table + AE + lens 24.70 -> 24.72; a black capture and the fur
-before similar bricks the same digits.
+expected error is below the unmixed colour's, (sigma_a^2 |B - F|^2 + (1 - a)^2 sigma_B^2)^(1/2) / a
+(sigma_a the view's alpha error from capture.matting_colour: a view without one keeps its colour;
+sigma_B the plate's uncertainty where estimated).  Held out, the conifer turntable 24.80 -> 25.01 dB, orbit 26.22 -> 26.61, room + table + AE +
+lens 24.70 -> 24.74; a black capture and the fur before similar bricks the same digits.
 """
 
 from __future__ import annotations
@@ -279,11 +279,13 @@ def refine_colour(image, alpha, background, known, estimated, sigma, colour, unm
     return out
 
 
-def line_samples(camera, image, background, known, alpha, colour, object_depth) -> dict | None:
+def line_samples(camera, image, background, known, alpha, colour, object_depth, estimated=None,
+                 sigma=None) -> dict | None:
     """One view's partial pixels (0 < alpha < FILL_ALPHA) for :func:`cell_colours`: their flat pixel
     ``index``, 3D ``pts`` (the object's depth, filled by push-pull where a needle missed the pixel
     centre), the photo ``C``, background ``B`` (clipped to [0, 1]), the matte's ``a`` and colour ``F0``,
-    and ``usable`` (B known and not blown out); float32.  None when there is none."""
+    ``usable`` (B known and not blown out) and ``sb`` the background's uncertainty (0 where a frame saw
+    it; the plate's ``sigma`` where ``estimated``); float32.  None when there is none."""
     from capture.fill import push_pull
 
     a = np.asarray(alpha, np.float64)
@@ -299,7 +301,9 @@ def line_samples(camera, image, background, known, alpha, colour, object_depth) 
     f32 = np.float32
     return {"index": np.flatnonzero(mask).astype(np.int64), "pts": pts.astype(f32), "C": C[mask].astype(f32),
             "B": B[mask].astype(f32), "a": a[mask].astype(f32), "F0": np.asarray(colour)[mask].astype(f32),
-            "usable": use[mask]}
+            "usable": use[mask],
+            "sb": _sigma_b(np.zeros(a.shape, bool) if estimated is None else np.asarray(estimated, bool) & use,
+                           sigma)[mask].astype(f32)}
 
 
 def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
@@ -308,10 +312,11 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     (:func:`cell_colour`, cubes of 1 / ``cells`` of the samples' extent; ``gains`` (V, 3): the views'
     exposure gains, capture.plate.fit_gains, true colour = colour x gain: the lines are crossed in the
     common exposure and each view's colour brought back to its own), used at a pixel where its
-    expected error is below the unmixed colour's, sigma_a |B - F| / a with ``sigma_alpha`` the view's
-    alpha error (capture.matting_colour.alpha_error; None: not measured, the view keeps its colour;
-    no list: every usable cell's colour).  Per view (flat indices, colours (n, 3)) or None, and the
-    record (pixels, those in a usable cell, those given its colour, why none)."""
+    expected error is below the unmixed colour's, (sigma_a^2 |B - F|^2 + (1 - a)^2 sigma_B^2)^(1/2) / a
+    with ``sigma_alpha`` the view's alpha error (capture.matting_colour.alpha_error; None: not measured,
+    the view keeps its colour; no list: every usable cell's colour) and sigma_B the samples' ``sb``.
+    Per view (flat indices, colours (n, 3), alphas implied (n,)) or None, and the record (pixels, those
+    in a usable cell, those given its colour, why none)."""
     have = [s for s in samples if s is not None]
     rec = {"cells": cells, "pixels": int(sum(len(s["a"]) for s in have)), "crossed": 0, "coloured": 0}
     if not have:
@@ -320,7 +325,10 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     cat = {k: np.concatenate([s[k] * (g[v] if k in ("C", "B", "F0") else 1) for v, s in enumerate(samples)
                               if s is not None]).astype(np.float64 if k != "usable" else bool)
            for k in ("pts", "C", "B", "a", "F0", "usable")}
+    sb = np.concatenate([s.get("sb", np.zeros(len(s["a"]))) for s in have]).astype(np.float64)
     al = line_alpha(cat["C"], cat["B"], np.median(cat["F0"], 0))
+    # sigma_B in the lines' weights too (estimated backgrounds weigh less): turntable 25.007 -> 24.987 dB,
+    # AE + lens 24.743 -> 24.752 held out; left out
     w = line_weights(al, cat["usable"], np.zeros(len(al)))
     extent = float((cat["pts"].max(0) - cat["pts"].min(0)).max())
     if extent <= 0 or int((w > 0).sum()) < MIN_LINES:
@@ -339,7 +347,8 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
         if sigma_alpha is not None:
             blind += int(sa is None)
             a2 = np.maximum(cat["a"][k], 1e-6) ** 2
-            unmix2 = 0.0 if sa is None else sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) / a2
+            unmix2 = 0.0 if sa is None else \
+                (sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) + ((1.0 - cat["a"][k]) * sb[k]) ** 2) / a2
             use &= sig2[k] < unmix2
         rec["coloured"] += int(use.sum())
         imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], F[k][use]), 0.0, 1.0)  # common exposure

@@ -185,7 +185,7 @@ def matte_view(view, ref, cfg, plate=None):
 
         if ml.CELLS:  # the partial pixels' lines for the colour across the views (popped by matte_stage)
             note["lines"] = ml.line_samples(view.camera, view.linear_rgb, plate.background, plate.known, m.alpha,
-                                            m.foreground, view.depth)
+                                            m.foreground, view.depth, plate.estimated, plate.sigma)
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note
 
 
