@@ -301,6 +301,7 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     or None) for the colour's per-pixel choice (capture.matting_colour; its record in the notes)."""
     from capture.matting_colour import colour_gate
     from capture.matting_known import foreground_colour, known_background_matte, widen_px
+    from capture.matting_lines import LINES, refine_colour
     from capture.matting_scale import known_matte_at_scale, working_scale
 
     H, W = trimap.shape
@@ -314,6 +315,9 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     scale = working_scale(trimap, cfg.depth_width) if cfg is not None and cfg.resolution == "working" else 1.0
     gate = None if estimated is None else colour_gate(
         np.asarray(estimated[0])[box], None if estimated[1] is None else np.asarray(estimated[1])[box], notes)
+    chosen = {}
+    if gate is not None:  # where the colour was unmixed, for the lines' colour (capture.matting_lines)
+        gate = _kept(gate, chosen)
     out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes) \
         if scale < 1.0 else None
     if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
@@ -324,11 +328,25 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
         ci, bi, ki, Fw = np.asarray(image)[box], np.asarray(background)[box], np.asarray(known)[box], out[1]
         out = (out[0], foreground_colour(ci, out[0], bi, gate(ci, out[0], bi, ki), lambda C, a, need: Fw), *out[2:])
     a, F, tri, ok = out
+    if estimated is not None and LINES:
+        est_b, sig_b = (None if x is None else np.asarray(x)[box] for x in estimated)
+        kb = np.asarray(known)[box]
+        F = refine_colour(np.asarray(image)[box], a, np.asarray(background)[box], kb, est_b, sig_b, F,
+                          chosen.get("known", kb), W, notes)
     alpha[box] = a
     fg[box] = F
     unknown = float(np.count_nonzero(tri == UNKNOWN)) / (H * W)
     return Matte(alpha, np.clip(fg, 0.0, None).astype(np.float32), method if ok else f"{method} (not converged)",
                  unknown, scale, notes)
+
+
+def _kept(gate, out: dict):
+    """``gate`` (capture.matting_colour.colour_gate's function) that also keeps its answer in ``out['known']``."""
+    def kept(*args):
+        out["known"] = gate(*args)
+        return out["known"]
+
+    return kept
 
 
 def _foreground(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:

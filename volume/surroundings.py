@@ -20,7 +20,11 @@ stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
   Its views go through the runner's per-view map (:func:`matte_one`, picklable); pymatting's numba
   kernels are compiled once before the views (the "matte warm-up" row) so that the matte row's time
   is the matting's.  Mode 'off' keeps the binary depth mask as the only one: a capture's own matte
-  is dropped.
+  is dropped.  With a plate, each view also hands back its partial pixels' lines (the photo, the
+  plate, the matte's alpha and colour, a 3D point from the depth: capture.matting_lines.line_samples),
+  and after the views every partial pixel gets the colour its 3D cell's lines cross at across the
+  views, where they cross (:func:`cell_colour_stage`, the "matte colour across views" row; issue 30
+  seventh round: the same needles before different parts of the room).
 
 Each reports its own numbers (the model report's ``surroundings``).
 """
@@ -105,7 +109,39 @@ def matte_stage(work, cfg, ctx):
     per_view = PerView([(cfg, plates.get(ref.index)) for ref in work.refs])  # a worker gets its view's plate only
     with ctx.row("matte"):
         scans, notes = ctx.map_views(matte_one, work, per_view, "matting")
-    return matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
+    samples = [None if n is None else n.pop("lines", None) for n in notes]
+    cells = None
+    if any(x is not None for x in samples):
+        with ctx.row("matte colour across views"):
+            sa = [None if n is None else (n.get("colour") or {}).get("sigma_alpha") for n in notes]
+            ev = (work.records.get("background plate") or {}).get("gains_ev")
+            gains = 2.0 ** np.asarray(ev, np.float64) if ev is not None and len(ev) == len(samples) else None
+            scans, cells = cell_colour_stage(scans, samples, sa, gains, ctx.keep)
+    out = matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
+    return out if cells is None else out.record("matte", {**out.records["matte"], "cells": cells})
+
+
+def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
+    """Every view's partial pixels given their 3D cell's colour from the lines across the views where
+    it is expected to beat the unmixed colour (capture.matting_lines.cell_colours; ``samples``: each
+    view's line samples or None, ``sigma_alpha``: each view's alpha error from its colour record or
+    None, ``gains``: the plate's exposure gains (V, 3) or None): (the scans, the record)."""
+    from capture.matting_lines import CELL_ALPHA, cell_colours
+
+    colours, rec = cell_colours(samples, sigma_alpha, gains)
+    out = list(scans)
+    for k, c in enumerate(colours):
+        if c is None:
+            continue
+        s = out[k]
+        rgb = np.array(s.rgb, np.float32)
+        rgb.reshape(-1, 3)[c[0]] = c[1]
+        alpha = s.alpha
+        if CELL_ALPHA:
+            alpha = np.array(alpha, np.float32)
+            alpha.reshape(-1)[c[0]] = c[2]
+        out[k] = keep(Scan(rgb, s.depth, s.camera, s.name, alpha))
+    return tuple(out), rec
 
 
 def matte_one(view, ref, arg):
@@ -144,6 +180,12 @@ def matte_view(view, ref, cfg, plate=None):
     for key in ("blind_prior", "colour"):
         if m.notes.get(key):
             note[key] = m.notes[key]
+    if plate is not None and m.method.startswith("plate"):
+        from capture import matting_lines as ml
+
+        if ml.CELLS:  # the partial pixels' lines for the colour across the views (popped by matte_stage)
+            note["lines"] = ml.line_samples(view.camera, view.linear_rgb, plate.background, plate.known, m.alpha,
+                                            m.foreground, view.depth, plate.estimated, plate.sigma)
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note
 
 
