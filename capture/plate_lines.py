@@ -141,8 +141,14 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray, fast: bool = True) -> tupl
     residual = np.full(N, np.inf)
     if len(pal) == 0:
         return colour, residual
-    for lo in range(0, N, LINE_CHUNK):
-        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal, fast)
+    from capture.plate_threads import chunks, thread_map  # chunks side by side (the same values)
+
+    def one(span):
+        lo, hi = span
+        colour[lo:hi], residual[lo:hi] = _vertex_chunk(s[:, lo:hi], pal, fast)
+
+    for _ in thread_map(one, chunks(N, LINE_CHUNK)):
+        pass
     return colour, residual
 
 
