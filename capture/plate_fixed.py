@@ -62,6 +62,8 @@ MODE_PAIRS = 64 * 64 * 5000
 #: time, the chunks side by side (the same values): one call held every frame's samples of the union at
 #: once (K x N x 3 float32 and its copies; 64 frames x 0.5 M pixels at 72 views of 1280x960).
 DRAW_CHUNK = 20000
+#: The frames' lines (unseen_fill) solve this many pixels at a time, the chunks side by side (the same values).
+FILL_CHUNK = 16000
 #: Robust mode by capture.plate_mode_kernel's compiled loop a pixel (the same values bit for bit as the
 #: numpy path, kept as robust_mode(fast=False); 72 views of 1280x960: docs/speed.md round 5).
 MODE_COMPILED = True
@@ -412,6 +414,25 @@ def _sigma_scale(usable, samples, pal, med, opaque, covered, hot) -> float | Non
     return held_back_scale(samples, pal, med, usable, opaque, covered, hot)
 
 
+def _unseen_chunks(samples, pal, opaque, covered, hot, bound, sigma) -> np.ndarray:
+    """capture.plate_lines.unseen_background of the pixels (columns) ``samples`` (K, N, 3), FILL_CHUNK
+    pixels at a time, the chunks side by side (capture.plate_threads): each pixel's background is
+    solved from its own samples and the palette alone, so the values are the same as one call's."""
+    from capture.plate_lines import unseen_background
+    from capture.plate_threads import chunks, thread_map
+
+    out = np.full((samples.shape[1], 3), np.nan)
+
+    def one(span):
+        sl = slice(*span)
+        out[sl] = unseen_background(samples[:, sl], pal, opaque[:, sl], covered[:, sl],
+                                    None if hot is None else hot[:, sl], bound[sl], sigma[sl])
+
+    for _ in thread_map(one, chunks(samples.shape[1], FILL_CHUNK)):
+        pass
+    return out
+
+
 def _frames_at(views, y, x, fn) -> np.ndarray:
     """(K, N) bool ``fn(prepared view)`` (an (H, W) mask) at the pixels ``y``, ``x`` of each of ``views``,
     the views side by side (capture.plate_threads)."""
@@ -432,7 +453,7 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     from capture.matting import FG, depth_trimap
     from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
-    from capture.plate_lines import object_palette, unseen_background
+    from capture.plate_lines import object_palette
 
     frames = mode_frames(len(ps.views), None, FIXED_RING_FRAMES)  # its cost grows with frames^2
     views = [ps.views[j] for j in frames]
@@ -450,8 +471,8 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     hot = channel_max(own) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None  # own.max(axis=-1)
     hot_bound = np.zeros(int(todo.sum()), bool)
     unc = np.full(int(todo.sum()), np.nan)
-    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
-                          None if hot is None else hot[:, todo], hot_bound, unc)
+    b = _unseen_chunks(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
+                       None if hot is None else hot[:, todo], hot_bound, unc)
     filled = np.isfinite(b[:, 0])
     if sigma is not None:  # the lines' sigma held to their error where the robust mode knew the background
         usable = _frames_at(views, y, x, lambda p: p.weight > 0)

@@ -54,14 +54,40 @@ def thread_map(fn: Callable, items: Iterable, threads: int | None = None) -> Ite
     if n == 1:
         yield from map(fn, items)
         return
-    with ThreadPoolExecutor(n, thread_name_prefix="plate") as pool:
-        pending: deque = deque()
-        for item in items:
-            pending.append(pool.submit(_run, fn, item))
-            if len(pending) >= 2 * n:
+    _opencv_alone(True)
+    try:
+        with ThreadPoolExecutor(n, thread_name_prefix="plate") as pool:
+            pending: deque = deque()
+            for item in items:
+                pending.append(pool.submit(_run, fn, item))
+                if len(pending) >= 2 * n:
+                    yield pending.popleft().result()
+            while pending:
                 yield pending.popleft().result()
-        while pending:
-            yield pending.popleft().result()
+    finally:
+        _opencv_alone(False)
+
+
+_opencv = {"maps": 0, "threads": None}
+_opencv_lock = threading.Lock()
+
+
+def _opencv_alone(start: bool) -> None:
+    """OpenCV's own threads off while any map runs threads (its parallel loops inside each of our threads
+    oversubscribed the cores: 72 views of 1280x960, 31 s wall for the plates against 22 s with them
+    off, docs/speed.md round 6), its setting back when the last such map ends."""
+    import cv2
+
+    with _opencv_lock:
+        if start:
+            _opencv["maps"] += 1
+            if _opencv["maps"] == 1:
+                _opencv["threads"] = cv2.getNumThreads()
+                cv2.setNumThreads(1)
+        else:
+            _opencv["maps"] -= 1
+            if _opencv["maps"] == 0:
+                cv2.setNumThreads(_opencv["threads"])
 
 
 def chunks(n: int, size: int) -> list[tuple[int, int]]:

@@ -37,6 +37,7 @@ def test_plates_on_threads_and_small_chunks_equal_one_thread(seed, monkeypatch):
     monkeypatch.setattr(plate_fixed, "DRAW_CHUNK", 101)
     monkeypatch.setattr(plate_fixed, "MODE_CHUNK", 37)
     monkeypatch.setattr(plate_lines, "LINE_CHUNK", 53)
+    monkeypatch.setattr(plate_fixed, "FILL_CHUNK", 29)
     got, rec = background_plates((v for v in views), PlateConfig(), crop=True)
     assert rec == rec_want
     for a, b in zip(got, want, strict=True):
