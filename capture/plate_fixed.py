@@ -434,8 +434,8 @@ def _unseen_chunks(samples, pal, opaque, covered, hot, bound, sigma) -> np.ndarr
 
 
 def _frames_at(views, y, x, fn) -> np.ndarray:
-    """(K, N) bool ``fn(prepared view)`` (an (H, W) mask) at the pixels ``y``, ``x`` of each of ``views``,
-    the views side by side (capture.plate_threads)."""
+    """(K, N, ...) ``fn(prepared view)`` (an (H, W, ...) image or mask) at the pixels ``y``, ``x`` of each
+    of ``views``, the views side by side (capture.plate_threads)."""
     from capture.plate_threads import thread_map
 
     return np.stack(list(thread_map(lambda p: fn(p)[y, x], views)))
@@ -454,11 +454,12 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
     from capture.plate_lines import object_palette
+    from capture.plate_threads import thread_map
 
     frames = mode_frames(len(ps.views), None, FIXED_RING_FRAMES)  # its cost grows with frames^2
     views = [ps.views[j] for j in frames]
-    own = np.stack([ps.views[j].view.linear[y, x] for j in frames])
-    samples = np.stack([o * gains[j] for o, j in zip(own, frames, strict=True)]).astype(np.float32)
+    own = _frames_at(views, y, x, lambda p: p.view.linear)
+    samples = np.stack(list(thread_map(lambda k: (own[k] * gains[frames[k]]).astype(np.float32), range(len(frames)))))
     opaque = _frames_at(views, y, x, lambda p: depth_trimap(p.view.object_depth) >= FG)
     pal = object_palette(samples, med, opaque)
     todo = ~np.isfinite(med[:, 0])
