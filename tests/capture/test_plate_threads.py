@@ -81,3 +81,48 @@ def test_leave_one_out_median_equals_numpys(V):
     a[:, :100] = np.round(a[:, :100])  # ties
     for got, want in zip(plate_fixed.others_median(a), plate_fixed.others_median(a, fast=False), strict=True):
         assert np.array_equal(got, want)
+
+
+def test_moving_camera_plates_on_threads_equal_one_thread(monkeypatch):
+    """The panorama path's ring predictions and plates per view side by side: the same plates."""
+    views, _ = ps.orbit_capture(n=8)
+    plane = np.array([0.0, 0.0, 1.0, -ps.TABLE_Z])
+    monkeypatch.setattr(plate_threads, "PLATE_THREADS", 1)
+    want, rec_want = background_plates(views, PlateConfig(), plane, crop=True)
+    monkeypatch.setattr(plate_threads, "PLATE_THREADS", 3)
+    got, rec = background_plates((v for v in views), PlateConfig(), plane, crop=True)
+    assert rec == rec_want and rec["mode"] == "panorama"
+    for a, b in zip(got, want, strict=True):
+        _same_plate(a, b)
+
+
+def test_chunked_draw_and_fill_equal_one_call(monkeypatch):
+    """fixed_draw's chunks (plate_fixed._draw_prediction, _unseen_chunks) against one call of what
+    they split (fixed_prediction over every pixel; unseen_background over every unknown pixel): the
+    same plate, bounds, fill and uncertainty, bit for bit."""
+    from capture.plate import plate_set
+    from capture.plate_lines import unseen_background
+
+    views = _turntable(1)
+    ps_ = plate_set(views, None, None, PlateConfig()).for_path("fixed")
+    gains = np.exp(np.random.default_rng(2).normal(0.0, 0.1, (len(views), 3)))
+    y, x = np.nonzero(np.logical_or.reduce([p.need for p in ps_.views]))
+    pix = np.stack([x, y], axis=1)
+    args = ([p.view for p in ps_.views], pix, gains, [p.weight for p in ps_.views], list(range(len(views))))
+    monkeypatch.setattr(plate_threads, "PLATE_THREADS", 3)
+    monkeypatch.setattr(plate_fixed, "DRAW_CHUNK", 37)
+    monkeypatch.setattr(plate_fixed, "FILL_CHUNK", 29)
+    med, bound = plate_fixed._draw_prediction(*args)
+    want = plate_fixed.fixed_prediction(args[0], pix, None, gains, args[3], args[4])
+    assert np.array_equal(med, want[0], equal_nan=True) and np.array_equal(bound, want[1])
+    runs = []
+    for chunked in (True, False):
+        if not chunked:
+            monkeypatch.setattr(plate_fixed, "_unseen_chunks", unseen_background)
+        m, b, s = med.copy(), bound.copy(), np.full(len(y), np.nan)
+        est = plate_fixed.unseen_fill(ps_, gains, y, x, m, b, s)
+        runs.append((est, m, b, s))
+    # the lines filled some pixels, over several chunks of the unknown ones
+    assert runs[0][0].sum() >= 10 and (~np.isfinite(med[:, 0])).sum() > 3 * 29
+    for a, b in zip(*runs, strict=True):
+        assert np.array_equal(a, b, equal_nan=True)
