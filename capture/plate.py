@@ -47,6 +47,7 @@ from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
 from capture.plate_reproject import off_plane, room_depth
+from capture.plate_threads import thread_map
 from capture.sampling import mask_box
 
 #: Plate modes of PlateConfig.mode / ``furrow model --plate``.
@@ -345,7 +346,7 @@ def plate_set(views, plane: np.ndarray | None, focus: tuple[np.ndarray, float] |
     from capture.extent import focus_region
 
     paths = _paths(cfg)
-    prepared = tuple(prepare(v, plane, paths) for v in views)
+    prepared = tuple(thread_map(lambda v: prepare(v, plane, paths), views))  # side by side (the same views)
     focus = focus or focus_region([p.view.camera for p in prepared])
     return PlateSet(prepared, plane, focus, int(cfg.neighbours))
 
@@ -439,11 +440,9 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
             exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
         elif not np.all(fit.gains == 1.0):
             fit = _trial(ps, mode, np.ones_like(fit.gains))
-    made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time
-    plates = []
-    for p, m, err in zip(ps.views, made, fit.errors, strict=True):
-        plate = _plate(p.view, m[0], m[1], err, mode, *m[2:])
-        plates.append(plate.cropped() if crop else plate)
+    made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
+    plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
+                             zip(ps.views, made, fit.errors, strict=True)))
     rec = _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
@@ -463,12 +462,13 @@ def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
 
 
 def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,
-           estimated: np.ndarray | None = None, sigma: np.ndarray | None = None) -> Plate:
+           estimated: np.ndarray | None = None, sigma: np.ndarray | None = None, crop: bool = False) -> Plate:
     band = depth_trimap(v.object_depth) == UNKNOWN
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
-    return Plate(np.asarray(col, np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
-                 err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma)
+    plate = Plate(np.asarray(col, np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
+                  err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma)
+    return plate.cropped() if crop else plate  # crop: the box around its known pixels (Plate.cropped)
 
 
 def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:

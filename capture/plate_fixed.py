@@ -58,6 +58,12 @@ FIXED_RING_FRAMES = 32
 #: pixels a chunk: its float32 temporaries 82 MB each (at 20,000 they were 328 MB, a third of the
 #: phone capture's plate stage peak above its views); the result does not depend on the chunk.
 MODE_PAIRS = 64 * 64 * 5000
+#: The plate's robust mode (fixed_draw) over the union of the views' need masks takes this many pixels at a
+#: time, the chunks side by side (the same values): one call held every frame's samples of the union at
+#: once (K x N x 3 float32 and its copies; 64 frames x 0.5 M pixels at 72 views of 1280x960).
+DRAW_CHUNK = 20000
+#: The frames' lines (unseen_fill) solve this many pixels at a time, the chunks side by side (the same values).
+FILL_CHUNK = 16000
 #: Robust mode by capture.plate_mode_kernel's compiled loop a pixel (the same values bit for bit as the
 #: numpy path, kept as robust_mode(fast=False); 72 views of 1280x960: docs/speed.md round 5).
 MODE_COMPILED = True
@@ -109,21 +115,26 @@ def robust_mode(samples: np.ndarray, weights: np.ndarray | None = None,
 def _robust_mode_compiled(samples: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`robust_mode` by capture.plate_mode_kernel (the same values)."""
     from capture.plate_mode_kernel import mode_median, mode_members
+    from capture.plate_threads import chunks, thread_map
     from capture.scan import linear_to_srgb
 
     K, N, _ = samples.shape
     colour = np.full((N, 3), np.nan, np.float32)
     support = np.zeros(N, np.int64)
-    for lo in range(0, N, MODE_CHUNK):  # the temporaries of a chunk only (K x MODE_CHUNK x 3)
-        s = np.asarray(samples[:, lo:lo + MODE_CHUNK], np.float32)
+
+    def one(span):  # the temporaries of a chunk only (K x MODE_CHUNK x 3); chunks side by side
+        lo, hi = span
+        s = np.asarray(samples[:, lo:hi], np.float32)
         have = np.isfinite(s[..., 0])
-        w = have.astype(np.float32) if weights is None else \
-            np.where(have, weights[:, lo:lo + MODE_CHUNK], 0.0).astype(np.float32)
+        w = have.astype(np.float32) if weights is None else np.where(have, weights[:, lo:hi], 0.0).astype(np.float32)
         # np.fmax(s, 0): NaN to 0 as nan_to_num; negative or infinite samples clip the same in linear_to_srgb
         members = mode_members(linear_to_srgb(np.fmax(s, 0.0)), have, w, MODE_TOL, MODE_AMBIGUOUS)
         n = members.sum(axis=0)
-        colour[lo:lo + MODE_CHUNK] = np.where((n > 0)[:, None], mode_median(s, members), np.nan)
-        support[lo:lo + MODE_CHUNK] = n
+        colour[lo:hi] = np.where((n > 0)[:, None], mode_median(s, members), np.nan)
+        support[lo:hi] = n
+
+    for _ in thread_map(one, chunks(N, MODE_CHUNK)):
+        pass
     return colour, support
 
 
@@ -157,9 +168,26 @@ def fixed_sample_weight(object_depth: np.ndarray, fast: bool | None = None) -> n
     W = m.shape[1]
     if not m.any():
         return np.ones(m.shape, np.float32)
-    d = _edt_opencv(m) if (EDT_OPENCV if fast is None else fast) else ndimage.distance_transform_edt(~m)
-    w = np.clip(d / px(SOURCE_BAND_FRACTION, W), 0.0, 1.0)
-    return np.where(d > px(FIXED_EXCLUDE_FRACTION, W), w, 0.0).astype(np.float32)
+    band, exclude = px(SOURCE_BAND_FRACTION, W), px(FIXED_EXCLUDE_FRACTION, W)
+    if EDT_OPENCV if fast is None else fast:
+        return _near_weight(m, band, exclude)
+    d = ndimage.distance_transform_edt(~m)
+    return np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0).astype(np.float32)
+
+
+def _near_weight(m: np.ndarray, band: int, exclude: int) -> np.ndarray:
+    """fixed_sample_weight's weights from OpenCV's distances (:func:`_edt_opencv`'s), worked out in
+    float64 only near the object (distance below ``band`` + 1: most of a frame is 1 whatever the
+    rounding of a float32 distance), the same values as scipy's (the reference) at a fraction of the
+    full-frame float64 passes."""
+    import cv2
+
+    d32 = cv2.distanceTransform((~m).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    out = np.ones(m.shape, np.float32)
+    near = d32 < band + 1
+    d = np.sqrt(np.rint(d32[near].astype(np.float64) ** 2))
+    out[near] = np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0)
+    return out
 
 
 def _edt_opencv(mask: np.ndarray) -> np.ndarray:
@@ -270,8 +298,7 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
 
     def error(g):
         lg = np.log(obs) + np.log(np.asarray(g, np.float64))[:, None]
-        return np.array([np.abs(lg[i] - np.median(np.delete(lg, i, axis=0), axis=0)).max(-1).mean()
-                         for i in range(V)])
+        return np.array([np.abs(lg[i] - m).max(-1).mean() for i, m in enumerate(others_median(lg))])
 
     fit, none = error(gains), error(np.ones((V, 3)))
     wins = int((fit < none).sum())
@@ -282,6 +309,26 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
             "reason": f"the background's gains beat none in {wins} of {V} views on held-back pixels ({verdict})"}
 
 
+def others_median(a: np.ndarray, fast: bool = True):
+    """Per i (a generator), the median over axis 0 of ``a`` (V, ...) without its row i: numpy's
+    ``np.median(np.delete(a, i, axis=0), axis=0)`` (``fast=False``, the reference), or from one sort of
+    ``a`` (each row's rank; the median's one or two middle values of the others read past the row's own
+    place, their mean as numpy takes it: the same values, V times fewer sorts; finite ``a``)."""
+    V = a.shape[0]
+    if not fast or V < 2:
+        yield from (np.median(np.delete(a, i, axis=0), axis=0) for i in range(V))
+        return
+    order = np.argsort(a, axis=0)
+    srt = np.take_along_axis(a, order, axis=0)
+    rank = np.empty_like(order)
+    np.put_along_axis(rank, order, np.arange(V).reshape((V,) + (1,) * (a.ndim - 1)), axis=0)
+    m = V - 1  # the others
+    for i in range(V):
+        lo, hi = ((m - 1) // 2 + ((m - 1) // 2 >= rank[i]), m // 2 + (m // 2 >= rank[i]))
+        a_lo = np.take_along_axis(srt, lo[None], axis=0)[0]
+        yield a_lo if m % 2 else (a_lo + np.take_along_axis(srt, hi[None], axis=0)[0]) / 2.0
+
+
 def fixed_start(ps: PlateSet) -> np.ndarray:
     """The fixed camera's first gains (:func:`fixed_gains` of the prepared views)."""
     return fixed_gains([p.view for p in ps.views], [p.weight for p in ps.views])
@@ -290,10 +337,16 @@ def fixed_start(ps: PlateSet) -> np.ndarray:
 def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_RING_FRAMES of
     them at most, :func:`mode_frames`), in its own exposure."""
+    from capture.plate_threads import thread_map  # views side by side (the same predictions)
+
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
-    return [in_view(*fixed_prediction(views, p.ring, i, gains, weights, mode_frames(len(views), i, FIXED_RING_FRAMES)),
-                    gains[i])
-            for i, p in enumerate(ps.views)]
+
+    def one(i):
+        ring = ps.views[i].ring
+        return in_view(*fixed_prediction(views, ring, i, gains, weights, mode_frames(len(views), i, FIXED_RING_FRAMES)),
+                       gains[i])
+
+    return list(thread_map(one, range(len(views))))
 
 
 def fixed_draw(ps: PlateSet, gains: np.ndarray):
@@ -304,39 +357,88 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray):
     needs = [p.need for p in ps.views]
     union = np.logical_or.reduce(needs)
     y, x = np.nonzero(union)
-    med, bound = fixed_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), None, gains,
+    med, bound = _draw_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), gains,
                                   [p.weight for p in ps.views], mode_frames(len(ps.views), None))
     sigma = np.full(len(y), np.nan)  # the lines' uncertainty (capture.plate_lines.vertex_sigma)
     est = unseen_fill(ps, gains, y, x, med, bound, sigma) if FIXED_ESTIMATE_UNSEEN else np.zeros(len(y), bool)
     return _fixed_views(ps, gains, needs, union.shape, y, x, med, est, bound, sigma)
 
 
+def _draw_prediction(views, pix, gains, weights, frames) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fixed_prediction` of every pixel ``pix`` from ``frames`` (none left out), DRAW_CHUNK pixels
+    at a time, the chunks side by side (capture.plate_threads): each pixel's plate is its own samples'
+    alone, so the values are the same as one call's."""
+    from capture.plate_threads import chunks, thread_map
+
+    med = np.full((len(pix), 3), np.nan, np.float32)
+    bound = np.zeros(len(pix), bool)
+
+    def one(span):
+        lo, hi = span
+        med[lo:hi], bound[lo:hi] = fixed_prediction(views, pix[lo:hi], None, gains, weights, frames)
+
+    for _ in thread_map(one, chunks(len(pix), DRAW_CHUNK)):
+        pass
+    return med, bound
+
+
 def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound, sigma):
     """fixed_draw's plates, one view at a time (a generator: the caller may crop each before the next);
-    each also with the lines' uncertainty (H, W) float32 in its own exposure (0 where not estimated)."""
-    for j, p in enumerate(ps.views):
-        here = in_view(med, bound, gains[j])
-        col = np.zeros(p.view.linear.shape, np.float32)
-        col[y, x] = np.nan_to_num(here)
-        known = np.zeros(shape, bool)
-        known[y, x] = np.isfinite(here[:, 0])
-        estimated = np.zeros(shape, bool)
-        estimated[y, x] = est
-        unc = np.zeros(shape, np.float32)
-        unc[y, x] = np.where(est, sigma / float(np.mean(gains[j])), 0.0)
-        yield col, known & needs[j], estimated & needs[j], np.where(known & needs[j], unc, 0.0)
+    each also with the lines' uncertainty (H, W) float32 in its own exposure (0 where not estimated).
+    The views are drawn side by side (capture.plate_threads; the same plates), a few ahead at most."""
+    from capture.plate_threads import thread_map
+
+    return thread_map(lambda j: _fixed_view(ps.views[j], gains[j], needs[j], shape, y, x, med, est, bound, sigma),
+                      range(len(ps.views)))
 
 
-def _sigma_scale(views, y, x, samples, pal, med, opaque, own) -> float | None:
-    """capture.plate_lines.held_back_scale at the pixels ``y``, ``x`` of ``views`` (the samples the robust
-    mode could use: weight > 0)."""
-    from capture.matting_known import CLIP_LEVEL
+def _fixed_view(p, gain, need, shape, y, x, med, est, bound, sigma):
+    """One view's plate of :func:`_fixed_views`."""
+    here = in_view(med, bound, gain)
+    col = np.zeros(p.view.linear.shape, np.float32)
+    col[y, x] = np.nan_to_num(here)
+    known = np.zeros(shape, bool)
+    known[y, x] = np.isfinite(here[:, 0])
+    estimated = np.zeros(shape, bool)
+    estimated[y, x] = est
+    unc = np.zeros(shape, np.float32)
+    unc[y, x] = np.where(est, sigma / float(np.mean(gain)), 0.0)
+    return col, known & need, estimated & need, np.where(known & need, unc, 0.0)
+
+
+def _sigma_scale(usable, samples, pal, med, opaque, covered, hot) -> float | None:
+    """capture.plate_lines.held_back_scale at the fill's pixels (``usable``: the samples the robust
+    mode could use, weight > 0; ``covered``, ``hot``: unseen_fill's at every pixel, not only the unknown)."""
     from capture.plate_lines import held_back_scale
 
-    usable = np.stack([p.weight[y, x] > 0 for p in views])
-    covered = np.stack([p.view.object_depth[y, x] > 0 for p in views])
-    hot = own.max(axis=-1) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None
     return held_back_scale(samples, pal, med, usable, opaque, covered, hot)
+
+
+def _unseen_chunks(samples, pal, opaque, covered, hot, bound, sigma) -> np.ndarray:
+    """capture.plate_lines.unseen_background of the pixels (columns) ``samples`` (K, N, 3), FILL_CHUNK
+    pixels at a time, the chunks side by side (capture.plate_threads): each pixel's background is
+    solved from its own samples and the palette alone, so the values are the same as one call's."""
+    from capture.plate_lines import unseen_background
+    from capture.plate_threads import chunks, thread_map
+
+    out = np.full((samples.shape[1], 3), np.nan)
+
+    def one(span):
+        sl = slice(*span)
+        out[sl] = unseen_background(samples[:, sl], pal, opaque[:, sl], covered[:, sl],
+                                    None if hot is None else hot[:, sl], bound[sl], sigma[sl])
+
+    for _ in thread_map(one, chunks(samples.shape[1], FILL_CHUNK)):
+        pass
+    return out
+
+
+def _frames_at(views, y, x, fn) -> np.ndarray:
+    """(K, N, ...) ``fn(prepared view)`` (an (H, W, ...) image or mask) at the pixels ``y``, ``x`` of each
+    of ``views``, the views side by side (capture.plate_threads)."""
+    from capture.plate_threads import thread_map
+
+    return np.stack(list(thread_map(lambda p: fn(p)[y, x], views)))
 
 
 def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, med: np.ndarray,
@@ -349,27 +451,33 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     scored against every frame, so the cost grows with the square of the frames.  ``sigma`` (N,), when
     given, is set in place to the fill's uncertainty (capture.plate_lines.vertex_sigma) where it filled."""
     from capture.matting import FG, depth_trimap
+    from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
-    from capture.plate_lines import object_palette, unseen_background
+    from capture.plate_lines import object_palette
+    from capture.plate_threads import thread_map
 
     frames = mode_frames(len(ps.views), None, FIXED_RING_FRAMES)  # its cost grows with frames^2
     views = [ps.views[j] for j in frames]
-    own = np.stack([ps.views[j].view.linear[y, x] for j in frames])
-    samples = np.stack([o * gains[j] for o, j in zip(own, frames, strict=True)]).astype(np.float32)
-    opaque = np.stack([depth_trimap(p.view.object_depth)[y, x] >= FG for p in views])
+    own = _frames_at(views, y, x, lambda p: p.view.linear)
+    samples = np.stack(list(thread_map(lambda k: (own[k] * gains[frames[k]]).astype(np.float32), range(len(frames)))))
+    opaque = _frames_at(views, y, x, lambda p: depth_trimap(p.view.object_depth) >= FG)
     pal = object_palette(samples, med, opaque)
     todo = ~np.isfinite(med[:, 0])
     est = np.zeros(len(y), bool)
     if not todo.any() or len(pal) == 0:
         return est
-    covered = np.stack([p.view.object_depth[y[todo], x[todo]] > 0 for p in views])
-    hot = own[:, todo].max(axis=-1) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None
+    # where the depth sees the object, and the blown-out samples, at every pixel once: the fill reads
+    # them at the unknown pixels, the held-back check (_sigma_scale) at the known ones
+    covered = _frames_at(views, y, x, lambda p: np.asarray(p.view.object_depth) > 0)
+    hot = channel_max(own) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None  # own.max(axis=-1)
     hot_bound = np.zeros(int(todo.sum()), bool)
     unc = np.full(int(todo.sum()), np.nan)
-    b = unseen_background(samples[:, todo], pal, opaque[:, todo], covered, hot, hot_bound, unc)
+    b = _unseen_chunks(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
+                       None if hot is None else hot[:, todo], hot_bound, unc)
     filled = np.isfinite(b[:, 0])
     if sigma is not None:  # the lines' sigma held to their error where the robust mode knew the background
-        scale = _sigma_scale(views, y, x, samples, pal, med, opaque, own)
+        usable = _frames_at(views, y, x, lambda p: p.weight > 0)
+        scale = _sigma_scale(usable, samples, pal, med, opaque, covered, hot)
         sigma[np.flatnonzero(todo)[filled]] = unc[filled] * (np.inf if scale is None else scale)
     est[np.flatnonzero(todo)[filled]] = True
     med[est] = b[filled]

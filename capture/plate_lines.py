@@ -141,8 +141,14 @@ def line_vertex(samples: np.ndarray, pal: np.ndarray, fast: bool = True) -> tupl
     residual = np.full(N, np.inf)
     if len(pal) == 0:
         return colour, residual
-    for lo in range(0, N, LINE_CHUNK):
-        colour[lo:lo + LINE_CHUNK], residual[lo:lo + LINE_CHUNK] = _vertex_chunk(s[:, lo:lo + LINE_CHUNK], pal, fast)
+    from capture.plate_threads import chunks, thread_map  # chunks side by side (the same values)
+
+    def one(span):
+        lo, hi = span
+        colour[lo:hi], residual[lo:hi] = _vertex_chunk(s[:, lo:hi], pal, fast)
+
+    for _ in thread_map(one, chunks(N, LINE_CHUNK)):
+        pass
     return colour, residual
 
 
@@ -248,15 +254,16 @@ def object_palette(samples: np.ndarray, plate: np.ndarray, opaque: np.ndarray) -
     (0, 3) with fewer than LINE_MIN_SOURCES in all."""
     from capture.matting_known import SOURCE_ALPHA, alpha_lower_bound, palette
 
-    s = np.asarray(samples, np.float64)
+    s = np.asarray(samples)  # the samples picked go to float64 (exact), not all of them (K x N x 3)
     b = np.asarray(plate, np.float64)
     opaque = np.asarray(opaque, bool) & np.isfinite(s[..., 0])
     known = np.isfinite(b[:, 0])
     kk, nn = np.nonzero(opaque & known[None])
-    src = [s[kk, nn][alpha_lower_bound(s[kk, nn], b[nn]) >= SOURCE_ALPHA]] if len(kk) else []
+    picked = s[kk, nn].astype(np.float64)
+    src = [picked[alpha_lower_bound(picked, b[nn]) >= SOURCE_ALPHA]] if len(kk) else []
     src = np.concatenate(src) if src else np.zeros((0, 3))
     if len(src) < LINE_MIN_SOURCES:  # the core's colours mixed into a full palette cost the conifer 0.19 dB
-        src = np.concatenate([src, s[:, opaque.all(0) & ~known].reshape(-1, 3)])
+        src = np.concatenate([src, s[:, opaque.all(0) & ~known].reshape(-1, 3).astype(np.float64)])
     return palette(src) if len(src) >= LINE_MIN_SOURCES else np.zeros((0, 3))
 
 
@@ -272,7 +279,7 @@ def held_back_scale(samples: np.ndarray, pal: np.ndarray, truth: np.ndarray, usa
     not known)."""
     from capture.matting_known import CLIP_LEVEL
 
-    s = np.asarray(samples, np.float64)
+    s = np.asarray(samples)  # the candidates' samples go to float64 (exact), not every pixel's
     t = np.asarray(truth, np.float64)
     usable = np.asarray(usable, bool)
     rest = np.isfinite(s[..., 0]) & ~usable
@@ -283,7 +290,7 @@ def held_back_scale(samples: np.ndarray, pal: np.ndarray, truth: np.ndarray, usa
     cand = cand[np.unique(np.linspace(0, len(cand) - 1, min(len(cand), LINE_CALIBRATE_PIXELS)).astype(int))]
     pick = (lambda m: None if m is None else np.asarray(m, bool)[:, cand])
     sig = np.full(len(cand), np.nan)
-    hid = np.where(rest[:, cand, None], s[:, cand], np.nan)
+    hid = np.where(rest[:, cand, None], s[:, cand].astype(np.float64), np.nan)
     b = unseen_background(hid, pal, pick(opaque), pick(covered), pick(hot), None, sig)
     ok = np.isfinite(b[:, 0]) & np.isfinite(sig)
     if ok.sum() < LINE_CALIBRATE_MIN:

@@ -224,15 +224,21 @@ def panorama_start(ps: PlateSet) -> np.ndarray:
 
 def panorama_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     """Per view its ring (N_i, 3) predicted from the other views, in its own exposure."""
+    from capture.plate_threads import thread_map  # views side by side (the same predictions)
+
     src = panorama_sources(ps, gains)
-    return [panorama_prediction(ps, i, p.ring, src) for i, p in enumerate(ps.views)]
+    return list(thread_map(lambda i: panorama_prediction(ps, i, ps.views[i].ring, src), range(len(ps.views))))
 
 
 def panorama_draw(ps: PlateSet, gains: np.ndarray):
     """Per view, one at a time (a generator), (colour (H, W, 3) float32 in its exposure, known (H, W))
-    on its need mask."""
+    on its need mask; drawn side by side (capture.plate_threads), a few views ahead at most."""
+    from capture.plate_threads import thread_map
+
     src = panorama_sources(ps, gains)
-    for i, p in enumerate(ps.views):
+
+    def one(i):
+        p = ps.views[i]
         y, x = np.nonzero(p.need)
         col = panorama_prediction(ps, i, np.stack([x, y], axis=1), src)
         ok = np.isfinite(col[:, 0])
@@ -240,4 +246,6 @@ def panorama_draw(ps: PlateSet, gains: np.ndarray):
         known = np.zeros(p.need.shape, bool)
         img[y[ok], x[ok]] = col[ok]
         known[y[ok], x[ok]] = True
-        yield img, known
+        return img, known
+
+    return thread_map(one, range(len(ps.views)))

@@ -36,6 +36,18 @@ def srgb8_to_linear(rgb: np.ndarray) -> np.ndarray:
     return _SRGB8_LUT[np.asarray(rgb, np.uint8)]
 
 
+#: float16 of :data:`_SRGB8_LUT` (:func:`linear16`).
+_SRGB8_LUT16 = _SRGB8_LUT.astype(np.float16)
+
+
+def linear16(rgb: np.ndarray) -> np.ndarray:
+    """``Scan.linear_rgb.astype(np.float16)`` of a scan's ``rgb`` (uint8 sRGB codes or float linear):
+    for 8-bit codes one float16 table lookup, the same values without a float32 frame between
+    (the background plate stage's views, volume/surroundings.py)."""
+    rgb = np.asarray(rgb)
+    return _SRGB8_LUT16[rgb] if rgb.dtype == np.uint8 else rgb.astype(np.float16)
+
+
 def linear_to_srgb(c: np.ndarray) -> np.ndarray:
     """Linear values -> sRGB-encoded in [0, 1] (clipped)."""
     # ``np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1 / 2.4) - 0.055)`` of the clipped

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+import threading
 from collections import OrderedDict
 from pathlib import Path
 
@@ -98,15 +99,16 @@ class SpillReader:
         self._cache: OrderedDict[Path, dict] = OrderedDict()
 
     def _arrays(self, f: Path) -> dict:
-        if f in self._cache:
-            self._cache.move_to_end(f)
-            return self._cache[f]
-        if not f.parent.is_dir():
-            raise RuntimeError(f"{f.parent}: the scan spill folder was closed or removed; its scans are gone")
-        arrays = self._cache[f] = {}
-        while len(self._cache) > READ_CACHE_VIEWS:
-            self._cache.popitem(last=False)
-        return arrays
+        with _READ_LOCK:  # threads read side by side (the plate stage's views): the cache's order under a lock
+            if f in self._cache:
+                self._cache.move_to_end(f)
+                return self._cache[f]
+            if not f.parent.is_dir():
+                raise RuntimeError(f"{f.parent}: the scan spill folder was closed or removed; its scans are gone")
+            arrays = self._cache[f] = {}
+            while len(self._cache) > READ_CACHE_VIEWS:
+                self._cache.popitem(last=False)
+            return arrays
 
     def array(self, sp: SpilledScan, key: str) -> np.ndarray | None:
         """One array of ``sp`` ('rgb', 'depth' or 'alpha'; None for a missing matte), read alone."""
@@ -132,6 +134,8 @@ class SpillReader:
 
 
 _READER: SpillReader | None = None
+#: SpillReader's cache is reordered under this lock (a file's arrays, once handed out, stay valid when evicted).
+_READ_LOCK = threading.Lock()
 
 
 def reader() -> SpillReader:

@@ -19,6 +19,8 @@ full-frame map holds there when the rectangle keeps every pixel within SILHOUETT
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +30,9 @@ from numba import njit
 JIT_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy"}
 #: Voxels visited together, scan by scan (one scan's images stay in the cache).
 BLOCK = 4096
+#: Threads of both passes (None: the cores this process may run on; 1: one, as before).  Each voxel's
+#: votes and consensus are its own, so chunks of voxels run side by side with the same results.
+FUSE_THREADS: int | None = None
 
 
 #: Columns of PackedMaps.pixel: one 32-byte record per pixel, so a lookup touches one cache line.
@@ -294,14 +299,42 @@ def carve_votes_jit(pm: PackedMaps, origin, w: float, L: int, trunc: float, free
     n = L ** 3 if voxels is None else len(voxels)
     out = [np.zeros(n, np.uint8) for _ in range(5)]
     o = np.asarray(origin, np.float64)
-    chunks = range(0, n, chunk)
-    for s in (progress(chunks) if progress else chunks):
-        e = min(n, s + chunk)
+    step = max(1, min(chunk, -(-n // (2 * fuse_threads()))))  # at least two chunks a thread
+
+    def one(s):
+        e = min(n, s + step)
         flat = np.arange(s, e, dtype=np.int64) if voxels is None else np.asarray(voxels[s:e], np.int64)
         pass1_votes(flat, o, float(w), int(L), pm.pixel, pm.P, pm.start, pm.W, pm.H, pm.rect,
                     float(trunc), float(free_margin), float(proj_factor), float(near_slack),
                     *(a[s:e] for a in out))
+
+    _side_by_side(one, range(0, n, step), progress)
     return tuple(out)
+
+
+def fuse_threads() -> int:
+    """Threads of the two passes: FUSE_THREADS, else the cores this process may run on."""
+    if FUSE_THREADS is not None:
+        return max(1, int(FUSE_THREADS))
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _side_by_side(fn, starts, progress=None) -> None:
+    """``fn(start)`` for every chunk start on fuse_threads() threads (each writes its own slice of
+    the outputs; the kernels let go of the GIL), ``progress`` wrapping the chunks as they finish."""
+    starts = list(starts)
+    n = fuse_threads()
+    if n == 1 or len(starts) < 2:
+        for s in (progress(starts) if progress else starts):
+            fn(s)
+        return
+    with ThreadPoolExecutor(n, thread_name_prefix="fuse") as pool:
+        futures = [pool.submit(fn, s) for s in starts]
+        for f in (progress(futures) if progress else futures):
+            f.result()
 
 
 def consensus_jit(pm: PackedMaps, flat: np.ndarray, origin, w: float, L: int, n_see: np.ndarray, trunc: float,
@@ -311,8 +344,15 @@ def consensus_jit(pm: PackedMaps, flat: np.ndarray, origin, w: float, L: int, n_
     M = len(flat)
     has_c, value, support = np.zeros(M, bool), np.zeros(M, np.float32), np.zeros(M, np.int64)
     has1, value1 = np.zeros(M, bool), np.zeros(M, np.float32)
-    pass2_consensus(np.asarray(flat, np.int64), np.asarray(origin, np.float64), float(w), int(L),
-                    np.asarray(n_see, np.int64), pm.pixel, pm.P, pm.start, pm.W, pm.H, pm.rect,
-                    float(trunc), float(proj_factor), float(agree_d), math.cos(math.radians(agree_normal_deg)),
-                    int(quorum), has_c, value, support, has1, value1)
+    flat, n_see = np.asarray(flat, np.int64), np.asarray(n_see, np.int64)
+    o = np.asarray(origin, np.float64)
+    step = max(BLOCK, -(-M // (4 * fuse_threads())))  # band voxels cost unevenly: four chunks a thread
+
+    def one(s):
+        sl = slice(s, min(M, s + step))
+        pass2_consensus(flat[sl], o, float(w), int(L), n_see[sl], pm.pixel, pm.P, pm.start, pm.W, pm.H, pm.rect,
+                        float(trunc), float(proj_factor), float(agree_d), math.cos(math.radians(agree_normal_deg)),
+                        int(quorum), has_c[sl], value[sl], support[sl], has1[sl], value1[sl])
+
+    _side_by_side(one, range(0, M, step))
     return has_c, value, support, has1, value1

@@ -40,7 +40,7 @@ from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
 from capture.plate import PlateView, background_plates
 from capture.plate_scale import grow_plate, plate_scale, shrink_view
-from capture.scan import Scan
+from capture.scan import Scan, linear16
 from capture.scan_store import scan_has_alpha
 from capture.view_map import PerView
 
@@ -83,11 +83,17 @@ def plate_stage(work, cfg, ctx):
 
 
 def _plate_views(scans, captured, scale: float):
-    """The plate stage's views, read one at a time (a generator) and shrunk to ``scale`` (the working
-    scale of capture.plate_scale: below 1 when all the views at full size would pass its memory
-    budget; never for user plates, which are at the views' size)."""
-    for s, c in zip(scans, captured, strict=True):
-        yield shrink_view(PlateView(s.camera, s.linear_rgb.astype(np.float16), s.depth, c.depth), scale)
+    """The plate stage's views, read a few at a time side by side (a generator; capture.plate_threads),
+    float16 colour, shrunk to ``scale`` (the working scale of capture.plate_scale: below 1 when all the
+    views at full size would pass its memory budget; never for user plates, which are at the views' size)."""
+    from capture.plate_threads import thread_map
+
+    def one(sc):
+        s, c = sc
+        return shrink_view(PlateView(s.camera, linear16(s.rgb), s.depth, c.depth), scale)
+
+    # read a few views ahead side by side (the plate stage's own threads take them as they come)
+    return thread_map(one, zip(scans, captured, strict=True))
 
 
 def _all_plain(scans) -> bool:

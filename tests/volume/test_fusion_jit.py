@@ -145,3 +145,25 @@ def test_edt_completion_matches_scipy():
 def test_backend_is_validated():
     with pytest.raises(ValueError, match="backend"):
         FusionConfig(backend="cuda")
+
+
+def test_passes_on_threads_equal_one_thread(fur, monkeypatch):
+    """volume.fusion_jit's chunks of voxels side by side (FUSE_THREADS, issue 32 round 6): the same
+    votes and consensus, bit for bit, as one thread (each voxel's are its own)."""
+    from volume import fusion_jit
+    from volume.fusion_jit import carve_votes_jit
+
+    ss, origin, ext, cfg, maps = fur
+    cand, n_obs, w = _band(fur)
+    pm = pack_maps(maps)
+    runs = []
+    for threads, chunk in ((1, 1 << 19), (3, 1001)):
+        monkeypatch.setattr(fusion_jit, "FUSE_THREADS", threads)
+        monkeypatch.setattr(fusion_jit, "BLOCK", 4096 if threads == 1 else 97)
+        votes = carve_votes_jit(pm, origin, w, L, cfg.trunc(w), cfg.agree(w), None, PROJ_FACTOR, NEAR_SLACK, chunk)
+        band = consensus_jit(pm, cand, origin, w, L, n_obs, cfg.trunc(w), PROJ_FACTOR, cfg.agree(w),
+                             cfg.agree_normal_deg, cfg.quorum)
+        runs.append(votes + band)
+    assert runs[1][4].sum() > 0 and runs[1][5].sum() > 100
+    for a, b in zip(*runs, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)

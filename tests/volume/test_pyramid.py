@@ -128,3 +128,20 @@ def test_measured_voxels_of_every_level_in_one_pass():
     for L, w in sizes.items():
         np.testing.assert_array_equal(both[L], measured_voxels(views, origin, w, L, 2))
         assert len(both[L]) > 0
+
+
+def test_compiled_discontinuity_count_equals_the_mask():
+    """volume.pyramid_kernel.count_flagged (discontinuity_fraction's default) against the numpy mask
+    (fast=False): the same fraction on noisy volumes with NaN, with and without ``valid``, limits
+    on both sides of the noise, flat and one-voxel-thick shapes."""
+    rng = np.random.default_rng(7)
+    for shape in ((8, 9, 10), (1, 5, 5), (24, 24, 24)):
+        v = (rng.normal(size=shape) * 0.01).astype(np.float32)
+        v[rng.random(shape) < 0.05] = np.nan
+        valid = rng.random(shape) < 0.7
+        for mask in (None, valid):
+            for alpha in (0.5, 1.5, 3.0):
+                got = discontinuity_fraction(v, 0.01, alpha, mask)
+                want = discontinuity_fraction(v, 0.01, alpha, mask, fast=False)
+                assert got == want, (shape, alpha)
+    assert 0.0 < discontinuity_fraction(v, 0.01, 1.5, valid) < 1.0
