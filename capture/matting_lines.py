@@ -296,15 +296,15 @@ def line_samples(camera, image, background, known, alpha, colour, object_depth, 
         return None
     filled = push_pull(dep[..., None], (dep > 0).astype(np.float64))[..., 0]
     pts, mask = camera.depth_to_points(np.where(part, filled, 0.0))
-    C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
-    B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
-    use = np.asarray(known, bool) & ~clipped(C, B)
+    # every term per pixel: taken at the partial pixels only (the same values as over the whole image)
+    C = np.clip(np.asarray(image)[mask].astype(np.float64), 0.0, 1.0)
+    B = np.clip(np.asarray(background)[mask].astype(np.float64), 0.0, 1.0)
+    use = np.asarray(known, bool)[mask] & ~clipped(C, B)
+    est = np.zeros(len(use), bool) if estimated is None else np.asarray(estimated, bool)[mask] & use
     f32 = np.float32
-    return {"index": np.flatnonzero(mask).astype(np.int64), "pts": pts.astype(f32), "C": C[mask].astype(f32),
-            "B": B[mask].astype(f32), "a": a[mask].astype(f32), "F0": np.asarray(colour)[mask].astype(f32),
-            "usable": use[mask],
-            "sb": _sigma_b(np.zeros(a.shape, bool) if estimated is None else np.asarray(estimated, bool) & use,
-                           sigma)[mask].astype(f32)}
+    return {"index": np.flatnonzero(mask).astype(np.int64), "pts": pts.astype(f32), "C": C.astype(f32),
+            "B": B.astype(f32), "a": a[mask].astype(f32), "F0": np.asarray(colour)[mask].astype(f32),
+            "usable": use, "sb": _sigma_b(est, None if sigma is None else np.asarray(sigma)[mask]).astype(f32)}
 
 
 def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
