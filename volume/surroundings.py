@@ -20,11 +20,14 @@ stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
   Its views go through the runner's per-view map (:func:`matte_one`, picklable); pymatting's numba
   kernels are compiled once before the views (the "matte warm-up" row) so that the matte row's time
   is the matting's.  Mode 'off' keeps the binary depth mask as the only one: a capture's own matte
-  is dropped.  With a plate, each view also hands back its partial pixels' lines (the photo, the
-  plate, the matte's alpha and colour, a 3D point from the depth: capture.matting_lines.line_samples),
-  and after the views every partial pixel gets the colour its 3D cell's lines cross at across the
-  views, where they cross (:func:`cell_colour_stage`, the "matte colour across views" row; issue 30
-  seventh round: the same needles before different parts of the room).
+  is dropped.  With a plate, each view also hands back a bounded draw of its partial pixels' lines
+  (the photo, the plate, the matte's alpha and colour, a 3D point from the depth:
+  capture.matting_lines.line_samples, capture.matting_cells.fit_sample), and after the views every
+  partial pixel gets the colour its 3D cell's lines cross at across the views, where they cross: the
+  cubes fitted from the draws, then applied view by view in the per-view map, each view recomputing
+  its own samples (:func:`cell_colour_passes`, the "matte colour across views" row; issue 30 seventh
+  round: the same needles before different parts of the room; :func:`cell_colour_stage` the
+  all-at-once reference).
 
 Each reports its own numbers (the model report's ``surroundings``).
 """
