@@ -37,11 +37,12 @@ object's depth: :func:`line_samples`, the matte stage's views; volume.surroundin
 after the last view; the pipeline runs it in two passes of bounded memory, capture.matting_cells,
 with the same result where no view is drawn from): the same needles are seen before different parts
 of the room.  The lines are crossed in the plate's common exposure (its gains), and a pixel takes
-its cell's colour where the cell's expected error is below the unmixed colour's, (sigma_a^2 |B -
-F|^2 + (1 - a)^2 sigma_B^2)^(1/2) / a (sigma_a the view's alpha error from capture.matting_colour: a
-view without one keeps its colour; sigma_B the plate's uncertainty where estimated).  Held out, the
-conifer turntable 24.80 -> 25.01 dB, orbit 26.22 -> 26.61, room + table + AE + lens 24.70 -> 24.74;
-a black capture and the fur before similar bricks the same digits. """
+its cell's colour where the cell's expected error is below the unmixed colour's,
+(sigma_a^2 |B - F|^2 + (1 - a)^2 sigma_B^2)^(1/2) / a (sigma_a the view's alpha error from
+capture.matting_colour: a view without one keeps its colour; sigma_B the plate's uncertainty where
+estimated).  Held out, the conifer turntable 24.80 -> 25.01 dB, orbit 26.22 -> 26.61, room + table
++ AE + lens 24.70 -> 24.74; a black capture and the fur before similar bricks the same digits.
+"""
 
 from __future__ import annotations
 
