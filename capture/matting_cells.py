@@ -26,9 +26,10 @@ import numpy as np
 
 from capture.matting_lines import CELLS_PER_EXTENT, MIN_LINES, _implied, group_fit, line_alpha, line_weights
 
-#: Most partial pixels a view hands back for the fit.  Above the partial pixels of any 640 x 480 view of
-#: the conifer captures (docs/matting.md seventh round: at most about 60k of 307k pixels), so that their
-#: result is unchanged; a 1920 x 1440 phone view has about 177k.
+#: Most partial pixels a view hands back for the fit.  Above the partial pixels of the 640 x 480 views of
+#: the conifer captures (35-40k a view on average; on the turntable and AE + lens runs every line was
+#: fitted: docs/matting.md seventh round), so that their result is unchanged; a 1920 x 1440 phone view
+#: has about 100k.
 MAX_FIT_LINES_PER_VIEW = 1 << 17
 #: Most partial pixels crossed at once across the views: each view's cap is at most this over the number
 #: of views (:func:`fit_cap`).  The fit holds about 400 bytes a line at its peak (float64 terms of
