@@ -33,14 +33,15 @@ background (implied alpha in [0, IMPLIED_MAX]), or when the alpha's error cannot
 lines (docs/matting.md, seventh round).
 
 :func:`cell_colours` groups the partial pixels of every view by 3D cell instead (each placed by the
-object's depth: :func:`line_samples`, the matte stage's views; volume.surroundings crosses them after
-the last view): the same needles are seen before different parts of the room.  The lines are crossed
-in the plate's common exposure (its gains), and a pixel takes its cell's colour where the cell's
-expected error is below the unmixed colour's, (sigma_a^2 |B - F|^2 + (1 - a)^2 sigma_B^2)^(1/2) / a
-(sigma_a the view's alpha error from capture.matting_colour: a view without one keeps its colour;
-sigma_B the plate's uncertainty where estimated).  Held out, the conifer turntable 24.80 -> 25.01 dB,
-orbit 26.22 -> 26.61, room + table + AE + lens 24.70 -> 24.74; a black capture and the fur before
-similar bricks the same digits.
+object's depth: :func:`line_samples`, the matte stage's views; volume.surroundings crosses them
+after the last view; the pipeline runs it in two passes of bounded memory, capture.matting_cells,
+with the same result where no view is drawn from): the same needles are seen before different parts
+of the room.  The lines are crossed in the plate's common exposure (its gains), and a pixel takes
+its cell's colour where the cell's expected error is below the unmixed colour's,
+(sigma_a^2 |B - F|^2 + (1 - a)^2 sigma_B^2)^(1/2) / a (sigma_a the view's alpha error from
+capture.matting_colour: a view without one keeps its colour; sigma_B the plate's uncertainty where
+estimated).  Held out, the conifer turntable 24.80 -> 25.01 dB, orbit 26.22 -> 26.61, room + table
++ AE + lens 24.70 -> 24.74; a black capture and the fur before similar bricks the same digits.
 """
 
 from __future__ import annotations
@@ -296,15 +297,15 @@ def line_samples(camera, image, background, known, alpha, colour, object_depth, 
         return None
     filled = push_pull(dep[..., None], (dep > 0).astype(np.float64))[..., 0]
     pts, mask = camera.depth_to_points(np.where(part, filled, 0.0))
-    C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
-    B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
-    use = np.asarray(known, bool) & ~clipped(C, B)
+    # every term per pixel: taken at the partial pixels only (the same values as over the whole image)
+    C = np.clip(np.asarray(image)[mask].astype(np.float64), 0.0, 1.0)
+    B = np.clip(np.asarray(background)[mask].astype(np.float64), 0.0, 1.0)
+    use = np.asarray(known, bool)[mask] & ~clipped(C, B)
+    est = np.zeros(len(use), bool) if estimated is None else np.asarray(estimated, bool)[mask] & use
     f32 = np.float32
-    return {"index": np.flatnonzero(mask).astype(np.int64), "pts": pts.astype(f32), "C": C[mask].astype(f32),
-            "B": B[mask].astype(f32), "a": a[mask].astype(f32), "F0": np.asarray(colour)[mask].astype(f32),
-            "usable": use[mask],
-            "sb": _sigma_b(np.zeros(a.shape, bool) if estimated is None else np.asarray(estimated, bool) & use,
-                           sigma)[mask].astype(f32)}
+    return {"index": np.flatnonzero(mask).astype(np.int64), "pts": pts.astype(f32), "C": C.astype(f32),
+            "B": B.astype(f32), "a": a[mask].astype(f32), "F0": np.asarray(colour)[mask].astype(f32),
+            "usable": use, "sb": _sigma_b(est, None if sigma is None else np.asarray(sigma)[mask]).astype(f32)}
 
 
 def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,

@@ -20,11 +20,14 @@ stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
   Its views go through the runner's per-view map (:func:`matte_one`, picklable); pymatting's numba
   kernels are compiled once before the views (the "matte warm-up" row) so that the matte row's time
   is the matting's.  Mode 'off' keeps the binary depth mask as the only one: a capture's own matte
-  is dropped.  With a plate, each view also hands back its partial pixels' lines (the photo, the
-  plate, the matte's alpha and colour, a 3D point from the depth: capture.matting_lines.line_samples),
-  and after the views every partial pixel gets the colour its 3D cell's lines cross at across the
-  views, where they cross (:func:`cell_colour_stage`, the "matte colour across views" row; issue 30
-  seventh round: the same needles before different parts of the room).
+  is dropped.  With a plate, each view also hands back a bounded draw of its partial pixels' lines
+  (the photo, the plate, the matte's alpha and colour, a 3D point from the depth:
+  capture.matting_lines.line_samples, capture.matting_cells.fit_sample), and after the views every
+  partial pixel gets the colour its 3D cell's lines cross at across the views, where they cross: the
+  cubes fitted from the draws, then applied view by view in the per-view map, each view recomputing
+  its own samples (:func:`cell_colour_passes`, the "matte colour across views" row; issue 30 seventh
+  round: the same needles before different parts of the room; :func:`cell_colour_stage` the
+  all-at-once reference).
 
 Each reports its own numbers (the model report's ``surroundings``).
 """
@@ -38,6 +41,7 @@ import numpy as np
 
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
+from capture.matting_cells import fit_cap
 from capture.plate import PlateView, background_plates
 from capture.plate_scale import grow_plate, plate_scale, shrink_view
 from capture.scan import Scan, linear16
@@ -112,26 +116,85 @@ def matte_stage(work, cfg, ctx):
     with ctx.row("matte warm-up"):
         matte_warm_up(cfg)
     plates = work.parts.get("plates") or {}
-    per_view = PerView([(cfg, plates.get(ref.index)) for ref in work.refs])  # a worker gets its view's plate only
+    cap = fit_cap(len(work.refs))  # a worker gets its view's plate only
+    per_view = PerView([(cfg, plates.get(ref.index), cap, k) for k, ref in enumerate(work.refs)])
     with ctx.row("matte"):
         scans, notes = ctx.map_views(matte_one, work, per_view, "matting")
-    samples = [None if n is None else n.pop("lines", None) for n in notes]
+    fits = [None if n is None else n.pop("lines", None) for n in notes]
     cells = None
-    if any(x is not None for x in samples):
+    if any(x is not None for x in fits):
         with ctx.row("matte colour across views"):
             sa = [None if n is None else (n.get("colour") or {}).get("sigma_alpha") for n in notes]
             ev = (work.records.get("background plate") or {}).get("gains_ev")
-            gains = 2.0 ** np.asarray(ev, np.float64) if ev is not None and len(ev) == len(samples) else None
-            scans, cells = cell_colour_stage(scans, samples, sa, gains, ctx.keep)
+            gains = 2.0 ** np.asarray(ev, np.float64) if ev is not None and len(ev) == len(fits) else None
+            photos = [plates.get(ref.index) for ref in work.refs], work.scans
+            scans, cells = cell_colour_passes(scans, photos, fits, sa, gains, ctx.map_views)
     out = matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
     return out if cells is None else out.record("matte", {**out.records["matte"], "cells": cells})
 
 
+def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
+    """Every view's partial pixels given their 3D cell's colour from the lines across the views, in
+    bounded memory (capture.matting_cells): the cubes' table from the views' fit samples (``fits``,
+    capture.matting_cells.fit_sample or None), then each view through :func:`cell_colour_one` in the
+    per-view map ``map_views``, which recomputes its samples from ``photos`` (each view's plate or
+    None, the scans before the matte: the photos) and the matted ``scans``.  ``sigma_alpha``,
+    ``gains``: as :func:`cell_colour_stage` (the reference, all the views' samples at once, which
+    gives the same colours where nothing is drawn).  (The scans, the record.)"""
+    from capture.matting_cells import fit_cells
+
+    table, rec = fit_cells(fits, gains)
+    if table is None:
+        return tuple(scans), rec
+    plates, originals = photos
+    g = [None] * len(fits) if gains is None else list(np.asarray(gains, np.float64))
+    items = [None if f is None or plates[k] is None else (plates[k], originals[k], table, sigma_alpha[k], g[k])
+             for k, f in enumerate(fits)]
+    out, notes = map_views(cell_colour_one, tuple(scans), PerView(items), "colour across views")
+    for n in notes:
+        if n is not None:
+            rec["crossed"] += n["crossed"]
+            rec["coloured"] += n["coloured"]
+            rec["views_without_alpha_error"] = rec.get("views_without_alpha_error", 0) + int(n["blind"])
+    if not rec["views_without_alpha_error"]:
+        del rec["views_without_alpha_error"]
+    if not rec["crossed"]:
+        rec["reason"] = "the lines cross in no cell (too few, or the backgrounds behind them too alike)"
+    return out, rec
+
+
+def cell_colour_one(view, ref, arg):
+    """One matted view's partial pixels given their cube's colour (:func:`cell_colour_passes`; ``arg``:
+    None, or (its plate, its photo's scan, the cubes' table, its alpha error or None, its gain or None)):
+    (the scan or None when unchanged, the counts: crossed, coloured, blind)."""
+    if arg is None:
+        return None, None
+    from capture.matting_cells import apply_cells
+    from capture.matting_lines import CELL_ALPHA, line_samples
+
+    plate, photo, table, sa, gain = arg
+    plate = grow_plate(plate, *view.depth.shape[:2])
+    s = line_samples(view.camera, photo.linear_rgb, plate.background, plate.known, view.alpha, view.rgb,
+                     view.depth, plate.estimated, plate.sigma)
+    c, counts = apply_cells(s, table, sa, gain)
+    counts["blind"] = s is not None and sa is None
+    if c is None:
+        return None, counts
+    rgb = np.array(view.rgb, np.float32)
+    rgb.reshape(-1, 3)[c[0]] = c[1]
+    alpha = view.alpha
+    if CELL_ALPHA:
+        alpha = np.array(alpha, np.float32)
+        alpha.reshape(-1)[c[0]] = c[2]
+    return Scan(rgb, view.depth, view.camera, view.name, alpha), counts
+
+
 def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
-    """Every view's partial pixels given their 3D cell's colour from the lines across the views where
-    it is expected to beat the unmixed colour (capture.matting_lines.cell_colours; ``samples``: each
-    view's line samples or None, ``sigma_alpha``: each view's alpha error from its colour record or
-    None, ``gains``: the plate's exposure gains (V, 3) or None): (the scans, the record)."""
+    """The reference of :func:`cell_colour_passes`, every view's samples at once: every view's partial
+    pixels given their 3D cell's colour from the lines across the views where it is expected to beat
+    the unmixed colour (capture.matting_lines.cell_colours; ``samples``: each view's line samples or
+    None, ``sigma_alpha``: each view's alpha error from its colour record or None, ``gains``: the
+    plate's exposure gains (V, 3) or None): (the scans, the record)."""
     from capture.matting_lines import CELL_ALPHA, cell_colours
 
     colours, rec = cell_colours(samples, sigma_alpha, gains)
@@ -151,11 +214,12 @@ def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
 
 
 def matte_one(view, ref, arg):
-    """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, the view's Plate or None))."""
-    cfg, plate = arg
+    """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, the view's Plate or None[,
+    the most lines it hands back for the fit, the draw's seed])."""
+    cfg, plate, *fit = arg
     if plate is not None:
         plate = grow_plate(plate, *view.depth.shape[:2])
-    return matte_view(view, ref, cfg, plate)
+    return matte_view(view, ref, cfg, plate, *fit)
 
 
 def matte_warm_up(cfg) -> None:
@@ -173,10 +237,12 @@ def matte_given(cfg, work):
     return replace(cfg, depth_width=int(size[0]))
 
 
-def matte_view(view, ref, cfg, plate=None):
+def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     """The matte stage for one view (cfg: capture.matting.MatteConfig; ``plate``: its background
     plate or None): (the scan with its foreground colour and matte, note: method, seconds, unknown
-    and partial fractions); mode 'off': the scan without a matte, no note."""
+    and partial fractions); mode 'off': the scan without a matte, no note.  With a plate, the note's
+    ``lines``: the partial pixels' line samples, at most ``cap`` of them drawn by ``seed``
+    (capture.matting_cells.fit_sample; None: all of them, for the reference cell_colour_stage)."""
     if cfg.mode == "off":
         return (Scan(view.rgb, view.depth, view.camera, view.name) if scan_has_alpha(view) else view), None
     t0 = time.perf_counter()
@@ -190,8 +256,13 @@ def matte_view(view, ref, cfg, plate=None):
         from capture import matting_lines as ml
 
         if ml.CELLS:  # the partial pixels' lines for the colour across the views (popped by matte_stage)
-            note["lines"] = ml.line_samples(view.camera, view.linear_rgb, plate.background, plate.known, m.alpha,
-                                            m.foreground, view.depth, plate.estimated, plate.sigma)
+            lines = ml.line_samples(view.camera, view.linear_rgb, plate.background, plate.known, m.alpha,
+                                    m.foreground, view.depth, plate.estimated, plate.sigma)
+            if cap is not None:
+                from capture.matting_cells import fit_sample
+
+                lines = fit_sample(lines, cap, seed)
+            note["lines"] = lines
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note
 
 

@@ -1,0 +1,161 @@
+"""The colour across the views in bounded memory (issue 30 seventh round, issue 32's bounds).
+
+capture.matting_lines.cell_colours crosses the lines of every view's partial pixels at once: the
+matte stage's views hand back all of them (about 65 bytes a pixel) and the main process concatenates
+them in float64.  On 18 views of 640 x 480 that is 40 MB; on 200 views of 1920 x 1440 (6.4 % of the
+pixels partial) 2.3 GB of samples and 4 GB more of concatenation.  Here the same step runs in two
+passes whose memory does not grow with views x pixels:
+
+1. **Fit** (:func:`fit_sample`, :func:`fit_cells`): each view hands back at most :func:`fit_cap` of
+   its partial pixels' lines (a seeded draw, in their pixel order; all of them when fewer), float32,
+   and the bounds of all its partial pixels' 3D points.  The main process crosses the lines of each
+   cube (capture.matting_lines.group_fit) and keeps the table: each cube's colour F and expected
+   squared error sigma^2 (at most CELLS_PER_EXTENT^3 cubes).  The cubes tile the bounds of every
+   partial pixel of every view (:func:`cell_grid`), what both passes know whatever was drawn.
+2. **Apply** (:func:`apply_cells`): each view recomputes its own partial pixels' samples
+   (capture.matting_lines.line_samples, in the matte stage's per-view map) and applies the same
+   gate and assignment as cell_colours.
+
+Where nothing is drawn (every view under its cap: the 18-view 640 x 480 captures) the two passes give
+the same colours as cell_colours, bit for bit (tests/capture/test_matting_cells.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from capture.matting_lines import CELLS_PER_EXTENT, MIN_LINES, _implied, group_fit, line_alpha, line_weights
+
+#: Most partial pixels a view hands back for the fit.  Above the partial pixels of the 640 x 480 views of
+#: the conifer captures (35-40k a view on average; on the turntable and AE + lens runs every line was
+#: fitted: docs/matting.md seventh round), so that their result is unchanged; a 1920 x 1440 phone view
+#: has about 100k.
+MAX_FIT_LINES_PER_VIEW = 1 << 17
+#: Most partial pixels crossed at once across the views: each view's cap is at most this over the number
+#: of views (:func:`fit_cap`).  The fit holds about 400 bytes a line at its peak (float64 terms of
+#: capture.matting_lines.group_fit): 1.5M lines about 0.6 GB.  The 18-view captures (about 40k partial
+#: pixels a view, 0.73M at most in all) are not drawn from.
+MAX_FIT_LINES = 1_500_000
+#: The seed of the draw (with the view's position).
+FIT_SEED = 30
+#: The keys of a view's fit sample (line_samples' arrays the fit reads).
+FIT_KEYS = ("pts", "C", "B", "a", "F0", "usable")
+
+
+def fit_cap(n_views: int) -> int:
+    """Most partial pixels each of ``n_views`` views hands back for the fit (the constants above)."""
+    return int(min(MAX_FIT_LINES_PER_VIEW, MAX_FIT_LINES // max(int(n_views), 1)))
+
+
+def fit_sample(samples: dict | None, cap: int, seed: int) -> dict | None:
+    """A view's line samples (capture.matting_lines.line_samples) for the fit: at most ``cap`` of them,
+    drawn without replacement by ``seed`` and kept in their order (all of them, the same arrays, when
+    no more), FIT_KEYS only; with ``n`` the view's partial pixels and ``lo`` / ``hi`` the bounds (3,) of
+    all their 3D points.  None for None."""
+    if samples is None:
+        return None
+    n = len(samples["a"])
+    pts = samples["pts"]
+    out = {"n": n, "lo": pts.min(0), "hi": pts.max(0)}
+    if n <= cap:
+        return {**out, **{k: samples[k] for k in FIT_KEYS}}
+    pick = np.sort(np.random.default_rng((FIT_SEED, int(seed))).choice(n, int(cap), replace=False))
+    return {**out, **{k: samples[k][pick] for k in FIT_KEYS}}
+
+
+def cell_grid(fits: list, cells: int = CELLS_PER_EXTENT):
+    """(origin (3,), side, dims (3,) int64) of the cubes: 1 / ``cells`` of the largest extent of the
+    bounds of every view's partial pixels (the fit samples' ``lo`` / ``hi``), as cell_colours takes
+    them from all its samples; None where the extent is 0 or there is no view."""
+    have = [f for f in fits if f is not None]
+    if not have:
+        return None
+    lo = np.min([np.asarray(f["lo"], np.float64) for f in have], 0)
+    hi = np.max([np.asarray(f["hi"], np.float64) for f in have], 0)
+    extent = float((hi - lo).max())
+    if extent <= 0:
+        return None
+    side = extent / cells
+    return lo, side, np.floor((hi - lo) / side).astype(np.int64) + 1
+
+
+def cell_keys(pts: np.ndarray, grid) -> np.ndarray:
+    """(N,) int64 the cube of each 3D point (N, 3) on ``grid`` (:func:`cell_grid`)."""
+    origin, side, dims = grid
+    ijk = np.floor((np.asarray(pts, np.float64) - origin) / side).astype(np.int64)
+    return (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+
+
+def _cat(fits: list, key: str, view: np.ndarray | None = None, g: np.ndarray | None = None) -> np.ndarray:
+    """The fit samples' ``key`` of every view, concatenated (float64; in the common exposure, x the
+    view's gain, where ``g`` is given: the same products as cell_colours')."""
+    x = np.concatenate([f[key] for f in fits if f is not None])
+    if key == "usable":
+        return x.astype(bool)
+    return x.astype(np.float64) if g is None else x.astype(np.float64) * g[view]
+
+
+def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[dict | None, dict]:
+    """The table of the cubes' colours from every view's fit sample (:func:`fit_sample` or None;
+    ``gains`` (V, 3) as cell_colours'): (``{"grid", "keys" (K,) sorted, "F" (K, 3) in the common
+    exposure, "sig2" (K,)}`` or None, the record: pixels, lines fitted, the median expected error over
+    the fitted lines in a usable cube, why none)."""
+    have = [f for f in fits if f is not None]
+    rec = {"cells": cells, "pixels": int(sum(f["n"] for f in have)), "fitted": int(sum(len(f["a"]) for f in have)),
+           "crossed": 0, "coloured": 0}
+    if not have:
+        return None, {**rec, "reason": "no partial pixels with depth"}
+    g = np.ones((len(fits), 3)) if gains is None else np.asarray(gains, np.float64)
+    view = np.concatenate([np.full(len(f["a"]), v, np.int32) for v, f in enumerate(fits) if f is not None])
+    C, B, F0 = (_cat(fits, k, view, g) for k in ("C", "B", "F0"))
+    al = line_alpha(C, B, np.median(F0, 0))
+    del F0
+    w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)))
+    del al
+    grid = cell_grid(fits, cells)
+    if grid is None or int((w > 0).sum()) < MIN_LINES:
+        return None, {**rec, "reason": "too few partial pixels before a known background"}
+    uniq, inv = np.unique(cell_keys(_cat(fits, "pts"), grid), return_inverse=True)
+    inv = inv.ravel()
+    K = len(uniq)
+
+    def gsum(x):
+        return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
+
+    F, sig2 = group_fit(C, B, w, _cat(fits, "a"), gsum, inv)
+    ok = np.isfinite(sig2[inv])
+    if ok.any():
+        rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
+    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2}, rec
+
+
+def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True):
+    """One view's partial pixels (capture.matting_lines.line_samples) given their cube's colour from
+    ``table`` (:func:`fit_cells`) where cell_colours would: its expected error below the unmixed
+    colour's with the view's ``sigma_alpha`` (None: the view keeps its colour; ``gated`` False: no
+    gate, every usable cube's colour), ``gain`` (3,) the view's exposure gain or None.  ((flat indices,
+    colours (n, 3) float32 in the view's exposure, implied alphas (n,)) or None, the counts: crossed,
+    coloured)."""
+    counts = {"crossed": 0, "coloured": 0}
+    if samples is None or table is None:
+        return None, counts
+    g = np.ones(3) if gain is None else np.asarray(gain, np.float64)
+    keys = cell_keys(samples["pts"], table["grid"])
+    pos = np.minimum(np.searchsorted(table["keys"], keys), len(table["keys"]) - 1)
+    found = table["keys"][pos] == keys
+    sig2 = np.where(found, table["sig2"][pos], np.inf)
+    F = table["F"][pos]
+    use = np.isfinite(sig2)
+    counts["crossed"] = int(use.sum())
+    C, B = (samples[k].astype(np.float64) * g for k in ("C", "B"))
+    a = samples["a"].astype(np.float64)
+    if gated:
+        sb = np.asarray(samples.get("sb", np.zeros(len(a))), np.float64)
+        unmix2 = 0.0 if sigma_alpha is None else \
+            (sigma_alpha ** 2 * ((B - F) ** 2).sum(-1) + ((1.0 - a) * sb) ** 2) / np.maximum(a, 1e-6) ** 2
+        use &= sig2 < unmix2
+    counts["coloured"] = int(use.sum())
+    if not use.any():
+        return None, counts
+    imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)
+    return (samples["index"][use], (F[use] / g).astype(np.float32), imp.astype(np.float32)), counts

@@ -1,0 +1,131 @@
+"""The colour across the views in bounded memory (capture.matting_cells; issue 30 seventh round, issue 32):
+where no view is drawn from, the two passes (fit the cubes' table, apply it view by view) give the
+reference's colours (capture.matting_lines.cell_colours, every view at once) bit for bit; drawn, the
+cubes are the same and the colours near.  The stage's two passes (volume.surroundings.cell_colour_passes,
+each view's samples recomputed from its photo, plate and matte) against the reference stage
+(cell_colour_stage with every view's samples): the same scans, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from capture import matting_cells as mc
+from capture import matting_lines as ml
+from capture.camera import Camera, make_K
+from capture.plate import Plate
+from capture.scan import Scan
+from capture.view_map import serial_map
+from tests.capture.test_matting_lines import _cells
+from volume.surroundings import cell_colour_passes, cell_colour_stage
+
+#: Drawn to a third of the lines: median |F - F_reference| of the pixels both colour at most this
+#: (the cells' own tolerance against the truth, tests/capture/test_matting_lines.py).
+DRAWN_TOL = 0.01
+
+
+def _views(seed: int = 1):
+    """Three views' samples as capture.matting_lines.line_samples gives them (float32, with ``sb``)."""
+    pts, C, B, A, F = _cells(seed, 6, textured=True)
+    rng = np.random.default_rng(seed)
+    a = np.clip(A + rng.normal(0, 0.05, A.shape), 0.01, 0.84)
+    part = np.array_split(rng.permutation(len(A)), 3)
+    f32 = np.float32
+    return [{"index": np.sort(rng.choice(10 ** 5, len(k), replace=False)), "pts": pts[k].astype(f32),
+             "C": C[k].astype(f32), "B": B[k].astype(f32), "a": a[k].astype(f32), "F0": F[k].astype(f32),
+             "usable": rng.uniform(size=len(k)) > 0.05, "sb": rng.uniform(0, 0.02, len(k)).astype(f32)}
+            for k in (np.sort(p) for p in part)]
+
+
+def _two_passes(samples, sa, gains, cap):
+    fits = [mc.fit_sample(s, cap, k) for k, s in enumerate(samples)]
+    table, rec = mc.fit_cells(fits, gains, cells=2)
+    g = [None] * len(samples) if gains is None else gains
+    out = [mc.apply_cells(s, table, sa[k], g[k]) for k, s in enumerate(samples)]
+    return [c for c, _ in out], sum(n["coloured"] for _, n in out), sum(n["crossed"] for _, n in out), rec
+
+
+def test_the_two_passes_give_the_references_colours_when_nothing_is_drawn():
+    samples = _views()
+    gains = [np.ones(3), np.array([1.6, 1.3, 1.1]), np.array([0.8, 0.9, 1.0])]
+    sa = [0.1, None, 0.05]
+    ref, rrec = ml.cell_colours(samples, sa, gains, cells=2)
+    got, coloured, crossed, rec = _two_passes(samples, sa, gains, cap=10 ** 6)
+    assert rrec["coloured"] > 0 and ref[1] is None and got[1] is None
+    assert (coloured, crossed, rec["pixels"], rec["sigma_median"]) == \
+        (rrec["coloured"], rrec["crossed"], rrec["pixels"], rrec["sigma_median"])
+    for r, c in zip(ref, got, strict=True):
+        assert (r is None) == (c is None)
+        if r is not None:
+            assert all(np.array_equal(x, y) and x.dtype == y.dtype for x, y in zip(r, c, strict=True))
+
+
+def test_a_drawn_fit_keeps_the_cubes_and_near_colours():
+    samples = _views()
+    sa = [0.1, 0.1, 0.1]
+    cap = len(samples[0]["a"]) // 3
+    fits = [mc.fit_sample(s, cap, k) for k, s in enumerate(samples)]
+    assert all(len(f["a"]) == cap for f in fits)
+    again = mc.fit_sample(samples[0], cap, 0)
+    assert np.array_equal(fits[0]["pts"], again["pts"])  # seeded
+    assert not np.array_equal(fits[0]["pts"], mc.fit_sample(samples[0], cap, 1)["pts"])
+    whole = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(samples)]
+    assert all(np.array_equal(x, y) for x, y in zip(mc.cell_grid(fits, 2), mc.cell_grid(whole, 2), strict=True))
+    ref, _ = ml.cell_colours(samples, sa, cells=2)
+    got, coloured, _, rec = _two_passes(samples, sa, None, cap)
+    assert rec["fitted"] == 3 * cap < rec["pixels"] and coloured > 0.9 * sum(len(r[0]) for r in ref)
+    for r, c in zip(ref, got, strict=True):
+        both, i, j = np.intersect1d(r[0], c[0], return_indices=True)
+        assert len(both) > 0.9 * len(r[0])
+        assert np.median(np.abs(r[1][i] - c[1][j]).max(-1)) <= DRAWN_TOL
+
+
+def test_the_fit_is_bounded_whatever_the_views():
+    assert mc.fit_cap(18) * 18 <= mc.MAX_FIT_LINES and mc.fit_cap(18) >= 60_000  # conifer views: not drawn
+    assert mc.fit_cap(200) * 200 <= mc.MAX_FIT_LINES and mc.fit_cap(1) == mc.MAX_FIT_LINES_PER_VIEW
+
+
+def _scene(n_views: int = 3, h: int = 36, w: int = 44):
+    """Matted views of a plane of cells (each one colour), each view before its own textured background:
+    (photos, plates, matted scans)."""
+    rng = np.random.default_rng(3)
+    photos, plates, matted = [], [], []
+    for v in range(n_views):
+        pose = np.eye(4)
+        pose[0, 3] = 0.05 * v
+        cam = Camera(make_K(40, 40, (w - 1) / 2, (h - 1) / 2), pose, w, h)
+        depth = np.where(rng.uniform(size=(h, w)) > 0.1, 1.0 + 0.3 * rng.uniform(size=(h, w)), 0).astype(np.float32)
+        x = cam.depth_to_points(depth)[0]
+        cols = np.array([[0.1, 0.2, 0.05], [0.3, 0.1, 0.1], [0.05, 0.05, 0.25], [0.2, 0.2, 0.1]])
+        F = np.zeros((h, w, 3))
+        F[depth > 0] = cols[(np.floor(x[:, 0] * 4) % 2 * 2 + np.floor(x[:, 2] * 4) % 2).astype(int)]
+        B = rng.uniform(0.4, 0.9, (h, w, 3))
+        a = np.where(depth > 0, rng.uniform(0.15, 0.8, (h, w)), 0.0)
+        C = a[..., None] * F + (1 - a[..., None]) * B + rng.normal(0, 0.003, B.shape)
+        photos.append(Scan(np.clip(C, 0, 1).astype(np.float32), depth, cam, f"v{v}"))
+        known = rng.uniform(size=(h, w)) > 0.05
+        est = known & (rng.uniform(size=(h, w)) > 0.7)
+        plates.append(Plate(B.astype(np.float32), known, 0.01, "fixed", 1.0, 0.0, 0.0, 0.0, estimated=est,
+                            sigma=np.where(est, 0.02, 0).astype(np.float32)))
+        F0 = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0, 1).astype(np.float32)
+        matted.append(Scan(F0, depth, cam, f"v{v}", (a + rng.normal(0, 0.03, a.shape)).astype(np.float32)))
+    return photos, plates, matted
+
+
+def test_the_stages_two_passes_give_the_reference_stages_scans():
+    photos, plates, matted = _scene()
+    sa, gains = [0.1, 0.08, None], np.array([[1.0, 1.0, 1.0], [1.2, 1.1, 1.0], [1.0, 0.9, 1.1]])
+
+    def samples(k, s):
+        p = plates[k]
+        return ml.line_samples(s.camera, photos[k].linear_rgb, p.background, p.known, s.alpha, s.rgb, s.depth,
+                               p.estimated, p.sigma)
+
+    whole = [samples(k, s) for k, s in enumerate(matted)]
+    ref, rrec = cell_colour_stage(tuple(matted), whole, sa, gains, lambda s: s)
+    fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+    got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    assert rrec["coloured"] > 0 and rec["coloured"] == rrec["coloured"] and rec["crossed"] == rrec["crossed"]
+    assert rec["views_without_alpha_error"] == rrec["views_without_alpha_error"] == 1
+    for r, g in zip(ref, got, strict=True):
+        assert np.array_equal(r.rgb, g.rgb) and np.array_equal(r.alpha, g.alpha)
+    assert got[2] is matted[2] and not np.array_equal(got[0].rgb, matted[0].rgb)
