@@ -32,6 +32,12 @@ def plate_threads() -> int:
         return 1
     if PLATE_THREADS is not None:
         return max(1, int(PLATE_THREADS))
+    return cores()
+
+
+def cores() -> int:
+    """CPU cores this process may run on (the one count the plate's and fusion's threads and the
+    pipeline's default workers use: volume.pipeline.pool.cores is this)."""
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not Linux

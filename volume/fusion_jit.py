@@ -19,7 +19,6 @@ full-frame map holds there when the rectangle keeps every pixel within SILHOUETT
 from __future__ import annotations
 
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -314,12 +313,11 @@ def carve_votes_jit(pm: PackedMaps, origin, w: float, L: int, trunc: float, free
 
 def fuse_threads() -> int:
     """Threads of the two passes: FUSE_THREADS, else the cores this process may run on."""
+    from capture.plate_threads import cores
+
     if FUSE_THREADS is not None:
         return max(1, int(FUSE_THREADS))
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    return cores()
 
 
 def _side_by_side(fn, starts, progress=None) -> None:

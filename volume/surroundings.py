@@ -170,7 +170,7 @@ def cell_colour_one(view, ref, arg):
     if arg is None:
         return None, None
     from capture.matting_cells import apply_cells
-    from capture.matting_lines import CELL_ALPHA, line_samples
+    from capture.matting_lines import line_samples
 
     plate, photo, table, sa, gain = arg
     plate = grow_plate(plate, *view.depth.shape[:2])
@@ -180,13 +180,21 @@ def cell_colour_one(view, ref, arg):
     counts["blind"] = s is not None and sa is None
     if c is None:
         return None, counts
-    rgb = np.array(view.rgb, np.float32)
+    return with_cell_colours(view, c), counts
+
+
+def with_cell_colours(scan: Scan, c) -> Scan:
+    """``scan`` with its cube colours ``c`` (flat indices, colours (n, 3), implied alphas (n,):
+    capture.matting_lines.cell_colours) put in (the alphas too where CELL_ALPHA)."""
+    from capture.matting_lines import CELL_ALPHA
+
+    rgb = np.array(scan.rgb, np.float32)
     rgb.reshape(-1, 3)[c[0]] = c[1]
-    alpha = view.alpha
+    alpha = scan.alpha
     if CELL_ALPHA:
         alpha = np.array(alpha, np.float32)
         alpha.reshape(-1)[c[0]] = c[2]
-    return Scan(rgb, view.depth, view.camera, view.name, alpha), counts
+    return Scan(rgb, scan.depth, scan.camera, scan.name, alpha)
 
 
 def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
@@ -195,21 +203,13 @@ def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
     the unmixed colour (capture.matting_lines.cell_colours; ``samples``: each view's line samples or
     None, ``sigma_alpha``: each view's alpha error from its colour record or None, ``gains``: the
     plate's exposure gains (V, 3) or None): (the scans, the record)."""
-    from capture.matting_lines import CELL_ALPHA, cell_colours
+    from capture.matting_lines import cell_colours
 
     colours, rec = cell_colours(samples, sigma_alpha, gains)
     out = list(scans)
     for k, c in enumerate(colours):
-        if c is None:
-            continue
-        s = out[k]
-        rgb = np.array(s.rgb, np.float32)
-        rgb.reshape(-1, 3)[c[0]] = c[1]
-        alpha = s.alpha
-        if CELL_ALPHA:
-            alpha = np.array(alpha, np.float32)
-            alpha.reshape(-1)[c[0]] = c[2]
-        out[k] = keep(Scan(rgb, s.depth, s.camera, s.name, alpha))
+        if c is not None:
+            out[k] = keep(with_cell_colours(out[k], c))
     return tuple(out), rec
 
 

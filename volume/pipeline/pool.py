@@ -42,11 +42,10 @@ THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREAD
 
 
 def cores() -> int:
-    """CPU cores this process may run on (the default number of workers)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    """CPU cores this process may run on (the default number of workers; capture.plate_threads.cores)."""
+    from capture.plate_threads import cores as _cores
+
+    return _cores()
 
 
 def reset_peak_rss() -> bool:
