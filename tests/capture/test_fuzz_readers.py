@@ -128,9 +128,12 @@ def colmap_dir(tmp_path_factory) -> Path:
     return root
 
 
-#: COLMAP examples per format: each read spawns the reader process (~1-2 s here), so fewer than the JSON
-#: readers get; the damage kinds are the same.
-COLMAP_EXAMPLES = 25
+#: COLMAP examples per format in the default run: each read spawns the reader process (~1-2 s here) and
+#: several damaged examples wait out the time limit below, so fewer than the JSON readers get; the damage
+#: kinds are the same. 25 made the bin case the slowest test of the default run (57 s under load).
+COLMAP_EXAMPLES = 10
+#: The same fuzz with more examples, in the slow run (`make test-slow`).
+COLMAP_EXAMPLES_SLOW = 40
 #: Time limit of one COLMAP read in these tests (the valid model loads in well under a second; the child's
 #: start costs 1-3 s on a loaded 2-core machine). Several damaged examples make pycolmap loop until this
 #: limit, so it sets the test's time: 15 s made the bin case take two minutes of the default run. A read
@@ -138,11 +141,9 @@ COLMAP_EXAMPLES = 25
 COLMAP_TEST_TIMEOUT_S = 6.0
 
 
-@pytest.mark.parametrize("fmt", ["bin", "txt"])
-@settings(max_examples=COLMAP_EXAMPLES, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(data=st.data())
-def test_colmap_damaged_model(colmap_dir, fmt, monkeypatch, data):
+def _damage_and_read(colmap_dir, fmt, monkeypatch, data) -> None:
+    """Restore the model, damage one of its files of format ``fmt`` as ``data`` draws, and read it: the read
+    either succeeds or fails with our own error naming the folder (``_read``)."""
     monkeypatch.setattr("capture.io_colmap.COLMAP_READ_TIMEOUT_S", COLMAP_TEST_TIMEOUT_S)
     model = colmap_dir / "sparse" / "0"
     for f in model.glob("*.orig"):
@@ -157,6 +158,25 @@ def test_colmap_damaged_model(colmap_dir, fmt, monkeypatch, data):
     victim = data.draw(st.sampled_from(sorted(model.glob(f"*.{fmt}"))))
     victim.write_bytes(data.draw(damaged_bytes(victim.read_bytes())))
     _read(colmap_dir, (str(model),))
+
+
+_COLMAP_SETTINGS = dict(deadline=None, derandomize=True,
+                        suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+@pytest.mark.parametrize("fmt", ["bin", "txt"])
+@settings(max_examples=COLMAP_EXAMPLES, **_COLMAP_SETTINGS)
+@given(data=st.data())
+def test_colmap_damaged_model(colmap_dir, fmt, monkeypatch, data):
+    _damage_and_read(colmap_dir, fmt, monkeypatch, data)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fmt", ["bin", "txt"])
+@settings(max_examples=COLMAP_EXAMPLES_SLOW, **_COLMAP_SETTINGS)
+@given(data=st.data())
+def test_colmap_damaged_model_more_examples(colmap_dir, fmt, monkeypatch, data):
+    _damage_and_read(colmap_dir, fmt, monkeypatch, data)
 
 
 def test_colmap_reader_survives_the_known_hang(colmap_dir, monkeypatch):

@@ -51,8 +51,9 @@ def reference_transfer(normals, views, weights, beta: float, g: float, light) ->
     for s in range(0, len(normals), 2000):
         c = normals[s:s + 2000] @ d.T
         k = sum(w * f(c) for w, f in zip(weights, REF_KERNELS) if w)
-        hg = (1 - g * g) / (1 + g * g - 2 * g * -(views[s:s + 2000] @ d.T)) ** 1.5
-        out[s:s + 2000] = (k * (1 + beta * hg)) @ lw
+        if beta:   # the phase term only where it counts (exact: beta = 0 multiplies it away)
+            k = k * (1 + beta * (1 - g * g) / (1 + g * g - 2 * g * -(views[s:s + 2000] @ d.T)) ** 1.5)
+        out[s:s + 2000] = k @ lw
     return out
 
 
