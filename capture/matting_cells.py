@@ -38,6 +38,17 @@ MAX_FIT_LINES_PER_VIEW = 1 << 17
 MAX_FIT_LINES = 1_500_000
 #: The seed of the draw (with the view's position).
 FIT_SEED = 30
+#: Background at least this bright (linear, Euclidean) for a line to cross (:func:`band_crossing`):
+#: a partial pixel before a black background has C = a F, its line passes through 0 like every other
+#: such line, and its unmixed colour's premultiplied error (a - a_true) B vanishes with B.
+CROSSING_DARK = 0.03
+#: The colour across the views runs (``--matte-across auto``) only where the views' mean
+#: :func:`band_crossing` (the plate record's ``band_crossing_mean``) reaches this.  Measured (issue 32,
+#: round 7; the kept views 0::2, docs/speed.md): the 24-view phone capture (black room, striped table;
+#: the fixed plate sees the black and estimates the table) 0.019 (0.011-0.029 a view), held out no gain;
+#: the conifer room turntable 0.366, room + table + AE + lens 0.123, orbit 0.770, the fur before similar
+#: bricks 0.168.  Between, 2.5x from either side.
+MIN_CROSSING = 0.05
 #: The keys of a view's fit sample (line_samples' arrays the fit reads).
 FIT_KEYS = ("pts", "C", "B", "a", "F0", "usable")
 
@@ -159,3 +170,23 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
         return None, counts
     imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)
     return (samples["index"][use], (F[use] / g).astype(np.float32), imp.astype(np.float32)), counts
+
+
+
+def band_crossing(image: np.ndarray, band: np.ndarray, background: np.ndarray, known: np.ndarray,
+                  estimated: np.ndarray | None = None, dark: float = CROSSING_DARK) -> float:
+    """Share of a view's matting ``band`` (H, W) bool whose background a frame saw (``known`` and not
+    ``estimated``), not blown out (capture.matting_known.clipped, with the photo ``image``) and at least
+    ``dark`` bright (linear, Euclidean over the channels): where a partial pixel's line can cross
+    another's and its unmixed colour can be beaten (module docstring, the rule).  0 for an empty band."""
+    from capture.matting_known import clipped
+
+    n = int(np.count_nonzero(band))
+    if not n:
+        return 0.0
+    B = np.asarray(background)[band].astype(np.float32)
+    use = np.asarray(known, bool)[band] & ~clipped(np.asarray(image)[band].astype(np.float32), B)
+    if estimated is not None:
+        use &= ~np.asarray(estimated, bool)[band]
+    use &= np.einsum("ij,ij->i", B, B) >= np.float32(dark) ** 2
+    return float(np.count_nonzero(use)) / n
