@@ -467,12 +467,13 @@ def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
 
 def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,
            estimated: np.ndarray | None = None, sigma: np.ndarray | None = None, crop: bool = False) -> Plate:
-    band = depth_trimap(v.object_depth) == UNKNOWN
+    tri = depth_trimap(v.object_depth)
+    band = tri == UNKNOWN
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
     plate = Plate(np.asarray(col, np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
                   err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma,
-                  band_crossing=band_crossing(v.linear, band, col, known, estimated))
+                  band_crossing=band_crossing(v.linear, band, col, known, estimated, tri == 1.0))
     return plate.cropped() if crop else plate  # crop: the box around its known pixels (Plate.cropped)
 
 

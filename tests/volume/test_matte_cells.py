@@ -85,3 +85,20 @@ def test_the_plate_record_carries_the_band_share():
     assert rec["band_crossing_mean"] >= MIN_CROSSING and rec_dark["band_crossing_mean"] == 0.0
     assert [p["band_crossing"] for p in rec["per_view"]] == [round(p.band_crossing, 4) for p in lit]
     assert lit[0].cropped().full().band_crossing == lit[0].band_crossing
+
+
+def test_the_band_share_asks_the_background_brighter_than_the_object():
+    from capture.matting_cells import band_crossing
+
+    h, w = 10, 20
+    band = np.zeros((h, w), bool)
+    band[2:8] = True
+    opaque = np.zeros((h, w), bool)
+    opaque[8:] = True
+    img = np.full((h, w, 3), 0.3, np.float32)
+    B = np.full((h, w, 3), 0.4, np.float32)
+    B[2:8, :10] = 0.2  # half the band's room darker than the object (0.3)
+    known = np.ones((h, w), bool)
+    assert band_crossing(img, band, B, known) == 1.0  # no object named: only CROSSING_DARK
+    assert band_crossing(img, band, B, known, opaque=opaque) == 0.5
+    assert band_crossing(img, band, B, known, opaque=opaque, over=2.0) == 0.0
