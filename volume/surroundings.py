@@ -156,8 +156,8 @@ def across_skipped(cfg, plate_record: dict | None) -> str | None:
     share = (plate_record or {}).get("band_crossing_mean")
     if cfg.across == "on" or share is None or share >= MIN_CROSSING:
         return None
-    return (f"auto: {share:.3f} of the matting band has a background a frame saw and not dark, under "
-            f"{MIN_CROSSING} (capture.matting_cells.MIN_CROSSING): the lines cannot cross")
+    return (f"auto: {share:.3f} of the matting band has a background a frame saw, brighter than the object, "
+            f"under {MIN_CROSSING} (capture.matting_cells.MIN_CROSSING): the lines cannot cross")
 
 
 def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
