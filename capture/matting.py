@@ -49,6 +49,10 @@ MATTE_MODES = ("auto", "given", "backdrop", "plate", "estimate", "off")
 #: ``furrow model --matte-resolution``):
 #: ``full`` every pixel (the reference), ``working`` capture.matting_scale's working resolution.
 MATTE_RESOLUTIONS = ("full", "working")
+#: When the matte stage gives the partial pixels the colour their 3D cell's lines cross at across the
+#: views (volume.surroundings, capture.matting_cells): on, off, or auto (the rule of
+#: volume.surroundings.across_wanted).
+MATTE_ACROSS = ("auto", "on", "off")
 #: Opaque = the object's depth mask eroded by this fraction of the image width (2 px at 640).
 ERODE_FRACTION = 2 / 640
 #: Unknown band: this fraction of the width around the object's depth (4 px at 640; measured on the plant over
@@ -102,12 +106,16 @@ class MatteConfig:
     #: Width (pixels) the depth was measured at when coarser than the colour (the scan set's
     #: ``depth_size``; set by the pipeline), which the working resolution keeps twice; None = unknown.
     depth_width: int | None = None
+    #: One of MATTE_ACROSS: the colour across the views (needs a plate; volume.surroundings).
+    across: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in MATTE_MODES:
             raise ValueError(f"matte mode must be one of {', '.join(MATTE_MODES)}, got {self.mode!r}")
         if self.resolution not in MATTE_RESOLUTIONS:
             raise ValueError(f"matte resolution must be one of {', '.join(MATTE_RESOLUTIONS)}, got {self.resolution!r}")
+        if self.across not in MATTE_ACROSS:
+            raise ValueError(f"matte colour across views must be one of {', '.join(MATTE_ACROSS)}, got {self.across!r}")
         if self.backdrop is not None:
             b = np.asarray(self.backdrop, float)
             if b.shape != (3,) or not np.all((b >= 0) & (b <= 1)):

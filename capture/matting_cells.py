@@ -38,6 +38,24 @@ MAX_FIT_LINES_PER_VIEW = 1 << 17
 MAX_FIT_LINES = 1_500_000
 #: The seed of the draw (with the view's position).
 FIT_SEED = 30
+#: Background at least this bright (linear, Euclidean) for a line to cross (:func:`band_crossing`):
+#: a partial pixel before a black background has C = a F, its line passes through 0 like every other
+#: such line, and its unmixed colour's premultiplied error (a - a_true) B vanishes with B.
+CROSSING_DARK = 0.03
+#: ... and at least this times the object's own median brightness (the depth's sure pixels): where
+#: |B| is below |F| the unmixed colour's premultiplied error (a - a_true) B is below what the cube's
+#: colour errs by, a (F_cell - F) + (a - a_true) F.
+CROSSING_OVER = 1.0
+#: Every this-th sure object pixel for the object's brightness.
+OBJECT_STRIDE = 7
+#: The colour across the views runs (``--matte-across auto``) only where the views' mean
+#: :func:`band_crossing` (the plate record's ``band_crossing_mean``) reaches this.  Measured (issue 32,
+#: round 7; the kept views 0::2, docs/speed.md): the 24-view phone capture (black room, striped table;
+#: the fixed plate, its default, sees the black and estimates the table) 0.010 (0.000-0.021 a view),
+#: held out no gain; the conifer room turntable 0.366, room + table + AE + lens 0.123, orbit 0.665, the
+#: fur before similar bricks 0.161.  Missed: the same phone capture with ``--plate panorama`` (the table
+#: seen from the other views) 0.183, held out no gain either (+0.001 dB): it still runs there.
+MIN_CROSSING = 0.05
 #: The keys of a view's fit sample (line_samples' arrays the fit reads).
 FIT_KEYS = ("pts", "C", "B", "a", "F0", "usable")
 
@@ -159,3 +177,32 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
         return None, counts
     imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)
     return (samples["index"][use], (F[use] / g).astype(np.float32), imp.astype(np.float32)), counts
+
+
+
+def band_crossing(image: np.ndarray, band: np.ndarray, background: np.ndarray, known: np.ndarray,
+                  estimated: np.ndarray | None = None, opaque: np.ndarray | None = None,
+                  over: float | None = None) -> float:
+    """Share of a view's matting ``band`` (H, W) bool whose background a frame saw (``known`` and not
+    ``estimated``), not blown out (capture.matting_known.clipped, with the photo ``image``) and brighter
+    (linear, Euclidean over the channels) than CROSSING_DARK and than ``over`` (default CROSSING_OVER)
+    x the median brightness of the photo at the ``opaque`` pixels (the depth's sure object; None: no
+    such bound): where a partial pixel's line can cross another's and its unmixed colour's
+    premultiplied error (a - a_true) B can be beaten (module docstring).  0 for an empty band."""
+    from capture.matting_known import clipped
+
+    n = int(np.count_nonzero(band))
+    if not n:
+        return 0.0
+    img = np.asarray(image)
+    dark2 = CROSSING_DARK ** 2
+    if opaque is not None and np.any(opaque):
+        obj = img[opaque][::OBJECT_STRIDE].astype(np.float32)
+        dark2 = max(dark2, float((CROSSING_OVER if over is None else over) ** 2 *
+                                 np.median(np.einsum("ij,ij->i", obj, obj))))
+    B = np.asarray(background)[band].astype(np.float32)
+    use = np.asarray(known, bool)[band] & ~clipped(img[band].astype(np.float32), B)
+    if estimated is not None:
+        use &= ~np.asarray(estimated, bool)[band]
+    use &= np.einsum("ij,ij->i", B, B) >= np.float32(dark2)
+    return float(np.count_nonzero(use)) / n

@@ -44,6 +44,7 @@ import numpy as np
 
 from capture.camera import Camera
 from capture.matting import UNKNOWN, depth_trimap
+from capture.matting_cells import band_crossing
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
 from capture.plate_reproject import off_plane, room_depth
@@ -113,6 +114,8 @@ class Plate:
         error_rmse: RMS over those pixels and channels (linear; NaN without any).
         band_estimated: the part of ``band_known`` whose background no frame saw clean but the
             frames' lines gave (capture.plate_lines; fixed camera only).
+        band_crossing: the share of the band whose background a frame saw, not dark, not blown out
+            (capture.matting_cells.band_crossing: where the colour across the views can gain).
         frame: None for a full-frame plate; (H, W, y0, x0) for a plate cropped to its known box
             (:meth:`cropped`): ``background``, ``known`` and ``estimated`` are then the box at (y0, x0).
         estimated: (H, W) bool or None, the known pixels whose background came from the frames' lines
@@ -133,6 +136,7 @@ class Plate:
     frame: tuple | None = None
     estimated: np.ndarray | None = None
     sigma: np.ndarray | None = None
+    band_crossing: float = 0.0
 
     def seen(self) -> np.ndarray:
         """(H, W) bool: the known pixels some frame (or the user's plate) saw clean (``known`` less
@@ -150,7 +154,7 @@ class Plate:
         return Plate(self.background[sl].astype(np.float16), self.known[sl].copy(), self.noise, self.method,
                      self.band_known, self.error, self.error_rmse, self.band_estimated, (H, W, r0, c0),
                      None if self.estimated is None else self.estimated[sl].copy(),
-                     None if self.sigma is None else self.sigma[sl].copy())
+                     None if self.sigma is None else self.sigma[sl].copy(), self.band_crossing)
 
     def full(self) -> Plate:
         """The plate at its image's full (H, W) (itself when not cropped)."""
@@ -170,12 +174,12 @@ class Plate:
             sig = np.zeros((H, W), np.float32)
             sig[y0:y0 + h, x0:x0 + w] = self.sigma
         return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse,
-                     self.band_estimated, estimated=est, sigma=sig)
+                     self.band_estimated, estimated=est, sigma=sig, band_crossing=self.band_crossing)
 
     def record(self) -> dict:
         """JSON-able summary of the view's plate (model.json, the stage table)."""
         return {"method": self.method, "band_known": round(self.band_known, 4),
-                "band_estimated": round(self.band_estimated, 4),
+                "band_estimated": round(self.band_estimated, 4), "band_crossing": round(self.band_crossing, 4),
                 "error": None if not np.isfinite(self.error) else round(self.error, 5),
                 "error_rmse": None if not np.isfinite(self.error_rmse) else round(self.error_rmse, 5),
                 "noise": round(self.noise, 5), "sigma_median": self._sigma_median()}
@@ -463,11 +467,13 @@ def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
 
 def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,
            estimated: np.ndarray | None = None, sigma: np.ndarray | None = None, crop: bool = False) -> Plate:
-    band = depth_trimap(v.object_depth) == UNKNOWN
+    tri = depth_trimap(v.object_depth)
+    band = tri == UNKNOWN
     noise = float(np.clip(NOISE_PER_ERROR * err[0], NOISE_MIN, NOISE_MAX)) if np.isfinite(err[0]) else NOISE_MAX
     est = float(estimated[band].mean()) if estimated is not None and band.any() else 0.0
     plate = Plate(np.asarray(col, np.float32), known, noise, method, float(known[band].mean()) if band.any() else 0.0,
-                  err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma)
+                  err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma,
+                  band_crossing=band_crossing(v.linear, band, col, known, estimated, tri == 1.0))
     return plate.cropped() if crop else plate  # crop: the box around its known pixels (Plate.cropped)
 
 
@@ -492,6 +498,7 @@ def _record(mode: str, plates: list[Plate], gains: np.ndarray, tried: dict) -> d
     return {"mode": mode, "tried_error": tried,
             "band_known_mean": round(float(np.mean(band)), 4), "band_known_min": round(float(np.min(band)), 4),
             "band_estimated_mean": round(float(np.mean([p.band_estimated for p in plates])), 4),
+            "band_crossing_mean": round(float(np.mean([p.band_crossing for p in plates])), 4),
             "error_median": _summary([(p.error, p.error_rmse) for p in plates]),
             "gains_ev": [[round(float(x), 3) for x in np.log2(g)] for g in gains],
             "per_view": [p.record() for p in plates]}

@@ -142,6 +142,10 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "is known; objects under 800 pixels, e.g. every 640x480 capture, are solved at full size "
                         "bit for bit; alpha MSE 0.0007-0.0015 against full size on phone frames: docs/speed.md) or "
                         "full (closed-form matting on every pixel, the reference)")
+    g.add_argument("--matte-across", choices=["auto", "on", "off"], default="auto",
+                   help="with a background plate, each partial pixel's colour from the lines of its 3D cell "
+                        "across the views (volume/surroundings.py, capture/matting_cells.py): auto (default: "
+                        "the rule in volume.surroundings.across_wanted, its reason in the matte record), on, or off")
     g.add_argument("--backdrop", type=_colour, default=None, metavar="COLOUR",
                    help="the plain backdrop behind the object: black, white, grey, #rrggbb or r,g,b (sRGB 0-255)")
 
@@ -165,7 +169,8 @@ def pipeline_config(args, **save):
         read=ReadConfig(getattr(args, "frames", None)), undistort=UndistortConfig(args.undistort),
         views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
-        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution),
+        matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution,
+                                 across=getattr(args, "matte_across", "auto")),
         plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates),
         photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),

@@ -27,13 +27,16 @@ stages of the pipeline (volume/pipeline/stages.py; issues 20 and 30).
   cubes fitted from the draws, then applied view by view in the per-view map, each view recomputing
   its own samples (:func:`cell_colour_passes`, the "matte colour across views" row; issue 30 seventh
   round: the same needles before different parts of the room; :func:`cell_colour_stage` the
-  all-at-once reference).
+  all-at-once reference).  ``--matte-across auto`` (the default) skips it, the views drawing no
+  lines, where the plate says the lines cannot cross (:func:`across_skipped`: a dark room behind the
+  object, as on the phone captures; its own row in the stage table and its reason in the record).
 
 Each reports its own numbers (the model report's ``surroundings``).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import replace
 
@@ -116,12 +119,18 @@ def matte_stage(work, cfg, ctx):
     with ctx.row("matte warm-up"):
         matte_warm_up(cfg)
     plates = work.parts.get("plates") or {}
+    skipped = across_skipped(cfg, work.records.get("background plate")) if plates else None
+    if skipped is not None:
+        cfg = replace(cfg, across="off")  # the views draw no lines
+        logging.getLogger("furrow.capture").info("matte colour across views skipped: %s", skipped)
+        with ctx.row("matte colour across views: skipped"):  # the stage table says so (why: the record)
+            pass
     cap = fit_cap(len(work.refs))  # a worker gets its view's plate only
     per_view = PerView([(cfg, plates.get(ref.index), cap, k) for k, ref in enumerate(work.refs)])
     with ctx.row("matte"):
         scans, notes = ctx.map_views(matte_one, work, per_view, "matting")
     fits = [None if n is None else n.pop("lines", None) for n in notes]
-    cells = None
+    cells = None if skipped is None else {"skipped": skipped}
     if any(x is not None for x in fits):
         with ctx.row("matte colour across views"):
             sa = [None if n is None else (n.get("colour") or {}).get("sigma_alpha") for n in notes]
@@ -131,6 +140,24 @@ def matte_stage(work, cfg, ctx):
             scans, cells = cell_colour_passes(scans, photos, fits, sa, gains, ctx.map_views)
     out = matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
     return out if cells is None else out.record("matte", {**out.records["matte"], "cells": cells})
+
+
+def across_skipped(cfg, plate_record: dict | None) -> str | None:
+    """Why the matte stage gives no partial pixel its 3D cell's colour across the views, or None when it
+    does (``cfg``: the MatteConfig, ``across`` on / off / auto; ``plate_record``: the background plate
+    stage's).  Auto skips it where the views' mean share of the matting band with a seen, lit
+    background (capture.matting_cells.band_crossing, the record's ``band_crossing_mean``) is under
+    capture.matting_cells.MIN_CROSSING: there the lines cannot cross and the unmixed colour's
+    premultiplied error (a - a_true) B is small (measured: docs/speed.md, round 7)."""
+    from capture.matting_cells import MIN_CROSSING
+
+    if cfg.across == "off":
+        return "off (--matte-across off)"
+    share = (plate_record or {}).get("band_crossing_mean")
+    if cfg.across == "on" or share is None or share >= MIN_CROSSING:
+        return None
+    return (f"auto: {share:.3f} of the matting band has a background a frame saw, brighter than the object, "
+            f"under {MIN_CROSSING} (capture.matting_cells.MIN_CROSSING): the lines cannot cross")
 
 
 def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
@@ -255,7 +282,8 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     if plate is not None and m.method.startswith("plate"):
         from capture import matting_lines as ml
 
-        if ml.CELLS:  # the partial pixels' lines for the colour across the views (popped by matte_stage)
+        if ml.CELLS and cfg.across != "off":  # the partial pixels' lines for the colour across the views
+            # (popped by matte_stage)
             lines = ml.line_samples(view.camera, view.linear_rgb, plate.background, plate.known, m.alpha,
                                     m.foreground, view.depth, plate.estimated, plate.sigma)
             if cap is not None:
