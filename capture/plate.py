@@ -47,6 +47,7 @@ from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_cells import band_crossing
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
+from capture.plate_record import plate_record, summary
 from capture.plate_reproject import off_plane, room_depth
 from capture.plate_threads import thread_map
 from capture.sampling import mask_box
@@ -447,7 +448,7 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
     plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
                              zip(ps.views, made, fit.errors, strict=True)))
-    rec = _record(mode, plates, fit.gains, {path: _summary(t.errors) for path, t in trials.items()})
+    rec = plate_record(mode, plates, fit.gains, {path: summary(t.errors) for path, t in trials.items()})
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
 
@@ -485,20 +486,4 @@ def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[P
         r = ring_pixels(v.object_depth)
         err = _error(v.linear[r[:, 1], r[:, 0]].astype(np.float64), np.asarray(u)[r[:, 1], r[:, 0]] / g[i])
         plates.append(_plate(v, np.asarray(u, np.float32) / g[i], np.ones(v.object_depth.shape, bool), err, "user"))
-    return plates, _record("user", plates, g, {})
-
-
-def _summary(errs) -> float | None:
-    e = [x[0] for x in errs if np.isfinite(x[0])]
-    return round(float(np.median(e)), 5) if e else None
-
-
-def _record(mode: str, plates: list[Plate], gains: np.ndarray, tried: dict) -> dict:
-    band = [p.band_known for p in plates]
-    return {"mode": mode, "tried_error": tried,
-            "band_known_mean": round(float(np.mean(band)), 4), "band_known_min": round(float(np.min(band)), 4),
-            "band_estimated_mean": round(float(np.mean([p.band_estimated for p in plates])), 4),
-            "band_crossing_mean": round(float(np.mean([p.band_crossing for p in plates])), 4),
-            "error_median": _summary([(p.error, p.error_rmse) for p in plates]),
-            "gains_ev": [[round(float(x), 3) for x in np.log2(g)] for g in gains],
-            "per_view": [p.record() for p in plates]}
+    return plates, plate_record("user", plates, g, {})
