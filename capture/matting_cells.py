@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.matting_global import filled, object_colour, with_object_colour
 from capture.matting_lines import CELLS_PER_EXTENT, MIN_LINES, _implied, group_fit, line_alpha, line_weights
 
 #: Most partial pixels a view hands back for the fit.  Above the partial pixels of the 640 x 480 views of
@@ -109,9 +110,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     view = np.concatenate([np.full(len(f["a"]), v, np.int32) for v, f in enumerate(fits) if f is not None])
     C, B, F0 = (_cat(fits, k, view, g) for k in ("C", "B", "F0"))
     al = line_alpha(C, B, np.median(F0, 0))
-    del F0
     w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)))
-    del al
     grid = cell_grid(fits, cells)
     if grid is None or int((w > 0).sum()) < MIN_LINES:
         return None, {**rec, "reason": "too few partial pixels before a known background"}
@@ -122,11 +121,14 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     def gsum(x):
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
-    F, sig2 = group_fit(C, B, w, _cat(fits, "a"), gsum, inv)
+    a = _cat(fits, "a")
+    F, sig2 = group_fit(C, B, w, a, gsum, inv)
     ok = np.isfinite(sig2[inv])
     if ok.any():
         rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
-    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2}, rec
+    fill = filled(*(_cat(fits, k) for k in ("C", "B", "a", "F0")))  # each view's own exposure
+    F_obj, rec["global"] = object_colour(C, B, w, al, a, F0, F[inv], ok, fill)
+    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj}, rec
 
 
 def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True):
@@ -136,7 +138,7 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
     gate, every usable cube's colour), ``gain`` (3,) the view's exposure gain or None.  ((flat indices,
     colours (n, 3) float32 in the view's exposure, implied alphas (n,)) or None, the counts: crossed,
     coloured)."""
-    counts = {"crossed": 0, "coloured": 0}
+    counts = {"crossed": 0, "coloured": 0, "global": 0}
     if samples is None or table is None:
         return None, counts
     g = np.ones(3) if gain is None else np.asarray(gain, np.float64)
@@ -146,6 +148,7 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
     sig2 = np.where(found, table["sig2"][pos], np.inf)
     F = table["F"][pos]
     use = np.isfinite(sig2)
+    crossed = use.copy()
     counts["crossed"] = int(use.sum())
     C, B = (samples[k].astype(np.float64) * g for k in ("C", "B"))
     a = samples["a"].astype(np.float64)
@@ -155,6 +158,9 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
             (sigma_alpha ** 2 * ((B - F) ** 2).sum(-1) + ((1.0 - a) * sb) ** 2) / np.maximum(a, 1e-6) ** 2
         use &= sig2 < unmix2
     counts["coloured"] = int(use.sum())
+    fill = filled(samples["C"], samples["B"], samples["a"], samples["F0"])
+    use, F, counts["global"] = with_object_colour(use, crossed, fill, F, table.get("global"),
+                                                  not gated or sigma_alpha is not None)
     if not use.any():
         return None, counts
     imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)

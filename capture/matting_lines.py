@@ -319,6 +319,8 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     the view keeps its colour; no list: every usable cell's colour) and sigma_B the samples' ``sb``.
     Per view (flat indices, colours (n, 3), alphas implied (n,)) or None, and the record (pixels, those
     in a usable cell, those given its colour, why none)."""
+    from capture.matting_global import filled, object_colour, with_object_colour
+
     have = [s for s in samples if s is not None]
     rec = {"cells": cells, "pixels": int(sum(len(s["a"]) for s in have)), "crossed": 0, "coloured": 0}
     if not have:
@@ -337,6 +339,9 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
         return [None] * len(samples), {**rec, "reason": "too few partial pixels before a known background"}
     F, sig2 = cell_colour(cat["pts"], extent / cells, cat["C"], cat["B"], w, cat["a"])
     ok = np.isfinite(sig2)
+    fill = np.concatenate([filled(s["C"], s["B"], s["a"], s["F0"]) for s in have])  # each view's own exposure
+    F_obj, rec["global"] = object_colour(cat["C"], cat["B"], w, al, cat["a"], cat["F0"], F, ok, fill)
+    rec["global_coloured"] = 0
     out, off, blind = [], 0, 0
     for v, s in enumerate(samples):
         if s is None:
@@ -353,8 +358,10 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
                 (sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) + ((1.0 - cat["a"][k]) * sb[k]) ** 2) / a2
             use &= sig2[k] < unmix2
         rec["coloured"] += int(use.sum())
-        imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], F[k][use]), 0.0, 1.0)  # common exposure
-        out.append((s["index"][use], (F[k][use] / g[v]).astype(np.float32), imp.astype(np.float32))
+        use, Fv, n_obj = with_object_colour(use, ok[k], fill[k], F[k], F_obj, sigma_alpha is None or sa is not None)
+        rec["global_coloured"] += n_obj
+        imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], Fv[use]), 0.0, 1.0)  # common exposure
+        out.append((s["index"][use], (Fv[use] / g[v]).astype(np.float32), imp.astype(np.float32))
                    if use.any() else None)
     rec["crossed"] = int(ok.sum())
     if blind:

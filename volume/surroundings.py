@@ -155,6 +155,7 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
         if n is not None:
             rec["crossed"] += n["crossed"]
             rec["coloured"] += n["coloured"]
+            rec["global_coloured"] = rec.get("global_coloured", 0) + n["global"]
             rec["views_without_alpha_error"] = rec.get("views_without_alpha_error", 0) + int(n["blind"])
     if not rec["views_without_alpha_error"]:
         del rec["views_without_alpha_error"]
