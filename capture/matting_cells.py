@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.matting_global import filled, object_colour, with_object_colour
-from capture.matting_lines import CELLS_PER_EXTENT, MIN_LINES, _implied, group_fit, line_alpha, line_weights
+from capture.matting_global import cross_cells, filled, with_object_colour
+from capture.matting_lines import CELL_LINE_ALPHA, CELLS_PER_EXTENT, MIN_LINES, _implied, line_alpha, line_weights
 
 #: Most partial pixels a view hands back for the fit.  Above the partial pixels of the 640 x 480 views of
 #: the conifer captures (35-40k a view on average; on the turntable and AE + lens runs every line was
@@ -110,7 +110,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     view = np.concatenate([np.full(len(f["a"]), v, np.int32) for v, f in enumerate(fits) if f is not None])
     C, B, F0 = (_cat(fits, k, view, g) for k in ("C", "B", "F0"))
     al = line_alpha(C, B, np.median(F0, 0))
-    w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)))
+    w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)), CELL_LINE_ALPHA)
     grid = cell_grid(fits, cells)
     if grid is None or int((w > 0).sum()) < MIN_LINES:
         return None, {**rec, "reason": "too few partial pixels before a known background"}
@@ -121,13 +121,11 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     def gsum(x):
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
-    a = _cat(fits, "a")
-    F, sig2 = group_fit(C, B, w, a, gsum, inv)
+    fill = filled(*(_cat(fits, k) for k in ("C", "B", "a", "F0")))  # each view's own exposure
+    F, sig2, F_obj, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv)
     ok = np.isfinite(sig2[inv])
     if ok.any():
         rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
-    fill = filled(*(_cat(fits, k) for k in ("C", "B", "a", "F0")))  # each view's own exposure
-    F_obj, rec["global"] = object_colour(C, B, w, al, a, F0, F[inv], ok, fill)
     return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj}, rec
 
 

@@ -10,9 +10,9 @@ and branches: the crown comes out olive (the turntable's kept views: mean colour
 
 Here those pixels take one colour for the whole object: the lines of every view's partial pixels
 crossed as one group (capture.matting_lines.group_fit; the backgrounds behind the whole crown differ
-enough to cross even where those behind one cube do not).  Only lines whose photo's alpha is at least
-GLOBAL_LINE_ALPHA enter: the faint ones pull the crossing towards the room's colour (red on the
-conifer's courtyard; measured on the turntable, docs/matting.md eighth round).
+enough to cross even where those behind one cube do not), from the lines whose photo's alpha is at
+least capture.matting_lines.CELL_LINE_ALPHA (the faint ones pull the crossing towards the room's
+colour), as the cubes' own.
 
 It knows when it cannot beat doing nothing: the colour is used only
 
@@ -20,10 +20,20 @@ It knows when it cannot beat doing nothing: the colour is used only
   cross, in a view whose alpha error was measured (as the cubes' colour: a view without one keeps
   its colour);
 * when the object's lines cross (at least MIN_LINES, well conditioned, the colour beyond the photo);
-* when, over the filled pixels whose cube's lines do cross, the global colour lies nearer the cubes'
+* when, over the filled pixels whose cube's lines do cross, the object's colour lies nearer the cubes'
   colours than the fill does (mean squared distance; the cube colour's own error adds to both).
 
 Otherwise none, and the record (``cells['global']``) says why.
+
+The object's colour is also the prior of the cubes' (:func:`shrink`): where the backgrounds behind a
+cube are alike its crossing errs far more than the needles' colours differ from cube to cube, and
+each cube's colour is drawn towards the object's by as much as its estimate's covariance (s M^-1,
+capture.matting_lines.group_fit) exceeds the cubes' measured spread about the object's colour (the
+spread of their estimates less the estimates' own variance).  On the turntable the spread came out
+0.010 a channel, on the orbit 0.007, with the orbit's estimates far surer: its cubes barely move.
+Held out (gather, docs/matting.md eighth round): turntable 25.01 -> 25.24 (the object's colour) ->
+25.36 (and the shrinkage, the lines from photo's alpha 0.5), orbit 26.61 -> 26.62, AE + lens 24.74
+-> 24.80; the fur and the black capture the same digits.
 """
 
 from __future__ import annotations
@@ -34,12 +44,15 @@ from capture.matting_lines import MIN_LINES, group_fit
 
 #: Give the pixels no cube colours the object's colour (held out, gather, docs/matting.md eighth round).
 GLOBAL = True
-#: Least photo's alpha (capture.matting_lines.line_alpha) of the lines crossed for the object's colour.
-#: Turntable, held out (the kept views' dumped samples, numpy twin of gather): 0.1 25.06 dB, 0.3 25.16,
-#: 0.5 25.24 (the cubes alone 25.01); orbit 26.61 whatever the bound (1 % of its pixels uncrossed).
-GLOBAL_LINE_ALPHA = 0.5
+#: Shrink each cube's colour towards the object's by their spread (module docstring).
+SHRINK = True
 #: A colour counts as unmixed where it is within this (linear, per channel) of B + (C - B) / a.
 FILLED_TOL = 1e-3
+#: The least spread of the cubes' true colours about the object's (linear, squared) the shrinkage assumes:
+#: where the cubes' colours scatter no more than their estimates' own variance, they are shrunk to this.
+TAU2_MIN = 1e-6
+#: Least crossed cubes to measure their spread.
+MIN_CUBES = 4
 
 
 def filled(C: np.ndarray, B: np.ndarray, alpha: np.ndarray, colour: np.ndarray) -> np.ndarray:
@@ -51,18 +64,15 @@ def filled(C: np.ndarray, B: np.ndarray, alpha: np.ndarray, colour: np.ndarray) 
     return ~np.all(np.abs(Fu - np.asarray(colour, np.float64)) <= FILLED_TOL, axis=-1)
 
 
-def object_colour(C, B, w, a_line, alpha, colour, cell_colour, crossed, fill) -> tuple[np.ndarray | None, dict]:
-    """The object's colour for the pixels no cube colours (module docstring) from N samples in the
-    common exposure: ``C``, ``B`` (N, 3), line weights ``w`` and photo's alphas ``a_line`` (N,,
-    capture.matting_lines.line_weights / line_alpha), the matte's ``alpha`` (N,) and ``colour`` (N, 3),
-    each sample's cube colour ``cell_colour`` (N, 3) and whether its cube's lines cross ``crossed``,
-    ``fill`` (:func:`filled`).  ((3,) or None, the record)."""
-    rec: dict = {"line_alpha": GLOBAL_LINE_ALPHA}
+def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill) -> tuple[np.ndarray | None, dict]:
+    """The object's colour (module docstring) from N samples in the common exposure: ``C``, ``B`` (N, 3),
+    line weights ``w`` (N,, capture.matting_lines.line_weights), the matte's ``alpha`` (N,) and
+    ``colour`` (N, 3), each sample's cube colour ``cell_colour`` (N, 3) and whether its cube's lines
+    cross ``crossed``, ``fill`` (:func:`filled`).  ((3,) or None, the record)."""
+    rec: dict = {"lines": int((np.asarray(w) > 0).sum())}
     if not GLOBAL:
         return None, {**rec, "reason": "off"}
-    wl = np.where(np.asarray(a_line) >= GLOBAL_LINE_ALPHA, w, 0.0)
-    rec["lines"] = int((wl > 0).sum())
-    F, sig2 = group_fit(C, B, wl, alpha, lambda x: x.sum(0, keepdims=True), np.zeros(len(wl), np.int64))
+    F, sig2 = group_fit(C, B, w, alpha, lambda x: x.sum(0, keepdims=True), np.zeros(len(w), np.int64))
     if not np.isfinite(sig2[0]):
         return None, {**rec, "reason": "the object's lines do not cross (too few, parallel, or at the background)"}
     ref = np.asarray(crossed, bool) & np.asarray(fill, bool)
@@ -75,6 +85,42 @@ def object_colour(C, B, w, a_line, alpha, colour, cell_colour, crossed, fill) ->
     if e_obj >= e_fill:
         return None, {**rec, "reason": "not nearer the cubes' colours than the fill"}
     return F[0], rec
+
+
+def shrink(F: np.ndarray, sig2: np.ndarray, terms: dict, F_obj) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The cubes' colours ``F`` (K, 3) (expected errors ``sig2``, inf where not crossed; ``terms`` of
+    capture.matting_lines.group_fit) shrunk towards the object's ``F_obj``: each the posterior mean of
+    its estimate (covariance s M^-1) under a prior about F_obj of variance tau^2 a channel, tau^2 the
+    cubes' spread about F_obj less their estimates' own variance (weighted by the lines, at least
+    TAU2_MIN); its expected error the spread within the cube plus the posterior's variance.  Unchanged
+    (and the record says why) when off, without the object's colour or with fewer than MIN_CUBES crossed."""
+    ok = np.isfinite(sig2)
+    if not SHRINK or F_obj is None or int(ok.sum()) < MIN_CUBES:
+        why = "off" if not SHRINK else "no object colour" if F_obj is None else "too few crossed cubes"
+        return F, sig2, {"reason": why}
+    P = terms["M"][ok] / np.maximum(terms["s"][ok], 1e-12)[:, None, None]  # the estimates' precision
+    var = np.trace(np.linalg.inv(P), axis1=1, axis2=2) / 3.0
+    n = terms["n"][ok]
+    d2 = ((F[ok] - F_obj) ** 2).sum(-1) / 3.0
+    tau2 = max(float((n * (d2 - var)).sum() / max(n.sum(), 1e-12)), TAU2_MIN)
+    H = P + np.eye(3) / tau2
+    F2, s2 = F.copy(), sig2.copy()
+    F2[ok] = np.clip(F_obj + np.linalg.solve(H, (P @ (F[ok] - F_obj)[..., None]))[..., 0], 0.0, 1.0)
+    s2[ok] = terms["spread"][ok] + np.trace(np.linalg.inv(H), axis1=1, axis2=2)
+    return F2, s2, {"tau": round(float(np.sqrt(tau2)), 5)}
+
+
+def cross_cells(C, B, w, alpha, colour, fill, gsum, group) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, dict]:
+    """The cubes' colours and the object's for N samples in the common exposure (``C``, ``B``, line
+    weights ``w``, the matte's ``alpha`` and ``colour``, ``fill`` (:func:`filled`); ``gsum`` / ``group``
+    as capture.matting_lines.group_fit's): (F (K, 3), sigma^2 (K,) inf where the cube's lines do not
+    cross, the object's colour (3,) or None, the record)."""
+    terms: dict = {}
+    F, sig2 = group_fit(C, B, w, alpha, gsum, group, terms)
+    crossed = np.isfinite(sig2[group])
+    F_obj, rec = object_colour(C, B, w, alpha, colour, F[group], crossed, fill)
+    F, sig2, rec["shrink"] = shrink(F, sig2, terms, F_obj)
+    return F, sig2, F_obj, rec
 
 
 def with_object_colour(use: np.ndarray, crossed: np.ndarray, fill: np.ndarray, F: np.ndarray, F_obj,

@@ -99,7 +99,7 @@ def _scene(n_views: int = 3, h: int = 36, w: int = 44):
         F = np.zeros((h, w, 3))
         F[depth > 0] = cols[(np.floor(x[:, 0] * 4) % 2 * 2 + np.floor(x[:, 2] * 4) % 2).astype(int)]
         B = rng.uniform(0.4, 0.9, (h, w, 3))
-        a = np.where(depth > 0, rng.uniform(0.15, 0.8, (h, w)), 0.0)
+        a = np.where(depth > 0, rng.uniform(0.45, 0.84, (h, w)), 0.0)
         C = a[..., None] * F + (1 - a[..., None]) * B + rng.normal(0, 0.003, B.shape)
         photos.append(Scan(np.clip(C, 0, 1).astype(np.float32), depth, cam, f"v{v}"))
         known = rng.uniform(size=(h, w)) > 0.05
