@@ -51,17 +51,19 @@ def fit_cap(n_views: int) -> int:
 def fit_sample(samples: dict | None, cap: int, seed: int) -> dict | None:
     """A view's line samples (capture.matting_lines.line_samples) for the fit: at most ``cap`` of them,
     drawn without replacement by ``seed`` and kept in their order (all of them, the same arrays, when
-    no more), FIT_KEYS only; with ``n`` the view's partial pixels and ``lo`` / ``hi`` the bounds (3,) of
-    all their 3D points.  None for None."""
+    no more), FIT_KEYS only and ``fill`` (capture.matting_global.filled, 1 byte a line); with ``n`` the
+    view's partial pixels and ``lo`` / ``hi`` the bounds (3,) of all their 3D points.  None for None."""
     if samples is None:
         return None
     n = len(samples["a"])
     pts = samples["pts"]
     out = {"n": n, "lo": pts.min(0), "hi": pts.max(0)}
     if n <= cap:
-        return {**out, **{k: samples[k] for k in FIT_KEYS}}
-    pick = np.sort(np.random.default_rng((FIT_SEED, int(seed))).choice(n, int(cap), replace=False))
-    return {**out, **{k: samples[k][pick] for k in FIT_KEYS}}
+        got = {k: samples[k] for k in FIT_KEYS}
+    else:
+        pick = np.sort(np.random.default_rng((FIT_SEED, int(seed))).choice(n, int(cap), replace=False))
+        got = {k: samples[k][pick] for k in FIT_KEYS}
+    return {**out, **got, "fill": filled(got["C"], got["B"], got["a"], got["F0"])}  # in the view's own exposure
 
 
 def cell_grid(fits: list, cells: int = CELLS_PER_EXTENT):
@@ -91,7 +93,7 @@ def _cat(fits: list, key: str, view: np.ndarray | None = None, g: np.ndarray | N
     """The fit samples' ``key`` of every view, concatenated (float64; in the common exposure, x the
     view's gain, where ``g`` is given: the same products as cell_colours')."""
     x = np.concatenate([f[key] for f in fits if f is not None])
-    if key == "usable":
+    if key in ("usable", "fill"):
         return x.astype(bool)
     return x.astype(np.float64) if g is None else x.astype(np.float64) * g[view]
 
@@ -111,6 +113,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     C, B, F0 = (_cat(fits, k, view, g) for k in ("C", "B", "F0"))
     al = line_alpha(C, B, np.median(F0, 0))
     w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)), CELL_LINE_ALPHA)
+    del al
     grid = cell_grid(fits, cells)
     if grid is None or int((w > 0).sum()) < MIN_LINES:
         return None, {**rec, "reason": "too few partial pixels before a known background"}
@@ -121,7 +124,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     def gsum(x):
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
-    fill = filled(*(_cat(fits, k) for k in ("C", "B", "a", "F0")))  # each view's own exposure
+    fill = _cat(fits, "fill")
     F, sig2, F_obj, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv)
     ok = np.isfinite(sig2[inv])
     if ok.any():
