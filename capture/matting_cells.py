@@ -125,21 +125,23 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
     fill = _cat(fits, "fill")
-    F, sig2, F_obj, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv)
+    F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv, view, len(fits))
     ok = np.isfinite(sig2[inv])
     if ok.any():
         rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
-    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj}, rec
+    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj, "brightness": k}, rec
 
 
-def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True):
+def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True,
+                view: int | None = None):
     """One view's partial pixels (capture.matting_lines.line_samples) given their cube's colour from
     ``table`` (:func:`fit_cells`) where cell_colours would: its expected error below the unmixed
     colour's with the view's ``sigma_alpha`` (None: the view keeps its colour; ``gated`` False: no
-    gate, every usable cube's colour), ``gain`` (3,) the view's exposure gain or None.  ((flat indices,
+    gate, every usable cube's colour), ``gain`` (3,) the view's exposure gain or None, ``view`` its
+    position (its brightness in the table, capture.matting_global.view_brightness; None: 1).  ((flat indices,
     colours (n, 3) float32 in the view's exposure, implied alphas (n,)) or None, the counts: crossed,
     coloured)."""
-    counts = {"crossed": 0, "coloured": 0, "global": 0}
+    counts = {"crossed": 0, "coloured": 0, "global": 0, "filled": 0}
     if samples is None or table is None:
         return None, counts
     g = np.ones(3) if gain is None else np.asarray(gain, np.float64)
@@ -160,8 +162,9 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
         use &= sig2 < unmix2
     counts["coloured"] = int(use.sum())
     fill = filled(samples["C"], samples["B"], samples["a"], samples["F0"])
-    use, F, counts["global"] = with_object_colour(use, crossed, fill, F, table.get("global"),
-                                                  not gated or sigma_alpha is not None)
+    k = 1.0 if view is None or table.get("brightness") is None else float(table["brightness"][view])
+    use, F, counts["global"], counts["filled"] = with_object_colour(use, crossed, fill, F, table.get("global"),
+                                                                    not gated or sigma_alpha is not None, k)
     if not use.any():
         return None, counts
     imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)

@@ -363,10 +363,12 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
         return [None] * len(samples), {**rec, "reason": "too few partial pixels before a known background"}
     inv, gsum = cell_groups(cat["pts"], extent / cells)
     fill = np.concatenate([filled(s["C"], s["B"], s["a"], s["F0"]) for s in have])  # each view's own exposure
-    F, sig2, F_obj, rec["global"] = cross_cells(cat["C"], cat["B"], w, cat["a"], cat["F0"], fill, gsum, inv)
+    view = np.concatenate([np.full(len(s["a"]), v) for v, s in enumerate(samples) if s is not None])
+    F, sig2, F_obj, kv, rec["global"] = cross_cells(cat["C"], cat["B"], w, cat["a"], cat["F0"], fill, gsum, inv,
+                                                    view, len(samples))
     F, sig2 = F[inv], sig2[inv]
     ok = np.isfinite(sig2)
-    rec["global_coloured"] = 0
+    rec["global_coloured"] = rec["filled_coloured"] = 0
     out, off, blind = [], 0, 0
     for v, s in enumerate(samples):
         if s is None:
@@ -383,8 +385,10 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
                 (sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) + ((1.0 - cat["a"][k]) * sb[k]) ** 2) / a2
             use &= sig2[k] < unmix2
         rec["coloured"] += int(use.sum())
-        use, Fv, n_obj = with_object_colour(use, ok[k], fill[k], F[k], F_obj, sigma_alpha is None or sa is not None)
+        allowed = sigma_alpha is None or sa is not None
+        use, Fv, n_obj, n_fill = with_object_colour(use, ok[k], fill[k], F[k], F_obj, allowed, kv[v])
         rec["global_coloured"] += n_obj
+        rec["filled_coloured"] += n_fill
         imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], Fv[use]), 0.0, 1.0)  # common exposure
         out.append((s["index"][use], (Fv[use] / g[v]).astype(np.float32), imp.astype(np.float32))
                    if use.any() else None)

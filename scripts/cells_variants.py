@@ -21,9 +21,13 @@ from pathlib import Path
 
 #: The variants: (name, {module constant: value}) of capture.matting_lines / capture.matting_global.
 VARIANTS = (("seventh round (cubes alone, lines from photo's alpha 0.1)", {"CELL_LINE_ALPHA": 0.1, "GLOBAL": False}),
-            ("the object's colour, lines 0.1", {"CELL_LINE_ALPHA": 0.1, "SHRINK": False}),
-            ("the object's colour, lines 0.5", {"SHRINK": False}),
-            ("the object's colour and the shrinkage, lines 0.5 (defaults)", {}))
+            ("the object's colour, lines 0.1", {"CELL_LINE_ALPHA": 0.1, "SHRINK": False,
+                                                 "VIEW_BRIGHTNESS": False, "FILLED_CUBES": False}),
+            ("the object's colour, lines 0.5", {"SHRINK": False, "VIEW_BRIGHTNESS": False, "FILLED_CUBES": False}),
+            ("the object's colour and the shrinkage, lines 0.5", {"VIEW_BRIGHTNESS": False, "FILLED_CUBES": False}),
+            ("and the views' brightness", {"FILLED_CUBES": False}),
+            ("and the filled pixels in crossed cubes, no brightness", {"VIEW_BRIGHTNESS": False}),
+            ("the views' brightness and the filled pixels (defaults)", {}))
 
 
 def dump_model(cap: str, model: str, dump: str) -> None:
@@ -88,7 +92,7 @@ def main() -> None:
                 flat[c[0]] = c[1]
         p, s_, sh = held_out_scores(scans, held, cams, new, dep, alpha, meas)
         print(f"{name:62s} {p:.4f} / {s_:.4f} / {sh:.3f}  coloured {rec['coloured']}, the object's "
-              f"{rec.get('global_coloured', 0)}, {rec.get('global', {}).get('shrink')}", flush=True)
+              f"{rec.get('global_coloured', 0)}, filled {rec.get('filled_coloured', 0)}", flush=True)
 
 
 if __name__ == "__main__":

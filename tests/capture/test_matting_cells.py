@@ -40,7 +40,7 @@ def _two_passes(samples, sa, gains, cap):
     fits = [mc.fit_sample(s, cap, k) for k, s in enumerate(samples)]
     table, rec = mc.fit_cells(fits, gains, cells=2)
     g = [None] * len(samples) if gains is None else gains
-    out = [mc.apply_cells(s, table, sa[k], g[k]) for k, s in enumerate(samples)]
+    out = [mc.apply_cells(s, table, sa[k], g[k], view=k) for k, s in enumerate(samples)]
     return [c for c, _ in out], sum(n["coloured"] for _, n in out), sum(n["crossed"] for _, n in out), rec
 
 

@@ -21,6 +21,8 @@ from capture import matting_lines as ml
 OBJECT_TOL = 0.02
 #: Shrunk cubes: median error at most this (measured 0.0075-0.0079; distinct cubes' colours kept: 0.002).
 SHRUNK_TOL = 0.01
+#: A view's brightness relative to another's: within this (measured 0.003-0.126).
+K_TOL = 0.15
 NEEDLE = np.array([0.05, 0.09, 0.03])
 TRUNK = np.array([0.3, 0.2, 0.08])
 
@@ -110,7 +112,7 @@ def test_the_two_passes_give_the_references_object_colour():
     ref, rrec = ml.cell_colours(samples, [0.05, 0.05], cells=2)
     fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(samples)]
     table, rec = mc.fit_cells(fits, cells=2)
-    out = [mc.apply_cells(s, table, 0.05) for s in samples]
+    out = [mc.apply_cells(s, table, 0.05, view=k) for k, s in enumerate(samples)]
     assert rec["global"] == rrec["global"] and sum(n["global"] for _, n in out) == rrec["global_coloured"] > 0
     for r, (c, _) in zip(ref, out, strict=True):
         assert all(np.array_equal(x, y) for x, y in zip(r, c, strict=True))
@@ -156,3 +158,64 @@ def test_cubes_of_their_own_colours_keep_them_and_too_few_cubes_are_not_shrunk()
     samples, F, cell, _ = _samples(0, crossed=2)
     _, rec = ml.cell_colours(samples, [0.05, 0.05], cells=2)
     assert rec["global"]["shrink"] == {"reason": "too few crossed cubes"}
+
+
+def _lit_views(seed: int, k_true, per: int = 120):
+    """One view's samples a camera (k_true: each view's brightness of the needles), 8 cells of one
+    needle colour, each cell before every view's own background; the matte's colour the trunk's fill."""
+    rng = np.random.default_rng(seed)
+    cols = NEEDLE + rng.uniform(-0.01, 0.01, (8, 3))
+    views, truth = [], []
+    for kv in k_true:
+        cell = np.repeat(np.arange(8), per)
+        pts = np.stack([cell % 2, cell // 2 % 2, cell // 4], 1) + rng.uniform(0.05, 0.95, (len(cell), 3))
+        B = rng.uniform(0.3, 0.9, (8, 3))[cell] + rng.uniform(-0.02, 0.02, (len(cell), 3))
+        A = rng.uniform(0.15, 0.8, len(cell))
+        F = kv * cols[cell]
+        C = np.clip(A[:, None] * F + (1 - A[:, None]) * B + rng.normal(0, 0.003, B.shape), 0, 1)
+        a = np.clip(A + rng.normal(0, 0.05, A.shape), 0.01, 0.84)
+        views.append({"index": np.arange(len(cell)), "pts": pts, "C": C, "B": B, "a": a,
+                      "F0": np.broadcast_to(TRUNK, F.shape), "usable": np.ones(len(cell), bool),
+                      "sb": np.zeros(len(cell))})
+        truth.append(F)
+    return views, truth
+
+
+def test_each_views_brightness_is_found_from_its_lines_and_its_colours_follow_it(monkeypatch):
+    """The needles brighter in some views than in others (an orbit's lit and shadowed sides, k 0.7-1.4):
+    each view's k relative to the middle one's within K_TOL (measured 0.003-0.126: the cubes are crossed
+    from every view's lines, so the brightest view's k comes out low, 1.26-1.33); each view's colours
+    within 0.02 of its own truth (measured 0.006-0.019), the worst view's error at most 0.6 of it with
+    the brightness off (measured 0.38-0.43)."""
+    k_true = np.array([0.7, 1.0, 1.4, 1.0, 0.85])
+    for seed in range(2):
+        views, truth = _lit_views(seed, k_true)
+        errs = []
+        for on in (True, False):
+            monkeypatch.setattr(mg, "VIEW_BRIGHTNESS", on)
+            colours, rec = ml.cell_colours(views, [0.05] * len(views), cells=2)
+            errs.append(max(np.median(np.linalg.norm(_colour_of([c], [v]) - t, axis=-1))
+                            for c, v, t in zip(colours, views, truth, strict=True)))
+            if on:
+                k = np.array(rec["global"]["brightness"]["k"])
+                assert np.all(np.abs(k / k[1] - k_true) <= K_TOL)
+        assert rec["global"]["brightness"] == {"reason": "off"}
+        assert errs[0] <= 0.02 and errs[0] <= 0.6 * errs[1]
+
+
+def test_views_of_one_brightness_are_left_at_one():
+    views, truth = _lit_views(0, np.ones(5))
+    _, rec = ml.cell_colours(views, [0.05] * len(views), cells=2)
+    b = rec["global"]["brightness"]
+    assert b == {"reason": "the views' brightness scatters no more than its noise"}
+
+
+def test_a_filled_pixel_in_a_crossed_cube_takes_its_colour_whatever_the_gate_against_unmixing(monkeypatch):
+    samples, F, cell, _ = _samples(0, crossed=8)
+    colours, rec = ml.cell_colours(samples, [1e-5, 1e-5], cells=2)  # an alpha this sure: unmixing wins the gate
+    assert rec["coloured"] == 0 and rec["filled_coloured"] == rec["crossed"] > 0.95 * len(F)
+    assert np.median(np.linalg.norm(_colour_of(colours, samples) - F, axis=-1)) <= OBJECT_TOL
+    monkeypatch.setattr(mg, "FILLED_CUBES", False)
+    colours, rec = ml.cell_colours(samples, [1e-5, 1e-5], cells=2)
+    given = sum(len(c[0]) for c in colours if c is not None)  # the object's colour where a cube does not cross
+    assert rec["filled_coloured"] == 0 and given == rec["global_coloured"] < 0.01 * len(F)
