@@ -91,7 +91,8 @@ def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill) -> tuple[n
     rec: dict = {"lines": int((np.asarray(w) > 0).sum())}
     if not GLOBAL:
         return None, {**rec, "reason": "off"}
-    F, sig2 = group_fit(C, B, w, alpha, lambda x: x.sum(0, keepdims=True), np.zeros(len(w), np.int64))
+    li = np.flatnonzero(np.asarray(w) > 0)  # the others add nothing to the sums
+    F, sig2 = group_fit(C[li], B[li], w[li], alpha[li], lambda x: x.sum(0, keepdims=True), np.zeros(len(li), np.int64))
     if not np.isfinite(sig2[0]):
         return None, {**rec, "reason": "the object's lines do not cross (too few, parallel, or at the background)"}
     ref = np.asarray(crossed, bool) & np.asarray(fill, bool)
@@ -186,8 +187,9 @@ def cross_cells(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
     if F_obj is None:
         k, rec["brightness"] = np.ones(n_views), {"reason": "no object colour"}
     else:
-        ref = np.where(crossed[:, None], F[group], F_obj)
-        k, rec["brightness"] = view_brightness(C, B, w, ref, np.asarray(view, np.int64), n_views)
+        li = np.flatnonzero(w > 0)  # the others add nothing to the sums
+        ref = np.where(crossed[li, None], F[group[li]], F_obj)
+        k, rec["brightness"] = view_brightness(C[li], B[li], w[li], ref, np.asarray(view, np.int64)[li], n_views)
     return F, sig2, F_obj, k, rec
 
 
