@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.matting_lines import CELLS_PER_EXTENT, MIN_LINES, _implied, group_fit, line_alpha, line_weights
+from capture.matting_global import cross_cells, filled, with_object_colour
+from capture.matting_lines import CELL_LINE_ALPHA, CELLS_PER_EXTENT, MIN_LINES, _implied, line_alpha, line_weights
 
 #: Most partial pixels a view hands back for the fit.  Above the partial pixels of the 640 x 480 views of
 #: the conifer captures (35-40k a view on average; on the turntable and AE + lens runs every line was
@@ -68,17 +69,19 @@ def fit_cap(n_views: int) -> int:
 def fit_sample(samples: dict | None, cap: int, seed: int) -> dict | None:
     """A view's line samples (capture.matting_lines.line_samples) for the fit: at most ``cap`` of them,
     drawn without replacement by ``seed`` and kept in their order (all of them, the same arrays, when
-    no more), FIT_KEYS only; with ``n`` the view's partial pixels and ``lo`` / ``hi`` the bounds (3,) of
-    all their 3D points.  None for None."""
+    no more), FIT_KEYS only and ``fill`` (capture.matting_global.filled, 1 byte a line); with ``n`` the
+    view's partial pixels and ``lo`` / ``hi`` the bounds (3,) of all their 3D points.  None for None."""
     if samples is None:
         return None
     n = len(samples["a"])
     pts = samples["pts"]
     out = {"n": n, "lo": pts.min(0), "hi": pts.max(0)}
     if n <= cap:
-        return {**out, **{k: samples[k] for k in FIT_KEYS}}
-    pick = np.sort(np.random.default_rng((FIT_SEED, int(seed))).choice(n, int(cap), replace=False))
-    return {**out, **{k: samples[k][pick] for k in FIT_KEYS}}
+        got = {k: samples[k] for k in FIT_KEYS}
+    else:
+        pick = np.sort(np.random.default_rng((FIT_SEED, int(seed))).choice(n, int(cap), replace=False))
+        got = {k: samples[k][pick] for k in FIT_KEYS}
+    return {**out, **got, "fill": filled(got["C"], got["B"], got["a"], got["F0"])}  # in the view's own exposure
 
 
 def cell_grid(fits: list, cells: int = CELLS_PER_EXTENT):
@@ -108,7 +111,7 @@ def _cat(fits: list, key: str, view: np.ndarray | None = None, g: np.ndarray | N
     """The fit samples' ``key`` of every view, concatenated (float64; in the common exposure, x the
     view's gain, where ``g`` is given: the same products as cell_colours')."""
     x = np.concatenate([f[key] for f in fits if f is not None])
-    if key == "usable":
+    if key in ("usable", "fill"):
         return x.astype(bool)
     return x.astype(np.float64) if g is None else x.astype(np.float64) * g[view]
 
@@ -127,8 +130,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     view = np.concatenate([np.full(len(f["a"]), v, np.int32) for v, f in enumerate(fits) if f is not None])
     C, B, F0 = (_cat(fits, k, view, g) for k in ("C", "B", "F0"))
     al = line_alpha(C, B, np.median(F0, 0))
-    del F0
-    w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)))
+    w = line_weights(al, _cat(fits, "usable"), np.zeros(len(al)), CELL_LINE_ALPHA)
     del al
     grid = cell_grid(fits, cells)
     if grid is None or int((w > 0).sum()) < MIN_LINES:
@@ -140,21 +142,24 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     def gsum(x):
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
-    F, sig2 = group_fit(C, B, w, _cat(fits, "a"), gsum, inv)
+    fill = _cat(fits, "fill")
+    F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv, view, len(fits))
     ok = np.isfinite(sig2[inv])
     if ok.any():
         rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
-    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2}, rec
+    return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj, "brightness": k}, rec
 
 
-def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True):
+def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True,
+                view: int | None = None):
     """One view's partial pixels (capture.matting_lines.line_samples) given their cube's colour from
     ``table`` (:func:`fit_cells`) where cell_colours would: its expected error below the unmixed
     colour's with the view's ``sigma_alpha`` (None: the view keeps its colour; ``gated`` False: no
-    gate, every usable cube's colour), ``gain`` (3,) the view's exposure gain or None.  ((flat indices,
+    gate, every usable cube's colour), ``gain`` (3,) the view's exposure gain or None, ``view`` its
+    position (its brightness in the table, capture.matting_global.view_brightness; None: 1).  ((flat indices,
     colours (n, 3) float32 in the view's exposure, implied alphas (n,)) or None, the counts: crossed,
     coloured)."""
-    counts = {"crossed": 0, "coloured": 0}
+    counts = {"crossed": 0, "coloured": 0, "global": 0, "filled": 0}
     if samples is None or table is None:
         return None, counts
     g = np.ones(3) if gain is None else np.asarray(gain, np.float64)
@@ -164,6 +169,7 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
     sig2 = np.where(found, table["sig2"][pos], np.inf)
     F = table["F"][pos]
     use = np.isfinite(sig2)
+    crossed = use.copy()
     counts["crossed"] = int(use.sum())
     C, B = (samples[k].astype(np.float64) * g for k in ("C", "B"))
     a = samples["a"].astype(np.float64)
@@ -173,6 +179,10 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
             (sigma_alpha ** 2 * ((B - F) ** 2).sum(-1) + ((1.0 - a) * sb) ** 2) / np.maximum(a, 1e-6) ** 2
         use &= sig2 < unmix2
     counts["coloured"] = int(use.sum())
+    fill = filled(samples["C"], samples["B"], samples["a"], samples["F0"])
+    k = 1.0 if view is None or table.get("brightness") is None else float(table["brightness"][view])
+    use, F, counts["global"], counts["filled"] = with_object_colour(use, crossed, fill, F, table.get("global"),
+                                                                    not gated or sigma_alpha is not None, k)
     if not use.any():
         return None, counts
     imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)

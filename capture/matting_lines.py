@@ -42,6 +42,10 @@ its cell's colour where the cell's expected error is below the unmixed colour's,
 capture.matting_colour: a view without one keeps its colour; sigma_B the plate's uncertainty where
 estimated).  Held out, the conifer turntable 24.80 -> 25.01 dB, orbit 26.22 -> 26.61, room + table
 + AE + lens 24.70 -> 24.74; a black capture and the fur before similar bricks the same digits.
+Since the eighth round (capture.matting_global) the cubes' lines are those of photo's alpha at least
+CELL_LINE_ALPHA, each cube's colour is drawn towards the object's by the cubes' measured spread, the
+filled pixels of a cube whose lines do not cross take the object's colour, those of a crossed cube its
+colour, and each view's colours are scaled by its brightness of the object: 25.46 / 26.89 / 24.81.
 """
 
 from __future__ import annotations
@@ -60,6 +64,14 @@ WINDOW_FRACTION = 31 / 640
 #: LINE_ALPHA_HI] (below, the line is the noise's; above, bark and branches, another colour).
 LINE_ALPHA_LO = 0.1
 LINE_ALPHA_HI = FILL_ALPHA
+#: The least photo's alpha of the lines crossed across the views (the cubes and the object's colour,
+#: :func:`cell_colours`, capture.matting_cells, capture.matting_global).  The faint lines pull the
+#: crossing towards the room's colour: on the conifer turntable's kept views the object's lines crossed
+#: as one group give red 0.068 from the lines of photo's alpha 0.1-0.3, 0.055 from 0.3-0.5, 0.048 from
+#: 0.5-0.85 (the truth 0.043, 0.040, 0.043).  Held out (gather, numpy twin, docs/matting.md eighth round),
+#: the cubes with the object's colour: turntable 0.1 / 0.3 / 0.5: 25.24 / 25.27 / 25.30 dB, orbit
+#: 26.61 / 26.62 / 26.62.
+CELL_LINE_ALPHA = 0.5
 #: Least lines in a window for its colour.
 MIN_LINES = 12
 #: Noise of a partial pixel's colour about its line (linear, Euclidean: 8-bit steps, the renderer's or
@@ -109,11 +121,11 @@ def line_alpha(C: np.ndarray, B: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.clip(d / np.maximum(np.linalg.norm(B - ref, axis=-1), 1e-6), 0.0, 1.0)
 
 
-def line_weights(a_line: np.ndarray, usable: np.ndarray, sigma_b: np.ndarray) -> np.ndarray:
+def line_weights(a_line: np.ndarray, usable: np.ndarray, sigma_b: np.ndarray, lo: float = LINE_ALPHA_LO) -> np.ndarray:
     """(h, w) weight of each pixel's line, 1 / (LINE_NOISE^2 + (1 - a)^2 sigma_B^2), on the ``usable``
-    pixels whose photo's alpha ``a_line`` is in [LINE_ALPHA_LO, LINE_ALPHA_HI]; 0 elsewhere."""
+    pixels whose photo's alpha ``a_line`` is in [``lo``, LINE_ALPHA_HI]; 0 elsewhere."""
     a = np.asarray(a_line, np.float64)
-    use = usable & (a >= LINE_ALPHA_LO) & (a <= LINE_ALPHA_HI)
+    use = usable & (a >= lo) & (a <= LINE_ALPHA_HI)
     return np.where(use, 1.0 / (LINE_NOISE ** 2 + ((1.0 - a) * sigma_b) ** 2), 0.0)
 
 
@@ -135,7 +147,8 @@ def _pack(M6: np.ndarray) -> np.ndarray:
     return M
 
 
-def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gsum, group: np.ndarray):
+def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gsum, group: np.ndarray,
+              terms: dict | None = None):
     """The colour shared by each group of samples (module docstring) for N samples: ``C``, ``B`` (N, 3),
     line weights ``w`` (N,), the matte's ``alpha`` (N,) (the start only); ``gsum``: (N, k) per-sample
     values -> (K, k) the totals of the K groups (a window's box sum: K = N, a 3D cell's sum), ``group``
@@ -143,7 +156,9 @@ def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gs
     Returns (F (K, 3), sigma^2 (K,) the expected squared error of a group's colour as one of its
     samples' own; inf where too few lines, M singular or ill-conditioned (smallest eigenvalue under
     MIN_CONDITION of the largest: the backgrounds too alike to tell F along the lines), or too few
-    lines with the colour beyond the photo)."""
+    lines with the colour beyond the photo).  ``terms``: a dict given the groups' last normal matrices
+    ``M`` (K, 3, 3), residual scales ``s`` (K,: the weighted squared residual per degree of freedom,
+    the estimate's covariance s M^-1), ``spread`` (K,: the first term of sigma^2) and line counts ``n``."""
     C, B, w = (np.asarray(x, np.float64) for x in (C, B, w))
     lines = w > 0
     am = np.where(lines, np.asarray(alpha, np.float64), 0.0)
@@ -182,6 +197,9 @@ def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gs
         rss, wa2s = T[keep, 9], T[keep, 10]
         var = rss / np.maximum(2.0 * n[keep] - 3.0, 1.0) * np.trace(np.linalg.inv(M[keep]), axis1=1, axis2=2)
         sig2[keep] = LINE_SPREAD * rss / np.maximum(wa2s, 1e-12) + var
+    if terms is not None:
+        terms.update(M=M, n=n, s=T[:, 9] / np.maximum(2.0 * n - 3.0, 1.0),
+                     spread=LINE_SPREAD * T[:, 9] / np.maximum(T[:, 10], 1e-12))
     return F, sig2
 
 
@@ -202,6 +220,14 @@ def cell_colour(points: np.ndarray, cell: float, C: np.ndarray, B: np.ndarray, w
     """(F (N, 3), sigma^2 (N,)) of :func:`group_fit` with each sample's group the cube of side ``cell``
     (world units) its 3D point ``points`` (N, 3) falls in: the partial pixels of every view that see
     the same part of the object, each before its own view's background."""
+    inv, gsum = cell_groups(points, cell)
+    F, sig2 = group_fit(C, B, w, alpha, gsum, inv)
+    return F[inv], sig2[inv]
+
+
+def cell_groups(points: np.ndarray, cell: float):
+    """(each sample's cube (N,) int64 in 0..K-1, its group sum for :func:`group_fit`) of the cubes of side
+    ``cell`` from the samples' lowest corner."""
     ijk = np.floor((np.asarray(points, np.float64) - np.min(points, 0)) / cell).astype(np.int64)
     dims = ijk.max(0) + 1
     _, inv = np.unique((ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2], return_inverse=True)
@@ -211,8 +237,7 @@ def cell_colour(points: np.ndarray, cell: float, C: np.ndarray, B: np.ndarray, w
     def gsum(x):
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
-    F, sig2 = group_fit(C, B, w, alpha, gsum, inv)
-    return F[inv], sig2[inv]
+    return inv, gsum
 
 
 def _implied(C: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -319,6 +344,8 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     the view keeps its colour; no list: every usable cell's colour) and sigma_B the samples' ``sb``.
     Per view (flat indices, colours (n, 3), alphas implied (n,)) or None, and the record (pixels, those
     in a usable cell, those given its colour, why none)."""
+    from capture.matting_global import cross_cells, filled, with_object_colour
+
     have = [s for s in samples if s is not None]
     rec = {"cells": cells, "pixels": int(sum(len(s["a"]) for s in have)), "crossed": 0, "coloured": 0}
     if not have:
@@ -331,12 +358,18 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     al = line_alpha(cat["C"], cat["B"], np.median(cat["F0"], 0))
     # sigma_B in the lines' weights too (estimated backgrounds weigh less): turntable 25.007 -> 24.987 dB,
     # AE + lens 24.743 -> 24.752 held out; left out
-    w = line_weights(al, cat["usable"], np.zeros(len(al)))
+    w = line_weights(al, cat["usable"], np.zeros(len(al)), CELL_LINE_ALPHA)
     extent = float((cat["pts"].max(0) - cat["pts"].min(0)).max())
     if extent <= 0 or int((w > 0).sum()) < MIN_LINES:
         return [None] * len(samples), {**rec, "reason": "too few partial pixels before a known background"}
-    F, sig2 = cell_colour(cat["pts"], extent / cells, cat["C"], cat["B"], w, cat["a"])
+    inv, gsum = cell_groups(cat["pts"], extent / cells)
+    fill = np.concatenate([filled(s["C"], s["B"], s["a"], s["F0"]) for s in have])  # each view's own exposure
+    view = np.concatenate([np.full(len(s["a"]), v) for v, s in enumerate(samples) if s is not None])
+    F, sig2, F_obj, kv, rec["global"] = cross_cells(cat["C"], cat["B"], w, cat["a"], cat["F0"], fill, gsum, inv,
+                                                    view, len(samples))
+    F, sig2 = F[inv], sig2[inv]
     ok = np.isfinite(sig2)
+    rec["global_coloured"] = rec["filled_coloured"] = 0
     out, off, blind = [], 0, 0
     for v, s in enumerate(samples):
         if s is None:
@@ -353,8 +386,12 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
                 (sa ** 2 * ((cat["B"][k] - F[k]) ** 2).sum(-1) + ((1.0 - cat["a"][k]) * sb[k]) ** 2) / a2
             use &= sig2[k] < unmix2
         rec["coloured"] += int(use.sum())
-        imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], F[k][use]), 0.0, 1.0)  # common exposure
-        out.append((s["index"][use], (F[k][use] / g[v]).astype(np.float32), imp.astype(np.float32))
+        allowed = sigma_alpha is None or sa is not None
+        use, Fv, n_obj, n_fill = with_object_colour(use, ok[k], fill[k], F[k], F_obj, allowed, kv[v])
+        rec["global_coloured"] += n_obj
+        rec["filled_coloured"] += n_fill
+        imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], Fv[use]), 0.0, 1.0)  # common exposure
+        out.append((s["index"][use], (Fv[use] / g[v]).astype(np.float32), imp.astype(np.float32))
                    if use.any() else None)
     rec["crossed"] = int(ok.sum())
     if blind:

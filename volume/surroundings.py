@@ -175,13 +175,15 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
         return tuple(scans), rec
     plates, originals = photos
     g = [None] * len(fits) if gains is None else list(np.asarray(gains, np.float64))
-    items = [None if f is None or plates[k] is None else (plates[k], originals[k], table, sigma_alpha[k], g[k])
+    items = [None if f is None or plates[k] is None else (plates[k], originals[k], table, sigma_alpha[k], g[k], k)
              for k, f in enumerate(fits)]
     out, notes = map_views(cell_colour_one, tuple(scans), PerView(items), "colour across views")
     for n in notes:
         if n is not None:
             rec["crossed"] += n["crossed"]
             rec["coloured"] += n["coloured"]
+            rec["global_coloured"] = rec.get("global_coloured", 0) + n["global"]
+            rec["filled_coloured"] = rec.get("filled_coloured", 0) + n["filled"]
             rec["views_without_alpha_error"] = rec.get("views_without_alpha_error", 0) + int(n["blind"])
     if not rec["views_without_alpha_error"]:
         del rec["views_without_alpha_error"]
@@ -192,18 +194,19 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
 
 def cell_colour_one(view, ref, arg):
     """One matted view's partial pixels given their cube's colour (:func:`cell_colour_passes`; ``arg``:
-    None, or (its plate, its photo's scan, the cubes' table, its alpha error or None, its gain or None)):
+    None, or (its plate, its photo's scan, the cubes' table, its alpha error or None, its gain or None, its
+    position)):
     (the scan or None when unchanged, the counts: crossed, coloured, blind)."""
     if arg is None:
         return None, None
     from capture.matting_cells import apply_cells
     from capture.matting_lines import line_samples
 
-    plate, photo, table, sa, gain = arg
+    plate, photo, table, sa, gain, v = arg
     plate = grow_plate(plate, *view.depth.shape[:2])
     s = line_samples(view.camera, photo.linear_rgb, plate.background, plate.known, view.alpha, view.rgb,
                      view.depth, plate.estimated, plate.sigma)
-    c, counts = apply_cells(s, table, sa, gain)
+    c, counts = apply_cells(s, table, sa, gain, view=v)
     counts["blind"] = s is not None and sa is None
     if c is None:
         return None, counts

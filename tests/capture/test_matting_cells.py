@@ -40,7 +40,7 @@ def _two_passes(samples, sa, gains, cap):
     fits = [mc.fit_sample(s, cap, k) for k, s in enumerate(samples)]
     table, rec = mc.fit_cells(fits, gains, cells=2)
     g = [None] * len(samples) if gains is None else gains
-    out = [mc.apply_cells(s, table, sa[k], g[k]) for k, s in enumerate(samples)]
+    out = [mc.apply_cells(s, table, sa[k], g[k], view=k) for k, s in enumerate(samples)]
     return [c for c, _ in out], sum(n["coloured"] for _, n in out), sum(n["crossed"] for _, n in out), rec
 
 
@@ -99,7 +99,7 @@ def _scene(n_views: int = 3, h: int = 36, w: int = 44):
         F = np.zeros((h, w, 3))
         F[depth > 0] = cols[(np.floor(x[:, 0] * 4) % 2 * 2 + np.floor(x[:, 2] * 4) % 2).astype(int)]
         B = rng.uniform(0.4, 0.9, (h, w, 3))
-        a = np.where(depth > 0, rng.uniform(0.15, 0.8, (h, w)), 0.0)
+        a = np.where(depth > 0, rng.uniform(0.45, 0.84, (h, w)), 0.0)
         C = a[..., None] * F + (1 - a[..., None]) * B + rng.normal(0, 0.003, B.shape)
         photos.append(Scan(np.clip(C, 0, 1).astype(np.float32), depth, cam, f"v{v}"))
         known = rng.uniform(size=(h, w)) > 0.05
