@@ -1,0 +1,24 @@
+"""`furrow` with issue 30's eighth-round switches set from the environment (docs/matting.md "The eighth round
+on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES (capture.matting_global,
+0 / 1) and CELL_LINE_ALPHA (capture.matting_lines).  Use ``--view-workers 1``: the view pool's processes
+import the modules afresh and would not see the switches.
+
+    ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
+        eval CAP --holdout 2 --methods gather --view-workers 1 --json X.json -o X
+"""
+import os
+import sys
+
+if __name__ == "__main__":
+    import capture.matting_global as mg
+    import capture.matting_lines as ml
+    for kv in filter(None, os.environ.get("ABL", "").split(",")):
+        k, v = kv.split("=")
+        if k == "CELL_LINE_ALPHA":
+            ml.CELL_LINE_ALPHA = float(v)
+            import capture.matting_cells as mc
+            mc.CELL_LINE_ALPHA = float(v)
+        else:
+            setattr(mg, k, bool(int(v)))
+    from furrow.cli import main
+    sys.exit(main(sys.argv[1:]))
