@@ -119,7 +119,7 @@ def colour_gate(estimated: np.ndarray, sigma: np.ndarray | None, record: dict | 
         hot = clipped(C, B)
         open_ = known & est & ~hot & (a > 0)  # blown-out pixels stay known: step 4 fills them
         seen = known & ~est & ~hot
-        F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
+        F = unmixed_colour(C, B, a)
         sure = seen & (a >= FILL_ALPHA)
         measure = (open_.any() and sigma is not None) or (GATE_SEEN and seen.any())
         sigma_f = fill_error(F, sure) if measure else None
@@ -150,3 +150,9 @@ def colour_gate(estimated: np.ndarray, sigma: np.ndarray | None, record: dict | 
         return known & ~(open_ & ~unmix) & ~drop
 
     return gate
+
+
+def unmixed_colour(C: np.ndarray, B: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """(..., 3) the straight colour under a known background, F = clip(B + (C - B) / a, 0, 1), alpha
+    floored at 1e-6 (``C``, ``B`` (..., 3) clipped to [0, 1] by the caller, ``alpha`` (...))."""
+    return np.clip(B + (C - B) / np.maximum(alpha, 1e-6)[..., None], 0.0, 1.0)

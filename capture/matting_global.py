@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.matting_colour import unmixed_colour
 from capture.matting_lines import MIN_LINES, group_fit
 
 #: Give the pixels no cube colours the object's colour (held out, gather, docs/matting.md eighth round).
@@ -78,8 +79,7 @@ def filled(C: np.ndarray, B: np.ndarray, alpha: np.ndarray, colour: np.ndarray) 
     """(N,) bool: the matte's ``colour`` (N, 3) is not the unmixed one, clip(B + (C - B) / a) (C, B
     clipped to [0, 1] as capture.matting_known.foreground_colour takes them), in one exposure."""
     C, B = (np.clip(np.asarray(x, np.float64), 0.0, 1.0) for x in (C, B))
-    a = np.maximum(np.asarray(alpha, np.float64), 1e-6)[:, None]
-    Fu = np.clip(B + (C - B) / a, 0.0, 1.0)
+    Fu = unmixed_colour(C, B, np.asarray(alpha, np.float64))
     return ~np.all(np.abs(Fu - np.asarray(colour, np.float64)) <= FILLED_TOL, axis=-1)
 
 
