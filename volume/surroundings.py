@@ -125,8 +125,8 @@ def matte_stage(work, cfg, ctx):
         logging.getLogger("furrow.capture").info("matte colour across views skipped: %s", skipped)
         with ctx.row("matte colour across views: skipped"):  # the stage table says so (why: the record)
             pass
-    cap = fit_cap(len(work.refs))  # a worker gets its view's plate only
-    per_view = PerView([(cfg, plates.get(ref.index), cap, k) for k, ref in enumerate(work.refs)])
+    cap = fit_cap(len(work.refs))
+    per_view = PerView([(cfg, plates.get(ref.index), cap, k) for k, ref in enumerate(work.refs)])  # its plate only
     with ctx.row("matte"):
         scans, notes = ctx.map_views(matte_one, work, per_view, "matting")
     fits = [None if n is None else n.pop("lines", None) for n in notes]
@@ -178,15 +178,13 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
     items = [None if f is None or plates[k] is None else (plates[k], originals[k], table, sigma_alpha[k], g[k], k)
              for k, f in enumerate(fits)]
     out, notes = map_views(cell_colour_one, tuple(scans), PerView(items), "colour across views")
-    for n in notes:
-        if n is not None:
-            rec["crossed"] += n["crossed"]
-            rec["coloured"] += n["coloured"]
-            rec["global_coloured"] = rec.get("global_coloured", 0) + n["global"]
-            rec["filled_coloured"] = rec.get("filled_coloured", 0) + n["filled"]
-            rec["views_without_alpha_error"] = rec.get("views_without_alpha_error", 0) + int(n["blind"])
-    if not rec["views_without_alpha_error"]:
-        del rec["views_without_alpha_error"]
+    have = [n for n in notes if n is not None]
+    for key, name in (("crossed", "crossed"), ("coloured", "coloured"), ("global", "global_coloured"),
+                      ("filled", "filled_coloured")):
+        rec[name] = rec.get(name, 0) + sum(int(n[key]) for n in have)
+    blind = sum(int(n["blind"]) for n in have)
+    if blind:
+        rec["views_without_alpha_error"] = blind
     if not rec["crossed"]:
         rec["reason"] = "the lines cross in no cell (too few, or the backgrounds behind them too alike)"
     return out, rec
