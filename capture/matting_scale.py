@@ -48,6 +48,17 @@ OBJECT_WORK_PX = 640
 DEPTH_OVERSAMPLE = 2.0
 #: Scales above this solve at full size.
 FULL_SIZE_ABOVE = 0.8
+#: A **solid** object (leaves, a pot: its depth's trimap leaves at most SOLID_BAND_SHARE of the
+#: object's pixels, unknown and opaque, unknown) keeps only SOLID_WORK_PX pixels along its longer side
+#: (the depth's floor still holds).  A needle conifer's trimap is nearly all band (its opaque core
+#: eroded away).  Measured (docs/speed.md round 8, the plate path against the full-size solve, alpha
+#: MSE over the frame): 8 views of the 72-view 1280x960 phone plant, band share 0.34-0.48, at 0.4 /
+#: 0.5 / 0.6 / 0.7 worst 0.0019 / 0.0013 / 0.0014 / 0.0014; the path-traced conifer turntable (36
+#: views, band share 0.973-0.978) at 0.5 / 0.7 worst 0.028 / 0.017 (issue 32's bar 0.002): it keeps
+#: OBJECT_WORK_PX.  Only these two kinds of object were measured; a conifer whose depth is coarse
+#: enough to leave an opaque core (a phone's) was not.
+SOLID_BAND_SHARE = 0.6
+SOLID_WORK_PX = 400
 #: Fast guided filter: window radius at the working resolution (pixels) and regularisation epsilon
 #: (linear colour squared).
 GUIDE_RADIUS = 2
@@ -76,15 +87,26 @@ def object_box(trimap: np.ndarray, pad: int = CROP_PAD) -> tuple[slice, slice] |
             slice(max(0, xs.min() - pad), min(W, xs.max() + pad + 1)))
 
 
+def band_share(trimap: np.ndarray) -> float:
+    """The share of the object's pixels (the trimap's unknown and opaque) that are unknown; 0 without any."""
+    t = np.asarray(trimap)
+    unk = np.count_nonzero(t == UNKNOWN)
+    obj = unk + np.count_nonzero(t >= FG)
+    return unk / obj if obj else 0.0
+
+
 def working_scale(trimap: np.ndarray, depth_width: int | None = None, object_px: int = OBJECT_WORK_PX,
-                  depth_oversample: float = DEPTH_OVERSAMPLE) -> float:
-    """The scale (<= 1) a view's matte is solved at (module docstring): the larger of ``object_px`` over
-    the object box's longer side and ``depth_oversample`` x ``depth_width`` over the image width; 1
-    above FULL_SIZE_ABOVE, for no object, or ``object_px`` 0 (the full-size reference)."""
+                  depth_oversample: float = DEPTH_OVERSAMPLE, solid_px: int = SOLID_WORK_PX) -> float:
+    """The scale (<= 1) a view's matte is solved at (module docstring): the larger of ``object_px``
+    (``solid_px`` for a solid object: :func:`band_share` at most SOLID_BAND_SHARE; 0: no such rule)
+    over the object box's longer side and ``depth_oversample`` x ``depth_width`` over the image width;
+    1 above FULL_SIZE_ABOVE, for no object, or ``object_px`` 0 (the full-size reference)."""
     box = object_box(trimap, 0)
     if box is None or object_px <= 0:
         return 1.0
     side = max(box[0].stop - box[0].start, box[1].stop - box[1].start)
+    if 0 < solid_px < object_px and band_share(trimap) <= SOLID_BAND_SHARE:
+        object_px = solid_px
     s = object_px / side
     if depth_width:
         s = max(s, depth_oversample * depth_width / np.shape(trimap)[1])

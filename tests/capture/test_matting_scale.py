@@ -11,6 +11,10 @@ from capture import matting_scale
 from capture.matting import BG, FG, UNKNOWN, MatteConfig, depth_trimap, matte_scan, solve_matte
 from capture.matting_scale import (
     FULL_SIZE_ABOVE,
+    OBJECT_WORK_PX,
+    SOLID_BAND_SHARE,
+    SOLID_WORK_PX,
+    band_share,
     downscale_trimap,
     guided_upsample,
     guided_upsample_at,
@@ -153,6 +157,26 @@ def test_working_scale_rule():
     assert working_scale(tri, depth_width=256, object_px=400) == pytest.approx(0.4)  # the object binds
     assert working_scale(tri, object_px=0) == 1.0  # the reference
     assert working_scale(tri, object_px=int(1000 * FULL_SIZE_ABOVE) + 1) == 1.0
+
+
+def test_working_scale_solid_rule():
+    """An object whose trimap is mostly opaque (a band share at most SOLID_BAND_SHARE) keeps only
+    SOLID_WORK_PX; one that is nearly all band (needles) keeps OBJECT_WORK_PX; the depth still binds."""
+    tri = np.zeros((960, 1280))
+    tri[100:900, 200:1000] = UNKNOWN  # an 800-pixel object, all band
+    assert band_share(tri) == 1.0
+    assert working_scale(tri) == pytest.approx(OBJECT_WORK_PX / 800)
+    tri[150:850, 250:950] = FG  # an opaque core: band share 1 - 700^2 / 800^2 = 0.23
+    assert band_share(tri) == pytest.approx(1 - 700 ** 2 / 800 ** 2)
+    assert band_share(tri) <= SOLID_BAND_SHARE
+    assert working_scale(tri) == pytest.approx(SOLID_WORK_PX / 800)
+    assert working_scale(tri, depth_width=512) == pytest.approx(2 * 512 / 1280)  # the depth binds
+    assert working_scale(tri, solid_px=0) == pytest.approx(OBJECT_WORK_PX / 800)  # the rule off
+    assert working_scale(tri, object_px=0) == 1.0  # the reference
+    tri[150:850, 250:950] = UNKNOWN
+    tri[400:600, 500:700] = FG  # a small core: band share 1 - 200^2 / 800^2, above the bar
+    assert band_share(tri) > SOLID_BAND_SHARE
+    assert working_scale(tri) == pytest.approx(OBJECT_WORK_PX / 800)
 
 
 def test_matte_scan_at_the_working_resolution(case, monkeypatch):
