@@ -187,7 +187,9 @@ def solve_matte(image: np.ndarray, trimap: np.ndarray, method: str, reference: b
     unknown band covers a whole pot plant), alpha is ``fallback`` (H, W) (the object's depth mask;
     default the trimap's opaque pixels) and the method says so: one view's matte must not stop a
     model."""
-    from pymatting import estimate_alpha_cf, estimate_foreground_ml
+    from pymatting import estimate_alpha_cf
+
+    from capture.foreground_ml import estimate_foreground_ml
 
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     H, W = trimap.shape
@@ -359,7 +361,7 @@ def _kept(gate, out: dict):
 
 def _foreground(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """ML foreground of ``image`` under a given ``alpha`` on the crop around alpha > 0."""
-    from pymatting import estimate_foreground_ml
+    from capture.foreground_ml import estimate_foreground_ml
 
     fg = np.asarray(image, np.float32).copy()
     box = _crop(np.where(alpha > 0, UNKNOWN, BG))

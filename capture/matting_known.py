@@ -404,8 +404,7 @@ def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:
 def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None = None) -> np.ndarray:
     """pymatting's ML foreground of ``image`` under ``alpha``, computed on the box around the
     ``need`` (h, w) pixels only (the image elsewhere); None: everywhere."""
-    from pymatting import estimate_foreground_ml
-
+    from capture.foreground_ml import estimate_foreground_ml
     from capture.matting import _crop
 
     F = np.asarray(image, np.float64).copy()
