@@ -221,8 +221,8 @@ def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gai
     the robust mode (:func:`robust_mode`) of the frames' samples weighted by ``weights`` (default
     :func:`fixed_sample_weight`), with the samples blown out in their own frame as lower bounds
     (:func:`censored_mode`, FIXED_CENSOR_CLIPPED); NaN where fewer than FIXED_MIN_FRAMES agree."""
+    from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
-    from capture.plate_gather import gather_frame  # compiled, without the GIL (the same values)
 
     x, y = pix[:, 0], pix[:, 1]
     frames = [j for j in range(len(views)) if j != i] if frames is None else frames
@@ -231,8 +231,11 @@ def fixed_prediction(views: list[PlateView], pix: np.ndarray, i: int | None, gai
     hot = np.zeros((len(frames), len(pix)), bool)
     for row, j in enumerate(frames):
         v = views[j]
-        gather_frame(v.linear, fixed_sample_weight(v.object_depth) if weights is None else weights[j], y, x,
-                     gains[j], CLIP_LEVEL, s[row], w[row], hot[row])
+        w[row] = (fixed_sample_weight(v.object_depth) if weights is None else weights[j])[y, x]
+        ok = w[row] > 0
+        c = v.linear[y[ok], x[ok]]
+        s[row, ok] = c * gains[j]
+        hot[row, ok] = channel_max(c) >= CLIP_LEVEL  # c.max(axis=-1)
     if FIXED_CENSOR_CLIPPED:
         col, _, bound = censored_mode(s, w, hot)
         return col, bound
