@@ -167,3 +167,19 @@ def test_views_of_one_tint_lose_little_and_one_brightness_has_none(monkeypatch):
     views, truth = _tinted_views(0, np.ones((5, 3)))
     _, rec = ml.cell_colours(views, [0.05] * len(views), cells=2)
     assert "chroma" not in rec["global"] and rec["global"]["brightness"]["reason"].startswith("the views' brightness")
+
+
+def test_the_two_passes_give_the_references_tinted_colours():
+    """The pipeline's two passes (capture.matting_cells: the fit's table, each view applying its own brightness
+    and tint) give cell_colours' colours bit for bit on tinted views."""
+    from capture import matting_cells as mc
+
+    views, _ = _tinted_views(0, TINTS)
+    views = [{**v, **{k: np.asarray(v[k], np.float32) for k in ("pts", "C", "B", "a", "F0", "sb")}} for v in views]
+    ref, rrec = ml.cell_colours(views, [0.05] * len(views), cells=2)
+    assert "tau" in rrec["global"]["chroma"]
+    table, rec = mc.fit_cells([mc.fit_sample(v, 10 ** 6, k) for k, v in enumerate(views)], cells=2)
+    assert np.asarray(table["brightness"]).shape == (len(views), 3)
+    for k, (v, r) in enumerate(zip(views, ref, strict=True)):
+        got, _ = mc.apply_cells(v, table, 0.05, view=k)
+        assert all(np.array_equal(x, y) for x, y in zip(r, got, strict=True))
