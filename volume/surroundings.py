@@ -175,6 +175,9 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
         return tuple(scans), rec
     plates, originals = photos
     g = [None] * len(fits) if gains is None else list(np.asarray(gains, np.float64))
+    from capture.matting_contrast import pooled_alpha_errors  # as cell_colours: a view without one borrows
+
+    sigma_alpha, rec["alpha_error_pooled"] = pooled_alpha_errors(sigma_alpha, [f is not None for f in fits])
     items = [None if f is None or plates[k] is None else (plates[k], originals[k], table, sigma_alpha[k], g[k], k)
              for k, f in enumerate(fits)]
     out, notes = map_views(cell_colour_one, tuple(scans), PerView(items), "colour across views")

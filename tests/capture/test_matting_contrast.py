@@ -183,3 +183,45 @@ def test_the_two_passes_give_the_references_tinted_colours():
     for k, (v, r) in enumerate(zip(views, ref, strict=True)):
         got, _ = mc.apply_cells(v, table, 0.05, view=k)
         assert all(np.array_equal(x, y) for x, y in zip(r, got, strict=True))
+
+
+def test_a_view_without_an_alpha_error_borrows_the_views_median_where_most_measured_one(monkeypatch):
+    sa, rec = mk.pooled_alpha_errors([0.05, None, 0.07, 0.06])
+    assert sa == [0.05, 0.06, 0.07, 0.06] and rec == {"borrowed": 1, "sigma_alpha": 0.06}
+    sa, rec = mk.pooled_alpha_errors([0.05, None, None, 0.06], [True, True, True, False])  # 1 of 3 with samples
+    assert sa == [0.05, None, None, 0.06] and rec["reason"] == "only 1 of 3 views measured one"
+    assert mk.pooled_alpha_errors([None] * 3)[0] == [None] * 3  # the fur: none measured
+    views, truth = _tinted_views(1, TINTS)
+    errs = []
+    for on in (True, False):
+        monkeypatch.setattr(mk, "POOL_ALPHA_ERROR", on)
+        colours, rec = ml.cell_colours(views, [0.05, 0.05, None, 0.05, 0.05], cells=2)
+        errs.append(_worst([views[2]], [truth[2]], [colours[2]]))
+    assert colours[2] is None and rec["views_without_alpha_error"] == 1
+    assert errs[0] <= TINT_TOL < errs[1]  # the trunk's fill kept: 0.29 off
+
+
+def test_the_stages_two_passes_pool_the_alpha_errors_as_the_reference():
+    from capture import matting_cells as mc
+    from capture.matting_lines import line_samples
+    from capture.view_map import serial_map
+    from tests.capture.test_matting_cells import _scene
+    from volume.surroundings import cell_colour_passes, cell_colour_stage
+
+    photos, plates, matted = _scene()
+    sa, gains = [0.1, 0.08, None], np.array([[1.0, 1.0, 1.0], [1.2, 1.1, 1.0], [1.0, 0.9, 1.1]])
+    whole = [line_samples(s.camera, photos[k].linear_rgb, plates[k].background, plates[k].known, s.alpha, s.rgb,
+                          s.depth, plates[k].estimated, plates[k].sigma) for k, s in enumerate(matted)]
+    ref, rrec = cell_colour_stage(tuple(matted), whole, sa, gains, lambda s: s)
+    fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+    got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    assert rec["alpha_error_pooled"] == rrec["alpha_error_pooled"] == {"borrowed": 1, "sigma_alpha": 0.09}
+    assert "views_without_alpha_error" not in rec and rec["coloured"] == rrec["coloured"] > 0
+    for r, g in zip(ref, got, strict=True):
+        assert np.array_equal(r.rgb, g.rgb) and np.array_equal(r.alpha, g.alpha)
+    assert not np.array_equal(got[2].rgb, matted[2].rgb)
+
+
+def test_two_views_one_blind_keep_the_blind_ones_colour():
+    assert mk.pooled_alpha_errors([None, 0.05]) == ([None, 0.05], {"borrowed": 0,
+                                                                    "reason": "only 1 of 2 views measured one"})
