@@ -180,7 +180,7 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
         use &= sig2 < unmix2
     counts["coloured"] = int(use.sum())
     fill = filled(samples["C"], samples["B"], samples["a"], samples["F0"])
-    k = 1.0 if view is None or table.get("brightness") is None else float(table["brightness"][view])
+    k = 1.0 if view is None or table.get("brightness") is None else np.asarray(table["brightness"][view], np.float64)
     use, F, counts["global"], counts["filled"] = with_object_colour(use, crossed, fill, F, table.get("global"),
                                                                     not gated or sigma_alpha is not None, k)
     if not use.any():

@@ -49,6 +49,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.matting_colour import unmixed_colour
+from capture.matting_contrast import agreeing_lines, contrast_weights, view_chroma
 from capture.matting_lines import MIN_LINES, group_fit
 
 #: Give the pixels no cube colours the object's colour (held out, gather, docs/matting.md eighth round).
@@ -91,6 +92,8 @@ def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill) -> tuple[n
     rec: dict = {"lines": int((np.asarray(w) > 0).sum())}
     if not GLOBAL:
         return None, {**rec, "reason": "off"}
+    w, rec["agreeing"] = agreeing_lines(C, B, w, alpha, colour)  # capture.matting_contrast: the lines the
+    w, rec["contrast"] = contrast_weights(C, B, w, alpha)  # two alphas agree on (the lever's weights: off)
     li = np.flatnonzero(np.asarray(w) > 0)  # the others add nothing to the sums
     F, sig2 = group_fit(C[li], B[li], w[li], alpha[li], lambda x: x.sum(0, keepdims=True), np.zeros(len(li), np.int64))
     if not np.isfinite(sig2[0]):
@@ -177,7 +180,7 @@ def cross_cells(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
     weights ``w``, the matte's ``alpha`` and ``colour``, ``fill`` (:func:`filled`); ``gsum`` / ``group``
     as capture.matting_lines.group_fit's; ``view`` (N,) each sample's view of ``n_views``): (F (K, 3),
     sigma^2 (K,) inf where the cube's lines do not cross, the object's colour (3,) or None, each view's
-    brightness (n_views,), the record)."""
+    brightness (n_views,) or, with its tint (capture.matting_contrast.view_chroma), (n_views, 3), the record)."""
     terms: dict = {}
     F, sig2 = group_fit(C, B, w, alpha, gsum, group, terms)
     crossed = np.isfinite(sig2[group])
@@ -189,17 +192,21 @@ def cross_cells(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
     else:
         li = np.flatnonzero(w > 0)  # the others add nothing to the sums
         ref = np.where(crossed[li, None], F[group[li]], F_obj)
-        k, rec["brightness"] = view_brightness(C[li], B[li], w[li], ref, np.asarray(view, np.int64)[li], n_views)
+        vl = np.asarray(view, np.int64)[li]
+        k, rec["brightness"] = view_brightness(C[li], B[li], w[li], ref, vl, n_views)
+        if "k" in rec["brightness"]:  # each view's tint about its brightness (capture.matting_contrast)
+            tint, rec["chroma"] = view_chroma(C[li], B[li], w[li], ref, vl, n_views, k)
+            k = k[:, None] * tint
     return F, sig2, F_obj, k, rec
 
 
 def with_object_colour(use: np.ndarray, crossed: np.ndarray, fill: np.ndarray, F: np.ndarray, F_obj,
-                       allowed: bool = True, k: float = 1.0) -> tuple[np.ndarray, np.ndarray, int, int]:
+                       allowed: bool = True, k=1.0) -> tuple[np.ndarray, np.ndarray, int, int]:
     """One view's samples: (the pixels given a colour, their colours (N, 3) times the view's brightness
-    ``k`` where given: the cube's where ``use`` or (FILLED_CUBES) where the cube's lines cross and the
-    colour was filled, the object's ``F_obj`` where they do not cross and the colour was filled; the
-    filled ones only when ``allowed`` and F_obj is not None), how many took the object's, how many
-    filled ones took their cube's)."""
+    ``k`` (a scalar, or (3,) with its tint) where given: the cube's where ``use`` or (FILLED_CUBES) where
+    the cube's lines cross and the colour was filled, the object's ``F_obj`` where they do not cross
+    and the colour was filled; the filled ones only when ``allowed`` and F_obj is not None), how many
+    took the object's, how many filled ones took their cube's)."""
     none = np.zeros(len(use), bool)
     crossed = np.asarray(crossed, bool)
     obj = none if F_obj is None or not allowed else ~crossed & fill

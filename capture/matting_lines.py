@@ -350,6 +350,9 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     rec = {"cells": cells, "pixels": int(sum(len(s["a"]) for s in have)), "crossed": 0, "coloured": 0}
     if not have:
         return [None] * len(samples), {**rec, "reason": "no partial pixels with depth"}
+    if sigma_alpha is not None:  # a view without its own alpha error borrows the views' (capture.matting_contrast)
+        from capture.matting_contrast import pooled_alpha_errors
+        sigma_alpha, rec["alpha_error_pooled"] = pooled_alpha_errors(sigma_alpha, [s is not None for s in samples])
     g = np.ones((len(samples), 3)) if gains is None else np.asarray(gains, np.float64)
     cat = {k: np.concatenate([s[k] * (g[v] if k in ("C", "B", "F0") else 1) for v, s in enumerate(samples)
                               if s is not None]).astype(np.float64 if k != "usable" else bool)

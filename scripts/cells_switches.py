@@ -1,6 +1,7 @@
 """`furrow` with issue 30's eighth-round switches set from the environment (docs/matting.md "The eighth round
 on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES (capture.matting_global,
-0 / 1) and CELL_LINE_ALPHA (capture.matting_lines).  Use ``--view-workers 1``: the view pool's processes
+0 / 1), CELL_LINE_ALPHA (capture.matting_lines) and the ninth round's AGREEING, CONTRAST, VIEW_CHROMA,
+CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast).  Use ``--view-workers 1``: the view pool's processes
 import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
@@ -10,6 +11,7 @@ import os
 import sys
 
 if __name__ == "__main__":
+    import capture.matting_contrast as mk
     import capture.matting_global as mg
     import capture.matting_lines as ml
     for kv in filter(None, os.environ.get("ABL", "").split(",")):
@@ -18,7 +20,9 @@ if __name__ == "__main__":
             ml.CELL_LINE_ALPHA = float(v)
             import capture.matting_cells as mc
             mc.CELL_LINE_ALPHA = float(v)
+        elif k == "AGREE_TOL":
+            mk.AGREE_TOL = float(v)
         else:
-            setattr(mg, k, bool(int(v)))
+            setattr(mk if hasattr(mk, k) else mg, k, bool(int(v)))
     from furrow.cli import main
     sys.exit(main(sys.argv[1:]))

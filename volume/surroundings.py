@@ -169,12 +169,15 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
     ``gains``: as :func:`cell_colour_stage` (the reference, all the views' samples at once, which
     gives the same colours where nothing is drawn).  (The scans, the record.)"""
     from capture.matting_cells import fit_cells
+    from capture.matting_contrast import pooled_alpha_errors
 
     table, rec = fit_cells(fits, gains)
     if table is None:
         return tuple(scans), rec
     plates, originals = photos
     g = [None] * len(fits) if gains is None else list(np.asarray(gains, np.float64))
+    # as cell_colours: a view without its own alpha error borrows the views' median (capture.matting_contrast)
+    sigma_alpha, rec["alpha_error_pooled"] = pooled_alpha_errors(sigma_alpha, [f is not None for f in fits])
     items = [None if f is None or plates[k] is None else (plates[k], originals[k], table, sigma_alpha[k], g[k], k)
              for k, f in enumerate(fits)]
     out, notes = map_views(cell_colour_one, tuple(scans), PerView(items), "colour across views")

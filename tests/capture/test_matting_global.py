@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture import matting_cells as mc
+from capture import matting_contrast as mk
 from capture import matting_global as mg
 from capture import matting_lines as ml
 
@@ -186,7 +187,9 @@ def test_each_views_brightness_is_found_from_its_lines_and_its_colours_follow_it
     each view's k relative to the middle one's within K_TOL (measured 0.003-0.126: the cubes are crossed
     from every view's lines, so the brightest view's k comes out low, 1.26-1.33); each view's colours
     within 0.02 of its own truth (measured 0.006-0.019), the worst view's error at most 0.6 of it with
-    the brightness off (measured 0.38-0.43)."""
+    the brightness off (measured 0.38-0.43).  The views' tint off (capture.matting_contrast.view_chroma:
+    on these views of one tint it costs 0.0004-0.0065 of the worst view's error, seeds 0-2)."""
+    monkeypatch.setattr(mk, "VIEW_CHROMA", False)
     k_true = np.array([0.7, 1.0, 1.4, 1.0, 0.85])
     for seed in range(2):
         views, truth = _lit_views(seed, k_true)
