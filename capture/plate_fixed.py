@@ -170,7 +170,9 @@ def fixed_sample_weight(object_depth: np.ndarray, fast: bool | None = None) -> n
         return np.ones(m.shape, np.float32)
     band, exclude = px(SOURCE_BAND_FRACTION, W), px(FIXED_EXCLUDE_FRACTION, W)
     if EDT_OPENCV if fast is None else fast:
-        return _near_weight(m, band, exclude)
+        from capture.plate_weight import WEIGHT_BOX, near_weight_box  # the box alone (same values)
+
+        return (near_weight_box if WEIGHT_BOX else _near_weight)(m, band, exclude)
     d = ndimage.distance_transform_edt(~m)
     return np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0).astype(np.float32)
 
