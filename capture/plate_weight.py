@@ -1,4 +1,5 @@
-"""The fixed camera's sample weights on the object's neighbourhood only (issue 32, round 9).
+"""The fixed camera's sample weights on the object's neighbourhood only, and the need mask by one
+dilation (issue 32, round 9).
 
 ``capture.plate_fixed.fixed_sample_weight`` weighs each frame's pixels by their distance to the
 object's depth: 0 within the exclusion, rising to 1 at the source band (16 px at 1280 wide).  Every
@@ -8,6 +9,14 @@ Euclidean distance transform on that box: every object pixel lies inside it, so 
 it is the whole frame's (the exact transform is the minimum over the object's pixels), and outside
 it every weight is 1.  The whole frame's transform (``capture.plate_fixed._near_weight``) stays as
 the reference; tests/capture/test_plate_weight.py holds them equal bit for bit.
+
+``capture.plate.need_mask`` built the float64 trimap (``capture.matting.depth_trimap``: an erosion, a
+dilation, a whole-frame float64 array) only to dilate its nonzero pixels again.  Those are the
+depth's pixels dilated by the trimap's band (the sure object, eroded, lies inside them), and two
+dilations by the cross compose into one of their summed iterations (the diamond of radius a + b; a
+pixel within it of an object pixel in the frame is reached by a path inside the frame), so
+:func:`need_by_one_dilation` dilates the depth's mask once: the same mask (the trimap's path kept in
+``need_mask(..., fast=False)``).
 """
 
 from __future__ import annotations
@@ -17,6 +26,9 @@ import numpy as np
 #: capture.plate_fixed.fixed_sample_weight takes its distances on the object's box
 #: (:func:`near_weight_box`; False: the whole frame's, ``plate_fixed._near_weight``, the same values).
 WEIGHT_BOX = True
+#: capture.plate.need_mask dilates the depth's mask once (:func:`need_by_one_dilation`; False: from
+#: the trimap, the reference, the same mask).
+NEED_ONE_DILATION = True
 #: The box around the object is widened by the source band plus this many pixels: a pixel whose
 #: distance is below ``band`` + 1 (the only ones whose weight is below 1 or rounded) lies within
 #: ``band`` + 1 pixels of an object pixel along each axis, so ``band`` + BOX_MARGIN_PX covers it.
@@ -53,3 +65,15 @@ def near_weight_box(m: np.ndarray, band: int, exclude: int) -> np.ndarray:
     sub = out[box]
     sub[near] = np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0)
     return out
+
+
+def need_by_one_dilation(object_depth: np.ndarray) -> np.ndarray:
+    """``capture.plate.need_mask(object_depth)`` (the same (H, W) bool): the depth's mask dilated by the
+    trimap's band and the known-background path's widening in one dilation (module docstring)."""
+    from capture.matting import BAND_FRACTION, _px
+    from capture.matting_fast import dilate
+    from capture.matting_known import widen_px
+
+    m = np.asarray(object_depth) > 0
+    W = m.shape[1]
+    return dilate(m, _px(BAND_FRACTION, W) + widen_px(W))
