@@ -219,9 +219,14 @@ def source_mask(object_depth: np.ndarray) -> np.ndarray:
     return ~dilate(m, px(SOURCE_BAND_FRACTION, m.shape[1]))  # ndimage.binary_dilation(m, iterations=...)
 
 
-def need_mask(object_depth: np.ndarray) -> np.ndarray:
+def need_mask(object_depth: np.ndarray, fast: bool | None = None) -> np.ndarray:
     """(H, W) bool pixels whose background the matte may ask for: the trimap's band and opaque
-    pixels, widened as capture.matting_known widens it."""
+    pixels, widened as capture.matting_known widens it.  ``fast`` (default NEED_ONE_DILATION): by one
+    dilation (capture.plate_weight.need_by_one_dilation), the same mask as the trimap's (False)."""
+    from capture import plate_weight as pw
+
+    if pw.NEED_ONE_DILATION if fast is None else fast:
+        return pw.need_by_one_dilation(object_depth)
     tri = depth_trimap(object_depth)
     return dilate(tri > 0, widen_px(tri.shape[1]))  # ndimage.binary_dilation(..., iterations=...)
 

@@ -170,7 +170,9 @@ def fixed_sample_weight(object_depth: np.ndarray, fast: bool | None = None) -> n
         return np.ones(m.shape, np.float32)
     band, exclude = px(SOURCE_BAND_FRACTION, W), px(FIXED_EXCLUDE_FRACTION, W)
     if EDT_OPENCV if fast is None else fast:
-        return _near_weight(m, band, exclude)
+        from capture.plate_weight import WEIGHT_BOX, near_weight_box  # the box alone (same values)
+
+        return (near_weight_box if WEIGHT_BOX else _near_weight)(m, band, exclude)
     d = ndimage.distance_transform_edt(~m)
     return np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0).astype(np.float32)
 
@@ -386,9 +388,11 @@ def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound, sigma
     """fixed_draw's plates, one view at a time (a generator: the caller may crop each before the next);
     each also with the lines' uncertainty (H, W) float32 in its own exposure (0 where not estimated).
     The views are drawn side by side (capture.plate_threads; the same plates), a few ahead at most."""
+    from capture.plate_draw import DRAW_FLAT, fixed_view_flat  # one flat index (the same plates)
     from capture.plate_threads import thread_map
 
-    return thread_map(lambda j: _fixed_view(ps.views[j], gains[j], needs[j], shape, y, x, med, est, bound, sigma),
+    view = fixed_view_flat if DRAW_FLAT else _fixed_view
+    return thread_map(lambda j: view(ps.views[j], gains[j], needs[j], shape, y, x, med, est, bound, sigma),
                       range(len(ps.views)))
 
 

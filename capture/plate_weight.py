@@ -1,0 +1,79 @@
+"""The fixed camera's sample weights on the object's neighbourhood only, and the need mask by one
+dilation (issue 32, round 9).
+
+``capture.plate_fixed.fixed_sample_weight`` weighs each frame's pixels by their distance to the
+object's depth: 0 within the exclusion, rising to 1 at the source band (16 px at 1280 wide).  Every
+pixel farther than the band from the object is 1 whatever its distance, so only the box around the
+object widened by the band needs a distance at all.  :func:`near_weight_box` takes OpenCV's exact
+Euclidean distance transform on that box: every object pixel lies inside it, so each distance in
+it is the whole frame's (the exact transform is the minimum over the object's pixels), and outside
+it every weight is 1.  The whole frame's transform (``capture.plate_fixed._near_weight``) stays as
+the reference; tests/capture/test_plate_weight.py holds them equal bit for bit.
+
+``capture.plate.need_mask`` built the float64 trimap (``capture.matting.depth_trimap``: an erosion, a
+dilation, a whole-frame float64 array) only to dilate its nonzero pixels again.  Those are the
+depth's pixels dilated by the trimap's band (the sure object, eroded, lies inside them), and two
+dilations by the cross compose into one of their summed iterations (the diamond of radius a + b; a
+pixel within it of an object pixel in the frame is reached by a path inside the frame), so
+:func:`need_by_one_dilation` dilates the depth's mask once: the same mask (the trimap's path kept in
+``need_mask(..., fast=False)``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: capture.plate_fixed.fixed_sample_weight takes its distances on the object's box
+#: (:func:`near_weight_box`; False: the whole frame's, ``plate_fixed._near_weight``, the same values).
+WEIGHT_BOX = True
+#: capture.plate.need_mask dilates the depth's mask once (:func:`need_by_one_dilation`; False: from
+#: the trimap, the reference, the same mask).
+NEED_ONE_DILATION = True
+#: The box around the object is widened by the source band plus this many pixels: a pixel whose
+#: distance is below ``band`` + 1 (the only ones whose weight is below 1 or rounded) lies within
+#: ``band`` + 1 pixels of an object pixel along each axis, so ``band`` + BOX_MARGIN_PX covers it.
+BOX_MARGIN_PX = 2
+
+
+def object_box(m: np.ndarray, grow: int) -> tuple[slice, slice] | None:
+    """(rows, cols) slices of the box holding every True of the 2-D bool ``m``, widened by ``grow``
+    pixels on each side and clipped to the frame; None when ``m`` holds no True."""
+    import cv2
+
+    x, y, w, h = cv2.boundingRect(m.view(np.uint8))
+    if w == 0 or h == 0:
+        return None
+    H, W = m.shape
+    return (slice(max(0, y - grow), min(H, y + h + grow)), slice(max(0, x - grow), min(W, x + w + grow)))
+
+
+def near_weight_box(m: np.ndarray, band: int, exclude: int) -> np.ndarray:
+    """(H, W) float32 the same weights as ``capture.plate_fixed._near_weight(m, band, exclude)``
+    (bit for bit), its distances taken on the object's box only (module docstring): 0 where the
+    distance to ``m`` is at most ``exclude``, d / ``band`` clipped to 1 beyond, 1 where ``m`` is empty."""
+    import cv2
+
+    m = np.ascontiguousarray(m, bool)
+    out = np.ones(m.shape, np.float32)
+    box = object_box(m, band + BOX_MARGIN_PX)
+    if box is None:
+        return out
+    free = np.logical_not(m[box]).view(np.uint8)
+    d32 = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    near = d32 < band + 1
+    d = np.sqrt(np.rint(d32[near].astype(np.float64) ** 2))
+    sub = out[box]
+    sub[near] = np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0)
+    return out
+
+
+def need_by_one_dilation(object_depth: np.ndarray) -> np.ndarray:
+    """``capture.plate.need_mask(object_depth)`` (the same (H, W) bool): the depth's mask dilated by the
+    trimap's band and the known-background path's widening in one dilation (module docstring)."""
+    from capture.matting import BAND_FRACTION, _px
+    from capture.matting_fast import dilate
+    from capture.matting_known import widen_px
+
+    m = np.asarray(object_depth) > 0
+    W = m.shape[1]
+    return dilate(m, _px(BAND_FRACTION, W) + widen_px(W))
