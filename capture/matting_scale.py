@@ -78,13 +78,15 @@ OPAQUE_ALPHA = 1.0 - 1e-3
 
 
 def object_box(trimap: np.ndarray, pad: int = CROP_PAD) -> tuple[slice, slice] | None:
-    """(rows, cols) of the box around the trimap's unknown and opaque pixels grown by ``pad``; None without any."""
-    ys, xs = np.nonzero(np.asarray(trimap) > BG)
-    if not len(ys):
+    """(rows, cols) of the box around the trimap's unknown and opaque pixels (or a bool mask's True)
+    grown by ``pad`` and clipped to the frame; None without any."""
+    import cv2
+
+    x, y, w, h = cv2.boundingRect((np.asarray(trimap) > BG).view(np.uint8))
+    if w == 0 or h == 0:
         return None
     H, W = np.shape(trimap)
-    return (slice(max(0, ys.min() - pad), min(H, ys.max() + pad + 1)),
-            slice(max(0, xs.min() - pad), min(W, xs.max() + pad + 1)))
+    return (slice(max(0, y - pad), min(H, y + h + pad)), slice(max(0, x - pad), min(W, x + w + pad)))
 
 
 def band_share(trimap: np.ndarray) -> float:

@@ -35,23 +35,13 @@ NEED_ONE_DILATION = True
 BOX_MARGIN_PX = 2
 
 
-def object_box(m: np.ndarray, grow: int) -> tuple[slice, slice] | None:
-    """(rows, cols) slices of the box holding every True of the 2-D bool ``m``, widened by ``grow``
-    pixels on each side and clipped to the frame; None when ``m`` holds no True."""
-    import cv2
-
-    x, y, w, h = cv2.boundingRect(m.view(np.uint8))
-    if w == 0 or h == 0:
-        return None
-    H, W = m.shape
-    return (slice(max(0, y - grow), min(H, y + h + grow)), slice(max(0, x - grow), min(W, x + w + grow)))
-
-
 def near_weight_box(m: np.ndarray, band: int, exclude: int) -> np.ndarray:
     """(H, W) float32 the same weights as ``capture.plate_fixed._near_weight(m, band, exclude)``
     (bit for bit), its distances taken on the object's box only (module docstring): 0 where the
     distance to ``m`` is at most ``exclude``, d / ``band`` clipped to 1 beyond, 1 where ``m`` is empty."""
     import cv2
+
+    from capture.matting_scale import object_box
 
     m = np.ascontiguousarray(m, bool)
     out = np.ones(m.shape, np.float32)

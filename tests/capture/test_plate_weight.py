@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from capture.matting_scale import object_box
 from capture.plate import SOURCE_BAND_FRACTION, px
 from capture.plate_fixed import FIXED_EXCLUDE_FRACTION, _near_weight, fixed_sample_weight
-from capture.plate_weight import near_weight_box, object_box
+from capture.plate_weight import near_weight_box
 
 
 def _masks(shape):
