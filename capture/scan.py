@@ -225,8 +225,8 @@ def every_kth_point(scan, k: int) -> np.ndarray:
     ``scan.points()[::k]``, only those pixels back-projected (a 200-frame phone capture's bounds
     back-projected all 550 million of its depth pixels to keep 8 million)."""
     depth = np.asarray(scan.depth)
-    v, u = np.nonzero(np.isfinite(depth) & (depth > 0))
-    v, u = v[::k], u[::k]
+    flat = np.flatnonzero(np.isfinite(depth) & (depth > 0))[::k]  # np.nonzero's pixels, row-major
+    v, u = np.divmod(flat, depth.shape[1])
     if not len(v):
         return np.zeros((0, 3))
     return scan.camera.unproject(np.stack([u, v], axis=-1).astype(np.float64), depth[v, u])

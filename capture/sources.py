@@ -340,10 +340,11 @@ def open_source(path: Path, undistort: str = DEFAULT_UNDISTORT) -> Source:
     return io.transforms_source(path, undistort)
 
 
-def finish_scanset(source: Source, scans, notes_per_step: dict | None = None) -> ScanSet:
+def finish_scanset(source: Source, scans, notes_per_step: dict | None = None, sample=None) -> ScanSet:
     """The ScanSet of ``scans`` (read from ``source``): the capture's bounds, else the robust box of
-    the depth (capture.io.auto_bounds), else ``source.fallback_bounds``; its metadata with what the
-    steps noted (``notes_per_step``: step name -> one note per frame): depth resampled, frames undistorted."""
+    the depth (capture.io.auto_bounds; ``sample``: its depth points' sampler, default in this process),
+    else ``source.fallback_bounds``; its metadata with what the steps noted (``notes_per_step``: step
+    name -> one note per frame): depth resampled, frames undistorted."""
     from capture.io import auto_bounds
     from capture.io_lens import note_undistorted
     from capture.resample import describe
@@ -361,7 +362,7 @@ def finish_scanset(source: Source, scans, notes_per_step: dict | None = None) ->
     bounds = source.bounds
     if bounds is None:
         has_depth = any(f.depth is not None for f in source.frames)
-        bounds = auto_bounds(scans, str(source.path)) if has_depth or source.fallback_bounds is None \
+        bounds = auto_bounds(scans, str(source.path), sample) if has_depth or source.fallback_bounds is None \
             else source.fallback_bounds
     try:
         return ScanSet(tuple(scans), bounds, md)

@@ -182,3 +182,29 @@ def test_linear_colour_lookup_equals_the_srgb_formula():
         x = np.arange(256, dtype=np.uint8) if shape == (256,) else rng.integers(0, 256, shape).astype(np.uint8)
         got = srgb8_to_linear(x)
         assert got.dtype == np.float32 and np.array_equal(got, srgb_to_linear(x.astype(np.float32) / 255.0))
+
+
+def test_bounds_steps_equal_their_numpy_forms():
+    """Issue 32 round 10: every k-th point by flat indices, the finite rows by columns and both
+    percentiles in one call give what np.nonzero, np.all(axis=1) and two calls give, bit for bit."""
+    from capture.io import AUTO_BOUNDS_PERCENTILES, finite_rows
+    from capture.scan import every_kth_point
+
+    rng = np.random.default_rng(4)
+    depth = rng.uniform(0.3, 2.0, (37, 53)).astype(np.float32)
+    depth[rng.uniform(size=depth.shape) < 0.3] = 0.0
+    scan = Scan(np.zeros((37, 53, 3), np.uint8), depth, ring_cameras(1, 53, 37)[0], "t")
+    for k in (1, 2, 7, 1000):
+        v, u = np.nonzero(np.isfinite(depth) & (depth > 0))
+        v, u = v[::k], u[::k]
+        ref = scan.camera.unproject(np.stack([u, v], axis=-1).astype(np.float64), depth[v, u])
+        assert np.array_equal(every_kth_point(scan, k), ref)
+    pts = rng.normal(size=(5000, 3))
+    assert finite_rows(pts) is pts
+    bad = pts.copy()
+    bad[[3, 40, 41]] = [np.nan, 1.0, 2.0], [1.0, np.inf, 0.0], [0.0, 0.0, -np.inf]
+    assert np.array_equal(finite_rows(bad), bad[np.all(np.isfinite(bad), axis=1)]) and len(finite_rows(bad)) == 4997
+    for p in (pts, np.round(pts, 1), rng.normal(size=(7, 3))):  # ties, a short one
+        lo, hi = np.percentile(p.copy(), AUTO_BOUNDS_PERCENTILES, axis=0, overwrite_input=True)
+        assert np.array_equal(lo, np.percentile(p, AUTO_BOUNDS_PERCENTILES[0], axis=0))
+        assert np.array_equal(hi, np.percentile(p, AUTO_BOUNDS_PERCENTILES[1], axis=0))

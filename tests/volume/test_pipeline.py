@@ -236,3 +236,26 @@ def test_the_pipeline_reads_with_the_same_steps():
     reading = [st for st in STAGES if st.reads_frame]
     assert [(st.name, st.fn) for st in reading] == list(FRAME_STEPS)
     assert [type(getattr(PipelineConfig(), st.key)) for st in reading] == list(STEP_CONFIGS)
+
+
+def test_pool_sampled_bounds_equal_the_serial_bounds(capture, tmp_path):
+    """Issue 32 round 10: a capture without bounds gets the robust box of its depth; with a pool its
+    points are sampled in the workers (capture.extent.mapped_sampled_points): the same box bit for bit."""
+    import json
+    import shutil
+
+    cap = tmp_path / "nobounds"
+    shutil.copytree(capture.parent if capture.is_file() else capture, cap)
+    meta = json.loads((cap / "transforms.json").read_text())
+    meta.get("furrow", {}).pop("bounds", None)
+    (cap / "transforms.json").write_text(json.dumps(meta))
+    assert open_source(cap).bounds is None
+    reading = [st for st in STAGES if st.reads_frame]
+    got = {}
+    for workers in (1, 2):
+        with run_pipeline(open_source(cap), PipelineConfig(extent=None, workers=workers, spill="always"),
+                          stages=reading) as run:
+            got[workers] = np.array(run.work.bounds)
+            assert (run._sampler(len(run.work.refs)) is not None) == (workers == 2)
+    assert got[1].shape == (2, 3) and np.all(got[1][1] > got[1][0])
+    np.testing.assert_array_equal(got[1], got[2])

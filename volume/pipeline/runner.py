@@ -213,7 +213,7 @@ class Run:
         by_stage = {st.name: [n[k] for n in notes] for k, st in enumerate(todo)}
         if from_files:
             with self.hooks.row("bounds"):  # the robust box of every view's depth when the capture has none
-                ss = finish_scanset(w.source, scans, by_stage)
+                ss = finish_scanset(w.source, scans, by_stage, self._sampler(len(scans)))
             w = replace(w, bounds=ss.bounds, metadata=ss.metadata)
         for st, _, cfg, _ in steps:
             if st.reduce is not None:
@@ -226,6 +226,15 @@ class Run:
         (Context.map_views)."""
         scans, notes = self._map([(None, fn, arg, nullcontext)], views, description)
         return scans, [n[0] for n in notes]
+
+    def _sampler(self, n_views: int):
+        """The bounds' depth points sampled in the pool (capture.extent.mapped_sampled_points: the same
+        points as in this process, the views read side by side), or None without a pool."""
+        if not self._pooled(n_views):
+            return None
+        from capture.extent import mapped_sampled_points
+
+        return partial(mapped_sampled_points, self.map_views)
 
     def _pooled(self, n_views: int) -> bool:
         return self.workers > 1 and n_views > 1
