@@ -32,6 +32,9 @@ import numpy as np
 #: Cross the cubes once more in each view's tint (module docstring; on: the eleventh round's rule, a mean
 #: held-out gain over the eight captures with no capture losing more than 0.03 dB, was met: +0.010, worst -0.013).
 RECROSS = True
+#: At most how many times the cubes are re-crossed, each pass in the factors of the passes before it (1: once);
+#: the passes stop where one finds no factor (its views' brightness scatters no more than its noise).
+RECROSS_PASSES = 1
 
 
 def view_factors(k, n_views: int) -> np.ndarray:
@@ -50,22 +53,35 @@ def recross(cross_once, first: tuple, C, B, w, alpha, colour, fill, gsum, group,
     """capture.matting_global.cross_cells' result ``first`` (F, sigma^2, the object's colour, each view's
     factors, the record) for its inputs (``C``, ``B``, ``w``, ``alpha``, ``colour``, ``fill``, ``gsum``,
     ``group``, ``view``, ``n_views``), crossed again by ``cross_once`` (one pass, the same arguments) with
-    every view's lines in its own factors (module docstring); the same five, each view's factors (n_views,
-    3) the product of the two passes'.  ``first`` as it is, its record saying why, where it does nothing."""
+    every view's lines in its own factors (module docstring; RECROSS_PASSES times, each in the factors found
+    so far, stopping at a pass whose object colour fails); the same five, each view's factors (n_views, 3)
+    the product of the passes'.  ``first`` as it is, its record saying why, where it does nothing."""
     F, sig2, F_obj, k, rec = first
     if not RECROSS:
         return F, sig2, F_obj, k, {**rec, "recross": {"reason": "off"}}
     K = view_factors(k, n_views)
     if np.all(K == 1.0):
         return F, sig2, F_obj, k, {**rec, "recross": {"reason": "no view's brightness or tint found"}}
-    t = K[np.asarray(view, np.int64)]
-    C2, B2, colour2 = (np.asarray(x, np.float64) / t for x in (C, B, colour))
-    F2, s2, Fo2, k2, rec2 = cross_once(C2, B2, w, alpha, colour2, fill, gsum, group, view, n_views)
-    if Fo2 is None:
+    vi, last, fail = np.asarray(view, np.int64), None, None
+    for _ in range(RECROSS_PASSES):  # each pass in the factors found so far
+        t = K[vi]
+        C2, B2, colour2 = (np.asarray(x, np.float64) / t for x in (C, B, colour))
+        F2, s2, Fo2, k2, rec2 = cross_once(C2, B2, w, alpha, colour2, fill, gsum, group, view, n_views)
+        if Fo2 is None:
+            fail = rec2
+            break
+        K2 = view_factors(k2, n_views)
+        K = K * K2
+        last = (F2, s2, Fo2, rec2, K2, (last[5] if last else 0) + 1)
+        if np.all(K2 == 1.0):  # the factors stopped moving: another pass would repeat this one
+            break
+    if last is None:
         why = "the object's colour fails in the views' tint: the first pass kept"
-        return F, sig2, F_obj, k, {**rec, "recross": {"reason": why, "second": _summary(rec2)}}
-    K2 = view_factors(k2, n_views)
-    out = K * K2
-    rng = [[round(float(x), 3) for x in out.min(0)], [round(float(x), 3) for x in out.max(0)]]
+        return F, sig2, F_obj, k, {**rec, "recross": {"reason": why, "second": _summary(fail)}}
+    F2, s2, Fo2, rec2, K2, passes = last
+    rng = [[round(float(x), 3) for x in K.min(0)], [round(float(x), 3) for x in K.max(0)]]
     second = [round(float(K2.min()), 4), round(float(K2.max()), 4)]
-    return F2, s2, Fo2, out, {**rec2, "recross": {"first": _summary(rec), "range": rng, "second_range": second}}
+    out = {"first": _summary(rec), "range": rng, "second_range": second}
+    if RECROSS_PASSES > 1:
+        out.update(passes=passes, stopped=None if fail is None else _summary(fail))
+    return F2, s2, Fo2, K, {**rec2, "recross": out}

@@ -2,7 +2,7 @@
 on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES (capture.matting_global,
 0 / 1), CELL_LINE_ALPHA (capture.matting_lines) and the ninth round's AGREEING, CONTRAST, VIEW_CHROMA,
 CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast), the eleventh round's RECROSS
-(capture.matting_recross, 0 / 1).  Use ``--view-workers 1``: the view pool's processes
+(capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer).  Use ``--view-workers 1``: the view pool's processes
 import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
@@ -24,6 +24,8 @@ if __name__ == "__main__":
             mc.CELL_LINE_ALPHA = float(v)
         elif k == "AGREE_TOL":
             mk.AGREE_TOL = float(v)
+        elif k == "RECROSS_PASSES":
+            mr.RECROSS_PASSES = int(v)
         else:
             mod = next((m for m in (mk, mr) if hasattr(m, k)), mg)
             if not hasattr(mod, k):
