@@ -51,6 +51,7 @@ import numpy as np
 from capture.matting_colour import unmixed_colour
 from capture.matting_contrast import agreeing_lines, contrast_weights, view_chroma
 from capture.matting_lines import MIN_LINES, group_fit
+from capture.matting_recross import recross
 
 #: Give the pixels no cube colours the object's colour (held out, gather, docs/matting.md eighth round).
 GLOBAL = True
@@ -180,7 +181,14 @@ def cross_cells(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
     weights ``w``, the matte's ``alpha`` and ``colour``, ``fill`` (:func:`filled`); ``gsum`` / ``group``
     as capture.matting_lines.group_fit's; ``view`` (N,) each sample's view of ``n_views``): (F (K, 3),
     sigma^2 (K,) inf where the cube's lines do not cross, the object's colour (3,) or None, each view's
-    brightness (n_views,) or, with its tint (capture.matting_contrast.view_chroma), (n_views, 3), the record)."""
+    brightness (n_views,) or, with its tint (capture.matting_contrast.view_chroma), (n_views, 3), the record).
+    :func:`cross_once`, then (capture.matting_recross.RECROSS) once more in each view's tint."""
+    args = (C, B, w, alpha, colour, fill, gsum, group, view, n_views)
+    return recross(cross_once, cross_once(*args), *args)
+
+
+def cross_once(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
+    """One crossing of :func:`cross_cells` (its arguments and result)."""
     terms: dict = {}
     F, sig2 = group_fit(C, B, w, alpha, gsum, group, terms)
     crossed = np.isfinite(sig2[group])

@@ -1,7 +1,8 @@
 """`furrow` with issue 30's eighth-round switches set from the environment (docs/matting.md "The eighth round
 on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES (capture.matting_global,
 0 / 1), CELL_LINE_ALPHA (capture.matting_lines) and the ninth round's AGREEING, CONTRAST, VIEW_CHROMA,
-CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast).  Use ``--view-workers 1``: the view pool's processes
+CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast), the eleventh round's RECROSS
+(capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer).  Use ``--view-workers 1``: the view pool's processes
 import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
@@ -14,6 +15,7 @@ if __name__ == "__main__":
     import capture.matting_contrast as mk
     import capture.matting_global as mg
     import capture.matting_lines as ml
+    import capture.matting_recross as mr
     for kv in filter(None, os.environ.get("ABL", "").split(",")):
         k, v = kv.split("=")
         if k == "CELL_LINE_ALPHA":
@@ -22,7 +24,12 @@ if __name__ == "__main__":
             mc.CELL_LINE_ALPHA = float(v)
         elif k == "AGREE_TOL":
             mk.AGREE_TOL = float(v)
+        elif k == "RECROSS_PASSES":
+            mr.RECROSS_PASSES = int(v)
         else:
-            setattr(mk if hasattr(mk, k) else mg, k, bool(int(v)))
+            mod = next((m for m in (mk, mr) if hasattr(m, k)), mg)
+            if not hasattr(mod, k):
+                raise SystemExit(f"ABL: no switch {k}")
+            setattr(mod, k, bool(int(v)))
     from furrow.cli import main
     sys.exit(main(sys.argv[1:]))

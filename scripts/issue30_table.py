@@ -9,14 +9,18 @@ was not made on"): a step chosen on three captures lost on a fourth.
 
 Each ROOT is searched for folders named ``*_room_*`` / ``fur_similar_bg`` (the room captures) and their twin
 (``room`` -> ``black``; ``fur_similar_bg`` -> ``fur_black_similar``).  ``--extra`` passes arguments on to every
-`furrow eval` (``--extra=--matte-across --extra=off``).  The evals run one after another (about 20-40 s each
-at 640x480 on 2 cores); a capture already scored in OUT with the same arguments is read back.
+`furrow eval` (``--extra=--matte-across --extra=off``).  ``--switches`` runs every eval through
+scripts/cells_switches.py with its ``ABL`` (``--switches RECROSS=1,CELL_LINE_ALPHA=0.4``: a step's module
+switches; they act in the main process, where the colour across the views is fitted).  The evals run one
+after another (about 20-40 s each at 640x480 on 2 cores); a capture already scored in OUT with the same
+arguments is read back.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -35,23 +39,28 @@ def twin(room: Path) -> Path | None:
     return t if t.is_dir() and t != room else None
 
 
-def score(capture: Path, out: Path, extra: list[str]) -> dict:
-    """Gather's and the points' held-out scores of ``capture`` with its kept mattes hidden (cached in ``out``)."""
+def score(capture: Path, out: Path, extra: list[str], switches: str = "") -> dict:
+    """Gather's and the points' held-out scores of ``capture`` with its kept mattes hidden (cached in ``out``);
+    ``switches``: cells_switches.py's ABL (module docstring)."""
     tag = f"{capture.parent.name}__{capture.name}"
     js = out / f"{tag}.json"
     args_file = out / f"{tag}.args"
-    if js.is_file() and args_file.is_file() and args_file.read_text() == " ".join(extra):
+    said = " ".join(extra) + (f" ABL={switches}" if switches else "")
+    if js.is_file() and args_file.is_file() and args_file.read_text() == said:
         return json.loads(js.read_text())
     cap = out / f"cap_{tag}"
     py = [sys.executable]
     subprocess.run(py + ["scripts/hide_mattes.py", str(capture), str(cap)], check=True, capture_output=True)
     log = out / f"{tag}.log"
     with log.open("w") as f:
-        r = subprocess.run(py + ["-m", "furrow", "eval", str(cap), "--holdout", "2", "--methods", "gather,points",
-                                 "--json", str(js), "-o", str(out / f"ev_{tag}"), *extra], stdout=f, stderr=f)
+        cli = ["scripts/cells_switches.py"] if switches else ["-m", "furrow"]
+        env = {**os.environ, "ABL": switches} if switches else None
+        r = subprocess.run(py + cli + ["eval", str(cap), "--holdout", "2", "--methods", "gather,points",
+                                       "--json", str(js), "-o", str(out / f"ev_{tag}"), *extra],
+                           stdout=f, stderr=f, env=env)
     if r.returncode:
         raise SystemExit(f"{capture}: furrow eval failed (exit {r.returncode}); see {log}")
-    args_file.write_text(" ".join(extra))
+    args_file.write_text(said)
     return json.loads(js.read_text())
 
 
@@ -65,6 +74,8 @@ def main(argv=None) -> int:
     p.add_argument("roots", nargs="+", type=Path)
     p.add_argument("-o", "--out", type=Path, required=True)
     p.add_argument("--extra", action="append", default=[], help="an argument passed on to every furrow eval")
+    p.add_argument("--switches", default="", metavar="ABL",
+                   help="module switches for every eval, as scripts/cells_switches.py's ABL (RECROSS=1,...)")
     a = p.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     rooms = sorted(c for r in a.roots for c in r.iterdir()
@@ -74,12 +85,12 @@ def main(argv=None) -> int:
     print("| capture | gather PSNR / SSIM / sharpness | points | black twin | gap | target |")
     print("|---|---|---|---|---|---|")
     for room in rooms:
-        ps, ss, sh, pt = row(score(room, a.out, a.extra))
+        ps, ss, sh, pt = row(score(room, a.out, a.extra, a.switches))
         tw = twin(room)
         if tw is None:
             print(f"| {room.parent.name}/{room.name} | {ps:.3f} / {ss:.3f} / {sh:.2f} | {pt:.2f} | - | - | - |")
             continue
-        bp, bs, _, _ = row(score(tw, a.out, a.extra))
+        bp, bs, _, _ = row(score(tw, a.out, a.extra, a.switches))
         target = GAP_TARGET_AE if "ae_lens" in room.name else GAP_TARGET
         gap = ps - bp
         verdict = "met" if -gap <= target else "**missed**"

@@ -20,6 +20,7 @@ import numpy as np
 
 from capture import matting_contrast as mk
 from capture import matting_lines as ml
+from capture import matting_recross as mr
 
 NEEDLE = np.array([0.045, 0.065, 0.023])
 #: The weighted crossing's error, with or without the short lines' error (measured 0.0004-0.0023).
@@ -155,6 +156,11 @@ def test_each_views_tint_is_found_and_its_colours_follow_it(monkeypatch):
 
 
 def test_views_of_one_tint_lose_little_and_one_brightness_has_none(monkeypatch):
+    """The tint's own cost on views of one tint, the cubes crossed once (capture.matting_recross off).  Re-crossed
+    in each view's factors the worst view errs 0.0042-0.0087 with the tint, 0.0011-0.0066 without (seeds 0-2): the
+    tint costs 0.0021-0.0033 there, a stated weakness; crossed once, with the tint, 0.012-0.019
+    (tests/capture/test_matting_recross.py)."""
+    monkeypatch.setattr(mr, "RECROSS", False)
     for seed in range(3):
         views, truth = _tinted_views(seed, [(k, k, k) for k in (0.7, 1.0, 1.4, 1.0, 0.85)])
         errs = []

@@ -17,6 +17,7 @@ from capture import matting_cells as mc
 from capture import matting_contrast as mk
 from capture import matting_global as mg
 from capture import matting_lines as ml
+from capture import matting_recross as mr
 
 #: The object's colour at the uncrossed cells' pixels: median error at most this (measured 0.009-0.016).
 OBJECT_TOL = 0.02
@@ -188,8 +189,11 @@ def test_each_views_brightness_is_found_from_its_lines_and_its_colours_follow_it
     from every view's lines, so the brightest view's k comes out low, 1.26-1.33); each view's colours
     within 0.02 of its own truth (measured 0.006-0.019), the worst view's error at most 0.6 of it with
     the brightness off (measured 0.38-0.43).  The views' tint off (capture.matting_contrast.view_chroma:
-    on these views of one tint it costs 0.0004-0.0065 of the worst view's error, seeds 0-2)."""
+    on these views of one tint it costs 0.0004-0.0065 of the worst view's error, seeds 0-2) and the
+    re-crossing off (capture.matting_recross: its second pass finds the views' brightness again about 1;
+    tests/capture/test_matting_recross.py)."""
     monkeypatch.setattr(mk, "VIEW_CHROMA", False)
+    monkeypatch.setattr(mr, "RECROSS", False)
     k_true = np.array([0.7, 1.0, 1.4, 1.0, 0.85])
     for seed in range(2):
         views, truth = _lit_views(seed, k_true)
