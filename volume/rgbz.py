@@ -80,11 +80,35 @@ def sdf_at(level: SdfLevel, points: np.ndarray) -> np.ndarray:
     return out
 
 
-def hole_fraction(depth: np.ndarray) -> float:
-    """Empty pixels inside the filled silhouette of ``depth > 0`` over the silhouette's area."""
-    sil = ndimage.binary_fill_holes(depth > 0)
-    n = int(sil.sum())
-    return float(((depth <= 0) & sil).sum()) / n if n else 0.0
+HOLES_FLOOD = True
+"""Count :func:`hole_fraction`'s holes with OpenCV's flood fill from the border (one pass, 4-connected,
+uint8) instead of ``scipy.ndimage.binary_fill_holes`` (iterated dilations; the reference,
+``fast=False``). The same pixels are holes (tests/volume/test_rgbz.py); about 0.03 s a 1280x960 view
+less, twice a view."""
+
+
+def hole_fraction(depth: np.ndarray, fast: bool | None = None) -> float:
+    """Empty pixels inside the filled silhouette of ``depth > 0`` over the silhouette's area: the empty
+    pixels that no 4-connected path of empty pixels joins to the image's border."""
+    full = np.asarray(depth) > 0
+    if not (HOLES_FLOOD if fast is None else fast):
+        sil = ndimage.binary_fill_holes(full)
+        n = int(sil.sum())
+        return float(((depth <= 0) & sil).sum()) / n if n else 0.0
+    inside = _enclosed(~full)
+    n = int(full.sum()) + int(np.count_nonzero(inside))
+    return int(np.count_nonzero(inside & (np.asarray(depth) <= 0))) / n if n else 0.0
+
+
+def _enclosed(empty: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels of ``empty`` that no 4-connected path of ``empty`` joins to the border."""
+    import cv2
+
+    h, w = empty.shape
+    pad = np.ones((h + 2, w + 2), np.uint8)
+    pad[1:-1, 1:-1] = empty
+    cv2.floodFill(pad, None, (0, 0), 0, flags=4)
+    return pad[1:-1, 1:-1].astype(bool)
 
 
 def close_holes(depth: np.ndarray, closing_px: int) -> np.ndarray:
