@@ -339,9 +339,12 @@ def fixed_start(ps: PlateSet) -> np.ndarray:
 def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_RING_FRAMES of
     them at most, :func:`mode_frames`), in its own exposure."""
+    from capture import plate_predict as pp  # compiled, the same rings (pp.FUSED_PREDICTION)
     from capture.plate_threads import thread_map  # views side by side (the same predictions)
 
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
+    if pp.applies(views, gains, weights):
+        return pp.fused_ring_predict(ps, gains)
 
     def one(i):
         ring = ps.views[i].ring
@@ -370,8 +373,11 @@ def _draw_prediction(views, pix, gains, weights, frames) -> tuple[np.ndarray, np
     """:func:`fixed_prediction` of every pixel ``pix`` from ``frames`` (none left out), DRAW_CHUNK pixels
     at a time, the chunks side by side (capture.plate_threads): each pixel's plate is its own samples'
     alone, so the values are the same as one call's."""
+    from capture import plate_predict as pp
     from capture.plate_threads import chunks, thread_map
 
+    if pp.applies(views, gains, weights):  # compiled, the same values (pp.FUSED_PREDICTION)
+        return pp.fused_draw_prediction(views, pix, gains, weights, frames)
     med = np.full((len(pix), 3), np.nan, np.float32)
     bound = np.zeros(len(pix), bool)
 
