@@ -1,0 +1,51 @@
+"""capture.plate_masks: a plate view's masks on the object's box against the whole frame's (bit for bit)."""
+
+import numpy as np
+import pytest
+
+from capture import plate_masks
+from capture.plate_masks import view_masks
+
+
+def _depths(shape):
+    """Object depths that stress the box: an object, one on each border and corner, scattered needles,
+    one pixel, a dense random mask, none, all, more ring pixels than RING_SAMPLES."""
+    rng = np.random.default_rng(4)
+    H, W = shape
+    out = [np.zeros(shape, bool) for _ in range(9)]
+    out[0][H // 3:H // 2, W // 2:W // 2 + W // 8] = True
+    out[1][:H // 5, W - W // 9:] = True
+    out[2][H - 1, 0] = True
+    out[3][rng.random(shape) < 3e-4] = True
+    out[4][H // 2, W // 2] = True
+    out[5] = rng.random(shape) < 0.3
+    out[7][:] = True
+    out[8][H // 4:3 * H // 4, 2:W // 3] = True
+    return [np.where(m, 1.5, 0.0).astype(np.float32) for m in out]
+
+
+@pytest.mark.parametrize("shape", [(894, 1192), (97, 131)])
+def test_box_masks_equal_the_whole_frames(shape, monkeypatch):
+    """view_masks on the box equals the whole frame's source, ring, need and band bit for bit."""
+    for d in _depths(shape):
+        got = view_masks(d, True)
+        monkeypatch.setattr(plate_masks, "MASKS_BOX", False)
+        want = view_masks(d, True)
+        monkeypatch.setattr(plate_masks, "MASKS_BOX", True)
+        for a, b in zip(got, want, strict=True):
+            assert a.dtype == b.dtype and a.shape == b.shape
+            np.testing.assert_array_equal(a, b)
+        assert view_masks(d, False)[3] is None
+    assert len(want[1]) > 100 and want[2].any() and not want[0].all()
+
+
+def test_the_box_needs_its_margin(monkeypatch):
+    """A box one radius too tight gives other masks (the test can fail)."""
+    from capture import matting_scale
+
+    d = _depths((97, 131))[0]
+    want = view_masks(d, True)
+    real = matting_scale.object_box
+    monkeypatch.setattr(matting_scale, "object_box", lambda m, pad: real(m, pad // 2))
+    got = view_masks(d, True)
+    assert not all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
