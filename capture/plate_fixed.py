@@ -21,6 +21,7 @@ import numpy as np
 from scipy import ndimage
 
 from capture.plate import GAIN_PASSES, SOURCE_BAND_FRACTION, PlateSet, PlateView, fit_gains, px
+from capture.plate_masks import common_grid
 from capture.plate_reproject import nan_median
 
 #: A pixel's plate needs this many frames that agree on its colour (robust_mode).
@@ -262,7 +263,7 @@ def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray
     per-pixel median of the frames (GAIN_PASSES times, the median taken over the gain-corrected frames)."""
     H, W = weights[0].shape
     k = max(1, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
-    common = np.logical_and.reduce([w >= 1 for w in weights])[::k, ::k]
+    common = common_grid(weights, slice(None, None, k), slice(None, None, k))  # as the whole frames' [::k, ::k]
     obs = [v.linear[::k, ::k][common].astype(np.float64) for v in views]
     gains = np.ones((len(views), 3))
     if not common.any():
@@ -290,7 +291,7 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
     H, W = weights[0].shape
     k = max(2, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
     sl = (slice(k // 2, None, k), slice(k // 2, None, k))
-    common = np.logical_and.reduce([w >= 1 for w in weights])[sl]
+    common = common_grid(weights, *sl)  # np.logical_and.reduce([w >= 1 for w in weights])[sl]
     obs = np.stack([v.linear[sl][common].astype(np.float64) for v in views])  # (V, N, 3)
     obs = obs[:, np.all(_usable(obs), axis=0)]
     need = int(np.ceil(V / 2 + np.sqrt(V)))

@@ -49,3 +49,21 @@ def test_the_box_needs_its_margin(monkeypatch):
     monkeypatch.setattr(matting_scale, "object_box", lambda m, pad: real(m, pad // 2))
     got = view_masks(d, True)
     assert not all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+
+
+def test_the_common_grid_equals_the_whole_frames(monkeypatch):
+    """common_grid equals the whole frames' test then the grid (both of plate_fixed's grids), weights
+    at, above and just below 1; a grid taken at another offset differs (the test can fail)."""
+    from capture.plate_masks import common_grid
+
+    rng = np.random.default_rng(2)
+    weights = [np.where(rng.random((61, 83)) < 0.1, rng.choice([0.0, 0.5, np.nextafter(1.0, 0)], (61, 83)),
+                        rng.choice([1.0, 1.0, 2.0], (61, 83))).astype(np.float32) for _ in range(9)]
+    for sl in ((slice(None, None, 7), slice(None, None, 7)), (slice(3, None, 7), slice(3, None, 7))):
+        got = common_grid(weights, *sl)
+        monkeypatch.setattr(plate_masks, "GRID_FIRST", False)
+        want = common_grid(weights, *sl)
+        monkeypatch.setattr(plate_masks, "GRID_FIRST", True)
+        assert got.dtype == want.dtype == bool and np.array_equal(got, want)
+        assert want.any() and not want.all()
+    assert not np.array_equal(common_grid(weights, slice(1, None, 7), slice(1, None, 7))[:8, :11], want[:8, :11])
