@@ -14,6 +14,9 @@ masks and ring bit for bit (tests/capture/test_plate_masks.py); the whole frame'
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+from capture.extent_kernel import _height, _world
 
 #: capture.plate.prepare's masks by :func:`view_masks` on the object's box (False: plate.source_mask,
 #: ring_pixels and need_mask over the whole frame, the reference; the same masks).
@@ -75,3 +78,41 @@ def common_grid(weights, rows: slice, cols: slice) -> np.ndarray:
     for w in weights[1:]:
         out &= np.asarray(w)[rows, cols] >= 1
     return out
+
+
+#: capture.plate.prepare's off-plane test at the moving-camera band's pixels only (:func:`off_plane_at`:
+#: room_depth reads it nowhere else; False: every depth pixel, plate_reproject.off_plane, the reference).
+OFF_PLANE_BAND = True
+
+
+def off_plane_at(cam, depth: np.ndarray, plane: np.ndarray | None, where: np.ndarray) -> np.ndarray:
+    """``capture.plate_reproject.off_plane(cam, depth, plane) & where`` (the same mask): the compiled test
+    (capture.extent_kernel's arithmetic, the same functions) run at the ``where`` pixels alone."""
+    from capture.plate_reproject import PLANE_OFF_METRES, off_plane
+
+    if not OFF_PLANE_BAND or plane is None:
+        return off_plane(cam, depth, plane) & where
+    depth = np.ascontiguousarray(depth)
+    if depth.dtype not in (np.float32, np.float64):
+        depth = depth.astype(np.float64)
+    out = np.zeros(depth.shape, np.bool_)
+    wfc = cam.world_from_cam
+    _above_at(depth, np.ascontiguousarray(cam.K, np.float64), np.ascontiguousarray(wfc[:3, :3], np.float64),
+              np.ascontiguousarray(wfc[:3, 3], np.float64), np.asarray(plane, np.float64), float(PLANE_OFF_METRES),
+              np.ascontiguousarray(where, np.bool_), out)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _above_at(depth, K, R, t, plane, offset, where, out):
+    """capture.extent_kernel._above (the same functions and arithmetic) at the ``where`` pixels."""
+    H, W = depth.shape
+    for v in range(H):
+        for u in range(W):
+            if not where[v, u]:
+                continue
+            d32 = depth[v, u]
+            if not (np.isfinite(d32) and d32 > 0):
+                continue
+            x, y, z = _world(u, v, np.float64(d32), K, R, t)
+            out[v, u] = _height(x, y, z, plane) > offset

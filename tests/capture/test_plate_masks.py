@@ -67,3 +67,29 @@ def test_the_common_grid_equals_the_whole_frames(monkeypatch):
         assert got.dtype == want.dtype == bool and np.array_equal(got, want)
         assert want.any() and not want.all()
     assert not np.array_equal(common_grid(weights, slice(1, None, 7), slice(1, None, 7))[:8, :11], want[:8, :11])
+
+
+def test_the_off_plane_test_at_the_band_equals_the_whole_frames():
+    """off_plane_at equals plate_reproject.off_plane & where bit for bit on the orbit scene's views
+    (their planes, a tilted one, none), NaN, infinite and zero depths included; with where the whole
+    frame it is off_plane itself."""
+    from capture.plate_masks import off_plane_at
+    from capture.plate_reproject import off_plane
+    from tests import plate_scenes as ps
+
+    views, _ = ps.orbit_capture(n=4)
+    rng = np.random.default_rng(7)
+    for v in views:
+        d = np.array(v.depth, np.float32)  # this scene's depth is the object's and the table's
+        pts, _ = v.camera.depth_to_points(d)
+        planes = [None]
+        for n in (np.array([0.0, 0.0, 1.0]), np.array([0.3, -0.2, 0.93])):  # through the points' median height
+            planes.append(np.append(n, -np.median(pts @ n)))
+        d[rng.random(d.shape) < 0.02] = np.nan
+        d[rng.random(d.shape) < 0.02] = np.inf
+        where = rng.random(d.shape) < 0.3
+        for plane in planes:
+            want = off_plane(v.camera, d, plane)
+            assert np.array_equal(off_plane_at(v.camera, d, plane, where), want & where)
+            assert np.array_equal(off_plane_at(v.camera, d, plane, np.ones_like(where)), want)
+            assert 0 < want.mean() < 1  # some depth pixels above each plane (or with depth), some not
