@@ -48,7 +48,7 @@ from capture.matting_cells import band_crossing
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
 from capture.plate_record import plate_record, summary
-from capture.plate_reproject import off_plane, room_depth
+from capture.plate_reproject import room_depth
 from capture.plate_threads import thread_map
 from capture.sampling import mask_box
 
@@ -333,19 +333,15 @@ def prepare(v: PlateView, plane: np.ndarray | None, paths: tuple[str, ...]) -> P
     """The view's :class:`PreparedView`; the room depth only for the 'panorama' path, the sample
     weights only for the 'fixed' one."""
     from capture.plate_fixed import fixed_sample_weight
+    from capture.plate_masks import off_plane_at, view_masks  # the same masks (MASKS_BOX, OFF_PLANE_BAND)
 
-    src = source_mask(v.object_depth)
-    bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32)
-    ring = ring_pixels(v.object_depth, src)
-    room = None
-    if "panorama" in paths:
-        off = off_plane(v.camera, bgd, plane)
-        band = src & dilate(~src, px(RING_FRACTION, src.shape[1]))
-        room = room_depth(bgd, band, off)
+    src, ring, need, band = view_masks(v.object_depth, "panorama" in paths)
+    bgd = np.where(np.asarray(v.object_depth) > 0, 0.0, v.depth).astype(np.float32, copy=False)
+    room = None if band is None else room_depth(bgd, band, off_plane_at(v.camera, bgd, plane, band))
     weight = fixed_sample_weight(v.object_depth) if "fixed" in paths else None
     observed = np.asarray(v.linear[ring[:, 1], ring[:, 0]], np.float64)
     # the capture's depth is read here only (background_depth keeps what the paths need of it)
-    return PreparedView(replace(v, depth=None), src, need_mask(v.object_depth), ring, observed, bgd, room, weight)
+    return PreparedView(replace(v, depth=None), src, need, ring, observed, bgd, room, weight)
 
 
 def plate_set(views, plane: np.ndarray | None, focus: tuple[np.ndarray, float] | None,

@@ -21,6 +21,7 @@ import numpy as np
 from scipy import ndimage
 
 from capture.plate import GAIN_PASSES, SOURCE_BAND_FRACTION, PlateSet, PlateView, fit_gains, px
+from capture.plate_masks import common_grid
 from capture.plate_reproject import nan_median
 
 #: A pixel's plate needs this many frames that agree on its colour (robust_mode).
@@ -262,7 +263,7 @@ def fixed_gains(views: list[PlateView], weights: list[np.ndarray]) -> np.ndarray
     per-pixel median of the frames (GAIN_PASSES times, the median taken over the gain-corrected frames)."""
     H, W = weights[0].shape
     k = max(1, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
-    common = np.logical_and.reduce([w >= 1 for w in weights])[::k, ::k]
+    common = common_grid(weights, slice(None, None, k), slice(None, None, k))  # as the whole frames' [::k, ::k]
     obs = [v.linear[::k, ::k][common].astype(np.float64) for v in views]
     gains = np.ones((len(views), 3))
     if not common.any():
@@ -290,7 +291,7 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
     H, W = weights[0].shape
     k = max(2, int(np.sqrt(H * W / FIXED_GAIN_PIXELS)))
     sl = (slice(k // 2, None, k), slice(k // 2, None, k))
-    common = np.logical_and.reduce([w >= 1 for w in weights])[sl]
+    common = common_grid(weights, *sl)  # np.logical_and.reduce([w >= 1 for w in weights])[sl]
     obs = np.stack([v.linear[sl][common].astype(np.float64) for v in views])  # (V, N, 3)
     obs = obs[:, np.all(_usable(obs), axis=0)]
     need = int(np.ceil(V / 2 + np.sqrt(V)))
@@ -339,9 +340,12 @@ def fixed_start(ps: PlateSet) -> np.ndarray:
 def fixed_predict(ps: PlateSet, gains: np.ndarray) -> list[np.ndarray]:
     """Per view its ring (N_i, 3) predicted from the other frames (leave one out; FIXED_RING_FRAMES of
     them at most, :func:`mode_frames`), in its own exposure."""
+    from capture import plate_predict as pp  # compiled, the same rings (pp.FUSED_PREDICTION)
     from capture.plate_threads import thread_map  # views side by side (the same predictions)
 
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
+    if pp.applies(views, gains, weights):
+        return pp.fused_ring_predict(ps, gains)
 
     def one(i):
         ring = ps.views[i].ring
@@ -370,8 +374,11 @@ def _draw_prediction(views, pix, gains, weights, frames) -> tuple[np.ndarray, np
     """:func:`fixed_prediction` of every pixel ``pix`` from ``frames`` (none left out), DRAW_CHUNK pixels
     at a time, the chunks side by side (capture.plate_threads): each pixel's plate is its own samples'
     alone, so the values are the same as one call's."""
+    from capture import plate_predict as pp
     from capture.plate_threads import chunks, thread_map
 
+    if pp.applies(views, gains, weights):  # compiled, the same values (pp.FUSED_PREDICTION)
+        return pp.fused_draw_prediction(views, pix, gains, weights, frames)
     med = np.full((len(pix), 3), np.nan, np.float32)
     bound = np.zeros(len(pix), bool)
 

@@ -120,10 +120,12 @@ def _winners_numpy(s0: np.ndarray, have: np.ndarray, pal: np.ndarray) -> tuple[n
 
 def _winners_compiled(s0: np.ndarray, have: np.ndarray, pal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_winners_numpy` from the compiled loop (capture.plate_lines_kernel.vertex_costs)."""
+    from capture import plate_lines_simd as simd  # vectorised, the same winners (simd.LINES_SIMD)
     from capture.plate_lines_kernel import vertex_costs
 
-    best, cost = vertex_costs(np.ascontiguousarray(s0, np.float32), np.ascontiguousarray(have),
-                              np.ascontiguousarray(pal, np.float32), float(LINE_CAP))
+    costs = simd.vertex_costs_simd if simd.LINES_SIMD else vertex_costs
+    best, cost = costs(np.ascontiguousarray(s0, np.float32), np.ascontiguousarray(have),
+                       np.ascontiguousarray(pal, np.float32), float(LINE_CAP))
     return np.maximum(best, 0), cost  # no sample at all: numpy's argmin of all-inf is 0
 
 

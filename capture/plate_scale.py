@@ -27,6 +27,10 @@ PLATE_VIEW_BUDGET_BYTES = 1 << 30
 PLATE_BYTES_PER_PIXEL = 14
 #: Smallest working scale (below it the plate would no longer resolve the room behind a needle).
 PLATE_MIN_SCALE = 0.2
+#: :func:`shrink_scan` shrinks a view of 8-bit colour with fewer passes (the float32 colour by one
+#: table lookup, the float16 cast and the object's maximum filter by OpenCV; the same view bit for bit,
+#: tests/capture/test_plate_scale.py); False: :func:`shrink_view` of the float16 view, the reference.
+SHRINK_FAST = True
 
 
 def plate_scale(views: int, height: int, width: int, budget: int = PLATE_VIEW_BUDGET_BYTES) -> float:
@@ -69,3 +73,26 @@ def grow_plate(plate: Plate, height: int, width: int) -> Plate:
     return Plate(bg, k, plate.noise, plate.method, plate.band_known, plate.error, plate.error_rmse,
                  plate.band_estimated, estimated=None if est is None else est & k,
                  sigma=None if sig is None else np.where(k, sig, 0.0).astype(np.float32))
+
+
+def shrink_scan(camera, rgb: np.ndarray, object_depth: np.ndarray, depth: np.ndarray, scale: float) -> PlateView:
+    """``shrink_view(PlateView(camera, linear16(rgb), object_depth, depth), scale)``, the same view bit for bit
+    (SHRINK_FAST): for 8-bit ``rgb`` below scale 1, the float32 colour by ``cv2.LUT`` of the float16
+    table's float32 values (what ``np.asarray(linear16(rgb), np.float32)`` gives), the cast back to
+    float16 by OpenCV (IEEE round to nearest even, as numpy's), and the object's maximum filter by
+    ``cv2.dilate`` (the maximum over the window's pixels inside the frame, as scipy's 'reflect' border
+    gives for windows of at most twice the border's width), a NaN depth taking the reference."""
+    from capture.scan import _SRGB8_LUT16, linear16
+
+    rgb = np.asarray(rgb)
+    obj = np.asarray(object_depth, np.float32)
+    if not SHRINK_FAST or scale >= 1.0 or rgb.dtype != np.uint8 or rgb.ndim != 3 or np.isnan(obj).any():
+        return shrink_view(PlateView(camera, linear16(rgb), object_depth, depth), scale)
+    cam = camera.scaled(scale)
+    size = (cam.width, cam.height)
+    linear = cv2.resize(cv2.LUT(rgb, _SRGB8_LUT16.astype(np.float32)), size, interpolation=cv2.INTER_AREA)
+    foot = int(math.ceil(1.0 / scale)) + 1
+    grown = cv2.dilate(obj, np.ones((foot, foot), np.uint8))
+    o = cv2.resize(grown, size, interpolation=cv2.INTER_NEAREST)
+    d = cv2.resize(np.asarray(depth, np.float32), size, interpolation=cv2.INTER_NEAREST)
+    return PlateView(cam, cv2.multiply(linear, 1.0, dtype=cv2.CV_16F), o, d)

@@ -45,9 +45,9 @@ import numpy as np
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
 from capture.matting_cells import fit_cap
-from capture.plate import PlateView, background_plates
-from capture.plate_scale import grow_plate, plate_scale, shrink_view
-from capture.scan import Scan, linear16
+from capture.plate import background_plates
+from capture.plate_scale import grow_plate, plate_scale, shrink_scan
+from capture.scan import Scan
 from capture.scan_store import scan_has_alpha
 from capture.view_map import PerView
 
@@ -97,7 +97,7 @@ def _plate_views(scans, captured, scale: float):
 
     def one(sc):
         s, c = sc
-        return shrink_view(PlateView(s.camera, linear16(s.rgb), s.depth, c.depth), scale)
+        return shrink_scan(s.camera, s.rgb, s.depth, c.depth, scale)  # shrink_view's view (SHRINK_FAST)
 
     # read a few views ahead side by side (the plate stage's own threads take them as they come)
     return thread_map(one, zip(scans, captured, strict=True))

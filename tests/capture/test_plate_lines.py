@@ -97,6 +97,38 @@ def test_the_compiled_vertex_equals_the_numpy_reference(seed):
     assert np.isinf(rf[:5]).all()
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_vectorised_vertex_equals_the_one_sample_kernel(seed):
+    """capture.plate_lines_simd against capture.plate_lines_kernel (and the numpy reference): the same
+    winners and costs bit for bit (int64 / float64 bits), with missing samples, pixels without any, tied
+    candidates, quantised, random and palette-like colours, a one-colour palette and 40 frames; a variant
+    that sums a candidate's costs out of frame order differs (the test can fail)."""
+    from capture.plate_lines import LINE_CAP, _winners_numpy
+    from capture.plate_lines_kernel import vertex_costs
+    from capture.plate_lines_simd import vertex_costs_simd
+
+    rng = np.random.default_rng(seed + 20)
+    C, _, pal = _lines_scene(seed, n=400, frames=40 if seed == 2 else 12)
+    q = srgb_to_linear(to_uint8_srgb(C) / np.float32(255.0)).astype(np.float64)
+    for samples, p in ((C, pal), (q, pal), (rng.uniform(0, 1, C.shape), pal), (C, pal[:1])):
+        s = np.asarray(samples, np.float32).copy()
+        s[rng.uniform(size=s.shape[:2]) < 0.2] = np.nan
+        s[:, :5] = np.nan
+        s[3] = s[1]
+        have = np.isfinite(s[..., 0])
+        s0 = np.ascontiguousarray(np.nan_to_num(s))
+        p32 = np.ascontiguousarray(p, np.float32)
+        b0, c0 = vertex_costs(s0, have, p32, float(LINE_CAP))
+        b1, c1 = vertex_costs_simd(s0, have, p32, float(LINE_CAP))
+        np.testing.assert_array_equal(b1, b0)
+        np.testing.assert_array_equal(c1.view(np.int64), c0.view(np.int64))
+        bn, cn = _winners_numpy(s0, have, p32)
+        np.testing.assert_array_equal(np.maximum(b1, 0), bn)
+        np.testing.assert_array_equal(c1, cn)
+    rev = vertex_costs_simd(s0[::-1].copy(), have[::-1].copy(), p32, float(LINE_CAP))[1]
+    assert not np.array_equal(rev.view(np.int64), c0.view(np.int64))
+
+
 def test_it_falls_back_when_it_cannot_beat_doing_nothing():
     C, B, pal = _lines_scene(1)
     rng = np.random.default_rng(5)

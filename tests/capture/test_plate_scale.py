@@ -83,3 +83,53 @@ def test_grow_plate_keeps_a_smooth_background_and_never_extends_what_is_known():
     hole[28:52, 38:82] = True  # the unknown box at full size, grown by one working pixel
     assert not (g.known & hole).any()
     assert grow_plate(p, 40, 60).known.sum() == known.sum()
+
+
+@pytest.mark.parametrize("scale", [0.93, 0.74, 0.5, 0.31, PLATE_MIN_SCALE])
+def test_the_fast_shrink_equals_shrink_view(scale, monkeypatch):
+    """shrink_scan (SHRINK_FAST) gives shrink_view's view of the float16 colour bit for bit: colour
+    (dark pixels whose area means are float16 subnormals included), the object's depth grown (an
+    object on the borders and corners, single pixels, odd and even windows) and the capture's depth;
+    8-bit colour at scale 1 and float colour go to the reference.  Without the maximum filter the
+    depth differs (the test can fail)."""
+    from capture import plate_scale
+    from capture.camera import Camera, make_K
+    from capture.scan import linear16
+
+    rng = np.random.default_rng(int(scale * 100))
+    H, W = 97, 131
+    rgb = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
+    rgb[:20, :30] = rng.random((20, 30, 3)) < 0.08  # dark: code 0 and a few 1s, subnormal float16 means
+    obj = np.where(rng.random((H, W)) < 0.05, rng.uniform(0.5, 2.0, (H, W)), 0.0).astype(np.float32)
+    obj[:3, :4] = 1.7
+    obj[-2:, -5:] = 0.9
+    obj[40:60, 0] = 1.2
+    depth = rng.uniform(0.3, 3.0, (H, W)).astype(np.float32)
+    cam = Camera(make_K(100.0, 100.0, W / 2, H / 2), np.eye(4), W, H)
+    want = shrink_view(ps.PlateView(cam, linear16(rgb), obj, depth), scale)
+    got = plate_scale.shrink_scan(cam, rgb, obj, depth, scale)
+    assert np.array_equal(got.camera.K, want.camera.K) and (got.camera.width, got.camera.height) == \
+        (want.camera.width, want.camera.height)
+    for a, b in ((got.linear, want.linear), (got.object_depth, want.object_depth), (got.depth, want.depth)):
+        assert a.dtype == b.dtype and a.shape == b.shape
+        assert np.array_equal(a.view(np.uint8), b.view(np.uint8))
+    assert (want.linear < np.float16(6.1e-5)).any() and (want.linear > 0).any()
+    monkeypatch.setattr(plate_scale.cv2, "dilate", lambda a, k: a)
+    assert not np.array_equal(plate_scale.shrink_scan(cam, rgb, obj, depth, scale).object_depth, want.object_depth)
+    same = plate_scale.shrink_scan(cam, rgb, obj, depth, 1.0)  # scale 1: the view as it is
+    assert np.array_equal(same.linear, linear16(rgb)) and same.object_depth is obj
+
+
+def test_opencvs_float16_cast_is_numpys():
+    """The float16 cast shrink_scan takes (cv2.multiply by 1 to CV_16F) equals numpy's astype bit for
+    bit over float32 values from 0 to above the float16 range: every 61st bit pattern, the subnormal
+    range's ties, and exact halfway points between float16 neighbours (round to nearest even)."""
+    x = np.arange(0, 0x47800000 + 1000, 61, dtype=np.uint32).view(np.float32)
+    h = np.arange(0, 0x7BFF, dtype=np.uint16).view(np.float16).astype(np.float32)
+    mid = ((h[:-1].astype(np.float64) + h[1:]) / 2).astype(np.float32)  # exact in float32
+    for v in (x, mid, np.nextafter(mid, np.float32(0)), np.nextafter(mid, np.float32(1))):
+        v = np.ascontiguousarray(v.reshape(-1, 1))
+        got = cv2.multiply(v, 1.0, dtype=cv2.CV_16F)
+        with np.errstate(over="ignore"):  # beyond the float16 range: inf both
+            want = v.astype(np.float16)
+        assert got.dtype == np.float16 and np.array_equal(got.view(np.uint16), want.view(np.uint16))
