@@ -171,6 +171,8 @@ def detect_backdrop(image: np.ndarray, trimap: np.ndarray, codes: np.ndarray | N
     if codes is not None and BACKDROP_CODES and np.asarray(codes).dtype == np.uint8:
         from capture.matting_backdrop import backdrop_from_codes
 
+        if np.shape(codes) != np.shape(image):
+            raise ValueError(f"detect_backdrop: 8-bit codes {np.shape(codes)} are not the image's {np.shape(image)}")
         return backdrop_from_codes(codes, trimap == BG, BACKDROP_TOL, BACKDROP_PLAIN)
     bg = image[trimap == BG]
     if len(bg) < 16:

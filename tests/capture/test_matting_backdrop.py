@@ -68,3 +68,10 @@ def test_too_few_background_pixels_give_none(monkeypatch):
     tri = np.full((4, 4), FG)
     tri[0, :3] = BG
     assert _both(rgb8, tri, monkeypatch) == (None, None)
+
+
+def test_codes_of_another_shape_are_refused(monkeypatch):
+    rgb8, tri = _scene(np.random.default_rng(3), 48, 64, (20, 20, 20), 2, 0.0)
+    monkeypatch.setattr(matting, "BACKDROP_CODES", True)
+    with pytest.raises(ValueError, match="not the image's"):
+        detect_backdrop(srgb8_to_linear(rgb8), tri, rgb8[:, :32])
