@@ -1,0 +1,115 @@
+"""capture.matting_bound's compiled passes against the numpy references of capture.matting_known
+(alpha_lower_bound, clipped) bit for bit."""
+
+import numpy as np
+import pytest
+
+import capture.matting_bound as mb
+from capture import matting_known as mk
+
+pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered")
+
+
+def _pairs(seed: int, shape, dtype_c, dtype_b):
+    rng = np.random.default_rng(seed)
+    C = rng.uniform(-0.1, 1.1, shape).astype(dtype_c)
+    B = rng.uniform(-0.05, 1.05, shape).astype(dtype_b)
+    # near ties with the noise allowance, equal colours, the edges of the room, the clip level
+    n = C.reshape(-1, 3).shape[0]
+    Cf, Bf = C.reshape(-1, 3), B.reshape(-1, 3)
+    Cf[: n // 8] = Bf[: n // 8]
+    Bf[n // 8: n // 4] = rng.choice([0.0, 1.0, 1e-7, 1 - 1e-7, 0.975, np.nextafter(0.975, 0)], (n // 4 - n // 8, 3))
+    Cf[n // 4: n // 3] = rng.choice([0.975, np.float32(0.975), np.nextafter(np.float32(0.975), 0), 1.0, 0.0],
+                                    (n // 3 - n // 4, 3))
+    Cf[n // 3: n // 3 + 5] = [[np.nan, 0.2, 0.99], [0.99, np.nan, 0.1], [np.inf, 0, 0], [-np.inf, 0.5, 0.5],
+                              [0.1, 0.2, np.nan]]
+    Bf[n // 3 + 5: n // 3 + 8] = [[np.nan, 0.3, 0.3], [0.99, 0.1, np.nan], [np.inf, 0.2, 0.2]]
+    return C, B
+
+
+def _reference(fn, *args):
+    mb.FUSED_BOUND = False
+    try:
+        return fn(*args)
+    finally:
+        mb.FUSED_BOUND = True
+
+
+@pytest.mark.parametrize("dtypes", [(np.float32, np.float32), (np.float64, np.float64), (np.float32, np.float64),
+                                    (np.float64, np.float32)])
+@pytest.mark.parametrize("shape", [(37, 53, 3), (4001, 3)])
+@pytest.mark.parametrize("noise", [0.0, 0.01, np.float32(0.004)])
+def test_lower_bound_equals_numpy(dtypes, shape, noise):
+    C, B = _pairs(1, shape, *dtypes)
+    ref = _reference(mk.alpha_lower_bound, C, B, noise)
+    out = mk.alpha_lower_bound(C, B, noise)
+    assert mb.lower_bound(C, B, noise, mk.NOISE_REL) is not None  # the compiled pass ran
+    assert out.dtype == ref.dtype and out.shape == ref.shape
+    assert np.array_equal(out.view(np.uint64), ref.view(np.uint64))  # bit for bit, NaN and signed zeros too
+    assert (ref == 1.0).any() and (ref == 0.0).any() and ((ref > 0) & (ref < 1)).any()
+
+
+@pytest.mark.parametrize("dtypes", [(np.float32, np.float32), (np.float64, np.float64), (np.float32, np.float64),
+                                    (np.float64, np.float32)])
+@pytest.mark.parametrize("shape", [(37, 53, 3), (4001, 3)])
+def test_clipped_equals_numpy(dtypes, shape):
+    C, B = _pairs(2, shape, *dtypes)
+    ref = _reference(mk.clipped, C, B)
+    out = mk.clipped(C, B)
+    assert mb.clipped_mask(C, B, mk.CLIP_LEVEL) is not None
+    assert out.dtype == ref.dtype and out.shape == ref.shape
+    assert np.array_equal(out, ref)
+    assert ref.any() and not ref.all()
+
+
+def test_float32_level_is_the_arrays_own():
+    """numpy compares a float32 array with the level rounded to float32: at a level float32 rounds
+    down (0.7), the float32 value of the level is clipped in float32 and not in float64."""
+    level = 0.7
+    lv32 = np.float32(level)
+    assert float(lv32) < level
+    C = np.array([[lv32, 0, 0], [np.nextafter(lv32, np.float32(0)), 0, 0]], np.float32)
+    for c in (C, C.astype(np.float64)):
+        for b in (np.zeros_like(C), np.zeros_like(C, np.float64)):
+            ref = (c.max(-1) >= level) | (b.max(-1) >= level)
+            assert np.array_equal(mb.clipped_mask(c, b, level), ref)
+            assert np.array_equal(mb.clipped_mask(b, c, level), ref)
+    assert mb.clipped_mask(C, np.zeros_like(C), level).tolist() == [True, False]
+
+
+def test_shapes_it_does_not_take_go_to_numpy():
+    C = np.zeros((4, 3), np.float32)
+    assert mb.lower_bound(C, np.zeros((1, 3), np.float32), 0.0, 0.03) is None
+    assert mb.clipped_mask(C.astype(np.float16), C.astype(np.float16), 0.9) is None
+    assert mb.clipped_mask(C[:, :2], C[:, :2], 0.9) is None
+
+
+@pytest.mark.parametrize("resolution", ["full", "working"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_whole_matte_is_the_same_with_the_switches_off(monkeypatch, seed, resolution):
+    """matte_scan on a needle scene before an estimated background (the colour gate unmixes some
+    pixels, fills others and drops seen ones) with FUSED_BOUND and matting_colour.GATE_SUMS each on
+    and off: the same alpha, colour and record bit for bit."""
+    from capture import matting_colour as mc
+    from capture import matting_scale
+    from capture.matting import MatteConfig, matte_scan
+    from tests.capture.test_matting_colour import _plate, _scene
+    from tests.capture.test_matting_known import _scan
+
+    if resolution == "working":
+        monkeypatch.setattr(matting_scale, "working_scale", lambda *a, **k: 0.5)
+    C, A, F, D, est, bg, sigma = _scene(seed, 0.7, 3.0)
+    out = {}
+    for fused, sums in [(True, True), (False, True), (True, False), (False, False)]:
+        monkeypatch.setattr(mb, "FUSED_BOUND", fused)
+        monkeypatch.setattr(mc, "GATE_SUMS", sums)
+        m = matte_scan(_scan(C, D), cfg=MatteConfig(mode="plate", resolution=resolution),
+                       plate=_plate(bg, est, sigma))
+        out[fused, sums] = m
+    ref = out[False, False]
+    rec = ref.notes["colour"]
+    assert rec["unmixed"] > 0 and rec["filled"] > 0 and rec["seen_filled"] > 0, rec
+    for key, m in out.items():
+        assert np.array_equal(m.alpha.view(np.uint32), ref.alpha.view(np.uint32)), key
+        assert np.array_equal(np.asarray(m.foreground).view(np.uint32), np.asarray(ref.foreground).view(np.uint32)), key
+        assert m.notes["colour"] == rec, key
