@@ -43,6 +43,7 @@ import numpy as np
 
 from capture.fill import push_pull
 from capture.matting_bound import clipped_mask, lower_bound
+from capture.matting_candidates_kernel import fit_fused
 from capture.matting_fast import channel_max, channel_sum, dilate
 
 #: Trimap values (pymatting's convention, as capture.matting).
@@ -236,8 +237,10 @@ def fit_candidates(image: np.ndarray, background: np.ndarray, nearest: np.ndarra
     the sources' colours ``sources`` (N, 3) and any ``extra`` candidates (same shape as ``image``),
     each of which wins over it only by PALETTE_MARGIN.  Shared by the full-size path and the
     working-resolution one (capture.matting_scale)."""
-    shape = np.shape(image)
-    cands = [nearest] + [np.broadcast_to(p, shape) for p in palette(sources)] + list(extra)
+    shape, pal = np.shape(image), palette(sources)  # capture.matting_candidates_kernel when it takes them
+    if (fused := fit_fused(image, background, nearest, pal, extra, lower, PALETTE_MARGIN, SEPARATION, RESIDUAL)):
+        return fused
+    cands = [nearest] + [np.broadcast_to(p, shape) for p in pal] + list(extra)
     return candidate_alpha(image, background, cands, lower, PALETTE_MARGIN)  # a list: np.stack copied them all
 
 

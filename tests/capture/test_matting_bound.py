@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import capture.matting_bound as mb
+import capture.matting_candidates_kernel as mck
 from capture import matting_known as mk
 
 pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered")
@@ -84,12 +85,56 @@ def test_shapes_it_does_not_take_go_to_numpy():
     assert mb.clipped_mask(C[:, :2], C[:, :2], 0.9) is None
 
 
+def _candidates_case(seed: int, shape, dtype):
+    rng = np.random.default_rng(seed)
+    C = rng.uniform(0, 1, shape).astype(dtype)
+    B = rng.uniform(0, 1, shape).astype(dtype)
+    near = rng.uniform(0, 1, shape).astype(dtype)
+    extra = [rng.uniform(0, 1, shape).astype(np.float32)]
+    Cf, Bf, Nf = C.reshape(-1, 3), B.reshape(-1, 3), near.reshape(-1, 3)
+    n = len(Cf)
+    Nf[: n // 10] = Bf[: n // 10]                           # a candidate on the background (e2 0)
+    Cf[n // 10: n // 5] = Bf[n // 10: n // 5]               # the photo on the background: de +-0
+    Nf[n // 10: n // 5: 2] = Bf[n // 10: n // 5: 2] - 0.25  # negative E: de -0.0 against lower 0
+    Cf[n // 5: n // 5 + 3] = np.nan
+    Nf[n // 5 + 3: n // 5 + 6] = np.nan
+    extra[0].reshape(-1, 3)[n // 4: n // 3] = Nf[n // 4: n // 3]  # exact ties of cost
+    lower = rng.choice([0.0, -0.0, 0.3, 1.0, np.nan], shape[:-1]).astype(dtype)
+    t = slice(n // 5 + 6, n // 5 + 30)  # no nearest colour, every other candidate at the same cost
+    Cf[t], Nf[t], lower.reshape(-1)[t] = Bf[t], np.nan, 0.0
+    src = rng.uniform(0, 1, (500, 3))
+    return C, B, near, src, lower, extra
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shape", [(41, 29, 3), (3001, 1, 3)])
+def test_fit_candidates_equals_numpy(monkeypatch, dtype, shape):
+    C, B, near, src, lower, extra = _candidates_case(3, shape, dtype)
+    for ex in ([], extra):
+        monkeypatch.setattr(mck, "FUSED_CANDIDATES", False)
+        ref = mk.fit_candidates(C, B, near, src, lower, ex)
+        monkeypatch.setattr(mck, "FUSED_CANDIDATES", True)
+        assert mck.fit_fused(C, B, near, mk.palette(src), ex, lower, 0.02, 0.05, 0.03) is not None
+        out = mk.fit_candidates(C, B, near, src, lower, ex)
+        for o, r in zip(out, ref, strict=True):
+            assert o.dtype == r.dtype and o.shape == r.shape
+            assert np.array_equal(o.view(np.uint64), r.view(np.uint64))  # NaN and signed zeros too
+        a = ref[0]
+        assert (a == 1.0).any() and ((a > 0) & (a < 1)).any() and (ref[1] == 0).any() and (ref[1] > 0).any()
+
+
+def test_candidates_it_does_not_take_go_to_numpy():
+    C = np.zeros((4, 3))
+    assert mck.fit_fused(C, C, np.zeros((1, 3)), np.zeros((2, 3)), [], 0.0, 0.02, 0.05, 0.03) is None
+    assert mck.fit_fused(C, C, C, np.zeros((2, 3)), [np.zeros((4, 1, 3))], 0.0, 0.02, 0.05, 0.03) is None
+
+
 @pytest.mark.parametrize("resolution", ["full", "working"])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_the_whole_matte_is_the_same_with_the_switches_off(monkeypatch, seed, resolution):
     """matte_scan on a needle scene before an estimated background (the colour gate unmixes some
-    pixels, fills others and drops seen ones) with FUSED_BOUND and matting_colour.GATE_SUMS each on
-    and off: the same alpha, colour and record bit for bit."""
+    pixels, fills others and drops seen ones) with FUSED_BOUND (and FUSED_CANDIDATES) and
+    matting_colour.GATE_SUMS each on and off: the same alpha, colour and record bit for bit."""
     from capture import matting_colour as mc
     from capture import matting_scale
     from capture.matting import MatteConfig, matte_scan
@@ -102,6 +147,7 @@ def test_the_whole_matte_is_the_same_with_the_switches_off(monkeypatch, seed, re
     out = {}
     for fused, sums in [(True, True), (False, True), (True, False), (False, False)]:
         monkeypatch.setattr(mb, "FUSED_BOUND", fused)
+        monkeypatch.setattr(mck, "FUSED_CANDIDATES", fused)
         monkeypatch.setattr(mc, "GATE_SUMS", sums)
         m = matte_scan(_scan(C, D), cfg=MatteConfig(mode="plate", resolution=resolution),
                        plate=_plate(bg, est, sigma))
