@@ -87,7 +87,7 @@ def fit_fused(image, background, nearest, palette_colours, extra, lower, margin:
     docstring), or None when the arrays are not its (per-pixel candidates of the image's shape) or
     FUSED_CANDIDATES is off.  ``palette_colours`` (K, 3): the palette."""
     extra = list(extra)
-    if not _takes(image, [background, nearest, *extra]):
+    if not isinstance(lower, np.ndarray) or lower.ndim == 0 or not _takes(image, [background, nearest, *extra]):
         return None
     shape = image.shape[:-1]
     try:

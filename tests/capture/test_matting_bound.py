@@ -6,6 +6,7 @@ import pytest
 
 import capture.matting_bound as mb
 import capture.matting_candidates_kernel as mck
+import capture.matting_full_colour as mfc
 from capture import matting_known as mk
 
 pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered")
@@ -127,6 +128,36 @@ def test_candidates_it_does_not_take_go_to_numpy():
     C = np.zeros((4, 3))
     assert mck.fit_fused(C, C, np.zeros((1, 3)), np.zeros((2, 3)), [], 0.0, 0.02, 0.05, 0.03) is None
     assert mck.fit_fused(C, C, C, np.zeros((2, 3)), [np.zeros((4, 1, 3))], 0.0, 0.02, 0.05, 0.03) is None
+    assert mck.fit_fused(C, C, C, np.zeros((2, 3)), [], 0.0, 0.02, 0.05, 0.03) is None  # a scalar lower bound
+    assert mck.fit_fused(C, C, C, np.zeros((2, 3)), [], np.zeros(4), 0.02, 0.05, 0.03) is not None
+
+
+@pytest.mark.parametrize("shape", [(43, 37, 3), (1, 5000, 3)])
+def test_full_colour_equals_numpy(monkeypatch, shape):
+    from capture.matting_scale import _full_colour
+
+    rng = np.random.default_rng(5)
+    C = rng.uniform(0, 1, shape).astype(np.float32)
+    B = rng.uniform(0, 1, shape).astype(np.float32)
+    f_up = rng.uniform(0, 1, shape).astype(np.float32)
+    a = rng.choice([0.0, -0.0, 1e-7, 0.3, 0.999, 1.0, np.nan], shape[:2]) * rng.uniform(0.5, 1, shape[:2])
+    known = rng.uniform(size=shape[:2]) < 0.8
+    Cf, Bf = C.reshape(-1, 3), B.reshape(-1, 3)
+    n = len(Cf)
+    Cf[: n // 6] = rng.choice([0.0, -0.0, 1.0, np.float32(0.975), np.nextafter(np.float32(0.975), 0)], (n // 6, 3))
+    Bf[n // 6: n // 3] = rng.choice([0.0, -0.0, 1.0, np.float32(0.975), np.nan], (n // 3 - n // 6, 3))
+    Cf[n // 3: n // 3 + 4] = np.nan
+    f_up.reshape(-1, 3)[n // 2: n // 2 + 200] = rng.choice([np.nan, -0.0, 0.5], (200, 3))
+    monkeypatch.setattr(mfc, "FUSED_FULL_COLOUR", False)
+    ref = _full_colour(C, a, B, known, f_up)
+    monkeypatch.setattr(mfc, "FUSED_FULL_COLOUR", True)
+    assert mfc.full_colour(C, a, B, known, f_up, mk.CLIP_LEVEL, mk.OPAQUE_ALPHA) is not None
+    out = _full_colour(C, a, B, known, f_up)
+    assert out.dtype == ref.dtype == np.float64 and out.shape == ref.shape
+    assert np.array_equal(out.view(np.uint64), ref.view(np.uint64))  # NaN and signed zeros too
+    assert np.isnan(ref).any() and (ref == 1.0).any() and (np.signbit(ref) & (ref == 0)).any()
+    # other dtypes go to numpy
+    assert mfc.full_colour(C, a.astype(np.float32), B, known, f_up, mk.CLIP_LEVEL, mk.OPAQUE_ALPHA) is None
 
 
 @pytest.mark.parametrize("resolution", ["full", "working"])
@@ -148,6 +179,7 @@ def test_the_whole_matte_is_the_same_with_the_switches_off(monkeypatch, seed, re
     for fused, sums in [(True, True), (False, True), (True, False), (False, False)]:
         monkeypatch.setattr(mb, "FUSED_BOUND", fused)
         monkeypatch.setattr(mck, "FUSED_CANDIDATES", fused)
+        monkeypatch.setattr(mfc, "FUSED_FULL_COLOUR", fused)
         monkeypatch.setattr(mc, "GATE_SUMS", sums)
         m = matte_scan(_scan(C, D), cfg=MatteConfig(mode="plate", resolution=resolution),
                        plate=_plate(bg, est, sigma))
