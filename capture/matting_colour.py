@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.fill import push_pull
+from capture.matting_fast import channel_sum
 from capture.matting_known import FILL_ALPHA, MIN_SOURCES, clipped
 
 #: Held-back blocks of the fill's error (:func:`fill_error`), pixels: a held-back sure colour lies up
@@ -55,6 +56,14 @@ GATE_SEEN = True
 #: An estimated background of unknown uncertainty (the plate's sigma inf: a blown-out bound, or its
 #: held-back check could not run) counts as this uncertain (linear): never unmixed.
 SIGMA_UNKNOWN = 1e3
+#: The gate's squared norms over the three channels by capture.matting_fast.channel_sum (numpy's own
+#: order: the same values bit for bit), |B|^2 once; False: numpy's ``.sum(-1)`` each time (the
+#: reference; docs/speed.md round 12).
+GATE_SUMS = True
+
+
+def _sum(x: np.ndarray) -> np.ndarray:
+    return x.sum(-1)
 
 
 def fill_error(F: np.ndarray, sure: np.ndarray, block: int = HOLD_BLOCK) -> float | None:
@@ -131,12 +140,15 @@ def colour_gate(estimated: np.ndarray, sigma: np.ndarray | None, record: dict | 
         if sigma_a is not None:  # the alpha's error enters a F as (a - a_true) B unmixed, (a - a_true) F filled
             s_b = SIGMA_UNKNOWN if sigma is None else \
                 np.minimum(np.nan_to_num(np.asarray(sigma, np.float64), nan=np.inf), SIGMA_UNKNOWN)
-            var_a = alpha_variance(sigma_a, ((B - Ff) ** 2).sum(-1))
-            e_unmix = ((1.0 - a) * s_b) ** 2 + var_a * (B ** 2).sum(-1)
-            e_fill = (a * sigma_f) ** 2 + var_a * (Ff ** 2).sum(-1)
+            norm = channel_sum if GATE_SUMS else _sum
+            var_a = alpha_variance(sigma_a, norm((B - Ff) ** 2))
+            b2 = norm(B ** 2)
+            e_unmix = ((1.0 - a) * s_b) ** 2 + var_a * b2
+            e_fill = (a * sigma_f) ** 2 + var_a * norm(Ff ** 2)
             unmix = open_ & (e_unmix < UNMIX_RATIO ** 2 * e_fill)
             if GATE_SEEN:  # where B was seen (sigma_B 0) the same comparison; the fill's sources stay unmixed
-                drop = seen & (a > 0) & (a < FILL_ALPHA) & (var_a * (B ** 2).sum(-1) >= UNMIX_RATIO ** 2 * e_fill)
+                drop = seen & (a > 0) & (a < FILL_ALPHA) & \
+                    (var_a * (b2 if GATE_SUMS else norm(B ** 2)) >= UNMIX_RATIO ** 2 * e_fill)
         rec = {"estimated": int(open_.sum()), "unmixed": int(unmix.sum()), "filled": int((open_ & ~unmix).sum()),
                "seen_filled": int(drop.sum()),
                "sigma_fill": None if sigma_f is None else round(sigma_f, 5),

@@ -42,6 +42,8 @@ import io
 import numpy as np
 
 from capture.fill import push_pull
+from capture.matting_bound import clipped_mask, lower_bound
+from capture.matting_candidates_kernel import fit_fused
 from capture.matting_fast import channel_max, channel_sum, dilate
 
 #: Trimap values (pymatting's convention, as capture.matting).
@@ -153,7 +155,9 @@ def widen_px(width: int) -> int:
 def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = NOISE_ABS) -> np.ndarray:
     """(h, w) least alpha for which F = B + (C - B) / a stays in [0, 1] (step 1 of the module
     docstring), with the noise allowance (``noise`` + NOISE_REL B, linear) taken off: 0 where C is
-    within noise of B."""
+    within noise of B.  capture.matting_bound's compiled pass when it takes the arrays."""
+    if (fused := lower_bound(image, background, noise, NOISE_REL)) is not None:
+        return fused
     C = np.asarray(image, np.float64)
     B = np.asarray(background, np.float64)
     d = C - B
@@ -233,8 +237,10 @@ def fit_candidates(image: np.ndarray, background: np.ndarray, nearest: np.ndarra
     the sources' colours ``sources`` (N, 3) and any ``extra`` candidates (same shape as ``image``),
     each of which wins over it only by PALETTE_MARGIN.  Shared by the full-size path and the
     working-resolution one (capture.matting_scale)."""
-    shape = np.shape(image)
-    cands = [nearest] + [np.broadcast_to(p, shape) for p in palette(sources)] + list(extra)
+    shape, pal = np.shape(image), palette(sources)  # capture.matting_candidates_kernel when it takes them
+    if (fused := fit_fused(image, background, nearest, pal, extra, lower, PALETTE_MARGIN, SEPARATION, RESIDUAL)):
+        return fused
+    cands = [nearest] + [np.broadcast_to(p, shape) for p in pal] + list(extra)
     return candidate_alpha(image, background, cands, lower, PALETTE_MARGIN)  # a list: np.stack copied them all
 
 
@@ -336,7 +342,9 @@ def _finish(image, trimap, background, known, a_u, unk, lower, fallback_fg, colo
 def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
     """(h, w) bool: pixels where the photo or the plate reaches CLIP_LEVEL in a channel.  There
     C = a F + (1 - a) B no longer holds (the true B of a blown-out window is above 1), so B
-    counts as unknown there."""
+    counts as unknown there.  capture.matting_bound's compiled pass when it takes the arrays."""
+    if (fused := clipped_mask(image, background, CLIP_LEVEL)) is not None:
+        return fused
     return (channel_max(image) >= CLIP_LEVEL) | (channel_max(background) >= CLIP_LEVEL)
 
 

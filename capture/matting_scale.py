@@ -347,9 +347,12 @@ def _full_colour(image: np.ndarray, a: np.ndarray, background: np.ndarray, known
     or blown out, alpha 0) the working solve's colour ``f_up``, brought up by the guided filter (the
     working solve made it by the same rules: pymatting's foreground, the fills of the nearest sure
     colours)."""
+    from capture.matting_full_colour import full_colour
+    from capture.matting_known import CLIP_LEVEL, clipped
     from capture.matting_known import OPAQUE_ALPHA as KNOWN_OPAQUE
-    from capture.matting_known import clipped
 
+    if (fused := full_colour(image, a, background, known, f_up, CLIP_LEVEL, KNOWN_OPAQUE)) is not None:
+        return fused
     blown = known & clipped(image, background) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(background + (image - background) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
