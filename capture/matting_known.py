@@ -11,7 +11,7 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
    the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
    ``SOURCE_ALPHA``: their F is (C - (1 - a) B) / a at that bound), filled outwards by a push-pull
    pyramid (:func:`capture.fill.push_pull`), and a palette of the view's sure foreground colours
-   (``PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``;
+   (``capture.matting_palette.PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``;
    :func:`colour_sources` and :func:`fit_candidates`, shared with capture.matting_scale).  Per
    candidate P, alpha is the projection of D on P - B, clipped to [bound, 1]; the candidate that
    explains C best (least residual) wins, a palette colour only by ``PALETTE_MARGIN`` over the
@@ -45,6 +45,7 @@ from capture.fill import push_pull
 from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
 from capture.matting_fast import channel_max, channel_sum, dilate
+from capture.matting_palette import palette
 
 #: Trimap values (pymatting's convention, as capture.matting).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
@@ -84,12 +85,6 @@ FILL_BRIGHT = 0.15
 FILL_ALPHA = SOURCE_ALPHA
 #: Fewer sure colour sources than this: the colour where B is not known is pymatting's estimate.
 MIN_SOURCES = 50
-#: Colours in the view's palette of sure foreground colours (k-means; step 2).
-PALETTE_SIZE = 6
-#: k-means: samples and iterations (seeded).
-PALETTE_SAMPLES = 4000
-PALETTE_ITERATIONS = 8
-PALETTE_SEED = 0
 #: Data-term confidence: a candidate that differs from B by SEPARATION (linear, Euclidean) gets
 #: half weight; a residual of RESIDUAL (linear) halves it again.
 SEPARATION = 0.05
@@ -165,26 +160,6 @@ def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = 
     room = np.where(d > 0, 1.0 - B, B)
     lo = np.where(slack > 0, slack / np.maximum(room, 1e-6), 0.0)
     return np.clip(channel_max(lo), 0.0, 1.0)
-
-
-def palette(colours: np.ndarray, k: int | None = None) -> np.ndarray:
-    """(<= k, 3) k-means centres of (N, 3) ``colours`` (seeded, PALETTE_SAMPLES of them at most;
-    k default PALETTE_SIZE)."""
-    c = np.asarray(colours, np.float64).reshape(-1, 3)
-    k = PALETTE_SIZE if k is None else k
-    if len(c) == 0 or k == 0:
-        return np.zeros((0, 3))
-    rng = np.random.default_rng(PALETTE_SEED)
-    if len(c) > PALETTE_SAMPLES:
-        c = c[rng.choice(len(c), PALETTE_SAMPLES, replace=False)]
-    k = min(k, len(c))
-    centres = c[rng.choice(len(c), k, replace=False)]
-    for _ in range(PALETTE_ITERATIONS):
-        lab = np.argmin(((c[:, None] - centres[None]) ** 2).sum(-1), axis=1)
-        for j in range(k):
-            if np.any(lab == j):
-                centres[j] = c[lab == j].mean(0)
-    return centres
 
 
 def candidate_alpha(image: np.ndarray, background: np.ndarray, candidates: np.ndarray,
