@@ -23,6 +23,9 @@ orbits +0.015 / +0.016 / +0.047, the turntables -0.013 (made-on) / -0.008 / +0.0
 lens and the fur the same digits (no view's factor found; no view measures its alpha error), the black
 twins the same digits; mean +0.010 dB.  On seeded views of one tint and brightness 0.7-1.4 the worst
 view's median error 0.013-0.033 -> 0.003-0.010 (tests/capture/test_matting_recross.py).
+
+RECROSS_MEAN_ONE (after the eleventh round, off: its docstring; docs/matting.md) holds the views' factors at a
+geometric mean of 1 a channel before the lines are divided by them and in the product returned.
 """
 
 from __future__ import annotations
@@ -35,6 +38,13 @@ RECROSS = True
 #: At most how many times the cubes are re-crossed, each pass in the factors of the passes before it (1: once);
 #: the passes stop where one finds no factor (its views' brightness scatters no more than its noise).
 RECROSS_PASSES = 1
+#: Hold the views' factors at a geometric mean of 1 a channel (over all the views) before the lines are divided
+#: by them, and each pass's factors likewise before they multiply the product returned.  A factor shared by all
+#: the views is not in the lines (it trades against the object's colour: F s with K / s gives the same colours),
+#: so only the views' differences are removed and the passes cannot drift by it (the turntables' passes found
+#: 0.983 in every view, every pass).  The geometric mean because the factors multiply: it is the one mean that a
+#: common scale s moves by exactly s, and a view at 2x and one at 0.5x balance.  Off: the eleventh round as it was.
+RECROSS_MEAN_ONE = False  # off: held out mean -0.0091 dB, made-on turntable -0.0304 (docs/matting.md)
 
 
 def view_factors(k, n_views: int) -> np.ndarray:
@@ -42,6 +52,14 @@ def view_factors(k, n_views: int) -> np.ndarray:
     channels, or the brightness times the tint (n_views, 3) as it is."""
     K = np.asarray(k, np.float64)
     return np.repeat(K.reshape(n_views, 1), 3, 1) if K.ndim == 1 else K.reshape(n_views, 3).copy()
+
+
+def mean_one(K: np.ndarray) -> np.ndarray:
+    """(n_views, 3) the factors ``K`` over their geometric mean a channel across the views (RECROSS_MEAN_ONE),
+    ``K`` as it is when off."""
+    if not RECROSS_MEAN_ONE:
+        return K
+    return K / np.exp(np.log(np.maximum(K, 1e-12)).mean(0))
 
 
 def _summary(rec: dict) -> dict:
@@ -62,6 +80,7 @@ def recross(cross_once, first: tuple, C, B, w, alpha, colour, fill, gsum, group,
     K = view_factors(k, n_views)
     if np.all(K == 1.0):
         return F, sig2, F_obj, k, {**rec, "recross": {"reason": "no view's brightness or tint found"}}
+    K = mean_one(K)
     vi, last, fail = np.asarray(view, np.int64), None, None
     for _ in range(RECROSS_PASSES):  # each pass in the factors found so far
         t = K[vi]
@@ -70,10 +89,10 @@ def recross(cross_once, first: tuple, C, B, w, alpha, colour, fill, gsum, group,
         if Fo2 is None:
             fail = rec2
             break
-        K2 = view_factors(k2, n_views)
+        K2 = mean_one(view_factors(k2, n_views))
         K = K * K2
         last = (F2, s2, Fo2, rec2, K2, (last[5] if last else 0) + 1)
-        if np.all(K2 == 1.0):  # the factors stopped moving: another pass would repeat this one
+        if np.all(view_factors(k2, n_views) == 1.0):  # the factors stopped moving: another pass would repeat this one
             break
     if last is None:
         why = "the object's colour fails in the views' tint: the first pass kept"

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture import matting_cells as mc
+from capture import matting_global as mg
 from capture import matting_lines as ml
 from capture import matting_recross as mr
 from tests.capture.test_matting_contrast import TINT_TOL, TINTS, _tinted_views
@@ -111,3 +112,35 @@ def test_the_passes_stop_where_one_finds_no_factor(monkeypatch):
             recs.append(rec["global"]["recross"])
         assert "passes" not in recs[0] and 2 <= recs[1]["passes"] < 4 and recs[1]["second_range"] == [1.0, 1.0]
         assert errs[1] <= errs[0] + 1e-4, (seed, errs)
+
+
+def _args(seed: int) -> tuple:
+    """cross_cells' arguments for the seeded views of one tint at brightness K_LIT (as cell_colours builds them)."""
+    views, _ = _lit_views(seed, K_LIT)
+    cat = {k: np.concatenate([v[k] for v in views]) for k in ("pts", "C", "B", "a", "F0")}
+    w = ml.line_weights(ml.line_alpha(cat["C"], cat["B"], np.median(cat["F0"], 0)), np.ones(len(cat["a"]), bool),
+                        np.zeros(len(cat["a"])), ml.CELL_LINE_ALPHA)
+    extent = float((cat["pts"].max(0) - cat["pts"].min(0)).max())
+    inv, gsum = ml.cell_groups(cat["pts"], extent / 2)
+    fill = np.concatenate([mg.filled(v["C"], v["B"], v["a"], v["F0"]) for v in views])
+    view = np.concatenate([np.full(len(v["a"]), i) for i, v in enumerate(views)])
+    return cat["C"], cat["B"], w, cat["a"], cat["F0"], fill, gsum, inv, view, len(views)
+
+
+def test_a_factor_shared_by_every_view_does_not_move_the_re_crossed_colours(monkeypatch):
+    """A first pass whose factors all carry one scale s (and its colours 1 / s: the same colours in every view,
+    as the lines cannot tell them apart) is re-crossed to the same factors and cube colours whatever s with
+    RECROSS_MEAN_ONE (within 1e-9; their geometric mean over the views 1 a channel); off, the factors returned
+    carry s (the test fails off: 0.8 and 1.25 differ by their ratio)."""
+    monkeypatch.setattr(mr, "RECROSS", True)
+    monkeypatch.setattr(mr, "RECROSS_MEAN_ONE", True)
+    for seed in range(2):
+        args = _args(seed)
+        F, s2, Fo, k, rec = mg.cross_once(*args)
+        assert np.asarray(k).ndim == 2
+        got = [mr.recross(mg.cross_once, (F / s, s2, Fo / s, k * s, rec), *args) for s in (0.8, 1.0, 1.25)]
+        for g in got:
+            assert np.allclose(np.exp(np.log(g[3]).mean(0)), 1.0, atol=1e-12)
+            assert np.allclose(g[3], got[1][3], rtol=0, atol=1e-9) and np.allclose(g[0], got[1][0], rtol=0, atol=1e-9)
+            assert np.allclose(g[2], got[1][2], rtol=0, atol=1e-9)
+
