@@ -149,11 +149,18 @@ def above_plane(depth: np.ndarray, camera, plane: np.ndarray, offset: float) -> 
     """(H, W) bool: the depth pixels whose world point lies more than ``offset`` above ``plane``
     (``pts @ plane[:3] + plane[3] > offset`` of ``camera.depth_to_points(depth)``, in the loop's
     arithmetic: module docstring); False where there is no depth."""
+    depth, K, R, t = camera_arrays(depth, camera)
+    out = np.zeros(depth.shape, np.bool_)
+    _above(depth, K, R, t, np.asarray(plane, np.float64), float(offset), out)
+    return out
+
+
+def camera_arrays(depth: np.ndarray, camera) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(the depth contiguous, float32 or else float64; K (3, 3), R (3, 3), t (3,) of the camera-to-world
+    transform, contiguous float64): what the compiled loops here take of a view."""
     depth = np.ascontiguousarray(depth)
     if depth.dtype not in (np.float32, np.float64):
         depth = depth.astype(np.float64)
-    out = np.zeros(depth.shape, np.bool_)
     wfc = camera.world_from_cam
-    _above(depth, np.ascontiguousarray(camera.K, np.float64), np.ascontiguousarray(wfc[:3, :3], np.float64),
-           np.ascontiguousarray(wfc[:3, 3], np.float64), np.asarray(plane, np.float64), float(offset), out)
-    return out
+    return (depth, np.ascontiguousarray(camera.K, np.float64), np.ascontiguousarray(wfc[:3, :3], np.float64),
+            np.ascontiguousarray(wfc[:3, 3], np.float64))

@@ -375,20 +375,12 @@ def _draw_prediction(views, pix, gains, weights, frames) -> tuple[np.ndarray, np
     at a time, the chunks side by side (capture.plate_threads): each pixel's plate is its own samples'
     alone, so the values are the same as one call's."""
     from capture import plate_predict as pp
-    from capture.plate_threads import chunks, thread_map
+    from capture.plate_threads import chunked_prediction
 
     if pp.applies(views, gains, weights):  # compiled, the same values (pp.FUSED_PREDICTION)
         return pp.fused_draw_prediction(views, pix, gains, weights, frames)
-    med = np.full((len(pix), 3), np.nan, np.float32)
-    bound = np.zeros(len(pix), bool)
-
-    def one(span):
-        lo, hi = span
-        med[lo:hi], bound[lo:hi] = fixed_prediction(views, pix[lo:hi], None, gains, weights, frames)
-
-    for _ in thread_map(one, chunks(len(pix), DRAW_CHUNK)):
-        pass
-    return med, bound
+    return chunked_prediction(lambda lo, hi: fixed_prediction(views, pix[lo:hi], None, gains, weights, frames),
+                              len(pix), DRAW_CHUNK)
 
 
 def _fixed_views(ps: PlateSet, gains, needs, shape, y, x, med, est, bound, sigma):

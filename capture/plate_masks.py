@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from capture.extent_kernel import _height, _world
+from capture.extent_kernel import _height, _world, camera_arrays
 
 #: capture.plate.prepare's masks by :func:`view_masks` on the object's box (False: plate.source_mask,
 #: ring_pixels and need_mask over the whole frame, the reference; the same masks).
@@ -92,13 +92,9 @@ def off_plane_at(cam, depth: np.ndarray, plane: np.ndarray | None, where: np.nda
 
     if not OFF_PLANE_BAND or plane is None:
         return off_plane(cam, depth, plane) & where
-    depth = np.ascontiguousarray(depth)
-    if depth.dtype not in (np.float32, np.float64):
-        depth = depth.astype(np.float64)
+    depth, K, R, t = camera_arrays(depth, cam)
     out = np.zeros(depth.shape, np.bool_)
-    wfc = cam.world_from_cam
-    _above_at(depth, np.ascontiguousarray(cam.K, np.float64), np.ascontiguousarray(wfc[:3, :3], np.float64),
-              np.ascontiguousarray(wfc[:3, 3], np.float64), np.asarray(plane, np.float64), float(PLANE_OFF_METRES),
+    _above_at(depth, K, R, t, np.asarray(plane, np.float64), float(PLANE_OFF_METRES),
               np.ascontiguousarray(where, np.bool_), out)
     return out
 

@@ -117,16 +117,8 @@ def fused_ring_predict(ps, gains: np.ndarray) -> list[np.ndarray]:
 def fused_draw_prediction(views, pix: np.ndarray, gains: np.ndarray, weights, frames) -> tuple[np.ndarray, np.ndarray]:
     """``plate_fixed._draw_prediction`` (the same values) by :func:`fused_prediction`, FUSED_CHUNK pixels
     a task, the tasks side by side (capture.plate_threads)."""
-    from capture.plate_threads import chunks, thread_map
+    from capture.plate_threads import chunked_prediction
 
     tables = fused_tables(gains, frames)
-    med = np.full((len(pix), 3), np.nan, np.float32)
-    bound = np.zeros(len(pix), bool)
-
-    def one(span):
-        lo, hi = span
-        med[lo:hi], bound[lo:hi] = fused_prediction(views, pix[lo:hi], gains, weights, frames, tables)
-
-    for _ in thread_map(one, chunks(len(pix), FUSED_CHUNK)):
-        pass
-    return med, bound
+    return chunked_prediction(lambda lo, hi: fused_prediction(views, pix[lo:hi], gains, weights, frames, tables),
+                              len(pix), FUSED_CHUNK)

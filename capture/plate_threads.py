@@ -20,6 +20,8 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
+
 #: Threads of the plate stage (None: the cores this process may run on).  1 = one thread, as before.
 PLATE_THREADS: int | None = None
 
@@ -99,3 +101,20 @@ def _opencv_alone(start: bool) -> None:
 def chunks(n: int, size: int) -> list[tuple[int, int]]:
     """(lo, hi) of consecutive chunks of ``size`` over ``range(n)`` (the last one shorter)."""
     return [(lo, min(n, lo + size)) for lo in range(0, n, max(1, int(size)))]
+
+
+def chunked_prediction(predict: Callable, n: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """((n, 3) float32 colour, NaN where none; (n,) bool bound) of ``predict(lo, hi) -> (colour, bound)``
+    over the pixels ``lo:hi`` of :func:`chunks` (``size`` a chunk), the chunks side by side (module docstring:
+    each chunk is its own pixels', so the values are one call's)."""
+    med = np.full((n, 3), np.nan, np.float32)
+    bound = np.zeros(n, bool)
+
+    def one(span):
+        lo, hi = span
+        med[lo:hi], bound[lo:hi] = predict(lo, hi)
+
+    for _ in thread_map(one, chunks(n, size)):
+        pass
+    return med, bound
+
