@@ -458,7 +458,7 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     from capture.matting import FG, depth_trimap
     from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
-    from capture.plate_fast import scaled_samples
+    from capture.plate_fast import DRAW_IN_PLACE, scaled_samples, unseen_at  # the same values
     from capture.plate_lines import object_palette
     from capture.plate_threads import thread_map
 
@@ -478,8 +478,9 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     hot = channel_max(own) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None  # own.max(axis=-1)
     hot_bound = np.zeros(int(todo.sum()), bool)
     unc = np.full(int(todo.sum()), np.nan)
-    b = _unseen_chunks(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
-                       None if hot is None else hot[:, todo], hot_bound, unc)
+    b = unseen_at(samples, np.flatnonzero(todo), pal, opaque, covered, hot, hot_bound, unc, FILL_CHUNK) \
+        if DRAW_IN_PLACE else _unseen_chunks(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
+                                             None if hot is None else hot[:, todo], hot_bound, unc)
     filled = np.isfinite(b[:, 0])
     if sigma is not None:  # the lines' sigma held to their error where the robust mode knew the background
         usable = _frames_at(views, y, x, lambda p: p.weight > 0)

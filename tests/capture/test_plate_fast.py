@@ -135,3 +135,57 @@ def test_the_band_crossing_by_one_index_is_the_boolean_ones(monkeypatch):
         got = _switch(monkeypatch, mc, "CROSSING_FLAT", True, mc.band_crossing, *args)
         want = _switch(monkeypatch, mc, "CROSSING_FLAT", False, mc.band_crossing, *args)
         assert 0.0 < want < 1.0 and got == want
+
+
+@pytest.mark.parametrize("with_hot", [False, True])
+def test_the_lines_chunks_taking_their_columns_are_the_copied_ones(with_hot, monkeypatch):
+    """unseen_at against capture.plate_fixed._unseen_chunks of the copied columns: the same backgrounds,
+    bounds and sigma bit for bit (chunks of 97 pixels and the module's)."""
+    from capture import plate_fixed
+
+    rng = np.random.default_rng(21)
+    K, N = 10, 1500
+    pal = rng.uniform(0.02, 0.3, (4, 3))
+    B = rng.uniform(0.1, 1.2, (N, 3))
+    a = rng.uniform(0.0, 0.9, (K, N))
+    a[:2] = 0.0
+    s = np.clip(a[..., None] * pal[rng.integers(0, 4, (K, N))] + (1 - a[..., None]) * B[None], 0, 1).astype(np.float32)
+    s[rng.random((K, N)) < 0.05] = np.nan
+    opaque, covered = rng.random((K, N)) < 0.1, rng.random((K, N)) < 0.2
+    hot = (np.nan_to_num(s).max(-1) >= 0.975) if with_hot else None
+    idx = np.flatnonzero(rng.random(N) < 0.6)
+    for chunk in (97, plate_fixed.FILL_CHUNK):
+        monkeypatch.setattr(plate_fixed, "FILL_CHUNK", chunk)
+        b1, s1 = np.zeros(len(idx), bool), np.zeros(len(idx))
+        b2, s2 = np.zeros(len(idx), bool), np.zeros(len(idx))
+        got = pf.unseen_at(s, idx, pal, opaque, covered, hot, b1, s1, chunk)
+        want = plate_fixed._unseen_chunks(s[:, idx], pal, opaque[:, idx], covered[:, idx],
+                                          None if hot is None else hot[:, idx], b2, s2)
+        assert np.isfinite(want[:, 0]).mean() > 0.3
+        for g, w in ((got, want), (b1, b2), (s1, s2)):
+            assert _bits(g) == _bits(w)
+    shifted = pf.unseen_at(s, idx[::-1].copy(), pal, opaque, covered, hot, b1, s1, 97)  # the test can fail
+    assert _bits(shifted) != _bits(want)
+
+
+def test_the_room_test_counted_is_numpys(monkeypatch):
+    """room_counts are the masks' sums; room_depth with DRAW_IN_PLACE on and off the same (None or the depth)."""
+    from capture.plate_reproject import ROOM_MIN_FRACTION, room_depth
+
+    rng = np.random.default_rng(8)
+    H, W = 60, 80
+    depth = rng.uniform(0.5, 3.0, (H, W)).astype(np.float32)
+    depth[rng.random((H, W)) < 0.2] = 0.0
+    depth[0, :4] = np.nan
+    ring = rng.random((H, W)) < 0.3
+    for p_off in (0.05, 0.9):
+        off = rng.random((H, W)) < p_off
+        counts = _switch(monkeypatch, pf, "DRAW_IN_PLACE", True, pf.room_counts, ring, off, depth)
+        assert counts == (int(ring.sum()), int((ring & off & (depth > 0)).sum()))
+        got = _switch(monkeypatch, pf, "DRAW_IN_PLACE", True, room_depth, depth, ring, off)
+        want = _switch(monkeypatch, pf, "DRAW_IN_PLACE", False, room_depth, depth, ring, off)
+        assert (got is None) == (want is None) == (counts[1] < ROOM_MIN_FRACTION * counts[0])
+        assert got is None or _bits(got) == _bits(want)
+    monkeypatch.setattr(pf, "DRAW_IN_PLACE", True)
+    assert pf.room_counts(np.zeros((H, W), bool), off, depth) == (0, 0)
+    assert pf.room_counts(ring.astype(np.uint8), off, depth) is None
