@@ -27,20 +27,13 @@ SHIFTS = (0.0, 1e-4, 1e-3, 1e-2, 0.1, 0.5, 1.0, 10.0, 100, 1e3, 1e4, 1e5)
 MAX_NNZ = int(4e9 / 16)
 
 
-@njit("i8(i8, f8[:], i8[:], i8[:], f8[:], i8[:], i8[:], f8, f8, i8, f8, b1)", cache=True, nogil=True)
-def _ichol(n, Av, Ar, Ap, Lv, Lr, Lp, discard_threshold, shift, max_nnz, relative_discard_threshold,
-           diag_keep_discarded):
-    """pymatting's ``_ichol`` (its comments kept short), the column's rows sorted in place."""
-    nnz = 0
-    c_n = 0
-    s = np.zeros(n, np.int64)  # next non-zero row index i in column j of L
-    t = np.zeros(n, np.int64)  # first subdiagonal index i in column j of A
-    l = np.zeros(n, np.int64) - 1  # linked list of non-zero columns in row k of L
-    a = np.zeros(n, np.float64)  # values of column j
-    r = np.zeros(n, np.float64)  # r[j] = sum(abs(A[j:, j])) for the relative threshold
-    b = np.zeros(n, np.bool_)  # b[i]: the i-th element of column j is non-zero
-    c = np.empty(n, np.int64)  # row indices of the non-zero elements in column j
-    d = np.full(n, shift, np.float64)  # diagonal of A
+@njit(cache=True, nogil=True)
+def _ichol_start(n, Av, Ar, Ap, shift):
+    """pymatting's ``_ichol``'s first loop: (t: first subdiagonal index in column j of A, r[j] =
+    sum(abs(A[j:, j])) for the relative threshold, d: the diagonal of A plus ``shift``)."""
+    t = np.zeros(n, np.int64)
+    r = np.zeros(n, np.float64)
+    d = np.full(n, shift, np.float64)
     for j in range(n):
         for idx in range(Ap[j], Ap[j + 1]):
             i = Ar[idx]
@@ -49,6 +42,22 @@ def _ichol(n, Av, Ar, Ap, Lv, Lr, Lp, discard_threshold, shift, max_nnz, relativ
                 t[j] = idx + 1
             if i >= j:
                 r[j] += abs(Av[idx])
+    return t, r, d
+
+
+@njit("i8(i8, f8[:], i8[:], i8[:], f8[:], i8[:], i8[:], f8, f8, i8, f8, b1)", cache=True, nogil=True)
+def _ichol(n, Av, Ar, Ap, Lv, Lr, Lp, discard_threshold, shift, max_nnz, relative_discard_threshold,
+           diag_keep_discarded):
+    """pymatting's ``_ichol`` (its comments kept short; its first loop in :func:`_ichol_start`), the
+    column's rows sorted in place."""
+    nnz = 0
+    c_n = 0
+    s = np.zeros(n, np.int64)  # next non-zero row index i in column j of L
+    l = np.zeros(n, np.int64) - 1  # linked list of non-zero columns in row k of L
+    a = np.zeros(n, np.float64)  # values of column j
+    b = np.zeros(n, np.bool_)  # b[i]: the i-th element of column j is non-zero
+    c = np.empty(n, np.int64)  # row indices of the non-zero elements in column j
+    t, r, d = _ichol_start(n, Av, Ar, Ap, shift)
     for j in range(n):
         for idx in range(t[j], Ap[j + 1]):
             i = Ar[idx]

@@ -71,7 +71,7 @@ def test_the_order_of_a_column_s_rows_matters():
 
     code = inspect.getsource(mi._ichol.py_func).split("\n", 1)[1]  # without the decorator
     code = code.replace("c[q] > v", "False")  # no sort: the rows in the order they were met
-    ns = {"np": np}
+    ns = {"np": np, "_ichol_start": mi._ichol_start}
     exec("from numba import njit\n@njit\n" + code.replace("def _ichol(", "def twin("), ns)
     nnz = ns["twin"](n, A.data, A.indices.astype(np.int64), A.indptr.astype(np.int64), Lv, Lr, Lp, 1e-4, 0.0,
                      len(Lv), 0.0, True)
