@@ -439,9 +439,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
     ``record``: a dict that gets its record; ``colour``: step 4's rule for where B counts as known
     (:func:`_finish`)."""
-    from pymatting import cf_laplacian, cg
-
-    from capture.matting_ichol import ichol  # pymatting's factor, its columns sorted in place (the same)
+    from pymatting import cf_laplacian, cg, ichol
 
     pre = {}
 
