@@ -82,7 +82,9 @@ def object_box(trimap: np.ndarray, pad: int = CROP_PAD) -> tuple[slice, slice] |
     grown by ``pad`` and clipped to the frame; None without any."""
     import cv2
 
-    x, y, w, h = cv2.boundingRect((np.asarray(trimap) > BG).view(np.uint8))
+    t = np.asarray(trimap)
+    m = t if t.dtype == bool and t.flags.c_contiguous else t > BG  # a bool mask is its own ``> BG`` (round 14)
+    x, y, w, h = cv2.boundingRect(m.view(np.uint8))
     if w == 0 or h == 0:
         return None
     H, W = np.shape(trimap)

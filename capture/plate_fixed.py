@@ -360,8 +360,10 @@ def fixed_draw(ps: PlateSet, gains: np.ndarray):
     (H, W), estimated (H, W)) of the fixed-camera plate on the union of the views' need masks
     (module docstring): one robust mode per pixel; where that finds none, the background solved from the frames' lines
     (:func:`unseen_fill`; ``estimated``, a subset of ``known``)."""
+    from capture import plate_fast
+
     needs = [p.need for p in ps.views]
-    union = np.logical_or.reduce(needs)
+    union = plate_fast.union(needs)  # np.logical_or.reduce(needs), without the stacked masks
     y, x = np.nonzero(union)
     med, bound = _draw_prediction([p.view for p in ps.views], np.stack([x, y], axis=1), gains,
                                   [p.weight for p in ps.views], mode_frames(len(ps.views), None))
@@ -456,13 +458,14 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     from capture.matting import FG, depth_trimap
     from capture.matting_fast import channel_max
     from capture.matting_known import CLIP_LEVEL
+    from capture.plate_fast import DRAW_IN_PLACE, scaled_samples, unseen_at  # the same values
     from capture.plate_lines import object_palette
     from capture.plate_threads import thread_map
 
     frames = mode_frames(len(ps.views), None, FIXED_RING_FRAMES)  # its cost grows with frames^2
     views = [ps.views[j] for j in frames]
     own = _frames_at(views, y, x, lambda p: p.view.linear)
-    samples = np.stack(list(thread_map(lambda k: (own[k] * gains[frames[k]]).astype(np.float32), range(len(frames)))))
+    samples = scaled_samples(own, gains, frames, thread_map)  # capture.plate_fast (the same samples)
     opaque = _frames_at(views, y, x, lambda p: depth_trimap(p.view.object_depth) >= FG)
     pal = object_palette(samples, med, opaque)
     todo = ~np.isfinite(med[:, 0])
@@ -475,8 +478,9 @@ def unseen_fill(ps: PlateSet, gains: np.ndarray, y: np.ndarray, x: np.ndarray, m
     hot = channel_max(own) >= CLIP_LEVEL if FIXED_CENSOR_CLIPPED else None  # own.max(axis=-1)
     hot_bound = np.zeros(int(todo.sum()), bool)
     unc = np.full(int(todo.sum()), np.nan)
-    b = _unseen_chunks(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
-                       None if hot is None else hot[:, todo], hot_bound, unc)
+    b = unseen_at(samples, np.flatnonzero(todo), pal, opaque, covered, hot, hot_bound, unc, FILL_CHUNK) \
+        if DRAW_IN_PLACE else _unseen_chunks(samples[:, todo], pal, opaque[:, todo], covered[:, todo],
+                                             None if hot is None else hot[:, todo], hot_bound, unc)
     filled = np.isfinite(b[:, 0])
     if sigma is not None:  # the lines' sigma held to their error where the robust mode knew the background
         usable = _frames_at(views, y, x, lambda p: p.weight > 0)

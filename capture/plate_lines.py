@@ -77,6 +77,17 @@ LINE_CALIBRATE_PIXELS = 3000
 LINE_CALIBRATE_MIN = 200
 #: Pixels per chunk (a K x K x chunk array per palette colour).
 LINE_CHUNK = 4000
+#: The samples' channel maxima (K x N x 3 -> K x N) by capture.matting_fast.channel_max (two elementwise
+#: maxima; numpy's ``.max(-1)`` over three channels loops per pixel: 0.7 s of the 72 views' plate stage,
+#: round 14), the same values; False: ``.max(-1)``, the reference.
+LINES_CHANNEL_MAX = True
+
+
+def _cmax(x: np.ndarray) -> np.ndarray:
+    """``x.max(-1)`` (LINES_CHANNEL_MAX: capture.matting_fast.channel_max, the same values)."""
+    from capture.matting_fast import channel_max
+
+    return channel_max(x) if LINES_CHANNEL_MAX else x.max(-1)
 
 
 def segment_distance(samples: np.ndarray, start: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -100,7 +111,7 @@ def _vertex_chunk(s: np.ndarray, pal: np.ndarray, fast: bool = True) -> tuple[np
     best, cost = (_winners_compiled if fast else _winners_numpy)(s0, have, pal)
     cols = np.arange(s.shape[1])
     cand = s0[best, cols]
-    agree = have & (np.abs(s0 - cand[None]).max(-1) <= LINE_AGREE)
+    agree = have & (_cmax(np.abs(s0 - cand[None])) <= LINE_AGREE)
     colour = nan_median(np.where(agree[..., None], s0, np.nan))
     residual = np.sqrt(cost / np.maximum(have.sum(0), 1))
     return colour, residual
@@ -185,7 +196,7 @@ def unseen_background(samples: np.ndarray, pal: np.ndarray, opaque: np.ndarray |
     enough, agree, seen = _evidence(s, B, pal, opaque, covered)
     # clipping bends the lines: where they disagree and a frame is blown out, the background is
     # (the median of) the blown-out samples, which the matte treats as such
-    hot = have & (np.nan_to_num(s).max(-1) >= CLIP_LEVEL)
+    hot = have & (_cmax(np.nan_to_num(s)) >= CLIP_LEVEL)
     bent = (res > LINE_MAX_RESIDUAL) & (hot.sum(0) >= np.maximum(LINE_MIN_HOT, LINE_HOT_SHARE * have.sum(0)))
     if bent.any():  # ... when the blown-out samples' median is blown out too (they clip alike)
         B[bent] = nan_median(np.where(hot[:, bent, None], s[:, bent], np.nan))
@@ -210,7 +221,7 @@ def _evidence(s, B, pal, opaque, covered):
     of step 3 for samples ``s`` (K, N, 3) and vertices ``B`` (N, 3)."""
     have = np.isfinite(s[..., 0])
     enough = have.sum(0) >= LINE_MIN_FRAMES
-    agree = have & (np.abs(np.nan_to_num(s) - B[None]).max(-1) <= LINE_AGREE)
+    agree = have & (_cmax(np.abs(np.nan_to_num(s) - B[None])) <= LINE_AGREE)
     seen = agree.any(0) if opaque is None else (agree & ~np.asarray(opaque, bool)).any(0)
     if covered is not None:  # an object colour seen only where the depth saw the object: the object
         apart = np.linalg.norm(B[:, None] - pal[None], axis=-1).min(-1) >= LINE_MIN_SEPARATION

@@ -123,7 +123,11 @@ def room_depth(depth: np.ndarray, ring: np.ndarray, off_plane: np.ndarray) -> np
     measured depth ``depth`` of the ``ring`` pixels that are ``off_plane``), or None when under
     ROOM_MIN_FRACTION of the ring has such depth."""
     from capture.fill import push_pull
+    from capture.plate_fast import room_counts  # the test counted before any mask is made (the same)
 
+    if (counts := room_counts(ring, off_plane, depth)) is not None and \
+            (not counts[0] or counts[1] < ROOM_MIN_FRACTION * counts[0]):
+        return None
     have = ring & off_plane & (depth > 0)
     if not ring.any() or have.sum() < ROOM_MIN_FRACTION * ring.sum():
         return None

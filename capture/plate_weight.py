@@ -22,6 +22,7 @@ pixel within it of an object pixel in the frame is reached by a path inside the 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 #: capture.plate_fixed.fixed_sample_weight takes its distances on the object's box
 #: (:func:`near_weight_box`; False: the whole frame's, ``plate_fixed._near_weight``, the same values).
@@ -33,6 +34,10 @@ NEED_ONE_DILATION = True
 #: distance is below ``band`` + 1 (the only ones whose weight is below 1 or rounded) lies within
 #: ``band`` + 1 pixels of an object pixel along each axis, so ``band`` + BOX_MARGIN_PX covers it.
 BOX_MARGIN_PX = 2
+#: :func:`near_weight_box` works out the weights of the box's near pixels in one compiled pass
+#: (:func:`_box_weights`: numpy's float64 operations in its order, round 14; False: the numpy lines,
+#: the reference, the same values bit for bit, tests/capture/test_plate_weight.py).
+WEIGHT_COMPILED = True
 
 
 def near_weight_box(m: np.ndarray, band: int, exclude: int) -> np.ndarray:
@@ -50,11 +55,34 @@ def near_weight_box(m: np.ndarray, band: int, exclude: int) -> np.ndarray:
         return out
     free = np.logical_not(m[box]).view(np.uint8)
     d32 = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    sub = out[box]
+    if WEIGHT_COMPILED:
+        _box_weights(d32, int(band), int(exclude), sub)
+        return out
     near = d32 < band + 1
     d = np.sqrt(np.rint(d32[near].astype(np.float64) ** 2))
-    sub = out[box]
     sub[near] = np.where(d > exclude, np.clip(d / band, 0.0, 1.0), 0.0)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _box_weights(d32, band, exclude, out):
+    """:func:`near_weight_box`'s numpy lines in one pass: where the float32 distance ``d32`` is below
+    ``band`` + 1 (an integer: exact in float32 and float64 alike), ``out`` (a float32 view) gets
+    sqrt(rint(float64(d)^2)) (``**2`` is numpy's square, x * x), 0 at most ``exclude``, else
+    min(d / ``band``, 1) (``np.clip`` of a non-negative quotient) rounded to float32."""
+    lim = band + 1
+    for i in range(d32.shape[0]):
+        for j in range(d32.shape[1]):
+            v = d32[i, j]
+            if v < lim:
+                x = np.float64(v)
+                d = np.sqrt(np.rint(x * x))
+                if d > exclude:
+                    q = d / band
+                    out[i, j] = np.float32(q if q < 1.0 else 1.0)
+                else:
+                    out[i, j] = np.float32(0.0)
 
 
 def need_by_one_dilation(object_depth: np.ndarray) -> np.ndarray:
