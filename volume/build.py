@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.scan import ScanSet
+from volume import pyramid as pyr_mod
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
@@ -40,6 +41,13 @@ from volume.rgbz import build_rgbz
 from volume.spheres import fit_spheres
 from volume.stream import NORMAL_THREADS, native_scale, pack_scans
 from volume.tsdf import fuse_tsdf
+
+#: The pyramid's measured voxels (volume.pyramid.measured_voxels_mapped): each view's cells found
+#: through the runner's per-view map (its pool: the views back-projected side by side, a view's cells
+#: sent back instead of its points); False: every view back-projected in this process
+#: (volume.pyramid.measured_voxels_levels, the reference).  The same voxels either way
+#: (tests/volume/test_pyramid.py); 72 views at 1280x960: docs/speed.md, round 13.
+PYRAMID_CELLS_MAPPED = True
 
 
 @dataclass(frozen=True)
@@ -144,9 +152,15 @@ def pyramid_stage(work, cfg, ctx):
     """The pyramid stage (cfg: PyramidConfig): the levels up to L_opt with their surface voxels
     (and the measured points of >= 2 views), their distances kept up to ``values_max_res``."""
     f = work.parts["fused"]
-    points = ViewPoints(work.scans) if cfg.measured_voxels else None
-    pyr = build_pyramid({L: v.values for L, v in f.levels.items() if L <= f.l_opt}, f.origin, f.extent, f.l_opt,
-                        keep_values=cfg.keep_values, points=points)
+    volumes = {L: v.values for L, v in f.levels.items() if L <= f.l_opt}
+    points = measured = None
+    if cfg.measured_voxels and PYRAMID_CELLS_MAPPED and ctx.map_views is not None:
+        sizes = pyr_mod.pyramid_sizes(volumes, f.extent, f.l_opt)
+        measured = pyr_mod.measured_voxels_mapped(ctx.map_views, work.scans, f.origin, sizes)
+    elif cfg.measured_voxels:
+        points = ViewPoints(work.scans)
+    pyr = build_pyramid(volumes, f.origin, f.extent, f.l_opt, keep_values=cfg.keep_values, points=points,
+                        measured=measured)
     pyr = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
                            for lv in pyr.levels), f.l_opt)
     return work.made(pyramid=pyr)
