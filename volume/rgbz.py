@@ -40,10 +40,17 @@ from capture.scan import ScanSet
 from capture.scan_store import scan_has_alpha
 from capture.view_map import or_serial
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
-from volume.rgbz_store import CropFile, RgbzCrop, save_crops
+from volume.rgbz_store import CropFile, DeflatedCrop, RgbzCrop, deflate_crop, save_crops, save_deflated_crops
 
 #: RgbzConfig.store choices.
 STORES = ("compact", "dense")
+#: A spilled run's crops (build_rgbz with a ``crop_file``) deflated in the pass over the views (its
+#: workers; volume.rgbz_store.deflate_crop) and only copied into the model's file by this process
+#: (volume.rgbz_store.save_deflated_crops); False: each view's crop written plain and the whole file
+#: deflated here (volume.rgbz_store.save_crops, the reference).  The same decoded arrays
+#: (tests/volume/test_rgbz_zip.py); 72 views at 1280x960: 3.0 s of zlib in the main process after the
+#: pool (docs/speed.md, round 13).
+CROPS_DEFLATED_IN_VIEWS = True
 
 
 @dataclass(frozen=True)
@@ -156,7 +163,10 @@ def rgbz_view(scan, n, arg):
     the module docstring; the compact store."""
     verts, faces, level, cfg, with_alpha, folder = arg
     crop, stats = _one_view(scan, verts, faces, level, cfg, with_alpha)
-    crop = crop if folder is None else crop.save(Path(folder) / f"rgbz_view_{n:06d}.npz")
+    if folder is not None and CROPS_DEFLATED_IN_VIEWS:
+        crop = deflate_crop(Path(folder) / f"rgbz_view_{n:06d}.zip", n, crop, with_alpha)
+    elif folder is not None:
+        crop = crop.save(Path(folder) / f"rgbz_view_{n:06d}.npz")
     return None, (crop, stats)
 
 
@@ -210,8 +220,22 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
     stats = [st for _, st in notes]
     if crop_file is None:
         return RgbzImages.from_crops(cams, [c for c, _ in notes]), stats
-    save_crops(crop_file, (RgbzCrop.load(c, remove=True) for c, _ in notes), with_alpha)
+    if not (CROPS_DEFLATED_IN_VIEWS and save_deflated_crops(crop_file, [c for c, _ in notes])):
+        save_crops(crop_file, (_crop_of(c, n, with_alpha) for n, (c, _) in enumerate(notes)), with_alpha)
     return RgbzImages.from_crops(cams, CropFile(crop_file)), stats
+
+
+def _crop_of(c, n: int, with_alpha: bool) -> RgbzCrop:
+    """View ``n``'s RgbzCrop from what its pass handed back (a crop, a crop's file, or a
+    DeflatedCrop, read back and removed)."""
+    if not isinstance(c, DeflatedCrop):
+        return RgbzCrop.load(c, remove=True)
+    with np.load(c.file, allow_pickle=False) as z:
+        crop = RgbzCrop(c.rect, z[f"v{n}_srgb"], z[f"v{n}_depth"], c.z0, c.dz,
+                        z[f"v{n}_alpha"] if with_alpha else None,
+                        z[f"v{n}_measured"] if f"v{n}_measured" in z.files else None)
+    Path(c.file).unlink()
+    return crop
 
 
 def _dense(scanset, verts, faces, level, cfg, with_alpha, progress):
