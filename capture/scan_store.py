@@ -162,10 +162,11 @@ class ScanSpill(SpillReader):
 
     def keep(self, scan) -> SpilledScan:
         """Write ``scan`` (a Scan or a SpilledScan) to the folder; the SpilledScan that reads it back.
-        A SpilledScan already in the folder (this spill's, or one a worker wrote there) is adopted as it is."""
+        A SpilledScan already in the folder (this spill's, or one a worker wrote there) is adopted as it
+        is (its colour gains too: :meth:`SpilledScan.with_gain`)."""
         if isinstance(scan, SpilledScan) and scan.file.parent == self.path:
             if scan.spill is not self:
-                scan = SpilledScan(self, scan.file, scan.camera, scan.name, scan.has_alpha, scan.rgb_dtype)
+                scan = SpilledScan(self, scan.file, scan.camera, scan.name, scan.has_alpha, scan.rgb_dtype, scan.gains)
             return scan
         sp = write_scan(self.reserve(), scan)
         return SpilledScan(self, sp.file, sp.camera, sp.name, sp.has_alpha, sp.rgb_dtype)
@@ -181,8 +182,8 @@ class ScanSpill(SpillReader):
         self.close()
 
 
-def _spilled_in_this_process(file, camera, name, has_alpha, rgb_dtype) -> SpilledScan:
-    return SpilledScan(reader(), Path(file), camera, name, has_alpha, rgb_dtype)
+def _spilled_in_this_process(file, camera, name, has_alpha, rgb_dtype, gains=()) -> SpilledScan:
+    return SpilledScan(reader(), Path(file), camera, name, has_alpha, rgb_dtype, gains)
 
 
 class SpilledScan:
@@ -190,22 +191,41 @@ class SpilledScan:
     array alone: a stage that reads only the depth never reads the colour).  Pickled as its file
     name and camera: a worker process reads it with its own :func:`reader`."""
 
-    __slots__ = ("spill", "file", "camera", "name", "has_alpha", "rgb_dtype")
+    __slots__ = ("spill", "file", "camera", "name", "has_alpha", "rgb_dtype", "gains")
 
-    def __init__(self, spill: SpillReader, file: Path, camera, name: str, has_alpha: bool, rgb_dtype):
+    def __init__(self, spill: SpillReader, file: Path, camera, name: str, has_alpha: bool, rgb_dtype, gains=()):
         self.spill, self.file, self.camera, self.name = spill, file, camera, name
         self.has_alpha, self.rgb_dtype = has_alpha, np.dtype(rgb_dtype)
+        self.gains = tuple(gains)
 
     def __reduce__(self):
-        return _spilled_in_this_process, (str(self.file), self.camera, self.name, self.has_alpha, self.rgb_dtype.str)
+        return _spilled_in_this_process, (str(self.file), self.camera, self.name, self.has_alpha, self.rgb_dtype.str,
+                                          self.gains)
+
+    def with_gain(self, gain: np.ndarray) -> SpilledScan:
+        """This scan with its float32 colour times ``gain`` (3,) float32, the product made on each read
+        (``rgb * gain``, after any earlier gains in turn: the values ``Scan(rgb * gain, ...)`` would
+        store) and nothing written: the same file (capture.photometric.GAINS_ON_READ)."""
+        if self.rgb_dtype != np.float32:
+            raise ValueError(f"with_gain: float32 colour only, {self.name} has {self.rgb_dtype}")
+        g = np.asarray(gain)
+        if g.dtype != np.float32 or g.shape != (3,):
+            raise ValueError(f"with_gain: gain must be (3,) float32, got {g.shape} {g.dtype}")
+        return SpilledScan(self.spill, self.file, self.camera, self.name, self.has_alpha, self.rgb_dtype,
+                           (*self.gains, g.copy()))
 
     def load(self) -> Scan:
         """The Scan itself (in memory)."""
+        if self.gains:
+            return Scan(self.rgb, self.depth, self.camera, self.name, self.alpha)
         return self.spill.load(self)
 
     @property
     def rgb(self) -> np.ndarray:
-        return self.spill.array(self, "rgb")
+        rgb = self.spill.array(self, "rgb")
+        for g in self.gains:
+            rgb = rgb * g
+        return rgb
 
     @property
     def depth(self) -> np.ndarray:

@@ -167,10 +167,10 @@ def apply_steps(steps, view, ref, out_file=None):
         view = view if out is None else out
         times.append((time.perf_counter() - t0, time.process_time() - c0))
         notes.append(note)
+    from capture.scan_store import SpilledScan, write_scan
+
     if view is start:
         view = None
-    elif out_file is not None:
-        from capture.scan_store import write_scan
-
+    elif out_file is not None and not isinstance(view, SpilledScan):  # a spilled view is on disk already
         view = write_scan(out_file, view)
     return view, notes, times, (os.getpid(), peak_rss_mb())
