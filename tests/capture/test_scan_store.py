@@ -244,3 +244,39 @@ def test_gains_on_read_equal_the_written_gains(tmp_path, monkeypatch):
         view, *_ = apply_steps([(ph.gain_view, gains[0])], kept[0], 0, reserved)  # a worker's task
         assert isinstance(view, SpilledScan) and view.file == kept[0].file and not reserved.exists()
         np.testing.assert_array_equal(view.rgb, out[False][0].rgb)
+
+
+def test_spill_references_read_back_the_same_arrays(tmp_path, monkeypatch):
+    """capture.scan_store.SPILL_REFERENCES: a new scan's array that is bit for bit one read lately from
+    an earlier file of the folder is stored as that file's name (chains followed) and reads back the
+    same; a changed array is written; off, every array is written and the reads are the same."""
+    import capture.scan_store as st
+
+    s0 = _with_alpha(make_scanset(sphere_scene(), scan_ring(1, 40, 30)).scans[0], float_rgb=True)
+    reads = {}
+    for on in (False, True):
+        monkeypatch.setattr(st, "SPILL_REFERENCES", on)
+        with ScanSpill(tmp_path) as spill:
+            a = spill.keep(s0)
+            a.rgb, a.depth, a.alpha  # noqa: B018  (a stage reads the view)
+            cut = np.median(a.depth[a.depth > 0])
+            b = spill.keep(Scan(a.rgb, np.where(a.depth > cut, 0.0, a.depth), a.camera, a.name, a.alpha))
+            b.rgb, b.depth  # noqa: B018
+            c = spill.keep(Scan(b.rgb * np.float32(2), b.depth, b.camera, b.name, None))  # colour changed
+            with np.load(b.file) as z:
+                assert ("rgb_ref" in z.files and "alpha_ref" in z.files and "depth" in z.files) == on
+            with np.load(c.file) as z:
+                assert ("rgb" in z.files and "depth_ref" in z.files) == on and "alpha" not in z.files
+            spill._cache.clear()  # read from the files again
+            reads[on] = [(x.rgb, x.depth, x.alpha) for x in (a, b, c)]
+    for ref, got in zip(reads[False], reads[True], strict=True):
+        for x, y in zip(ref, got, strict=True):
+            assert (x is None) == (y is None)
+            if x is not None:
+                assert x.dtype == y.dtype
+                np.testing.assert_array_equal(x, y)
+    assert reads[True][2][2] is None and reads[True][1][2] is not None
+    x = np.zeros(100_000, np.float32)
+    y = x.copy()
+    y.view(np.uint8)[1] = 1  # one byte, off the sample's stride
+    assert st._same_bits(x, x.copy()) and not st._same_bits(x, y) and not st._same_bits(x, x.astype(np.float64))
