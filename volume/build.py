@@ -34,10 +34,10 @@ from volume import pyramid as pyr_mod
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
-from volume.mesh import clean_and_decimate, marching_cubes, vertex_colors_views
+from volume.mesh import clean_and_decimate, colour_spec, marching_cubes, vertex_colors_views
 from volume.model import SdfLevel, SdfPyramid
 from volume.pyramid import build_pyramid, choose_l_opt, discontinuity_fraction
-from volume.rgbz import build_rgbz
+from volume.rgbz import build_rgbz_coloured
 from volume.spheres import fit_spheres
 from volume.stream import NORMAL_THREADS, native_scale, pack_scans
 from volume.tsdf import fuse_tsdf
@@ -48,6 +48,12 @@ from volume.tsdf import fuse_tsdf
 #: (volume.pyramid.measured_voxels_levels, the reference).  The same voxels either way
 #: (tests/volume/test_pyramid.py); 72 views at 1280x960: docs/speed.md, round 13.
 PYRAMID_CELLS_MAPPED = True
+#: The mesh's vertex colours made in the RGBz pass over the views (its workers: each view's share from
+#: its crop as made, volume.mesh.view_colour_terms, summed here in view order: volume.rgbz.build_rgbz_coloured)
+#: instead of every view's crop read back and decoded again in this process (volume.mesh.vertex_colors_views,
+#: the reference, and what a dense store takes).  The same colours bit for bit (tests/volume/test_rgbz_zip.py);
+#: 72 views at 1280x960: docs/speed.md, round 13.
+MESH_COLOURS_IN_VIEWS = True
 
 
 @dataclass(frozen=True)
@@ -186,13 +192,15 @@ def rgbz_stage(work, cfg, ctx):
     colours from them, view by view; rows "rgbz" and "mesh colour"."""
     verts, faces = work.parts["mesh"]
     level = work.parts["fused"].level(ctx.config.mesh_res)
+    spec = colour_spec(verts, faces, level.voxel_size) if MESH_COLOURS_IN_VIEWS and len(verts) else None
     with ctx.row("rgbz"):
-        rgbz, holes = build_rgbz(work.scanset, verts, faces, level, cfg, lambda it: ctx.track(it, "rgbz"),
-                                 Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None,
-                                 ctx.map_views)
+        rgbz, holes, colors = build_rgbz_coloured(
+            work.scanset, verts, faces, level, cfg, lambda it: ctx.track(it, "rgbz"),
+            Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None, ctx.map_views, spec)
     with ctx.row("mesh colour"):
-        colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
-                                     level.voxel_size) if len(verts) else None
+        if colors is None and len(verts):
+            colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
+                                         level.voxel_size)
     return work.made(rgbz=rgbz, colors=colors).record("rgbz", {"holes": holes})
 
 

@@ -291,6 +291,20 @@ class CropFile:
             raise ModelError(f"{self.path}: cannot read view {n} ({type(e).__name__}: {e})") from None
 
 
+def full_frame(rect, rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray | None, W: int, H: int):
+    """A decoded crop (:meth:`RgbzCrop.decode` at ``rect``) as full W x H frames (rgb (H, W, 3),
+    depth (H, W), alpha (H, W) or None), float32, empty outside the rectangle (:meth:`RgbzImages.view`)."""
+    x0, y0, w, h = rect
+    out = np.zeros((H, W, 3), np.float32), np.zeros((H, W), np.float32)
+    out[0][y0:y0 + h, x0:x0 + w] = rgb
+    out[1][y0:y0 + h, x0:x0 + w] = depth
+    a = None
+    if alpha is not None:
+        a = np.zeros((H, W), np.float32)
+        a[y0:y0 + h, x0:x0 + w] = alpha
+    return out[0], out[1], a
+
+
 def is_compact(path: Path) -> bool:
     """True when the rgbz.npz at ``path`` is a compact (cropped) one."""
     with np.load(path, allow_pickle=False) as z:
@@ -421,16 +435,7 @@ class RgbzImages:
         rect, rgb, depth, alpha = self.crop(n)
         if self._crops is None:
             return rgb, depth, alpha
-        W, H = self.size
-        x0, y0, w, h = rect
-        out = np.zeros((H, W, 3), np.float32), np.zeros((H, W), np.float32)
-        out[0][y0:y0 + h, x0:x0 + w] = rgb
-        out[1][y0:y0 + h, x0:x0 + w] = depth
-        a = None
-        if alpha is not None:
-            a = np.zeros((H, W), np.float32)
-            a[y0:y0 + h, x0:x0 + w] = alpha
-        return out[0], out[1], a
+        return full_frame(rect, rgb, depth, alpha, *self.size)
 
     def _decoded(self):
         if self._dense is None:

@@ -90,3 +90,28 @@ def test_build_rgbz_deflated_in_views_equals_the_reference(tmp_path, monkeypatch
         for x, y in zip(ref.crop(n), got.crop(n), strict=True):
             np.testing.assert_array_equal(x, y)
         np.testing.assert_array_equal(ref.measured_mask(n), got.measured_mask(n))
+
+
+@pytest.mark.parametrize("spilled", [False, True])
+def test_mesh_colours_in_the_views_pass_equal_the_reference(tmp_path, spilled):
+    """volume.build.MESH_COLOURS_IN_VIEWS: the vertex colours summed from each view's share made in the
+    RGBz pass (build_rgbz_coloured) equal vertex_colors_views over the store's decoded views (the
+    reference), bit for bit, with the crops in memory or in a crop file."""
+    from tests.scenes import make_scanset, scan_ring, sphere_scene
+    from volume.build import Fused
+    from volume.fusion import fuse_consensus
+    from volume.grid import cube_for_bounds
+    from volume.mesh import colour_spec, marching_cubes, vertex_colors_views
+    from volume.rgbz import build_rgbz_coloured
+
+    ss = make_scanset(sphere_scene(), scan_ring(5, 48, 36), noise=0.001)
+    origin, extent = cube_for_bounds(ss.bounds)
+    level = Fused(origin, extent, {32: fuse_consensus(ss, origin, extent / 32, 32)}, 32).level(32)
+    verts, faces = marching_cubes(level)
+    spec = colour_spec(verts, faces, level.voxel_size)
+    rgbz, _, got = build_rgbz_coloured(ss, verts, faces, level, crop_file=tmp_path / "rgbz.npz" if spilled else None,
+                                       colour=spec)
+    ref = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
+                              level.voxel_size)
+    assert got.dtype == ref.dtype == np.float32 and len(np.unique(ref, axis=0)) > 10
+    np.testing.assert_array_equal(got, ref)
