@@ -39,9 +39,11 @@ POOL_MIN_VIEW_WORK = 1_000_000
 SOLVED_MATTE_WORK = 4.0
 #: The C heap keeps what numpy frees for the next arrays (:func:`keep_freed_memory`) in the workers and
 #: the main process of a run: glibc's defaults hand every array over 128 kB-32 MB back to the system when
-#: it is freed and fault it in again, zeroed, when the next one is made: on 72 views at 1280x960 the matte's
-#: workers spent 8.4 s and the plate stage's threads 8.5 s of system time so, 1.5 s and 1.7 s with it
-#: (docs/speed.md, round 13).  False: glibc's defaults (the reference; the same models bit for bit).
+#: it is freed and fault it in again, zeroed, when the next one is made.  72 views at 1280x960 (docs/speed.md,
+#: round 13): the matte's workers 834,000 page faults and 8.4 s of system time without it, 97,000 and 1.5 s
+#: with it; the whole run 1.64 M page faults and 21.8 s system time, 0.77 M and 13.7 s (with round 13's
+#: smaller spill writes); peak +6-9 % (the plate stage).  False: glibc's defaults (the reference; the
+#: same models bit for bit).
 HEAP_KEEPS_FREED = True
 #: glibc's ``M_MMAP_THRESHOLD`` under HEAP_KEEPS_FREED: arrays below this come from the heap, not from
 #: their own mapping (a 1920x1440 float32 colour image is 32 MB; a 256^3 float32 volume 64 MB).
