@@ -77,19 +77,24 @@ def test_build_rgbz_deflated_in_views_equals_the_reference(tmp_path, monkeypatch
     f = fuse_consensus(ss, origin, extent / 32, 32)
     level = Fused(origin, extent, {32: f}, 32).level(32)
     verts, faces = marching_cubes(level)
+    import volume.rgbz_zip as rz
+
     out = {}
-    for on in (False, True):
-        monkeypatch.setattr(rg, "CROPS_DEFLATED_IN_VIEWS", on)
+    for on in (False, True, "past the zip limits"):
+        monkeypatch.setattr(rg, "CROPS_DEFLATED_IN_VIEWS", bool(on))
+        if on == "past the zip limits":  # the deflated views read back and written by save_crops
+            monkeypatch.setattr(rz, "fits", lambda sizes: False)
         folder = tmp_path / str(on)
         folder.mkdir()
         out[on] = rg.build_rgbz(ss, verts, faces, level, crop_file=folder / "rgbz.npz")
         assert sorted(p.name for p in folder.iterdir()) == ["rgbz.npz"]  # each view's file removed
-    (ref, ref_stats), (got, got_stats) = out[False], out[True]
-    assert ref_stats == got_stats
-    for n in range(len(ref)):
-        for x, y in zip(ref.crop(n), got.crop(n), strict=True):
-            np.testing.assert_array_equal(x, y)
-        np.testing.assert_array_equal(ref.measured_mask(n), got.measured_mask(n))
+    ref, ref_stats = out[False]
+    for got, got_stats in (out[True], out["past the zip limits"]):
+        assert ref_stats == got_stats
+        for n in range(len(ref)):
+            for x, y in zip(ref.crop(n), got.crop(n), strict=True):
+                np.testing.assert_array_equal(x, y)
+            np.testing.assert_array_equal(ref.measured_mask(n), got.measured_mask(n))
 
 
 @pytest.mark.parametrize("spilled", [False, True])
