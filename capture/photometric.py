@@ -52,10 +52,16 @@ from capture.photometric_appearance import APPEARANCE_QUANTILE, colour_appearanc
 from capture.photometric_cells import cell_grid
 from capture.photometric_pairs import AUTO_STRIDE_PX, PairCells, measure_pairs
 from capture.scan import Scan, to_uint8_srgb
+from capture.scan_store import SpilledScan
 from capture.view_map import PerView, or_serial
 
 #: Gauge choices besides a view name.
 GAUGES = ("median", "mean")
+#: A spilled view with float32 colour (a matted foreground) gets its gains as a factor applied on each
+#: read (capture.scan_store.SpilledScan.with_gain: the same products) instead of its colour written to
+#: the spill folder again: 72 views at 1280x960 wrote 17 MB a view here, the sys time of the page
+#: cache (docs/speed.md, round 13).  False: every changed view written (:func:`gain_view`'s reference).
+GAINS_ON_READ = True
 #: MAD -> standard deviation of a normal distribution.
 MAD_TO_SIGMA = 1.4826
 #: Huber IRLS steps (pair locations and the joint solve).
@@ -321,6 +327,8 @@ def gain_view(scan, k, g: np.ndarray):
     and clipped; float linear stays float), or None when ``g`` is exactly 1."""
     if np.all(g == 1.0):
         return None, None
+    if GAINS_ON_READ and isinstance(scan, SpilledScan) and scan.rgb_dtype == np.float32:
+        return scan.with_gain(g.astype(np.float32)), None
     lin = scan.linear_rgb * g.astype(np.float32)
     rgb = to_uint8_srgb(lin) if scan.rgb.dtype == np.uint8 else lin.astype(np.float32)
     return Scan(rgb, scan.depth, scan.camera, scan.name, scan.alpha), None

@@ -41,6 +41,11 @@ READ_CACHE_VIEWS = 4
 SPILL_AUTO_BYTES = 1 << 27
 #: Bytes per pixel of a Scan read from an 8-bit image with depth (3 colour + 4 depth).
 SCAN_BYTES_PER_PIXEL = 7
+#: An array a new scan holds as it was read from an earlier file of the spill folder (the extent's
+#: colour, the matte's depth) is stored as that file's name, not written again (:func:`write_scan`;
+#: files leave the folder only with it).  False: every array written (the reference); the same arrays
+#: read back either way (tests/capture/test_scan_store.py).
+SPILL_REFERENCES = True
 #: ``--spill`` choices (:func:`spill_for`).
 SPILL_MODES = ("auto", "always", "never")
 
@@ -64,6 +69,48 @@ def _crop(a: np.ndarray) -> tuple[np.ndarray, tuple[int, int, int, int]]:
     return np.ascontiguousarray(a[y0:y1, x0:x1]), (y0, x0, *a.shape)
 
 
+def _sources(scan, folder: Path, readers) -> dict:
+    """{key: a file of ``folder`` whose array ``key`` ('rgb', 'depth', 'alpha'), as a reader keeps it
+    (read lately), is bit for bit the one ``scan`` holds}: the arrays a stage kept unchanged (a Scan
+    holds its own copies, so the values are compared, not the objects)."""
+    if isinstance(scan, SpilledScan):
+        return {}
+    held = {key: getattr(scan, key) for key in ("rgb", "depth", "alpha")}
+    out = {}
+    for rd in readers:
+        with _READ_LOCK:
+            cached = list(rd._cache.items())
+        for f, arrays in cached:
+            if f.parent != folder:
+                continue
+            for key, a in held.items():
+                if a is not None and key not in out and _same_bits(arrays.get(key), a):
+                    out[key] = f
+    return out
+
+
+def _same_bits(a, b) -> bool:
+    """Whether arrays ``a`` and ``b`` have the same shape, dtype and bytes (NaN and -0.0 included)."""
+    if a is None or b is None or a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    if a is b:
+        return True
+    x, y = np.ascontiguousarray(a).reshape(-1).view(np.uint8), np.ascontiguousarray(b).reshape(-1).view(np.uint8)
+    step = max(1, len(x) // 4096)
+    return bool(np.array_equal(x[::step], y[::step]) and np.array_equal(x, y))  # a sample first: most differ
+
+
+def _read_array(f: Path, key: str) -> np.ndarray | None:
+    """Array ``key`` of the spilled file ``f`` ('rgb', 'depth' or 'alpha'; None for a missing matte),
+    following a stored file name (write_scan) to the file that holds it."""
+    with np.load(f) as z:
+        if key + "_ref" in z.files:
+            return _read_array(f.parent / str(z[key + "_ref"]), key)
+        if key == "rgb":
+            return z["rgb"]
+        return _uncrop(z[key], z[key + "_box"]) if key + "_box" in z.files else None
+
+
 def _uncrop(c: np.ndarray, box) -> np.ndarray:
     y0, x0, H, W = box
     out = np.zeros((H, W), c.dtype)
@@ -71,19 +118,28 @@ def _uncrop(c: np.ndarray, box) -> np.ndarray:
     return out
 
 
-def write_scan(f: Path, scan) -> SpilledScan:
+def write_scan(f: Path, scan, readers=()) -> SpilledScan:
     """Write ``scan`` (a Scan or a SpilledScan) to the file ``f`` (via a temporary name, renamed) and
     hand back the :class:`SpilledScan` that reads it (bound to this process's :func:`reader`; a
     :class:`ScanSpill` adopts it).  What :meth:`ScanSpill.keep` does, callable in a worker process
-    that was handed a file name (:meth:`ScanSpill.reserve`)."""
+    that was handed a file name (:meth:`ScanSpill.reserve`).  With SPILL_REFERENCES, an array the
+    scan holds as it was read from an earlier file of the folder (by this process's reader or one
+    of ``readers``) is stored as that file's name."""
     f = Path(f)
-    depth, dbox = _crop(np.asarray(scan.depth))
     rgb = np.asarray(scan.rgb)
-    arrays = {"rgb": rgb, "depth": depth, "depth_box": np.array(dbox, np.int64)}
+    sources = _sources(scan, f.parent, (reader(), *readers)) if SPILL_REFERENCES else {}
+    arrays = {}
+    for key, a in (("rgb", rgb), ("depth", scan.depth), ("alpha", scan.alpha)):
+        if a is None:
+            continue
+        if key in sources:
+            arrays[key + "_ref"] = np.array(sources[key].name)
+        elif key == "rgb":
+            arrays["rgb"] = rgb
+        else:
+            arrays[key], box = _crop(np.asarray(a))
+            arrays[key + "_box"] = np.array(box, np.int64)
     alpha = scan.alpha
-    if alpha is not None:
-        a, abox = _crop(np.asarray(alpha))
-        arrays.update(alpha=a, alpha_box=np.array(abox, np.int64))
     tmp = f.with_suffix(".tmp.npz")
     np.savez(tmp, **arrays)
     tmp.rename(f)
@@ -114,13 +170,7 @@ class SpillReader:
         """One array of ``sp`` ('rgb', 'depth' or 'alpha'; None for a missing matte), read alone."""
         arrays = self._arrays(sp.file)
         if key not in arrays:
-            with np.load(sp.file) as z:
-                if key == "rgb":
-                    arrays[key] = z["rgb"]
-                elif key + "_box" in z.files:
-                    arrays[key] = _uncrop(z[key], z[key + "_box"])
-                else:
-                    arrays[key] = None
+            arrays[key] = _read_array(sp.file, key)
         return arrays[key]
 
     def load(self, sp: SpilledScan) -> Scan:
@@ -162,12 +212,13 @@ class ScanSpill(SpillReader):
 
     def keep(self, scan) -> SpilledScan:
         """Write ``scan`` (a Scan or a SpilledScan) to the folder; the SpilledScan that reads it back.
-        A SpilledScan already in the folder (this spill's, or one a worker wrote there) is adopted as it is."""
+        A SpilledScan already in the folder (this spill's, or one a worker wrote there) is adopted as it
+        is (its colour gains too: :meth:`SpilledScan.with_gain`)."""
         if isinstance(scan, SpilledScan) and scan.file.parent == self.path:
             if scan.spill is not self:
-                scan = SpilledScan(self, scan.file, scan.camera, scan.name, scan.has_alpha, scan.rgb_dtype)
+                scan = SpilledScan(self, scan.file, scan.camera, scan.name, scan.has_alpha, scan.rgb_dtype, scan.gains)
             return scan
-        sp = write_scan(self.reserve(), scan)
+        sp = write_scan(self.reserve(), scan, (self,))
         return SpilledScan(self, sp.file, sp.camera, sp.name, sp.has_alpha, sp.rgb_dtype)
 
     def close(self) -> None:
@@ -181,8 +232,8 @@ class ScanSpill(SpillReader):
         self.close()
 
 
-def _spilled_in_this_process(file, camera, name, has_alpha, rgb_dtype) -> SpilledScan:
-    return SpilledScan(reader(), Path(file), camera, name, has_alpha, rgb_dtype)
+def _spilled_in_this_process(file, camera, name, has_alpha, rgb_dtype, gains=()) -> SpilledScan:
+    return SpilledScan(reader(), Path(file), camera, name, has_alpha, rgb_dtype, gains)
 
 
 class SpilledScan:
@@ -190,22 +241,41 @@ class SpilledScan:
     array alone: a stage that reads only the depth never reads the colour).  Pickled as its file
     name and camera: a worker process reads it with its own :func:`reader`."""
 
-    __slots__ = ("spill", "file", "camera", "name", "has_alpha", "rgb_dtype")
+    __slots__ = ("spill", "file", "camera", "name", "has_alpha", "rgb_dtype", "gains")
 
-    def __init__(self, spill: SpillReader, file: Path, camera, name: str, has_alpha: bool, rgb_dtype):
+    def __init__(self, spill: SpillReader, file: Path, camera, name: str, has_alpha: bool, rgb_dtype, gains=()):
         self.spill, self.file, self.camera, self.name = spill, file, camera, name
         self.has_alpha, self.rgb_dtype = has_alpha, np.dtype(rgb_dtype)
+        self.gains = tuple(gains)
 
     def __reduce__(self):
-        return _spilled_in_this_process, (str(self.file), self.camera, self.name, self.has_alpha, self.rgb_dtype.str)
+        return _spilled_in_this_process, (str(self.file), self.camera, self.name, self.has_alpha, self.rgb_dtype.str,
+                                          self.gains)
+
+    def with_gain(self, gain: np.ndarray) -> SpilledScan:
+        """This scan with its float32 colour times ``gain`` (3,) float32, the product made on each read
+        (``rgb * gain``, after any earlier gains in turn: the values ``Scan(rgb * gain, ...)`` would
+        store) and nothing written: the same file (capture.photometric.GAINS_ON_READ)."""
+        if self.rgb_dtype != np.float32:
+            raise ValueError(f"with_gain: float32 colour only, {self.name} has {self.rgb_dtype}")
+        g = np.asarray(gain)
+        if g.dtype != np.float32 or g.shape != (3,):
+            raise ValueError(f"with_gain: gain must be (3,) float32, got {g.shape} {g.dtype}")
+        return SpilledScan(self.spill, self.file, self.camera, self.name, self.has_alpha, self.rgb_dtype,
+                           (*self.gains, g.copy()))
 
     def load(self) -> Scan:
         """The Scan itself (in memory)."""
+        if self.gains:
+            return Scan(self.rgb, self.depth, self.camera, self.name, self.alpha)
         return self.spill.load(self)
 
     @property
     def rgb(self) -> np.ndarray:
-        return self.spill.array(self, "rgb")
+        rgb = self.spill.array(self, "rgb")
+        for g in self.gains:
+            rgb = rgb * g
+        return rgb
 
     @property
     def depth(self) -> np.ndarray:

@@ -30,16 +30,30 @@ from pathlib import Path
 import numpy as np
 
 from capture.scan import ScanSet
+from volume import pyramid as pyr_mod
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
-from volume.mesh import clean_and_decimate, marching_cubes, vertex_colors_views
+from volume.mesh import clean_and_decimate, colour_spec, marching_cubes, vertex_colors_views
 from volume.model import SdfLevel, SdfPyramid
 from volume.pyramid import build_pyramid, choose_l_opt, discontinuity_fraction
-from volume.rgbz import build_rgbz
+from volume.rgbz import build_rgbz_coloured
 from volume.spheres import fit_spheres
 from volume.stream import NORMAL_THREADS, native_scale, pack_scans
 from volume.tsdf import fuse_tsdf
+
+#: The pyramid's measured voxels (volume.pyramid.measured_voxels_mapped): each view's cells found
+#: through the runner's per-view map (its pool: the views back-projected side by side, a view's cells
+#: sent back instead of its points); False: every view back-projected in this process
+#: (volume.pyramid.measured_voxels_levels, the reference).  The same voxels either way
+#: (tests/volume/test_pyramid.py); 72 views at 1280x960: docs/speed.md, round 13.
+PYRAMID_CELLS_MAPPED = True
+#: The mesh's vertex colours made in the RGBz pass over the views (its workers: each view's share from
+#: its crop as made, volume.mesh.view_colour_terms, summed here in view order: volume.rgbz.build_rgbz_coloured)
+#: instead of every view's crop read back and decoded again in this process (volume.mesh.vertex_colors_views,
+#: the reference, and what a dense store takes).  The same colours bit for bit (tests/volume/test_rgbz_zip.py);
+#: 72 views at 1280x960: docs/speed.md, round 13.
+MESH_COLOURS_IN_VIEWS = True
 
 
 @dataclass(frozen=True)
@@ -144,9 +158,15 @@ def pyramid_stage(work, cfg, ctx):
     """The pyramid stage (cfg: PyramidConfig): the levels up to L_opt with their surface voxels
     (and the measured points of >= 2 views), their distances kept up to ``values_max_res``."""
     f = work.parts["fused"]
-    points = ViewPoints(work.scans) if cfg.measured_voxels else None
-    pyr = build_pyramid({L: v.values for L, v in f.levels.items() if L <= f.l_opt}, f.origin, f.extent, f.l_opt,
-                        keep_values=cfg.keep_values, points=points)
+    volumes = {L: v.values for L, v in f.levels.items() if L <= f.l_opt}
+    points = measured = None
+    if cfg.measured_voxels and PYRAMID_CELLS_MAPPED and ctx.map_views is not None:
+        sizes = pyr_mod.pyramid_sizes(volumes, f.extent, f.l_opt)
+        measured = pyr_mod.measured_voxels_mapped(ctx.map_views, work.scans, f.origin, sizes)
+    elif cfg.measured_voxels:
+        points = ViewPoints(work.scans)
+    pyr = build_pyramid(volumes, f.origin, f.extent, f.l_opt, keep_values=cfg.keep_values, points=points,
+                        measured=measured)
     pyr = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
                            for lv in pyr.levels), f.l_opt)
     return work.made(pyramid=pyr)
@@ -172,13 +192,15 @@ def rgbz_stage(work, cfg, ctx):
     colours from them, view by view; rows "rgbz" and "mesh colour"."""
     verts, faces = work.parts["mesh"]
     level = work.parts["fused"].level(ctx.config.mesh_res)
+    spec = colour_spec(verts, faces, level.voxel_size) if MESH_COLOURS_IN_VIEWS and len(verts) else None
     with ctx.row("rgbz"):
-        rgbz, holes = build_rgbz(work.scanset, verts, faces, level, cfg, lambda it: ctx.track(it, "rgbz"),
-                                 Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None,
-                                 ctx.map_views)
+        rgbz, holes, colors = build_rgbz_coloured(
+            work.scanset, verts, faces, level, cfg, lambda it: ctx.track(it, "rgbz"),
+            Path(ctx.work_dir) / "rgbz_crops.npz" if ctx.work_dir is not None else None, ctx.map_views, spec)
     with ctx.row("mesh colour"):
-        colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
-                                     level.voxel_size) if len(verts) else None
+        if colors is None and len(verts):
+            colors = vertex_colors_views(verts, faces, rgbz.cameras, (rgbz.view(n)[:2] for n in range(len(rgbz))),
+                                         level.voxel_size)
     return work.made(rgbz=rgbz, colors=colors).record("rgbz", {"holes": holes})
 
 

@@ -9,6 +9,20 @@ from scipy import ndimage
 
 #: Largest distance (metres) stored for a voxel with nothing to measure from (empty volumes).
 FAR = 1.0
+#: Threads of the ``edt`` package's transform (``complete_sdf``'s 'numba' backend): None = the cores this
+#: process may run on; 1 = one thread (the reference).  Each line of the volume is transformed on its own,
+#: so the distances are the same bit for bit (tests/volume/test_fusion_jit.py); 256^3 on this 2-core machine
+#: under load: 0.64 s on two threads against 1.10 s on one (docs/speed.md, round 13).
+EDT_THREADS: int | None = None
+
+
+def edt_threads() -> int:
+    """The threads of the edt transform: EDT_THREADS, else the cores this process may run on."""
+    if EDT_THREADS is not None:
+        return max(1, int(EDT_THREADS))
+    from capture.plate_threads import cores
+
+    return cores()
 
 
 def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray, w: float,
@@ -29,7 +43,7 @@ def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray,
     if backend == "numba" and sign_out.any() and not sign_out.all():
         import edt
 
-        d = edt.edt(sign_out.view(np.uint8) + np.uint8(1), black_border=False, parallel=1)
+        d = edt.edt(sign_out.view(np.uint8) + np.uint8(1), black_border=False, parallel=edt_threads())
         d -= np.float32(0.5)
         d *= np.float32(w)
         vals = np.where(sign_out, d, -d).astype(np.float32, copy=False)

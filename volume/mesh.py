@@ -149,27 +149,57 @@ def vertex_colors_views(verts: np.ndarray, faces: np.ndarray, cameras, views, vo
     """:func:`vertex_colors` with ``views`` an iterable of (image (H, W, 3), geometry depth (H, W))
     per camera, consumed one at a time (a model's views decoded one by one)."""
     V = len(verts)
-    acc = np.zeros((V, 3))
-    wsum = np.zeros(V)
     if V == 0:
         return np.zeros((0, 3), np.float32)
-    nrm = vertex_normals(verts, faces)
-    tol = COLOR_DEPTH_TOL_VOXELS * voxel_size
-    cmin = np.cos(np.radians(COLOR_MAX_ANGLE_DEG))
-    for cam, (img, gd) in zip(cameras, views):
-        uv, z = cam.project(verts.astype(np.float64))
-        with np.errstate(invalid="ignore"):
-            u, v = nearest_pixel(uv[:, 0]), nearest_pixel(uv[:, 1])
-            inb = np.isfinite(uv).all(axis=1) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height) & (z > 0)
-        ui = np.where(inb, u, 0)
-        vi = np.where(inb, v, 0)
-        g = gd[vi, ui]
-        view = cam.center - verts
-        view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-12)
-        cos = np.sum(nrm * view, axis=1)
-        ok = inb & (g > 0) & (np.abs(z - g) < tol) & (cos > cmin)
-        wgt = np.where(ok, cos, 0.0)
-        acc += wgt[:, None] * img[vi, ui]
+    spec = colour_spec(verts, faces, voxel_size)
+    return colours_from_terms((view_colour_terms(spec, cam, img, gd) for cam, (img, gd) in zip(cameras, views)), V)
+
+
+@dataclass(frozen=True)
+class ColourSpec:
+    """What :func:`view_colour_terms` needs of the mesh (made once, handed to every view): ``verts``
+    (V, 3), their unit normals ``nrm`` (V, 3) float64, the depth tolerance ``tol`` (metres) and the
+    cosine limit ``cmin``."""
+
+    verts: np.ndarray
+    nrm: np.ndarray
+    tol: float
+    cmin: float
+
+
+def colour_spec(verts: np.ndarray, faces: np.ndarray, voxel_size: float) -> ColourSpec:
+    """The :class:`ColourSpec` of a mesh whose level has voxels of ``voxel_size``."""
+    return ColourSpec(verts, vertex_normals(verts, faces), COLOR_DEPTH_TOL_VOXELS * voxel_size,
+                      float(np.cos(np.radians(COLOR_MAX_ANGLE_DEG))))
+
+
+def view_colour_terms(spec: ColourSpec, cam, img: np.ndarray, gd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One camera's share of :func:`vertex_colors`: (weight (V,), weight times the colour seen (V, 3)),
+    for image ``img`` (H, W, 3) and geometry depth ``gd`` (H, W); what :func:`colours_from_terms` sums
+    in view order (a pass over the views may make them side by side: volume.rgbz)."""
+    verts = spec.verts
+    uv, z = cam.project(verts.astype(np.float64))
+    with np.errstate(invalid="ignore"):
+        u, v = nearest_pixel(uv[:, 0]), nearest_pixel(uv[:, 1])
+        inb = np.isfinite(uv).all(axis=1) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height) & (z > 0)
+    ui = np.where(inb, u, 0)
+    vi = np.where(inb, v, 0)
+    g = gd[vi, ui]
+    view = cam.center - verts
+    view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-12)
+    cos = np.sum(spec.nrm * view, axis=1)
+    ok = inb & (g > 0) & (np.abs(z - g) < spec.tol) & (cos > spec.cmin)
+    wgt = np.where(ok, cos, 0.0)
+    return wgt, wgt[:, None] * img[vi, ui]
+
+
+def colours_from_terms(terms, V: int) -> np.ndarray:
+    """(V, 3) float32 vertex colours from every view's :func:`view_colour_terms` (an iterable, in view
+    order): the weighted mean, unseen vertices the mean of the seen ones (grey if none)."""
+    acc = np.zeros((V, 3))
+    wsum = np.zeros(V)
+    for wgt, wimg in terms:
+        acc += wimg
         wsum += wgt
     seen = wsum > 0
     out = np.empty((V, 3), np.float32)

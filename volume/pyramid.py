@@ -151,15 +151,46 @@ def measured_voxels(points, origin, voxel_size: float, L: int, min_views: int = 
 
 def measured_voxels_levels(points, origin, sizes: dict[int, float], min_views: int = MEASURED_MIN_VIEWS) -> dict:
     """{L: :func:`measured_voxels` of the L^3 grid of voxel size ``sizes[L]``} for every level at
-    once: each view's points are made (a spilled scan read, back-projected) once, not once a level."""
-    origin = np.asarray(origin, np.float64)
+    once: each view's points are made (a spilled scan read, back-projected) once, not once a level.
+    The reference of :func:`measured_voxels_mapped` (every view in this process)."""
+    return measured_from_keys((view_cell_keys(p, origin, sizes) for p in points), sizes, min_views)
+
+
+def view_cell_keys(points, origin, sizes: dict[int, float]) -> dict[int, np.ndarray]:
+    """{L: sorted unique linear indices ((i * L + j) * L + k) of the L^3 cells of voxel size
+    ``sizes[L]`` from ``origin`` holding one view's ``points`` (M, 3)}; points outside are ignored."""
+    p = np.asarray(points, np.float64).reshape(-1, 3) - np.asarray(origin, np.float64)
+    out = {}
+    for L, w in sizes.items():
+        g = cell_index(p, 0.0, w)
+        g = g[np.all((g >= 0) & (g < L), axis=1)]
+        out[L] = np.unique((g[:, 0] * L + g[:, 1]) * L + g[:, 2])
+    return out
+
+
+def measured_keys_view(scan, k, arg):
+    """Per view (capture.view_map; ``arg``: (origin, sizes)): (None, :func:`view_cell_keys` of the
+    scan's measured points): what a worker hands back is a view's cells, not its points."""
+    origin, sizes = arg
+    return None, view_cell_keys(scan.points(), origin, sizes)
+
+
+def measured_voxels_mapped(map_views, scans, origin, sizes: dict[int, float],
+                           min_views: int = MEASURED_MIN_VIEWS) -> dict:
+    """:func:`measured_voxels_levels` of the scans' measured points, each view's cells found through
+    ``map_views`` (capture.view_map: the pipeline's pool, the views side by side): the same voxels
+    (tests/volume/test_pyramid.py)."""
+    keys = map_views(measured_keys_view, scans, (np.asarray(origin, np.float64), dict(sizes)), "pyramid")[1]
+    return measured_from_keys(keys, sizes, min_views)
+
+
+def measured_from_keys(view_keys, sizes: dict[int, float], min_views: int = MEASURED_MIN_VIEWS) -> dict:
+    """{L: (N, 3) int32 indices of the cells found in >= ``min_views`` of ``view_keys`` (one
+    :func:`view_cell_keys` dict per view, an iterable)}, sorted by linear index."""
     keys: dict[int, list] = {L: [] for L in sizes}
-    for p in points:
-        p = np.asarray(p, np.float64).reshape(-1, 3) - origin
-        for L, w in sizes.items():
-            g = cell_index(p, 0.0, w)
-            g = g[np.all((g >= 0) & (g < L), axis=1)]
-            keys[L].append(np.unique((g[:, 0] * L + g[:, 1]) * L + g[:, 2]))
+    for vk in view_keys:
+        for L in sizes:
+            keys[L].append(vk[L])
     out = {}
     for L, ks in keys.items():
         if not ks:
@@ -179,21 +210,30 @@ def union_voxels(a: np.ndarray, b: np.ndarray, L: int) -> np.ndarray:
 
 
 def build_pyramid(volumes: dict[int, np.ndarray], origin, extent: float, l_opt: int,
-                  keep_values: bool = True, points=None, min_views: int = MEASURED_MIN_VIEWS) -> SdfPyramid:
+                  keep_values: bool = True, points=None, min_views: int = MEASURED_MIN_VIEWS,
+                  measured: dict | None = None) -> SdfPyramid:
     """SdfPyramid of every level <= l_opt from the full volumes {L: (L,L,L) float32}.
 
     ``points`` (one (M_v, 3) world array per scan, or None): voxels holding measured points of
-    at least ``min_views`` scans join each level's surface voxels (module docstring).
+    at least ``min_views`` scans join each level's surface voxels (module docstring).  ``measured``:
+    those voxels already found ({L: (N, 3) int32} for every kept level, :func:`measured_voxels_mapped`
+    of :func:`pyramid_sizes`); ``points`` is then not read.
     """
     levels = []
     kept = [L for L in sorted(volumes) if L <= l_opt]
-    measured = measured_voxels_levels(points, origin, {L: extent / L for L in kept}, min_views) \
-        if points is not None else {}
+    if measured is None:
+        measured = measured_voxels_levels(points, origin, pyramid_sizes(volumes, extent, l_opt), min_views) \
+            if points is not None else {}
     for L in kept:
         w = extent / L
         v = np.asarray(volumes[L], np.float32)
         surf = surface_voxels(v, w)
-        if points is not None:
+        if L in measured:
             surf = union_voxels(surf, measured[L], L)
         levels.append(SdfLevel(L, np.asarray(origin, np.float64), w, surf, v if keep_values else None))
     return SdfPyramid(tuple(levels), l_opt)
+
+
+def pyramid_sizes(volumes, extent: float, l_opt: int) -> dict[int, float]:
+    """{L: voxel size} of the levels :func:`build_pyramid` keeps (those <= ``l_opt``)."""
+    return {L: extent / L for L in sorted(volumes) if L <= l_opt}

@@ -40,10 +40,17 @@ from capture.scan import ScanSet
 from capture.scan_store import scan_has_alpha
 from capture.view_map import or_serial
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
-from volume.rgbz_store import CropFile, RgbzCrop, save_crops
+from volume.rgbz_store import CropFile, DeflatedCrop, RgbzCrop, deflate_crop, save_crops, save_deflated_crops
 
 #: RgbzConfig.store choices.
 STORES = ("compact", "dense")
+#: A spilled run's crops (build_rgbz with a ``crop_file``) deflated in the pass over the views (its
+#: workers; volume.rgbz_store.deflate_crop) and only copied into the model's file by this process
+#: (volume.rgbz_store.save_deflated_crops); False: each view's crop written plain and the whole file
+#: deflated here (volume.rgbz_store.save_crops, the reference).  The same decoded arrays
+#: (tests/volume/test_rgbz_zip.py); 72 views at 1280x960: 3.0 s of zlib in the main process after the
+#: pool (docs/speed.md, round 13).
+CROPS_DEFLATED_IN_VIEWS = True
 
 
 @dataclass(frozen=True)
@@ -151,13 +158,25 @@ def geometry_depth(verts: np.ndarray, faces: np.ndarray, cam, mesh_depth: str = 
 
 
 def rgbz_view(scan, n, arg):
-    """Per view (``arg``: (verts, faces, level, RgbzConfig, with_alpha, folder or None)): (None, (its
-    RgbzCrop -- or, with a folder, the file it is written to --, its hole statistics)), steps 1-3 of
-    the module docstring; the compact store."""
-    verts, faces, level, cfg, with_alpha, folder = arg
+    """Per view (``arg``: (verts, faces, level, RgbzConfig, with_alpha, folder or None[, the mesh's
+    volume.mesh.ColourSpec])): (None, (its RgbzCrop -- or, with a folder, the file it is written to --,
+    its hole statistics[, its share of the mesh's vertex colours, volume.mesh.view_colour_terms of the
+    decoded crop])), steps 1-3 of the module docstring; the compact store."""
+    verts, faces, level, cfg, with_alpha, folder, *colour = arg
     crop, stats = _one_view(scan, verts, faces, level, cfg, with_alpha)
-    crop = crop if folder is None else crop.save(Path(folder) / f"rgbz_view_{n:06d}.npz")
-    return None, (crop, stats)
+    terms = ()
+    if colour and colour[0] is not None:
+        from volume.mesh import view_colour_terms
+        from volume.rgbz_store import full_frame
+
+        cam = scan.camera
+        rgb, depth, _ = full_frame(crop.rect, *crop.decode(), cam.width, cam.height)
+        terms = (view_colour_terms(colour[0], cam, rgb, depth),)
+    if folder is not None and CROPS_DEFLATED_IN_VIEWS:
+        crop = deflate_crop(Path(folder) / f"rgbz_view_{n:06d}.zip", n, crop, with_alpha)
+    elif folder is not None:
+        crop = crop.save(Path(folder) / f"rgbz_view_{n:06d}.npz")
+    return None, (crop, stats, *terms)
 
 
 def _one_view(scan, verts, faces, level, cfg, with_alpha):
@@ -186,13 +205,23 @@ def measured_depth(measured: np.ndarray, depth: np.ndarray) -> np.ndarray:
 def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: SdfLevel,
                cfg: RgbzConfig | None = None, progress=None, crop_file=None,
                map_views=None) -> tuple[RgbzImages, list[dict]]:
+    """:func:`build_rgbz_coloured` without the vertex colours."""
+    return build_rgbz_coloured(scanset, verts, faces, level, cfg, progress, crop_file, map_views)[:2]
+
+
+def build_rgbz_coloured(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: SdfLevel,
+                        cfg: RgbzConfig | None = None, progress=None, crop_file=None,
+                        map_views=None, colour=None) -> tuple[RgbzImages, list[dict], np.ndarray | None]:
     """RgbzImages for every scan's camera and per-view hole statistics
     ``[{"view", "holes_before", "holes_after"}]`` (fractions, see :func:`hole_fraction`).
 
     ``crop_file`` (a path; compact store only): the crops are written there (volume.rgbz_store.save_crops)
     and the store reads them back view by view, so the crops of a capture are never all held in
     memory: each view's crop waits in a file of its own beside ``crop_file`` until it is written.
-    ``map_views``: the pass over the views (capture.view_map, :func:`rgbz_view`; default: in this process)."""
+    ``map_views``: the pass over the views (capture.view_map, :func:`rgbz_view`; default: in this process).
+    ``colour`` (the mesh's volume.mesh.ColourSpec; compact store only): the mesh's vertex colours from
+    the crops, each view's share made in its pass (volume.mesh.colours_from_terms: what
+    volume.mesh.vertex_colors_views gives over the store's views); else None."""
     cfg = cfg or RgbzConfig()
     cams = [s.camera for s in scanset.scans]
     sizes = {(c.width, c.height) for c in cams}
@@ -200,18 +229,38 @@ def build_rgbz(scanset: ScanSet, verts: np.ndarray, faces: np.ndarray, level: Sd
         raise ValueError(f"RGBz images need one image size for all cameras, got {sorted(sizes)}")
     with_alpha = any(scan_has_alpha(s) for s in scanset.scans)
     if cfg.store == "dense":
-        return _dense(scanset, verts, faces, level, cfg, with_alpha, progress)
+        return (*_dense(scanset, verts, faces, level, cfg, with_alpha, progress), None)
     if cfg.keep_measured:  # the level's distances are read only to test measured depth (keep_measured False)
         level = replace(level, values=None, surface=level.surface[:0])
     folder = None if crop_file is None else Path(crop_file).parent
-    arg = (verts, faces, level, cfg, with_alpha, folder)
+    arg = (verts, faces, level, cfg, with_alpha, folder, colour)
     notes = or_serial(map_views, progress=(lambda it, d: progress(it)) if progress else None)(
         rgbz_view, list(scanset.scans), arg, "rgbz")[1]
-    stats = [st for _, st in notes]
+    stats = [note[1] for note in notes]
+    colours = None
+    if colour is not None:
+        from volume.mesh import colours_from_terms
+
+        colours = colours_from_terms((note[2] for note in notes), len(colour.verts))
+    crops = [note[0] for note in notes]
     if crop_file is None:
-        return RgbzImages.from_crops(cams, [c for c, _ in notes]), stats
-    save_crops(crop_file, (RgbzCrop.load(c, remove=True) for c, _ in notes), with_alpha)
-    return RgbzImages.from_crops(cams, CropFile(crop_file)), stats
+        return RgbzImages.from_crops(cams, crops), stats, colours
+    if not (CROPS_DEFLATED_IN_VIEWS and save_deflated_crops(crop_file, crops)):
+        save_crops(crop_file, (_crop_of(c, n, with_alpha) for n, c in enumerate(crops)), with_alpha)
+    return RgbzImages.from_crops(cams, CropFile(crop_file)), stats, colours
+
+
+def _crop_of(c, n: int, with_alpha: bool) -> RgbzCrop:
+    """View ``n``'s RgbzCrop from what its pass handed back (a crop, a crop's file, or a
+    DeflatedCrop, read back and removed)."""
+    if not isinstance(c, DeflatedCrop):
+        return RgbzCrop.load(c, remove=True)
+    with np.load(c.file, allow_pickle=False) as z:
+        crop = RgbzCrop(c.rect, z[f"v{n}_srgb"], z[f"v{n}_depth"], c.z0, c.dz,
+                        z[f"v{n}_alpha"] if with_alpha else None,
+                        z[f"v{n}_measured"] if f"v{n}_measured" in z.files else None)
+    Path(c.file).unlink()
+    return crop
 
 
 def _dense(scanset, verts, faces, level, cfg, with_alpha, progress):

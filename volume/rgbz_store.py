@@ -21,6 +21,7 @@ keeps it).  Per-view readers use :meth:`RgbzImages.view` (one decoded full frame
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +48,8 @@ CROP_MARGIN_FRACTION = 0.02
 CROP_MARGIN_MIN_PX = 8
 #: Marker key of a compact rgbz.npz (dense files hold "rgb" and "depth").
 COMPACT_KEY = "compact_rects"
+#: zlib level of a compact rgbz.npz's members (:func:`save_crops`; volume.splats.RGBZ_DEFLATE_LEVEL sizes it).
+CROPS_DEFLATE_LEVEL = 6
 #: The 256 linear values of the 8-bit sRGB codes (decoding is a table lookup).
 _SRGB_LUT = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
 
@@ -182,18 +185,64 @@ def save_crops(path: Path, crops, with_alpha: bool) -> None:
     import zipfile
 
     rects, ranges = [], []
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=6) as zf:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=CROPS_DEFLATE_LEVEL) as zf:
         for n, c in enumerate(crops):
             rects.append(c.rect)
             ranges.append((c.z0, c.dz))
-            _member(zf, f"v{n}_srgb", c.srgb)
-            _member(zf, f"v{n}_depth", c.depth)
-            if with_alpha:
-                _member(zf, f"v{n}_alpha", c.alpha if c.alpha is not None else np.full(c.depth.shape, 255, np.uint8))
-            if c.measured is not None:
-                _member(zf, f"v{n}_measured", c.measured)
+            for name, a in crop_arrays(n, c, with_alpha):
+                _member(zf, name, a)
         _member(zf, COMPACT_KEY, np.asarray(rects, np.int64).reshape(-1, 4))
         _member(zf, "ranges", np.asarray(ranges, np.float64).reshape(-1, 2))
+
+
+def crop_arrays(n: int, c: RgbzCrop, with_alpha: bool) -> list[tuple[str, np.ndarray]]:
+    """(member name, array) of view ``n``'s crop ``c`` in a compact rgbz.npz, in :func:`save_crops`' order."""
+    out = [(f"v{n}_srgb", c.srgb), (f"v{n}_depth", c.depth)]
+    if with_alpha:
+        out.append((f"v{n}_alpha", c.alpha if c.alpha is not None else np.full(c.depth.shape, 255, np.uint8)))
+    if c.measured is not None:
+        out.append((f"v{n}_measured", c.measured))
+    return out
+
+
+@dataclass(frozen=True)
+class DeflatedCrop:
+    """A view's crop whose members a worker deflated (volume.rgbz_zip): the zip file holding them,
+    the crop's rectangle and depth range (what the model's file keeps of every view beside them)."""
+
+    file: Path
+    rect: tuple
+    z0: float
+    dz: float
+
+
+def deflate_crop(path: Path, n: int, c: RgbzCrop, with_alpha: bool) -> DeflatedCrop:
+    """Write view ``n``'s members (:func:`crop_arrays`), deflated as :func:`save_crops` deflates
+    them, to the zip file ``path`` (volume.rgbz_zip); the :class:`DeflatedCrop` naming it."""
+    from volume.rgbz_zip import deflated_member, write_zip
+
+    write_zip(path, (deflated_member(name, a, CROPS_DEFLATE_LEVEL) for name, a in crop_arrays(n, c, with_alpha)))
+    return DeflatedCrop(Path(path), c.rect, c.z0, c.dz)
+
+
+def save_deflated_crops(path: Path, crops) -> bool:
+    """Write the crops a worker deflated (:class:`DeflatedCrop`, in view order) as :func:`save_crops`
+    writes them, their members copied as deflated (volume.rgbz_zip: the same decoded arrays), each
+    view's file removed once copied; False, with nothing written or removed, when the archive would
+    pass the zip format's plain limits (the caller then takes :func:`save_crops`)."""
+    from volume.rgbz_zip import deflated_member, fits, read_members, stored, write_zip
+
+    crops = list(crops)
+    tail = [deflated_member(COMPACT_KEY, np.asarray([c.rect for c in crops], np.int64).reshape(-1, 4),
+                            CROPS_DEFLATE_LEVEL),
+            deflated_member("ranges", np.asarray([(c.z0, c.dz) for c in crops], np.float64).reshape(-1, 2),
+                            CROPS_DEFLATE_LEVEL)]
+    if not fits([x for c in crops for x in stored(c.file)] + [m.sizes for m in tail]):
+        return False
+    write_zip(path, itertools.chain((m for c in crops for m in read_members(c.file)), tail))  # a view at a time
+    for c in crops:
+        Path(c.file).unlink()
+    return True
 
 
 def _member(zf, name: str, a: np.ndarray) -> None:
@@ -240,6 +289,20 @@ class CropFile:
             raise ModelError(f"{self.path}: view {n}: {e}") from None
         except Exception as e:  # missing member, corrupt zip
             raise ModelError(f"{self.path}: cannot read view {n} ({type(e).__name__}: {e})") from None
+
+
+def full_frame(rect, rgb: np.ndarray, depth: np.ndarray, alpha: np.ndarray | None, W: int, H: int):
+    """A decoded crop (:meth:`RgbzCrop.decode` at ``rect``) as full W x H frames (rgb (H, W, 3),
+    depth (H, W), alpha (H, W) or None), float32, empty outside the rectangle (:meth:`RgbzImages.view`)."""
+    x0, y0, w, h = rect
+    out = np.zeros((H, W, 3), np.float32), np.zeros((H, W), np.float32)
+    out[0][y0:y0 + h, x0:x0 + w] = rgb
+    out[1][y0:y0 + h, x0:x0 + w] = depth
+    a = None
+    if alpha is not None:
+        a = np.zeros((H, W), np.float32)
+        a[y0:y0 + h, x0:x0 + w] = alpha
+    return out[0], out[1], a
 
 
 def is_compact(path: Path) -> bool:
@@ -372,16 +435,7 @@ class RgbzImages:
         rect, rgb, depth, alpha = self.crop(n)
         if self._crops is None:
             return rgb, depth, alpha
-        W, H = self.size
-        x0, y0, w, h = rect
-        out = np.zeros((H, W, 3), np.float32), np.zeros((H, W), np.float32)
-        out[0][y0:y0 + h, x0:x0 + w] = rgb
-        out[1][y0:y0 + h, x0:x0 + w] = depth
-        a = None
-        if alpha is not None:
-            a = np.zeros((H, W), np.float32)
-            a[y0:y0 + h, x0:x0 + w] = alpha
-        return out[0], out[1], a
+        return full_frame(rect, rgb, depth, alpha, *self.size)
 
     def _decoded(self):
         if self._dense is None:

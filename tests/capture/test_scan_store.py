@@ -208,3 +208,75 @@ def test_bounds_steps_equal_their_numpy_forms():
         lo, hi = np.percentile(p.copy(), AUTO_BOUNDS_PERCENTILES, axis=0, overwrite_input=True)
         assert np.array_equal(lo, np.percentile(p, AUTO_BOUNDS_PERCENTILES[0], axis=0))
         assert np.array_equal(hi, np.percentile(p, AUTO_BOUNDS_PERCENTILES[1], axis=0))
+
+
+def test_gains_on_read_equal_the_written_gains(tmp_path, monkeypatch):
+    """capture.photometric.GAINS_ON_READ: spilled float32 views get their gains as a factor on each read
+    (nothing written: the same files, also through a worker's apply_steps and a pickle) and read the
+    colour the reference writes (gain_view's product); an 8-bit view and a gain of 1 as before."""
+    import pickle
+
+    import capture.photometric as ph
+    from volume.pipeline.pool import apply_steps
+
+    ss = make_scanset(sphere_scene(), scan_ring(3, 40, 30))
+    gains = np.array([[1.1, 0.9, 1.3], [1.0, 1.0, 1.0], [0.7, 1.2, 1.05]])
+    out = {}
+    with ScanSpill(tmp_path) as spill:
+        scans = [_with_alpha(s, float_rgb=True) for s in ss.scans]
+        scans[2] = Scan(scans[2].srgb8, scans[2].depth, scans[2].camera, scans[2].name, scans[2].alpha)  # 8-bit
+        kept = [spill.keep(s) for s in scans]
+        for on in (False, True):
+            monkeypatch.setattr(ph, "GAINS_ON_READ", on)
+            n_files = len(list(spill.path.iterdir()))
+            out[on] = ph.apply_gains(kept, gains, spill.keep)
+            written = len(list(spill.path.iterdir())) - n_files
+            assert written == (1 if on else 2)  # view 1 has gain 1; on: only the 8-bit view is written
+        for ref, got in zip(out[False], out[True], strict=True):
+            assert ref.rgb.dtype == got.rgb.dtype
+            np.testing.assert_array_equal(ref.rgb, got.rgb)
+            np.testing.assert_array_equal(ref.load().rgb, got.load().rgb)
+            np.testing.assert_array_equal(pickle.loads(pickle.dumps(got)).rgb, ref.rgb)
+        assert out[True][0].file == kept[0].file and len(out[True][0].gains) == 1
+        twice = ph.apply_gains(out[True], gains, spill.keep)[0]  # gains in turn, not their product
+        np.testing.assert_array_equal(twice.rgb, (out[False][0].rgb * gains[0].astype(np.float32)))
+        reserved = spill.reserve()
+        view, *_ = apply_steps([(ph.gain_view, gains[0])], kept[0], 0, reserved)  # a worker's task
+        assert isinstance(view, SpilledScan) and view.file == kept[0].file and not reserved.exists()
+        np.testing.assert_array_equal(view.rgb, out[False][0].rgb)
+
+
+def test_spill_references_read_back_the_same_arrays(tmp_path, monkeypatch):
+    """capture.scan_store.SPILL_REFERENCES: a new scan's array that is bit for bit one read lately from
+    an earlier file of the folder is stored as that file's name (chains followed) and reads back the
+    same; a changed array is written; off, every array is written and the reads are the same."""
+    import capture.scan_store as st
+
+    s0 = _with_alpha(make_scanset(sphere_scene(), scan_ring(1, 40, 30)).scans[0], float_rgb=True)
+    reads = {}
+    for on in (False, True):
+        monkeypatch.setattr(st, "SPILL_REFERENCES", on)
+        with ScanSpill(tmp_path) as spill:
+            a = spill.keep(s0)
+            a.rgb, a.depth, a.alpha  # noqa: B018  (a stage reads the view)
+            cut = np.median(a.depth[a.depth > 0])
+            b = spill.keep(Scan(a.rgb, np.where(a.depth > cut, 0.0, a.depth), a.camera, a.name, a.alpha))
+            b.rgb, b.depth  # noqa: B018
+            c = spill.keep(Scan(b.rgb * np.float32(2), b.depth, b.camera, b.name, None))  # colour changed
+            with np.load(b.file) as z:
+                assert ("rgb_ref" in z.files and "alpha_ref" in z.files and "depth" in z.files) == on
+            with np.load(c.file) as z:
+                assert ("rgb" in z.files and "depth_ref" in z.files) == on and "alpha" not in z.files
+            spill._cache.clear()  # read from the files again
+            reads[on] = [(x.rgb, x.depth, x.alpha) for x in (a, b, c)]
+    for ref, got in zip(reads[False], reads[True], strict=True):
+        for x, y in zip(ref, got, strict=True):
+            assert (x is None) == (y is None)
+            if x is not None:
+                assert x.dtype == y.dtype
+                np.testing.assert_array_equal(x, y)
+    assert reads[True][2][2] is None and reads[True][1][2] is not None
+    x = np.zeros(100_000, np.float32)
+    y = x.copy()
+    y.view(np.uint8)[1] = 1  # one byte, off the sample's stride
+    assert st._same_bits(x, x.copy()) and not st._same_bits(x, y) and not st._same_bits(x, x.astype(np.float64))

@@ -142,6 +142,26 @@ def test_edt_completion_matches_scipy():
                                       complete_sdf(bvals, none, empty, w, "numpy"))
 
 
+def test_edt_threads_give_the_same_distances(monkeypatch):
+    """volume.completion.EDT_THREADS: the edt transform on two threads (and three) against one thread
+    (the reference), bit for bit, on a volume whose lines differ."""
+    import volume.completion as comp
+
+    rng = np.random.default_rng(5)
+    n, w = 48, 0.004
+    g = np.indices((n, n, n)).transpose(1, 2, 3, 0) - n / 2
+    outside = (np.linalg.norm(g * [1.0, 1.3, 0.8], axis=-1) > 13) ^ (rng.random((n, n, n)) < 0.01)
+    band = rng.random((n, n, n)) < 0.02
+    bvals = np.where(outside, 1, -1) * rng.uniform(0, w, (n, n, n)).astype(np.float32)
+    out = {}
+    for threads in (1, 2, 3):
+        monkeypatch.setattr(comp, "EDT_THREADS", threads)
+        assert comp.edt_threads() == threads
+        out[threads] = complete_sdf(bvals, band, outside, w, "numba")
+    for threads in (2, 3):
+        np.testing.assert_array_equal(out[threads].view(np.uint32), out[1].view(np.uint32))
+
+
 def test_backend_is_validated():
     with pytest.raises(ValueError, match="backend"):
         FusionConfig(backend="cuda")

@@ -51,3 +51,21 @@ def test_config_takes_auto_and_refuses_negative():
     assert PipelineConfig(workers=AUTO_WORKERS).workers == 0
     with pytest.raises(ValueError, match="workers"):
         PipelineConfig(workers=-1)
+
+
+def test_heap_keeps_freed_memory_only_when_switched_on(monkeypatch):
+    """volume.pipeline.pool.keep_freed_memory: glibc's mallopt takes the three settings (True) with
+    HEAP_KEEPS_FREED; off, nothing is set (False); the same arrays either way."""
+    import numpy as np
+
+    if pool._libc() is None or not hasattr(pool._libc(), "mallopt"):
+        pytest.skip("not glibc")
+    a = np.arange(10_000_000, dtype=np.float64) * 0.5  # 80 MB: a mapping of its own by glibc's defaults
+    monkeypatch.setattr(pool, "HEAP_KEEPS_FREED", False)
+    assert pool.keep_freed_memory() is False
+    monkeypatch.setattr(pool, "HEAP_KEEPS_FREED", True)
+    assert pool.keep_freed_memory() is True
+    b = np.arange(10_000_000, dtype=np.float64) * 0.5  # from the heap now
+    np.testing.assert_array_equal(a, b)
+    del a, b
+    assert pool.release_free_memory() in (True, False)

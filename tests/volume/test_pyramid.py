@@ -130,6 +130,32 @@ def test_measured_voxels_of_every_level_in_one_pass():
         assert len(both[L]) > 0
 
 
+def test_measured_voxels_mapped_equal_the_reference():
+    """volume.pyramid.measured_voxels_mapped (each view's cells through a per-view map: the pipeline's
+    pool, PYRAMID_CELLS_MAPPED) against measured_voxels_levels over the views' points in one process
+    (the reference): the same voxels at every level, with a map that hands the notes back in view
+    order; a map that loses a view's cells changes them."""
+    from capture.view_map import serial_map
+    from volume.build import ViewPoints
+    from volume.pyramid import measured_voxels_levels, measured_voxels_mapped
+
+    ss = make_scanset(sphere_scene(), scan_ring(6, 48, 36), noise=0.002, outliers=0.01)
+    origin, extent = np.array([-0.1, -0.1, -0.1]), 0.2
+    sizes = {L: extent / L for L in (8, 16, 32, 64)}
+    ref = measured_voxels_levels(ViewPoints(ss.scans), origin, sizes, 2)
+    got = measured_voxels_mapped(serial_map, ss.scans, origin, sizes, 2)
+    for L in sizes:
+        np.testing.assert_array_equal(got[L], ref[L])
+        assert len(ref[L]) > 0
+
+    def lossy(fn, scans, arg, description=""):  # the last view's cells lost
+        views, notes = serial_map(fn, scans, arg, description)
+        return views, notes[:-1]
+
+    lost = measured_voxels_mapped(lossy, ss.scans, origin, sizes, 2)
+    assert any(len(lost[L]) != len(ref[L]) for L in sizes)
+
+
 def test_compiled_discontinuity_count_equals_the_mask():
     """volume.pyramid_kernel.count_flagged (discontinuity_fraction's default) against the numpy mask
     (fast=False): the same fraction on noisy volumes with NaN, with and without ``valid``, limits

@@ -86,9 +86,10 @@ class Run:
         self.spill, self._spill_decided = None, False
         self._pool = None
         self._set_peaks = None  # in a whole-set stage: its workers' peak MiB by process id
-        from volume.pipeline.pool import workers_for
+        from volume.pipeline.pool import keep_freed_memory, workers_for
 
         self.workers = workers_for(cfg.workers, work.refs, cfg.matte.mode)
+        keep_freed_memory()  # this process's heap too (the plate stage's threads, fusion)
 
     # ------------------------------------------------------------------ what the stages made
     @property
