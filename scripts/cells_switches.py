@@ -2,8 +2,9 @@
 on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES (capture.matting_global,
 0 / 1), CELL_LINE_ALPHA (capture.matting_lines) and the ninth round's AGREEING, CONTRAST, VIEW_CHROMA,
 CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast), the eleventh round's RECROSS
-(capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer).  Use ``--view-workers 1``: the view pool's processes
-import the modules afresh and would not see the switches.
+(capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer),
+the twelfth round's BRIGHTNESS_LEVEL (capture.matting_global, 0 / 1).  Use ``--view-workers 1``: the view
+pool's processes import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
         eval CAP --holdout 2 --methods gather --view-workers 1 --json X.json -o X
