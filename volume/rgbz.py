@@ -40,13 +40,14 @@ from capture.scan import ScanSet
 from capture.scan_store import scan_has_alpha
 from capture.view_map import or_serial
 from volume.model import RGBZ_STORAGE, RgbzImages, SdfLevel
-from volume.rgbz_store import CropFile, DeflatedCrop, RgbzCrop, deflate_crop, save_crops, save_deflated_crops
+from volume.rgbz_store import CropFile, RgbzCrop, save_crops
+from volume.rgbz_zip import DeflatedCrop, deflate_crop, save_deflated_crops
 
 #: RgbzConfig.store choices.
 STORES = ("compact", "dense")
 #: A spilled run's crops (build_rgbz with a ``crop_file``) deflated in the pass over the views (its
-#: workers; volume.rgbz_store.deflate_crop) and only copied into the model's file by this process
-#: (volume.rgbz_store.save_deflated_crops); False: each view's crop written plain and the whole file
+#: workers; volume.rgbz_zip.deflate_crop) and only copied into the model's file by this process
+#: (volume.rgbz_zip.save_deflated_crops); False: each view's crop written plain and the whole file
 #: deflated here (volume.rgbz_store.save_crops, the reference).  The same decoded arrays
 #: (tests/volume/test_rgbz_zip.py); 72 views at 1280x960: 3.0 s of zlib in the main process after the
 #: pool (docs/speed.md, round 13).

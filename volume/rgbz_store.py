@@ -21,7 +21,6 @@ keeps it).  Per-view readers use :meth:`RgbzImages.view` (one decoded full frame
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -203,46 +202,6 @@ def crop_arrays(n: int, c: RgbzCrop, with_alpha: bool) -> list[tuple[str, np.nda
     if c.measured is not None:
         out.append((f"v{n}_measured", c.measured))
     return out
-
-
-@dataclass(frozen=True)
-class DeflatedCrop:
-    """A view's crop whose members a worker deflated (volume.rgbz_zip): the zip file holding them,
-    the crop's rectangle and depth range (what the model's file keeps of every view beside them)."""
-
-    file: Path
-    rect: tuple
-    z0: float
-    dz: float
-
-
-def deflate_crop(path: Path, n: int, c: RgbzCrop, with_alpha: bool) -> DeflatedCrop:
-    """Write view ``n``'s members (:func:`crop_arrays`), deflated as :func:`save_crops` deflates
-    them, to the zip file ``path`` (volume.rgbz_zip); the :class:`DeflatedCrop` naming it."""
-    from volume.rgbz_zip import deflated_member, write_zip
-
-    write_zip(path, (deflated_member(name, a, CROPS_DEFLATE_LEVEL) for name, a in crop_arrays(n, c, with_alpha)))
-    return DeflatedCrop(Path(path), c.rect, c.z0, c.dz)
-
-
-def save_deflated_crops(path: Path, crops) -> bool:
-    """Write the crops a worker deflated (:class:`DeflatedCrop`, in view order) as :func:`save_crops`
-    writes them, their members copied as deflated (volume.rgbz_zip: the same decoded arrays), each
-    view's file removed once copied; False, with nothing written or removed, when the archive would
-    pass the zip format's plain limits (the caller then takes :func:`save_crops`)."""
-    from volume.rgbz_zip import deflated_member, fits, read_members, stored, write_zip
-
-    crops = list(crops)
-    tail = [deflated_member(COMPACT_KEY, np.asarray([c.rect for c in crops], np.int64).reshape(-1, 4),
-                            CROPS_DEFLATE_LEVEL),
-            deflated_member("ranges", np.asarray([(c.z0, c.dz) for c in crops], np.float64).reshape(-1, 2),
-                            CROPS_DEFLATE_LEVEL)]
-    if not fits([x for c in crops for x in stored(c.file)] + [m.sizes for m in tail]):
-        return False
-    write_zip(path, itertools.chain((m for c in crops for m in read_members(c.file)), tail))  # a view at a time
-    for c in crops:
-        Path(c.file).unlink()
-    return True
 
 
 def _member(zf, name: str, a: np.ndarray) -> None:

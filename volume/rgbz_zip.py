@@ -12,15 +12,20 @@ small zip file of their own (:func:`write_zip`); the main process reads them bac
 ``numpy.savez_compressed`` writes: ``numpy.load`` (and ``volume.rgbz_store.CropFile``) read it
 unchanged, and every decoded array is the one the reference stores (tests/volume/test_rgbz_zip.py).
 
-Zip64 is not written: :func:`fits` says whether an archive of these members stays within the
-plain format's limits (4 GiB, 65,535 members); the caller takes the reference otherwise.
+The bytes are the ones ``zipfile`` writes for the reference (``ZipFile.open(name, "w",
+force_zip64=True)`` on a seekable file, as ``volume.rgbz_store._member`` calls it): version 4.5, the
+date 1980-01-01 of a ``ZipInfo`` made from a name, sizes 0xFFFFFFFF in each local header with a zip64
+extra field holding them, and a plain central directory; so a spilled run's rgbz.npz is the in-memory
+run's byte for byte (tests/furrow/test_cmd_model.py).  Offsets and the member count are not written in
+zip64: :func:`fits` says whether an archive of these members stays within the plain format's limits
+(4 GiB, 65,535 members); the caller takes the reference otherwise.
 """
 
 from __future__ import annotations
 
 import io
+import itertools
 import struct
-import time
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -28,11 +33,18 @@ from pathlib import Path
 
 import numpy as np
 
+from volume.rgbz_store import COMPACT_KEY, CROPS_DEFLATE_LEVEL, RgbzCrop, crop_arrays
+
 #: The plain zip format's limits (no zip64): offsets and sizes below 4 GiB, at most 65,535 members.
 ZIP_MAX_BYTES = 0xFFFFFFFF
 ZIP_MAX_MEMBERS = 0xFFFF
-#: Zip version 2.0 (deflate) written as "made by" and "needed to extract"; made by a Unix system.
-_VERSION, _UNIX = 20, 3
+#: Zip version 4.5 (zip64, what ``zipfile`` writes with ``force_zip64``) as "made by" and "needed to
+#: extract"; made by a Unix system.
+_VERSION, _UNIX = 45, 3
+#: The DOS (time, date) of 1980-01-01 00:00: a ``zipfile.ZipInfo`` made from a name alone.
+_DOS_TIME, _DOS_DATE = 0, (1 << 5) | 1
+#: The local header's zip64 extra field: id 1, 16 bytes (the inflated and deflated sizes).
+_ZIP64_EXTRA = "<HHQQ"
 #: Permission bits of a member (what zipfile gives one written with ``ZipFile.open(name, "w")``).
 _EXTERNAL_ATTR = 0o600 << 16
 
@@ -73,15 +85,8 @@ def fits(sizes) -> bool:
     """Whether members of ``sizes`` ((name, deflated bytes, inflated bytes) each: :func:`stored`,
     :meth:`Member.sizes`) make a zip archive within the plain format's limits (module docstring)."""
     sizes = list(sizes)
-    total = sum(30 + 46 + 2 * len(name.encode()) + packed for name, packed, _ in sizes) + 22
+    total = sum(30 + 20 + 46 + 2 * len(name.encode()) + packed for name, packed, _ in sizes) + 22
     return len(sizes) <= ZIP_MAX_MEMBERS and total <= ZIP_MAX_BYTES and all(n <= ZIP_MAX_BYTES for _, _, n in sizes)
-
-
-def _dos_time() -> tuple[int, int]:
-    """(time, date) of now in the zip format's (DOS) fields."""
-    t = time.localtime(time.time())
-    dos_time = (t.tm_hour << 11) | (t.tm_min << 5) | (t.tm_sec // 2)
-    return dos_time, ((t.tm_year - 1980) << 9) | (t.tm_mon << 5) | t.tm_mday
 
 
 def write_zip(path: Path, members) -> None:
@@ -89,7 +94,7 @@ def write_zip(path: Path, members) -> None:
     ``path`` (via a temporary name, renamed); ValueError past the plain format's limits."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    dtime, ddate = _dos_time()
+    dtime, ddate = _DOS_TIME, _DOS_DATE
     central = []
     with open(tmp, "wb") as fh:
         for m in members:
@@ -98,8 +103,10 @@ def write_zip(path: Path, members) -> None:
             if len(central) >= ZIP_MAX_MEMBERS or offset + len(m.data) > ZIP_MAX_BYTES or m.size > ZIP_MAX_BYTES:
                 raise ValueError(f"{path}: past the zip format's limits without zip64")
             fh.write(struct.pack(zipfile.structFileHeader, zipfile.stringFileHeader, _VERSION, 0, 0,
-                                 zipfile.ZIP_DEFLATED, dtime, ddate, m.crc, len(m.data), m.size, len(name), 0))
+                                 zipfile.ZIP_DEFLATED, dtime, ddate, m.crc, 0xFFFFFFFF, 0xFFFFFFFF, len(name),
+                                 struct.calcsize(_ZIP64_EXTRA)))
             fh.write(name)
+            fh.write(struct.pack(_ZIP64_EXTRA, 1, 16, m.size, len(m.data)))
             fh.write(m.data)
             central.append(struct.pack(zipfile.structCentralDir, zipfile.stringCentralDir, _VERSION, _UNIX, _VERSION,
                                        0, 0, zipfile.ZIP_DEFLATED, dtime, ddate, m.crc, len(m.data), m.size,
@@ -134,3 +141,39 @@ def read_members(path: Path) -> list[Member]:
             fh.seek(head[-2] + head[-1], io.SEEK_CUR)  # the local header's name and extra field
             out.append(Member(info.filename, fh.read(info.compress_size), info.CRC, info.file_size))
     return out
+
+
+@dataclass(frozen=True)
+class DeflatedCrop:
+    """A view's crop whose members a worker deflated (this module): the zip file holding them,
+    the crop's rectangle and depth range (what the model's file keeps of every view beside them)."""
+
+    file: Path
+    rect: tuple
+    z0: float
+    dz: float
+
+
+def deflate_crop(path: Path, n: int, c: RgbzCrop, with_alpha: bool) -> DeflatedCrop:
+    """Write view ``n``'s members (:func:`crop_arrays`), deflated as :func:`save_crops` deflates
+    them, to the zip file ``path`` (this module); the :class:`DeflatedCrop` naming it."""
+    write_zip(path, (deflated_member(name, a, CROPS_DEFLATE_LEVEL) for name, a in crop_arrays(n, c, with_alpha)))
+    return DeflatedCrop(Path(path), c.rect, c.z0, c.dz)
+
+
+def save_deflated_crops(path: Path, crops) -> bool:
+    """Write the crops a worker deflated (:class:`DeflatedCrop`, in view order) as :func:`save_crops`
+    writes them, their members copied as deflated (the same file), each
+    view's file removed once copied; False, with nothing written or removed, when the archive would
+    pass the zip format's plain limits (the caller then takes :func:`save_crops`)."""
+    crops = list(crops)
+    tail = [deflated_member(COMPACT_KEY, np.asarray([c.rect for c in crops], np.int64).reshape(-1, 4),
+                            CROPS_DEFLATE_LEVEL),
+            deflated_member("ranges", np.asarray([(c.z0, c.dz) for c in crops], np.float64).reshape(-1, 2),
+                            CROPS_DEFLATE_LEVEL)]
+    if not fits([x for c in crops for x in stored(c.file)] + [m.sizes for m in tail]):
+        return False
+    write_zip(path, itertools.chain((m for c in crops for m in read_members(c.file)), tail))  # a view at a time
+    for c in crops:
+        Path(c.file).unlink()
+    return True
