@@ -128,8 +128,9 @@ def write_scan(f: Path, scan, readers=()) -> SpilledScan:
     f = Path(f)
     rgb = np.asarray(scan.rgb)
     sources = _sources(scan, f.parent, (reader(), *readers)) if SPILL_REFERENCES else {}
+    alpha = scan.alpha
     arrays = {}
-    for key, a in (("rgb", rgb), ("depth", scan.depth), ("alpha", scan.alpha)):
+    for key, a in (("rgb", rgb), ("depth", scan.depth), ("alpha", alpha)):
         if a is None:
             continue
         if key in sources:
@@ -139,7 +140,6 @@ def write_scan(f: Path, scan, readers=()) -> SpilledScan:
         else:
             arrays[key], box = _crop(np.asarray(a))
             arrays[key + "_box"] = np.array(box, np.int64)
-    alpha = scan.alpha
     tmp = f.with_suffix(".tmp.npz")
     np.savez(tmp, **arrays)
     tmp.rename(f)

@@ -92,17 +92,24 @@ def test_the_compiled_box_weights_can_differ(monkeypatch):
     assert _bits(out) != _bits(ref)
 
 
-def test_the_lines_channel_maxima_are_numpys(monkeypatch):
-    """unseen_background (censored and not) and line_vertex with LINES_CHANNEL_MAX on and off: the same
-    backgrounds, bounds and sigma bit for bit, on samples with NaN, +-inf and blown-out frames."""
-    rng = np.random.default_rng(12)
-    K, N = 12, 3000
+def _line_samples(rng, K: int, N: int):
+    """(palette (4, 3), samples (K, N, 3) float64): K frames of N pixels, each a mix of a palette colour over
+    the pixel's background at alpha 0-0.9 (the first two frames clean), clipped to [0, 1], 5 % NaN."""
     pal = rng.uniform(0.02, 0.3, (4, 3))
     B = rng.uniform(0.1, 1.2, (N, 3))
     a = rng.uniform(0.0, 0.9, (K, N))
     a[:2] = 0.0
     s = np.clip(a[..., None] * pal[rng.integers(0, 4, (K, N))] + (1 - a[..., None]) * B[None], 0.0, 1.0)
     s[rng.random((K, N)) < 0.05] = np.nan
+    return pal, s
+
+
+def test_the_lines_channel_maxima_are_numpys(monkeypatch):
+    """unseen_background (censored and not) and line_vertex with LINES_CHANNEL_MAX on and off: the same
+    backgrounds, bounds and sigma bit for bit, on samples with NaN, +-inf and blown-out frames."""
+    rng = np.random.default_rng(12)
+    K, N = 12, 3000
+    pal, s = _line_samples(rng, K, N)
     s[0, :5] = [np.inf, 0.2, 0.3]
     opaque = rng.random((K, N)) < 0.1
     covered = opaque | (rng.random((K, N)) < 0.1)
@@ -145,12 +152,8 @@ def test_the_lines_chunks_taking_their_columns_are_the_copied_ones(with_hot, mon
 
     rng = np.random.default_rng(21)
     K, N = 10, 1500
-    pal = rng.uniform(0.02, 0.3, (4, 3))
-    B = rng.uniform(0.1, 1.2, (N, 3))
-    a = rng.uniform(0.0, 0.9, (K, N))
-    a[:2] = 0.0
-    s = np.clip(a[..., None] * pal[rng.integers(0, 4, (K, N))] + (1 - a[..., None]) * B[None], 0, 1).astype(np.float32)
-    s[rng.random((K, N)) < 0.05] = np.nan
+    pal, s = _line_samples(rng, K, N)
+    s = s.astype(np.float32)
     opaque, covered = rng.random((K, N)) < 0.1, rng.random((K, N)) < 0.2
     hot = (np.nan_to_num(s).max(-1) >= 0.975) if with_hot else None
     idx = np.flatnonzero(rng.random(N) < 0.6)
