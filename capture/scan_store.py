@@ -21,8 +21,10 @@ Stages that make new scans (reading, extent, matte, photometric gains, working s
 from __future__ import annotations
 
 import shutil
+import struct
 import tempfile
 import threading
+import zipfile
 from collections import OrderedDict
 from pathlib import Path
 
@@ -46,6 +48,11 @@ SCAN_BYTES_PER_PIXEL = 7
 #: files leave the folder only with it).  False: every array written (the reference); the same arrays
 #: read back either way (tests/capture/test_scan_store.py).
 SPILL_REFERENCES = True
+#: Spilled arrays are read in place from their (uncompressed) .npz file (:func:`_open_spilled`): each
+#: member's .npy data from its offset, without zipfile's CRC-32 over every byte read (the files are this
+#: run's own, written a moment before).  False: ``np.load`` (the reference).  The same arrays either way
+#: (tests/capture/test_scan_store.py).
+SPILL_READ_IN_PLACE = True
 #: ``--spill`` choices (:func:`spill_for`).
 SPILL_MODES = ("auto", "always", "never")
 
@@ -100,10 +107,49 @@ def _same_bits(a, b) -> bool:
     return bool(np.array_equal(x[::step], y[::step]) and np.array_equal(x, y))  # a sample first: most differ
 
 
+class _InPlaceNpz:
+    """An uncompressed .npz's members read in place (SPILL_READ_IN_PLACE): ``files`` and ``z[key]`` as
+    ``np.load``'s NpzFile; owns the open file."""
+
+    def __init__(self, f: Path):
+        self._fh = open(f, "rb")
+        try:
+            with zipfile.ZipFile(self._fh) as z:
+                infos = z.infolist()
+            self._offsets = {zi.filename.removesuffix(".npy"): self._data_offset(f, zi) for zi in infos}
+        except BaseException:
+            self._fh.close()
+            raise
+        self.files = list(self._offsets)
+
+    def _data_offset(self, f: Path, zi: zipfile.ZipInfo) -> int:
+        self._fh.seek(zi.header_offset)
+        head = self._fh.read(30)
+        if zi.compress_type != zipfile.ZIP_STORED or head[:4] != b"PK\x03\x04":
+            raise ValueError(f"{f}: member {zi.filename} is not a stored zip member; not a scan spill file")
+        name_len, extra_len = struct.unpack("<HH", head[26:30])
+        return zi.header_offset + 30 + name_len + extra_len
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        self._fh.seek(self._offsets[key])
+        return np.lib.format.read_array(self._fh, allow_pickle=False)
+
+    def __enter__(self) -> _InPlaceNpz:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._fh.close()
+
+
+def _open_spilled(f: Path):
+    """The spilled file ``f`` opened for reading its arrays (SPILL_READ_IN_PLACE, else ``np.load``)."""
+    return _InPlaceNpz(f) if SPILL_READ_IN_PLACE else np.load(f)
+
+
 def _read_array(f: Path, key: str) -> np.ndarray | None:
     """Array ``key`` of the spilled file ``f`` ('rgb', 'depth' or 'alpha'; None for a missing matte),
     following a stored file name (write_scan) to the file that holds it."""
-    with np.load(f) as z:
+    with _open_spilled(f) as z:
         if key + "_ref" in z.files:
             return _read_array(f.parent / str(z[key + "_ref"]), key)
         if key == "rgb":

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from capture.io import auto_bounds, read_scanset, write_transforms
-from capture.scan import MAX_SAMPLED_POINTS, Scan, sampled_points
+from capture.scan import MAX_SAMPLED_POINTS, Scan, sampled_points, to_uint8_srgb
 from capture.scan_store import (
     READ_CACHE_VIEWS,
     SCAN_BYTES_PER_PIXEL,
@@ -280,3 +280,31 @@ def test_spill_references_read_back_the_same_arrays(tmp_path, monkeypatch):
     y = x.copy()
     y.view(np.uint8)[1] = 1  # one byte, off the sample's stride
     assert st._same_bits(x, x.copy()) and not st._same_bits(x, y) and not st._same_bits(x, x.astype(np.float64))
+
+
+def test_spilled_arrays_read_in_place_are_np_loads(tmp_path, monkeypatch):
+    """capture.scan_store.SPILL_READ_IN_PLACE: every member of a spilled file (8-bit and float colour, cropped
+    depth and matte with their boxes, a stored file name) read in place equals np.load's, dtype and bits;
+    a compressed .npz (not a spill file) is refused with its name."""
+    import capture.scan_store as st
+
+    scan = _with_alpha(make_scanset(sphere_scene(), scan_ring(1, 40, 30)).scans[0], float_rgb=True)
+    with ScanSpill(tmp_path) as spill:
+        files = [spill.keep(scan).file, spill.keep(Scan(scan.rgb, scan.depth, scan.camera, scan.name, None)).file]
+        u8 = spill.keep(Scan(to_uint8_srgb(scan.rgb), scan.depth, scan.camera, scan.name, scan.alpha)).file
+        for f in (*files, u8):
+            with np.load(f) as ref, st._InPlaceNpz(f) as got:
+                assert got.files == ref.files and len(ref.files) >= 3
+                for key in ref.files:
+                    a, b = ref[key], got[key]
+                    assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), key
+        reads = {}
+        for on in (False, True):
+            monkeypatch.setattr(st, "SPILL_READ_IN_PLACE", on)
+            reads[on] = [st._read_array(f, k) for f in files for k in ("rgb", "depth", "alpha")]
+        for a, b in zip(reads[False], reads[True], strict=True):
+            assert (a is None and b is None) or (a.dtype == b.dtype and a.tobytes() == b.tobytes())
+    bad = tmp_path / "compressed.npz"
+    np.savez_compressed(bad, rgb=np.ones((4, 4, 3), np.float32))
+    with pytest.raises(ValueError, match="compressed.npz"):
+        st._InPlaceNpz(bad)
