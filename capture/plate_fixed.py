@@ -42,6 +42,9 @@ FIXED_ESTIMATE_UNSEEN = True
 #: measurement, as before (under auto exposure the conifer with table, AE and lens lost 2.5 dB held
 #: out with the true matte: docs/matting.md, issue 30 fourth round).
 FIXED_CENSOR_CLIPPED = True
+#: Exposure gains are taken only if they also cut the median held-back error by this share (docs/speed.md
+#: round 16: a moved camera's gains cut it 0.5-2.3 % and won the sign test; real auto exposure cut 61 %).
+FIXED_GAIN_MIN_CUT = 0.1
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
 #: Frames the fixed camera's plate (its robust mode, fixed_draw) takes at most, evenly spaced over the
@@ -280,8 +283,9 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
     background and no frame is dark or blown out (capture.plate GAIN_DARK / GAIN_BRIGHT).  Per view,
     the mean largest-channel |log(colour x gain) - log(median of the other frames)| with the gains and
     with none; the gains win a view when theirs is smaller.  Accepted (``chosen`` 'plate') when they
-    win at least V / 2 + sqrt(V) of the V views (a sign test: two standard errors above chance),
-    else 'none': the gains cannot be told from noise (a capture at fixed exposure).  A fixed camera
+    win at least V / 2 + sqrt(V) of the V views (a sign test: two standard errors above chance) and cut
+    the views' median error by FIXED_GAIN_MIN_CUT, else 'none': the gains cannot be told from noise (a
+    capture at fixed exposure), or they fit a background the fixed camera does not explain.  A fixed camera
     sees one static background, so these gains are each frame's exposure (auto exposure, white
     balance: the camera scales the whole frame), the object's included (volume/photometric.py)."""
     from capture.plate import _usable
@@ -305,10 +309,13 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
 
     fit, none = error(gains), error(np.ones((V, 3)))
     wins = int((fit < none).sum())
-    ok = wins >= need
-    verdict = f"at least {need}: taken" if ok else f"fewer than {need}: kept the views as they are"
+    e_fit, e_none = float(np.median(fit)), float(np.median(none))
+    cut = 1.0 - e_fit / e_none if e_none > 0 else 0.0
+    ok = wins >= need and cut >= FIXED_GAIN_MIN_CUT
+    verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %"
+    verdict += ": taken" if ok else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed): kept the views as they are"
     return {**rec, "chosen": "plate" if ok else "none", "wins": wins,
-            "error_fitted": round(float(np.median(fit)), 5), "error_none": round(float(np.median(none)), 5),
+            "error_fitted": round(e_fit, 5), "error_none": round(e_none, 5),
             "reason": f"the background's gains beat none in {wins} of {V} views on held-back pixels ({verdict})"}
 
 
