@@ -42,8 +42,7 @@ FIXED_ESTIMATE_UNSEEN = True
 #: measurement, as before (under auto exposure the conifer with table, AE and lens lost 2.5 dB held
 #: out with the true matte: docs/matting.md, issue 30 fourth round).
 FIXED_CENSOR_CLIPPED = True
-#: Exposure gains are taken only if they also cut the median held-back error by this share (docs/speed.md
-#: round 16: a moved camera's gains cut it 0.5-2.3 % and won the sign test; real auto exposure cut 61 %).
+#: Gains taken only if they also cut the median held-back error this much (docs/speed.md round 16: 0.5-2.3 % vs 61 %).
 FIXED_GAIN_MIN_CUT = 0.1
 #: Robust mode: pixels per chunk (a K x K x chunk agreement array).
 MODE_CHUNK = 20000
@@ -286,8 +285,8 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
     win at least V / 2 + sqrt(V) of the V views (a sign test: two standard errors above chance) and cut
     the views' median error by FIXED_GAIN_MIN_CUT, else 'none': the gains cannot be told from noise (a
     capture at fixed exposure), or they fit a background the fixed camera does not explain.  A fixed camera
-    sees one static background, so these gains are each frame's exposure (auto exposure, white
-    balance: the camera scales the whole frame), the object's included (volume/photometric.py)."""
+    sees one static background, so these gains are each frame's exposure (auto exposure, white balance:
+    the camera scales the whole frame), the object's included (volume/photometric.py)."""
     from capture.plate import _usable
 
     views, weights = [p.view for p in ps.views], [p.weight for p in ps.views]
@@ -312,8 +311,9 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
     e_fit, e_none = float(np.median(fit)), float(np.median(none))
     cut = 1.0 - e_fit / e_none if e_none > 0 else 0.0
     ok = wins >= need and cut >= FIXED_GAIN_MIN_CUT
-    verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %"
-    verdict += ": taken" if ok else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed): kept the views as they are"
+    why = "" if ok or wins < need else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed)"
+    verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %{why}"
+    verdict += ": taken" if ok else ": kept the views as they are"
     return {**rec, "chosen": "plate" if ok else "none", "wins": wins,
             "error_fitted": round(e_fit, 5), "error_none": round(e_none, 5),
             "reason": f"the background's gains beat none in {wins} of {V} views on held-back pixels ({verdict})"}

@@ -221,11 +221,10 @@ def forward_quadrature(env, up, kernels, normals, views, gs, height: int = FORWA
     d32, lum32 = d.astype(np.float32), lum.astype(np.float32)
     out = np.zeros((len(fns), len(gs), len(n)))
     for s in range(0, len(n), FORWARD_QUAD_CHUNK):
-        c, back = n[s:s + FORWARD_QUAD_CHUNK] @ d32.T, v[s:s + FORWARD_QUAD_CHUNK] @ d32.T
+        c, back = n[s:s + FORWARD_QUAD_CHUNK] @ d32.T, v[s:s + FORWARD_QUAD_CHUNK] @ d32.T  # back: v.w
         lit = [np.asarray(f(c), np.float32) * lum32 for f in fns]
         for gi, g in enumerate(gs):
-            x = np.float32(1 + g * g) + np.float32(2 * g) * back   # 1 + g^2 - 2 g (-v.w)
-            hg = np.float32(1 - g * g) / (x * np.sqrt(x))           # rl.henyey_greenstein in float32
+            hg = rl.henyey_greenstein(-back, g, np.float32)
             for j, k in enumerate(lit):
                 out[j, gi, s:s + FORWARD_QUAD_CHUNK] = np.einsum("pd,pd->p", k, hg)
     return out

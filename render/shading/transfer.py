@@ -218,11 +218,12 @@ def visible_share(points, normals, lighting: RelightLighting, spheres=None) -> n
     return np.where(tot > 0, np.einsum("pk,pkc->pc", share, w) / np.where(tot > 0, tot, 1.0), 1.0)
 
 
-def henyey_greenstein(c, g: float = FORWARD_G) -> np.ndarray:
+def henyey_greenstein(c, g: float = FORWARD_G, dtype=np.float64) -> np.ndarray:
     """Henyey-Greenstein phase times 4 pi (mean 1 over the sphere) at cosine ``c`` of the scattering
-    angle (1 = straight on)."""
-    c = np.asarray(c, np.float64)
-    return (1 - g * g) / (1 + g * g - 2 * g * c) ** 1.5
+    angle (1 = straight on), computed in ``dtype`` (float32: the relighting fit's quadrature)."""
+    c = np.asarray(c, dtype)
+    x = dtype(1 + g * g) - dtype(2 * g) * c
+    return dtype(1 - g * g) / x ** dtype(1.5) if dtype is np.float64 else dtype(1 - g * g) / (x * np.sqrt(x))
 
 
 def forward_transfer(lighting: RelightLighting, normals, views, g: float = FORWARD_G) -> np.ndarray:
