@@ -188,6 +188,9 @@ def _print_surroundings(console, rec: dict) -> None:
     pl = rec.get("plate", {})
     if pl.get("mode") not in (None, "off", "unused"):
         err = "none held back" if pl["error_median"] is None else f"{pl['error_median']:.4f} linear"
+        rms = pl.get("tried_rmse") or {}
+        if len(rms) > 1:  # why this path: the paths' RMS on the held-back rings (capture.plate.choose_mode)
+            err += " (chosen by RMS: " + ", ".join(f"{m} {v:.4f}" for m, v in rms.items() if v is not None) + ")"
         scale = f"; made at {pl['working_scale']:.2f} x the views' size (memory)" if "working_scale" in pl else ""
         est = pl.get("band_estimated_mean", 0.0)
         lines = f", {est:.1%} of it solved from the frames' lines (no frame saw it clean)" if est else ""

@@ -37,6 +37,11 @@ def env_colour(d: np.ndarray) -> np.ndarray:
     return np.stack([r, g, b], -1)
 
 
+def black_env(d: np.ndarray) -> np.ndarray:
+    """(N, 3) black: a dark room all round."""
+    return np.zeros((len(d), 3))
+
+
 def table_colour(p: np.ndarray) -> np.ndarray:
     """(N, 3) linear colour of the table top at world points (N, 3)."""
     return np.stack([0.35 + 0.2 * np.sin(40 * p[:, 0]), 0.25 + 0.15 * np.cos(35 * p[:, 1]),
@@ -49,25 +54,27 @@ def _rays(cam):
     return dirs @ cam.world_from_cam[:3, :3].T, dirs[:, 2]
 
 
-def true_background(cam) -> tuple[np.ndarray, np.ndarray]:
-    """((H, W, 3) colour, (H, W) z-depth, 0 = at infinity) of what lies behind the sphere in ``cam``."""
+def true_background(cam, env=env_colour) -> tuple[np.ndarray, np.ndarray]:
+    """((H, W, 3) colour, (H, W) z-depth, 0 = at infinity) of what lies behind the sphere in ``cam``;
+    ``env``: the environment's colour along directions (default :func:`env_colour`)."""
     d, cz = _rays(cam)
     o = cam.center
     t = (TABLE_Z - o[2]) / np.where(np.abs(d[:, 2]) > 1e-12, d[:, 2], 1e-12)
     p = o + t[:, None] * d
     on = (t > 0) & (np.abs(p[:, 0]) < TABLE_HALF) & (np.abs(p[:, 1]) < TABLE_HALF)
-    col = np.where(on[:, None], table_colour(p), env_colour(d))
+    col = np.where(on[:, None], table_colour(p), env(d))
     z = np.where(on, t * cz, 0.0)
     H, W = cam.height, cam.width
     return col.reshape(H, W, 3).astype(np.float32), z.reshape(H, W).astype(np.float32)
 
 
-def orbit_capture(n: int = 12, width: int = 96, height: int = 72) -> tuple[list[PlateView], list[np.ndarray]]:
-    """(plate views, true backgrounds) of the orbit scene (module docstring)."""
+def orbit_capture(n: int = 12, width: int = 96, height: int = 72, env=env_colour) -> tuple[list[PlateView], list[np.ndarray]]:
+    """(plate views, true backgrounds) of the orbit scene (module docstring); ``env`` as :func:`true_background`
+    (:func:`black_env`: a table in a dark room, as a phone capture over a black backdrop)."""
     cams = scenes.ring_cameras(n, width, height, radius=RING_RADIUS, elevations=(20.0,), fov_deg=50.0)
     views, truth = [], []
     for cam in cams:
-        bg, bz = true_background(cam)
+        bg, bz = true_background(cam, env)
         d, cz = _rays(cam)
         t = scenes.ray_sphere(np.broadcast_to(cam.center, d.shape), d, np.zeros(3), SPHERE_R)
         hit = np.isfinite(t).reshape(height, width)

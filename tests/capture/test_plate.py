@@ -48,6 +48,27 @@ def test_orbit_plate_is_the_room_and_the_table_behind_the_object(orbit):
     assert ps.band_error(views, flat, truth)[0] >= ORBIT_NO_PLANE_MIN
 
 
+@pytest.mark.parametrize("by_rms", [True, False])
+def test_a_dark_room_does_not_pass_an_orbit_for_a_fixed_camera(monkeypatch, by_rms):
+    """A moving camera over a table in a black room (a phone capture over a black backdrop): most of
+    every held-back ring is black, which the fixed camera's per-pixel median predicts exactly, so the
+    median error over a view's ring is 0 for it and the old rule (by medians, CHOOSE_BY_RMS False)
+    takes the fixed camera, whose plate knows nothing behind the object here.  By RMS the table it
+    gets wrong counts: the panorama wins and its plate is the table behind the sphere."""
+    import capture.plate as plate_mod
+
+    monkeypatch.setattr(plate_mod, "CHOOSE_BY_RMS", by_rms)
+    views, truth = ps.orbit_capture(env=ps.black_env)
+    plates, rec = background_plates(views, PlateConfig(), np.array([0.0, 0.0, 1.0, -ps.TABLE_Z]))
+    assert rec["tried_error"]["fixed"] < rec["tried_error"]["panorama"]  # the medians favour the wrong path
+    assert rec["tried_rmse"]["panorama"] < rec["tried_rmse"]["fixed"]
+    err, known = ps.band_error(views, plates, truth)
+    if by_rms:
+        assert rec["mode"] == "panorama" and err <= ORBIT_TOL and known >= ORBIT_KNOWN_MIN, (err, known)
+    else:  # the reference rule's failure, kept so that the test shows what the switch mends
+        assert rec["mode"] == "fixed" and known < ORBIT_KNOWN_MIN
+
+
 def test_turntable_plate_from_a_fixed_camera_with_auto_exposure():
     gains = np.exp(np.random.default_rng(3).normal(0.0, 0.25, (12, 3)))
     views, room, _, _ = ps.turntable_capture(gains=gains)
