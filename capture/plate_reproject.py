@@ -47,6 +47,8 @@ DEPTH_TOL = 0.03
 #: For a point at infinity, j's measurement must lie beyond this multiple of its distance to the
 #: focus centre + radius (else j sees something nearer: the table, clutter).
 FAR_MARGIN = 1.0
+#: gather_samples by one compiled loop (capture.plate_reproject_kernel; the same samples), else numpy.
+GATHER_COMPILED = True
 #: The room hypothesis needs at least this fraction of the view's background ring with depth off the plane.
 ROOM_MIN_FRACTION = 0.3
 
@@ -77,10 +79,14 @@ class PlateSource:
     focus_far: float
 
 
-def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
+def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray,
+                   fast: bool | None = None) -> np.ndarray:
     """(N, 3) colours view ``src`` saw at world ``points`` (N, 3) in the exposure of the view whose
     gain is ``gain_i``, NaN where the sample does not count (module docstring).  ``kind``:
-    'plane', 'room' or 'far' (what the points are)."""
+    'plane', 'room' or 'far' (what the points are).  ``fast`` (default GATHER_COMPILED): one compiled
+    loop (capture.plate_reproject_kernel), else the numpy reference below."""
+    if GATHER_COMPILED if fast is None else fast:
+        return _gather_compiled(points, kind, src, gain_i)
     H, W = src.background.shape
     out = np.full((len(points), 3), np.nan, np.float32)
     uv, z = src.camera.project(points)
@@ -98,6 +104,20 @@ def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.n
     if ok.any():
         k = np.flatnonzero(ok)
         out[k] = sample_image(src.linear, uv[k, 0], uv[k, 1], "linear") * (src.gain / gain_i)
+    return out
+
+
+def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
+    """gather_samples by capture.plate_reproject_kernel.gather_kernel (the same samples)."""
+    from capture.plate_reproject_kernel import KINDS, gather_kernel
+
+    out = np.full((len(points), 3), np.nan, np.float32)
+    cw = src.camera.cam_from_world
+    gather_kernel(np.ascontiguousarray(points, np.float64), KINDS[kind], np.ascontiguousarray(cw[:3, :3]),
+                  np.ascontiguousarray(cw[:3, 3]), np.ascontiguousarray(src.camera.K, np.float64),
+                  np.ascontiguousarray(src.background, bool), np.ascontiguousarray(src.depth, np.float32),
+                  np.ascontiguousarray(src.linear, np.float32), np.asarray(src.gain / gain_i, np.float64),
+                  np.float32(FAR_MARGIN * src.focus_far), float(DEPTH_TOL), out)
     return out
 
 
