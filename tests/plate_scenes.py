@@ -68,7 +68,8 @@ def true_background(cam, env=env_colour) -> tuple[np.ndarray, np.ndarray]:
     return col.reshape(H, W, 3).astype(np.float32), z.reshape(H, W).astype(np.float32)
 
 
-def orbit_capture(n: int = 12, width: int = 96, height: int = 72, env=env_colour) -> tuple[list[PlateView], list[np.ndarray]]:
+def orbit_capture(n: int = 12, width: int = 96, height: int = 72,
+                  env=env_colour) -> tuple[list[PlateView], list[np.ndarray]]:
     """(plate views, true backgrounds) of the orbit scene (module docstring); ``env`` as :func:`true_background`
     (:func:`black_env`: a table in a dark room, as a phone capture over a black backdrop)."""
     cams = scenes.ring_cameras(n, width, height, radius=RING_RADIUS, elevations=(20.0,), fov_deg=50.0)
