@@ -109,14 +109,17 @@ def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.n
 
 def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
     """gather_samples by capture.plate_reproject_kernel.gather_kernel (the same samples)."""
-    from capture.plate_reproject_kernel import KINDS, gather_kernel
+    from capture.plate_reproject_kernel import F16_TABLE, KINDS, gather_kernel, read_float, read_half
 
     out = np.full((len(points), 3), np.nan, np.float32)
     cw = src.camera.cam_from_world
+    img = src.linear  # the views' own arrays, not copies (a half-float view is read through its bits)
+    half = img.dtype == np.float16
+    img = np.ascontiguousarray(img).view(np.uint16) if half else np.ascontiguousarray(img)
     gather_kernel(np.ascontiguousarray(points, np.float64), KINDS[kind], np.ascontiguousarray(cw[:3, :3]),
                   np.ascontiguousarray(cw[:3, 3]), np.ascontiguousarray(src.camera.K, np.float64),
                   np.ascontiguousarray(src.background, bool), np.ascontiguousarray(src.depth, np.float32),
-                  np.ascontiguousarray(src.linear, np.float32), np.asarray(src.gain / gain_i, np.float64),
+                  img, F16_TABLE, read_half if half else read_float, np.asarray(src.gain / gain_i, np.float64),
                   np.float32(FAR_MARGIN * src.focus_far), float(DEPTH_TOL), out)
     return out
 

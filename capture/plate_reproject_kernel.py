@@ -36,12 +36,29 @@ from capture.extent_kernel import _rotate
 KINDS = {"plane": 0, "room": 1, "far": 2}
 
 
+#: float16 -> float32 for every bit pattern (exact): numba reads no float16, so a half-float image is
+#: read as its uint16 bits through this table.
+F16_TABLE = np.arange(65536, dtype=np.uint16).view(np.float16).astype(np.float32)
+
+
+@njit(cache=True, nogil=True)
+def read_float(img, lut, r, c, ch):
+    """A float32 / float64 image's texel as float64 (``lut`` unused)."""
+    return np.float64(img[r, c, ch])
+
+
+@njit(cache=True, nogil=True)
+def read_half(img, lut, r, c, ch):
+    """A float16 image's texel (``img``: its uint16 bits) as float64, through ``lut`` (F16_TABLE)."""
+    return np.float64(lut[img[r, c, ch]])
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def gather_kernel(points, kind, R, t, K, background, depth, linear, ratio, far_z, depth_tol, out):
+def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, ratio, far_z, depth_tol, out):
     """Fill ``out`` (N, 3) float32 (NaN on entry) with the colour view j saw at world ``points`` (N, 3)
     float64 where the sample counts (module docstring).  ``kind``: KINDS; ``R`` (3, 3), ``t`` (3,):
     j's cam_from_world; ``K`` (3, 3); ``background`` (H, W) bool, ``depth`` (H, W) float32, ``linear``
-    (H, W, 3) float32; ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far)."""
+    (H, W, 3) read by ``read`` (:func:`read_float`, or :func:`read_half` of the bits with ``lut``); ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far)."""
     H, W = background.shape
     for n in range(points.shape[0]):
         p0, p1, p2 = points[n, 0], points[n, 1], points[n, 2]
@@ -84,8 +101,8 @@ def gather_kernel(points, kind, R, t, K, background, depth, linear, ratio, far_z
         w10 = ty * (1.0 - tx)
         w11 = ty * tx
         for c in range(3):
-            s = 0.0 + np.float64(linear[r0, c0, c]) * w00
-            s = s + np.float64(linear[r0, c0 + 1, c]) * w01
-            s = s + np.float64(linear[r0 + 1, c0, c]) * w10
-            s = s + np.float64(linear[r0 + 1, c0 + 1, c]) * w11
+            s = 0.0 + read(linear, lut, r0, c0, c) * w00
+            s = s + read(linear, lut, r0, c0 + 1, c) * w01
+            s = s + read(linear, lut, r0 + 1, c0, c) * w10
+            s = s + read(linear, lut, r0 + 1, c0 + 1, c) * w11
             out[n, c] = np.float32(s * ratio[c])

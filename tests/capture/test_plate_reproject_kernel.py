@@ -20,7 +20,7 @@ MAX_DIFFERENT = 1e-4
 COLOUR_TOL = 1e-6
 
 
-def _source(rng, width=160, height=120):
+def _source(rng, width=160, height=120, dtype=np.float32):
     cam = scenes.ring_cameras(1, width, height, radius=0.5, elevations=(25.0,), fov_deg=55.0, phase_deg=17.0)[0]
     bg = rng.random((height, width)) > 0.15
     bg[40:80, 60:100] = False  # the object's region
@@ -28,7 +28,7 @@ def _source(rng, width=160, height=120):
     z = cam.world_to_cam(pts)[..., 2].astype(np.float32)
     depth = np.where(rng.random((height, width)) < 0.2, 0.0, z * rng.uniform(0.99, 1.01, z.shape)).astype(np.float32)
     depth[:10] = 50.0  # far: a wall beyond the focus
-    linear = rng.random((height, width, 3)).astype(np.float32)
+    linear = rng.random((height, width, 3)).astype(dtype)  # the pipeline's views are float16
     return cam, PlateSource(cam, linear, bg, depth, np.array([1.1, 0.9, 1.05]), 0.8)
 
 
@@ -41,10 +41,11 @@ def _points(rng, cam, n=60000):
     return cam.unproject(px, z)
 
 
+@pytest.mark.parametrize("dtype", [np.float16, np.float32])
 @pytest.mark.parametrize("kind", ["plane", "room", "far"])
-def test_compiled_samples_are_numpys(kind):
+def test_compiled_samples_are_numpys(kind, dtype):
     rng = np.random.default_rng(11)
-    cam, src = _source(rng)
+    cam, src = _source(rng, dtype=dtype)
     pts = _points(rng, cam)
     gain_i = np.array([0.95, 1.0, 1.2])
     want = gather_samples(pts, kind, src, gain_i, fast=False)
