@@ -58,7 +58,8 @@ def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, r
     """Fill ``out`` (N, 3) float32 (NaN on entry) with the colour view j saw at world ``points`` (N, 3)
     float64 where the sample counts (module docstring).  ``kind``: KINDS; ``R`` (3, 3), ``t`` (3,):
     j's cam_from_world; ``K`` (3, 3); ``background`` (H, W) bool, ``depth`` (H, W) float32, ``linear``
-    (H, W, 3) read by ``read`` (:func:`read_float`, or :func:`read_half` of the bits with ``lut``); ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far)."""
+    (H, W, 3) read by ``read`` (:func:`read_float`, or :func:`read_half` of the bits with ``lut``);
+    ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far)."""
     H, W = background.shape
     for n in range(points.shape[0]):
         p0, p1, p2 = points[n, 0], points[n, 1], points[n, 2]
