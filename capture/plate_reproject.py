@@ -80,13 +80,17 @@ class PlateSource:
 
 
 def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray,
-                   fast: bool | None = None) -> np.ndarray:
+                   fast: bool | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) colours view ``src`` saw at world ``points`` (N, 3) in the exposure of the view whose
     gain is ``gain_i``, NaN where the sample does not count (module docstring).  ``kind``:
     'plane', 'room' or 'far' (what the points are).  ``fast`` (default GATHER_COMPILED): one compiled
-    loop (capture.plate_reproject_kernel), else the numpy reference below."""
+    loop (capture.plate_reproject_kernel), else the numpy reference below.  ``out``: (N, 3) float32,
+    all NaN, C-contiguous, to write into (returned)."""
     if GATHER_COMPILED if fast is None else fast:
-        return _gather_compiled(points, kind, src, gain_i)
+        return _gather_compiled(points, kind, src, gain_i, out)
+    if out is not None:
+        out[...] = gather_samples(points, kind, src, gain_i, False)
+        return out
     H, W = src.background.shape
     out = np.full((len(points), 3), np.nan, np.float32)
     uv, z = src.camera.project(points)
@@ -107,11 +111,12 @@ def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.n
     return out
 
 
-def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray) -> np.ndarray:
+def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray,
+                     out: np.ndarray | None = None) -> np.ndarray:
     """gather_samples by capture.plate_reproject_kernel.gather_kernel (the same samples)."""
     from capture.plate_reproject_kernel import F16_TABLE, KINDS, gather_kernel, read_float, read_half
 
-    out = np.full((len(points), 3), np.nan, np.float32)
+    out = np.full((len(points), 3), np.nan, np.float32) if out is None else out
     cw = src.camera.cam_from_world
     img = src.linear  # the views' own arrays, not copies (a half-float view is read through its bits)
     half = img.dtype == np.float16
@@ -194,10 +199,11 @@ def nan_median(s: np.ndarray) -> np.ndarray:
 
 
 def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: list[PlateSource],
-                    plane: np.ndarray | None, room: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    plane: np.ndarray | None, room: np.ndarray | None,
+                    fast: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(colour (N, 3) float32 linear in view i's exposure, known (N,) bool, samples (N,) int) of the
     background behind pixels ``pix`` (N, 2) of camera ``cam`` from the ``sources`` (the other
-    views; module docstring)."""
+    views; module docstring).  ``fast``: gather_samples' (the samples written into one array)."""
     n = len(pix)
     colour = np.zeros((n, 3), np.float32)
     known = np.zeros(n, bool)
@@ -206,7 +212,10 @@ def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: l
         todo = np.flatnonzero(valid & ~known)
         if not len(todo) or not sources:
             continue
-        s = np.stack([gather_samples(pts[todo], kind, src, gain_i) for src in sources])
+        at = np.ascontiguousarray(pts[todo])
+        s = np.full((len(sources), len(todo), 3), np.nan, np.float32)  # each source's samples in place
+        for k, src in enumerate(sources):
+            gather_samples(at, kind, src, gain_i, fast, s[k])
         have = np.isfinite(s[..., 0])
         got = have.any(axis=0)
         if not got.any():

@@ -75,3 +75,43 @@ def test_the_depth_test_is_the_references_at_its_edge():
         got = gather_samples(pts, kind, src, np.ones(3), fast=True)
         assert 0.05 < np.isfinite(want[:, 0]).mean() < 0.95, kind
         _same(got, want)
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32])
+def test_compiled_plate_is_numpys(dtype):
+    """reproject_plate in one compiled pass (hypotheses in order, every source's sample, the median)
+    against numpy's, on three sources (two float16 of the same size, one not) over random points."""
+    from capture.plate_reproject import reproject_plate
+
+    rng = np.random.default_rng(2)
+    sources = [_source(rng, dtype=dtype)[1] for _ in range(3)]
+    cam = sources[0].camera
+    pix = np.stack([rng.integers(0, cam.width, 30000), rng.integers(0, cam.height, 30000)], 1)
+    room = np.where(rng.random((cam.height, cam.width)) < 0.3, 0.0, rng.uniform(0.85, 0.95, (cam.height, cam.width)))
+    plane = np.array([0.0, 0.0, 1.0, 0.12])
+    gain_i = np.array([1.0, 0.9, 1.1])
+    want = reproject_plate(cam, pix, gain_i, sources, plane, room, fast=False)
+    got = reproject_plate(cam, pix, gain_i, sources, plane, room, fast=True)
+    assert 0.05 < want[1].mean() < 0.95 and (want[2] > 1).any()  # known and not, and medians of several
+    assert np.mean(want[1] != got[1]) <= MAX_DIFFERENT
+    both = want[1] & got[1]
+    np.testing.assert_allclose(got[0][both], want[0][both], rtol=0, atol=COLOUR_TOL)
+    assert np.mean(want[2] != got[2]) <= MAX_DIFFERENT
+
+
+def test_compiled_panorama_plates_are_numpys(monkeypatch):
+    """The orbit scene's panorama plates (tests/plate_scenes.py) with the compiled samples and without."""
+    import capture.plate_reproject as pr
+    from capture.plate import PlateConfig, background_plates
+    from tests import plate_scenes as ps
+
+    views, _ = ps.orbit_capture()
+    plane = np.array([0.0, 0.0, 1.0, -ps.TABLE_Z])
+    out = {}
+    for fast in (False, True):
+        monkeypatch.setattr(pr, "GATHER_COMPILED", fast)
+        out[fast] = background_plates(views, PlateConfig(mode="panorama"), plane)
+    for a, b in zip(out[False][0], out[True][0], strict=True):
+        assert np.mean(a.known != b.known) <= MAX_DIFFERENT
+        np.testing.assert_allclose(b.background, a.background, rtol=0, atol=COLOUR_TOL)
+    assert out[False][1] == out[True][1]
