@@ -146,6 +146,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     def gsum(x):
         return np.stack([np.bincount(inv, x[:, j], minlength=K) for j in range(x.shape[1])], 1)
 
+    gsum.groups = K  # summed by bincount over ``inv``: group_fit's compiled pass (capture.matting_lines.GN_COMPILED)
     fill = _cat(fits, "fill")
     F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv, view, len(fits))
     ok = np.isfinite(sig2[inv])

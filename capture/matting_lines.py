@@ -89,6 +89,10 @@ MIN_CONDITION = 0.0015
 #: Gauss-Newton steps (each moves F at most MAX_STEP, linear Euclidean).
 GN_ITERATIONS = 6
 MAX_STEP = 0.1
+#: group_fit's passes over the samples by one compiled loop (capture.matting_lines_kernel; the same
+#: totals) where the groups are summed by bincount (a ``gsum`` with a ``groups`` attribute: the 3D cubes),
+#: else numpy (:func:`_gn_totals`, the reference).
+GN_COMPILED = True
 #: Per-view windows (capture.matting.solve_known's plate branch): off.  On the conifer turntable's
 #: kept views the window's colour erred twice the matte's (median |F - F_true| 0.075 against 0.037):
 #: within 31 px the room behind the crown varies by 0.05, about as much as the needles' own colour
@@ -147,6 +151,21 @@ def _pack(M6: np.ndarray) -> np.ndarray:
     return M
 
 
+def _gn_totals(C, B, w, F, gsum, group):
+    """One Gauss-Newton pass of :func:`group_fit` in numpy (the reference of GN_COMPILED): (the group
+    totals (K, 11) of the six entries of Q, (w a) r, w |r|^2 and w a^2; each sample's implied alpha)."""
+    d, fb = C - B, F[group] - B
+    n2 = np.maximum((fb ** 2).sum(-1), 1e-12)
+    imp = (d * fb).sum(-1) / n2
+    a = np.clip(imp, 0.0, 1.0)
+    r = d - a[:, None] * fb
+    v = fb / np.sqrt(n2)[:, None]
+    wa2 = w * a ** 2
+    Q = [wa2 * ((i == j) - v[:, i] * v[:, j]) for i, j in _PAIRS]
+    return gsum(np.concatenate([np.stack(Q, 1), (w * a)[:, None] * r, (w * (r ** 2).sum(-1))[:, None],
+                                wa2[:, None]], 1)), imp
+
+
 def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gsum, group: np.ndarray,
               terms: dict | None = None):
     """The colour shared by each group of samples (module docstring) for N samples: ``C``, ``B`` (N, 3),
@@ -168,17 +187,17 @@ def group_fit(C: np.ndarray, B: np.ndarray, w: np.ndarray, alpha: np.ndarray, gs
     F = S[:, :3] / np.maximum(S[:, 3], 1e-12)[:, None]
     ok = (n >= MIN_LINES - 0.5) & (S[:, 3] > 0)
     good = ok
+    groups = getattr(gsum, "groups", None) if GN_COMPILED else None  # bincount's groups: the compiled pass
+    if groups is not None:
+        from capture.matting_lines_kernel import gn_pass
+
+        C, B, w, group = (np.ascontiguousarray(x) for x in (C, B, w, np.asarray(group, np.int64)))
     for it in range(GN_ITERATIONS + 1):
-        d, fb = C - B, F[group] - B
-        n2 = np.maximum((fb ** 2).sum(-1), 1e-12)
-        imp = (d * fb).sum(-1) / n2
-        a = np.clip(imp, 0.0, 1.0)
-        r = d - a[:, None] * fb
-        v = fb / np.sqrt(n2)[:, None]
-        wa2 = w * a ** 2
-        Q = [wa2 * ((i == j) - v[:, i] * v[:, j]) for i, j in _PAIRS]
-        T = gsum(np.concatenate([np.stack(Q, 1), (w * a)[:, None] * r, (w * (r ** 2).sum(-1))[:, None],
-                                 wa2[:, None]], 1))
+        if groups is not None:  # the same totals (capture.matting_lines_kernel)
+            T, imp = np.zeros((groups, 11)), np.empty(len(w))
+            gn_pass(C, B, w, np.ascontiguousarray(F, np.float64), group, groups, T, imp)
+        else:
+            T, imp = _gn_totals(C, B, w, F, gsum, group)
         M = _pack(T[:, :6])
         good = ok.copy()
         if ok.any():
