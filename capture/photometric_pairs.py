@@ -25,6 +25,9 @@ from capture.view_map import PerView, or_serial
 
 #: Automatic sampling stride: one step per this many pixels of the shorter image side.
 AUTO_STRIDE_PX = 240
+#: usable() on the box of the view's depth pixels (the same mask; tests/capture/test_photometric_pairs.py),
+#: else on the whole frame (the reference).
+USABLE_BOX = True
 #: Views whose linear colour and usable mask a process keeps while the pairs are measured.
 PREP_CACHE_VIEWS = 8
 
@@ -32,19 +35,36 @@ PREP_CACHE_VIEWS = 8
 _PREP: OrderedDict = OrderedDict()
 
 
-def usable(scan: Scan, cfg) -> tuple[np.ndarray, np.ndarray]:
-    """(linear colour (H, W, 3) float32, (H, W) bool usable samples) of a view (``cfg``: PhotometricConfig)."""
+def usable(scan: Scan, cfg, boxed: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(linear colour (H, W, 3) float32, (H, W) bool usable samples) of a view (``cfg``: PhotometricConfig).
+    ``boxed`` (default USABLE_BOX): the tests run on the box of the depth's pixels grown by one pixel (the
+    3 x 3 windows of every depth pixel inside it; none outside is usable), else on the whole frame."""
     import cv2
 
     lin = np.asarray(scan.linear_rgb, np.float32)
-    d = scan.depth
+    if USABLE_BOX if boxed is None else boxed:
+        ok = np.zeros(scan.depth.shape, bool)
+        x, y, w, h = cv2.boundingRect((scan.depth > 0).view(np.uint8))
+        if w and h:
+            H, W = ok.shape
+            box = (slice(max(0, y - 1), min(H, y + h + 1)), slice(max(0, x - 1), min(W, x + w + 1)))
+            ok[box] = _usable_at(scan.depth[box], lin[box], None if scan.alpha is None else scan.alpha[box], cfg)
+        return lin, ok
+    return lin, _usable_at(scan.depth, lin, scan.alpha, cfg)
+
+
+def _usable_at(d: np.ndarray, lin: np.ndarray, alpha: np.ndarray | None, cfg) -> np.ndarray:
+    """:func:`usable`'s mask of depth ``d``, colour ``lin`` and matte ``alpha`` (or None)."""
+    import cv2
+
+    d = np.ascontiguousarray(d)
     hi = cv2.dilate(d, np.ones((3, 3), np.uint8))
     lo = cv2.erode(np.where(d > 0, d, np.inf).astype(np.float32), np.ones((3, 3), np.uint8))
     ok = (d > 0) & np.isfinite(lo) & (hi - lo <= cfg.edge_tol * d)
     ok &= np.all(lin <= srgb_to_linear(np.float32(cfg.max_srgb)), axis=2)
-    if scan.alpha is not None:
-        ok &= scan.alpha >= 1.0 - 1e-3
-    return lin, ok
+    if alpha is not None:
+        ok &= alpha >= 1.0 - 1e-3
+    return ok
 
 
 def _prep(token: str, k: int, scan, cfg):

@@ -18,6 +18,9 @@ the object.  Its colour is looked up in the other views that saw X beside the ob
 * **the plate** is the per-channel median of the samples of the first hypothesis that has any
   (:func:`reproject_plate`); a pixel without samples stays unknown (``known`` False).
 
+The samples of one source view are gathered by one compiled loop (``capture.plate_reproject_kernel``,
+switch GATHER_COMPILED; :func:`gather_samples`' numpy is the reference, the same samples bit for bit here).
+
 The views' pixels are looked up directly, not through a resampled panorama grid: one resampling,
 not two, and a point at infinity is just the direction of the project's one camera model.
 
