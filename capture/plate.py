@@ -446,15 +446,9 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     mode = choose_mode({path: t.errors for path, t in trials.items()})
     ps = ps.for_path(mode)
     fit = refit(ps, mode, trials[mode])
-    exposure = None
-    if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
-        from capture.plate_fixed import fixed_exposure_check
+    from capture.plate_exposure import plate_exposure  # the gains against none on held-back pixels
 
-        exposure = fixed_exposure_check(ps, fit.gains)
-        if exposure["chosen"] == "plate":
-            exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
-        elif not np.all(fit.gains == 1.0):
-            fit = _trial(ps, mode, np.ones_like(fit.gains))
+    exposure, fit = plate_exposure(ps, mode, trials[mode], fit)
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
     plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
                              zip(ps.views, made, fit.errors, strict=True)))

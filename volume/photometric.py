@@ -1,9 +1,9 @@
 """The photometric stage of the pipeline (volume/pipeline/stages.py): align the views' exposure and
 white balance (capture.photometric) before fusion, so RGBz and every rendering method see
 corrected colour; the alignment is applied only where held-back cells show it helps
-(capture.photometric_check), and the console says which.  A fixed camera's background plate
-measures each frame's exposure on the static background behind the object (hundreds of thousands of
-pixels; capture.plate_fixed.fixed_exposure_check): where its held-back check took those gains, they
+(capture.photometric_check), and the console says which.  The background plate measures each
+frame's exposure on the background around the object (a fixed camera's static background, or the
+panorama's other views: capture.plate_exposure): where its held-back check took those gains, they
 are the alignment (PLATE_EXPOSURE).  Off with ``--no-photometric`` (its config None)."""
 
 from __future__ import annotations
@@ -48,6 +48,6 @@ def plate_result(scans, exposure: dict, cfg) -> PhotometricResult:
 
     names = tuple(s.name for s in scans)
     x = _gauge(np.log(np.asarray(exposure["gains"], np.float64)), np.ones(len(names), bool), cfg.reference, names)
-    check = {"chosen": "plate", "reason": f"exposure from the fixed camera's background plate: {exposure['reason']}"}
+    check = {"chosen": "plate", "reason": f"exposure from the background plate: {exposure['reason']}"}
     return PhotometricResult(names, np.exp(x), 0, int(exposure["pixels"]), (), cfg.reference, 0.0,
                              {"appearance": "none", "appearance_share": 0.0, "source": "plate", "check": check})

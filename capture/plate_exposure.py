@@ -1,0 +1,99 @@
+"""Whether the background plate's exposure gains beat none, on background pixels the gains were not fitted
+on (capture.plate.background_plates), for either path.
+
+Both plate paths fit each view's exposure gain to their predictions of the views' held-back background
+rings (capture.plate.refit).  Such gains are each frame's exposure only when they predict *other*
+background pixels better than no gains at all; a capture at one exposure gives gains that fit noise, a
+background the path does not explain gives gains that fit the wrong background.  Where the check accepts
+them, the photometric stage takes them as the views' exposure (volume/photometric.py), instead of the
+object's own pairs.
+
+* ``fixed``: capture.plate_fixed.fixed_exposure_check, on the grid of background pixels every frame sees
+  (the fixed camera's own test); refused gains are set to 1 and the plates drawn without them.
+* ``panorama`` (:func:`panorama_exposure_check`): each ring is split into two halves (its even and odd
+  samples); gains are fitted on the first half from the predictions without gains (one pass of
+  capture.plate.fit_gains), the rings predicted again with them, and the second half's error (per view,
+  the mean largest-channel |log prediction - log colour| over the pixels neither dark nor blown out)
+  compared with the error without gains.  The gains win a view when theirs is smaller; accepted, as the
+  fixed camera's, when they win at least V / 2 + sqrt(V) of the V views and cut the median error by
+  capture.plate_fixed.FIXED_GAIN_MIN_CUT.  The plates are drawn with the fitted gains either way (as
+  before this check: the orbits' plates are unchanged); only the photometric stage's source changes.
+
+Measured (docs/matting.md, "The panorama's exposure"): the demo's room capture (furrow synth, auto
+exposure, a moving camera) is accepted; the path-traced orbits and the phone captures at one exposure
+are refused.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: The panorama's exposure check: the photometric stage may take the panorama's gains (True), else only the
+#: fixed camera's (False: the rule before).
+PANORAMA_EXPOSURE = True
+
+
+def plate_exposure(ps, mode: str, start, fit):
+    """(the plate stage's ``exposure`` record or None, the trial the plates are drawn with) for the chosen
+    ``mode`` (module docstring): ``start`` the path's first trial (capture.plate.Trial, its first gains),
+    ``fit`` its refitted one."""
+    from capture.plate import _trial
+
+    if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
+        from capture.plate_fixed import fixed_exposure_check
+
+        exposure = fixed_exposure_check(ps, fit.gains)
+        if exposure["chosen"] != "plate" and not np.all(fit.gains == 1.0):
+            fit = _trial(ps, mode, np.ones_like(fit.gains))
+    elif mode == "panorama" and PANORAMA_EXPOSURE:
+        exposure = panorama_exposure_check(ps, start)
+    else:
+        return None, fit
+    if exposure["chosen"] == "plate":
+        exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
+    return exposure, fit
+
+
+def _log_error(observed: np.ndarray, predicted: np.ndarray, ok: np.ndarray) -> float:
+    """Mean over ``ok`` of the largest channel's |log predicted - log observed| (NaN without any)."""
+    if not ok.any():
+        return float("nan")
+    return float(np.abs(np.log(predicted[ok]) - np.log(observed[ok])).max(-1).mean())
+
+
+def panorama_exposure_check(ps, start) -> dict:
+    """The panorama's gains against none on the second half of every ring (module docstring); ``start``:
+    the path's trial without gains (capture.plate.Trial).  A record as fixed_exposure_check's."""
+    from capture.plate import _usable, fit_gains
+    from capture.plate_fixed import FIXED_GAIN_MIN_CUT
+    from capture.plate_reproject import panorama_predict
+
+    V = len(ps.views)
+    obs = [p.observed for p in ps.views]
+    if not np.all(start.gains == 1.0):  # pragma: no cover - the panorama starts without gains
+        raise ValueError("panorama_exposure_check needs the trial without gains")
+    half_a = [np.asarray(p)[0::2] for p in start.predicted]
+    gains = fit_gains([o[0::2] for o in obs], half_a)
+    with_g = panorama_predict(ps, gains)
+    fit, none, pixels = np.full(V, np.nan), np.full(V, np.nan), 0
+    for i in range(V):
+        o, p0, p1 = obs[i][1::2], start.predicted[i][1::2], with_g[i][1::2]
+        ok = _usable(o) & np.isfinite(p0).all(-1) & np.isfinite(p1).all(-1)
+        ok &= _usable(np.nan_to_num(p0)) & _usable(np.nan_to_num(p1))
+        fit[i], none[i], pixels = _log_error(o, p1, ok), _log_error(o, p0, ok), pixels + int(ok.sum())
+    have = np.isfinite(fit) & np.isfinite(none)
+    need = int(np.ceil(V / 2 + np.sqrt(V)))
+    rec = {"chosen": "none", "views": V, "wins": 0, "needed": need, "pixels": pixels, "path": "panorama"}
+    if not have.any():
+        return {**rec, "reason": "no held-back background pixels the panorama predicts"}
+    wins = int((fit[have] < none[have]).sum())
+    e_fit, e_none = float(np.median(fit[have])), float(np.median(none[have]))
+    cut = 1.0 - e_fit / e_none if e_none > 0 else 0.0
+    ok = wins >= need and cut >= FIXED_GAIN_MIN_CUT
+    why = "" if ok or wins < need else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed)"
+    verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %{why}"
+    verdict += ": taken" if ok else ": kept the views as they are"
+    return {**rec, "chosen": "plate" if ok else "none", "wins": wins, "error_fitted": round(e_fit, 5),
+            "error_none": round(e_none, 5),
+            "reason": f"the panorama's gains (fitted on half of each ring) beat none in {wins} of {V} views on "
+                      f"the other half ({verdict})"}
