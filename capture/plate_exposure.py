@@ -65,7 +65,6 @@ def panorama_exposure_check(ps, start) -> dict:
     """The panorama's gains against none on the second half of every ring (module docstring); ``start``:
     the path's trial without gains (capture.plate.Trial).  A record as fixed_exposure_check's."""
     from capture.plate import _usable, fit_gains
-    from capture.plate_fixed import FIXED_GAIN_MIN_CUT
     from capture.plate_reproject import panorama_predict
 
     V = len(ps.views)
@@ -86,14 +85,24 @@ def panorama_exposure_check(ps, start) -> dict:
     rec = {"chosen": "none", "views": V, "wins": 0, "needed": need, "pixels": pixels, "path": "panorama"}
     if not have.any():
         return {**rec, "reason": "no held-back background pixels the panorama predicts"}
-    wins = int((fit[have] < none[have]).sum())
-    e_fit, e_none = float(np.median(fit[have])), float(np.median(none[have]))
+    got, verdict = gain_verdict(fit[have], none[have], need)
+    return {**rec, **got, "reason": f"the panorama's gains (fitted on half of each ring) beat none in {got['wins']} of "
+                                    f"{V} views on the other half ({verdict})"}
+
+
+def gain_verdict(fit: np.ndarray, none: np.ndarray, need: int) -> tuple[dict, str]:
+    """The exposure checks' rule (capture.plate_fixed.fixed_exposure_check, panorama_exposure_check):
+    per-view errors with the gains ``fit`` and without ``none`` (the same views); the gains win a view
+    when theirs is smaller and are taken when they win at least ``need`` views and cut the median error
+    by capture.plate_fixed.FIXED_GAIN_MIN_CUT.  (The record's chosen / wins / error_fitted / error_none, the verdict's words)."""
+    from capture.plate_fixed import FIXED_GAIN_MIN_CUT
+
+    wins = int((fit < none).sum())
+    e_fit, e_none = float(np.median(fit)), float(np.median(none))
     cut = 1.0 - e_fit / e_none if e_none > 0 else 0.0
     ok = wins >= need and cut >= FIXED_GAIN_MIN_CUT
     why = "" if ok or wins < need else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed)"
     verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %{why}"
     verdict += ": taken" if ok else ": kept the views as they are"
-    return {**rec, "chosen": "plate" if ok else "none", "wins": wins, "error_fitted": round(e_fit, 5),
-            "error_none": round(e_none, 5),
-            "reason": f"the panorama's gains (fitted on half of each ring) beat none in {wins} of {V} views on "
-                      f"the other half ({verdict})"}
+    return {"chosen": "plate" if ok else "none", "wins": wins, "error_fitted": round(e_fit, 5),
+            "error_none": round(e_none, 5)}, verdict

@@ -306,17 +306,11 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
         lg = np.log(obs) + np.log(np.asarray(g, np.float64))[:, None]
         return np.array([np.abs(lg[i] - m).max(-1).mean() for i, m in enumerate(others_median(lg))])
 
-    fit, none = error(gains), error(np.ones((V, 3)))
-    wins = int((fit < none).sum())
-    e_fit, e_none = float(np.median(fit)), float(np.median(none))
-    cut = 1.0 - e_fit / e_none if e_none > 0 else 0.0
-    ok = wins >= need and cut >= FIXED_GAIN_MIN_CUT
-    why = "" if ok or wins < need else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed)"
-    verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %{why}"
-    verdict += ": taken" if ok else ": kept the views as they are"
-    return {**rec, "chosen": "plate" if ok else "none", "wins": wins,
-            "error_fitted": round(e_fit, 5), "error_none": round(e_none, 5),
-            "reason": f"the background's gains beat none in {wins} of {V} views on held-back pixels ({verdict})"}
+    from capture.plate_exposure import gain_verdict
+
+    got, verdict = gain_verdict(error(gains), error(np.ones((V, 3))), need)
+    return {**rec, **got,
+            "reason": f"the background's gains beat none in {got['wins']} of {V} views on held-back pixels ({verdict})"}
 
 
 def others_median(a: np.ndarray, fast: bool = True):
