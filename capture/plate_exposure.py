@@ -94,7 +94,8 @@ def gain_verdict(fit: np.ndarray, none: np.ndarray, need: int) -> tuple[dict, st
     """The exposure checks' rule (capture.plate_fixed.fixed_exposure_check, panorama_exposure_check):
     per-view errors with the gains ``fit`` and without ``none`` (the same views); the gains win a view
     when theirs is smaller and are taken when they win at least ``need`` views and cut the median error
-    by capture.plate_fixed.FIXED_GAIN_MIN_CUT.  (The record's chosen / wins / error_fitted / error_none, the verdict's words)."""
+    by capture.plate_fixed.FIXED_GAIN_MIN_CUT.  (The record's chosen / wins / error_fitted / error_none,
+    the verdict's words)."""
     from capture.plate_fixed import FIXED_GAIN_MIN_CUT
 
     wins = int((fit < none).sum())
