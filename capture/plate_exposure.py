@@ -16,8 +16,9 @@ object's own pairs.
   the mean largest-channel |log prediction - log colour| over the pixels neither dark nor blown out)
   compared with the error without gains.  The gains win a view when theirs is smaller; accepted, as the
   fixed camera's, when they win at least V / 2 + sqrt(V) of the V views and cut the median error by
-  capture.plate_fixed.FIXED_GAIN_MIN_CUT.  The plates are drawn with the fitted gains either way (as
-  before this check: the orbits' plates are unchanged); only the photometric stage's source changes.
+  capture.plate_fixed.FIXED_GAIN_MIN_CUT.  Accepted, the plates are drawn with the fitted gains and the
+  photometric stage takes them; refused, the plates are drawn at gain 1 as the fixed camera's
+  (:data:`PANORAMA_REFUSED_AT_ONE`; before, they were drawn with the refused gains).
 
 Measured (docs/matting.md, "The panorama's exposure"): the demo's room capture (furrow synth, auto
 exposure, a moving camera) is accepted; the path-traced orbits and the phone captures at one exposure
@@ -31,6 +32,9 @@ import numpy as np
 #: The panorama's exposure check: the photometric stage may take the panorama's gains (True), else only the
 #: fixed camera's (False: the rule before).
 PANORAMA_EXPOSURE = True
+#: Refused panorama gains are not used for the plates either: they are drawn at gain 1 (True), else with the
+#: gains the check refused (False: the rule before; docs/matting.md "The panorama's exposure").
+PANORAMA_REFUSED_AT_ONE = True
 
 
 def plate_exposure(ps, mode: str, start, fit):
@@ -47,6 +51,8 @@ def plate_exposure(ps, mode: str, start, fit):
             fit = _trial(ps, mode, np.ones_like(fit.gains))
     elif mode == "panorama" and PANORAMA_EXPOSURE:
         exposure = panorama_exposure_check(ps, start)
+        if exposure["chosen"] != "plate" and PANORAMA_REFUSED_AT_ONE:
+            fit = start  # the path's trial without gains
     else:
         return None, fit
     if exposure["chosen"] == "plate":
