@@ -26,6 +26,10 @@ import numpy as np
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 #: Row of ``cam_from_world`` holding the camera's y axis (image down) in world coordinates.
 _IMAGE_DOWN_ROW = 1
+#: Camera.unproject of many pixels by capture.camera_kernel (True), else numpy (the reference).
+UNPROJECT_COMPILED = True
+#: Fewest pixels the compiled path takes (below, numpy's fixed cost is small).
+UNPROJECT_COMPILED_MIN = 4096
 #: Largest deviation of R^T R from I (and of det R from 1) accepted for a rigid pose.
 RIGID_TOLERANCE = 1e-4
 #: Offset between OpenCV pixel centres (integers) and nerfstudio/OpenGL ones (i + 0.5).
@@ -153,7 +157,14 @@ class Camera:
         return np.stack([x, y, np.ones_like(x)], axis=-1)
 
     def unproject(self, uv: np.ndarray, depth: np.ndarray) -> np.ndarray:
-        """Pixels with z-depth (metres) -> (..., 3) world points."""
+        """Pixels with z-depth (metres) -> (..., 3) world points.  (N, 2) pixels, at least
+        UNPROJECT_COMPILED_MIN of them, go through capture.camera_kernel (the same points here; the
+        lines below are its reference)."""
+        if UNPROJECT_COMPILED and np.ndim(uv) == 2 and np.shape(uv)[1] == 2 and np.ndim(depth) == 1 \
+                and len(depth) >= UNPROJECT_COMPILED_MIN:
+            from capture.camera_kernel import unproject
+
+            return unproject(self.K, self.world_from_cam, uv, depth)
         pc = self.pixel_rays(uv) * np.asarray(depth, dtype=np.float64)[..., None]
         wfc = self.world_from_cam
         return pc @ wfc[:3, :3].T + wfc[:3, 3]
