@@ -12,8 +12,9 @@ bilinear step of the push-pull fill (docs/speed.md, round 4).
 * :func:`channel_sum`: ``x.sum(-1)`` of three channels as ``(x0 + x1) + x2``, the order numpy's
   reduction takes over a last axis of three (checked against it in the tests).
 * :func:`dilate`, :func:`erode`: ``ndimage.binary_dilation`` / ``binary_erosion`` of a 2-D mask
-  with the default cross, ``iterations`` times, the outside 0 (``border_value=0``), as OpenCV's
-  morphology with the same cross and a constant 0 border (a set operation: nothing to round).
+  with the default cross (erode: or the 3 x 3 square), ``iterations`` times, the outside 0
+  (``border_value=0``), as OpenCV's morphology with the same kernel and a constant 0 border (a set
+  operation: nothing to round).
 * :func:`zoom2`: ``scipy.ndimage.zoom(c, (2, 2, 1), order=1, mode="nearest", grid_mode=True)[:h, :w]``
   as one compiled loop: each output pixel sums its four taps in ndimage's order, each tap its value
   times the row weight times the column weight (0.25 / 0.75: the grid-mode coordinate of a 2x zoom).
@@ -63,17 +64,19 @@ def dilate(mask: np.ndarray, iterations: int = 1) -> np.ndarray:
                       borderValue=0).view(bool)
 
 
-def erode(mask: np.ndarray, iterations: int = 1) -> np.ndarray:
-    """``ndimage.binary_erosion(mask, iterations=iterations, border_value=0)`` of a 2-D mask (module docstring)."""
+def erode(mask: np.ndarray, iterations: int = 1, square: bool = False) -> np.ndarray:
+    """``ndimage.binary_erosion(mask, iterations=iterations, border_value=0)`` of a 2-D mask (module
+    docstring); ``square``: with the 3 x 3 square (``structure=np.ones((3, 3), bool)``) instead of the cross."""
     import cv2
 
     m = np.asarray(mask, bool)
+    kernel = np.ones((3, 3), np.uint8) if square else _CROSS
     if m.ndim != 2 or iterations < 1 or m.size == 0:
         from scipy import ndimage
 
-        return ndimage.binary_erosion(m, iterations=iterations, border_value=0)
-    return cv2.erode(m.view(np.uint8), _CROSS, iterations=int(iterations), borderType=cv2.BORDER_CONSTANT,
-                     borderValue=0).view(bool)
+        return ndimage.binary_erosion(m, structure=kernel.astype(bool), iterations=iterations, border_value=0)
+    return cv2.erode(np.ascontiguousarray(m).view(np.uint8), kernel, iterations=int(iterations),
+                     borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
 
 
 @njit(cache=True, nogil=True)

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from capture.matting_fast import erode
 from capture.plate import Plate, PlateView
 
 #: Bytes of prepared views the plate stage may hold at once (beyond it the views are shrunk).
@@ -62,7 +63,7 @@ def grow_plate(plate: Plate, height: int, width: int) -> Plate:
     h, w = plate.known.shape
     if (h, w) == (height, width):
         return plate
-    known = ndimage.binary_erosion(plate.known, structure=np.ones((3, 3), bool))
+    known = erode(plate.known, square=True)  # ndimage.binary_erosion with the 3 x 3 square, by OpenCV
     bg = cv2.resize(np.asarray(plate.background, np.float32), (width, height), interpolation=cv2.INTER_LINEAR)
     k = cv2.resize(known.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
     bg[~k] = 0.0

@@ -49,4 +49,7 @@ def test_dilate_and_erode_are_ndimage(iterations):
         m[0, :3] = True  # at the border
         assert np.array_equal(dilate(m, iterations), ndimage.binary_dilation(m, iterations=iterations))
         assert np.array_equal(erode(m, iterations), ndimage.binary_erosion(m, iterations=iterations, border_value=0))
+        square = np.ones((3, 3), bool)
+        assert np.array_equal(erode(m, iterations, square=True),
+                              ndimage.binary_erosion(m, structure=square, iterations=iterations, border_value=0))
         assert dilate(m, iterations).dtype == bool
