@@ -25,6 +25,8 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+#: :func:`srgb8_to_linear` of an image by OpenCV's table lookup (True), else numpy's indexing (the reference).
+SRGB8_CV2 = True
 #: The linear values of the 256 8-bit sRGB codes (:func:`srgb8_to_linear`).
 _SRGB8_LUT = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
 
@@ -32,8 +34,15 @@ _SRGB8_LUT = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
 def srgb8_to_linear(rgb: np.ndarray) -> np.ndarray:
     """``srgb_to_linear(rgb.astype(np.float32) / 255.0)`` of uint8 sRGB codes as a table lookup: the
     same float32 values (the table is that function of the 256 codes), without a power per pixel
-    (0.8 s a 1920x1440 frame here; tests/capture/test_scan_store.py compares them)."""
-    return _SRGB8_LUT[np.asarray(rgb, np.uint8)]
+    (0.8 s a 1920x1440 frame here; tests/capture/test_scan_store.py compares them).  An image of up to
+    four channels is looked up by OpenCV (``cv2.LUT``: the same float32 values, 0.5 ms a 1280x960 frame
+    against 7.9 ms by numpy's indexing, which stays for other shapes and as the reference: SRGB8_CV2)."""
+    rgb = np.asarray(rgb, np.uint8)
+    if SRGB8_CV2 and rgb.ndim in (2, 3) and (rgb.ndim == 2 or rgb.shape[2] <= 4) and rgb.size:
+        import cv2
+
+        return cv2.LUT(np.ascontiguousarray(rgb), _SRGB8_LUT)
+    return _SRGB8_LUT[rgb]
 
 
 #: float16 of :data:`_SRGB8_LUT` (:func:`linear16`).

@@ -172,13 +172,17 @@ def test_sampled_points_do_not_keep_every_scans_points():
     assert peak < 8 * one, (peak, one)  # measured: 4.7x (back-projection temporaries); 19.6x with the views kept
 
 
-def test_linear_colour_lookup_equals_the_srgb_formula():
+@pytest.mark.parametrize("cv2_lookup", [True, False])
+def test_linear_colour_lookup_equals_the_srgb_formula(monkeypatch, cv2_lookup):
     """capture.scan.srgb8_to_linear (Scan.linear_rgb, SpilledScan.linear_rgb) is srgb_to_linear of
-    the 8-bit codes over 255, bit for bit, on a frame-sized image and on small odd ones."""
+    the 8-bit codes over 255, bit for bit, on a frame-sized image and on small odd ones, by OpenCV's
+    lookup and by numpy's (SRGB8_CV2)."""
+    import capture.scan as scan_mod
     from capture.scan import srgb8_to_linear, srgb_to_linear
 
+    monkeypatch.setattr(scan_mod, "SRGB8_CV2", cv2_lookup)
     rng = np.random.default_rng(0)
-    for shape in [(1440, 1920, 3), (7, 5, 3), (1, 1, 3), (256,)]:
+    for shape in [(1440, 1920, 3), (7, 5, 3), (1, 1, 3), (256,), (9, 11), (5, 4, 4), (3, 2, 6)]:
         x = np.arange(256, dtype=np.uint8) if shape == (256,) else rng.integers(0, 256, shape).astype(np.uint8)
         got = srgb8_to_linear(x)
         assert got.dtype == np.float32 and np.array_equal(got, srgb_to_linear(x.astype(np.float32) / 255.0))
