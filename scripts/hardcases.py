@@ -14,6 +14,7 @@ and written in furrow's scan format with the true coverage matte of every view (
   fur_similar_bg              (+ fur_black_similar)        brown fur before brown bricks
   furball_uniform_ae          (+ furball_uniform_fixed)    auto exposure on the uniform fur ball
   furball_uniform_orbit                                    the fur ball, camera circling
+  conifer_room_orbit_ae                                    the orbit conifer, auto exposure (twin: conifer_black_orbit)
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
 render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on

@@ -35,6 +35,8 @@ def twin(room: Path) -> Path | None:
     name = "fur_black_similar" if room.name == "fur_similar_bg" else room.name.replace("_room_", "_black_")
     if "_table_ae_lens" in name:   # the AE + lens capture is measured against the turntable's twin
         name = name.replace("_table_ae_lens", "_turntable")
+    if name.endswith("_ae"):   # the auto-exposure orbit against the orbit's twin
+        name = name[: -len("_ae")]
     t = room.parent / name
     return t if t.is_dir() and t != room else None
 
@@ -91,7 +93,7 @@ def main(argv=None) -> int:
             print(f"| {room.parent.name}/{room.name} | {ps:.3f} / {ss:.3f} / {sh:.2f} | {pt:.2f} | - | - | - |")
             continue
         bp, bs, _, _ = row(score(tw, a.out, a.extra, a.switches))
-        target = GAP_TARGET_AE if "ae_lens" in room.name else GAP_TARGET
+        target = GAP_TARGET_AE if "ae_lens" in room.name or room.name.endswith("_ae") else GAP_TARGET
         gap = ps - bp
         verdict = "met" if -gap <= target else "**missed**"
         if room.name.startswith("fur"):

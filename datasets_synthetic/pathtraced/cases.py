@@ -22,6 +22,9 @@ fur_similar_bg                 the fur ball before the courtyard's brown brick f
                                ``fur_black_similar``, the same renders over black
 furball_uniform_ae             the turntable fur ball's images with auto exposure on the kept views, true
                                poses; ``furball_uniform_fixed``: the same images at fixed exposure
+conifer_room_orbit_ae          conifer_room_orbit's renders with auto exposure 0.35 EV / 0.06 on the kept views
+                               (the moving camera's exposure, which the panorama's exposure check must find);
+                               its black twin is ``conifer_black_orbit``
 =============================  =============================================================================
 
 Every case returns INDEX entries (what it is, size, spp, render seconds, partiality of the mattes).
@@ -303,6 +306,15 @@ def furball_ae(opts: Options, log=print) -> list[dict]:
                    spec, Layout(None), got, opts, log=log)]
 
 
+def conifer_orbit_ae(opts: Options, log=print) -> list[dict]:
+    """Case h: the orbit conifer's renders (conifer_room_orbit's, from the cache when made) with the room and auto
+    exposure on the kept views (black twin: conifer_black_orbit)."""
+    spec = case_spec("conifer_room_orbit", opts)
+    return [_write("conifer_room_orbit_ae", "conifer_room_orbit's renders with auto exposure 0.35 EV / wb 0.06 on the "
+                   "kept views (gt/exposure.json): a moving camera's exposure; black twin: conifer_black_orbit",
+                   spec, Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), _render(spec, opts, log), opts, log=log)]
+
+
 #: Case name -> builder(options, log) -> INDEX entries, in priority order.
 CASES = {
     "conifer_room_turntable": conifer_room,
@@ -314,4 +326,5 @@ CASES = {
     "fur_similar_bg": fur_similar_bg,
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,
+    "conifer_room_orbit_ae": conifer_orbit_ae,
 }
