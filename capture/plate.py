@@ -445,10 +445,12 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     trials = {path: _trial(ps, path) for path in _paths(cfg)}
     mode = choose_mode({path: t.errors for path, t in trials.items()})
     ps = ps.for_path(mode)
-    fit = refit(ps, mode, trials[mode])
     from capture.plate_exposure import plate_exposure  # the gains against none on held-back pixels
+    from capture.plate_pairs import fitted  # the panorama's gains from pairs of views at once
 
-    exposure, fit = plate_exposure(ps, mode, trials[mode], fit)
+    fit, samples = fitted(ps, mode, trials[mode])
+
+    exposure, fit = plate_exposure(ps, mode, trials[mode], fit, samples)
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
     plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
                              zip(ps.views, made, fit.errors, strict=True)))

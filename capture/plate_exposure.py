@@ -11,8 +11,9 @@ object's own pairs.
 * ``fixed``: capture.plate_fixed.fixed_exposure_check, on the grid of background pixels every frame sees
   (the fixed camera's own test); refused gains are set to 1 and the plates drawn without them.
 * ``panorama`` (:func:`panorama_exposure_check`): each ring is split into two halves (its even and odd
-  samples); gains are fitted on the first half from the predictions without gains (one pass of
-  capture.plate.fit_gains), the rings predicted again with them, and the second half's error (per view,
+  samples); gains are fitted on the first half as the path fits them (from pairs of views at once:
+  capture.plate_pairs; with capture.plate_pairs.PANORAMA_PAIR_GAINS off, one pass of capture.plate.fit_gains from
+  the predictions without gains), the rings predicted again with them, and the second half's error (per view,
   the mean largest-channel |log prediction - log colour| over the pixels neither dark nor blown out)
   compared with the error without gains.  The gains win a view when theirs is smaller; accepted, as the
   fixed camera's, when they win at least V / 2 + sqrt(V) of the V views and cut the median error by
@@ -37,10 +38,11 @@ PANORAMA_EXPOSURE = True
 PANORAMA_REFUSED_AT_ONE = True
 
 
-def plate_exposure(ps, mode: str, start, fit):
+def plate_exposure(ps, mode: str, start, fit, samples=None):
     """(the plate stage's ``exposure`` record or None, the trial the plates are drawn with) for the chosen
     ``mode`` (module docstring): ``start`` the path's first trial (capture.plate.Trial, its first gains),
-    ``fit`` its refitted one."""
+    ``fit`` its fitted one; ``samples``: the panorama's pair samples (capture.plate_pairs) when its gains
+    came from them."""
     from capture.plate import _trial
 
     if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
@@ -50,7 +52,7 @@ def plate_exposure(ps, mode: str, start, fit):
         if exposure["chosen"] != "plate" and not np.all(fit.gains == 1.0):
             fit = _trial(ps, mode, np.ones_like(fit.gains))
     elif mode == "panorama" and PANORAMA_EXPOSURE:
-        exposure = panorama_exposure_check(ps, start)
+        exposure = panorama_exposure_check(ps, start, samples)
         if exposure["chosen"] != "plate" and PANORAMA_REFUSED_AT_ONE:
             fit = start  # the path's trial without gains
     else:
@@ -67,9 +69,11 @@ def _log_error(observed: np.ndarray, predicted: np.ndarray, ok: np.ndarray) -> f
     return float(np.abs(np.log(predicted[ok]) - np.log(observed[ok])).max(-1).mean())
 
 
-def panorama_exposure_check(ps, start) -> dict:
+def panorama_exposure_check(ps, start, samples=None) -> dict:
     """The panorama's gains against none on the second half of every ring (module docstring); ``start``:
-    the path's trial without gains (capture.plate.Trial).  A record as fixed_exposure_check's."""
+    the path's trial without gains (capture.plate.Trial); ``samples``: the pair samples its gains were solved
+    from (capture.plate_pairs; then the half's gains are solved from them the same way), or None (one pass of
+    capture.plate.fit_gains, the rule before).  A record as fixed_exposure_check's."""
     from capture.plate import _usable, fit_gains
     from capture.plate_reproject import panorama_predict
 
@@ -77,8 +81,12 @@ def panorama_exposure_check(ps, start) -> dict:
     obs = [p.observed for p in ps.views]
     if not np.all(start.gains == 1.0):  # pragma: no cover - the panorama starts without gains
         raise ValueError("panorama_exposure_check needs the trial without gains")
-    half_a = [np.asarray(p)[0::2] for p in start.predicted]
-    gains = fit_gains([o[0::2] for o in obs], half_a)
+    if samples is not None:
+        from capture.plate_pairs import pair_gains
+
+        gains = pair_gains(ps, [np.arange(len(o)) % 2 == 0 for o in obs], samples)[0]
+    else:
+        gains = fit_gains([o[0::2] for o in obs], [np.asarray(p)[0::2] for p in start.predicted])
     with_g = panorama_predict(ps, gains)
     fit, none, pixels = np.full(V, np.nan), np.full(V, np.nan), 0
     for i in range(V):
