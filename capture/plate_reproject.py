@@ -14,7 +14,10 @@ the object.  Its colour is looked up in the other views that saw X beside the ob
   four bilinear taps), and j's measured depth there agrees with X (the plane or room really is
   there and is not hidden; for X at infinity, j measured nothing or something beyond the
   object's region).  Its colour is j's, bilinear in linear light, times g_j / g_i (the views'
-  exposure gains, ``capture.plate``).
+  exposure gains, ``capture.plate``).  A sample blown out in j (a tap at capture.matting_known.CLIP_LEVEL
+  in a channel) is only a lower bound of the background; brought into a view of a darker exposure
+  (g_j / g_i below 1 in a channel) it would read as an unclipped, too dark colour, so there it does not
+  count (CLIPPED_SOURCES_DROPPED; at equal or brighter exposure it stays blown out, as before).
 * **the plate** is the per-channel median of the samples of the first hypothesis that has any
   (:func:`reproject_plate`); a pixel without samples stays unknown (``known`` False).
 
@@ -37,6 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from capture.camera import Camera
+from capture.matting_known import CLIP_LEVEL
 from capture.sampling import linear_taps, sample_image
 
 if TYPE_CHECKING:
@@ -52,6 +56,10 @@ DEPTH_TOL = 0.03
 FAR_MARGIN = 1.0
 #: gather_samples by one compiled loop (capture.plate_reproject_kernel; the same samples), else numpy.
 GATHER_COMPILED = True
+#: A source's blown-out sample does not count for a view of a darker exposure (module docstring; True), else
+#: it counts as any sample (the rule before: on the path-traced orbit with auto exposure a dark view's plate
+#: was drawn from its brighter neighbours' clipped sunlit floor, error 0.47 against 0.001 elsewhere).
+CLIPPED_SOURCES_DROPPED = True
 #: The room hypothesis needs at least this fraction of the view's background ring with depth off the plane.
 ROOM_MIN_FRACTION = 0.3
 
@@ -99,8 +107,11 @@ def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.n
     uv, z = src.camera.project(points)
     ok = np.isfinite(uv).all(axis=1) & (z > 0)
     uv = np.where(ok[:, None], uv, -2.0)
+    blown = np.asarray(src.linear).max(axis=-1).astype(np.float64) >= CLIP_LEVEL if drops_clipped(src, gain_i) else None
     for idx, inside, _ in linear_taps(uv[:, ::-1], (H, W), "zero"):  # all four taps inside and background
         ok &= src.background[idx] & (True if inside is None else inside)
+        if blown is not None:
+            ok &= ~blown[idx]
     d = sample_image(src.depth, uv[:, 0], uv[:, 1], "nearest")
     if kind == "far":
         ok &= (d <= 0) | (d > FAR_MARGIN * src.focus_far)
@@ -112,6 +123,11 @@ def gather_samples(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.n
         k = np.flatnonzero(ok)
         out[k] = sample_image(src.linear, uv[k, 0], uv[k, 1], "linear") * (src.gain / gain_i)
     return out
+
+
+def drops_clipped(src: PlateSource, gain_i: np.ndarray) -> bool:
+    """Whether ``src``'s blown-out samples do not count for the view of gain ``gain_i`` (module docstring)."""
+    return CLIPPED_SOURCES_DROPPED and bool(np.any(np.asarray(src.gain, np.float64) / gain_i < 1.0))
 
 
 def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray,
@@ -128,7 +144,8 @@ def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np
                   np.ascontiguousarray(cw[:3, 3]), np.ascontiguousarray(src.camera.K, np.float64),
                   np.ascontiguousarray(src.background, bool), np.ascontiguousarray(src.depth, np.float32),
                   img, F16_TABLE, read_half if half else read_float, np.asarray(src.gain / gain_i, np.float64),
-                  np.float32(FAR_MARGIN * src.focus_far), float(DEPTH_TOL), out)
+                  np.float32(FAR_MARGIN * src.focus_far), float(DEPTH_TOL),
+                  float(CLIP_LEVEL) if drops_clipped(src, gain_i) else np.inf, out)
     return out
 
 

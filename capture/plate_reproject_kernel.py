@@ -53,13 +53,25 @@ def read_half(img, lut, r, c, ch):
     return np.float64(lut[img[r, c, ch]])
 
 
+@njit(cache=True, nogil=True)
+def _blown(linear, lut, read, r0, c0, clip):
+    """Whether a channel of one of the four taps at (r0, c0) reaches ``clip``."""
+    for r in range(r0, r0 + 2):
+        for c in range(c0, c0 + 2):
+            for ch in range(3):
+                if read(linear, lut, r, c, ch) >= clip:
+                    return True
+    return False
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, ratio, far_z, depth_tol, out):
+def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, ratio, far_z, depth_tol, clip, out):
     """Fill ``out`` (N, 3) float32 (NaN on entry) with the colour view j saw at world ``points`` (N, 3)
     float64 where the sample counts (module docstring).  ``kind``: KINDS; ``R`` (3, 3), ``t`` (3,):
     j's cam_from_world; ``K`` (3, 3); ``background`` (H, W) bool, ``depth`` (H, W) float32, ``linear``
     (H, W, 3) read by ``read`` (:func:`read_float`, or :func:`read_half` of the bits with ``lut``);
-    ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far)."""
+    ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far); ``clip``: a sample with a tap
+    at or above it in a channel does not count (inf: every sample counts; capture.plate_reproject.drops_clipped)."""
     H, W = background.shape
     for n in range(points.shape[0]):
         p0, p1, p2 = points[n, 0], points[n, 1], points[n, 2]
@@ -94,6 +106,8 @@ def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, r
             if not (d > 0 and abs(d - z) <= depth_tol * z):
                 continue
         elif not (d <= 0 or abs(d - z) <= depth_tol * z):
+            continue
+        if clip < math.inf and _blown(linear, lut, read, r0, c0, clip):
             continue
         ty = v - fr
         tx = u - fc

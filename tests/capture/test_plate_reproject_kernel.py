@@ -115,3 +115,29 @@ def test_compiled_panorama_plates_are_numpys(monkeypatch):
         assert np.mean(a.known != b.known) <= MAX_DIFFERENT
         np.testing.assert_allclose(b.background, a.background, rtol=0, atol=COLOUR_TOL)
     assert out[False][1] == out[True][1]
+
+
+@pytest.mark.parametrize("fast", [True, False])
+@pytest.mark.parametrize("dropped", [True, False])
+def test_blown_out_samples_do_not_count_for_a_darker_view(monkeypatch, fast, dropped):
+    """A source's blown-out pixels (CLIP_LEVEL) lend no sample to a view of a darker exposure
+    (CLIPPED_SOURCES_DROPPED: the true background there is brighter than the clipped value times the gain
+    ratio says), and lend it as before to a view of the same or a brighter exposure; with the switch off
+    (the rule before) they count everywhere, and the first assert fails."""
+    import capture.plate_reproject as pr
+
+    monkeypatch.setattr(pr, "CLIPPED_SOURCES_DROPPED", dropped)
+    rng = np.random.default_rng(2)
+    cam, src = _source(rng, dtype=np.float16)
+    lin = np.asarray(src.linear, np.float32).copy() * 0.5
+    lin[:, : cam.width // 2] = 1.0  # the left half blown out
+    src = PlateSource(cam, lin.astype(np.float16), src.background, src.depth, np.ones(3), src.focus_far)
+    pts = _points(rng, cam)
+    uv, _ = cam.project(pts)
+    left = uv[:, 0] < cam.width // 2 - 2
+    darker = gather_samples(pts, "far", src, np.array([1.0, 1.25, 1.0]), fast=fast)  # g_j / g_i 0.8 in green
+    same = gather_samples(pts, "far", src, np.ones(3), fast=fast)
+    assert (np.isfinite(darker[left, 0]).sum() == 0) == dropped
+    assert np.isfinite(same[left, 0]).sum() > 100  # the same exposure: blown out, as before
+    right = ~left & (uv[:, 0] > cam.width // 2 + 2)
+    np.testing.assert_array_equal(np.isfinite(darker[right, 0]), np.isfinite(same[right, 0]))
