@@ -10,6 +10,8 @@ phone gives neither.
 
     python scripts/synth_phone.py -o out/phone200                      # 200 views, 1920x1440, depth 256x192
     python scripts/synth_phone.py -o out/phone24 --views 24 --rings 2  # a small one
+    python scripts/synth_phone.py -o out/phone72_room_ae --views 72 --size 1280x960 --masks --background env \
+        --synth-args "--background-frames 0::2 --auto-exposure"    # a room behind the kept views, auto exposure
     furrow model out/phone200 -o out/phone200_model
 """
 
@@ -52,6 +54,8 @@ def parse(argv=None) -> argparse.Namespace:
                    help="colour supersampling per axis (default 1: a phone's own pixels; furrow synth's 3 takes "
                         "15 s a view at this size here)")
     p.add_argument("--masks", action="store_true", help="also write the true mattes (masks/; a phone has none)")
+    p.add_argument("--synth-args", default="", metavar="ARGS",
+                   help="more furrow synth arguments, one string (e.g. \"--background-frames 0::2 --auto-exposure\")")
     return p.parse_args(argv)
 
 
@@ -66,7 +70,7 @@ def synth_args(a: argparse.Namespace) -> argparse.Namespace:
     elev = ",".join(str(e) for e in RING_ELEVATIONS[:a.rings])
     return p.parse_args([a.scene, "-o", str(a.out), "--views", str(a.views), "--size", a.size,
                          "--elevations", elev, "--support", a.support, "--background", a.background,
-                         "--supersample", str(a.supersample)])
+                         "--supersample", str(a.supersample), *a.synth_args.split()])
 
 
 def main(argv=None) -> int:
