@@ -80,7 +80,15 @@ def main(argv=None) -> int:
     from render.gl import gl_context
 
     a = parse(argv)
-    cfg = build_config(synth_args(a))
+    sa = synth_args(a)
+    if sa.relight_env or sa.board:
+        raise SystemExit("synth_phone.py: --relight-env and --board are written by furrow synth only")
+    cfg = build_config(sa)
+    gains = None
+    if sa.auto_exposure is not None:  # as furrow synth --auto-exposure: the kept views' gains, gt/exposure.json
+        from datasets_synthetic.camera_traits import apply_exposure, exposure_gains
+
+        gains = exposure_gains(cfg.rig.n_views, sa.auto_exposure, sa.white_balance, cfg.seed, sa.exposure_holdout)
     depth_size = tuple(int(v) for v in a.depth_size.lower().split("x"))
     ext, unit = depth_format_spec("png")
     frames, bounds, meta = [], None, {}
@@ -90,6 +98,8 @@ def main(argv=None) -> int:
         for c0 in range(0, cfg.rig.n_views, a.chunk):
             idx = tuple(range(c0, min(c0 + a.chunk, cfg.rig.n_views)))
             cap = synthesize(dataclasses.replace(cfg, views=idx), ctx, scene)
+            if gains is not None:
+                cap = dataclasses.replace(cap, scanset=apply_exposure(cap.scanset, gains[list(idx)]))
             if bounds is None:
                 bounds, meta = np.asarray(cap.scanset.bounds), dict(cap.scanset.metadata)
             for s in cap.scanset.scans:
@@ -103,6 +113,12 @@ def main(argv=None) -> int:
         if a.support == "none":  # as furrow synth: a capture with a support has no bounds (derived from the depth)
             out["furrow"] = {"bounds": bounds.tolist(), "metadata": jsonable(meta)}
         (tmp / TRANSFORMS).write_text(json.dumps(out, indent=1))
+        if gains is not None:
+            from datasets_synthetic.camera_traits import EXPOSURE_FILE, exposure_record
+
+            (tmp / EXPOSURE_FILE).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / EXPOSURE_FILE).write_bytes(exposure_record([Path(f["file_path"]).name for f in frames], gains,
+                                                              sa.auto_exposure, sa.white_balance, sa.exposure_holdout))
     print(f"wrote {a.out / TRANSFORMS}: {len(frames)} views {a.size}, depth {a.depth_size}")
     return 0
 
