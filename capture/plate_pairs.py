@@ -6,8 +6,9 @@ A view's prediction comes from its neighbours, whose own gains are still off, so
 exposure to its neighbours: a fixed-point iteration that settles the differences between neighbours at once and
 the drift along the orbit very slowly.  On the path-traced orbit with auto exposure (0.35 EV, 18 kept views:
 scripts/hardcases.py conifer_room_orbit_ae) two passes left the gains **0.179 EV RMS** off the truth (doing
-nothing: 0.300), 20 passes 0.070, 60 passes 0.051; the plates drawn in those exposures miss the background by
-10-15 % and the known-background matte with them (docs/matting.md, "The orbit's exposure").
+nothing: 0.300), 20 passes 0.070, 60 passes 0.051; the plates drawn in those exposures missed the held-back
+background by up to 0.24 (median, linear; 0.005-0.12 in the views beside it), and the known-background matte
+with them (docs/matting.md, "The orbit's exposure").
 
 Here every pair (view i, neighbour j) gives one equation in the log gains h = log g (true colour = colour x g):
 a pixel of i's ring that j saw as background satisfies c_i g_i = c_j g_j, so
