@@ -23,6 +23,8 @@ the object.  Its colour is looked up in the other views that saw X beside the ob
 
 The samples of one source view are gathered by one compiled loop (``capture.plate_reproject_kernel``,
 switch GATHER_COMPILED; :func:`gather_samples`' numpy is the reference, the same samples bit for bit here).
+Each pixel's median and count over the sources are one compiled pass too (MEDIAN_COMPILED; numpy's
+:func:`nan_median` the reference, the same values).
 
 The views' pixels are looked up directly, not through a resampled panorama grid: one resampling,
 not two, and a point at infinity is just the direction of the project's one camera model.
@@ -60,6 +62,9 @@ GATHER_COMPILED = True
 #: it counts as any sample (the rule before: on the path-traced orbit with auto exposure a dark view's plate
 #: was drawn from its brighter neighbours' clipped sunlit floor, error 0.47 against 0.001 elsewhere).
 CLIPPED_SOURCES_DROPPED = True
+#: reproject_plate's median and sample count of each pixel by one compiled pass (capture.plate_reproject_kernel.
+#: median_count; the same values), else numpy's sort of every source's samples (nan_median, the reference).
+MEDIAN_COMPILED = True
 #: The room hypothesis needs at least this fraction of the view's background ring with depth off the plane.
 ROOM_MIN_FRACTION = 0.3
 
@@ -236,16 +241,29 @@ def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: l
         s = np.full((len(sources), len(todo), 3), np.nan, np.float32)  # each source's samples in place
         for k, src in enumerate(sources):
             gather_samples(at, kind, src, gain_i, fast, s[k])
-        have = np.isfinite(s[..., 0])
-        got = have.any(axis=0)
+        med, cnt = _median_count(s)
+        got = cnt > 0
         if not got.any():
             continue
-        med = nan_median(s[:, got])
         idx = todo[got]
-        colour[idx] = med
+        colour[idx] = med[got]
         known[idx] = True
-        count[idx] = have[:, got].sum(axis=0)
+        count[idx] = cnt[got]
     return colour, known, count
+
+
+def _median_count(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(median (N, 3) float32 of each pixel's finite samples, meaningless where none; count (N,) int64 of
+    the sources with a sample) of the samples ``s`` (K, N, 3) float32, NaN = none: MEDIAN_COMPILED's
+    kernel, else numpy (:func:`nan_median`; the same values)."""
+    if MEDIAN_COMPILED:
+        from capture.plate_reproject_kernel import median_count
+
+        med, cnt = np.empty(s.shape[1:], np.float32), np.empty(s.shape[1], np.int64)
+        median_count(np.ascontiguousarray(s, np.float32), med, cnt)
+        return med, cnt
+    have = np.isfinite(s[..., 0])
+    return nan_median(s), have.sum(axis=0)
 
 
 def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:

@@ -121,3 +121,33 @@ def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, r
             s = s + read(linear, lut, r0 + 1, c0, c) * w10
             s = s + read(linear, lut, r0 + 1, c0 + 1, c) * w11
             out[n, c] = np.float32(s * ratio[c])
+
+
+@njit(cache=True, nogil=True)
+def median_count(s, med, count):
+    """Per pixel n of the samples ``s`` (K, N, 3) float32 (NaN: none): ``count[n]`` the sources with a
+    sample (channel 0 finite) and ``med[n]`` (3,) float32 the median of each channel's finite samples,
+    0.5 x (lo + hi) of the sorted values in float32 as capture.plate_reproject.nan_median (NaN without
+    any).  One pass a pixel with an insertion sort of at most K values, instead of numpy's sort of the
+    whole (K, N, 3) block and its masks (capture.plate_reproject.MEDIAN_COMPILED)."""
+    K, N = s.shape[0], s.shape[1]
+    buf = np.empty(K, np.float32)
+    half = np.float32(0.5)
+    for p in range(N):
+        n_have = 0
+        for k in range(K):
+            if np.isfinite(s[k, p, 0]):
+                n_have += 1
+        count[p] = n_have
+        for c in range(3):
+            m = 0
+            for k in range(K):
+                v = s[k, p, c]
+                if np.isfinite(v):
+                    i = m
+                    while i > 0 and buf[i - 1] > v:
+                        buf[i] = buf[i - 1]
+                        i -= 1
+                    buf[i] = v
+                    m += 1
+            med[p, c] = np.nan if m == 0 else half * (buf[(m - 1) // 2] + buf[m // 2])

@@ -141,3 +141,45 @@ def test_blown_out_samples_do_not_count_for_a_darker_view(monkeypatch, fast, dro
     assert np.isfinite(same[left, 0]).sum() > 100  # the same exposure: blown out, as before
     right = ~left & (uv[:, 0] > cam.width // 2 + 2)
     np.testing.assert_array_equal(np.isfinite(darker[right, 0]), np.isfinite(same[right, 0]))
+
+
+def test_compiled_median_and_count_are_numpys():
+    """Each pixel's median and sample count (capture.plate_reproject_kernel.median_count) against numpy's
+    (nan_median over the sources, isfinite summed), bit for bit: 1-8 sources, pixels with none, ties and
+    equal values among the samples; odd and even counts."""
+    from capture.plate_reproject import nan_median
+    from capture.plate_reproject_kernel import median_count
+
+    rng = np.random.default_rng(5)
+    K, N = 8, 20000
+    s = rng.integers(0, 50, (K, N, 3)).astype(np.float32) / 49.0  # few distinct values: ties
+    s[:, : N // 2] = rng.random((K, N // 2, 3), dtype=np.float32)
+    s[rng.random((K, N)) < rng.random(N)] = np.nan  # every share of missing sources, all of them on some pixels
+    med, cnt = np.empty((N, 3), np.float32), np.empty(N, np.int64)
+    median_count(s, med, cnt)
+    have = np.isfinite(s[..., 0])
+    got = have.any(axis=0)
+    assert 0.02 < np.mean(~got) < 0.5 and len(set(cnt[got] % 2)) == 2
+    np.testing.assert_array_equal(cnt, have.sum(axis=0))
+    np.testing.assert_array_equal(med[got], nan_median(s[:, got]))
+    assert np.isnan(med[~got]).all()
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32])
+def test_plate_with_the_compiled_median_is_numpys(monkeypatch, dtype):
+    """reproject_plate with MEDIAN_COMPILED on and off: the same colours, known pixels and counts, bit for bit."""
+    import capture.plate_reproject as pr
+
+    rng = np.random.default_rng(3)
+    sources = [_source(rng, dtype=dtype)[1] for _ in range(4)]
+    cam = sources[0].camera
+    pix = np.stack([rng.integers(0, cam.width, 30000), rng.integers(0, cam.height, 30000)], 1)
+    room = np.where(rng.random((cam.height, cam.width)) < 0.3, 0.0, rng.uniform(0.85, 0.95, (cam.height, cam.width)))
+    out = {}
+    for on in (False, True):
+        monkeypatch.setattr(pr, "MEDIAN_COMPILED", on)
+        plane = np.array([0.0, 0.0, 1.0, 0.12])
+        out[on] = pr.reproject_plate(cam, pix, np.array([1.0, 0.9, 1.1]), sources, plane, room)
+    assert 0.05 < out[True][1].mean() < 0.95 and (out[True][2] > 2).any()
+    for a, b in zip(out[False], out[True], strict=True):
+        np.testing.assert_array_equal(a, b)
