@@ -138,7 +138,7 @@ def drops_clipped(src: PlateSource, gain_i: np.ndarray) -> bool:
 def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np.ndarray,
                      out: np.ndarray | None = None) -> np.ndarray:
     """gather_samples by capture.plate_reproject_kernel.gather_kernel (the same samples)."""
-    from capture.plate_reproject_kernel import F16_TABLE, KINDS, gather_kernel, read_float, read_half
+    from capture.plate_reproject_kernel import F16_TABLE, KINDS, gather_kernel
 
     out = np.full((len(points), 3), np.nan, np.float32) if out is None else out
     cw = src.camera.cam_from_world
@@ -148,7 +148,7 @@ def _gather_compiled(points: np.ndarray, kind: str, src: PlateSource, gain_i: np
     gather_kernel(np.ascontiguousarray(points, np.float64), KINDS[kind], np.ascontiguousarray(cw[:3, :3]),
                   np.ascontiguousarray(cw[:3, 3]), np.ascontiguousarray(src.camera.K, np.float64),
                   np.ascontiguousarray(src.background, bool), np.ascontiguousarray(src.depth, np.float32),
-                  img, F16_TABLE, read_half if half else read_float, np.asarray(src.gain / gain_i, np.float64),
+                  img, F16_TABLE, np.asarray(src.gain / gain_i, np.float64),
                   np.float32(FAR_MARGIN * src.focus_far), float(DEPTH_TOL),
                   float(CLIP_LEVEL) if drops_clipped(src, gain_i) else np.inf, out)
     return out

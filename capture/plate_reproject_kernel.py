@@ -28,7 +28,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from capture.extent_kernel import _rotate
 
@@ -41,35 +42,41 @@ KINDS = {"plane": 0, "room": 1, "far": 2}
 F16_TABLE = np.arange(65536, dtype=np.uint16).view(np.float16).astype(np.float32)
 
 
-@njit(cache=True, nogil=True)
-def read_float(img, lut, r, c, ch):
-    """A float32 / float64 image's texel as float64 (``lut`` unused)."""
+def texel(img, lut, r, c, ch):
+    """A texel of ``img`` as float64: a uint16 image holds a float16 image's bits, read through ``lut``
+    (F16_TABLE); a float32 / float64 image is read as it is.  Chosen by the image's type when the
+    kernel is compiled (:func:`_texel`), not by a reader function passed in: numba keys a function
+    argument by its type, which differs in every process, so the kernel that took one was compiled
+    again on every run (0.8-0.95 s of each `furrow model`) and its on-disk cache grew an entry each time."""
+    if img.dtype == np.uint16:
+        return np.float64(lut[img[r, c, ch]])
     return np.float64(img[r, c, ch])
 
 
-@njit(cache=True, nogil=True)
-def read_half(img, lut, r, c, ch):
-    """A float16 image's texel (``img``: its uint16 bits) as float64, through ``lut`` (F16_TABLE)."""
-    return np.float64(lut[img[r, c, ch]])
+@overload(texel, jit_options={"cache": True, "nogil": True})
+def _texel(img, lut, r, c, ch):
+    if img.dtype == types.uint16:
+        return lambda img, lut, r, c, ch: np.float64(lut[img[r, c, ch]])
+    return lambda img, lut, r, c, ch: np.float64(img[r, c, ch])
 
 
 @njit(cache=True, nogil=True)
-def _blown(linear, lut, read, r0, c0, clip):
+def _blown(linear, lut, r0, c0, clip):
     """Whether a channel of one of the four taps at (r0, c0) reaches ``clip``."""
     for r in range(r0, r0 + 2):
         for c in range(c0, c0 + 2):
             for ch in range(3):
-                if read(linear, lut, r, c, ch) >= clip:
+                if texel(linear, lut, r, c, ch) >= clip:
                     return True
     return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, ratio, far_z, depth_tol, clip, out):
+def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, ratio, far_z, depth_tol, clip, out):
     """Fill ``out`` (N, 3) float32 (NaN on entry) with the colour view j saw at world ``points`` (N, 3)
     float64 where the sample counts (module docstring).  ``kind``: KINDS; ``R`` (3, 3), ``t`` (3,):
     j's cam_from_world; ``K`` (3, 3); ``background`` (H, W) bool, ``depth`` (H, W) float32, ``linear``
-    (H, W, 3) read by ``read`` (:func:`read_float`, or :func:`read_half` of the bits with ``lut``);
+    (H, W, 3) read by :func:`texel` (a float16 image as its uint16 bits, through ``lut``);
     ``ratio`` (3,) g_j / g_i; ``far_z`` float32 (FAR_MARGIN x focus_far); ``clip``: a sample with a tap
     at or above it in a channel does not count (inf: every sample counts; capture.plate_reproject.drops_clipped)."""
     H, W = background.shape
@@ -107,7 +114,7 @@ def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, r
                 continue
         elif not (d <= 0 or abs(d - z) <= depth_tol * z):
             continue
-        if clip < math.inf and _blown(linear, lut, read, r0, c0, clip):
+        if clip < math.inf and _blown(linear, lut, r0, c0, clip):
             continue
         ty = v - fr
         tx = u - fc
@@ -116,10 +123,10 @@ def gather_kernel(points, kind, R, t, K, background, depth, linear, lut, read, r
         w10 = ty * (1.0 - tx)
         w11 = ty * tx
         for c in range(3):
-            s = 0.0 + read(linear, lut, r0, c0, c) * w00
-            s = s + read(linear, lut, r0, c0 + 1, c) * w01
-            s = s + read(linear, lut, r0 + 1, c0, c) * w10
-            s = s + read(linear, lut, r0 + 1, c0 + 1, c) * w11
+            s = 0.0 + texel(linear, lut, r0, c0, c) * w00
+            s = s + texel(linear, lut, r0, c0 + 1, c) * w01
+            s = s + texel(linear, lut, r0 + 1, c0, c) * w10
+            s = s + texel(linear, lut, r0 + 1, c0 + 1, c) * w11
             out[n, c] = np.float32(s * ratio[c])
 
 

@@ -183,3 +183,32 @@ def test_plate_with_the_compiled_median_is_numpys(monkeypatch, dtype):
     assert 0.05 < out[True][1].mean() < 0.95 and (out[True][2] > 2).any()
     for a, b in zip(out[False], out[True], strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_the_kernel_comes_from_numbas_cache_in_a_new_process(tmp_path):
+    """A second process finds gather_kernel in numba's on-disk cache instead of compiling it again (it took
+    the texel reader as a function argument, whose numba type differs in every process: 0.8-0.95 s of
+    compiling in every `furrow model`, and one more cache entry each time)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = (
+        "import json, numpy as np\n"
+        "from tests.capture.test_plate_reproject_kernel import _source, _points\n"
+        "from capture.plate_reproject import gather_samples\n"
+        "from capture.plate_reproject_kernel import gather_kernel\n"
+        "rng = np.random.default_rng(0)\n"
+        "for dtype in (np.float16, np.float32):\n"
+        "    cam, src = _source(rng, dtype=dtype)\n"
+        "    gather_samples(_points(rng, cam, 1000), 'far', src, np.array([1.0, 1.25, 1.0]), fast=True)\n"
+        "s = gather_kernel.stats\n"
+        "print(json.dumps([sum(s.cache_hits.values()), sum(s.cache_misses.values())]))\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    root = str(Path(__file__).resolve().parents[2])
+    runs = [json.loads(subprocess.run([sys.executable, "-c", code], env=env, cwd=root, check=True,
+                                      capture_output=True, text=True).stdout.splitlines()[-1]) for _ in range(2)]
+    assert runs[0][1] == 2  # the first process compiles both kinds of view (and writes them to the cache)
+    assert runs[1] == [2, 0]  # the second loads both and compiles nothing
