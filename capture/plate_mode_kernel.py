@@ -85,26 +85,36 @@ def mode_members(e: np.ndarray, have: np.ndarray, w: np.ndarray, tol: float, amb
 
 
 @njit(cache=True, nogil=True)
+def sorted_insert(buf, m, v):
+    """Put ``v`` into the ascending ``buf[:m]`` (one step of an insertion sort, equal values kept in their
+    order of arrival); the new count, m + 1."""
+    i = m
+    while i > 0 and buf[i - 1] > v:
+        buf[i] = buf[i - 1]
+        i -= 1
+    buf[i] = v
+    return m + 1
+
+
+@njit(cache=True, nogil=True)
+def sorted_median(buf, m):
+    """The median of the ascending float32 ``buf[:m]`` (m >= 1): 0.5 x (lo + hi) in float32, as
+    capture.plate_reproject.nan_median takes it."""
+    return np.float32(0.5) * (buf[(m - 1) // 2] + buf[m // 2])
+
+
+@njit(cache=True, nogil=True)
 def _median(s, members, out):
     K, n, C = s.shape
     buf = np.empty(K, np.float32)
-    half = np.float32(0.5)
     for p in range(n):
         for c in range(C):
             m = 0
             for k in range(K):
                 v = s[k, p, c]
                 if members[k, p] and np.isfinite(v):
-                    i = m
-                    while i > 0 and buf[i - 1] > v:
-                        buf[i] = buf[i - 1]
-                        i -= 1
-                    buf[i] = v
-                    m += 1
-            if m == 0:
-                out[p, c] = np.nan
-            else:
-                out[p, c] = half * (buf[(m - 1) // 2] + buf[m // 2])
+                    m = sorted_insert(buf, m, v)
+            out[p, c] = np.nan if m == 0 else sorted_median(buf, m)
 
 
 def mode_median(s: np.ndarray, members: np.ndarray) -> np.ndarray:

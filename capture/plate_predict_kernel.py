@@ -29,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from capture.plate_mode_kernel import sorted_insert, sorted_median
+
 #: gather_frame's flags: no sample, a free sample (a measurement), a blown-out sample (a lower bound).
 NONE, FREE, HOT = 0, 1, 2
 #: Float16 codes the sRGB tables hold: 0 .. +inf (0x7C00); every other code (negative, NaN) is read as 0.
@@ -124,7 +126,6 @@ def censored_pixels(S, E, W, F, tol, ambiguous, min_frames, col, bound):
     w = np.empty(K, np.float32)
     idx = np.empty(K, np.int64)
     buf = np.empty(K, np.float32)
-    half = np.float32(0.5)
     for p in range(n):
         m, n_hot = 0, 0
         lb0 = lb1 = lb2 = np.float32(-np.inf)
@@ -146,7 +147,7 @@ def censored_pixels(S, E, W, F, tol, ambiguous, min_frames, col, bound):
                     support += 1
         if support >= min_frames:
             for c in range(3):
-                v = _member_median(S, p, idx, close, best, m, c, buf, half)
+                v = _member_median(S, p, idx, close, best, m, c, buf)
                 lb = lb0 if c == 0 else (lb1 if c == 1 else lb2)
                 col[p, c] = _max(v, lb)
         elif n_hot >= min_frames:
@@ -173,7 +174,7 @@ def _max(a, b):
 
 
 @njit(cache=True, nogil=True)
-def _member_median(S, p, idx, close, best, m, c, buf, half):
+def _member_median(S, p, idx, close, best, m, c, buf):
     """Median of channel ``c`` of the cluster's finite samples (plate_mode_kernel._median's)."""
     cnt = 0
     for a in range(m):
@@ -181,12 +182,7 @@ def _member_median(S, p, idx, close, best, m, c, buf, half):
             continue
         v = S[p, idx[a], c]
         if np.isfinite(v):
-            i = cnt
-            while i > 0 and buf[i - 1] > v:
-                buf[i] = buf[i - 1]
-                i -= 1
-            buf[i] = v
-            cnt += 1
+            cnt = sorted_insert(buf, cnt, v)
     if cnt == 0:
         return np.float32(np.nan)
-    return half * (buf[(cnt - 1) // 2] + buf[cnt // 2])
+    return sorted_median(buf, cnt)

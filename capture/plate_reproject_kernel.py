@@ -32,6 +32,7 @@ from numba import njit, types
 from numba.extending import overload
 
 from capture.extent_kernel import _rotate
+from capture.plate_mode_kernel import sorted_insert, sorted_median
 
 #: Hypothesis kinds (capture.plate_reproject.background_points).
 KINDS = {"plane": 0, "room": 1, "far": 2}
@@ -139,7 +140,6 @@ def median_count(s, med, count):
     whole (K, N, 3) block and its masks (capture.plate_reproject.MEDIAN_COMPILED)."""
     K, N = s.shape[0], s.shape[1]
     buf = np.empty(K, np.float32)
-    half = np.float32(0.5)
     for p in range(N):
         n_have = 0
         for k in range(K):
@@ -151,10 +151,5 @@ def median_count(s, med, count):
             for k in range(K):
                 v = s[k, p, c]
                 if np.isfinite(v):
-                    i = m
-                    while i > 0 and buf[i - 1] > v:
-                        buf[i] = buf[i - 1]
-                        i -= 1
-                    buf[i] = v
-                    m += 1
-            med[p, c] = np.nan if m == 0 else half * (buf[(m - 1) // 2] + buf[m // 2])
+                    m = sorted_insert(buf, m, v)
+            med[p, c] = np.nan if m == 0 else sorted_median(buf, m)
