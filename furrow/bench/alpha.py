@@ -34,33 +34,19 @@ CROP_MARGIN = 0.15
 
 def synth_with_matte(synth_args: list[str]):
     """(ScanSet whose scans carry their true matte, the scene) of ``furrow synth SYNTH_ARGS`` (its
-    defaults: over black, d435 depth, 0.5 px film filter) made in process."""
+    defaults: over black, d435 depth, 0.5 px film filter) made in process.  ``datasets_synthetic.synth``
+    gives every scan its true matte itself (the renderer's coverage under the colour's film filter);
+    this bench used to record it by subclassing a rasteriser the synthesiser no longer uses."""
     import datasets_synthetic.synth as synth
-    from datasets_synthetic.pixel_filter import path_tracer_filter
     from furrow.cmd_synth import add_arguments, build_config
-
-    alphas = {}
-
-    class Recording(synth.MeshRasterizer):
-        def render(self, camera, *a, **k):
-            res = super().render(camera, *a, **k)
-            alphas[camera.name] = res.alpha.copy()
-            return res
 
     ap = argparse.ArgumentParser()
     add_arguments(ap)
     cfg = build_config(ap.parse_args(synth_args + ["-o", "unused"]))
-    original = synth.MeshRasterizer
-    synth.MeshRasterizer = Recording
-    try:
-        cap = synth.synthesize(cfg)
-    finally:
-        synth.MeshRasterizer = original
-    scans = []
-    for s, cam in zip(cap.scanset.scans, cap.true_cameras):
-        a = path_tracer_filter(alphas[cam.name][..., None], cfg.pixel_filter_px)[..., 0]
-        scans.append(replace(s, alpha=np.clip(a, 0.0, 1.0)))
-    return replace(cap.scanset, scans=tuple(scans)), cap.scene
+    cap = synth.synthesize(cfg)
+    if any(s.alpha is None for s in cap.scanset.scans):  # pragma: no cover - the synthesiser always sets it
+        raise RuntimeError("furrow bench alpha: the synthetic capture came without its true mattes")
+    return cap.scanset, cap.scene
 
 
 def models(kept, scene, l_max: int):
