@@ -34,6 +34,9 @@ REPEATS = 5
 CAMERA_AZIMUTH_FROM_SUN_DEG = 110.0
 CAMERA_HEIGHT = 0.6
 PICTURE_GLARE_SETTINGS = dict(k_length=3.0, k_size=6.0, n_dirs=6)
+#: The thin pairs' energy test keeps its highlights this far from the frame's border (pixels), so that
+#: their streaks stay inside; the frame must be wider and taller than twice this.
+THIN_MARGIN_PX = 80
 
 
 def _sources(n, W, H, n_exp, seed=0):
@@ -83,7 +86,7 @@ def bench_energy_thin(ctx, W, H):
     out = []
     rng = np.random.default_rng(5)
     img = np.full((H, W, 3), 0.1)
-    m = 80
+    m = THIN_MARGIN_PX
     img[rng.integers(m, H - m, 200), rng.integers(m, W - m, 200)] = rng.uniform(1.5, 40.0, (200, 3))
     for n_exp in (10.0, 100.0, 1000.0):
         src = glare_sources(img, 1.0, default_n=n_exp)
@@ -219,7 +222,8 @@ def _plot(rows, out_dir: Path) -> Path:
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(prog="furrow bench glare", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--size", default="640x480")
+    ap.add_argument("--size", default="640x480",
+                    help=f"frame WxH (default 640x480; each side above {2 * THIN_MARGIN_PX} px)")
     ap.add_argument("--counts", default="10,100,1000,3000,10000")
     ap.add_argument("--env", default="studio")
     ap.add_argument("-o", "--out", default=str(OUT_ROOT / "bench" / "glare"))
@@ -228,7 +232,13 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--scans", help="the scan set of --model")
     ap.add_argument("--view", type=int, default=4, help="index of the captured view for --model")
     a = ap.parse_args(argv)
-    W, H = (int(v) for v in a.size.lower().split("x"))
+    try:
+        W, H = (int(v) for v in a.size.lower().split("x"))
+    except ValueError:
+        ap.error(f"--size must be WxH in pixels, got {a.size!r}")
+    if min(W, H) <= 2 * THIN_MARGIN_PX:
+        ap.error(f"--size {a.size}: each side must be above {2 * THIN_MARGIN_PX} px (the thin pairs' energy test keeps "
+                 f"its highlights {THIN_MARGIN_PX} px from the border)")
     counts = [int(c) for c in a.counts.split(",")]
     out_dir = Path(a.out)
     from render.gl import gl_context
