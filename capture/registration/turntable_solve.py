@@ -379,8 +379,8 @@ def evaluate(model, views, matches, pairs, active, cfg, size, prior: AxisPrior |
     # gauge: with an angle prior only the prior holds it, and it says nothing about the evidence)
     free = ([] if axis_fixed else [0, 1, 2, 3]) + _angle_columns(model, active, None)
     H = _system(acc, model, prior, size, angle_prior)[0][np.ix_(free, free)]
-    try:
-        cov = np.linalg.inv(H + PR.DAMPING * np.trace(H) / len(H) * np.eye(len(H)))
+    try:  # nothing free (the axis fixed, no angle to solve): no covariance, and no 0 / 0 warning
+        cov = np.linalg.inv(H + PR.DAMPING * np.trace(H) / len(H) * np.eye(len(H))) if len(H) else H
     except np.linalg.LinAlgError:
         cov = np.full(H.shape, np.inf)
     records = []
