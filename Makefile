@@ -16,7 +16,7 @@ DEB_PKGS := libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgbm1 libusb-1.0-0 chr
 DEMO := out/demo
 export OMP_WAIT_POLICY := passive
 
-# The path-traced hard cases (optional; hours of CPU): Mitsuba 3's llvm_ad_rgb variant needs libLLVM,
+# The path-traced hard cases (optional; issue 30's table alone about 20 min on 2 AVX-512 cores, every case longer): Mitsuba 3's llvm_ad_rgb variant needs libLLVM,
 # which Debian names libLLVM-19.so (DRJIT_LIBLLVM_PATH); the maps that are not bundled (city) come
 # from Debian's blender-data (CC0 studio lights), unpacked under build/ without installing Blender.
 HARDCASES_OUT ?= out/hardcases
