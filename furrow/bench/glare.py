@@ -109,17 +109,17 @@ def sphere_scene(camera, centre, radius, albedo):
 def bench_composite(ctx, W, H, env_name, out_dir: Path):
     from capture.camera import Camera, look_at, make_K
     from capture.scan import to_uint8_srgb
+    from render.composite.ground_shadow import shadow_sg_fit
     from render.composite.pipeline import composite_frame
     from render.composite.tonemap import TONE_WHITE
     from render.shading.envmap import bundled_envmap
     from render.shading.glare import GlareConfig
     from render.shading.irradiance import irradiance_lookup, irradiance_table
-    from render.shading.sg_fit import fit_env_sg
     from volume.model import SphereSet
 
     PICTURE_GLARE = GlareConfig(display_max=TONE_WHITE, **PICTURE_GLARE_SETTINGS)
     env = bundled_envmap(env_name)
-    fit = fit_env_sg(env, 10)
+    fit = shadow_sg_fit(env)
     centre, radius = np.array([0.0, 0.0, 0.1]), 0.1
     from render.shading.glare_maps import light_source_map, light_sources
 

@@ -29,7 +29,7 @@ from capture.camera import Camera
 from capture.depth_normals import depth_normals
 from capture.rotations import rotation_between
 from render.composite.gl import Compositor
-from render.composite.ground_shadow import SHADOW_SG_K, GroundPlane, ground_from_spheres
+from render.composite.ground_shadow import GroundPlane, ground_from_spheres, shadow_sg_fit
 from render.composite.tonemap import TONE_WHITE, display_white, tonemap
 from render.shading.envmap import EnvMap
 
@@ -119,8 +119,9 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
         the depth); its n also shapes the streaks.
     tone / white: the tone map (:func:`tonemap`). output: "display" (tone-mapped linear in
         [0, 1]) or "linear" (exposed HDR with glare, before tone mapping).
-    sg_fit: the environment's SG fit (render.shading.sg_fit.SGFit); fitted with SHADOW_SG_K lobes
-        when needed and None. stats: filled with timings / counts when given.
+    sg_fit: the environment's SG fit (render.shading.sg_fit.SGFit); fitted by
+        render.composite.ground_shadow.shadow_sg_fit when needed and None. stats: filled with timings /
+        counts when given.
     compositor: a :class:`Compositor` to reuse across frames (programs compiled once, the
         environment uploaded once); by default one is made and released per call.
     Returns (H, W, 3) float32.
@@ -145,8 +146,7 @@ def composite_frame(ctx, rgb_linear, depth, camera: Camera, env: EnvMap, spheres
             st["light_sources"] = len(sources.dirs)
         if gp is not None:
             if sg_fit is None:
-                from render.shading.sg_fit import fit_env_sg
-                sg_fit = fit_env_sg(env, SHADOW_SG_K)
+                sg_fit = shadow_sg_fit(env)
                 st["sg_fit_s"] = sg_fit.seconds
             t1 = time.perf_counter()
             comp.shadow_grid(spheres, sg_fit, gp)

@@ -124,15 +124,14 @@ class GLScene(GLOwner):
         return self._envs[key]
 
     def shadow_fit(self, env):
-        """The SG fit of ``env`` that lights the ground shadow (render.shading.sg_fit.fit_env_sg with
-        render.composite.ground_shadow.SHADOW_SG_K lobes, as composite_frame fits it), made once per map."""
+        """The SG fit of ``env`` that lights the ground shadow (render.composite.ground_shadow.shadow_sg_fit, as
+        composite_frame fits it), made once per map."""
         for e, fit in self._fits:
             if e is env:
                 return fit
-        from render.composite.ground_shadow import SHADOW_SG_K
-        from render.shading.sg_fit import fit_env_sg
+        from render.composite.ground_shadow import shadow_sg_fit
 
-        fit = fit_env_sg(env, SHADOW_SG_K)
+        fit = shadow_sg_fit(env)
         self._fits.append((env, fit))
         return fit
 
