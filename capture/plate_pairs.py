@@ -38,28 +38,13 @@ PAIR_IRLS_PASSES = 3
 
 def ring_samples(ps, i: int, sources) -> tuple[list[int], np.ndarray]:
     """(neighbour indices, (K, N, 3) float32 samples, NaN = none) of view i's ring pixels from each of its
-    ``ps.neighbours`` nearest views (capture.plate_reproject.reproject_plate's hypotheses in its order: a
-    pixel takes the first hypothesis any neighbour sees), in the exposures of ``sources`` (PlateSource list)."""
-    from capture.plate_reproject import background_points, gather_samples, neighbour_order
+    ``ps.neighbours`` nearest views (capture.plate_reproject.first_samples: the plate's hypotheses in its order),
+    in the exposures of ``sources`` (PlateSource list) at gain 1."""
+    from capture.plate_reproject import first_samples, neighbour_order
 
     p = ps.views[i]
     nb = neighbour_order(ps.cameras, i, ps.neighbours)
-    pix = p.ring
-    s = np.full((len(nb), len(pix), 3), np.nan, np.float32)
-    done = np.zeros(len(pix), bool)
-    one = np.ones(3)
-    for kind, pts, valid in background_points(p.view.camera, pix, ps.plane, p.room):
-        todo = np.flatnonzero(valid & ~done)
-        if not len(todo) or not nb:
-            continue
-        at = np.ascontiguousarray(pts[todo])
-        got = np.full((len(nb), len(todo), 3), np.nan, np.float32)
-        for k, j in enumerate(nb):
-            gather_samples(at, kind, sources[j], one, None, got[k])
-        seen = np.isfinite(got[..., 0]).any(axis=0)
-        s[:, todo[seen]] = got[:, seen]
-        done[todo[seen]] = True
-    return nb, s
+    return nb, first_samples(p.view.camera, p.ring, np.ones(3), [sources[j] for j in nb], ps.plane, p.room)
 
 
 def pair_equations(ps, samples, use=None) -> list[tuple[int, int, np.ndarray, int]]:

@@ -228,28 +228,36 @@ def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: l
                     fast: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(colour (N, 3) float32 linear in view i's exposure, known (N,) bool, samples (N,) int) of the
     background behind pixels ``pix`` (N, 2) of camera ``cam`` from the ``sources`` (the other
-    views; module docstring).  ``fast``: gather_samples' (the samples written into one array)."""
+    views; module docstring): the median of :func:`first_samples`.  ``fast``: gather_samples'."""
+    med, count = _median_count(first_samples(cam, pix, gain_i, sources, plane, room, fast))
+    known = count > 0
+    med[~known] = 0.0
+    return med, known, count
+
+
+def first_samples(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: list[PlateSource],
+                  plane: np.ndarray | None, room: np.ndarray | None, fast: bool | None = None) -> np.ndarray:
+    """(K, N, 3) float32 samples (NaN = none) of the background behind pixels ``pix`` (N, 2) of ``cam`` from
+    each of the K ``sources``, in the exposure of gain ``gain_i``: per pixel those of the first hypothesis
+    (:func:`background_points`, in its order) that any source has a sample of (module docstring).  What the
+    plate's median takes (:func:`reproject_plate`) and the exposure's pairs compare (capture.plate_pairs)."""
     n = len(pix)
-    colour = np.zeros((n, 3), np.float32)
-    known = np.zeros(n, bool)
-    count = np.zeros(n, np.int64)
+    s = np.full((len(sources), n, 3), np.nan, np.float32)
+    done = np.zeros(n, bool)
     for kind, pts, valid in background_points(cam, pix, plane, room):
-        todo = np.flatnonzero(valid & ~known)
+        todo = np.flatnonzero(valid & ~done)
         if not len(todo) or not sources:
             continue
+        whole = len(todo) == n  # every pixel still open: the samples go straight into s
+        got = s if whole else np.full((len(sources), len(todo), 3), np.nan, np.float32)
         at = np.ascontiguousarray(pts[todo])
-        s = np.full((len(sources), len(todo), 3), np.nan, np.float32)  # each source's samples in place
         for k, src in enumerate(sources):
-            gather_samples(at, kind, src, gain_i, fast, s[k])
-        med, cnt = _median_count(s)
-        got = cnt > 0
-        if not got.any():
-            continue
-        idx = todo[got]
-        colour[idx] = med[got]
-        known[idx] = True
-        count[idx] = cnt[got]
-    return colour, known, count
+            gather_samples(at, kind, src, gain_i, fast, got[k])
+        seen = np.isfinite(got[..., 0]).any(axis=0)
+        if not whole:
+            s[:, todo[seen]] = got[:, seen]
+        done[todo[seen]] = True
+    return s
 
 
 def _median_count(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
