@@ -188,6 +188,44 @@ def test_a_stage_is_one_function_one_config_one_line(capture):
     assert rows[at]["name"] == "toy" and rows[at]["settings"] == "grey=0.5"
 
 
+def _blas_threads() -> list[int]:
+    from threadpoolctl import threadpool_info
+
+    return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]
+
+
+def blas_stage(work, cfg, ctx):
+    """A whole-set stage that records the BLAS threads it runs with."""
+    return work.record("blas", {"threads": _blas_threads()})
+
+
+def test_the_main_process_blas_runs_one_thread_in_a_run(capture):
+    """The stages' own threads and workers are the parallelism: the main process's BLAS runs
+    MAIN_BLAS_THREADS threads while they run (its spinning threads cost the plate stage a fifth of
+    its time on 2 cores), and has its own number back after the run."""
+    from threadpoolctl import threadpool_limits
+
+    from volume.pipeline.pool import MAIN_BLAS_THREADS
+
+    pytest.importorskip("threadpoolctl")
+    if not _blas_threads():
+        pytest.skip("no BLAS library that threadpoolctl can see")
+    at = ORDER.index("extent")
+    stages = STAGES[:at] + (Stage("blas", "toy", SET, blas_stage, "toy", "tests"),)
+
+    @dataclass(frozen=True)
+    class Config(PipelineConfig):
+        toy: ToyConfig = ToyConfig()
+
+    with threadpool_limits(limits=3, user_api="blas"):
+        before = _blas_threads()
+        with run_pipeline(open_source(capture), Config(extent=None), stages=stages) as run:
+            inside = run.work.records["blas"]["threads"]
+        after = _blas_threads()
+    assert before == after and all(n == 3 for n in before)
+    assert inside and all(n == MAIN_BLAS_THREADS for n in inside)
+
+
 def test_plan_says_what_is_on():
     rows = {r["name"]: r for r in plan_rows(PipelineConfig(extent=None, photometric=None))}
     assert not rows["extent"]["on"] and rows["extent"]["settings"] == "off" and not rows["photometric"]["on"]

@@ -55,6 +55,14 @@ HEAP_TRIM_THRESHOLD = 1 << 30
 HEAP_TOP_PAD = 64 << 20
 #: mallopt's parameter numbers (glibc malloc.h).
 _M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
+#: BLAS threads of the main process while a run's stages run (:func:`main_blas_threads`; None: the
+#: library's own, the reference).  The stages parallelise themselves (the plate's and the fusion's
+#: threads, the workers); OpenBLAS's threads beside them spun on the 2 cores here: its thread server
+#: took 3.6 % of a 72-view 1280x960 run's CPU samples (perf), most of it in the plate stage, whose
+#: threads' camera transforms (``rays @ R.T`` on a million rays) each woke it.  With one, A B B A twice:
+#: plate stage 7.26-8.31 -> 5.93-6.01 s, the run 46.2 -> 44.2 s (medians); the same model (305 arrays,
+#: 0 differ; docs/speed.md round 20).
+MAIN_BLAS_THREADS: int | None = 1
 #: Environment variables that set the threads of numba, OpenMP / BLAS libraries in a worker.
 THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -115,6 +123,20 @@ def _libc():
         return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
     except OSError:
         return None
+
+
+def main_blas_threads():
+    """A context in which this process's BLAS runs MAIN_BLAS_THREADS threads (threadpoolctl); the
+    threads it had come back on leaving.  A null context for None or without threadpoolctl."""
+    import contextlib
+
+    if MAIN_BLAS_THREADS is None:
+        return contextlib.nullcontext()
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # a speed matter only
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=MAIN_BLAS_THREADS, user_api="blas")
 
 
 def pool_pays(pixels_per_view: float, matte_solved: bool) -> bool:

@@ -134,6 +134,12 @@ class Run:
 
     # ------------------------------------------------------------------ running
     def run(self, stages=STAGES) -> Run:
+        from volume.pipeline.pool import main_blas_threads
+
+        with main_blas_threads():  # the stages' own threads and workers are the parallelism
+            return self._run(stages)
+
+    def _run(self, stages) -> Run:
         pending = []
         for st in stages:
             cfg = getattr(self.cfg, st.key)
