@@ -21,6 +21,13 @@ object's own pairs.
   photometric stage takes them; refused, the plates are drawn at gain 1 as the fixed camera's
   (:data:`PANORAMA_REFUSED_AT_ONE`; before, they were drawn with the refused gains).
 
+Both rules then look at the views one by one (:data:`VIEW_GAINS`, :func:`explained_views`).  The sign test
+counts views, so an exposure that moved in a few frames only is refused: the other frames' gains are 1 within
+noise and win half the time, and the median error is theirs.  A view whose error without gains stood
+VIEW_GAIN_OUTLIER times above the views' median, and whose own gain cuts it by VIEW_GAIN_MIN_CUT, is taken
+alone (its gain against the median of the others'); the others stay at 1, and the record's ``taken`` lists them.
+Gains that fit noise cut nothing, and gains that do not fit the frames make errors grow, so neither passes.
+
 Measured (docs/matting.md, "The panorama's exposure"): the demo's room capture (furrow synth, auto
 exposure, a moving camera) is accepted; the path-traced orbits and the phone captures at one exposure
 are refused.
@@ -36,30 +43,68 @@ PANORAMA_EXPOSURE = True
 #: Refused panorama gains are not used for the plates either: they are drawn at gain 1 (True), else with the
 #: gains the check refused (False: the rule before; docs/matting.md "The panorama's exposure").
 PANORAMA_REFUSED_AT_ONE = True
+#: Where the sign test refuses the gains, a view's own gain is still taken when it explains that view (the others
+#: kept at 1): its held-back error cut by VIEW_GAIN_MIN_CUT, where without it the view stood out at
+#: VIEW_GAIN_OUTLIER times the views' median error (:func:`explained_views`).  False: all or none (the rule
+#: before).  A fixed camera whose exposure jumped in 1-4 of 12 frames had every gain refused there (7-9 wins of
+#: 10 needed, the median error not cut), and those frames stayed 0.5 EV off (docs/matting.md "Exposure that
+#: changes in a few frames").
+VIEW_GAINS = True
+#: The held-back error a view's gain must cut, as a share of the error without it (VIEW_GAINS).
+VIEW_GAIN_MIN_CUT = 0.5
+#: How far a view's error without gains must stand above the views' median for its gain to be taken alone.
+VIEW_GAIN_OUTLIER = 4.0
 
 
 def plate_exposure(ps, mode: str, start, fit, samples=None):
     """(the plate stage's ``exposure`` record or None, the trial the plates are drawn with) for the chosen
     ``mode`` (module docstring): ``start`` the path's first trial (capture.plate.Trial, its first gains),
     ``fit`` its fitted one; ``samples``: the panorama's pair samples (capture.plate_pairs) when its gains
-    came from them."""
+    came from them.  Refused gains give the trial at gain 1, except the views whose own gain is taken
+    (VIEW_GAINS: the record's ``taken``)."""
     from capture.plate import _trial
 
     if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
         from capture.plate_fixed import fixed_exposure_check
 
         exposure = fixed_exposure_check(ps, fit.gains)
-        if exposure["chosen"] != "plate" and not np.all(fit.gains == 1.0):
-            fit = _trial(ps, mode, np.ones_like(fit.gains))
+        refused_at_one = True
     elif mode == "panorama" and PANORAMA_EXPOSURE:
         exposure = panorama_exposure_check(ps, start, samples)
-        if exposure["chosen"] != "plate" and PANORAMA_REFUSED_AT_ONE:
-            fit = start  # the path's trial without gains
+        refused_at_one = PANORAMA_REFUSED_AT_ONE
     else:
         return None, fit
+    if exposure.get("taken"):  # the views' own gains, the others' at 1
+        fit = _trial(ps, mode, some_gains(fit.gains, exposure["taken"]))
+    elif exposure["chosen"] != "plate" and refused_at_one and not np.all(fit.gains == 1.0):
+        fit = start if mode == "panorama" else _trial(ps, mode, np.ones_like(fit.gains))
     if exposure["chosen"] == "plate":
         exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
     return exposure, fit
+
+
+def some_gains(gains: np.ndarray, taken) -> np.ndarray:
+    """``gains`` (V, 3) of the views ``taken`` against the median of the others' (which become 1)."""
+    gains = np.asarray(gains, np.float64)
+    out = np.ones_like(gains)
+    rest = np.ones(len(gains), bool)
+    rest[list(taken)] = False
+    ref = np.median(gains[rest], axis=0) if rest.any() else np.ones(gains.shape[1])
+    out[list(taken)] = gains[list(taken)] / ref
+    return out
+
+
+def explained_views(fit: np.ndarray, none: np.ndarray) -> np.ndarray:
+    """The views (indices into ``fit`` / ``none``, the per-view held-back errors with the gains and without)
+    whose own gain explains them (VIEW_GAINS): without it the view's error stood at VIEW_GAIN_OUTLIER times
+    the views' median or more, and the gain cuts it by VIEW_GAIN_MIN_CUT.  A capture at one exposure has no
+    such view (its gains fit noise: nothing cut); nor have gains that do not fit the frames (errors grow)."""
+    fit, none = np.asarray(fit, np.float64), np.asarray(none, np.float64)
+    if not VIEW_GAINS or len(none) == 0:
+        return np.zeros(0, np.int64)
+    out = none >= VIEW_GAIN_OUTLIER * np.median(none)
+    out &= fit <= (1.0 - VIEW_GAIN_MIN_CUT) * none
+    return np.flatnonzero(out & (none > 0))
 
 
 def _log_error(observed: np.ndarray, predicted: np.ndarray, ok: np.ndarray) -> float:
@@ -100,6 +145,8 @@ def panorama_exposure_check(ps, start, samples=None) -> dict:
     if not have.any():
         return {**rec, "reason": "no held-back background pixels the panorama predicts"}
     got, verdict = gain_verdict(fit[have], none[have], need)
+    if "taken" in got:
+        got["taken"] = [int(i) for i in np.flatnonzero(have)[got["taken"]]]
     return {**rec, **got, "reason": f"the panorama's gains (fitted on half of each ring) beat none in {got['wins']} of "
                                     f"{V} views on the other half ({verdict})"}
 
@@ -118,6 +165,14 @@ def gain_verdict(fit: np.ndarray, none: np.ndarray, need: int) -> tuple[dict, st
     ok = wins >= need and cut >= FIXED_GAIN_MIN_CUT
     why = "" if ok or wins < need else f" (at least {100 * FIXED_GAIN_MIN_CUT:.0f} % needed)"
     verdict = f"{'at least' if wins >= need else 'fewer than'} {need}, the median error cut by {100 * cut:.1f} %{why}"
-    verdict += ": taken" if ok else ": kept the views as they are"
-    return {"chosen": "plate" if ok else "none", "wins": wins, "error_fitted": round(e_fit, 5),
-            "error_none": round(e_none, 5)}, verdict
+    got = {"chosen": "plate" if ok else "none", "wins": wins, "error_fitted": round(e_fit, 5),
+           "error_none": round(e_none, 5)}
+    taken = np.zeros(0, np.int64) if ok else explained_views(fit, none)
+    if len(taken):
+        got.update(chosen="plate", taken=[int(i) for i in taken])
+        verdict += (f"; {len(taken)} view(s) taken alone, each one's error cut by at least "
+                    f"{100 * VIEW_GAIN_MIN_CUT:.0f} % where it stood at {VIEW_GAIN_OUTLIER:g}x the views' median "
+                    f"or more: their own gains, the others kept as they are")
+    else:
+        verdict += ": taken" if ok else ": kept the views as they are"
+    return got, verdict

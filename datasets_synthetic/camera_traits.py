@@ -53,6 +53,19 @@ def exposure_gains(n_views: int, sigma_ev: float, wb_sigma: float, seed: int, ho
     return gains
 
 
+def exposure_jump_gains(n_views: int, jump_ev: float, count: int, seed: int, holdout: int = 2) -> np.ndarray:
+    """(V, 3) linear gains of a camera whose exposure jumped by ``jump_ev`` in ``count`` of the kept views (i %
+    holdout == 0, chosen by ``seed``) and held still in the others (1): an auto exposure that reacts in a few
+    frames only (a bright patch of the room coming into view)."""
+    kept = np.flatnonzero(np.arange(n_views) % holdout == 0)
+    if not 0 <= count <= len(kept):
+        raise ValueError(f"exposure jump: count must be 0..{len(kept)} (the kept views), got {count}")
+    rng = np.random.default_rng([int(seed), EXPOSURE_STREAM, 1])
+    gains = np.ones((n_views, 3))
+    gains[np.sort(rng.choice(kept, count, replace=False))] = 2.0 ** float(jump_ev)
+    return gains
+
+
 def apply_exposure(scanset, gains: np.ndarray):
     """The scan set with each view's linear colour multiplied by its gains (float linear kept:
     the writer encodes 8-bit sRGB and clips)."""

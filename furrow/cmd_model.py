@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 
@@ -197,6 +198,12 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
                       f"band (least {pl['band_known_min']:.1%}){lines}; error on held-back background {err}{scale}",
                       highlight=False)
+        ex = pl.get("exposure") or {}
+        if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
+            ev = [sum(math.log2(g) for g in ex["gains"][i]) / 3 for i in ex["taken"]]
+            console.print(f"exposure from the background: views {', '.join(map(str, ex['taken']))} taken alone "
+                          f"({', '.join(f'{e:+.2f}' for e in ev)} EV; their own gains explain them), the other "
+                          f"{ex['views'] - len(ex['taken'])} kept as they are", highlight=False)
     m = rec.get("matte", {})
     if m.get("mode") not in (None, "off"):
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "

@@ -3,7 +3,8 @@ on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES 
 0 / 1), CELL_LINE_ALPHA (capture.matting_lines) and the ninth round's AGREEING, CONTRAST, VIEW_CHROMA,
 CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast), the eleventh round's RECROSS
 (capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer),
-the twelfth round's BRIGHTNESS_LEVEL (capture.matting_global, 0 / 1).  Use ``--view-workers 1``: the view
+the twelfth round's BRIGHTNESS_LEVEL (capture.matting_global, 0 / 1), and the exposure check's VIEW_GAINS
+(capture.plate_exposure, 0 / 1).  Use ``--view-workers 1``: the view
 pool's processes import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
@@ -17,6 +18,7 @@ if __name__ == "__main__":
     import capture.matting_global as mg
     import capture.matting_lines as ml
     import capture.matting_recross as mr
+    import capture.plate_exposure as pe
     for kv in filter(None, os.environ.get("ABL", "").split(",")):
         k, v = kv.split("=")
         if k == "CELL_LINE_ALPHA":
@@ -28,7 +30,7 @@ if __name__ == "__main__":
         elif k == "RECROSS_PASSES":
             mr.RECROSS_PASSES = int(v)
         else:
-            mod = next((m for m in (mk, mr) if hasattr(m, k)), mg)
+            mod = next((m for m in (mk, mr, pe) if hasattr(m, k)), mg)
             if not hasattr(mod, k):
                 raise SystemExit(f"ABL: no switch {k}")
             setattr(mod, k, bool(int(v)))

@@ -37,6 +37,8 @@ def twin(room: Path) -> Path | None:
         name = name.replace("_table_ae_lens", "_turntable")
     if name.endswith("_ae"):   # the auto-exposure orbit against the orbit's twin
         name = name[: -len("_ae")]
+    if name.endswith("_jump"):   # the turntable whose exposure jumps in a few views against the turntable's
+        name = name[: -len("_jump")]
     t = room.parent / name
     return t if t.is_dir() and t != room else None
 

@@ -56,6 +56,9 @@ class Layout:
     """(sigma EV, white-balance sigma) of the kept views' per-view jitter (None = fixed exposure)."""
     exposure_holdout: int = 2
     """Auto exposure jitters the views i % exposure_holdout == 0 (the ones `--holdout` keeps)."""
+    exposure_jump: tuple[float, int] | None = None
+    """(EV, count): the exposure jumps by EV in ``count`` of the kept views, the others at 1
+    (camera_traits.exposure_jump_gains; instead of ``auto_exposure``)."""
     pose_noise: tuple[float, float] | None = None
     """(RMS degrees, RMS fraction of the object's diagonal) of the recorded poses' error (None = exact)."""
 
@@ -93,6 +96,13 @@ def build_scanset(renders: list[ViewRender], cams: list[Camera], obj: PathObject
         sig, wb = layout.auto_exposure
         gains = exposure_gains(n, sig, wb, spec.seed, layout.exposure_holdout)
         extra[EXPOSURE_FILE] = exposure_record([f"{c.name}.png" for c in cams], gains, sig, wb,
+                                               layout.exposure_holdout)
+    elif layout.exposure_jump is not None:
+        from datasets_synthetic.camera_traits import EXPOSURE_FILE, exposure_jump_gains, exposure_record
+
+        jump, count = layout.exposure_jump
+        gains = exposure_jump_gains(n, jump, count, spec.seed, layout.exposure_holdout)
+        extra[EXPOSURE_FILE] = exposure_record([f"{c.name}.png" for c in cams], gains, 0.0, 0.0,
                                                layout.exposure_holdout)
     rec = recorded_cameras(cams, obj, spec.seed, layout.pose_noise)
     scans = []

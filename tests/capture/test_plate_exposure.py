@@ -91,3 +91,50 @@ def test_the_check_refuses_gains_that_win_by_a_little(monkeypatch):
     assert 0.0 < 1 - ex["error_fitted"] / ex["error_none"] < pf.FIXED_GAIN_MIN_CUT
     monkeypatch.setattr(pf, "FIXED_GAIN_MIN_CUT", 0.0)
     assert fixed_exposure_check(s, little)["chosen"] == "plate"   # the sign test alone
+
+
+#: The exposure jump of the frames that change in the tests of views taken alone (EV).
+JUMP_EV = 0.5
+
+
+@pytest.mark.parametrize("view_gains", [True, False])
+@pytest.mark.parametrize("frames", [[4], [0, 5, 9]])
+def test_exposure_that_jumps_in_a_few_frames_is_taken_for_those_frames(monkeypatch, view_gains, frames):
+    """A fixed camera whose exposure jumped JUMP_EV in a few of 12 frames: the sign test alone refuses the gains
+    (the other frames' gains are 1 within noise, coin flips: here 7 and 9 wins of 10 needed; with the jump in
+    frames 2 and 7, or 1, 6 and 10, all 12 win and the gains are taken).
+    The frames whose own gain explains them (VIEW_GAINS) are taken alone, within GAIN_TOL_EV of the truth, and
+    the others kept at exactly 1; the rule before (VIEW_GAINS off) left those frames JUMP_EV off."""
+    import capture.plate_exposure as pe
+
+    monkeypatch.setattr(pe, "VIEW_GAINS", view_gains)
+    on = np.zeros(12, bool)
+    on[frames] = True
+    gains = np.where(on, 2.0 ** JUMP_EV, 1.0)[:, None] * np.ones((1, 3))
+    views, *_ = ps.turntable_capture(gains=gains, seed=0)
+    _, rec = background_plates(_eight_bit(views), PlateConfig())
+    ex = rec["exposure"]
+    assert ex["wins"] < ex["needed"] or 1 - ex["error_fitted"] / ex["error_none"] < 0.1, ex  # the sign test refuses
+    if not view_gains:
+        assert ex["chosen"] == "none" and np.all(np.asarray(rec["gains_ev"]) == 0.0), ex
+        return
+    assert ex["chosen"] == "plate" and sorted(ex["taken"]) == list(np.flatnonzero(on)), ex
+    got = np.asarray(ex["gains"])
+    assert np.all(got[~on] == 1.0)
+    assert np.all(_rms_ev(got, gains) <= GAIN_TOL_EV), _rms_ev(got, gains)
+    assert np.allclose(np.asarray(rec["gains_ev"]), np.log2(got), atol=1e-3)  # the plates are drawn with them
+
+
+def test_no_view_is_taken_alone_without_a_gain_that_explains_it():
+    """explained_views: a view that stands out but whose gain cuts its error by less than VIEW_GAIN_MIN_CUT, or
+    whose error is cut but never stood out, is not taken; one that does both is."""
+    from capture.plate_exposure import VIEW_GAIN_MIN_CUT, VIEW_GAIN_OUTLIER, explained_views
+
+    none = np.full(12, 0.002)
+    fit = none.copy()
+    none[3] = none[7] = none[9] = 0.002 * VIEW_GAIN_OUTLIER * 1.5
+    fit[3] = none[3] * (1 - VIEW_GAIN_MIN_CUT) * 0.9  # explained
+    fit[7] = none[7] * (1 - VIEW_GAIN_MIN_CUT) * 1.1  # not cut enough
+    fit[9] = none[9] * 1.2                            # made worse
+    fit[5] = none[5] * 0.1                            # cut, but it never stood out
+    assert list(explained_views(fit, none)) == [3]

@@ -96,3 +96,24 @@ def test_refused_gains_are_not_drawn_into_the_plates(monkeypatch, at_one):
         return float(np.median(e))
 
     assert rmse(plates) <= rmse(before) * 1.001, (rmse(plates), rmse(before))
+
+
+@pytest.mark.parametrize("view_gains", [True, False])
+def test_one_view_brighter_is_taken_alone(monkeypatch, view_gains):
+    """One view of the orbit 0.5 EV brighter than the other eleven: the sign test refuses the gains (5 wins of 10
+    needed: the other views need none).  With VIEW_GAINS the views whose gains explain their held-back error are
+    taken (the bright view and the two neighbours its light spoiled, whose own gains stay within GAIN_RMS_EV of
+    1), and the bright view's gain is the truth within GAIN_TOL_EV; the rule before left it at gain 1."""
+    monkeypatch.setattr(pe, "VIEW_GAINS", view_gains)
+    gains = np.ones((12, 3))
+    gains[5] = 2.0 ** 0.5
+    views, plane = _orbit(gains)
+    _, rec = background_plates(views, PlateConfig(), plane)
+    ex, ev = rec["exposure"], np.asarray(rec["gains_ev"])
+    assert ex["wins"] < ex["needed"], ex
+    if not view_gains:
+        assert ex["chosen"] == "none" and np.all(ev == 0.0), ex
+        return
+    assert ex["chosen"] == "plate" and 5 in ex["taken"] and len(ex["taken"]) <= 3, ex
+    assert np.abs(ev[5] - 0.5).max() <= GAIN_TOL_EV, ev[5]
+    assert np.abs(np.delete(ev, 5, axis=0)).max() <= GAIN_RMS_EV, ev

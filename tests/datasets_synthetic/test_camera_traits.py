@@ -5,12 +5,14 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from capture.io import read_scanset
 from datasets_synthetic.camera_traits import (
     FISHEYE_LENS,
     OPENCV_LENS,
     exposure_gains,
+    exposure_jump_gains,
     exposure_record,
     margin_camera,
 )
@@ -29,6 +31,18 @@ def test_exposure_jitters_kept_views_only():
     rec = json.loads(exposure_record([f"v{i}" for i in range(36)], g, 0.35, 0.06, 2))
     assert rec["views"][0]["jittered"] and not rec["views"][1]["jittered"]
     assert np.allclose(np.exp2(rec["views"][0]["ev"]) * np.array(rec["views"][0]["wb"]), g[0])
+
+
+def test_exposure_jumps_in_a_few_kept_views_only():
+    """The hard case conifer_room_turntable_jump_ae: the exposure jumps in ``count`` kept views, the rest at 1."""
+    g = exposure_jump_gains(36, 0.5, 3, seed=0, holdout=2)
+    jumped = np.flatnonzero(np.any(g != 1.0, axis=1))
+    assert len(jumped) == 3 and np.all(jumped % 2 == 0)
+    assert np.allclose(np.log2(g[jumped]), 0.5)
+    assert np.array_equal(g, exposure_jump_gains(36, 0.5, 3, seed=0, holdout=2))
+    assert not np.array_equal(g, exposure_jump_gains(36, 0.5, 3, seed=1, holdout=2))
+    with pytest.raises(ValueError, match="count"):
+        exposure_jump_gains(36, 0.5, 19, seed=0, holdout=2)
 
 
 def test_margin_camera_covers_the_distorted_field():
