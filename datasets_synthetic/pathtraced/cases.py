@@ -23,7 +23,8 @@ fur_similar_bg                 the fur ball before the courtyard's brown brick f
 furball_uniform_ae             the turntable fur ball's images with auto exposure on the kept views, true
                                poses; ``furball_uniform_fixed``: the same images at fixed exposure
 conifer_room_turntable_jump_ae conifer_room_turntable's renders, the exposure 0.5 EV brighter in 3 of the kept
-                               views only (twin: conifer_black_turntable)
+                               views only (twin: conifer_black_turntable); ``conifer_room_orbit_jump_ae`` the
+                               orbit's (twin: conifer_black_orbit)
 conifer_room_orbit_ae          conifer_room_orbit's renders with auto exposure 0.35 EV / 0.06 on the kept views
                                (the moving camera's exposure, which the panorama's exposure check must find);
                                its black twin is ``conifer_black_orbit``
@@ -321,15 +322,15 @@ def conifer_orbit_ae(opts: Options, log=print) -> list[dict]:
 EXPOSURE_JUMP = (0.5, 3)
 
 
-def conifer_turntable_jump(opts: Options, log=print) -> list[dict]:
-    """Case i: the turntable conifer's renders (conifer_room_turntable's, from the cache when made) with the
-    exposure 0.5 EV brighter in 3 of the 18 kept views and fixed in the others (black twin:
-    conifer_black_turntable): an auto exposure that reacts in a few frames only."""
-    spec = case_spec("conifer_room_turntable", opts)
+def conifer_jump(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
+    """Case i: the turntable (or orbit) conifer's renders (conifer_room_{motion}'s, from the cache when made) with
+    the exposure 0.5 EV brighter in 3 of the 18 kept views and fixed in the others (black twin:
+    conifer_black_{motion}): an auto exposure that reacts in a few frames only."""
+    spec = case_spec(f"conifer_room_{motion}", opts)
     ev, count = EXPOSURE_JUMP
-    return [_write("conifer_room_turntable_jump_ae", f"conifer_room_turntable's renders, the exposure {ev:+g} EV in "
+    return [_write(f"conifer_room_{motion}_jump_ae", f"conifer_room_{motion}'s renders, the exposure {ev:+g} EV in "
                    f"{count} of the kept views and fixed in the others (gt/exposure.json); black twin: "
-                   "conifer_black_turntable", spec, Layout(ROOM_FRAMES, exposure_jump=EXPOSURE_JUMP),
+                   f"conifer_black_{motion}", spec, Layout(ROOM_FRAMES, exposure_jump=EXPOSURE_JUMP),
                    _render(spec, opts, log), opts, log=log)]
 
 
@@ -345,5 +346,6 @@ CASES = {
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,
     "conifer_room_orbit_ae": conifer_orbit_ae,
-    "conifer_room_turntable_jump_ae": conifer_turntable_jump,
+    "conifer_room_turntable_jump_ae": conifer_jump,
+    "conifer_room_orbit_jump_ae": lambda o, log=print: conifer_jump(o, log, "orbit"),
 }
