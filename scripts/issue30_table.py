@@ -7,7 +7,7 @@ was not made on"): a step chosen on three captures lost on a fourth.
     PYTHONPATH=. .venv/bin/python scripts/issue30_table.py /work/cache/hardcases /work/cache/hardcases_unseen/* \\
         -o /tmp/issue30 [--extra ARG ...]
 
-Each ROOT is searched for folders named ``*_room_*`` / ``fur_similar_bg`` (the room captures) and their twin
+Each ROOT is searched for folders named ``*_room_*`` / ``fur_similar_bg*`` (the room captures) and their twin
 (``room`` -> ``black``; ``fur_similar_bg`` -> ``fur_black_similar``).  ``--extra`` passes arguments on to every
 `furrow eval` (``--extra=--matte-across --extra=off``).  ``--switches`` runs every eval through
 scripts/cells_switches.py with its ``ABL`` (``--switches RECROSS=1,CELL_LINE_ALPHA=0.4``: a step's module
@@ -32,7 +32,8 @@ GAP_TARGET_AE = 2.0
 
 def twin(room: Path) -> Path | None:
     """The black twin of a room capture folder, or None."""
-    name = "fur_black_similar" if room.name == "fur_similar_bg" else room.name.replace("_room_", "_black_")
+    fur = room.name in ("fur_similar_bg", "fur_similar_bg_jump_ae")
+    name = "fur_black_similar" if fur else room.name.replace("_room_", "_black_")
     if "_table_ae_lens" in name:   # the AE + lens capture is measured against the turntable's twin
         name = name.replace("_table_ae_lens", "_turntable")
     if name.endswith("_ae"):   # the auto-exposure orbit against the orbit's twin
@@ -83,7 +84,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     rooms = sorted(c for r in a.roots for c in r.iterdir()
-                   if c.is_dir() and ("_room_" in c.name or c.name == "fur_similar_bg"))
+                   if c.is_dir() and ("_room_" in c.name or c.name.startswith("fur_similar_bg")))
     if not rooms:
         raise SystemExit(f"no room captures under {', '.join(map(str, a.roots))}")
     print("| capture | gather PSNR / SSIM / sharpness | points | black twin | gap | target |")

@@ -24,7 +24,8 @@ furball_uniform_ae             the turntable fur ball's images with auto exposur
                                poses; ``furball_uniform_fixed``: the same images at fixed exposure
 conifer_room_turntable_jump_ae conifer_room_turntable's renders, the exposure 0.5 EV brighter in 3 of the kept
                                views only (twin: conifer_black_turntable); ``conifer_room_orbit_jump_ae`` the
-                               orbit's (twin: conifer_black_orbit)
+                               orbit's (twin: conifer_black_orbit), ``fur_similar_bg_jump_ae`` the brown fur's
+                               (twin: fur_black_similar)
 conifer_room_orbit_ae          conifer_room_orbit's renders with auto exposure 0.35 EV / 0.06 on the kept views
                                (the moving camera's exposure, which the panorama's exposure check must find);
                                its black twin is ``conifer_black_orbit``
@@ -334,6 +335,16 @@ def conifer_jump(opts: Options, log=print, motion: str = "turntable") -> list[di
                    _render(spec, opts, log), opts, log=log)]
 
 
+def fur_similar_jump(opts: Options, log=print) -> list[dict]:
+    """Case i for fur: fur_similar_bg's renders with the exposure jump of EXPOSURE_JUMP (black twin:
+    fur_black_similar)."""
+    spec = case_spec("fur_similar_bg", opts)
+    ev, count = EXPOSURE_JUMP
+    return [_write("fur_similar_bg_jump_ae", f"fur_similar_bg's renders, the exposure {ev:+g} EV in {count} of the "
+                   "kept views and fixed in the others (gt/exposure.json); black twin: fur_black_similar", spec,
+                   Layout(ROOM_FRAMES, exposure_jump=EXPOSURE_JUMP), _render(spec, opts, log), opts, log=log)]
+
+
 #: Case name -> builder(options, log) -> INDEX entries, in priority order.
 CASES = {
     "conifer_room_turntable": conifer_room,
@@ -348,4 +359,5 @@ CASES = {
     "conifer_room_orbit_ae": conifer_orbit_ae,
     "conifer_room_turntable_jump_ae": conifer_jump,
     "conifer_room_orbit_jump_ae": lambda o, log=print: conifer_jump(o, log, "orbit"),
+    "fur_similar_bg_jump_ae": fur_similar_jump,
 }
