@@ -57,6 +57,14 @@ OBJECT_STRIDE = 7
 #: fur before similar bricks 0.161.  Missed: the same phone capture with ``--plate panorama`` (the table
 #: seen from the other views) 0.183, held out no gain either (+0.001 dB): it still runs there.
 MIN_CROSSING = 0.05
+#: The colour across the views gives no pixel its cube's colour where fewer than MIN_AGREEING of the partial
+#: pixels' lines agree with the matte's alpha (capture.matting_contrast.agreeing_lines, the record's
+#: ``global.agreeing.share``): the lines do not point at one colour, the step's premise (AGREEING_GATE; False:
+#: the rule before).  Measured (docs/speed.md round 20): 0.40 and 0.58 on the two phone captures, where the
+#: step gains nothing held out (-0.009 dB in a room), 0.84-0.995 on every path-traced capture, where it gains
+#: 0.2-0.4 dB on the conifers.  The threshold was set before the two captures made to check it were measured.
+MIN_AGREEING = 0.7
+AGREEING_GATE = True
 #: :func:`band_crossing` reads the arrays at the band's pixels by one flat index (round 14: a boolean
 #: index per array found the band's pixels four times, 8 ms of a 1280x960 view); False: the boolean
 #: indexing, the reference (the same pixels in the same order, so the same share).
@@ -149,10 +157,23 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     gsum.groups = K  # summed by bincount over ``inv``: group_fit's compiled pass (capture.matting_lines.GN_COMPILED)
     fill = _cat(fits, "fill")
     F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv, view, len(fits))
+    why = disagreeing(rec["global"])
+    if why:
+        return None, {**rec, "reason": why}
     ok = np.isfinite(sig2[inv])
     if ok.any():
         rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
     return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj, "brightness": k}, rec
+
+
+def disagreeing(global_record: dict) -> str | None:
+    """Why no pixel takes its cube's colour (AGREEING_GATE: the lines' agreement share under MIN_AGREEING),
+    or None; ``global_record``: capture.matting_global.cross_cells' record."""
+    share = ((global_record or {}).get("agreeing") or {}).get("share")
+    if not AGREEING_GATE or share is None or share >= MIN_AGREEING:
+        return None
+    return (f"only {share:.2f} of the lines agree with the matte's alpha (under {MIN_AGREEING}, "
+            "capture.matting_cells.MIN_AGREEING): they do not point at one colour")
 
 
 def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain=None, gated: bool = True,

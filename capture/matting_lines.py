@@ -389,6 +389,11 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     view = np.concatenate([np.full(len(s["a"]), v) for v, s in enumerate(samples) if s is not None])
     F, sig2, F_obj, kv, rec["global"] = cross_cells(cat["C"], cat["B"], w, cat["a"], cat["F0"], fill, gsum, inv,
                                                     view, len(samples))
+    from capture.matting_cells import disagreeing
+
+    why = disagreeing(rec["global"])
+    if why:
+        return [None] * len(samples), {**rec, "reason": why}
     F, sig2 = F[inv], sig2[inv]
     ok = np.isfinite(sig2)
     rec["global_coloured"] = rec["filled_coloured"] = 0

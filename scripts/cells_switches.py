@@ -4,8 +4,8 @@ on captures it was not made on"): GLOBAL, SHRINK, VIEW_BRIGHTNESS, FILLED_CUBES 
 CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast), the eleventh round's RECROSS
 (capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer),
 the twelfth round's BRIGHTNESS_LEVEL (capture.matting_global, 0 / 1), and the exposure check's VIEW_GAINS
-(capture.plate_exposure, 0 / 1).  Use ``--view-workers 1``: the view
-pool's processes import the modules afresh and would not see the switches.
+(capture.plate_exposure, 0 / 1) and the colour across views' AGREEING_GATE (capture.matting_cells, 0 / 1).
+Use ``--view-workers 1``: the view pool's processes import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \
         eval CAP --holdout 2 --methods gather --view-workers 1 --json X.json -o X
@@ -14,6 +14,7 @@ import os
 import sys
 
 if __name__ == "__main__":
+    import capture.matting_cells as mcl
     import capture.matting_contrast as mk
     import capture.matting_global as mg
     import capture.matting_lines as ml
@@ -30,7 +31,7 @@ if __name__ == "__main__":
         elif k == "RECROSS_PASSES":
             mr.RECROSS_PASSES = int(v)
         else:
-            mod = next((m for m in (mk, mr, pe) if hasattr(m, k)), mg)
+            mod = next((m for m in (mk, mr, pe, mcl) if hasattr(m, k)), mg)
             if not hasattr(mod, k):
                 raise SystemExit(f"ABL: no switch {k}")
             setattr(mod, k, bool(int(v)))

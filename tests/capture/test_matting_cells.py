@@ -8,6 +8,7 @@ each view's samples recomputed from its photo, plate and matte) against the refe
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from capture import matting_cells as mc
 from capture import matting_contrast as mk
@@ -132,3 +133,36 @@ def test_the_stages_two_passes_give_the_reference_stages_scans(monkeypatch):
     for r, g in zip(ref, got, strict=True):
         assert np.array_equal(r.rgb, g.rgb) and np.array_equal(r.alpha, g.alpha)
     assert got[2] is matted[2] and not np.array_equal(got[0].rgb, matted[0].rgb)
+
+
+@pytest.mark.parametrize("gate", [True, False])
+def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gate):
+    """AGREEING_GATE: where fewer than MIN_AGREEING of the lines agree with the matte's alpha, the stage and its
+    reference colour nothing and say why; with the bar at the scene's own share plus a little, both skip; at the
+    share minus a little, both colour as before.  Gate off: the bar does not matter."""
+    monkeypatch.setattr(mk, "POOL_ALPHA_ERROR", False)
+    monkeypatch.setattr(mc, "AGREEING_GATE", gate)
+    photos, plates, matted = _scene()
+    sa, gains = [0.1, 0.08, None], None
+
+    def samples(k, s):
+        p = plates[k]
+        return ml.line_samples(s.camera, photos[k].linear_rgb, p.background, p.known, s.alpha, s.rgb, s.depth,
+                               p.estimated, p.sigma)
+
+    whole = [samples(k, s) for k, s in enumerate(matted)]
+    fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+    _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    share = rec["global"]["agreeing"]["share"]
+    assert 0 < share <= 1 and rec["coloured"] > 0
+    monkeypatch.setattr(mc, "MIN_AGREEING", share + 0.01)
+    got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    _, rrec = cell_colour_stage(tuple(matted), whole, sa, gains, lambda s: s)
+    if gate:
+        assert rec["coloured"] == rrec["coloured"] == 0 and "agree" in rec["reason"] and "agree" in rrec["reason"]
+        assert all(g is m for g, m in zip(got, matted, strict=True))
+    else:
+        assert rec["coloured"] > 0 and rrec["coloured"] > 0
+    monkeypatch.setattr(mc, "MIN_AGREEING", share - 0.01)
+    _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    assert rec["coloured"] > 0
