@@ -85,12 +85,11 @@ def plate_exposure(ps, mode: str, start, fit, samples=None):
 
 def some_gains(gains: np.ndarray, taken) -> np.ndarray:
     """``gains`` (V, 3) of the views ``taken`` against the median of the others' (which become 1)."""
-    gains = np.asarray(gains, np.float64)
-    out = np.ones_like(gains)
+    gains, taken = np.asarray(gains, np.float64), np.asarray(taken, np.int64)
     rest = np.ones(len(gains), bool)
-    rest[list(taken)] = False
-    ref = np.median(gains[rest], axis=0) if rest.any() else np.ones(gains.shape[1])
-    out[list(taken)] = gains[list(taken)] / ref
+    rest[taken] = False
+    out = np.ones_like(gains)
+    out[taken] = gains[taken] / (np.median(gains[rest], axis=0) if rest.any() else 1.0)
     return out
 
 

@@ -83,27 +83,29 @@ def recorded_cameras(cams: list[Camera], obj: PathObject, seed: int, pose_noise)
             for i, c in enumerate(cams)]
 
 
+def _camera_gains(n: int, cams: list[Camera], seed: int, layout: Layout) -> tuple[np.ndarray, dict]:
+    """((n, 3) the camera's gain per view, {gt/exposure.json: its record} or {}): the layout's auto exposure or its
+    exposure jump (datasets_synthetic.camera_traits), else 1 everywhere."""
+    from datasets_synthetic.camera_traits import EXPOSURE_FILE, exposure_gains, exposure_jump_gains, exposure_record
+
+    if layout.auto_exposure is not None:
+        sig, wb = layout.auto_exposure
+        gains = exposure_gains(n, sig, wb, seed, layout.exposure_holdout)
+    elif layout.exposure_jump is not None:
+        sig, wb = 0.0, 0.0
+        gains = exposure_jump_gains(n, *layout.exposure_jump, seed, layout.exposure_holdout)
+    else:
+        return np.ones((n, 3)), {}
+    names = [f"{c.name}.png" for c in cams]
+    return gains, {EXPOSURE_FILE: exposure_record(names, gains, sig, wb, layout.exposure_holdout)}
+
+
 def build_scanset(renders: list[ViewRender], cams: list[Camera], obj: PathObject, spec: RenderSpec,
                   layout: Layout, exposure: float, meta: dict) -> tuple[ScanSet, dict]:
     """(scan set, extra gt files) of the renders under ``layout`` (module docstring)."""
     n = len(renders)
     shown = layout.room_views(n)
-    gains = np.ones((n, 3))
-    extra = {}
-    if layout.auto_exposure is not None:
-        from datasets_synthetic.camera_traits import EXPOSURE_FILE, exposure_gains, exposure_record
-
-        sig, wb = layout.auto_exposure
-        gains = exposure_gains(n, sig, wb, spec.seed, layout.exposure_holdout)
-        extra[EXPOSURE_FILE] = exposure_record([f"{c.name}.png" for c in cams], gains, sig, wb,
-                                               layout.exposure_holdout)
-    elif layout.exposure_jump is not None:
-        from datasets_synthetic.camera_traits import EXPOSURE_FILE, exposure_jump_gains, exposure_record
-
-        jump, count = layout.exposure_jump
-        gains = exposure_jump_gains(n, jump, count, spec.seed, layout.exposure_holdout)
-        extra[EXPOSURE_FILE] = exposure_record([f"{c.name}.png" for c in cams], gains, 0.0, 0.0,
-                                               layout.exposure_holdout)
+    gains, extra = _camera_gains(n, cams, spec.seed, layout)
     rec = recorded_cameras(cams, obj, spec.seed, layout.pose_noise)
     scans = []
     for i, (v, cam) in enumerate(zip(renders, rec, strict=True)):
