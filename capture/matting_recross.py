@@ -64,7 +64,7 @@ def mean_one(K: np.ndarray) -> np.ndarray:
 
 def _summary(rec: dict) -> dict:
     """The parts of a pass's record that say what it found: its object colour, brightness and tint."""
-    return {key: rec[key] for key in ("colour", "brightness", "chroma", "reason") if key in rec}
+    return {key: rec[key] for key in ("colour", "mean", "brightness", "chroma", "reason") if key in rec}
 
 
 def recross(cross_once, first: tuple, C, B, w, alpha, colour, fill, gsum, group, view, n_views: int) -> tuple:

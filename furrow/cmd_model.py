@@ -209,3 +209,15 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "
                       f"{m['seconds_per_view_max']:.2f}), unknown {m['unknown_fraction_mean']:.2%}, partial alpha "
                       f"{m['partial_fraction_mean']:.2%} of the pixels", highlight=False)
+    g = (m.get("cells") or {}).get("global") or {}
+    for rec_pass in (g.get("recross", {}).get("first") or {}, g):
+        mean = rec_pass.get("mean") or {}
+        if mean.get("taken"):  # capture.matting_global.MEAN_CHECK: the crossing too far from the matte's mean colour
+            console.print(f"[yellow]colour across views: the lines' crossing {_rgb(rec_pass.get('colour'))} lay "
+                          f"{mean['gap']:.2f} (relative) from the matte's own mean colour {_rgb(mean['colour'])}: "
+                          "the mean taken for the object's colour[/yellow]", highlight=False)
+            break
+
+
+def _rgb(c) -> str:
+    return "?" if not c else "(" + ", ".join(f"{x:.3f}" for x in c) + ")"
