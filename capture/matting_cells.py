@@ -65,6 +65,10 @@ MIN_CROSSING = 0.05
 #: 0.2-0.4 dB on the conifers.  The threshold was set before the two captures made to check it were measured.
 MIN_AGREEING = 0.7
 AGREEING_GATE = True
+#: The gate reads the lines' agreement before any crossing (:func:`agreeing_before`: the first pass's share, the
+#: same lines, weights and colours), so that a capture it skips does not cross its cubes at all (issue 32 round
+#: 21: 1.5 s of the 72-view phone capture).  False: the rule before, the share of the last pass's record.
+AGREEING_BEFORE = True
 #: :func:`band_crossing` reads the arrays at the band's pixels by one flat index (round 14: a boolean
 #: index per array found the band's pixels four times, 8 ms of a 1280x960 view); False: the boolean
 #: indexing, the reference (the same pixels in the same order, so the same share).
@@ -156,14 +160,32 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
 
     gsum.groups = K  # summed by bincount over ``inv``: group_fit's compiled pass (capture.matting_lines.GN_COMPILED)
     fill = _cat(fits, "fill")
-    F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, _cat(fits, "a"), F0, fill, gsum, inv, view, len(fits))
-    why = disagreeing(rec["global"])
+    F0a = _cat(fits, "a")
+    why, before = agreeing_before(C, B, w, F0a, F0)
+    if why:
+        return None, {**rec, "global": before, "reason": why}
+    F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, F0a, F0, fill, gsum, inv, view, len(fits))
+    why = None if AGREEING_BEFORE else disagreeing(rec["global"])
+    rec["global"].update({"gate": before["agreeing"]} if before else {})
     if why:
         return None, {**rec, "reason": why}
     ok = np.isfinite(sig2[inv])
     if ok.any():
         rec["sigma_median"] = round(float(np.sqrt(np.median(sig2[inv][ok]))), 5)
     return {"grid": grid, "keys": uniq, "F": F, "sig2": sig2, "global": F_obj, "brightness": k}, rec
+
+
+def agreeing_before(C, B, w, alpha, colour) -> tuple[str | None, dict]:
+    """(why no pixel takes its cube's colour, or None; the record ``{"agreeing": ...}``) from the lines'
+    agreement with the matte's alpha before any crossing (AGREEING_BEFORE; capture.matting_contrast.agreeing_lines
+    on the first pass's arguments: ``C``, ``B`` (N, 3), weights ``w``, ``alpha`` (N,), ``colour`` (N, 3)).
+    (None, {}) when off: the gate then reads the last pass's record (:func:`disagreeing`)."""
+    if not AGREEING_BEFORE:
+        return None, {}
+    from capture.matting_contrast import agreeing_lines
+
+    rec = {"agreeing": agreeing_lines(C, B, w, alpha, colour)[1]}
+    return disagreeing(rec), rec
 
 
 def disagreeing(global_record: dict) -> str | None:

@@ -153,7 +153,7 @@ def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gat
     whole = [samples(k, s) for k, s in enumerate(matted)]
     fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
     _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
-    share = rec["global"]["agreeing"]["share"]
+    share = rec["global"]["gate" if mc.AGREEING_BEFORE else "agreeing"]["share"]
     assert 0 < share <= 1 and rec["coloured"] > 0
     monkeypatch.setattr(mc, "MIN_AGREEING", share + 0.01)
     got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
@@ -166,3 +166,34 @@ def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gat
     monkeypatch.setattr(mc, "MIN_AGREEING", share - 0.01)
     _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
     assert rec["coloured"] > 0
+
+
+def test_a_capture_the_gate_skips_crosses_no_cube(monkeypatch):
+    """AGREEING_BEFORE: the gate reads the first pass's share before any crossing, so a capture it skips never
+    crosses its cubes (the phone captures' 1.5 s), in the stage and its reference; the share is the one the first
+    pass finds (capture.matting_contrast.agreeing_lines on the same arguments)."""
+    monkeypatch.setattr(mk, "POOL_ALPHA_ERROR", False)
+    photos, plates, matted = _scene()
+    sa = [0.1, 0.08, None]
+
+    def samples(k, s):
+        p = plates[k]
+        return ml.line_samples(s.camera, photos[k].linear_rgb, p.background, p.known, s.alpha, s.rgb, s.depth,
+                               p.estimated, p.sigma)
+
+    whole = [samples(k, s) for k, s in enumerate(matted)]
+    fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+    _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, None, serial_map)
+    share = rec["global"]["gate"]["share"]
+    monkeypatch.setattr(mc, "MIN_AGREEING", share + 0.01)
+
+    def no_crossing(*args, **kwargs):
+        raise AssertionError("crossed the cubes of a capture the gate skips")
+
+    monkeypatch.setattr(mc, "cross_cells", no_crossing)
+    import capture.matting_global as mg
+    monkeypatch.setattr(mg, "cross_cells", no_crossing)
+    got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, None, serial_map)
+    _, rrec = cell_colour_stage(tuple(matted), whole, sa, None, lambda s: s)
+    assert rec["coloured"] == rrec["coloured"] == 0 and rec["global"]["agreeing"]["share"] == share
+    assert all(g is m for g, m in zip(got, matted, strict=True))
