@@ -108,7 +108,8 @@ def filled(C: np.ndarray, B: np.ndarray, alpha: np.ndarray, colour: np.ndarray) 
     return ~np.all(np.abs(Fu - np.asarray(colour, np.float64)) <= FILLED_TOL, axis=-1)
 
 
-def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill) -> tuple[np.ndarray | None, dict]:
+def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill,
+                  mean: bool = False) -> tuple[np.ndarray | None, dict]:
     """The object's colour (module docstring) from N samples in the common exposure: ``C``, ``B`` (N, 3),
     line weights ``w`` (N,, capture.matting_lines.line_weights), the matte's ``alpha`` (N,) and
     ``colour`` (N, 3), each sample's cube colour ``cell_colour`` (N, 3) and whether its cube's lines
@@ -126,7 +127,7 @@ def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill) -> tuple[n
     ref = np.asarray(crossed, bool) & np.asarray(fill, bool)
     if int(ref.sum()) < MIN_LINES:
         return None, {**rec, "reason": "too few filled pixels in a crossed cube to check it against"}
-    F_obj, rec["mean"] = mean_checked(F[0], C, B, np.asarray(w0) > 0, alpha)
+    F_obj, rec["mean"] = mean_checked(F[0], C, B, np.asarray(w0) > 0, alpha, mean)
     e_fill = float(((np.asarray(colour, np.float64)[ref] - cell_colour[ref]) ** 2).sum(-1).mean())
     e_obj = float(((F_obj - cell_colour[ref]) ** 2).sum(-1).mean())
     rec.update(colour=[round(float(x), 5) for x in F[0]], sigma=round(float(np.sqrt(sig2[0])), 5),
@@ -147,7 +148,7 @@ def mean_colour(C, B, alpha) -> np.ndarray | None:
     return (np.asarray(C, np.float64) - (1.0 - a[:, None]) * np.asarray(B, np.float64)).sum(0) / a.sum()
 
 
-def mean_checked(F_obj: np.ndarray, C, B, lines: np.ndarray, alpha) -> tuple[np.ndarray, dict]:
+def mean_checked(F_obj: np.ndarray, C, B, lines: np.ndarray, alpha, force: bool = False) -> tuple[np.ndarray, dict]:
     """The object's colour after the check against the matte's mean colour over the ``lines`` (N,) bool
     (:func:`mean_colour`): ``F_obj`` where the two lie at most MAX_MEAN_GAP apart (relative to the mean), else the
     mean (a crossing that far from it has crossed where the lines are nearly parallel: the backgrounds behind the
@@ -158,8 +159,11 @@ def mean_checked(F_obj: np.ndarray, C, B, lines: np.ndarray, alpha) -> tuple[np.
     if Fm is None or not np.linalg.norm(Fm) > 0:
         return F_obj, {"reason": "no alpha on the lines"}
     gap = float(np.linalg.norm(F_obj - Fm) / np.linalg.norm(Fm))
-    rec = {"colour": [round(float(x), 5) for x in Fm], "gap": round(gap, 4), "taken": gap > MAX_MEAN_GAP}
-    return (np.clip(Fm, 0.0, 1.0) if gap > MAX_MEAN_GAP else F_obj), rec
+    take = gap > MAX_MEAN_GAP or bool(force)
+    rec = {"colour": [round(float(x), 5) for x in Fm], "gap": round(gap, 4), "taken": take}
+    if force:
+        rec["forced"] = True
+    return (np.clip(Fm, 0.0, 1.0) if take else F_obj), rec
 
 
 def shrink(F: np.ndarray, sig2: np.ndarray, terms: dict, F_obj) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -246,12 +250,13 @@ def cross_cells(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
     return recross(cross_once, cross_once(*args), *args)
 
 
-def cross_once(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int):
-    """One crossing of :func:`cross_cells` (its arguments and result)."""
+def cross_once(C, B, w, alpha, colour, fill, gsum, group, view, n_views: int, mean: bool = False):
+    """One crossing of :func:`cross_cells` (its arguments and result); ``mean``: the object's colour is the
+    matte's mean colour whatever the gap (:func:`mean_checked`: a later pass of a crossing the check refused)."""
     terms: dict = {}
     F, sig2 = group_fit(C, B, w, alpha, gsum, group, terms)
     crossed = np.isfinite(sig2[group])
-    F_obj, rec = object_colour(C, B, w, alpha, colour, F[group], crossed, fill)
+    F_obj, rec = object_colour(C, B, w, alpha, colour, F[group], crossed, fill, mean)
     F, sig2, rec["shrink"] = shrink(F, sig2, terms, F_obj)
     crossed = np.isfinite(sig2[group])
     if F_obj is None:

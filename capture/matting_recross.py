@@ -62,6 +62,11 @@ def mean_one(K: np.ndarray) -> np.ndarray:
     return K / np.exp(np.log(np.maximum(K, 1e-12)).mean(0))
 
 
+#: Where the first pass's crossing gave way to the matte's mean colour (capture.matting_global.mean_checked), the
+#: later passes take their own mean too: they cross the same lines.
+STICKY_MEAN = True
+
+
 def _summary(rec: dict) -> dict:
     """The parts of a pass's record that say what it found: its object colour, brightness and tint."""
     return {key: rec[key] for key in ("colour", "mean", "brightness", "chroma", "reason") if key in rec}
@@ -82,10 +87,11 @@ def recross(cross_once, first: tuple, C, B, w, alpha, colour, fill, gsum, group,
         return F, sig2, F_obj, k, {**rec, "recross": {"reason": "no view's brightness or tint found"}}
     K = mean_one(K)
     vi, last, fail = np.asarray(view, np.int64), None, None
+    sticky = {"mean": True} if STICKY_MEAN and (rec.get("mean") or {}).get("taken") else {}
     for _ in range(RECROSS_PASSES):  # each pass in the factors found so far
         t = K[vi]
         C2, B2, colour2 = (np.asarray(x, np.float64) / t for x in (C, B, colour))
-        F2, s2, Fo2, k2, rec2 = cross_once(C2, B2, w, alpha, colour2, fill, gsum, group, view, n_views)
+        F2, s2, Fo2, k2, rec2 = cross_once(C2, B2, w, alpha, colour2, fill, gsum, group, view, n_views, **sticky)
         if Fo2 is None:
             fail = rec2
             break

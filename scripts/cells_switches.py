@@ -5,7 +5,7 @@ CHROMA_RELATIVE (0 / 1) and AGREE_TOL (capture.matting_contrast), the eleventh r
 (capture.matting_recross, 0 / 1) and RECROSS_PASSES (an integer),
 the twelfth round's BRIGHTNESS_LEVEL (capture.matting_global, 0 / 1), and the exposure check's VIEW_GAINS
 (capture.plate_exposure, 0 / 1), the colour across views' AGREEING_GATE (capture.matting_cells, 0 / 1) and the
-object colour's MEAN_CHECK (capture.matting_global, 0 / 1).
+object colour's MEAN_CHECK (capture.matting_global, 0 / 1) and STICKY_MEAN (capture.matting_recross, 0 / 1).
 Use ``--view-workers 1``: the view pool's processes import the modules afresh and would not see the switches.
 
     ABL="GLOBAL=0,CELL_LINE_ALPHA=0.1" PYTHONPATH=. .venv/bin/python scripts/cells_switches.py \

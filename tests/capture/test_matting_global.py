@@ -281,3 +281,14 @@ def test_a_crossing_near_the_mattes_mean_colour_is_kept(monkeypatch):
         F_off, _ = _object(C, B, a)
         monkeypatch.setattr(mg, "MEAN_CHECK", True)
         assert not rec["mean"]["taken"] and np.array_equal(F_on, F_off) and _rel(F_on, truth) <= 0.05
+
+
+def test_a_forced_mean_is_taken_whatever_the_gap():
+    """mean_checked(force=True), the later passes of a crossing the check refused (capture.matting_recross.STICKY_MEAN):
+    the mean even where the crossing lies near it, and the record says it was forced."""
+    C, B, a, truth = _one_hue(0, 0.2, 0.2)
+    Fm = mg.mean_colour(C, B, a)
+    F, rec = mg.mean_checked(Fm * 1.1, C, B, np.ones(len(a), bool), a, force=True)
+    assert np.allclose(F, Fm) and rec["taken"] and rec["forced"] and rec["gap"] < mg.MAX_MEAN_GAP
+    F, rec = mg.mean_checked(Fm * 1.1, C, B, np.ones(len(a), bool), a)
+    assert np.array_equal(F, Fm * 1.1) and not rec["taken"] and "forced" not in rec

@@ -144,3 +144,29 @@ def test_a_factor_shared_by_every_view_does_not_move_the_re_crossed_colours(monk
             assert np.allclose(g[3], got[1][3], rtol=0, atol=1e-9) and np.allclose(g[0], got[1][0], rtol=0, atol=1e-9)
             assert np.allclose(g[2], got[1][2], rtol=0, atol=1e-9)
 
+
+
+def test_a_first_pass_that_took_the_mattes_mean_makes_the_later_passes_take_theirs(monkeypatch):
+    """STICKY_MEAN: where the first pass's crossing gave way to the matte's mean colour, the later passes cross the
+    same lines and take their own mean too (capture.matting_global.mean_checked's ``force``); where it did not, they
+    are not told to."""
+    monkeypatch.setattr(mr, "RECROSS", True)
+    z = np.zeros((4, 3))
+    seen = []
+
+    def cross_once(*args, **kwargs):
+        seen.append(kwargs)
+        return np.ones((2, 3)), np.ones(2), np.full(3, 0.05), np.ones(2), {"colour": [0.05] * 3}
+
+    for taken in (True, False):
+        seen.clear()
+        first = (np.zeros((2, 3)), np.ones(2), np.full(3, 0.05), np.array([0.8, 1.2]),
+                 {"colour": [0.05] * 3, "mean": {"taken": taken}})
+        mr.recross(cross_once, first, z, z, np.ones(4), np.ones(4), z, np.zeros(4, bool), None,
+                   np.zeros(4, np.int64), np.array([0, 0, 1, 1]), 2)
+        assert seen and all(k == ({"mean": True} if taken else {}) for k in seen)
+    monkeypatch.setattr(mr, "STICKY_MEAN", False)
+    seen.clear()
+    mr.recross(cross_once, first[:4] + ({"mean": {"taken": True}},), z, z, np.ones(4), np.ones(4), z,
+               np.zeros(4, bool), None, np.zeros(4, np.int64), np.array([0, 0, 1, 1]), 2)
+    assert seen and all(k == {} for k in seen)
