@@ -135,6 +135,13 @@ def test_the_stages_two_passes_give_the_reference_stages_scans(monkeypatch):
     assert got[2] is matted[2] and not np.array_equal(got[0].rgb, matted[0].rgb)
 
 
+def _lines(photos, plates, matted):
+    """Every matted view's line samples (capture.matting_lines.line_samples) and its whole fit sample."""
+    whole = [ml.line_samples(s.camera, photos[k].linear_rgb, plates[k].background, plates[k].known, s.alpha, s.rgb,
+                             s.depth, plates[k].estimated, plates[k].sigma) for k, s in enumerate(matted)]
+    return whole, [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+
+
 @pytest.mark.parametrize("gate", [True, False])
 def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gate):
     """AGREEING_GATE: where fewer than MIN_AGREEING of the lines agree with the matte's alpha, the stage and its
@@ -144,14 +151,7 @@ def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gat
     monkeypatch.setattr(mc, "AGREEING_GATE", gate)
     photos, plates, matted = _scene()
     sa, gains = [0.1, 0.08, None], None
-
-    def samples(k, s):
-        p = plates[k]
-        return ml.line_samples(s.camera, photos[k].linear_rgb, p.background, p.known, s.alpha, s.rgb, s.depth,
-                               p.estimated, p.sigma)
-
-    whole = [samples(k, s) for k, s in enumerate(matted)]
-    fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+    whole, fits = _lines(photos, plates, matted)
     _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
     share = rec["global"]["gate" if mc.AGREEING_BEFORE else "agreeing"]["share"]
     assert 0 < share <= 1 and rec["coloured"] > 0
@@ -175,14 +175,7 @@ def test_a_capture_the_gate_skips_crosses_no_cube(monkeypatch):
     monkeypatch.setattr(mk, "POOL_ALPHA_ERROR", False)
     photos, plates, matted = _scene()
     sa = [0.1, 0.08, None]
-
-    def samples(k, s):
-        p = plates[k]
-        return ml.line_samples(s.camera, photos[k].linear_rgb, p.background, p.known, s.alpha, s.rgb, s.depth,
-                               p.estimated, p.sigma)
-
-    whole = [samples(k, s) for k, s in enumerate(matted)]
-    fits = [mc.fit_sample(s, 10 ** 6, k) for k, s in enumerate(whole)]
+    whole, fits = _lines(photos, plates, matted)
     _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, None, serial_map)
     share = rec["global"]["gate"]["share"]
     monkeypatch.setattr(mc, "MIN_AGREEING", share + 0.01)
