@@ -79,9 +79,9 @@ ELEVATION_DEG = 15.0
 SPP = {"conifer": 64, "furball": 64}
 #: Samples per pixel of conifer_room_table_ae_lens: the table top turns every pixel below the horizon into
 #: a diffuse surface to path-trace (about 3x the cost of a view of the conifer_room captures at equal spp).
-#: It was 16, to fit the generation's time budget; at 16 its held-out references lie 32.6-33.7 dB from its black
-#: twin's (64 spp), a floor that alone cost 0.7-1.3 dB of its score against the twin (docs/matting.md "That miss
-#: is the capture's own noise"); at 64, as its twin, 37.7 dB (about 240 s for its 36 views here).
+#: It was 16, to fit the generation's time budget; at 16 its noisy photos before the bright room cost 1.0-1.4 dB
+#: against its black twin (64 spp) through the matte and the plate (docs/matting.md "That miss is the capture's
+#: 16 samples per pixel"); at 64, as its twin (about 240 s for its 36 views here).
 TABLE_SPP = 64
 #: Samples per pixel of the relit truth of furball_uniform_relit (held-out scores of 12-17 dB need less).
 RELIT_SPP = 16
