@@ -80,3 +80,26 @@ def test_flags_are_explained_and_checked(table_dir, tmp_path, capsys):
     assert "bad colour 'mauve'" in capsys.readouterr().err
     rc = main(["model", str(table_dir), "-o", str(tmp_path / "y"), "--matte", "backdrop"])
     assert rc != 0 and "needs --backdrop" in capsys.readouterr().err
+
+
+def test_the_report_says_when_the_object_colour_is_the_mattes_mean():
+    """furrow model's report names the colour across views' fallback (capture.matting_global.MEAN_CHECK) when a
+    pass took the matte's mean colour, with the crossing and the gap, and says nothing of it otherwise."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(first_taken: bool, last_taken: bool) -> str:
+        mean = {"colour": [0.03, 0.029, 0.011], "gap": 0.77}
+        glob = {"colour": [0.005, 0.01, 0.0], "mean": {**mean, "taken": last_taken},
+                "recross": {"first": {"colour": [0.004, 0.009, 0.0], "mean": {**mean, "taken": first_taken}}}}
+        out = StringIO()
+        _print_surroundings(Console(file=out, width=200), {"matte": {"mode": "off", "cells": {"global": glob}}})
+        return out.getvalue()
+
+    said = report(True, True)
+    assert said.count("the mean taken") == 1 and "(0.004, 0.009, 0.000)" in said and "0.77" in said
+    assert "the mean taken" in report(False, True) and "(0.005, 0.010, 0.000)" in report(False, True)
+    assert "mean" not in report(False, False)
