@@ -160,11 +160,11 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
 
     gsum.groups = K  # summed by bincount over ``inv``: group_fit's compiled pass (capture.matting_lines.GN_COMPILED)
     fill = _cat(fits, "fill")
-    F0a = _cat(fits, "a")
-    why, before = agreeing_before(C, B, w, F0a, F0)
+    alpha = _cat(fits, "a")
+    why, before = agreeing_before(C, B, w, alpha, F0)
     if why:
         return None, {**rec, "global": before, "reason": why}
-    F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, F0a, F0, fill, gsum, inv, view, len(fits))
+    F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, alpha, F0, fill, gsum, inv, view, len(fits))
     why = None if AGREEING_BEFORE else disagreeing(rec["global"])
     rec["global"].update({"gate": before["agreeing"]} if before else {})
     if why:
