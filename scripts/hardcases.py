@@ -72,8 +72,13 @@ def parse(argv=None) -> argparse.Namespace:
     p.add_argument("--views", type=int, default=36, help="views per capture (default 36)")
     p.add_argument("--seed", type=int, default=0, help="seed of geometry, samples, exposure and poses (default 0)")
     p.add_argument("--room-rotation", type=float, default=None, metavar="DEG",
-                   help="turn of the courtyard behind the conifer cases (default 340: the crown before the sunlit "
-                        "wall and floor; 315: before the shaded bricks); write to another -o, the names are the same")
+                   help="turn of the map behind the room cases (conifer default 340: the crown before the sunlit "
+                        "wall and floor; 315: before the shaded bricks; fur_similar_bg default 270: the brown "
+                        "floor); write to another -o, the names are the same")
+    p.add_argument("--room-map", default=None, metavar="NAME",
+                   help="map behind the room cases (conifer, fur_similar_bg) instead of the courtyard (a bundled "
+                        "name, or NAME.exr in --env-dir: interior, forest, city, ...); write to another -o, the "
+                        "names are the same")
     p.add_argument("--noise", action="store_true", help="instead of writing: render view 0 of each case's first "
                    "render at 2x spp and print the PSNR of the case's spp against it")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
@@ -192,7 +197,8 @@ def main(argv=None) -> int:
                 return rc
         return 0
     opts = Options(out=a.out, cache=a.cache or a.out / "_renders", env_dir=a.env_dir, size=a.size, spp=a.spp,
-                   views=a.views, seed=a.seed, room_rotation=a.room_rotation)
+                   views=a.views, seed=a.seed, room_rotation=a.room_rotation,
+                   room_map=a.room_map)
     for name in a.cases or list(CASES):
         t0 = time.perf_counter()
         console.rule(name)
@@ -243,7 +249,7 @@ def _case_args(name: str, a, child: bool = False) -> list[str]:
     if a.size is not None:
         opts += ["--size", f"{a.size[0]}x{a.size[1]}"]
     for flag, v, default in (("--spp", a.spp, None), ("--views", a.views, 36), ("--seed", a.seed, 0),
-                             ("--room-rotation", a.room_rotation, None)):
+                             ("--room-rotation", a.room_rotation, None), ("--room-map", a.room_map, None)):
         if v != default:
             opts += [flag, str(v)]
     return opts + (["--noise"] if child and a.noise else [])

@@ -110,8 +110,11 @@ class Options:
     seed: int = 0
     """Seed of the objects, the samples, the exposure and the pose noise."""
     room_rotation: float | None = None
-    """Override of the courtyard's turn behind the conifer cases (CONIFER_ROOM's 340 degrees; 315 puts the
-    crown before the shaded bricks)."""
+    """Override of the map's turn behind the room cases (CONIFER_ROOM's 340 degrees for the conifer, 315 puts the
+    crown before the shaded bricks; BROWN_ROOM's 270 for fur_similar_bg)."""
+    room_map: str | None = None
+    """Override of the map behind the room cases (the conifer's and fur_similar_bg's courtyard): a bundled name or
+    one in env_dir."""
 
 
 def env_path(name: str, opts: Options) -> str:
@@ -141,7 +144,8 @@ def _conifer_turn(opts: Options) -> float:
 
 def case_spec(name: str, opts: Options) -> RenderSpec:
     """The render spec of case ``name``'s capture (the relit truth of furball_uniform_relit adds another)."""
-    room = {"env": CONIFER_ROOM[0], "env_rotation_deg": _conifer_turn(opts)}
+    room_map = CONIFER_ROOM[0] if opts.room_map is None else env_path(opts.room_map, opts)
+    room = {"env": room_map, "env_rotation_deg": _conifer_turn(opts)}
     if name in ("conifer_room_turntable", "conifer_room_orbit"):
         return spec_for("conifer", opts, FULL_SIZE, motion=name.rsplit("_", 1)[1], **room)
     if name in ("furball_uniform_turntable", "furball_uniform_ae"):
@@ -156,7 +160,9 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
         return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
                         **room)
     if name == "fur_similar_bg":
-        return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=BROWN_ROOM[0], env_rotation_deg=BROWN_ROOM[1],
+        fur_map = BROWN_ROOM[0] if opts.room_map is None else env_path(opts.room_map, opts)
+        fur_turn = BROWN_ROOM[1] if opts.room_rotation is None else float(opts.room_rotation)
+        return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=fur_map, env_rotation_deg=fur_turn,
                         motion="turntable")
     raise ValueError(f"unknown case {name!r}")
 

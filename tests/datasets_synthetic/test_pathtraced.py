@@ -244,6 +244,25 @@ def test_lens_case_is_its_pinhole_twin_but_for_the_lens(tmp_path):
     assert replace(lens, lens=None) == twin and lens.key() != twin.key()
 
 
+def test_room_map_and_turn_reach_every_room_case(tmp_path):
+    """--room-map / --room-rotation change the map and its turn behind the conifer *and* fur_similar_bg (a fur
+    capture once asked for a turn of 90 degrees and got the default 270); without them each keeps its own."""
+    from datasets_synthetic.pathtraced.cases import BROWN_ROOM, CONIFER_ROOM, Options, case_spec
+
+    plain = Options(out=tmp_path, cache=tmp_path)
+    assert (case_spec("fur_similar_bg", plain).env, case_spec("fur_similar_bg", plain).env_rotation_deg) == BROWN_ROOM
+    tt = case_spec("conifer_room_turntable", plain)
+    assert (tt.env, tt.env_rotation_deg) == CONIFER_ROOM
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps" / "interior.exr").write_bytes(b"")
+    turned = Options(out=tmp_path, cache=tmp_path, env_dir=tmp_path / "maps", room_rotation=90.0, room_map="interior")
+    for name in ("fur_similar_bg", "conifer_room_turntable", "conifer_room_orbit", "conifer_room_table_ae_lens"):
+        spec = case_spec(name, turned)
+        assert spec.env == str(tmp_path / "maps" / "interior.exr") and spec.env_rotation_deg == 90.0, name
+    with pytest.raises(ValueError, match="not bundled"):
+        case_spec("fur_similar_bg", Options(out=tmp_path, cache=tmp_path, room_map="nowhere"))
+
+
 def _script():
     import importlib.util
 
