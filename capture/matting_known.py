@@ -83,6 +83,9 @@ FILL_BRIGHT = 0.15
 #: blown-out pixels against the black twin (6 views) 0.0015 at 0.5, 0.0007 at 0.7, 0.0006 at 0.85,
 #: 0.0004 at 0.95; taken as SOURCE_ALPHA rather than tuned on that capture.
 FILL_ALPHA = SOURCE_ALPHA
+#: Fewer sure colour sources than MIN_SOURCES where B is known: the opaque pixels (alpha >= OPAQUE_ALPHA, the photo
+#: not clipped: their colour is the photo's) are sources too.
+OPAQUE_SOURCES = True
 #: Fewer sure colour sources than this: the colour where B is not known is pymatting's estimate.
 MIN_SOURCES = 50
 #: Data-term confidence: a candidate that differs from B by SEPARATION (linear, Euclidean) gets
@@ -360,6 +363,8 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
     sure = ok & (a >= FILL_ALPHA)
+    if OPAQUE_SOURCES and sure.sum() < MIN_SOURCES:
+        sure = sure | ((a >= OPAQUE_ALPHA) & (channel_max(C) < CLIP_LEVEL))
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
         bright = channel_max(push_pull(B, (known & ~blown).astype(np.float64))) >= FILL_BRIGHT if known.any() \
