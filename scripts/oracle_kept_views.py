@@ -29,6 +29,8 @@ from volume.rgbz_store import RgbzImages
 PARTIAL_LO, OPAQUE = 0.02, 0.9
 #: Scale (pixels) of the low-passed error.
 LOW_SIGMA = 4.0
+#: Bands of the model's alpha for the per-band true gain (docs/matting.md "Other rooms behind the conifer").
+ALPHA_BANDS = (0.02, 0.1, 0.2, 0.3, 0.5, 0.7, 0.85, 0.999)
 
 
 def _lin(x: np.ndarray) -> np.ndarray:
@@ -57,13 +59,18 @@ def variants(rgb, al, ta, tp) -> dict:
     low /= np.maximum(w, 1e-3)[..., None]
     pb = part[..., 0]
     gain = np.array([tp[..., j][pb].sum() / max(pm[..., j][pb].sum(), 1e-12) for j in range(3)])
+    band_gain = np.ones_like(pm)
+    for lo, hi in zip(ALPHA_BANDS[:-1], ALPHA_BANDS[1:]):
+        b = (al >= lo) & (al < hi)
+        band_gain[b] = [tp[..., j][b].sum() / max(pm[..., j][b].sum(), 1e-12) for j in range(3)]
     return {"as built": (rgb, al), "true alpha and colour": (_straight(tp, ta), ta),
             "true alpha, its premultiplied colour": (_straight(pm, ta), ta),
             "its alpha, the true premultiplied colour": (_straight(tp, al), al),
             "true colour at the partial pixels": (_straight(np.where(part, tp, pm), al), al),
             "true colour at the opaque pixels": (_straight(np.where(opq, tp, pm), al), al),
             "partial pixels' low-passed error taken out": (_straight(np.where(part, pm + low, pm), al), al),
-            f"partial pixels times {np.round(gain, 3).tolist()}": (_straight(np.where(part, pm * gain, pm), al), al)}
+            f"partial pixels times {np.round(gain, 3).tolist()}": (_straight(np.where(part, pm * gain, pm), al), al),
+            "a true gain per band of the model's alpha": (_straight(pm * band_gain, al), al)}
 
 
 def main(argv=None) -> int:
