@@ -347,7 +347,8 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
                                      np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes, gate)
     elif gate is not None:  # the working solve's colour unmixed every known pixel: the choice at full size
         ci, bi, ki, Fw = np.asarray(image)[box], np.asarray(background)[box], np.asarray(known)[box], out[1]
-        out = (out[0], foreground_colour(ci, out[0], bi, gate(ci, out[0], bi, ki), lambda C, a, need: Fw), *out[2:])
+        out = (out[0], foreground_colour(ci, out[0], bi, gate(ci, out[0], bi, ki), lambda C, a, need: Fw, notes),
+               *out[2:])
     a, F, tri, ok = out
     if estimated is not None and LINES:
         est_b, sig_b = (None if x is None else np.asarray(x)[box] for x in estimated)

@@ -309,12 +309,13 @@ def _alpha(trimap: np.ndarray, a_u: np.ndarray, unk: np.ndarray, lower: np.ndarr
     return a
 
 
-def _finish(image, trimap, background, known, a_u, unk, lower, fallback_fg, colour=None):
+def _finish(image, trimap, background, known, a_u, unk, lower, fallback_fg, colour=None, record=None):
     """(alpha, F) of step 4 from the solved unknown alphas ``a_u``; ``colour(image, alpha, background,
-    known)``: where B counts as known for the colour (capture.matting_colour.colour_gate; None: ``known``)."""
+    known)``: where B counts as known for the colour (capture.matting_colour.colour_gate; None: ``known``);
+    ``record``: :func:`foreground_colour`'s."""
     a = _alpha(trimap, a_u, unk, lower)
     return a, foreground_colour(image, a, background, known if colour is None else colour(image, a, background, known),
-                                fallback_fg)
+                                fallback_fg, record)
 
 
 def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
@@ -340,7 +341,7 @@ def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, no
 
 
 def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
-                      fallback_fg) -> np.ndarray:
+                      fallback_fg, record: dict | None = None) -> np.ndarray:
     """(h, w, 3) float64 straight colour in [0, 1] (step 4): F = B + (C - B) / alpha where B is
     ``known``, not :func:`clipped` and alpha > 0.  Where B is known but blown out, the colour of the
     nearest pixels whose F is exact and alpha at least REFINE_ALPHA (a push-pull fill: the needle's
@@ -349,7 +350,8 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     with the fill).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML
     foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view
     saw behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour
-    (:func:`_extended`)."""
+    (:func:`_extended`).  ``record`` (a dict) gets ``opaque_sources``, the pixels filled, where OPAQUE_SOURCES
+    gave the fill its sources."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     a = np.asarray(alpha, np.float64)
@@ -363,13 +365,16 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
     sure = ok & (a >= FILL_ALPHA)
-    if OPAQUE_SOURCES and sure.sum() < MIN_SOURCES:
+    opaque = OPAQUE_SOURCES and sure.sum() < MIN_SOURCES
+    if opaque:
         sure = sure | ((a >= OPAQUE_ALPHA) & (channel_max(C) < CLIP_LEVEL))
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
         bright = channel_max(push_pull(B, (known & ~blown).astype(np.float64))) >= FILL_BRIGHT if known.any() \
             else np.zeros(a.shape, bool)
         fill = need & (blown | bright)
+        if opaque and record is not None and fill.any():
+            record["opaque_sources"] = int(fill.sum())
     rest = need & ~fill
     fb = np.asarray(fallback_fg(C, a, rest), np.float64) if rest.any() else C
     if fill.any():
@@ -463,7 +468,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     a_u, unk, lower, tri, known, ok = _passes(
         img, trimap, background, known, noise,
         lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record)
-    a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground, colour)
+    a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground, colour, record)
     return a, F, tri, ok
 
 

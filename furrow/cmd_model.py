@@ -209,6 +209,11 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "
                       f"{m['seconds_per_view_max']:.2f}), unknown {m['unknown_fraction_mean']:.2%}, partial alpha "
                       f"{m['partial_fraction_mean']:.2%} of the pixels", highlight=False)
+    opq = m.get("opaque_sources") or {}
+    if opq.get("views"):  # capture.matting_known.OPAQUE_SOURCES
+        console.print(f"[yellow]matte: in {opq['views']} view(s) the background was known behind too few sure "
+                      f"pixels; {opq['pixels']} pixels before a blown-out or unseen background took the colour of "
+                      "the nearest opaque pixels (capture.matting_known.OPAQUE_SOURCES)[/yellow]", highlight=False)
     g = (m.get("cells") or {}).get("global") or {}
     for rec_pass in (g.get("recross", {}).get("first") or {}, g):
         mean = rec_pass.get("mean") or {}

@@ -232,9 +232,13 @@ def test_too_few_sure_colours_before_a_blown_wall_take_the_opaque_pixels(monkeyp
     def fallback(image, alpha, need):
         return image
 
-    F = mk.foreground_colour(C, a, B, known, fallback)
+    rec = {}
+    F = mk.foreground_colour(C, a, B, known, fallback, rec)
     np.testing.assert_allclose(F[fringe], np.broadcast_to(f0, F[fringe].shape), atol=1e-9)
+    assert rec == {"opaque_sources": int(fringe.sum())}  # the record says so (furrow model prints it)
     monkeypatch.setattr(mk, "OPAQUE_SOURCES", False)
-    F_off = mk.foreground_colour(C, a, B, known, fallback)
+    rec_off = {}
+    F_off = mk.foreground_colour(C, a, B, known, fallback, rec_off)
+    assert rec_off == {}
     np.testing.assert_allclose(F_off[fringe], C[fringe], atol=1e-12)
     assert np.abs(F_off[fringe] - f0).mean() > 0.4

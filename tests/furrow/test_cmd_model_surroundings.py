@@ -103,3 +103,25 @@ def test_the_report_says_when_the_object_colour_is_the_mattes_mean():
     assert said.count("the mean taken") == 1 and "(0.004, 0.009, 0.000)" in said and "0.77" in said
     assert "the mean taken" in report(False, True) and "(0.005, 0.010, 0.000)" in report(False, True)
     assert "mean" not in report(False, False)
+
+
+def test_the_report_says_when_the_colour_came_from_the_opaque_pixels():
+    """furrow model's report names capture.matting_known.OPAQUE_SOURCES (too few sure pixels before a known
+    background: the colour before a blown-out or unseen background from the opaque pixels) when a view took it."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(opq: dict | None) -> str:
+        out = StringIO()
+        matte = {"mode": "auto", "methods": {"plate": 18}, "seconds_per_view": 0.1, "seconds_per_view_max": 0.2,
+                 "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1}
+        _print_surroundings(Console(file=out, width=250), {"matte": {**matte, **({"opaque_sources": opq} if opq
+                                                                                 else {})}})
+        return out.getvalue()
+
+    said = report({"views": 18, "pixels": 20321})
+    assert "in 18 view(s)" in said and "20321 pixels" in said and "OPAQUE_SOURCES" in said
+    assert "OPAQUE_SOURCES" not in report({"views": 0, "pixels": 0}) and "OPAQUE_SOURCES" not in report(None)
