@@ -18,6 +18,7 @@ and written in furrow's scan format with the true coverage matte of every view (
   conifer_room_turntable_jump_ae                           the turntable conifer, +0.5 EV in 3 kept views only
   conifer_room_orbit_jump_ae                               the orbit conifer, the same
   fur_similar_bg_jump_ae                                   the brown fur before bricks, the same
+  fur_similar_bg_orbit        (+ fur_black_similar_orbit)  the brown fur, camera circling
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
 render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on

@@ -32,8 +32,9 @@ GAP_TARGET_AE = 2.0
 
 def twin(room: Path) -> Path | None:
     """The black twin of a room capture folder, or None."""
-    fur = room.name in ("fur_similar_bg", "fur_similar_bg_jump_ae")
-    name = "fur_black_similar" if fur else room.name.replace("_room_", "_black_")
+    fur = room.name in ("fur_similar_bg", "fur_similar_bg_jump_ae", "fur_similar_bg_orbit")
+    name = ("fur_black_similar_orbit" if room.name.endswith("_orbit") else "fur_black_similar") if fur \
+        else room.name.replace("_room_", "_black_")
     if "_table_ae_lens" in name:   # the AE + lens capture is measured against the turntable's twin
         name = name.replace("_table_ae_lens", "_turntable")
     if name.endswith("_ae"):   # the auto-exposure orbit against the orbit's twin

@@ -20,6 +20,8 @@ conifer_black_lens             the conifer over black through the OPENCV lens al
                                twin ``conifer_black_turntable`` (same cameras, samples, light)
 fur_similar_bg                 the fur ball before the courtyard's brown brick floor, room kept / black held; and
                                ``fur_black_similar``, the same renders over black
+fur_similar_bg_orbit           the same fur ball with the camera circling (the room moves with the view); and
+                               ``fur_black_similar_orbit``
 furball_uniform_ae             the turntable fur ball's images with auto exposure on the kept views, true
                                poses; ``furball_uniform_fixed``: the same images at fixed exposure
 conifer_room_turntable_jump_ae conifer_room_turntable's renders, the exposure 0.5 EV brighter in 3 of the kept
@@ -159,11 +161,11 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
             return replace(case_spec("conifer_room_turntable", opts), lens=OPENCV_LENS)
         return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
                         **room)
-    if name == "fur_similar_bg":
+    if name in ("fur_similar_bg", "fur_similar_bg_orbit"):
         fur_map = BROWN_ROOM[0] if opts.room_map is None else env_path(opts.room_map, opts)
         fur_turn = BROWN_ROOM[1] if opts.room_rotation is None else float(opts.room_rotation)
         return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=fur_map, env_rotation_deg=fur_turn,
-                        motion="turntable")
+                        motion="orbit" if name.endswith("_orbit") else "turntable")
     raise ValueError(f"unknown case {name!r}")
 
 
@@ -296,15 +298,18 @@ def conifer_black_lens(opts: Options, log=print) -> list[dict]:
                    Layout(None), _render(spec, opts, log), opts, log=log)]
 
 
-def fur_similar_bg(opts: Options, log=print) -> list[dict]:
-    """Case f: the brown fur ball before the courtyard's brown bricks, room kept / black held."""
-    spec = case_spec("fur_similar_bg", opts)
+def fur_similar_bg(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
+    """Case f: the brown fur ball before the courtyard's brown bricks, room kept / black held (``motion`` "orbit":
+    the camera circling, fur_similar_bg_orbit and fur_black_similar_orbit)."""
+    tail = "" if motion == "turntable" else f"_{motion}"
+    spec = case_spec(f"fur_similar_bg{tail}", opts)
     got = _render(spec, opts, log)
-    return [_write("fur_similar_bg", "uniform brown fur ball before the courtyard's brown brick floor (similar "
-                   "colour), turntable; views 0::2 show the room, 1::2 over black", spec, Layout(ROOM_FRAMES),
+    how = "turntable" if motion == "turntable" else "camera circling (the room moves with the view)"
+    return [_write(f"fur_similar_bg{tail}", "uniform brown fur ball before the courtyard's brown brick floor (similar "
+                   f"colour), {how}; views 0::2 show the room, 1::2 over black", spec, Layout(ROOM_FRAMES),
                    got, opts, log=log),
-            _write("fur_black_similar", "the same renders as fur_similar_bg, every view over black (its black twin)",
-                   spec, Layout(None), got, opts, log=log)]
+            _write(f"fur_black_similar{tail}", f"the same renders as fur_similar_bg{tail}, every view over black (its "
+                   "black twin)", spec, Layout(None), got, opts, log=log)]
 
 
 def furball_ae(opts: Options, log=print) -> list[dict]:
@@ -368,4 +373,5 @@ CASES = {
     "conifer_room_turntable_jump_ae": conifer_jump,
     "conifer_room_orbit_jump_ae": lambda o, log=print: conifer_jump(o, log, "orbit"),
     "fur_similar_bg_jump_ae": fur_similar_jump,
+    "fur_similar_bg_orbit": lambda o, log=print: fur_similar_bg(o, log, "orbit"),
 }

@@ -10,6 +10,8 @@ asked only when such a test runs, so no other test process imports it.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -256,9 +258,12 @@ def test_room_map_and_turn_reach_every_room_case(tmp_path):
     (tmp_path / "maps").mkdir()
     (tmp_path / "maps" / "interior.exr").write_bytes(b"")
     turned = Options(out=tmp_path, cache=tmp_path, env_dir=tmp_path / "maps", room_rotation=90.0, room_map="interior")
-    for name in ("fur_similar_bg", "conifer_room_turntable", "conifer_room_orbit", "conifer_room_table_ae_lens"):
+    for name in ("fur_similar_bg", "fur_similar_bg_orbit", "conifer_room_turntable", "conifer_room_orbit",
+                 "conifer_room_table_ae_lens"):
         spec = case_spec(name, turned)
         assert spec.env == str(tmp_path / "maps" / "interior.exr") and spec.env_rotation_deg == 90.0, name
+    orbit, tt = case_spec("fur_similar_bg_orbit", plain), case_spec("fur_similar_bg", plain)
+    assert (orbit.motion, tt.motion) == ("orbit", "turntable") and dataclasses.replace(orbit, motion="turntable") == tt
     with pytest.raises(ValueError, match="not bundled"):
         case_spec("fur_similar_bg", Options(out=tmp_path, cache=tmp_path, room_map="nowhere"))
 
@@ -291,3 +296,22 @@ def test_a_case_the_renderer_kills_is_run_again(codes, calls, rc):
     assert MAX_ATTEMPTS == 3
     assert hc.run_isolated("c", ["x"], logged.append, runner) == rc
     assert seen == ["1"] * calls and len(logged) == sum(c < 0 for c in codes)
+
+
+def test_issue30_table_pairs_every_room_case_with_its_twin(tmp_path):
+    """scripts/issue30_table.py's twin(): each room capture's black twin, the fur orbit's included."""
+    import importlib.util
+
+    from tests.conftest import REPO_DIR
+
+    spec = importlib.util.spec_from_file_location("issue30_table", REPO_DIR / "scripts" / "issue30_table.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    pairs = {"conifer_room_turntable": "conifer_black_turntable", "conifer_room_orbit_ae": "conifer_black_orbit",
+             "conifer_room_table_ae_lens": "conifer_black_turntable", "fur_similar_bg": "fur_black_similar",
+             "fur_similar_bg_jump_ae": "fur_black_similar", "fur_similar_bg_orbit": "fur_black_similar_orbit",
+             "conifer_room_turntable_jump_ae": "conifer_black_turntable"}
+    for name in set(pairs) | set(pairs.values()):
+        (tmp_path / name).mkdir()
+    for room, black in pairs.items():
+        assert mod.twin(tmp_path / room) == tmp_path / black, room
