@@ -379,7 +379,11 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     fb = np.asarray(fallback_fg(C, a, rest), np.float64) if rest.any() else C
     if fill.any():
         fb = np.where(fill[..., None], push_pull(F, sure.astype(np.float64)), fb)
-    return _extended(np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0), a)
+    out = np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0)
+    from capture.matting_cap import blown_cap
+
+    return _extended(blown_cap(out, C, a, B, blown), a)
+
 
 
 def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:

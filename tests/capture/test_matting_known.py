@@ -240,5 +240,43 @@ def test_too_few_sure_colours_before_a_blown_wall_take_the_opaque_pixels(monkeyp
     rec_off = {}
     F_off = mk.foreground_colour(C, a, B, known, fallback, rec_off)
     assert rec_off == {}
-    np.testing.assert_allclose(F_off[fringe], C[fringe], atol=1e-12)
+    from capture.matting_cap import blown_cap
+
+    np.testing.assert_allclose(F_off[fringe], blown_cap(C, C, a, B, known)[fringe], atol=1e-12)  # the fallback's
     assert np.abs(F_off[fringe] - f0).mean() > 0.4
+
+
+def test_a_colour_before_a_blown_plate_stays_within_what_the_photo_allows(monkeypatch):
+    """capture.matting_cap.blown_cap: before a blown-out plate (held at 1, the true wall 1.6) the premultiplied colour
+    is at most the photo + the noise in every channel the photo did not clip, whatever the alpha; a fill far brighter
+    than the object (the nearest sure colours before a sunlit wall) comes down to that bound, the true colour is kept
+    even where the matte's alpha is too low, and a clipped channel is left alone."""
+    import capture.matting_cap as mc
+
+    f_true, a_true = np.array([0.2, 0.1, 0.04]), 0.97
+    C = np.broadcast_to(a_true * f_true + (1.0 - a_true) * 1.6, (4, 4, 3)).copy()
+    B = np.ones((4, 4, 3))
+    blown = np.ones((4, 4), bool)
+    bright = np.broadcast_to([0.5, 0.26, 0.1], (4, 4, 3)).copy()
+    for a_model in (0.99, 0.97, 0.8):  # the matte's alpha above, at and below the truth
+        a = np.full((4, 4), a_model)
+        capped = mc.blown_cap(bright, C, a, B, blown)
+        assert np.all(capped * a[..., None] <= C + mk_noise(B) + 1e-12)
+        assert np.all(capped * a[..., None] <= bright * a[..., None] + 1e-12)
+        kept = mc.blown_cap(np.broadcast_to(f_true * a_true / a_model, (4, 4, 3)), C, a, B, blown)
+        np.testing.assert_allclose(kept, f_true * a_true / a_model * np.ones((4, 4, 1)), atol=1e-12)  # the truth
+    a = np.full((4, 4), 0.99)
+    assert np.abs(mc.blown_cap(bright, C, a, B, blown) * 0.99 - a_true * f_true).max() < \
+        np.abs(bright * 0.99 - a_true * f_true).max() / 2  # the fill's error at least halved here
+    C_clip = C.copy()
+    C_clip[..., 0] = 1.0
+    assert np.all(mc.blown_cap(bright, C_clip, a, B, blown)[..., 0] == 0.5)
+    monkeypatch.setattr(mc, "BLOWN_CAP", False)
+    assert mc.blown_cap(bright, C, a, B, blown) is bright
+
+
+def mk_noise(B):
+    """capture.matting_known's noise of C - B at background B (NOISE_ABS + NOISE_REL B)."""
+    from capture.matting_known import NOISE_ABS, NOISE_REL
+
+    return NOISE_ABS + NOISE_REL * B
