@@ -44,6 +44,7 @@ import numpy as np
 from capture.fill import push_pull
 from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
+from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
 from capture.matting_palette import palette
 
@@ -350,8 +351,8 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     with the fill).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML
     foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view
     saw behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour
-    (:func:`_extended`).  ``record`` (a dict) gets ``opaque_sources``, the pixels filled, where OPAQUE_SOURCES
-    gave the fill its sources."""
+    (:func:`_extended`).  Before a blown-out plate the colour is kept within the photo (capture.matting_cap).
+    ``record`` (a dict) gets ``opaque_sources``, the pixels filled, where OPAQUE_SOURCES gave the fill its sources."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     a = np.asarray(alpha, np.float64)
@@ -380,10 +381,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     if fill.any():
         fb = np.where(fill[..., None], push_pull(F, sure.astype(np.float64)), fb)
     out = np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0)
-    from capture.matting_cap import blown_cap
-
     return _extended(blown_cap(out, C, a, B, blown), a)
-
 
 
 def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:
