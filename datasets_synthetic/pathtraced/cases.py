@@ -140,16 +140,16 @@ def spec_for(obj: str, opts: Options, size, spp: int | None = None, **kw) -> Ren
                       **kw)
 
 
-def _conifer_turn(opts: Options) -> float:
-    return CONIFER_ROOM[1] if opts.room_rotation is None else float(opts.room_rotation)
+def _room(opts: Options, default: tuple[str, float]) -> dict:
+    """The map and its turn behind a room case: ``default`` (map, degrees) unless opts.room_map / room_rotation."""
+    return {"env": default[0] if opts.room_map is None else env_path(opts.room_map, opts),
+            "env_rotation_deg": default[1] if opts.room_rotation is None else float(opts.room_rotation)}
 
 
 def case_spec(name: str, opts: Options) -> RenderSpec:
     """The render spec of case ``name``'s capture (the relit truth of furball_uniform_relit adds another)."""
-    room_map = CONIFER_ROOM[0] if opts.room_map is None else env_path(opts.room_map, opts)
-    room = {"env": room_map, "env_rotation_deg": _conifer_turn(opts)}
     if name in ("conifer_room_turntable", "conifer_room_orbit"):
-        return spec_for("conifer", opts, FULL_SIZE, motion=name.rsplit("_", 1)[1], **room)
+        return spec_for("conifer", opts, FULL_SIZE, motion=name.rsplit("_", 1)[1], **_room(opts, CONIFER_ROOM))
     if name in ("furball_uniform_turntable", "furball_uniform_ae"):
         return spec_for("furball", opts, HALF_SIZE, env=FUR_ENV, motion="turntable")
     if name in ("furball_uniform_relit", "furball_uniform_orbit"):
@@ -160,12 +160,10 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
         if name == "conifer_black_lens":  # the pinhole twin's spec (conifer_room_turntable) but for the lens
             return replace(case_spec("conifer_room_turntable", opts), lens=OPENCV_LENS)
         return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
-                        **room)
+                        **_room(opts, CONIFER_ROOM))
     if name in ("fur_similar_bg", "fur_similar_bg_orbit"):
-        fur_map = BROWN_ROOM[0] if opts.room_map is None else env_path(opts.room_map, opts)
-        fur_turn = BROWN_ROOM[1] if opts.room_rotation is None else float(opts.room_rotation)
-        return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, env=fur_map, env_rotation_deg=fur_turn,
-                        motion="orbit" if name.endswith("_orbit") else "turntable")
+        return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, motion="orbit" if name.endswith("_orbit")
+                        else "turntable", **_room(opts, BROWN_ROOM))
     raise ValueError(f"unknown case {name!r}")
 
 

@@ -266,6 +266,9 @@ def test_room_map_and_turn_reach_every_room_case(tmp_path):
     assert (orbit.motion, tt.motion) == ("orbit", "turntable") and dataclasses.replace(orbit, motion="turntable") == tt
     with pytest.raises(ValueError, match="not bundled"):
         case_spec("fur_similar_bg", Options(out=tmp_path, cache=tmp_path, room_map="nowhere"))
+    # a case with no room behind it never looks the map up
+    assert case_spec("furball_uniform_turntable", Options(out=tmp_path, cache=tmp_path, room_map="nowhere")).env \
+        == case_spec("furball_uniform_turntable", plain).env
 
 
 def _script():
