@@ -265,11 +265,16 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
                            mask, cfg)
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
         from capture.matting_colour import GATE_SEEN
+        from capture.matting_rim import open_rim
 
+        tri, rim = open_rim(tri, img, plate)
         est = plate.estimated if plate.estimated is not None else np.zeros(plate.known.shape, bool)
         gated = COLOUR_FROM_SEEN and (GATE_SEEN or est.any())
-        return solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg,
-                           (est, plate.sigma) if gated else None)
+        m = solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg,
+                        (est, plate.sigma) if gated else None)
+        if rim:
+            m.notes["rim"] = rim
+        return m
     return _solve_at(img, tri, "estimate", mask, cfg)
 
 

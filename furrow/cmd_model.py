@@ -214,6 +214,10 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"[yellow]matte: in {opq['views']} view(s) the background was known behind too few sure "
                       f"pixels; {opq['pixels']} pixels before a blown-out or unseen background took the colour of "
                       "the nearest opaque pixels (capture.matting_known.OPAQUE_SOURCES)[/yellow]", highlight=False)
+    rim = m.get("rim") or {}
+    if rim.get("views"):  # capture.matting_rim: the depth's opaque pixels of thin branches before a seen background
+        console.print(f"matte: {rim['pixels']} depth-opaque pixels of thin branches in {rim['views']} view(s) solved "
+                      "against the background the other views saw behind them (capture.matting_rim)", highlight=False)
     g = (m.get("cells") or {}).get("global") or {}
     for rec_pass in (g.get("recross", {}).get("first") or {}, g):
         mean = rec_pass.get("mean") or {}

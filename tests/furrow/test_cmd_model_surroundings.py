@@ -125,3 +125,24 @@ def test_the_report_says_when_the_colour_came_from_the_opaque_pixels():
     said = report({"views": 18, "pixels": 20321})
     assert "in 18 view(s)" in said and "20321 pixels" in said and "OPAQUE_SOURCES" in said
     assert "OPAQUE_SOURCES" not in report({"views": 0, "pixels": 0}) and "OPAQUE_SOURCES" not in report(None)
+
+
+def test_the_report_says_when_the_thin_branches_opaque_pixels_were_opened():
+    """furrow model's report names capture.matting_rim when a view's depth-opaque pixels of thin branches were
+    solved against the background the other views saw, and says nothing when none was."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(rim: dict | None) -> str:
+        out = StringIO()
+        matte = {"mode": "auto", "methods": {"plate": 18}, "seconds_per_view": 0.1, "seconds_per_view_max": 0.2,
+                 "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1}
+        _print_surroundings(Console(file=out, width=250), {"matte": {**matte, **({"rim": rim} if rim else {})}})
+        return out.getvalue()
+
+    said = report({"views": 17, "pixels": 4120})
+    assert "4120 depth-opaque pixels" in said and "in 17 view(s)" in said and "matting_rim" in said
+    assert "matting_rim" not in report({"views": 0, "pixels": 0}) and "matting_rim" not in report(None)
