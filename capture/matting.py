@@ -16,7 +16,9 @@ path that applies (``MatteConfig.mode`` = ``auto``; or one forced):
 3. ``plate``: the view's background plate (``capture.plate``, the pipeline's plate stage) where
    it is known: alpha and F from C = a F + (1 - a) B with B known (``capture.matting_known``), the
    closed-form Laplacian alone where it is not; where B is the frames' lines' estimate the colour is
-   unmixed or filled per pixel by the expected error of each (``capture.matting_colour``).
+   unmixed or filled per pixel by the expected error of each (``capture.matting_colour``); the depth's
+   opaque pixels of thin branches are solved too where a moving camera's plate saw behind them
+   (``capture.matting_rim``).
 4. ``estimate``: a trimap from the object's depth (:func:`depth_trimap`: opaque where the object's
    depth is dense, i.e. the depth mask eroded by ``ERODE_FRACTION`` of the width; background
    beyond a band of ``BAND_FRACTION`` of the width around it; unknown between, which covers the
