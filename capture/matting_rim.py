@@ -28,9 +28,9 @@ from capture.sampling import mask_box
 #: Open the rim (False: the trimap's opaque pixels as the depth gives them).
 OPEN_RIM = True
 #: The plates whose seen background opens the rim: the moving camera's (capture.plate's panorama).  On the fixed
-#: camera's (turntables) it moved six of 17 rows by -0.63 to +0.18 dB: the colour across the views' object colour
-#: (capture.matting_global) crossed elsewhere when 975 of a capture's 790,000 partial pixels changed
-#: (docs/matting.md "The depth's opaque rim").
+#: camera's (turntables) it moved six of 17 rows by -0.63 to +0.18 dB: the colour across the views' brightness fit
+#: (capture.matting_global.view_brightness) moved its level 1.02 -> 1.21 when 975 of a capture's 790,000 partial
+#: pixels changed (docs/matting.md "The depth's opaque rim").
 RIM_METHODS = ("panorama",)
 #: Opaque pixels at most this fraction of the width from the band are opened (8 px at 640).
 RIM_FRACTION = 8 / 640
