@@ -28,11 +28,11 @@ from capture.sampling import mask_box
 #: Open the rim (False: the trimap's opaque pixels as the depth gives them).
 OPEN_RIM = True
 #: The plates whose seen background opens the rim: the moving camera's (capture.plate's panorama).  On the fixed
-#: camera's (turntables) it moved six of 17 rows by -0.63 to +0.18 dB: the colour across the views' brightness fit
+#: camera's (turntables) its rows moved by -0.63 to +0.18 dB: the colour across the views' brightness fit
 #: (capture.matting_global.view_brightness) moved its level 1.02 -> 1.21 when 975 of a capture's 790,000 partial
 #: pixels changed (docs/matting.md "The depth's opaque rim").
 RIM_METHODS = ("panorama",)
-#: Opaque pixels at most this fraction of the width from the band are opened (8 px at 640).
+#: Width of the opening that tells a view's thin opaque pixels from a body, a fraction of the image width (8 px at 640).
 RIM_FRACTION = 8 / 640
 #: Only in a view whose opaque pixels are mostly thin (less than this share of them in their opening by the
 #: rim's width: branches and needles; path-traced conifers 0.0, fur balls 0.85-0.89).
