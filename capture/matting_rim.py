@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.matting_fast import dilate, erode
-from capture.matting_known import clipped
+from capture.matting_known import FG, UNKNOWN, clipped
 from capture.sampling import mask_box
 
 #: Open the rim (False: the trimap's opaque pixels as the depth gives them).
@@ -40,8 +40,6 @@ THICK_SHARE = 0.5
 #: ... and whose photo differs from the plate by at least this (linear, Euclidean): where C is near B the
 #: compositing equation cannot tell an opaque pixel of the background's colour from a faint one.
 RIM_SEPARATION = 0.1
-#: Trimap values (pymatting's convention, as capture.matting).
-UNKNOWN, FG = 0.5, 1.0
 
 
 def _opening(fg: np.ndarray, r: int, box: bool = True) -> np.ndarray:
