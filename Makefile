@@ -37,7 +37,18 @@ sysdeps:
 	  fi; \
 	fi
 
+# A new .venv holds about 3.5 GB of packages (Open3D alone 1.1 GB): without the room pip stops half way with
+# "OSError: [Errno 28] No space left on device" (a CI run of stop 53), so say so first.
+VENV_MB := 3600
+
 $(STAMP): pyproject.toml
+	@if [ ! -x $(BIN)/python ]; then \
+	  free=$$(df -Pm . | awk 'NR==2 {print $$4}'); \
+	  if [ "$$free" -lt $(VENV_MB) ]; then \
+	    echo "error: the Python packages need about $(VENV_MB) MB in $(CURDIR)/$(VENV); that disk has $$free MB free"; \
+	    exit 1; \
+	  fi; \
+	fi
 	@test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e '.[dev,cluster]'
