@@ -259,6 +259,22 @@ def cell_groups(points: np.ndarray, cell: float):
     return inv, gsum
 
 
+def _view_out(C, B, F, sig2, sb, usable, index, gain, rec: dict, across: bool) -> tuple | None:
+    """One view's output of :func:`cell_colours` from its coloured pixels (``C``, ``B``, colours ``F`` in the common
+    exposure, the cube's ``sig2``, ``sb``, ``usable`` (crossed and usable), flat ``index``, the view's ``gain``):
+    (index, colours / gain float32, implied alphas float32) or None when none; where ``across``, the part across
+    each pixel's line kept (capture.matting_cells.across_line), counted in ``rec['across']``."""
+    from capture.matting_cells import across_line
+
+    if not len(index):
+        return None
+    imp = np.clip(_implied(C, B, F), 0.0, 1.0)
+    if across:
+        F, n = across_line(C, B, F, imp, sig2, sb, usable)
+        rec["across"] += n
+    return index, (F / gain).astype(np.float32), imp.astype(np.float32)
+
+
 def _implied(C: np.ndarray, B: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Alpha implied by the colour ``F`` on the line B -> C: (C - B).(F - B) / |F - B|^2."""
     fb = F - B
@@ -387,7 +403,7 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     inv, gsum = cell_groups(cat["pts"], extent / cells)
     fill = np.concatenate([filled(s["C"], s["B"], s["a"], s["F0"]) for s in have])  # each view's own exposure
     view = np.concatenate([np.full(len(s["a"]), v) for v, s in enumerate(samples) if s is not None])
-    from capture.matting_cells import AGREEING_BEFORE, agreeing_before, disagreeing
+    from capture.matting_cells import AGREEING_BEFORE, KEEP_ACROSS, agreeing_before, disagreeing
 
     why, before = agreeing_before(cat["C"], cat["B"], w, cat["a"], cat["F0"])
     if why:
@@ -400,7 +416,7 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
         return [None] * len(samples), {**rec, "reason": why}
     F, sig2 = F[inv], sig2[inv]
     ok = np.isfinite(sig2)
-    rec["global_coloured"] = rec["filled_coloured"] = 0
+    rec["global_coloured"] = rec["filled_coloured"] = rec["across"] = 0
     out, off, blind = [], 0, 0
     for v, s in enumerate(samples):
         if s is None:
@@ -421,9 +437,9 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
         use, Fv, n_obj, n_fill = with_object_colour(use, ok[k], fill[k], F[k], F_obj, allowed, kv[v])
         rec["global_coloured"] += n_obj
         rec["filled_coloured"] += n_fill
-        imp = np.clip(_implied(cat["C"][k][use], cat["B"][k][use], Fv[use]), 0.0, 1.0)  # common exposure
-        out.append((s["index"][use], (Fv[use] / g[v]).astype(np.float32), imp.astype(np.float32))
-                   if use.any() else None)
+        out.append(_view_out(cat["C"][k][use], cat["B"][k][use], Fv[use], sig2[k][use], sb[k][use],
+                             (ok[k] & cat["usable"][k])[use], s["index"][use], g[v], rec,
+                             KEEP_ACROSS and sigma_alpha is not None and sa is not None))
     rec["crossed"] = int(ok.sum())
     if blind:
         rec["views_without_alpha_error"] = blind

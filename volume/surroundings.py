@@ -183,8 +183,8 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
     out, notes = map_views(cell_colour_one, tuple(scans), PerView(items), "colour across views")
     have = [n for n in notes if n is not None]
     for key, name in (("crossed", "crossed"), ("coloured", "coloured"), ("global", "global_coloured"),
-                      ("filled", "filled_coloured")):
-        rec[name] = rec.get(name, 0) + sum(int(n[key]) for n in have)
+                      ("filled", "filled_coloured"), ("across", "across")):
+        rec[name] = rec.get(name, 0) + sum(int(n.get(key, 0)) for n in have)
     blind = sum(int(n["blind"]) for n in have)
     if blind:
         rec["views_without_alpha_error"] = blind

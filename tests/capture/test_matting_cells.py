@@ -190,3 +190,61 @@ def test_a_capture_the_gate_skips_crosses_no_cube(monkeypatch):
     _, rrec = cell_colour_stage(tuple(matted), whole, sa, None, lambda s: s)
     assert rec["coloured"] == rrec["coloured"] == 0 and rec["global"]["agreeing"]["share"] == share
     assert all(g is m for g, m in zip(got, matted, strict=True))
+
+
+def _across_scene(seed: int = 3, n: int = 4000):
+    """Partial pixels of needles whose true colours scatter about their cube's colour, before a seen background:
+    (C, B, the cube's colour F_c, the true alpha and colour)."""
+    rng = np.random.default_rng(seed)
+    F_c = np.array([0.05, 0.12, 0.04])
+    F_t = np.clip(F_c + rng.normal(0, 0.03, (n, 3)), 0.0, 1.0)
+    a_t = rng.uniform(0.2, 0.8, n)
+    B = rng.uniform(0.2, 0.6, (n, 3))
+    C = a_t[:, None] * F_t + (1 - a_t[:, None]) * B
+    return C, B, np.tile(F_c, (n, 1)), a_t, F_t
+
+
+def test_the_photos_part_across_the_line_brings_back_the_needles_colour_where_the_plate_saw_b():
+    C, B, F_c, a_t, F_t = _across_scene()
+    imp = np.clip(ml._implied(C, B, F_c), 0.0, 1.0)
+    sig2 = np.full(len(C), 3 * 0.03 ** 2)  # the cube colour's expected error: the needles' own scatter
+    seen = np.zeros(len(C))
+    every = np.ones(len(C), bool)
+    out, n = mc.across_line(C, B, F_c, imp, sig2, seen, every)
+    before = np.sqrt(((imp[:, None] * F_c - a_t[:, None] * F_t) ** 2).sum(-1).mean())
+    after = np.sqrt(((imp[:, None] * out - a_t[:, None] * F_t) ** 2).sum(-1).mean())
+    # what is left is the error along the line, (a_t - imp) B: the implied alpha of the cube's colour (0.029 -> 0.019)
+    assert n == len(C) and after < 0.75 * before, (before, after)
+    # an unsure cube colour: the premultiplied colour is the photo's, C - (1 - imp) B, where nothing is clipped
+    out, _ = mc.across_line(C, B, F_c, imp, np.full(len(C), 1e6), seen, every)
+    inside = np.all((out > 0) & (out < 1), -1)
+    assert inside.mean() > 0.5
+    np.testing.assert_allclose((imp[:, None] * out)[inside], (C - (1 - imp[:, None]) * B)[inside], atol=1e-6)
+
+
+def test_the_part_across_the_line_is_left_out_where_the_plate_is_unsure_or_the_sample_unusable():
+    C, B, F_c, _, _ = _across_scene()
+    imp = np.clip(ml._implied(C, B, F_c), 0.0, 1.0)
+    sig2 = np.full(len(C), 3 * 0.03 ** 2)
+    out, _ = mc.across_line(C, B, F_c, imp, sig2, np.ones(len(C)), np.ones(len(C), bool))  # sigma_B 1
+    assert np.abs(out - F_c).max() < 0.01
+    out, n = mc.across_line(C, B, F_c, imp, sig2, np.zeros(len(C)), np.zeros(len(C), bool))  # not crossed / usable
+    assert n == 0 and np.array_equal(out, F_c)
+
+
+def test_the_switch_off_gives_the_cubes_colours(monkeypatch):
+    monkeypatch.setattr(mk, "POOL_ALPHA_ERROR", False)
+    samples = _views()
+    sa = [0.1, None, 0.05]
+    on, _ = ml.cell_colours(samples, sa, cells=2)
+    monkeypatch.setattr(mc, "KEEP_ACROSS", False)
+    off, rec = ml.cell_colours(samples, sa, cells=2)
+    got, *_ = _two_passes(samples, sa, None, cap=10 ** 6)
+    assert rec["across"] == 0
+    changed = 0
+    for r, c, o in zip(off, got, on, strict=True):
+        if r is not None:
+            assert all(np.array_equal(x, y) for x, y in zip(r, c, strict=True))  # both paths: the cube colours
+            assert np.array_equal(r[0], o[0]) and np.array_equal(r[2], o[2])  # the same pixels and alphas
+            changed += int(np.count_nonzero(np.any(r[1] != o[1], -1)))
+    assert changed > 0
