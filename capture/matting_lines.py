@@ -403,7 +403,7 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     inv, gsum = cell_groups(cat["pts"], extent / cells)
     fill = np.concatenate([filled(s["C"], s["B"], s["a"], s["F0"]) for s in have])  # each view's own exposure
     view = np.concatenate([np.full(len(s["a"]), v) for v, s in enumerate(samples) if s is not None])
-    from capture.matting_cells import AGREEING_BEFORE, KEEP_ACROSS, agreeing_before, disagreeing
+    from capture.matting_cells import AGREEING_BEFORE, KEEP_ACROSS, agreeing_before, disagreeing, object_sig2
 
     why, before = agreeing_before(cat["C"], cat["B"], w, cat["a"], cat["F0"])
     if why:
@@ -417,6 +417,7 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     F, sig2 = F[inv], sig2[inv]
     ok = np.isfinite(sig2)
     rec["global_coloured"] = rec["filled_coloured"] = rec["across"] = 0
+    s2o = object_sig2(F_obj, rec["global"])
     out, off, blind = [], 0, 0
     for v, s in enumerate(samples):
         if s is None:
@@ -435,11 +436,10 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
         rec["coloured"] += int(use.sum())
         allowed = sigma_alpha is None or sa is not None
         use, Fv, n_obj, n_fill = with_object_colour(use, ok[k], fill[k], F[k], F_obj, allowed, kv[v])
-        rec["global_coloured"] += n_obj
-        rec["filled_coloured"] += n_fill
-        out.append(_view_out(cat["C"][k][use], cat["B"][k][use], Fv[use], sig2[k][use], sb[k][use],
-                             (ok[k] & cat["usable"][k])[use], s["index"][use], g[v], rec,
-                             KEEP_ACROSS and sigma_alpha is not None and sa is not None))
+        rec["global_coloured"], rec["filled_coloured"] = rec["global_coloured"] + n_obj, rec["filled_coloured"] + n_fill
+        out.append(_view_out(cat["C"][k][use], cat["B"][k][use], Fv[use], np.where(ok[k], sig2[k], s2o or 0.0)[use],
+                             sb[k][use], ((ok[k] | (s2o is not None)) & cat["usable"][k])[use], s["index"][use], g[v],
+                             rec, KEEP_ACROSS and sigma_alpha is not None and sa is not None))
     rec["crossed"] = int(ok.sum())
     if blind:
         rec["views_without_alpha_error"] = blind

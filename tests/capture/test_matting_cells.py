@@ -248,3 +248,12 @@ def test_the_switch_off_gives_the_cubes_colours(monkeypatch):
             assert np.array_equal(r[0], o[0]) and np.array_equal(r[2], o[2])  # the same pixels and alphas
             changed += int(np.count_nonzero(np.any(r[1] != o[1], -1)))
     assert changed > 0
+
+
+def test_the_object_colours_error_is_its_crossings_sigma_squared(monkeypatch):
+    F_obj = np.array([0.05, 0.1, 0.03])
+    assert mc.object_sig2(F_obj, {"sigma": 0.012}) == pytest.approx(0.012 ** 2)
+    assert mc.object_sig2(None, {"sigma": 0.012}) is None  # no object colour: its pixels keep theirs
+    assert mc.object_sig2(F_obj, {"reason": "the object's lines do not cross"}) is None
+    monkeypatch.setattr(mc, "OBJECT_ACROSS", False)
+    assert mc.object_sig2(F_obj, {"sigma": 0.012}) is None
