@@ -218,7 +218,12 @@ def _print_surroundings(console, rec: dict) -> None:
     if rim.get("views"):  # capture.matting_rim: the depth's opaque pixels of thin branches before a seen background
         console.print(f"matte: {rim['pixels']} depth-opaque pixels of thin branches in {rim['views']} view(s) solved "
                       "against the background the other views saw behind them (capture.matting_rim)", highlight=False)
-    g = (m.get("cells") or {}).get("global") or {}
+    cells = m.get("cells") or {}
+    if cells.get("across"):  # capture.matting_cells.KEEP_ACROSS: the photo's part across each pixel's line kept
+        console.print(f"colour across views: {cells['across']} partial pixels given a cube's or the object's colour "
+                      "kept the photo's part across their line where a frame saw the background "
+                      "(capture.matting_cells.across_line)", highlight=False)
+    g = cells.get("global") or {}
     for rec_pass in (g.get("recross", {}).get("first") or {}, g):
         mean = rec_pass.get("mean") or {}
         if mean.get("taken"):  # capture.matting_global.MEAN_CHECK: the crossing too far from the matte's mean colour

@@ -146,3 +146,23 @@ def test_the_report_says_when_the_thin_branches_opaque_pixels_were_opened():
     said = report({"views": 17, "pixels": 4120})
     assert "4120 depth-opaque pixels" in said and "in 17 view(s)" in said and "matting_rim" in said
     assert "matting_rim" not in report({"views": 0, "pixels": 0}) and "matting_rim" not in report(None)
+
+
+def test_the_report_says_how_many_pixels_kept_their_part_across_the_line():
+    """furrow model's report counts the partial pixels that kept the photo's part across their line
+    (capture.matting_cells.KEEP_ACROSS) and says nothing when none did."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(across: int | None) -> str:
+        out = StringIO()
+        cells = {"global": {}} if across is None else {"global": {}, "across": across}
+        _print_surroundings(Console(file=out, width=250), {"matte": {"mode": "off", "cells": cells}})
+        return out.getvalue()
+
+    said = report(412345)
+    assert "412345 partial pixels" in said and "across_line" in said
+    assert "across_line" not in report(0) and "across_line" not in report(None)
