@@ -221,8 +221,8 @@ def _print_surroundings(console, rec: dict) -> None:
     cells = m.get("cells") or {}
     if cells.get("across"):  # capture.matting_cells.KEEP_ACROSS: the photo's part across each pixel's line kept
         console.print(f"colour across views: {cells['across']} partial pixels given a cube's or the object's colour "
-                      "kept the photo's part across their line where a frame saw the background "
-                      "(capture.matting_cells.across_line)", highlight=False)
+                      "kept the photo's part across their line: whole where a frame saw the background, shrunk "
+                      "by the plate's uncertainty where not (capture.matting_cells.across_line)", highlight=False)
     g = cells.get("global") or {}
     for rec_pass in (g.get("recross", {}).get("first") or {}, g):
         mean = rec_pass.get("mean") or {}
