@@ -79,8 +79,8 @@ AGREEING_BEFORE = True
 #: indexing, the reference (the same pixels in the same order, so the same share).
 CROSSING_FLAT = True
 #: A pixel given its crossed cube's colour keeps the photo's part across its line, shrunk by the plate's
-#: uncertainty (:func:`across_line`; False: the cube's colour alone, stop 53's rule).  Held out (gather, the 49-row
-#: table of scripts/issue30_table.py, docs/matting.md "The photo's part across the line"): the 36 conifer rows
+#: uncertainty (:func:`across_line`; False: the cube's colour alone, stop 53's rule).  Held out, alone (gather, the
+#: 49-row table of scripts/issue30_table.py, docs/matting.md "The photo's part across the line"): the 36 conifer rows
 #: +0.035 to +0.139 dB (mean +0.074), SSIM +0.002, the fur -0.006 to 0, every black twin the same digits.
 KEEP_ACROSS = True
 #: ... and so does a pixel given the object's colour (no crossed cube), by the object colour's own expected error
@@ -259,24 +259,23 @@ def apply_cells(samples: dict | None, table: dict | None, sigma_alpha=None, gain
     imp = np.clip(_implied(C[use], B[use], F[use]), 0.0, 1.0)
     Fu = F[use]
     if KEEP_ACROSS and gated and sigma_alpha is not None:
-        sb = np.asarray(samples.get("sb", np.zeros(len(a))), np.float64)[use]
-        s2o = table.get("global_sig2")
+        s2o = table.get("global_sig2")  # sb: the plate's uncertainty, read for the gate above
         where = (crossed | (s2o is not None)) & np.asarray(samples["usable"], bool)
-        Fu, counts["across"] = across_line(C[use], B[use], Fu, imp, np.where(crossed, sig2, s2o or 0.0)[use], sb,
-                                           where[use])
+        Fu, counts["across"] = across_line(C[use], B[use], Fu, imp, np.where(crossed, sig2, s2o or 0.0)[use],
+                                           sb[use], where[use])
     return (samples["index"][use], (Fu / g).astype(np.float32), imp.astype(np.float32)), counts
 
 
-def across_line(C, B, F, imp, sig2, sb, crossed) -> tuple[np.ndarray, int]:
+def across_line(C, B, F, imp, sig2, sb, where) -> tuple[np.ndarray, int]:
     """The colours ``F`` (N, 3) of pixels of alpha ``imp`` (N,, implied by F on the line B -> C) with gamma of the
     photo's part across the line, r = (C - B) - imp (F - B), put back: F + gamma r / imp, clipped, so that the
     premultiplied colour is imp F + gamma r.  gamma = t / (t + (1 - imp)^2 sb^2 + NOISE_ABS^2), t = imp^2 ``sig2``
     (the cube colour's expected error, premultiplied), ``sb`` the plate's uncertainty (0 where a frame saw B);
-    only where ``crossed`` (and the background known and not blown out: elsewhere B is no measurement).  (The
-    colours, how many changed.)"""
+    only ``where`` (a crossed cube's or the object's colour, before a background known and not blown out: elsewhere
+    B is no measurement).  (The colours, how many changed.)"""
     from capture.matting_known import NOISE_ABS
 
-    t = imp ** 2 * np.where(crossed, sig2, 0.0)
+    t = imp ** 2 * np.where(where, sig2, 0.0)
     gamma = t / np.maximum(t + ((1.0 - imp) * sb) ** 2 + NOISE_ABS ** 2, 1e-30)
     r = (C - B) - imp[:, None] * (F - B)
     out = np.clip(F + (gamma / np.maximum(imp, 1e-6))[:, None] * r, 0.0, 1.0)
