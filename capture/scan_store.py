@@ -53,6 +53,20 @@ SPILL_REFERENCES = True
 #: run's own, written a moment before).  False: ``np.load`` (the reference).  The same arrays either way
 #: (tests/capture/test_scan_store.py).
 SPILL_READ_IN_PLACE = True
+#: A new scan's float colour that is, outside one box, bit for bit the linear colour of an 8-bit colour read lately
+#: from the folder (the matte's foreground: the photo's own colour away from the object) is stored as that
+#: file's name, the box and the box's pixels (:func:`_rgb_base`), when the box is at most RGB_BASE_MAX_SHARE of
+#: the frame.  Every byte written here is memory the system must hand over: on this machine (a VM whose freed
+#: pages go back to its host) fresh page-cache pages cost 0.14-0.34 GB/s, and the 72-view 1280x960 capture
+#: spilled 1.81 GB, 1.06 GB of it the matte's full-frame float colour (docs/speed.md round 21).  False: the
+#: whole float colour written (the reference); the same arrays read back either way
+#: (tests/capture/test_scan_store.py).
+SPILL_RGB_BASE = True
+#: The largest share of the frame :data:`SPILL_RGB_BASE`'s box may cover (beyond it the colour is written whole).
+RGB_BASE_MAX_SHARE = 0.6
+#: :func:`_rgb_base` first compares every RGB_BASE_STRIDE-th row and column (a colour of another view
+#: differs nearly everywhere): the whole frame only where that sample's box, scaled, is under twice the limit.
+RGB_BASE_STRIDE = 8
 #: ``--spill`` choices (:func:`spill_for`).
 SPILL_MODES = ("auto", "always", "never")
 
@@ -94,6 +108,41 @@ def _sources(scan, folder: Path, readers) -> dict:
                 if a is not None and key not in out and _same_bits(arrays.get(key), a):
                     out[key] = f
     return out
+
+
+def _rgb_base(rgb: np.ndarray, folder: Path, readers) -> tuple | None:
+    """(the name of a file of ``folder`` whose 8-bit colour, as a reader keeps it, gives ``rgb`` (H, W, 3)
+    float32 bit for bit outside a box, the box's pixels, (y0, x0, H, W)) with the smallest such box, or None
+    (SPILL_RGB_BASE off, another dtype, no such colour, or every box over RGB_BASE_MAX_SHARE of the frame)."""
+    if not SPILL_RGB_BASE or rgb.dtype != np.float32 or rgb.ndim != 3:
+        return None
+    bits = np.ascontiguousarray(rgb).view(np.uint32)
+    best, limit = None, RGB_BASE_MAX_SHARE * rgb.shape[0] * rgb.shape[1]
+    k = RGB_BASE_STRIDE
+    sub = np.s_[::k, ::k]
+    for rd in readers:
+        with _READ_LOCK:
+            cached = list(rd._cache.items())
+        for f, arrays in cached:
+            base = arrays.get("rgb")
+            if f.parent != folder or base is None or base.dtype != np.uint8 or base.shape != rgb.shape:
+                continue
+            if _box_area(srgb8_to_linear(np.ascontiguousarray(base[sub])), bits[sub]) * k * k > 2 * limit:
+                continue  # another view's colour: the sample tells (a few ms)
+            box = mask_box((srgb8_to_linear(base).view(np.uint32) != bits).any(axis=2))
+            y0, y1, x0, x1 = box if box is not None else (0, 0, 0, 0)
+            if (y1 - y0) * (x1 - x0) <= limit and (best is None or (y1 - y0) * (x1 - x0) < best[0]):
+                best = ((y1 - y0) * (x1 - x0), f, (y0, y1, x0, x1))
+    if best is None:
+        return None
+    _, f, (y0, y1, x0, x1) = best
+    return np.array(f.name), np.ascontiguousarray(rgb[y0:y1, x0:x1]), np.array((y0, x0, *rgb.shape[:2]), np.int64)
+
+
+def _box_area(linear: np.ndarray, bits: np.ndarray) -> int:
+    """Pixels of the box around where float32 ``linear`` (h, w, 3) and the uint32 ``bits`` of a colour differ."""
+    box = mask_box((np.ascontiguousarray(linear).view(np.uint32) != bits).any(axis=2))
+    return 0 if box is None else (box[1] - box[0]) * (box[3] - box[2])
 
 
 def _same_bits(a, b) -> bool:
@@ -153,7 +202,13 @@ def _read_array(f: Path, key: str) -> np.ndarray | None:
         if key + "_ref" in z.files:
             return _read_array(f.parent / str(z[key + "_ref"]), key)
         if key == "rgb":
-            return z["rgb"]
+            if "rgb_base_ref" not in z.files:
+                return z["rgb"]
+            out = srgb8_to_linear(_read_array(f.parent / str(z["rgb_base_ref"]), "rgb"))
+            y0, x0 = (int(v) for v in z["rgb_box"][:2])
+            crop = z["rgb"]
+            out[y0:y0 + crop.shape[0], x0:x0 + crop.shape[1]] = crop
+            return out
         return _uncrop(z[key], z[key + "_box"]) if key + "_box" in z.files else None
 
 
@@ -181,6 +236,8 @@ def write_scan(f: Path, scan, readers=()) -> SpilledScan:
             continue
         if key in sources:
             arrays[key + "_ref"] = np.array(sources[key].name)
+        elif key == "rgb" and (based := _rgb_base(rgb, f.parent, (reader(), *readers))) is not None:
+            arrays["rgb_base_ref"], arrays["rgb"], arrays["rgb_box"] = based
         elif key == "rgb":
             arrays["rgb"] = rgb
         else:

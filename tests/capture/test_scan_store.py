@@ -312,3 +312,40 @@ def test_spilled_arrays_read_in_place_are_np_loads(tmp_path, monkeypatch):
     np.savez_compressed(bad, rgb=np.ones((4, 4, 3), np.float32))
     with pytest.raises(ValueError, match="compressed.npz"):
         st._InPlaceNpz(bad)
+
+
+def test_float_colour_stored_against_its_photo_reads_back_the_same(tmp_path, monkeypatch):
+    """capture.scan_store.SPILL_RGB_BASE: a float colour that is the linear colour of an 8-bit colour read
+    lately except inside a box (a matte's foreground) is stored as that file's name, the box and its pixels;
+    it reads back bit for bit (a -0.0 outside the object counts as a change); a colour changed everywhere is
+    written whole; off, the whole colour is written and reads back the same."""
+    import capture.scan_store as st
+    from capture.scan import srgb8_to_linear
+
+    s0 = make_scanset(sphere_scene(), scan_ring(1, 48, 36)).scans[0]
+    photo = to_uint8_srgb(s0.rgb)  # a photo's 8-bit codes
+    photo[30, 40] = 0
+    s0 = Scan(photo, s0.depth, s0.camera, s0.name)
+    fg = srgb8_to_linear(s0.rgb)
+    fg[10:20, 12:30] = np.float32(0.25)  # the object's colours
+    fg[30, 40, 1] = -0.0  # equal to 0.0 as a number, not as bits
+    whole = fg * np.float32(1.5)
+    reads = {}
+    for on in (False, True):
+        monkeypatch.setattr(st, "SPILL_RGB_BASE", on)
+        with ScanSpill(tmp_path) as spill:
+            a = spill.keep(s0)
+            a.rgb  # noqa: B018  (a stage reads the view)
+            b = spill.keep(Scan(fg, s0.depth, s0.camera, s0.name, None))
+            c = spill.keep(Scan(whole, s0.depth, s0.camera, s0.name, None))
+            with np.load(b.file) as z:
+                assert ("rgb_base_ref" in z.files) == on
+                if on:
+                    assert z["rgb"].shape == (21, 29, 3) and tuple(z["rgb_box"]) == (10, 12, 36, 48)
+            with np.load(c.file) as z:
+                assert "rgb_base_ref" not in z.files and z["rgb"].shape == (36, 48, 3)
+            spill._cache.clear()  # read from the files again
+            reads[on] = [b.rgb, c.rgb]
+    for x, want in zip(reads[True], (fg, whole), strict=True):
+        assert x.dtype == np.float32 and x.tobytes() == want.tobytes()
+    assert all(x.tobytes() == y.tobytes() for x, y in zip(reads[False], reads[True], strict=True))
