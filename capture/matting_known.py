@@ -451,7 +451,9 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
     ``record``: a dict that gets its record; ``colour``: step 4's rule for where B counts as known
     (:func:`_finish`)."""
-    from pymatting import cf_laplacian, cg, ichol
+    from pymatting import cf_laplacian, cg
+
+    from capture.matting_fast import ichol_sized
 
     pre = {}
 
@@ -459,7 +461,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
         try:
             with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout (`furrow model --json`)
                 if "M" not in pre:  # the passes differ in the data weights only: one preconditioner
-                    pre["M"] = ichol(A, discard_threshold=ICHOL_DISCARD)
+                    pre["M"] = ichol_sized(A, ICHOL_DISCARD)
                 return cg(A, b, x0=x0, M=pre["M"], rtol=CG_RTOL, maxiter=CG_MAX_ITERATIONS), True
         except ValueError as e:  # "Conjugate gradient descent did not converge ..."
             if "converge" not in str(e):

@@ -53,3 +53,25 @@ def test_dilate_and_erode_are_ndimage(iterations):
         assert np.array_equal(erode(m, iterations, square=True),
                               ndimage.binary_erosion(m, structure=square, iterations=iterations, border_value=0))
         assert dilate(m, iterations).dtype == bool
+
+
+@pytest.mark.parametrize("room", [4, 0])
+def test_ichol_sized_is_pymattings_factor(monkeypatch, room):
+    """capture.matting_fast.ichol_sized: the factor of a matting system (the closed-form Laplacian of a seeded
+    image plus data weights) equals pymatting's ichol with its own room, bit for bit; with no room (0) the
+    factor overflows it and is made again with pymatting's."""
+    import scipy.sparse as sp
+    from pymatting import cf_laplacian, ichol
+
+    import capture.matting_fast as mf
+
+    rng = np.random.default_rng(3)
+    img = rng.random((40, 50, 3))
+    A = (cf_laplacian(img, epsilon=1e-5, radius=1) + sp.diags(rng.random(40 * 50) * 0.5 + 1e-3)).tocsr()
+    monkeypatch.setattr(mf, "ICHOL_ROOM", room)
+    got, ref = mf.ichol_sized(A, 3e-3), ichol(A, discard_threshold=3e-3)
+    for key in ("data", "indices", "indptr"):
+        assert np.array_equal(getattr(got.L, key), getattr(ref.L, key))
+    assert len(got.L.data) > 40 * 50  # room 0 (n entries) cannot hold it: the retry made it
+    b = rng.random(40 * 50)
+    assert np.array_equal(got(b), ref(b))
