@@ -349,3 +349,8 @@ def test_float_colour_stored_against_its_photo_reads_back_the_same(tmp_path, mon
     for x, want in zip(reads[True], (fg, whole), strict=True):
         assert x.dtype == np.float32 and x.tobytes() == want.tobytes()
     assert all(x.tobytes() == y.tobytes() for x, y in zip(reads[False], reads[True], strict=True))
+    from capture.sampling import mask_box
+
+    lin, bits = srgb8_to_linear(photo), fg.view(np.uint32)
+    for b in (bits, whole.view(np.uint32), lin.view(np.uint32)):  # the fast box is the per-pixel reduction's
+        assert st._differ_box(lin, b) == mask_box((lin.view(np.uint32) != b).any(axis=2))
