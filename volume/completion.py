@@ -46,7 +46,8 @@ def complete_sdf(band_values: np.ndarray, band: np.ndarray, outside: np.ndarray,
         d = edt.edt(sign_out.view(np.uint8) + np.uint8(1), black_border=False, parallel=edt_threads())
         d -= np.float32(0.5)
         d *= np.float32(w)
-        vals = np.where(sign_out, d, -d).astype(np.float32, copy=False)
+        np.negative(d, out=d, where=~sign_out)  # in place: np.where(sign_out, d, -d) without two new volumes
+        vals = d.astype(np.float32, copy=False)
         vals[band] = band_values[band]
         return vals
     for side in (True, False):
