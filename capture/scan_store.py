@@ -58,7 +58,7 @@ SPILL_READ_IN_PLACE = True
 #: file's name, the box and the box's pixels (:func:`_rgb_base`), when the box is at most RGB_BASE_MAX_SHARE of
 #: the frame.  Every byte written here is memory the system must hand over: on this machine (a VM whose freed
 #: pages go back to its host) fresh page-cache pages cost 0.14-0.34 GB/s, and the 72-view 1280x960 capture
-#: spilled 1.81 GB, 1.06 GB of it the matte's full-frame float colour (docs/speed.md round 21).  False: the
+#: spilled 1.81 GB, 1.06 GB of it the matte's full-frame float colour (docs/speed.md round 22).  False: the
 #: whole float colour written (the reference); the same arrays read back either way
 #: (tests/capture/test_scan_store.py).
 SPILL_RGB_BASE = True
@@ -141,15 +141,12 @@ def _rgb_base(rgb: np.ndarray, folder: Path, readers) -> tuple | None:
 
 def _differ_box(linear: np.ndarray, bits: np.ndarray) -> tuple[int, int, int, int] | None:
     """(row0, row1, col0, col1) of the box around the pixels where float32 ``linear`` (h, w, 3) and the uint32
-    ``bits`` of a colour differ (capture.sampling.mask_box's form), None where none does; the reductions run
-    over rows of w x 3 values, not over each pixel's three (ten times faster at 1280x960)."""
+    ``bits`` of a colour differ, None where none does: capture.sampling.mask_box of the (h, w x 3) values, its
+    columns brought back to pixels (its reductions then run over rows of w x 3 values, not over each pixel's
+    three: ten times faster at 1280x960)."""
     h, w = bits.shape[:2]
-    neq = (np.ascontiguousarray(linear).view(np.uint32) != bits).reshape(h, w * 3)
-    rows = np.flatnonzero(neq.any(axis=1))
-    if not len(rows):
-        return None
-    cols = np.flatnonzero(neq[rows[0]:rows[-1] + 1].any(axis=0))
-    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]) // 3, int(cols[-1]) // 3 + 1
+    box = mask_box((np.ascontiguousarray(linear).view(np.uint32) != bits).reshape(h, w * 3))
+    return None if box is None else (box[0], box[1], box[2] // 3, (box[3] - 1) // 3 + 1)
 
 
 def _box_area(box) -> int:
