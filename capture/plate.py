@@ -33,7 +33,8 @@ own predictions GAIN_PASSES times (:func:`refit`); then it draws the plates.
 Every view's record says what share of its matting band got a known background and the plate's
 error on background pixels it was not built from (a ring of the view's own background pixels just
 outside the band, predicted from the other views only: leave one out).  Where no view saw the
-background, the plate is unknown and the matte falls back to the estimate without it.
+background, the plate is unknown and the matte falls back to the estimate without it; a view whose
+plate cannot beat its own nearby background on that ring gets none (capture.plate_gate).
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_cells import band_crossing
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
+from capture.plate_gate import gate_plates, gate_record  # each view's plate against none
 from capture.plate_record import plate_record
 from capture.plate_reproject import room_depth
 from capture.plate_threads import thread_map
@@ -439,7 +441,9 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     if cfg.mode == "user" and user is None:
         raise ValueError("--plate user needs --background-plates DIR")
     if user is not None and cfg.mode in ("auto", "user"):
-        plates, rec = _user_plates(views, user)
+        from capture.plate_io import user_plates
+
+        plates, rec = user_plates(views, user)
         return ([p.cropped() for p in plates] if crop else plates), rec
     ps = plate_set(views, plane, focus, cfg)
     trials = {path: _trial(ps, path) for path in _paths(cfg)}
@@ -454,22 +458,10 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
     plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
                              zip(ps.views, made, fit.errors, strict=True)))
-    rec = plate_record(mode, plates, fit.gains, {path: t.errors for path, t in trials.items()})
+    plates, gate = gate_plates([(p.view.linear, p.view.object_depth, p.ring, p.observed, q)
+                                for p, q in zip(ps.views, fit.predicted, strict=True)], plates)
+    rec = gate_record(plate_record(mode, plates, fit.gains, {path: t.errors for path, t in trials.items()}), gate)
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
-
-
-def user_gains(views: list[PlateView], user: list[np.ndarray]) -> np.ndarray:
-    """(V, 3) gain of each view relative to its user plate (the plate's exposure: gain 1), fitted on
-    the view's confidently background pixels."""
-    g = np.ones((len(views), 3))
-    for i, (v, u) in enumerate(zip(views, user, strict=True)):
-        m = source_mask(v.object_depth)
-        o = v.linear[m].astype(np.float64)
-        p = np.asarray(u, np.float64)[m]
-        ok = _usable(o) & _usable(p)
-        if ok.sum() >= GAIN_MIN_SAMPLES:
-            g[i] = np.exp(np.median(np.log(p[ok]) - np.log(o[ok]), axis=0))
-    return g
 
 
 def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,
@@ -482,14 +474,3 @@ def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, f
                   err[0], err[1], band_estimated=est, estimated=estimated, sigma=sigma,
                   band_crossing=band_crossing(v.linear, band, col, known, estimated, tri == 1.0))
     return plate.cropped() if crop else plate  # crop: the box around its known pixels (Plate.cropped)
-
-
-def _user_plates(views: list[PlateView], user: list[np.ndarray]) -> tuple[list[Plate], dict]:
-    """The user's plates in each view's exposure (:func:`user_gains`), their errors on the held-back ring."""
-    g = user_gains(views, user)
-    plates = []
-    for i, (v, u) in enumerate(zip(views, user, strict=True)):
-        r = ring_pixels(v.object_depth)
-        err = _error(v.linear[r[:, 1], r[:, 0]].astype(np.float64), np.asarray(u)[r[:, 1], r[:, 0]] / g[i])
-        plates.append(_plate(v, np.asarray(u, np.float32) / g[i], np.ones(v.object_depth.shape, bool), err, "user"))
-    return plates, plate_record("user", plates, g, {})

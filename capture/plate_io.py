@@ -6,7 +6,8 @@ like the frame's colour image (``images/r0_v000.png`` -> ``DIR/r0_v000.png``; an
 PLATE_EXTENSIONS).  A plate must show what the frame shows after reading: the same size (or the
 same aspect at another resolution: it is resized to the frame's), colour 8-bit / 16-bit sRGB or
 linear EXR.  Plates of a capture whose frames are undistorted at read time must be undistorted
-the same way (they are not: a lens model is not applied to them).
+the same way (they are not: a lens model is not applied to them).  :func:`user_plates` brings them
+into each view's exposure (:func:`user_gains`) for capture.plate.background_plates.
 """
 
 from __future__ import annotations
@@ -76,3 +77,39 @@ def read_user_plates(folder: Path, scans) -> list[np.ndarray]:
                               f"{', '.join(PLATE_EXTENSIONS)}; or leave one image for every frame)")
         out.append(_fit(_linear(by_stem[stem]), shape, by_stem[stem], s.name))
     return out
+
+
+def user_gains(views, user: list[np.ndarray]) -> np.ndarray:
+    """(V, 3) gain of each view (capture.plate.PlateView) relative to its user plate (the plate's exposure:
+    gain 1), fitted on the view's confidently background pixels."""
+    from capture.plate import GAIN_MIN_SAMPLES, _usable, source_mask
+
+    g = np.ones((len(views), 3))
+    for i, (v, u) in enumerate(zip(views, user, strict=True)):
+        m = source_mask(v.object_depth)
+        o = v.linear[m].astype(np.float64)
+        p = np.asarray(u, np.float64)[m]
+        ok = _usable(o) & _usable(p)
+        if ok.sum() >= GAIN_MIN_SAMPLES:
+            g[i] = np.exp(np.median(np.log(p[ok]) - np.log(o[ok]), axis=0))
+    return g
+
+
+def user_plates(views, user: list[np.ndarray]) -> tuple[list, dict]:
+    """(capture.plate.Plate per view, the record): the user's plates in each view's exposure (:func:`user_gains`),
+    their errors on the held-back ring; a plate that cannot beat the view's own nearby background is refused
+    (capture.plate_gate)."""
+    from capture.plate import _error, _plate, ring_pixels
+    from capture.plate_gate import gate_plates, gate_record
+    from capture.plate_record import plate_record
+
+    g = user_gains(views, user)
+    plates, rings = [], []
+    for i, (v, u) in enumerate(zip(views, user, strict=True)):
+        r = ring_pixels(v.object_depth)
+        o, q = v.linear[r[:, 1], r[:, 0]].astype(np.float64), np.asarray(u)[r[:, 1], r[:, 0]] / g[i]
+        rings.append((v.linear, v.object_depth, r, o, q))
+        plates.append(_plate(v, np.asarray(u, np.float32) / g[i], np.ones(np.shape(v.object_depth), bool),
+                             _error(o, q), "user"))
+    plates, gate = gate_plates(rings, plates)
+    return plates, gate_record(plate_record("user", plates, g, {}), gate)

@@ -198,6 +198,13 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
                       f"band (least {pl['band_known_min']:.1%}){lines}; error on held-back background {err}{scale}",
                       highlight=False)
+        gone = pl.get("refused") or []
+        if gone:  # capture.plate_gate: a plate that loses to the view's own nearby background is not used
+            why = "; ".join(f"view {i}: {pl['per_view'][i]['refused']}" for i in gone[:3])
+            why += "; ..." if len(gone) > 3 else ""
+            console.print(f"[yellow]background plate refused in {len(gone)} of {len(pl['per_view'])} view(s), their "
+                          f"matte estimated without it (the background changed between frames?): {why}[/yellow]",
+                          highlight=False)
         ex = pl.get("exposure") or {}
         if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
             ev = [sum(math.log2(g) for g in ex["gains"][i]) / 3 for i in ex["taken"]]

@@ -1,0 +1,152 @@
+"""Whether each view's background plate beats doing nothing, and the plate refused where it does not
+(issue 30; capture.plate.background_plates).
+
+A plate is a prediction of the background behind the object from *other* frames (or from the user's
+plate).  Where the background changed between frames (a person walked behind the plant, a door opened, a
+screen played, the room's light went out), that prediction is wrong in the frames that differ, and a
+matte that trusts it puts the difference into the object's colour and alpha: a wrong answer reported as a
+plate.  The plate's own held-back error (each view's ring of background pixels just outside the matting
+band, predicted from the other views only) says how wrong it is, but not against what.
+
+Doing nothing is the matte estimated without a plate, which takes the background behind a partial pixel
+from the view's own background nearby.  Its stand-in on the same ring is :func:`local_prediction`: each
+ring pixel predicted by the mean of the view's own background pixels at least LOCAL_GAP_FRACTION of the
+width beyond the ring, within LOCAL_WINDOW_FRACTION of it.  That predictor sees the view's real
+background, whatever the other frames show, and it is generous (the estimate reaches further into a
+crown than the gap), so a plate it beats on the ring is worth its keep.
+
+A view's plate is refused (:func:`refused`) when it cannot beat that predictor on the ring: counted over
+the ring pixels where either is off by more than DECISIVE_ERROR (elsewhere both are right within noise, and a
+smooth or dark background predicts itself), the plate is the closer one in under GATE_MIN_WINS of them (a sign
+test, as capture.plate_exposure's; at least GATE_MIN_PIXELS such pixels, else nothing is measured and the plate
+is kept).  The views' RMS would not do: on the courtyard behind the path-traced conifer the local predictor's
+RMS is 0.18-0.22 (the sunlit wall's edges), ten to a hundred times a right plate's and about a wrong one's.  A
+refused view gets an empty plate: the matte estimates it as without plates, and the record and the console say
+which views and why.  ``GATE = False`` is the rule before (every plate used).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+#: Refuse plates that lose to the local predictor (True), else use every plate (the rule before).
+GATE = True
+#: The local predictor's pixels lie at least this fraction of the width beyond the held-back ring ...
+LOCAL_GAP_FRACTION = 12 / 640
+#: ... within a square window of this half-width (fraction of the width) around the ring pixel.
+LOCAL_WINDOW_FRACTION = 24 / 640
+#: A ring pixel decides between the plate and the local predictor where either is off by more than this
+#: (linear, the largest channel; about 8 8-bit steps at a mid grey) ...
+DECISIVE_ERROR = 0.02
+#: ... the plate must be the closer one at this share of the deciding pixels ...
+GATE_MIN_WINS = 0.5
+#: ... counted over at least this many of them (fewer: the plate is kept).
+GATE_MIN_PIXELS = 100
+
+def local_prediction(linear: np.ndarray, object_depth: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 each ring pixel's colour predicted from the view's own background (module
+    docstring): the mean of ``linear`` over the pixels outside the object's depth grown by the source
+    band, the ring and the gap, within the window; NaN rows where the window holds none.  ``ring``:
+    (N, 2) int (x, y) (capture.plate.ring_pixels)."""
+    import cv2
+
+    from capture.matting_fast import dilate
+    from capture.plate import RING_FRACTION, SOURCE_BAND_FRACTION, px
+
+    ring = np.asarray(ring, np.int64).reshape(-1, 2)
+    out = np.full((len(ring), 3), np.nan)
+    if not len(ring):
+        return out
+    H, W = np.shape(object_depth)[:2]
+    grow = px(SOURCE_BAND_FRACTION, W) + px(RING_FRACTION, W) + px(LOCAL_GAP_FRACTION, W)
+    r = px(LOCAL_WINDOW_FRACTION, W)
+    x0, y0 = max(0, ring[:, 0].min() - r), max(0, ring[:, 1].min() - r)
+    x1, y1 = min(W, ring[:, 0].max() + r + 1), min(H, ring[:, 1].max() + r + 1)
+    # the object grown on the box padded by the growth (pixels beyond the box cannot reach it)
+    bx0, by0, bx1, by1 = max(0, x0 - grow), max(0, y0 - grow), min(W, x1 + grow), min(H, y1 + grow)
+    obj = np.ascontiguousarray(np.asarray(object_depth)[by0:by1, bx0:bx1] > 0)
+    far = ~dilate(obj, grow)[y0 - by0:y1 - by0, x0 - bx0:x1 - bx0]
+    stack = np.empty((y1 - y0, x1 - x0, 4), np.float32)
+    stack[..., :3] = np.asarray(linear[y0:y1, x0:x1], np.float32) * far[..., None]
+    stack[..., 3] = far
+    sums = cv2.boxFilter(stack, -1, (2 * r + 1, 2 * r + 1), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    s = sums[ring[:, 1] - y0, ring[:, 0] - x0].astype(np.float64)
+    ok = s[:, 3] > 0.5
+    out[ok] = s[ok, :3] / s[ok, 3:4]
+    return out
+
+
+def local_prediction_reference(linear: np.ndarray, object_depth: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """:func:`local_prediction` by brute force: the far pixels from scipy's dilation of the whole frame,
+    each ring pixel's window summed in float64 (the test compares the two)."""
+    from scipy import ndimage
+
+    from capture.plate import RING_FRACTION, SOURCE_BAND_FRACTION, px
+
+    H, W = np.shape(object_depth)[:2]
+    grow = px(SOURCE_BAND_FRACTION, W) + px(RING_FRACTION, W) + px(LOCAL_GAP_FRACTION, W)
+    r = px(LOCAL_WINDOW_FRACTION, W)
+    far = ~ndimage.binary_dilation(np.asarray(object_depth) > 0, iterations=grow)
+    lin = np.asarray(linear, np.float64)
+    out = np.full((len(ring), 3), np.nan)
+    for k, (x, y) in enumerate(np.asarray(ring, np.int64).reshape(-1, 2)):
+        sl = (slice(max(0, y - r), y + r + 1), slice(max(0, x - r), x + r + 1))
+        f = far[sl]
+        if f.any():
+            out[k] = lin[sl][f].mean(axis=0)
+    return out
+
+
+def refused(observed: np.ndarray, predicted: np.ndarray, local: np.ndarray) -> tuple[str | None, dict]:
+    """(why the view's plate is refused or None when it is kept, the counts) from the ring's ``observed``
+    colour, the plate's ``predicted`` one and the local predictor's ``local`` one (each (N, 3), NaN rows
+    unknown; module docstring)."""
+    o = np.asarray(observed, np.float64)
+    ok = np.isfinite(predicted).all(axis=1) & np.isfinite(local).all(axis=1)
+    from capture.plate import SENSOR_MAX
+
+    ep = np.abs(np.minimum(np.asarray(predicted)[ok], SENSOR_MAX) - o[ok]).max(axis=1)
+    el = np.abs(np.asarray(local)[ok] - o[ok]).max(axis=1)
+    deciding = np.maximum(ep, el) > DECISIVE_ERROR
+    n, wins = int(deciding.sum()), int((ep[deciding] < el[deciding]).sum())
+    counts = {"deciding": n, "plate_wins": wins}
+    if not GATE or n < GATE_MIN_PIXELS or wins >= GATE_MIN_WINS * n:
+        return None, counts
+    return (f"the plate is closer than the view's own nearby background at {wins} of {n} held-back pixels "
+            f"(under {GATE_MIN_WINS:.0%})"), counts
+
+
+def empty(plate):
+    """The plate with nothing known (the matte then estimates the view as without plates), its errors kept
+    for the record."""
+    none = dict(estimated=None, sigma=None, band_known=0.0, band_estimated=0.0, band_crossing=0.0)
+    if plate.frame is None:  # a full-frame plate stays one (Plate.cropped may crop it later)
+        return replace(plate, background=np.zeros((*plate.known.shape, 3), np.float32),
+                       known=np.zeros(plate.known.shape, bool), **none)
+    return replace(plate, background=np.zeros((0, 0, 3), np.float16), known=np.zeros((0, 0), bool),
+                   frame=(*plate.frame[:2], 0, 0), **none)
+
+
+
+def gate_plates(views, plates: list) -> tuple[list, list]:
+    """(the plates with the refused ones emptied (:func:`empty`), per view (why its plate was refused or
+    None, the counts)) (module docstring).  ``views``: per view (linear (H, W, 3), object depth (H, W),
+    ring (N, 2) int (x, y), observed (N, 3), the plate's prediction of the ring (N, 3)); ``plates``:
+    capture.plate.Plate per view (None: no plate, kept)."""
+    from capture.plate_threads import thread_map
+
+    def one(v):
+        lin, od, ring, obs, pred = v
+        return refused(obs, pred, local_prediction(lin, od, ring)) if GATE else (None, {})
+
+    got = list(thread_map(one, views))
+    return [p if p is None or w is None else empty(p) for p, (w, _) in zip(plates, got, strict=True)], got
+
+
+def gate_record(rec: dict, gate: list) -> dict:
+    """The plate record with each view's ``gate`` (the counts of :func:`refused`) and ``refused`` reason (None:
+    kept), and ``refused``: the positions of the views whose plate was refused (:func:`gate_plates`)."""
+    per_view = [{**r, "gate": c, "refused": w} for r, (w, c) in zip(rec.get("per_view", []), gate, strict=True)]
+    return {**rec, "per_view": per_view, "refused": [i for i, (w, _) in enumerate(gate) if w is not None]}

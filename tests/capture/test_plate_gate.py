@@ -1,0 +1,121 @@
+"""A plate that cannot beat the view's own nearby background is refused (capture.plate_gate).
+
+The scene: tests/plate_scenes.turntable_capture (fixed camera, object turning, the room the same in
+every frame), with the room behind the object shaded to SHADE in CHANGED frames, inside an ellipse
+around it (a cloud's shadow on the wall: the background changed between frames).  The fixed camera's
+plate is the median of the frames, right for the others and wrong by (1 - SHADE) B in those (band
+error 0.37-0.39 there without the gate).  Measured at 192x144: the shaded frames' plate is the closer
+one at 0 of 695 and 4 of 729 deciding ring pixels, the other frames' at 93-99 % of theirs
+(capture.plate_gate.GATE_MIN_WINS is 50 %).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture import plate_gate as pg
+from capture.plate import PlateConfig, PlateView, background_plates, ring_pixels
+from tests import plate_scenes as ps
+
+#: The shaded frames, the shade, the capture's size.
+CHANGED, SHADE, SIZE = (3, 7), 0.25, (192, 144)
+#: The kept frames' plate error in the band (the turntable plate's tolerance of tests/capture/test_plate.py) ...
+KEPT_TOL = 1e-3
+#: ... and the least error of the shaded frames' plate where the gate is off (what the gate keeps out).
+WRONG_MIN = 0.05
+
+
+def _shade(a: np.ndarray) -> np.ndarray:
+    """(H, W, 1) the shade's gain: SHADE inside an ellipse 1.6 times the object's box, 1 outside (a
+    shade over the whole frame would be an exposure, which the plate's gains take out)."""
+    y, x = np.nonzero(a > 0.01)
+    yy, xx = np.mgrid[:a.shape[0], :a.shape[1]]
+    cy, cx = (y.min() + y.max()) / 2, (x.min() + x.max()) / 2
+    rho = np.hypot((yy - cy) / (0.8 * np.ptp(y)), (xx - cx) / (0.8 * np.ptp(x)))
+    return np.where(rho < 1, SHADE, 1.0).astype(np.float32)[..., None]
+
+
+def _changed_capture():
+    views, room, alphas, F = ps.turntable_capture(width=SIZE[0], height=SIZE[1])
+    out, truth = [], []
+    for i, (v, a) in enumerate(zip(views, alphas, strict=True)):
+        B = room * _shade(a) if i in CHANGED else room
+        col = a[..., None] * F + (1 - a[..., None]) * B
+        out.append(PlateView(v.camera, np.clip(col, 0, 1).astype(np.float32), v.object_depth, v.depth))
+        truth.append(B)
+    return out, room, truth
+
+
+def test_local_prediction_is_its_brute_force_reference():
+    rng = np.random.default_rng(5)
+    H, W = 120, 160
+    lin = rng.uniform(0.0, 1.0, (H, W, 3)).astype(np.float32)
+    depth = np.zeros((H, W), np.float32)
+    depth[30:90, 50:100] = 1.0
+    depth[5:9, 150:158] = 1.0  # an object at the frame's edge: windows clipped, some with no far pixel
+    ring = ring_pixels(depth)
+    fast, ref = pg.local_prediction(lin, depth, ring), pg.local_prediction_reference(lin, depth, ring)
+    assert np.array_equal(np.isnan(fast), np.isnan(ref)) and np.isfinite(ref).any()
+    assert np.nanmax(np.abs(fast - ref)) <= 1e-5  # float32 window sums against float64
+
+
+def test_a_plate_from_frames_whose_background_changed_is_refused_there_only():
+    views, _, truth = _changed_capture()
+    plates, rec = background_plates(views, PlateConfig(mode="fixed"))
+    assert rec["refused"] == list(CHANGED)
+    for i, (p, v, t) in enumerate(zip(plates, views, truth, strict=True)):
+        why = rec["per_view"][i]["refused"]
+        if i in CHANGED:
+            assert not p.known.any() and p.band_known == 0.0 and why is not None
+        else:
+            err, known = ps.band_error([v], [p], [t])
+            assert why is None and known > 0.4 and err <= KEPT_TOL, (i, err, known)
+
+
+def test_without_the_gate_the_changed_frames_get_a_wrong_plate(monkeypatch):
+    """The rule before (GATE False): every plate used, the shaded frames' as wrong as the shade."""
+    monkeypatch.setattr(pg, "GATE", False)
+    views, _, truth = _changed_capture()
+    plates, rec = background_plates(views, PlateConfig(mode="fixed"))
+    assert rec["refused"] == []
+    errs = [ps.band_error([views[i]], [plates[i]], [truth[i]])[0] for i in CHANGED]
+    assert min(errs) >= WRONG_MIN, errs
+
+
+def test_an_unchanged_room_keeps_every_plate():
+    views, room, _, _ = ps.turntable_capture(width=SIZE[0], height=SIZE[1])
+    plates, rec = background_plates(views, PlateConfig(mode="fixed"))
+    assert rec["refused"] == [] and all(p.known.any() for p in plates)
+
+
+def test_a_user_plate_of_another_room_is_refused():
+    """The user's plates (--background-plates): one shot in the unshaded room for every frame is wrong
+    for the shaded frames, which are refused; the others keep it."""
+    views, room, _ = _changed_capture()
+    plates, rec = background_plates(views, PlateConfig(mode="user"), user=[room] * len(views))
+    assert rec["mode"] == "user" and rec["refused"] == list(CHANGED)
+    assert all(p.known.any() != (i in CHANGED) for i, p in enumerate(plates))
+
+
+def test_nothing_measured_refuses_nothing():
+    """Too few deciding pixels (a dark, smooth background) or unknown predictions keep the plate."""
+    obs = np.full((500, 3), 0.1)
+    why, counts = pg.refused(obs, obs + 0.005, obs + 0.001)  # every error below DECISIVE_ERROR
+    assert why is None and counts["deciding"] == 0
+    why, _ = pg.refused(obs, np.full((500, 3), np.nan), obs)
+    assert why is None
+    why, counts = pg.refused(obs, obs + 0.3, obs + 0.001)  # a plate off by 0.3 where the room predicts itself
+    assert why is not None and counts == {"deciding": 500, "plate_wins": 0}
+
+
+@pytest.mark.parametrize("wins", [0.49, 0.51])
+def test_the_plate_must_win_half_of_the_deciding_pixels(wins):
+    n = 1000
+    obs = np.full((n, 3), 0.4)
+    k = int(round(wins * n))
+    pred = obs + np.where(np.arange(n) < k, 0.01, 0.2)[:, None]  # right at k pixels, far off at the others
+    local = obs + 0.05
+    why, counts = pg.refused(obs, pred, local)
+    assert counts == {"deciding": n, "plate_wins": k}
+    assert (why is None) == (wins >= pg.GATE_MIN_WINS)
