@@ -19,6 +19,8 @@ and written in furrow's scan format with the true coverage matte of every view (
   conifer_room_orbit_jump_ae                               the orbit conifer, the same
   fur_similar_bg_jump_ae                                   the brown fur before bricks, the same
   fur_similar_bg_orbit        (+ fur_black_similar_orbit)  the brown fur, camera circling
+  conifer_room_turntable_shade                             the room behind the crown shaded in 3 kept views
+  conifer_room_orbit_shade                                 the orbit conifer, the same
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
 render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on

@@ -61,6 +61,10 @@ class Layout:
     (camera_traits.exposure_jump_gains; instead of ``auto_exposure``)."""
     pose_noise: tuple[float, float] | None = None
     """(RMS degrees, RMS fraction of the object's diagonal) of the recorded poses' error (None = exact)."""
+    background_shade: tuple[float, int] | None = None
+    """(gain, count): in ``count`` of the kept room views the room behind the object is shaded to ``gain`` of
+    its radiance (a cloud over the sunlit wall: the background changes between frames; :func:`shaded_room`),
+    the object as rendered; gt/background_shade.json lists the views."""
 
     def room_views(self, n: int) -> set[int]:
         if self.room_frames is None:
@@ -108,9 +112,14 @@ def build_scanset(renders: list[ViewRender], cams: list[Camera], obj: PathObject
     gains, extra = _camera_gains(n, cams, spec.seed, layout)
     rec = recorded_cameras(cams, obj, spec.seed, layout.pose_noise)
     scans = []
+    shaded = shade_views(n, shown, spec.seed, layout)
+    if shaded:
+        extra["gt/background_shade.json"] = json.dumps({"gain": layout.background_shade[0], "views": shaded,
+                                                        "names": [f"{cams[i].name}.png" for i in shaded]}).encode()
     for i, (v, cam) in enumerate(zip(renders, rec, strict=True)):
         room = i in shown
-        rgb = (v.room if room else v.black) * np.float32(exposure) * gains[i].astype(np.float32)
+        colour = shaded_room(v, layout.background_shade[0]) if i in shaded else v.room if room else v.black
+        rgb = colour * np.float32(exposure) * gains[i].astype(np.float32)
         depth = v.depth_room if room else v.depth_object
         scans.append(Scan(np.clip(rgb, 0, None).astype(np.float32), depth, cam, f"{cam.name}.png", v.alpha))
     if spec.support != "none" and shown:
@@ -122,6 +131,42 @@ def build_scanset(renders: list[ViewRender], cams: list[Camera], obj: PathObject
     if layout.pose_noise is not None:
         extra["gt/cameras_true.json"] = cameras_json(cams)
     return ScanSet(tuple(scans), bounds, meta), extra
+
+
+#: RNG stream of the shaded views (Layout.background_shade).
+SHADE_STREAM = 7
+#: The shaded region: an ellipse around the object's box (alpha > SHADE_ALPHA) with semi-axes this multiple
+#: of the box's half sides, its edge falling off over SHADE_SOFT of the ellipse's radius.
+SHADE_ALPHA, SHADE_GROW, SHADE_SOFT = 0.01, 1.6, 0.3
+
+
+def shade_views(n: int, shown: set, seed: int, layout: Layout) -> list[int]:
+    """The room views whose background is shaded (Layout.background_shade; chosen by ``seed``), sorted."""
+    if layout.background_shade is None:
+        return []
+    kept = sorted(shown)
+    count = int(layout.background_shade[1])
+    if not 0 <= count <= len(kept):
+        raise ValueError(f"background shade: count must be 0..{len(kept)} (the room views), got {count}")
+    rng = np.random.default_rng([int(seed), SHADE_STREAM])
+    return sorted(int(i) for i in rng.choice(kept, count, replace=False))
+
+
+def shaded_room(v: ViewRender, gain: float) -> np.ndarray:
+    """(H, W, 3) the view's room colour with the room behind the object shaded to ``gain`` inside a soft
+    ellipse around the object (the object's own light as rendered): black + k (room - black), where
+    room - black = (1 - alpha) B is the room seen through and around the object."""
+    a = np.asarray(v.alpha)
+    y, x = np.nonzero(a > SHADE_ALPHA)
+    if not len(y):
+        return v.room
+    cy, cx = (y.min() + y.max()) / 2, (x.min() + x.max()) / 2
+    ry, rx = SHADE_GROW * max(1.0, (y.max() - y.min()) / 2), SHADE_GROW * max(1.0, (x.max() - x.min()) / 2)
+    yy, xx = np.mgrid[:a.shape[0], :a.shape[1]]
+    rho = np.sqrt(((yy - cy) / ry) ** 2 + ((xx - cx) / rx) ** 2)
+    t = np.clip((rho - (1 - SHADE_SOFT)) / SHADE_SOFT, 0, 1)
+    k = (gain + (1 - gain) * t * t * (3 - 2 * t)).astype(np.float32)[..., None]  # smoothstep to 1 outside
+    return v.black + k * (v.room - v.black)
 
 
 def cameras_json(cams: list[Camera]) -> bytes:

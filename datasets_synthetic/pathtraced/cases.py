@@ -28,6 +28,9 @@ conifer_room_turntable_jump_ae conifer_room_turntable's renders, the exposure 0.
                                views only (twin: conifer_black_turntable); ``conifer_room_orbit_jump_ae`` the
                                orbit's (twin: conifer_black_orbit), ``fur_similar_bg_jump_ae`` the brown fur's
                                (twin: fur_black_similar)
+conifer_room_turntable_shade   conifer_room_turntable's renders with the room behind the crown shaded to a
+                               quarter in 3 of the kept views (the background changes between frames;
+                               twin: conifer_black_turntable); ``conifer_room_orbit_shade`` the orbit's
 conifer_room_orbit_ae          conifer_room_orbit's renders with auto exposure 0.35 EV / 0.06 on the kept views
                                (the moving camera's exposure, which the panorama's exposure check must find);
                                its black twin is ``conifer_black_orbit``
@@ -356,6 +359,22 @@ def fur_similar_jump(opts: Options, log=print) -> list[dict]:
                    Layout(ROOM_FRAMES, exposure_jump=EXPOSURE_JUMP), _render(spec, opts, log), opts, log=log)]
 
 
+#: The shade of conifer_room_turntable_shade: the room behind the crown at this gain, in how many kept views.
+BACKGROUND_SHADE = (0.25, 3)
+
+
+def conifer_shade(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
+    """Case j: the turntable (or orbit) conifer's renders with the room behind the crown shaded to a quarter in
+    3 of the 18 kept views (a cloud over the sunlit wall): a background that changes between frames, which a
+    plate made from the other frames gets wrong there (black twin: conifer_black_{motion})."""
+    spec = case_spec(f"conifer_room_{motion}", opts)
+    gain, count = BACKGROUND_SHADE
+    return [_write(f"conifer_room_{motion}_shade", f"conifer_room_{motion}'s renders, the room behind the crown "
+                   f"shaded to {gain:g} of its light in {count} of the kept views (gt/background_shade.json): the "
+                   f"background changes between frames; black twin: conifer_black_{motion}", spec,
+                   Layout(ROOM_FRAMES, background_shade=BACKGROUND_SHADE), _render(spec, opts, log), opts, log=log)]
+
+
 #: Case name -> builder(options, log) -> INDEX entries, in priority order.
 CASES = {
     "conifer_room_turntable": conifer_room,
@@ -372,4 +391,6 @@ CASES = {
     "conifer_room_orbit_jump_ae": lambda o, log=print: conifer_jump(o, log, "orbit"),
     "fur_similar_bg_jump_ae": fur_similar_jump,
     "fur_similar_bg_orbit": lambda o, log=print: fur_similar_bg(o, log, "orbit"),
+    "conifer_room_turntable_shade": conifer_shade,
+    "conifer_room_orbit_shade": lambda o, log=print: conifer_shade(o, log, "orbit"),
 }
