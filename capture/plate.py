@@ -48,7 +48,7 @@ from capture.matting import UNKNOWN, depth_trimap
 from capture.matting_cells import band_crossing
 from capture.matting_fast import dilate
 from capture.matting_known import widen_px
-from capture.plate_gate import gate_plates, gate_record  # each view's plate against none
+from capture.plate_gate import gate_record, gated  # each view's plate against none
 from capture.plate_record import plate_record
 from capture.plate_reproject import room_depth
 from capture.plate_threads import thread_map
@@ -79,10 +79,9 @@ NOISE_MAX = 0.05
 #: choose_mode compares the paths by the median over views of each view's held-back RMS (True) or of
 #: each view's median error (False: the reference rule, which a dark backdrop fools).
 CHOOSE_BY_RMS = True
-#: The photo's ceiling (linear): a prediction above it is compared as the sensor recorded it (a plate
-#: drawn into a brighter frame's exposure exceeds 1 where that frame is blown out; the held-back
-#: error then measured the clipping, 0.026 median on the conifer with auto exposure, not the plate,
-#: and set the matte's noise allowance from it).
+#: The photo's ceiling (linear): a prediction above it is compared as the sensor recorded it (a plate drawn into
+#: a brighter frame's exposure exceeds 1 where that frame is blown out; the held-back error then measured the
+#: clipping, 0.026 median on the conifer with auto exposure, and set the matte's noise allowance from it).
 SENSOR_MAX = 1.0
 
 
@@ -304,12 +303,14 @@ class PlateSet:
         plane: (4,) the support plane (n, d; n . X + d = 0, metres) or None.
         focus: (centre (3,), radius) of the region the rig looks at (metres).
         neighbours: views consulted per view by the moving-camera path.
+        dropped: views that lend the others nothing (their plate was refused: capture.plate_gate).
     """
 
     views: tuple[PreparedView, ...]
     plane: np.ndarray | None
     focus: tuple[np.ndarray, float]
     neighbours: int
+    dropped: frozenset = frozenset()
 
     @property
     def cameras(self) -> list[Camera]:
@@ -458,9 +459,9 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
     plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
                              zip(ps.views, made, fit.errors, strict=True)))
-    plates, gate = gate_plates([(p.view.linear, p.view.object_depth, p.ring, p.observed, q)
-                                for p, q in zip(ps.views, fit.predicted, strict=True)], plates)
-    rec = gate_record(plate_record(mode, plates, fit.gains, {path: t.errors for path, t in trials.items()}), gate)
+    plates, gate, dropped = gated(ps, mode, fit, plates, crop)  # refused plates out, and their views as sources
+    rec = gate_record(plate_record(mode, plates, fit.gains, {path: t.errors for path, t in trials.items()}), gate,
+                      dropped)
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
 

@@ -23,6 +23,12 @@ is kept).  The views' RMS would not do: on the courtyard behind the path-traced 
 RMS is 0.18-0.22 (the sunlit wall's edges), ten to a hundred times a right plate's and about a wrong one's.  A
 refused view gets an empty plate: the matte estimates it as without plates, and the record and the console say
 which views and why.  ``GATE = False`` is the rule before (every plate used).
+
+A refused view's background is not the others' either, yet it lent them its pixels: on the path-traced orbit
+whose room was shaded in 3 of 18 frames, the 3 views beside them, which borrow them as panorama neighbours,
+were refused as well.  :func:`gated` therefore draws every plate once more without the refused views as
+sources (:func:`without`: no panorama neighbour, no fixed-camera sample) and gates them again
+(``DROP_SOURCES = False``: one round, the refused views still lending).
 """
 
 from __future__ import annotations
@@ -37,6 +43,8 @@ GATE = True
 LOCAL_GAP_FRACTION = 12 / 640
 #: ... within a square window of this half-width (fraction of the width) around the ring pixel.
 LOCAL_WINDOW_FRACTION = 24 / 640
+#: The refused views lend the others nothing, the plates drawn again (True), else one round (:func:`gated`).
+DROP_SOURCES = True
 #: A ring pixel decides between the plate and the local predictor where either is off by more than this
 #: (linear, the largest channel; about 8 8-bit steps at a mid grey) ...
 DECISIVE_ERROR = 0.02
@@ -145,8 +153,45 @@ def gate_plates(views, plates: list) -> tuple[list, list]:
     return [p if p is None or w is None else empty(p) for p, (w, _) in zip(plates, got, strict=True)], got
 
 
-def gate_record(rec: dict, gate: list) -> dict:
+def gate_record(rec: dict, gate: list, dropped=()) -> dict:
     """The plate record with each view's ``gate`` (the counts of :func:`refused`) and ``refused`` reason (None:
-    kept), and ``refused``: the positions of the views whose plate was refused (:func:`gate_plates`)."""
+    kept), ``refused``: the positions of the views whose plate was refused (:func:`gate_plates`), and
+    ``dropped_sources``: the views that lent the others nothing (:func:`gated`)."""
     per_view = [{**r, "gate": c, "refused": w} for r, (w, c) in zip(rec.get("per_view", []), gate, strict=True)]
-    return {**rec, "per_view": per_view, "refused": [i for i, (w, _) in enumerate(gate) if w is not None]}
+    return {**rec, "per_view": per_view, "refused": [i for i, (w, _) in enumerate(gate) if w is not None],
+            "dropped_sources": [int(i) for i in dropped]}
+
+def rings(ps, predicted: list) -> list:
+    """Per view of a capture.plate.PlateSet what :func:`gate_plates` reads, with the plate's ring
+    prediction ``predicted`` (a capture.plate.Trial's)."""
+    return [(p.view.linear, p.view.object_depth, p.ring, p.observed, q)
+            for p, q in zip(ps.views, predicted, strict=True)]
+
+
+def without(ps, drop):
+    """The capture.plate.PlateSet whose views ``drop`` lend the others nothing: no panorama neighbour
+    (``dropped``), no fixed-camera sample (their weights 0)."""
+    views = tuple(replace(p, weight=np.zeros_like(p.weight)) if i in drop and p.weight is not None else p
+                  for i, p in enumerate(ps.views))
+    return replace(ps, views=views, dropped=frozenset(int(i) for i in drop))
+
+
+def gated(ps, mode: str, fit, plates: list, crop: bool) -> tuple[list, list, list]:
+    """(plates, per view (why refused or None, counts), the views that lent nothing) of
+    capture.plate.background_plates: the plates gated (:func:`gate_plates`); where some were refused
+    (DROP_SOURCES), every plate drawn again without them (:func:`without`, the same gains ``fit.gains``)
+    and gated again."""
+    from capture.plate import _plate, _trial, path_functions
+    from capture.plate_threads import thread_map
+
+    plates, gate = gate_plates(rings(ps, fit.predicted), plates)
+    drop = [i for i, (why, _) in enumerate(gate) if why is not None]
+    if not drop or not DROP_SOURCES or len(drop) == len(plates):
+        return plates, gate, []
+    ps2 = without(ps, drop)
+    fit2 = _trial(ps2, mode, fit.gains)
+    made = path_functions(mode)[2](ps2, fit.gains)
+    plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
+                             zip(ps2.views, made, fit2.errors, strict=True)))
+    plates, gate = gate_plates(rings(ps2, fit2.predicted), plates)
+    return plates, gate, drop

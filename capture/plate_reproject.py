@@ -274,11 +274,11 @@ def _median_count(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return nan_median(s), have.sum(axis=0)
 
 
-def neighbour_order(cams: list[Camera], i: int, k: int) -> list[int]:
-    """Indices of the ``k`` cameras other than ``i`` nearest to it by optical axis."""
+def neighbour_order(cams: list[Camera], i: int, k: int, skip=()) -> list[int]:
+    """Indices of the ``k`` cameras other than ``i`` (and those in ``skip``) nearest to it by optical axis."""
     f = np.array([c.forward for c in cams])
     ang = np.arccos(np.clip(f @ f[i], -1, 1))
-    ang[i] = np.inf
+    ang[[i, *skip]] = np.inf
     return [int(j) for j in np.argsort(ang)[:k] if np.isfinite(ang[j])]
 
 
@@ -292,7 +292,7 @@ def panorama_sources(ps: PlateSet, gains: np.ndarray) -> list[PlateSource]:
 def panorama_prediction(ps: PlateSet, i: int, pix: np.ndarray, sources: list[PlateSource]) -> np.ndarray:
     """(N, 3) colour behind pixels ``pix`` (N, 2) of view i in its exposure from its
     ``ps.neighbours`` nearest other views (NaN where unknown)."""
-    nb = [sources[j] for j in neighbour_order(ps.cameras, i, ps.neighbours)]
+    nb = [sources[j] for j in neighbour_order(ps.cameras, i, ps.neighbours, sorted(ps.dropped))]
     col, known, _ = reproject_plate(ps.views[i].view.camera, pix, sources[i].gain, nb, ps.plane, ps.views[i].room)
     col = col.astype(np.float32)
     col[~known] = np.nan

@@ -202,8 +202,9 @@ def _print_surroundings(console, rec: dict) -> None:
         if gone:  # capture.plate_gate: a plate that loses to the view's own nearby background is not used
             why = "; ".join(f"view {i}: {pl['per_view'][i]['refused']}" for i in gone[:3])
             why += "; ..." if len(gone) > 3 else ""
+            lent = " they lent the other views nothing (those plates drawn again);" if pl.get("dropped_sources") else ""
             console.print(f"[yellow]background plate refused in {len(gone)} of {len(pl['per_view'])} view(s), their "
-                          f"matte estimated without it (the background changed between frames?): {why}[/yellow]",
+                          f"matte estimated without it (the background changed between frames?);{lent} {why}[/yellow]",
                           highlight=False)
         ex = pl.get("exposure") or {}
         if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
