@@ -50,6 +50,18 @@ PANORAMA_REFUSED_AT_ONE = True
 #: 10 needed, the median error not cut), and those frames stayed 0.5 EV off (docs/matting.md "Exposure that
 #: changes in a few frames").
 VIEW_GAINS = True
+#: A view's gain must not spoil its far background (:func:`far_checked`; False: the ring alone, the rule before).
+#: The ring lies beside the object; a shade there (a cloud's shadow on the wall behind, the operator's) passes for
+#: an exposure on it: the path-traced orbit whose room was shaded to a quarter behind the crown in 3 of 18 frames
+#: had two of them taken alone (+1.05 and +1.00 EV), and their object brightened by 1 EV.
+FAR_CHECK = True
+#: The far background: the pixels at least this fraction of the width from the object's depth.
+FAR_FRACTION = 1 / 8
+#: A view's gain is dropped where, on its far background, its error with the gain exceeds that without it by more
+#: than this (mean largest-channel |log| difference; 0.03 EV): a frame's exposure cuts that error, a shade near
+#: the object adds its own size to it, and gains of noise (checked only above FAR_MIN_EV) do neither.
+FAR_MARGIN = 0.02
+FAR_MIN_EV = 0.1
 #: The held-back error a view's gain must cut, as a share of the error without it (VIEW_GAINS).
 VIEW_GAIN_MIN_CUT = 0.5
 #: How far a view's error without gains must stand above the views' median for its gain to be taken alone.
@@ -74,6 +86,8 @@ def plate_exposure(ps, mode: str, start, fit, samples=None):
         refused_at_one = PANORAMA_REFUSED_AT_ONE
     else:
         return None, fit
+    if FAR_CHECK and exposure["chosen"] == "plate":  # a gain near the object only is the background's light
+        exposure, fit = far_checked(ps, mode, fit, exposure)
     if exposure.get("taken"):  # the views' own gains, the others' at 1
         fit = _trial(ps, mode, some_gains(fit.gains, exposure["taken"]))
     elif exposure["chosen"] != "plate" and refused_at_one and not np.all(fit.gains == 1.0):
@@ -175,3 +189,72 @@ def gain_verdict(fit: np.ndarray, none: np.ndarray, need: int) -> tuple[dict, st
     else:
         verdict += ": taken" if ok else ": kept the views as they are"
     return got, verdict
+
+
+def far_ring(object_depth: np.ndarray) -> np.ndarray:
+    """(N, 2) int (x, y): the view's far background (pixels at least FAR_FRACTION of the width from the object's
+    depth), at most capture.plate.RING_SAMPLES of them, evenly."""
+    import cv2
+
+    from capture.plate import RING_SAMPLES
+
+    m = np.asarray(object_depth) > 0
+    dist = cv2.distanceTransform((~m).view(np.uint8), cv2.DIST_L2, 3)
+    y, x = np.nonzero(dist >= FAR_FRACTION * m.shape[1])
+    if len(y) > RING_SAMPLES:
+        k = np.linspace(0, len(y) - 1, RING_SAMPLES).round().astype(np.int64)
+        y, x = y[k], x[k]
+    return np.stack([x, y], axis=1)
+
+
+def far_checked(ps, mode: str, fit, exposure: dict):
+    """(the exposure record, the trial) with the views whose gain spoils their far background (:func:`far_ring`,
+    predicted by the chosen path from the other views as the ring is; FAR_MARGIN) at 1: dropped from ``taken``
+    (VIEW_GAINS; none left: nothing chosen), else, for gains taken for all views, set to 1 and the trial made
+    again.  The record's ``not_taken_far`` lists them.  Only gains above FAR_MIN_EV in some channel are checked."""
+    from capture.plate import _trial
+
+    taken = exposure.get("taken") or []
+    g = some_gains(fit.gains, taken) if taken else np.asarray(fit.gains, np.float64)
+    check = list(taken) or [i for i in range(len(g)) if np.abs(np.log2(g[i])).max() > FAR_MIN_EV]
+    gone = far_fails(ps, mode, g, check) if check else []
+    if not gone:
+        return exposure, fit
+    out = {**exposure, "not_taken_far": gone,
+           "reason": exposure.get("reason", "") + f"; views {', '.join(map(str, gone))} kept at gain 1: their gain "
+                     "does not explain their background away from the object (the light changed near it)"}
+    if taken:
+        out["taken"] = [i for i in taken if i not in gone]
+        out["chosen"] = "plate" if out["taken"] else "none"
+        return out, fit
+    g = np.array(fit.gains, np.float64)
+    g[gone] = 1.0
+    if np.all(g == 1.0):  # no gain left: the photometric stage aligns the views itself
+        out["chosen"] = "none"
+    return out, _trial(ps, mode, g)
+
+
+def far_fails(ps, mode: str, gains: np.ndarray, check) -> list[int]:
+    """The views of ``check`` whose far background (:func:`far_ring`) the path predicts worse with ``gains`` than
+    with theirs at 1, by more than FAR_MARGIN (views without far pixels it predicts pass: nothing measured)."""
+    from dataclasses import replace
+
+    from capture.plate import _usable, path_functions
+
+    far = []
+    for p in ps.views:
+        r = far_ring(p.view.object_depth)
+        far.append(replace(p, ring=r, observed=np.asarray(p.view.linear[r[:, 1], r[:, 0]], np.float64)))
+    far_ps = replace(ps, views=tuple(far))
+    g0 = np.array(gains, np.float64)
+    g0[list(check)] = 1.0
+    predict = path_functions(mode)[1]
+    with_g, without = predict(far_ps, gains), predict(far_ps, g0)
+    gone = []
+    for i in check:
+        o, p1, p0 = far[i].observed, np.asarray(with_g[i]), np.asarray(without[i])
+        ok = _usable(o) & np.isfinite(p1).all(-1) & np.isfinite(p0).all(-1)
+        ok &= _usable(np.nan_to_num(p1)) & _usable(np.nan_to_num(p0))
+        if ok.any() and _log_error(o, p1, ok) > _log_error(o, p0, ok) + FAR_MARGIN:
+            gone.append(int(i))
+    return gone

@@ -157,3 +157,34 @@ def test_a_room_relit_in_part_of_one_frame_is_not_an_exposure(factor):
     _, rec = background_plates(_eight_bit(views), PlateConfig())
     assert rec["exposure"]["chosen"] == "none" and "taken" not in rec["exposure"], rec["exposure"]
     assert np.all(np.asarray(rec["gains_ev"]) == 0.0)
+
+
+@pytest.mark.parametrize("far_check", [True, False])
+def test_a_shade_near_the_object_is_not_an_exposure(monkeypatch, far_check):
+    """The room darkened by JUMP_EV inside an ellipse around the object in frames 0, 5 and 9 (a cloud's or the
+    operator's shadow behind it), the object and the rest of the frame not: on the held-back ring, which lies
+    inside the shade, the frames look like an exposure jump and the ring alone gives them JUMP_EV (FAR_CHECK off:
+    the rule before, the object then brightened by JUMP_EV; here the gains win all 12 frames and are taken for
+    all).  Their far background says otherwise: every gain 1, nothing chosen, the record names the three, and
+    the plate gate refuses their plates (capture.plate_gate)."""
+    from dataclasses import replace
+
+    import capture.plate_exposure as pe
+
+    monkeypatch.setattr(pe, "FAR_CHECK", far_check)
+    views, room, alphas, F = ps.turntable_capture(seed=0, width=192, height=144)
+    yy, xx = np.mgrid[:room.shape[0], :room.shape[1]]
+    shaded = [0, 5, 9]
+    for i in shaded:
+        y, x = np.nonzero(alphas[i] > 0.01)
+        rho = np.hypot((yy - (y.min() + y.max()) / 2) / np.ptp(y), (xx - (x.min() + x.max()) / 2) / np.ptp(x))
+        B = room * np.where(rho < 1, 2.0 ** -JUMP_EV, 1.0).astype(np.float32)[..., None]
+        a = alphas[i][..., None]
+        views[i] = replace(views[i], linear=np.clip(a * F + (1 - a) * B, 0, 1).astype(np.float32))
+    _, rec = background_plates(_eight_bit(views), PlateConfig())
+    ex, ev = rec["exposure"], np.asarray(rec["gains_ev"])
+    if not far_check:
+        assert ex["chosen"] == "plate" and np.allclose(ev[shaded], JUMP_EV, atol=0.01), ev
+        return
+    assert ex["chosen"] == "none" and ex["not_taken_far"] == shaded and np.all(ev == 0.0), (ex, ev)
+    assert rec["refused"] == shaded
