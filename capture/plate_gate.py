@@ -52,6 +52,13 @@ DECISIVE_ERROR = 0.02
 GATE_MIN_WINS = 0.5
 #: ... counted over at least this many of them (fewer: the plate is kept).
 GATE_MIN_PIXELS = 100
+#: Angular sectors of the ring about the object, counted apart (the record: where the plate fails) ...
+SECTORS = 8
+#: ... and in a kept view, the plate is unknown in a sector where it lost (True; False: the whole view only) ...
+SECTOR_GATE = False
+#: ... to the local predictor at under SECTOR_MIN_WINS of at least SECTOR_MIN_PIXELS deciding pixels.
+SECTOR_MIN_WINS = 0.5
+SECTOR_MIN_PIXELS = 25
 
 def local_prediction(linear: np.ndarray, object_depth: np.ndarray, ring: np.ndarray) -> np.ndarray:
     """(N, 3) float64 each ring pixel's colour predicted from the view's own background (module
@@ -107,10 +114,12 @@ def local_prediction_reference(linear: np.ndarray, object_depth: np.ndarray, rin
     return out
 
 
-def refused(observed: np.ndarray, predicted: np.ndarray, local: np.ndarray) -> tuple[str | None, dict]:
+def refused(observed: np.ndarray, predicted: np.ndarray, local: np.ndarray,
+            sector: np.ndarray | None = None) -> tuple[str | None, dict]:
     """(why the view's plate is refused or None when it is kept, the counts) from the ring's ``observed``
     colour, the plate's ``predicted`` one and the local predictor's ``local`` one (each (N, 3), NaN rows
-    unknown; module docstring)."""
+    unknown; module docstring); ``sector``: (N,) int each ring pixel's angular sector about the object
+    (:func:`ring_sectors`; the counts then hold each sector's [deciding, plate wins])."""
     o = np.asarray(observed, np.float64)
     ok = np.isfinite(predicted).all(axis=1) & np.isfinite(local).all(axis=1)
     from capture.plate import SENSOR_MAX
@@ -120,10 +129,46 @@ def refused(observed: np.ndarray, predicted: np.ndarray, local: np.ndarray) -> t
     deciding = np.maximum(ep, el) > DECISIVE_ERROR
     n, wins = int(deciding.sum()), int((ep[deciding] < el[deciding]).sum())
     counts = {"deciding": n, "plate_wins": wins}
+    if sector is not None:
+        sec, won = np.asarray(sector)[ok][deciding], ep[deciding] < el[deciding]
+        counts["sectors"] = [[int(a), int(b)] for a, b in zip(np.bincount(sec, minlength=SECTORS),
+                                                             np.bincount(sec, won, minlength=SECTORS).astype(int))]
     if not GATE or n < GATE_MIN_PIXELS or wins >= GATE_MIN_WINS * n:
         return None, counts
     return (f"the plate is closer than the view's own nearby background at {wins} of {n} held-back pixels "
             f"(under {GATE_MIN_WINS:.0%})"), counts
+
+
+def object_centre(object_depth: np.ndarray) -> np.ndarray:
+    """(2,) (x, y) the centre of the object's depth pixels (the frame's centre without any)."""
+    y, x = np.nonzero(np.asarray(object_depth) > 0)
+    h, w = np.shape(object_depth)[:2]
+    return np.array([x.mean(), y.mean()]) if len(y) else np.array([w / 2, h / 2])
+
+
+def ring_sectors(points: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(N,) int the angular sector (0..SECTORS-1) of each pixel (x, y) of ``points`` (N, 2) about ``centre``."""
+    r = np.asarray(points, np.float64).reshape(-1, 2) - np.asarray(centre, np.float64)
+    ang = np.arctan2(r[:, 1], r[:, 0]) % (2 * np.pi)
+    return np.minimum((ang / (2 * np.pi) * SECTORS).astype(np.int64), SECTORS - 1)
+
+
+def failed_sectors(counts: dict) -> list[int]:
+    """The sectors where the plate lost (SECTOR_GATE): at least SECTOR_MIN_PIXELS deciding pixels, the plate
+    the closer one at under SECTOR_MIN_WINS of them."""
+    return [k for k, (n, won) in enumerate(counts.get("sectors") or [])
+            if n >= SECTOR_MIN_PIXELS and won < SECTOR_MIN_WINS * n]
+
+
+def without_sectors(plate, bad: list[int], centre: np.ndarray):
+    """The plate (capture.plate.Plate, cropped or not) with its known pixels in the sectors ``bad`` about
+    ``centre`` unknown (the matte estimates the background there); its band shares as measured before."""
+    y, x = np.nonzero(plate.known)
+    y0, x0 = (0, 0) if plate.frame is None else plate.frame[2:]
+    drop = np.isin(ring_sectors(np.stack([x + x0, y + y0], axis=1), centre), bad)
+    known = plate.known.copy()
+    known[y[drop], x[drop]] = False
+    return replace(plate, known=known, estimated=None if plate.estimated is None else plate.estimated & known)
 
 
 def empty(plate):
@@ -137,7 +182,6 @@ def empty(plate):
                    frame=(*plate.frame[:2], 0, 0), **none)
 
 
-
 def gate_plates(views, plates: list) -> tuple[list, list]:
     """(the plates with the refused ones emptied (:func:`empty`), per view (why its plate was refused or
     None, the counts)) (module docstring).  ``views``: per view (linear (H, W, 3), object depth (H, W),
@@ -147,10 +191,19 @@ def gate_plates(views, plates: list) -> tuple[list, list]:
 
     def one(v):
         lin, od, ring, obs, pred = v
-        return refused(obs, pred, local_prediction(lin, od, ring)) if GATE else (None, {})
+        if not GATE:
+            return None, {}, None
+        c = object_centre(od)
+        return (*refused(obs, pred, local_prediction(lin, od, ring), ring_sectors(ring, c)), c)
 
     got = list(thread_map(one, views))
-    return [p if p is None or w is None else empty(p) for p, (w, _) in zip(plates, got, strict=True)], got
+    out = []
+    for p, (why, counts, c) in zip(plates, got, strict=True):
+        bad = failed_sectors(counts) if SECTOR_GATE and why is None and p is not None else []
+        if bad:
+            counts["sectors_refused"] = bad
+        out.append(p if p is None else empty(p) if why is not None else without_sectors(p, bad, c) if bad else p)
+    return out, [g[:2] for g in got]
 
 
 def gate_record(rec: dict, gate: list, dropped=()) -> dict:
@@ -160,6 +213,7 @@ def gate_record(rec: dict, gate: list, dropped=()) -> dict:
     per_view = [{**r, "gate": c, "refused": w} for r, (w, c) in zip(rec.get("per_view", []), gate, strict=True)]
     return {**rec, "per_view": per_view, "refused": [i for i, (w, _) in enumerate(gate) if w is not None],
             "dropped_sources": [int(i) for i in dropped]}
+
 
 def rings(ps, predicted: list) -> list:
     """Per view of a capture.plate.PlateSet what :func:`gate_plates` reads, with the plate's ring

@@ -21,6 +21,7 @@ and written in furrow's scan format with the true coverage matte of every view (
   fur_similar_bg_orbit        (+ fur_black_similar_orbit)  the brown fur, camera circling
   conifer_room_turntable_shade                             the room behind the crown shaded in 3 kept views
   conifer_room_orbit_shade                                 the orbit conifer, the same
+  conifer_room_{turntable,orbit}_shade_left                the same, behind the crown's left half only
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
 render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on

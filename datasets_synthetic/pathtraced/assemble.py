@@ -65,6 +65,9 @@ class Layout:
     """(gain, count): in ``count`` of the kept room views the room behind the object is shaded to ``gain`` of
     its radiance (a cloud over the sunlit wall: the background changes between frames; :func:`shaded_room`),
     the object as rendered; gt/background_shade.json lists the views."""
+    shade_side: str = "all"
+    """Where the shade falls (background_shade): "all" the whole ellipse; "left" its half left of the object's
+    centre (a shadow across one side behind the object), with the same soft edge."""
 
     def room_views(self, n: int) -> set[int]:
         if self.room_frames is None:
@@ -118,7 +121,8 @@ def build_scanset(renders: list[ViewRender], cams: list[Camera], obj: PathObject
                                                         "names": [f"{cams[i].name}.png" for i in shaded]}).encode()
     for i, (v, cam) in enumerate(zip(renders, rec, strict=True)):
         room = i in shown
-        colour = shaded_room(v, layout.background_shade[0]) if i in shaded else v.room if room else v.black
+        colour = shaded_room(v, layout.background_shade[0], layout.shade_side) if i in shaded else \
+            v.room if room else v.black
         rgb = colour * np.float32(exposure) * gains[i].astype(np.float32)
         depth = v.depth_room if room else v.depth_object
         scans.append(Scan(np.clip(rgb, 0, None).astype(np.float32), depth, cam, f"{cam.name}.png", v.alpha))
@@ -152,10 +156,11 @@ def shade_views(n: int, shown: set, seed: int, layout: Layout) -> list[int]:
     return sorted(int(i) for i in rng.choice(kept, count, replace=False))
 
 
-def shaded_room(v: ViewRender, gain: float) -> np.ndarray:
+def shaded_room(v: ViewRender, gain: float, side: str = "all") -> np.ndarray:
     """(H, W, 3) the view's room colour with the room behind the object shaded to ``gain`` inside a soft
-    ellipse around the object (the object's own light as rendered): black + k (room - black), where
-    room - black = (1 - alpha) B is the room seen through and around the object."""
+    ellipse around the object (``side`` "left": its half left of the object's centre; Layout.shade_side),
+    the object's own light as rendered: black + k (room - black), where room - black = (1 - alpha) B is
+    the room seen through and around the object."""
     a = np.asarray(v.alpha)
     y, x = np.nonzero(a > SHADE_ALPHA)
     if not len(y):
@@ -165,6 +170,10 @@ def shaded_room(v: ViewRender, gain: float) -> np.ndarray:
     yy, xx = np.mgrid[:a.shape[0], :a.shape[1]]
     rho = np.sqrt(((yy - cy) / ry) ** 2 + ((xx - cx) / rx) ** 2)
     t = np.clip((rho - (1 - SHADE_SOFT)) / SHADE_SOFT, 0, 1)
+    if side == "left":  # the edge at the centre line as soft as the ellipse's
+        t = np.maximum(t, np.clip((xx - cx) / (SHADE_SOFT * rx) + 0.5, 0, 1))
+    elif side != "all":
+        raise ValueError(f"shade side must be 'all' or 'left', got {side!r}")
     k = (gain + (1 - gain) * t * t * (3 - 2 * t)).astype(np.float32)[..., None]  # smoothstep to 1 outside
     return v.black + k * (v.room - v.black)
 

@@ -30,7 +30,8 @@ conifer_room_turntable_jump_ae conifer_room_turntable's renders, the exposure 0.
                                (twin: fur_black_similar)
 conifer_room_turntable_shade   conifer_room_turntable's renders with the room behind the crown shaded to a
                                quarter in 3 of the kept views (the background changes between frames;
-                               twin: conifer_black_turntable); ``conifer_room_orbit_shade`` the orbit's
+                               twin: conifer_black_turntable); ``conifer_room_orbit_shade`` the orbit's;
+                               ``..._shade_left``: behind the crown's left half only
 conifer_room_orbit_ae          conifer_room_orbit's renders with auto exposure 0.35 EV / 0.06 on the kept views
                                (the moving camera's exposure, which the panorama's exposure check must find);
                                its black twin is ``conifer_black_orbit``
@@ -363,16 +364,19 @@ def fur_similar_jump(opts: Options, log=print) -> list[dict]:
 BACKGROUND_SHADE = (0.25, 3)
 
 
-def conifer_shade(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
+def conifer_shade(opts: Options, log=print, motion: str = "turntable", side: str = "all") -> list[dict]:
     """Case j: the turntable (or orbit) conifer's renders with the room behind the crown shaded to a quarter in
-    3 of the 18 kept views (a cloud over the sunlit wall): a background that changes between frames, which a
-    plate made from the other frames gets wrong there (black twin: conifer_black_{motion})."""
+    3 of the 18 kept views (a cloud over the sunlit wall; ``side`` "left": behind its left half only): a
+    background that changes between frames, which a plate made from the other frames gets wrong there (black
+    twin: conifer_black_{motion})."""
     spec = case_spec(f"conifer_room_{motion}", opts)
     gain, count = BACKGROUND_SHADE
-    return [_write(f"conifer_room_{motion}_shade", f"conifer_room_{motion}'s renders, the room behind the crown "
+    tail, where = ("", "the crown") if side == "all" else (f"_{side}", f"the crown's {side} half")
+    return [_write(f"conifer_room_{motion}_shade{tail}", f"conifer_room_{motion}'s renders, the room behind {where} "
                    f"shaded to {gain:g} of its light in {count} of the kept views (gt/background_shade.json): the "
                    f"background changes between frames; black twin: conifer_black_{motion}", spec,
-                   Layout(ROOM_FRAMES, background_shade=BACKGROUND_SHADE), _render(spec, opts, log), opts, log=log)]
+                   Layout(ROOM_FRAMES, background_shade=BACKGROUND_SHADE, shade_side=side), _render(spec, opts, log),
+                   opts, log=log)]
 
 
 #: Case name -> builder(options, log) -> INDEX entries, in priority order.
@@ -393,4 +397,6 @@ CASES = {
     "fur_similar_bg_orbit": lambda o, log=print: fur_similar_bg(o, log, "orbit"),
     "conifer_room_turntable_shade": conifer_shade,
     "conifer_room_orbit_shade": lambda o, log=print: conifer_shade(o, log, "orbit"),
+    "conifer_room_turntable_shade_left": lambda o, log=print: conifer_shade(o, log, "turntable", "left"),
+    "conifer_room_orbit_shade_left": lambda o, log=print: conifer_shade(o, log, "orbit", "left"),
 }

@@ -167,3 +167,32 @@ def test_refused_orbit_views_lend_their_neighbours_nothing():
         assert np.allclose(plates[i].background, alone[j].background, atol=SAME_TOL)
         err, known = ps.band_error([views[i]], [plates[i]], [truth[i]])
         assert err <= ORBIT_TOL and known > 0.5, (i, err, known)
+
+
+def test_a_change_behind_one_side_is_refused_on_that_side(monkeypatch):
+    """Another room behind the left half of the object only (a person at one side) in two frames: the plate
+    still wins most of the ring (69-73 % of the deciding pixels), so the view is kept, but it loses the
+    left sectors (SECTOR_GATE), where its known pixels are dropped: the rest of the plate is right to KEPT_TOL.
+    Without the sector rule the half-wrong plate is used (band error 0.05-0.07)."""
+    views, room, alphas, F = ps.turntable_capture(width=SIZE[0], height=SIZE[1])
+    other = ps.room_image(SIZE[0], SIZE[1], seed=OTHER_ROOM_SEED)
+    truth = []
+    for i in CHANGED:
+        a = alphas[i]
+        x = np.nonzero(a > 0.01)[1]
+        left = (_shade(a)[..., 0] < 1) & (np.arange(a.shape[1])[None, :] < (x.min() + x.max()) / 2)
+        B = np.where(left[..., None], other, room).astype(np.float32)
+        col = np.clip(a[..., None] * F + (1 - a[..., None]) * B, 0, 1).astype(np.float32)
+        views[i] = PlateView(views[i].camera, col, views[i].object_depth, views[i].depth)
+        truth.append(B)
+    for on in (True, False):
+        monkeypatch.setattr(pg, "SECTOR_GATE", on)
+        plates, rec = background_plates(views, PlateConfig(mode="fixed"))
+        assert rec["refused"] == []
+        for i, t in zip(CHANGED, truth, strict=True):
+            err, known = ps.band_error([views[i]], [plates[i]], [t])
+            gate = rec["per_view"][i]["gate"]
+            if on:
+                assert err <= KEPT_TOL and known > 0.3 and set(gate["sectors_refused"]) <= {1, 2, 3, 4, 5}, (err, gate)
+            else:
+                assert err >= WRONG_MIN and "sectors_refused" not in gate, (err, gate)
