@@ -206,6 +206,12 @@ def _print_surroundings(console, rec: dict) -> None:
             console.print(f"[yellow]background plate refused in {len(gone)} of {len(pl['per_view'])} view(s), their "
                           f"matte estimated without it (the background changed between frames?);{lent} {why}[/yellow]",
                           highlight=False)
+        part = [i for i, v in enumerate(pl.get("per_view") or []) if (v.get("gate") or {}).get("sectors_refused")
+                and i not in gone]
+        if part:  # capture.plate_gate.SECTOR_GATE: a plate dropped where one side of the ring disagrees
+            console.print(f"[yellow]background plate dropped in part of {len(part)} view(s) where the ring disagrees "
+                          f"with it on one side (views {', '.join(map(str, part[:8]))}"
+                          f"{', ...' if len(part) > 8 else ''})[/yellow]", highlight=False)
         ex = pl.get("exposure") or {}
         if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
             ev = [sum(math.log2(g) for g in ex["gains"][i]) / 3 for i in ex["taken"]]
