@@ -129,7 +129,10 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "object turned: each pixel's robust mode over the frames), panorama (a moving camera: "
                         "the other views along each ray, with the support plane and the room's depth), user, or "
                         "off; each view's share of the matting band with a known background and the plate's "
-                        "error on background pixels it was not built from go to the model report")
+                        "error on background pixels it was not built from go to the model report.  A view's "
+                        "plate that predicts those pixels worse than the view's own background nearby (the "
+                        "background changed between frames) is refused, in the whole view or on one side of it, "
+                        "and its matte estimated without it; the console says which (capture/plate_gate.py)")
     g.add_argument("--background-plates", default=None, metavar="DIR",
                    help="plates you shot without the object (the same path, or a fixed camera): one image per "
                         "frame named like the frame's colour image, or one image for every frame "
