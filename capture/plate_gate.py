@@ -64,13 +64,14 @@ SECTORS = 8
 #: (turntable) and 0.5 dB (orbit) against using every plate; by sectors it gains 0.45 and 0.24 dB
 #: (docs/matting.md "A background that changes between frames").
 SECTOR_GATE = True
-#: ... to the local predictor at under SECTOR_MIN_WINS of at least SECTOR_MIN_PIXELS deciding pixels; in a
+#: A sector is lost at under SECTOR_MIN_WINS of at least SECTOR_MIN_PIXELS deciding pixels; in a
 #: refused view a sector keeps its plate only where it wins SECTOR_KEEP_WINS of them (a view that lost overall
 #: needs more in a sector: another room behind two frames of a seeded turntable "passed" 2 of 8 sectors at
 #: 51-68 %, its plate 0.22 off there; the unshaded sectors of the path-traced half-shaded frames won 83-100 %).
 SECTOR_MIN_WINS = 0.5
 SECTOR_KEEP_WINS = 0.75
 SECTOR_MIN_PIXELS = 25
+
 
 def local_prediction(linear: np.ndarray, object_depth: np.ndarray, ring: np.ndarray) -> np.ndarray:
     """(N, 3) float64 each ring pixel's colour predicted from the view's own background (module
