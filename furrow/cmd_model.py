@@ -200,7 +200,8 @@ def _print_surroundings(console, rec: dict) -> None:
                       highlight=False)
         gone = pl.get("refused") or []
         if gone:  # capture.plate_gate: a plate that loses to the view's own nearby background is not used
-            why = "; ".join(f"view {i}: {pl['per_view'][i]['refused']}" for i in gone[:3])
+            name = [v.get("name", f"view {i}") for i, v in enumerate(pl["per_view"])]
+            why = "; ".join(f"{name[i]}: {pl['per_view'][i]['refused']}" for i in gone[:3])
             why += "; ..." if len(gone) > 3 else ""
             lent = " they lent the other views nothing (those plates drawn again);" if pl.get("dropped_sources") else ""
             console.print(f"[yellow]background plate refused in {len(gone)} of {len(pl['per_view'])} view(s), their "
@@ -209,9 +210,10 @@ def _print_surroundings(console, rec: dict) -> None:
         part = [i for i, v in enumerate(pl.get("per_view") or []) if (v.get("gate") or {}).get("sectors_refused")
                 and i not in gone]
         if part:  # capture.plate_gate.SECTOR_GATE: a plate dropped where one side of the ring disagrees
+            names = [pl["per_view"][i].get("name", str(i)) for i in part[:8]]
             console.print(f"[yellow]background plate dropped in part of {len(part)} view(s) where the ring disagrees "
-                          f"with it on one side (views {', '.join(map(str, part[:8]))}"
-                          f"{', ...' if len(part) > 8 else ''})[/yellow]", highlight=False)
+                          f"with it on one side ({', '.join(names)}{', ...' if len(part) > 8 else ''})[/yellow]",
+                          highlight=False)
         ex = pl.get("exposure") or {}
         if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
             ev = [sum(math.log2(g) for g in ex["gains"][i]) / 3 for i in ex["taken"]]

@@ -85,6 +85,8 @@ def plate_stage(work, cfg, ctx):
     plates, rec = background_plates(views if user is None else list(views), cfg, plane, focus, user, crop=True)
     if scale < 1.0:
         rec = {**rec, "working_scale": round(scale, 4)}
+    if "per_view" in rec:  # each view's record names its frame (the console names refused views by it)
+        rec = {**rec, "per_view": [{"name": ref.name, **r} for ref, r in zip(work.refs, rec["per_view"], strict=True)]}
     store = dict(zip((ref.index for ref in work.refs), plates, strict=True))
     return work.made(plates=store, captured=None).record("background plate", rec)
 

@@ -166,3 +166,30 @@ def test_the_report_says_how_many_pixels_kept_their_part_across_the_line():
     said = report(412345)
     assert "412345 partial pixels" in said and "across_line" in said
     assert "across_line" not in report(0) and "across_line" not in report(None)
+
+
+def test_the_report_names_the_views_whose_plate_was_refused():
+    """furrow model's report names, by frame, the views whose background plate was refused
+    (capture.plate_gate: the background changed between frames), says that they lent the others nothing,
+    names the views whose plate was dropped on one side only, and says nothing of either when none was."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(refused: list, sectors: dict) -> str:
+        per_view = [{"name": f"r0_v{i:03d}.png", "refused": "the plate is closer ... (under 50%)" if i in refused
+                     else None, "gate": {"sectors_refused": sectors[i]} if i in sectors else {}} for i in range(6)]
+        plate = {"mode": "fixed", "error_median": 0.002, "band_known_mean": 0.9, "band_known_min": 0.0,
+                 "per_view": per_view, "refused": refused, "dropped_sources": refused}
+        out = StringIO()
+        _print_surroundings(Console(file=out, width=400), {"plate": plate})
+        return out.getvalue()
+
+    said = report([1, 4], {1: [0, 1, 2], 2: [5]})
+    assert "refused in 2 of 6 view(s)" in said and "r0_v001.png: the plate is closer" in said
+    assert "r0_v004.png" in said and "lent the other views nothing" in said
+    assert "dropped in part of 1 view(s)" in said and "(r0_v002.png)" in said  # view 1 counts as refused only
+    quiet = report([], {})
+    assert "refused" not in quiet and "dropped in part" not in quiet and "background plate (fixed)" in quiet
