@@ -240,7 +240,11 @@ def ring_pixels(object_depth: np.ndarray, source: np.ndarray | None = None) -> n
     band's edge, at most RING_SAMPLES (evenly); ``source``: the view's :func:`source_mask` if known."""
     src = source_mask(object_depth) if source is None else source
     near = dilate(~src, px(RING_FRACTION, src.shape[1]))  # ndimage.binary_dilation(..., iterations=...)
-    y, x = np.nonzero(src & near)
+    return even_sample(*np.nonzero(src & near))
+
+
+def even_sample(y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(N, 2) int (x, y) of the pixels (y, x), at most RING_SAMPLES of them, evenly spaced in that order."""
     if len(y) > RING_SAMPLES:
         k = np.linspace(0, len(y) - 1, RING_SAMPLES).round().astype(np.int64)
         y, x = y[k], x[k]
@@ -456,13 +460,19 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     fit, samples = fitted(ps, mode, trials[mode])
 
     exposure, fit = plate_exposure(ps, mode, trials[mode], fit, samples)
-    made = path_functions(mode)[2](ps, fit.gains)  # one view's plate at a time (finished side by side)
-    plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
-                             zip(ps.views, made, fit.errors, strict=True)))
+    plates = draw_plates(ps, mode, fit, crop)
     plates, gate, dropped = gated(ps, mode, fit, plates, crop)  # refused plates out, and their views as sources
     rec = gate_record(plate_record(mode, plates, fit.gains, {path: t.errors for path, t in trials.items()}), gate,
                       dropped)
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
+
+
+def draw_plates(ps: PlateSet, mode: str, fit: Trial, crop: bool) -> list[Plate]:
+    """Every view's Plate drawn by ``mode``'s path with ``fit``'s gains, its held-back errors from ``fit`` (one
+    view's plate at a time, finished side by side; ``crop``: :meth:`Plate.cropped` as soon as drawn)."""
+    made = path_functions(mode)[2](ps, fit.gains)
+    return list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
+                           zip(ps.views, made, fit.errors, strict=True)))
 
 
 def _plate(v: PlateView, col: np.ndarray, known: np.ndarray, err: tuple[float, float], method: str,

@@ -196,15 +196,11 @@ def far_ring(object_depth: np.ndarray) -> np.ndarray:
     depth), at most capture.plate.RING_SAMPLES of them, evenly."""
     import cv2
 
-    from capture.plate import RING_SAMPLES
+    from capture.plate import even_sample
 
     m = np.asarray(object_depth) > 0
     dist = cv2.distanceTransform((~m).view(np.uint8), cv2.DIST_L2, 3)
-    y, x = np.nonzero(dist >= FAR_FRACTION * m.shape[1])
-    if len(y) > RING_SAMPLES:
-        k = np.linspace(0, len(y) - 1, RING_SAMPLES).round().astype(np.int64)
-        y, x = y[k], x[k]
-    return np.stack([x, y], axis=1)
+    return even_sample(*np.nonzero(dist >= FAR_FRACTION * m.shape[1]))
 
 
 def far_checked(ps, mode: str, fit, exposure: dict):
@@ -242,8 +238,8 @@ def far_fails(ps, mode: str, gains: np.ndarray, check) -> list[int]:
     from capture.plate import _usable, path_functions
 
     far = []
-    for p in ps.views:
-        r = far_ring(p.view.object_depth)
+    for i, p in enumerate(ps.views):  # the views not checked predict nothing (an empty ring)
+        r = far_ring(p.view.object_depth) if i in check else np.zeros((0, 2), np.int64)
         far.append(replace(p, ring=r, observed=np.asarray(p.view.linear[r[:, 1], r[:, 0]], np.float64)))
     far_ps = replace(ps, views=tuple(far))
     g0 = np.array(gains, np.float64)

@@ -133,10 +133,10 @@ def refused(observed: np.ndarray, predicted: np.ndarray, local: np.ndarray,
     colour, the plate's ``predicted`` one and the local predictor's ``local`` one (each (N, 3), NaN rows
     unknown; module docstring); ``sector``: (N,) int each ring pixel's angular sector about the object
     (:func:`ring_sectors`; the counts then hold each sector's [deciding, plate wins])."""
-    o = np.asarray(observed, np.float64)
-    ok = np.isfinite(predicted).all(axis=1) & np.isfinite(local).all(axis=1)
     from capture.plate import SENSOR_MAX
 
+    o = np.asarray(observed, np.float64)
+    ok = np.isfinite(predicted).all(axis=1) & np.isfinite(local).all(axis=1)
     ep = np.abs(np.minimum(np.asarray(predicted)[ok], SENSOR_MAX) - o[ok]).max(axis=1)
     el = np.abs(np.asarray(local)[ok] - o[ok]).max(axis=1)
     deciding = np.maximum(ep, el) > DECISIVE_ERROR
@@ -195,21 +195,23 @@ def empty(plate):
                    frame=(*plate.frame[:2], 0, 0), **none)
 
 
-def gate_plates(views, plates: list) -> tuple[list, list]:
+def gate_plates(views, plates: list, local: list | None = None) -> tuple[list, list]:
     """(the plates with the refused ones emptied (:func:`empty`), per view (why its plate was refused or
     None, the counts)) (module docstring).  ``views``: per view (linear (H, W, 3), object depth (H, W),
     ring (N, 2) int (x, y), observed (N, 3), the plate's prediction of the ring (N, 3)); ``plates``:
-    capture.plate.Plate per view (None: no plate, kept)."""
+    capture.plate.Plate per view (None: no plate, kept); ``local``: per view its ring's
+    :func:`local_prediction` when already made (it depends on the view alone)."""
     from capture.plate_threads import thread_map
 
-    def one(v):
-        lin, od, ring, obs, pred = v
+    def one(a):
+        (lin, od, ring, obs, pred), loc = a
         if not GATE:
             return None, {}, None
         c = object_centre(od)
-        return (*refused(obs, pred, local_prediction(lin, od, ring), ring_sectors(ring, c)), c)
+        loc = local_prediction(lin, od, ring) if loc is None else loc
+        return (*refused(obs, pred, loc, ring_sectors(ring, c)), c)
 
-    got = list(thread_map(one, views))
+    got = list(thread_map(one, zip(views, local or [None] * len(views), strict=True)))
     out = []
     for p, (why, counts, c) in zip(plates, got, strict=True):
         bad = sectors_out(why, counts) if SECTOR_GATE and p is not None else []
@@ -262,18 +264,17 @@ def gated(ps, mode: str, fit, plates: list, crop: bool) -> tuple[list, list, lis
     """(plates, per view (why refused or None, counts), the views that lent nothing) of
     capture.plate.background_plates: the plates gated (:func:`gate_plates`); where some were refused
     (DROP_SOURCES), every plate drawn again without them (:func:`without`, the same gains ``fit.gains``)
-    and gated again."""
-    from capture.plate import _plate, _trial, path_functions
+    and gated again (the views' local predictions made once)."""
+    from capture.plate import _trial, draw_plates
     from capture.plate_threads import thread_map
 
-    plates, gate = gate_plates(rings(ps, fit.predicted), plates)
+    views = rings(ps, fit.predicted)
+    local = list(thread_map(lambda v: local_prediction(*v[:3]), views)) if GATE else None
+    plates, gate = gate_plates(views, plates, local)
     drop = [i for i, (why, _) in enumerate(gate) if why is not None]
     if not drop or not DROP_SOURCES or len(drop) == len(plates):
         return plates, gate, []
     ps2 = without(ps, drop)
-    fit2 = _trial(ps2, mode, fit.gains)
-    made = path_functions(mode)[2](ps2, fit.gains)
-    plates = list(thread_map(lambda a: _plate(a[0].view, a[1][0], a[1][1], a[2], mode, *a[1][2:], crop=crop),
-                             zip(ps2.views, made, fit2.errors, strict=True)))
-    plates, gate = gate_plates(rings(ps2, fit2.predicted), plates)
+    fit2 = _trial(ps2, mode, fit.gains)  # the same gains, the rings predicted without them
+    plates, gate = gate_plates(rings(ps2, fit2.predicted), draw_plates(ps2, mode, fit2, crop), local)
     return plates, gate, drop
