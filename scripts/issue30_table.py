@@ -8,7 +8,8 @@ was not made on"): a step chosen on three captures lost on a fourth.
         -o /tmp/issue30 [--extra ARG ...]
 
 Each ROOT is searched for folders named ``*_room_*`` / ``fur_similar_bg*`` (the room captures) and their twin
-(``room`` -> ``black``; ``fur_similar_bg`` -> ``fur_black_similar``).  ``--extra`` passes arguments on to every
+(``room`` -> ``black``; ``fur_similar_bg`` and ``fur_room_table_ae_lens`` -> ``fur_black_similar``).
+``--extra`` passes arguments on to every
 `furrow eval` (``--extra=--matte-across --extra=off``).  ``--switches`` runs every eval through
 scripts/cells_switches.py with its ``ABL`` (``--switches RECROSS=1,CELL_LINE_ALPHA=0.4``: a step's module
 switches; they act in the main process, where the colour across the views is fitted).  The evals run one
@@ -32,7 +33,7 @@ GAP_TARGET_AE = 2.0
 
 def twin(room: Path) -> Path | None:
     """The black twin of a room capture folder, or None."""
-    fur = room.name in ("fur_similar_bg", "fur_similar_bg_jump_ae", "fur_similar_bg_orbit")
+    fur = room.name in ("fur_similar_bg", "fur_similar_bg_jump_ae", "fur_similar_bg_orbit", "fur_room_table_ae_lens")
     name = ("fur_black_similar_orbit" if room.name.endswith("_orbit") else "fur_black_similar") if fur \
         else room.name.replace("_room_", "_black_")
     if "_table_ae_lens" in name:   # the AE + lens capture is measured against the turntable's twin

@@ -165,6 +165,10 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
             return replace(case_spec("conifer_room_turntable", opts), lens=OPENCV_LENS)
         return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
                         **_room(opts, CONIFER_ROOM))
+    if name == "fur_room_table_ae_lens":  # fur_similar_bg's spec on the table, through the lens
+        from datasets_synthetic.camera_traits import OPENCV_LENS
+
+        return replace(case_spec("fur_similar_bg", opts), support="table", lens=OPENCV_LENS)
     if name in ("fur_similar_bg", "fur_similar_bg_orbit"):
         return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, motion="orbit" if name.endswith("_orbit")
                         else "turntable", **_room(opts, BROWN_ROOM))
@@ -314,6 +318,16 @@ def fur_similar_bg(opts: Options, log=print, motion: str = "turntable") -> list[
                    "black twin)", spec, Layout(None), got, opts, log=log)]
 
 
+def fur_table_ae_lens(opts: Options, log=print) -> list[dict]:
+    """Case f with e's all at once: fur_similar_bg's ball on the wooden table top (colour and depth of the kept
+    views), auto exposure on the kept views, OPENCV lens (black twin: fur_black_similar at the same size)."""
+    spec = case_spec("fur_room_table_ae_lens", opts)
+    return [_write("fur_room_table_ae_lens", "uniform brown fur ball before the courtyard's brown bricks on a wooden "
+                   "table top (colour and depth of the kept views), auto exposure 0.35 EV / wb 0.06 on the kept "
+                   "views, OPENCV lens; black twin: fur_black_similar (same size)", spec,
+                   Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), _render(spec, opts, log), opts, log=log)]
+
+
 def furball_ae(opts: Options, log=print) -> list[dict]:
     """Case g: the turntable fur ball's renders with auto exposure, and at fixed exposure (true poses)."""
     spec = case_spec("furball_uniform_ae", opts)
@@ -388,6 +402,7 @@ CASES = {
     "conifer_room_table_ae_lens": conifer_table_ae_lens,
     "conifer_black_lens": conifer_black_lens,
     "fur_similar_bg": fur_similar_bg,
+    "fur_room_table_ae_lens": fur_table_ae_lens,
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,
     "conifer_room_orbit_ae": conifer_orbit_ae,
