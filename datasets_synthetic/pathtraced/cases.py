@@ -320,12 +320,18 @@ def fur_similar_bg(opts: Options, log=print, motion: str = "turntable") -> list[
 
 def fur_table_ae_lens(opts: Options, log=print) -> list[dict]:
     """Case f with e's all at once: fur_similar_bg's ball on the wooden table top (colour and depth of the kept
-    views), auto exposure on the kept views, OPENCV lens (black twin: fur_black_similar at the same size)."""
+    views), auto exposure on the kept views, OPENCV lens (black twin: fur_black_similar at the same size), and
+    fur_black_table_lens: its renders over black (the table's light and the lens kept: only the room, the
+    table's pixels and the exposure differ)."""
     spec = case_spec("fur_room_table_ae_lens", opts)
+    got = _render(spec, opts, log)
     return [_write("fur_room_table_ae_lens", "uniform brown fur ball before the courtyard's brown bricks on a wooden "
                    "table top (colour and depth of the kept views), auto exposure 0.35 EV / wb 0.06 on the kept "
                    "views, OPENCV lens; black twin: fur_black_similar (same size)", spec,
-                   Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), _render(spec, opts, log), opts, log=log)]
+                   Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), got, opts, log=log),
+            _write("fur_black_table_lens", "the same renders as fur_room_table_ae_lens, every view over black at "
+                   "fixed exposure: the ball lit as on the table, through the lens (the twin of the table's light)",
+                   spec, Layout(None), got, opts, log=log)]
 
 
 def furball_ae(opts: Options, log=print) -> list[dict]:
