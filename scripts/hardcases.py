@@ -22,8 +22,9 @@ and written in furrow's scan format with the true coverage matte of every view (
   conifer_room_turntable_shade                             the room behind the crown shaded in 3 kept views
   conifer_room_orbit_shade                                 the orbit conifer, the same
   conifer_room_{turntable,orbit}_shade_left                the same, behind the crown's left half only
-  fur_room_table_ae_lens                                   the brown fur on the table, auto exposure, OPENCV lens
-                                                           (twin: fur_black_similar at the same --size)
+  fur_room_table_ae_lens      (+ fur_black_table_lens)     the brown fur on the table, auto exposure, OPENCV lens
+                                                           (twins: fur_black_similar at the same --size; its own
+                                                           renders over black, the table's light kept)
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
 render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on
