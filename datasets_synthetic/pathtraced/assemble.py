@@ -26,7 +26,7 @@ import numpy as np
 from capture.camera import Camera
 from capture.io import auto_bounds, write_transforms
 from capture.scan import Scan, ScanSet, select_indices
-from datasets_synthetic.pathtraced.objects import Curves, PathObject
+from datasets_synthetic.pathtraced.objects import Curves, PathObject, TriangleMesh
 from datasets_synthetic.pathtraced.render import RenderSpec, ViewRender
 
 #: Margin around the object's tight bounds for the scan set's bounds (fraction of the diagonal).
@@ -188,9 +188,13 @@ def cameras_json(cams: list[Camera]) -> bytes:
 def gt_mesh_bytes(obj: PathObject) -> bytes:
     """gt/mesh.ply: every curve as a 3-sided tube along its (evaluated) centre line, spheres as UV spheres."""
     from datasets_synthetic.geometry import ellipsoid, merge, ply_bytes, transformed, tube_sweep
+    from render.mesh.raster.gl import RasterMesh
 
     meshes = []
     for p in obj.parts:
+        if isinstance(p, TriangleMesh):
+            meshes.append(RasterMesh(p.vertices, p.faces, np.full((len(p.vertices), 3), 0.5)))
+            continue
         if not isinstance(p, Curves):
             meshes.append(transformed(ellipsoid([p.radius] * 3, 24, 48, (0.5, 0.5, 0.5)), np.eye(3), p.centre))
             continue

@@ -82,7 +82,7 @@ FULL_SIZE, HALF_SIZE = (640, 480), (320, 240)
 #: Ring elevation of every case: the evaluation captures' and ``furrow synth``'s (degrees).
 ELEVATION_DEG = 15.0
 #: Samples per pixel and path depth of each object (chosen by the noise check: scripts/hardcases.py --noise).
-SPP = {"conifer": 64, "furball": 64}
+SPP = {"conifer": 64, "furball": 64, "furrybunny": 16}
 #: Samples per pixel of conifer_room_table_ae_lens: the table top turns every pixel below the horizon into
 #: a diffuse surface to path-trace (about 3x the cost of a view of the conifer_room captures at equal spp).
 #: It was 16, to fit the generation's time budget; at 16 its noisy photos before the bright room cost 1.0-1.4 dB
@@ -94,7 +94,7 @@ RELIT_SPP = 16
 #: Samples per pixel of the fur cases after the turntable (orbit / relit capture, fur_similar_bg): the
 #: linear strands cost 50-120 s a view at 64 spp on the shared machine, so these were cut to fit.
 FUR_LATER_SPP = 16
-MAX_DEPTH = {"conifer": 6, "furball": 8}
+MAX_DEPTH = {"conifer": 6, "furball": 8, "furrybunny": 8}
 
 
 @dataclass(frozen=True)
@@ -169,6 +169,8 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
         from datasets_synthetic.camera_traits import OPENCV_LENS
 
         return replace(case_spec("fur_similar_bg", opts), support="table", lens=OPENCV_LENS)
+    if name == "bunny_room_turntable":  # the evaluation's furry bunny, before fur_similar_bg's brown room
+        return spec_for("furrybunny", opts, FULL_SIZE, FUR_LATER_SPP, motion="turntable", **_room(opts, BROWN_ROOM))
     if name in ("fur_similar_bg", "fur_similar_bg_orbit"):
         return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, motion="orbit" if name.endswith("_orbit")
                         else "turntable", **_room(opts, BROWN_ROOM))
@@ -334,6 +336,18 @@ def fur_table_ae_lens(opts: Options, log=print) -> list[dict]:
                    spec, Layout(None), got, opts, log=log)]
 
 
+def bunny_room(opts: Options, log=print) -> list[dict]:
+    """Case k: the furry bunny (the scanned Stanford Bunny under 30,000 hair-BSDF strands) before the courtyard's
+    brown bricks, room kept / black held, and its black twin: a furry object that is not the same from every side."""
+    spec = case_spec("bunny_room_turntable", opts)
+    got = _render(spec, opts, log)
+    return [_write("bunny_room_turntable", "furry bunny (scanned Stanford Bunny, 30,000 hair-BSDF strands, patched "
+                   "coat) before the courtyard's brown bricks, turntable; views 0::2 show the room, 1::2 over black",
+                   spec, Layout(ROOM_FRAMES), got, opts, log=log),
+            _write("bunny_black_turntable", "the same renders as bunny_room_turntable, every view over black (its "
+                   "black twin)", spec, Layout(None), got, opts, log=log)]
+
+
 def furball_ae(opts: Options, log=print) -> list[dict]:
     """Case g: the turntable fur ball's renders with auto exposure, and at fixed exposure (true poses)."""
     spec = case_spec("furball_uniform_ae", opts)
@@ -409,6 +423,7 @@ CASES = {
     "conifer_black_lens": conifer_black_lens,
     "fur_similar_bg": fur_similar_bg,
     "fur_room_table_ae_lens": fur_table_ae_lens,
+    "bunny_room_turntable": bunny_room,
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,
     "conifer_room_orbit_ae": conifer_orbit_ae,

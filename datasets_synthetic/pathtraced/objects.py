@@ -83,12 +83,30 @@ class Sphere:
 
 
 @dataclass(frozen=True)
+class TriangleMesh:
+    """A closed triangle mesh of one material: vertices (V, 3) float64 metres, faces (F, 3) int indices."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    material: str
+
+    def __post_init__(self) -> None:
+        v, f = np.asarray(self.vertices, np.float64), np.asarray(self.faces, np.int64)
+        if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            raise ValueError(f"mesh {self.material!r}: vertices (V, 3) and faces (F, 3), got {v.shape}, {f.shape}")
+        if f.min() < 0 or f.max() >= len(v):
+            raise ValueError(f"mesh {self.material!r}: face indices outside 0..{len(v) - 1}")
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "faces", f)
+
+
+@dataclass(frozen=True)
 class PathObject:
     """An object of the hard cases: its parts, their materials, and what built it."""
 
     name: str
     parts: tuple
-    """Curves and Sphere parts."""
+    """Curves, Sphere and TriangleMesh parts."""
     materials: dict
     """Material name -> Mitsuba BSDF dictionary."""
     params: dict = field(default_factory=dict)
@@ -105,6 +123,9 @@ class PathObject:
                 c = np.asarray(p.centre, float)
                 lo.append(c - p.radius)
                 hi.append(c + p.radius)
+            elif isinstance(p, TriangleMesh):
+                lo.append(p.vertices.min(0))
+                hi.append(p.vertices.max(0))
             else:
                 lo.append((p.points - p.radii[:, None]).min(0))
                 hi.append((p.points + p.radii[:, None]).max(0))
@@ -114,6 +135,7 @@ class PathObject:
     def radius(self) -> float:
         """Largest distance of the object's surface from the origin (the rig's bounding radius)."""
         r = [np.linalg.norm(p.centre) + p.radius if isinstance(p, Sphere)
+             else float(np.linalg.norm(p.vertices, axis=1).max()) if isinstance(p, TriangleMesh)
              else float((np.linalg.norm(p.points, axis=1) + p.radii).max()) for p in self.parts]
         return float(max(r))
 
@@ -329,8 +351,22 @@ def build_furball(seed: int = 0, p: FurballParams = FurballParams()) -> PathObje
     return PathObject("furball_uniform", tuple(parts), materials, _params(p), {"strands": int(p.strands)})
 
 
-#: Object name -> (builder(seed, params), parameter dataclass).
-OBJECTS = {"conifer": (build_conifer, ConiferParams), "furball": (build_furball, FurballParams)}
+def _build_bunny(seed: int, p):
+    from datasets_synthetic.pathtraced.bunny import build_bunny
+
+    return build_bunny(seed, p)
+
+
+def _bunny_params():
+    from datasets_synthetic.pathtraced.bunny import BunnyParams
+
+    return BunnyParams
+
+
+#: Object name -> (builder(seed, params), parameter dataclass, or a function giving it: the bunny's module
+#: imports this one).
+OBJECTS = {"conifer": (build_conifer, ConiferParams), "furball": (build_furball, FurballParams),
+           "furrybunny": (_build_bunny, _bunny_params)}
 
 
 def build_object(name: str, seed: int = 0, **overrides) -> PathObject:
@@ -338,6 +374,7 @@ def build_object(name: str, seed: int = 0, **overrides) -> PathObject:
     if name not in OBJECTS:
         raise ValueError(f"unknown object {name!r}: choose one of {', '.join(OBJECTS)}")
     builder, params = OBJECTS[name]
+    params = params if isinstance(params, type) else params()
     bad = set(overrides) - set(params.__dataclass_fields__)
     if bad:
         raise ValueError(f"{name}: unknown parameters {sorted(bad)}; known: {sorted(params.__dataclass_fields__)}")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets_synthetic.pathtraced.objects import Curves, PathObject, Sphere
+from datasets_synthetic.pathtraced.objects import Curves, PathObject, Sphere, TriangleMesh
 from datasets_synthetic.pathtraced.runtime import load_mitsuba
 from render.shading.envmap import ENV_CONVENTIONS, EnvMap, dir_to_uv, sample_equirect
 
@@ -119,6 +119,13 @@ def write_curves(c: Curves, path: Path) -> None:
     Path(path).write_text("\n\n".join(lines) + "\n")
 
 
+def write_obj(m: TriangleMesh, path: Path) -> None:
+    """A Wavefront OBJ of the mesh's vertices and faces (Mitsuba's ``obj`` shape; smooth normals of its own)."""
+    v = "\n".join(f"v {a:.7g} {b:.7g} {c:.7g}" for a, b, c in m.vertices)
+    f = "\n".join(f"f {a} {b} {c}" for a, b, c in m.faces + 1)
+    Path(path).write_text(v + "\n" + f + "\n")
+
+
 def _matrix(m) -> object:
     mi = load_mitsuba()
     return mi.ScalarTransform4f(np.asarray(m, np.float64).tolist())
@@ -130,6 +137,10 @@ def _part_dict(part, folder: Path, index: int, materials: dict) -> dict:
     if isinstance(part, Sphere):
         return {"type": "sphere", "center": [float(v) for v in part.centre], "radius": float(part.radius),
                 "bsdf": {"type": "ref", "id": part.material}}
+    if isinstance(part, TriangleMesh):
+        path = folder / f"part{index}.obj"
+        write_obj(part, path)
+        return {"type": "obj", "filename": str(path), "bsdf": {"type": "ref", "id": part.material}}
     path = folder / f"part{index}.txt"
     write_curves(part, path)
     return {"type": f"{part.basis}curve", "filename": str(path), "bsdf": {"type": "ref", "id": part.material}}
