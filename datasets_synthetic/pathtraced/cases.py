@@ -165,10 +165,10 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
             return replace(case_spec("conifer_room_turntable", opts), lens=OPENCV_LENS)
         return spec_for("conifer", opts, FULL_SIZE, TABLE_SPP, motion="turntable", support="table", lens=OPENCV_LENS,
                         **_room(opts, CONIFER_ROOM))
-    if name == "fur_room_table_ae_lens":  # fur_similar_bg's spec on the table, through the lens
+    if name in TABLE_OF:  # the room case's spec on the table, through the lens
         from datasets_synthetic.camera_traits import OPENCV_LENS
 
-        return replace(case_spec("fur_similar_bg", opts), support="table", lens=OPENCV_LENS)
+        return replace(case_spec(TABLE_OF[name], opts), support="table", lens=OPENCV_LENS)
     if name == "bunny_room_turntable":  # the evaluation's furry bunny, before fur_similar_bg's brown room
         return spec_for("furrybunny", opts, FULL_SIZE, FUR_LATER_SPP, motion="turntable", **_room(opts, BROWN_ROOM))
     if name in ("fur_similar_bg", "fur_similar_bg_orbit"):
@@ -320,20 +320,27 @@ def fur_similar_bg(opts: Options, log=print, motion: str = "turntable") -> list[
                    "black twin)", spec, Layout(None), got, opts, log=log)]
 
 
-def fur_table_ae_lens(opts: Options, log=print) -> list[dict]:
-    """Case f with e's all at once: fur_similar_bg's ball on the wooden table top (colour and depth of the kept
-    views), auto exposure on the kept views, OPENCV lens (black twin: fur_black_similar at the same size), and
-    fur_black_table_lens: its renders over black (the table's light and the lens kept: only the room, the
-    table's pixels and the exposure differ)."""
-    spec = case_spec("fur_room_table_ae_lens", opts)
+#: The furry cases on the table (e's all at once) -> the room case whose spec they put on the table.
+TABLE_OF = {"fur_room_table_ae_lens": "fur_similar_bg", "bunny_room_table_ae_lens": "bunny_room_turntable"}
+#: Their black twins over black from their own renders (the table's light and the lens kept).
+TABLE_TWIN = {"fur_room_table_ae_lens": "fur_black_table_lens", "bunny_room_table_ae_lens": "bunny_black_table_lens"}
+
+
+def fur_table_ae_lens(opts: Options, log=print, name: str = "fur_room_table_ae_lens") -> list[dict]:
+    """Case f (or k) with e's all at once: fur_similar_bg's ball (or the furry bunny) on the wooden table top
+    (colour and depth of the kept views), auto exposure on the kept views, OPENCV lens (black twin: the room
+    case's at the same size), and TABLE_TWIN[name]: its renders over black (the table's light and the lens kept:
+    only the room, the table's pixels and the exposure differ)."""
+    spec = case_spec(name, opts)
     got = _render(spec, opts, log)
-    return [_write("fur_room_table_ae_lens", "uniform brown fur ball before the courtyard's brown bricks on a wooden "
-                   "table top (colour and depth of the kept views), auto exposure 0.35 EV / wb 0.06 on the kept "
-                   "views, OPENCV lens; black twin: fur_black_similar (same size)", spec,
-                   Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), got, opts, log=log),
-            _write("fur_black_table_lens", "the same renders as fur_room_table_ae_lens, every view over black at "
-                   "fixed exposure: the ball lit as on the table, through the lens (the twin of the table's light)",
-                   spec, Layout(None), got, opts, log=log)]
+    what = "uniform brown fur ball" if name.startswith("fur") else "furry bunny"
+    return [_write(name, f"{what} before the courtyard's brown bricks on a wooden table top (colour and depth of the "
+                   "kept views), auto exposure 0.35 EV / wb 0.06 on the kept views, OPENCV lens; black twin: "
+                   f"{TABLE_OF[name].replace('_room_', '_black_').replace('fur_similar_bg', 'fur_black_similar')} "
+                   "(same size)", spec, Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), got, opts, log=log),
+            _write(TABLE_TWIN[name], f"the same renders as {name}, every view over black at fixed exposure: lit as "
+                   "on the table, through the lens (the twin of the table's light)", spec, Layout(None), got, opts,
+                   log=log)]
 
 
 def bunny_room(opts: Options, log=print) -> list[dict]:
@@ -424,6 +431,7 @@ CASES = {
     "fur_similar_bg": fur_similar_bg,
     "fur_room_table_ae_lens": fur_table_ae_lens,
     "bunny_room_turntable": bunny_room,
+    "bunny_room_table_ae_lens": lambda o, log=print: fur_table_ae_lens(o, log, "bunny_room_table_ae_lens"),
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,
     "conifer_room_orbit_ae": conifer_orbit_ae,

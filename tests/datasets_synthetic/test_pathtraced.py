@@ -247,17 +247,20 @@ def test_lens_case_is_its_pinhole_twin_but_for_the_lens(tmp_path):
 
 
 def test_fur_table_case_is_the_brown_fur_but_for_table_and_lens(tmp_path):
-    """fur_room_table_ae_lens renders fur_similar_bg's ball (object, seed, room and its turn, spp, size) on the
-    table through the OPENCV lens; --size and the room options reach it as they reach fur_similar_bg."""
+    """fur_room_table_ae_lens (bunny_room_table_ae_lens) renders fur_similar_bg's ball (bunny_room_turntable's
+    bunny: object, seed, room and its turn, spp, size) on the table through the OPENCV lens; --size and the room
+    options reach it as they reach the room case."""
     from dataclasses import replace
 
     from datasets_synthetic.pathtraced.cases import Options, case_spec
 
     for opts in (Options(out=tmp_path, cache=tmp_path), Options(out=tmp_path, cache=tmp_path, size=(640, 480),
                                                                   room_rotation=0.0, seed=3)):
-        tab, twin = case_spec("fur_room_table_ae_lens", opts), case_spec("fur_similar_bg", opts)
-        assert (tab.support, tab.lens, twin.support, twin.lens) == ("table", OPENCV_LENS, "none", None)
-        assert replace(tab, support="none", lens=None) == twin and tab.key() != twin.key()
+        for name, room in (("fur_room_table_ae_lens", "fur_similar_bg"), ("bunny_room_table_ae_lens",
+                                                                           "bunny_room_turntable")):
+            tab, twin = case_spec(name, opts), case_spec(room, opts)
+            assert (tab.support, tab.lens, twin.support, twin.lens) == ("table", OPENCV_LENS, "none", None)
+            assert replace(tab, support="none", lens=None) == twin and tab.key() != twin.key()
 
 
 def test_room_map_and_turn_reach_every_room_case(tmp_path):
@@ -328,7 +331,8 @@ def test_issue30_table_pairs_every_room_case_with_its_twin(tmp_path):
              "conifer_room_table_ae_lens": "conifer_black_turntable", "fur_similar_bg": "fur_black_similar",
              "fur_similar_bg_jump_ae": "fur_black_similar", "fur_similar_bg_orbit": "fur_black_similar_orbit",
              "conifer_room_turntable_jump_ae": "conifer_black_turntable",
-             "fur_room_table_ae_lens": "fur_black_similar"}
+             "fur_room_table_ae_lens": "fur_black_similar", "bunny_room_turntable": "bunny_black_turntable",
+             "bunny_room_table_ae_lens": "bunny_black_turntable"}
     for name in set(pairs) | set(pairs.values()):
         (tmp_path / name).mkdir()
     for room, black in pairs.items():
