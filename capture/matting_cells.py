@@ -87,6 +87,15 @@ KEEP_ACROSS = True
 #: (the object crossing's sigma^2, record ``global.sigma``; :func:`object_sig2`).  Held out against KEEP_ACROSS
 #: alone: conifer rows mean +0.007 dB (-0.009 to +0.044), s17city +0.017, fur -0.004 to +0.005, twins the same.
 OBJECT_ACROSS = True
+#: The colour across the views gives no pixel its cube's colour where the object's crossing errs by more than
+#: MAX_OBJECT_SIGMA (linear; the crossing's expected colour error, the record's ``global.sigma``; SIGMA_GATE,
+#: :func:`uncertain`): the lines are too scattered for their crossing to beat each view's own colour.  Measured
+#: (stop 57, docs/matting.md "The colour across the views on fur"): on the 41 path-traced conifer rows of
+#: scripts/issue30_table.py 0.011-0.024, where the step gains 0.4-0.8 dB held out; on every fur and bunny row
+#: 0.034-0.092, where it gains nothing on the turntables (it colours no pixel), costs the fur orbits 0.23-0.29 dB
+#: and the furry bunny on the table 0.40, and gains the bunny before the room 0.07.  0.03 is the gap's midpoint.
+MAX_OBJECT_SIGMA = 0.03
+SIGMA_GATE = True
 #: The keys of a view's fit sample (line_samples' arrays the fit reads).
 FIT_KEYS = ("pts", "C", "B", "a", "F0", "usable")
 
@@ -188,7 +197,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     if why:
         return None, {**rec, "global": before, "reason": why}
     F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, alpha, F0, fill, gsum, inv, view, len(fits))
-    why = None if AGREEING_BEFORE else disagreeing(rec["global"])
+    why = (None if AGREEING_BEFORE else disagreeing(rec["global"])) or uncertain(rec["global"])
     rec["global"].update({"gate": before["agreeing"]} if before else {})
     if why:
         return None, {**rec, "reason": why}
@@ -205,6 +214,16 @@ def object_sig2(F_obj, record: dict) -> float | None:
     if not OBJECT_ACROSS or F_obj is None or record.get("sigma") is None:
         return None
     return float(record["sigma"]) ** 2
+
+
+def uncertain(global_record: dict) -> str | None:
+    """Why no pixel takes its cube's colour (SIGMA_GATE: the object's crossing errs by more than MAX_OBJECT_SIGMA),
+    or None; ``global_record``: capture.matting_global.cross_cells' record (no ``sigma``: None)."""
+    sigma = (global_record or {}).get("sigma")
+    if not SIGMA_GATE or sigma is None or sigma <= MAX_OBJECT_SIGMA:
+        return None
+    return (f"the object's crossing errs by {sigma:.3f} (over {MAX_OBJECT_SIGMA}, capture.matting_cells."
+            "MAX_OBJECT_SIGMA): the lines are too scattered to beat each view's own colour")
 
 
 def agreeing_before(C, B, w, alpha, colour) -> tuple[str | None, dict]:

@@ -20,6 +20,14 @@ from capture.view_map import serial_map
 from tests.capture.test_matting_lines import _cells
 from volume.surroundings import cell_colour_passes, cell_colour_stage
 
+
+@pytest.fixture(autouse=True)
+def _no_sigma_gate(monkeypatch):
+    """These tests exercise the cubes' colours on seeded scenes whose lines scatter more than the shipped
+    capture.matting_cells.MAX_OBJECT_SIGMA lets through (SIGMA_GATE has its own test in test_matting_cells.py)."""
+    monkeypatch.setattr("capture.matting_cells.SIGMA_GATE", False)
+
+
 #: Drawn to a third of the lines: median |F - F_reference| of the pixels both colour at most this
 #: (the cells' own tolerance against the truth, tests/capture/test_matting_lines.py).
 DRAWN_TOL = 0.01
@@ -164,6 +172,34 @@ def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gat
     else:
         assert rec["coloured"] > 0 and rrec["coloured"] > 0
     monkeypatch.setattr(mc, "MIN_AGREEING", share - 0.01)
+    _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    assert rec["coloured"] > 0
+
+
+@pytest.mark.parametrize("gate", [True, False])
+def test_a_scattered_crossing_gives_no_pixel_its_cubes_colour(monkeypatch, gate):
+    """SIGMA_GATE: where the object's crossing errs by more than MAX_OBJECT_SIGMA, the stage and its reference colour
+    nothing and say why, and the scans are the matte's; with the bar a little under the scene's own sigma both skip,
+    a little over it both colour as before.  Gate off: the bar does not matter."""
+    monkeypatch.setattr(mk, "POOL_ALPHA_ERROR", False)
+    monkeypatch.setattr(mc, "SIGMA_GATE", gate)
+    photos, plates, matted = _scene()
+    sa, gains = [0.1, 0.08, None], None
+    whole, fits = _lines(photos, plates, matted)
+    monkeypatch.setattr(mc, "MAX_OBJECT_SIGMA", 1.0)
+    _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    sigma = rec["global"]["sigma"]
+    assert 0 < sigma < 1.0 and rec["coloured"] > 0
+    monkeypatch.setattr(mc, "MAX_OBJECT_SIGMA", 0.99 * sigma)
+    got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    _, rrec = cell_colour_stage(tuple(matted), whole, sa, gains, lambda s: s)
+    if gate:
+        assert rec["coloured"] == rrec["coloured"] == 0
+        assert "scattered" in rec["reason"] and "scattered" in rrec["reason"]
+        assert all(g is m for g, m in zip(got, matted, strict=True))
+    else:
+        assert rec["coloured"] > 0 and rrec["coloured"] > 0
+    monkeypatch.setattr(mc, "MAX_OBJECT_SIGMA", 1.01 * sigma)
     _, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
     assert rec["coloured"] > 0
 
