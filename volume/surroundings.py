@@ -175,6 +175,9 @@ def cell_colour_passes(scans, photos, fits, sigma_alpha, gains, map_views):
 
     table, rec = fit_cells(fits, gains)
     if table is None:
+        if rec.get("reason"):  # a gate or too few lines: say so (the record keeps it too)
+            logging.getLogger("furrow.capture").info("matte colour across views: every view keeps its own colour: %s",
+                                                     rec["reason"])
         return tuple(scans), rec
     plates, originals = photos
     g = [None] * len(fits) if gains is None else list(np.asarray(gains, np.float64))

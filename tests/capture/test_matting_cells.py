@@ -177,7 +177,7 @@ def test_lines_that_do_not_agree_give_no_pixel_its_cubes_colour(monkeypatch, gat
 
 
 @pytest.mark.parametrize("gate", [True, False])
-def test_a_scattered_crossing_gives_no_pixel_its_cubes_colour(monkeypatch, gate):
+def test_a_scattered_crossing_gives_no_pixel_its_cubes_colour(monkeypatch, caplog, gate):
     """SIGMA_GATE: where the object's crossing errs by more than MAX_OBJECT_SIGMA, the stage and its reference colour
     nothing and say why, and the scans are the matte's; with the bar a little under the scene's own sigma both skip,
     a little over it both colour as before.  Gate off: the bar does not matter."""
@@ -191,11 +191,13 @@ def test_a_scattered_crossing_gives_no_pixel_its_cubes_colour(monkeypatch, gate)
     sigma = rec["global"]["sigma"]
     assert 0 < sigma < 1.0 and rec["coloured"] > 0
     monkeypatch.setattr(mc, "MAX_OBJECT_SIGMA", 0.99 * sigma)
-    got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
+    with caplog.at_level("INFO", logger="furrow.capture"):
+        got, rec = cell_colour_passes(matted, (plates, photos), fits, sa, gains, serial_map)
     _, rrec = cell_colour_stage(tuple(matted), whole, sa, gains, lambda s: s)
     if gate:
         assert rec["coloured"] == rrec["coloured"] == 0
         assert "scattered" in rec["reason"] and "scattered" in rrec["reason"]
+        assert any("keeps its own colour" in r.getMessage() and "scattered" in r.getMessage() for r in caplog.records)
         assert all(g is m for g, m in zip(got, matted, strict=True))
     else:
         assert rec["coloured"] > 0 and rrec["coloured"] > 0
