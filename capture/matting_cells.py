@@ -197,7 +197,7 @@ def fit_cells(fits: list, gains=None, cells: int = CELLS_PER_EXTENT) -> tuple[di
     if why:
         return None, {**rec, "global": before, "reason": why}
     F, sig2, F_obj, k, rec["global"] = cross_cells(C, B, w, alpha, F0, fill, gsum, inv, view, len(fits))
-    why = (None if AGREEING_BEFORE else disagreeing(rec["global"])) or uncertain(rec["global"])
+    why = after_crossing(rec["global"])
     rec["global"].update({"gate": before["agreeing"]} if before else {})
     if why:
         return None, {**rec, "reason": why}
@@ -214,6 +214,12 @@ def object_sig2(F_obj, record: dict) -> float | None:
     if not OBJECT_ACROSS or F_obj is None or record.get("sigma") is None:
         return None
     return float(record["sigma"]) ** 2
+
+
+def after_crossing(global_record: dict) -> str | None:
+    """Why no pixel takes its cube's colour, read from the crossing's record (capture.matting_global.cross_cells):
+    the lines' agreement where it is read after the crossing (AGREEING_BEFORE off), then :func:`uncertain`; or None."""
+    return (None if AGREEING_BEFORE else disagreeing(global_record)) or uncertain(global_record)
 
 
 def uncertain(global_record: dict) -> str | None:

@@ -403,21 +403,14 @@ def cell_colours(samples: list, sigma_alpha: list | None = None, gains=None,
     inv, gsum = cell_groups(cat["pts"], extent / cells)
     fill = np.concatenate([filled(s["C"], s["B"], s["a"], s["F0"]) for s in have])  # each view's own exposure
     view = np.concatenate([np.full(len(s["a"]), v) for v, s in enumerate(samples) if s is not None])
-    from capture.matting_cells import (
-        AGREEING_BEFORE,
-        KEEP_ACROSS,
-        agreeing_before,
-        disagreeing,
-        object_sig2,
-        uncertain,
-    )
+    from capture.matting_cells import KEEP_ACROSS, after_crossing, agreeing_before, object_sig2
 
     why, before = agreeing_before(cat["C"], cat["B"], w, cat["a"], cat["F0"])
     if why:
         return [None] * len(samples), {**rec, "global": before, "reason": why}
     F, sig2, F_obj, kv, rec["global"] = cross_cells(cat["C"], cat["B"], w, cat["a"], cat["F0"], fill, gsum, inv,
                                                     view, len(samples))
-    why = (None if AGREEING_BEFORE else disagreeing(rec["global"])) or uncertain(rec["global"])
+    why = after_crossing(rec["global"])
     rec["global"].update({"gate": before["agreeing"]} if before else {})
     if why:
         return [None] * len(samples), {**rec, "reason": why}

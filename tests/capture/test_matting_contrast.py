@@ -207,13 +207,14 @@ def test_a_view_without_an_alpha_error_borrows_the_views_median_where_most_measu
     assert errs[0] <= TINT_TOL < errs[1]  # the trunk's fill kept: 0.29 off
 
 
-def test_the_stages_two_passes_pool_the_alpha_errors_as_the_reference():
+def test_the_stages_two_passes_pool_the_alpha_errors_as_the_reference(monkeypatch):
     from capture import matting_cells as mc
     from capture.matting_lines import line_samples
     from capture.view_map import serial_map
     from tests.capture.test_matting_cells import _scene
     from volume.surroundings import cell_colour_passes, cell_colour_stage
 
+    monkeypatch.setattr(mc, "SIGMA_GATE", False)  # the seeded scene's lines scatter more than the shipped bar
     photos, plates, matted = _scene()
     sa, gains = [0.1, 0.08, None], np.array([[1.0, 1.0, 1.0], [1.2, 1.1, 1.0], [1.0, 0.9, 1.1]])
     whole = [line_samples(s.camera, photos[k].linear_rgb, plates[k].background, plates[k].known, s.alpha, s.rgb,
