@@ -27,6 +27,7 @@ and written in furrow's scan format with the true coverage matte of every view (
                                                            renders over black, the table's light kept)
   bunny_room_turntable        (+ bunny_black_turntable)    furry bunny (scanned body, 30,000 strands) before the room
   bunny_room_table_ae_lens    (+ bunny_black_table_lens)   the bunny on the table, auto exposure, OPENCV lens
+  bunny_room_orbit            (+ bunny_black_orbit)        the bunny, camera circling
 
 Renders are cached per view under --cache (an interrupted run resumes; captures that share pixels
 render once). Each case runs in a child process: when the renderer kills it (Mitsuba 3.9.1 segfaulted on

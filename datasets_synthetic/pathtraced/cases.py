@@ -169,8 +169,9 @@ def case_spec(name: str, opts: Options) -> RenderSpec:
         from datasets_synthetic.camera_traits import OPENCV_LENS
 
         return replace(case_spec(TABLE_OF[name], opts), support="table", lens=OPENCV_LENS)
-    if name == "bunny_room_turntable":  # the evaluation's furry bunny, before fur_similar_bg's brown room
-        return spec_for("furrybunny", opts, FULL_SIZE, FUR_LATER_SPP, motion="turntable", **_room(opts, BROWN_ROOM))
+    if name in ("bunny_room_turntable", "bunny_room_orbit"):  # the evaluation's furry bunny, before the brown room
+        return spec_for("furrybunny", opts, FULL_SIZE, FUR_LATER_SPP, motion=name.rsplit("_", 1)[1],
+                        **_room(opts, BROWN_ROOM))
     if name in ("fur_similar_bg", "fur_similar_bg_orbit"):
         return spec_for("furball", opts, HALF_SIZE, FUR_LATER_SPP, motion="orbit" if name.endswith("_orbit")
                         else "turntable", **_room(opts, BROWN_ROOM))
@@ -343,15 +344,17 @@ def fur_table_ae_lens(opts: Options, log=print, name: str = "fur_room_table_ae_l
                    log=log)]
 
 
-def bunny_room(opts: Options, log=print) -> list[dict]:
+def bunny_room(opts: Options, log=print, motion: str = "turntable") -> list[dict]:
     """Case k: the furry bunny (the scanned Stanford Bunny under 30,000 hair-BSDF strands) before the courtyard's
-    brown bricks, room kept / black held, and its black twin: a furry object that is not the same from every side."""
-    spec = case_spec("bunny_room_turntable", opts)
+    brown bricks, room kept / black held, and its black twin: a furry object that is not the same from every side
+    (``motion`` "orbit": the camera circling)."""
+    spec = case_spec(f"bunny_room_{motion}", opts)
     got = _render(spec, opts, log)
-    return [_write("bunny_room_turntable", "furry bunny (scanned Stanford Bunny, 30,000 hair-BSDF strands, patched "
-                   "coat) before the courtyard's brown bricks, turntable; views 0::2 show the room, 1::2 over black",
+    how = "turntable" if motion == "turntable" else "camera circling (the room moves with the view)"
+    return [_write(f"bunny_room_{motion}", "furry bunny (scanned Stanford Bunny, 30,000 hair-BSDF strands, patched "
+                   f"coat) before the courtyard's brown bricks, {how}; views 0::2 show the room, 1::2 over black",
                    spec, Layout(ROOM_FRAMES), got, opts, log=log),
-            _write("bunny_black_turntable", "the same renders as bunny_room_turntable, every view over black (its "
+            _write(f"bunny_black_{motion}", f"the same renders as bunny_room_{motion}, every view over black (its "
                    "black twin)", spec, Layout(None), got, opts, log=log)]
 
 
@@ -431,6 +434,7 @@ CASES = {
     "fur_similar_bg": fur_similar_bg,
     "fur_room_table_ae_lens": fur_table_ae_lens,
     "bunny_room_turntable": bunny_room,
+    "bunny_room_orbit": lambda o, log=print: bunny_room(o, log, "orbit"),
     "bunny_room_table_ae_lens": lambda o, log=print: fur_table_ae_lens(o, log, "bunny_room_table_ae_lens"),
     "furball_uniform_ae": furball_ae,
     "furball_uniform_orbit": furball_orbit,

@@ -5,6 +5,8 @@ The mesh part's render test needs Mitsuba 3 and skips without it (as tests/datas
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -78,6 +80,8 @@ def test_bunny_case_is_full_size_before_the_brown_room(tmp_path):
     s = case_spec("bunny_room_turntable", Options(out=tmp_path, cache=tmp_path))
     assert (s.object, s.rig.width, s.rig.height, s.spp, s.motion) == ("furrybunny", 640, 480, 16, "turntable")
     assert (s.env, s.env_rotation_deg) == BROWN_ROOM
+    o = case_spec("bunny_room_orbit", Options(out=tmp_path, cache=tmp_path))
+    assert o.motion == "orbit" and dataclasses.replace(o, motion="turntable") == s
 
 
 def test_mesh_part_renders_at_its_depth():
