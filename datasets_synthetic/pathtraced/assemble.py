@@ -186,7 +186,8 @@ def cameras_json(cams: list[Camera]) -> bytes:
 
 
 def gt_mesh_bytes(obj: PathObject) -> bytes:
-    """gt/mesh.ply: every curve as a 3-sided tube along its (evaluated) centre line, spheres as UV spheres."""
+    """gt/mesh.ply: every curve as a 3-sided tube along its (evaluated) centre line, spheres as UV spheres, triangle
+    meshes as they are."""
     from datasets_synthetic.geometry import ellipsoid, merge, ply_bytes, transformed, tube_sweep
     from render.mesh.raster.gl import RasterMesh
 

@@ -323,6 +323,8 @@ def fur_similar_bg(opts: Options, log=print, motion: str = "turntable") -> list[
 
 #: The furry cases on the table (e's all at once) -> the room case whose spec they put on the table.
 TABLE_OF = {"fur_room_table_ae_lens": "fur_similar_bg", "bunny_room_table_ae_lens": "bunny_room_turntable"}
+#: ... and that room case's black twin (scripts/issue30_table.py measures the table case against it).
+PLAIN_TWIN = {"fur_room_table_ae_lens": "fur_black_similar", "bunny_room_table_ae_lens": "bunny_black_turntable"}
 #: Their black twins over black from their own renders (the table's light and the lens kept).
 TABLE_TWIN = {"fur_room_table_ae_lens": "fur_black_table_lens", "bunny_room_table_ae_lens": "bunny_black_table_lens"}
 
@@ -337,8 +339,8 @@ def fur_table_ae_lens(opts: Options, log=print, name: str = "fur_room_table_ae_l
     what = "uniform brown fur ball" if name.startswith("fur") else "furry bunny"
     return [_write(name, f"{what} before the courtyard's brown bricks on a wooden table top (colour and depth of the "
                    "kept views), auto exposure 0.35 EV / wb 0.06 on the kept views, OPENCV lens; black twin: "
-                   f"{TABLE_OF[name].replace('_room_', '_black_').replace('fur_similar_bg', 'fur_black_similar')} "
-                   "(same size)", spec, Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), got, opts, log=log),
+                   f"{PLAIN_TWIN[name]} (same size)", spec, Layout(ROOM_FRAMES, auto_exposure=AUTO_EXPOSURE), got,
+                   opts, log=log),
             _write(TABLE_TWIN[name], f"the same renders as {name}, every view over black at fixed exposure: lit as "
                    "on the table, through the lens (the twin of the table's light)", spec, Layout(None), got, opts,
                    log=log)]
