@@ -6,9 +6,16 @@ blown-out plate step 4 of capture.matting_known gives the pixel the colour of th
 estimate) instead, and before a sunlit wall those can be far brighter than the object: on a fur ball's orbit
 (s24furorb) the body before the wall (alpha 0.99, the photo 0.25 / 0.16 / 0.09) took 0.47 / 0.24 / 0.09 where the
 truth is 0.19 / 0.10 / 0.04 (docs/matting.md "Other rooms behind the conifer, and a fur ball before a blown-out
-wall").  :func:`blown_cap` applies the bound, with the noise of capture.matting_known.alpha_lower_bound.  The tighter
-bound C - (1 - a) B_plate (the true B is at least the plate) was tried first: where the matte's alpha is below the
-truth it cut the true colour (a conifer before the sunlit wall lost 0.08 dB held out), so the bound takes no alpha.
+wall").  :func:`blown_cap` applies the bound.  The tighter bound C - (1 - a) B_plate (the true B is at least the plate)
+was tried first: where the matte's alpha is below the truth it cut the true colour (a conifer before the sunlit wall
+lost 0.08 dB held out), so the bound takes no alpha.
+
+The bound's slack is the photo's own noise, NOISE_ABS + NOISE_REL C (CAP_SLACK_OF_PHOTO): B does not enter
+a F <= C.  It was NOISE_REL B, the noise of C - B in capture.matting_known.alpha_lower_bound, which before a blown
+plate (B about 1) let a dark body's fill be 0.034 linear above the photo: a furry bunny's orbit had 172,689 truly
+opaque kept-view pixels (their photo exactly the black twin's) 0.073 too bright in 8-bit sRGB, 27 % of its kept views'
+colour error; held out 21.315 -> 21.623 dB (docs/matting.md "Before a blown-out plate, the photo bounds a dark
+body's colour").
 """
 
 from __future__ import annotations
@@ -17,13 +24,16 @@ import numpy as np
 
 #: Cap the colour before a blown-out plate (:func:`blown_cap`); False: as before.
 BLOWN_CAP = True
+#: The cap's slack is the photo's noise, NOISE_ABS + NOISE_REL C (module docstring); False: NOISE_ABS + NOISE_REL B,
+#: the plate's (the rule before stop 58).
+CAP_SLACK_OF_PHOTO = True
 
 
 def blown_cap(F: np.ndarray, image: np.ndarray, alpha: np.ndarray, background: np.ndarray,
               blown: np.ndarray) -> np.ndarray:
     """``F`` (h, w, 3) with each ``blown`` pixel's channels capped where the photo's is not clipped: a F at most
-    C + NOISE_ABS + NOISE_REL B (B the plate, clipped to [0, 1]; the noise of capture.matting_known's bound),
-    which holds for any alpha and any background.  ``F`` itself where BLOWN_CAP is off or no pixel is blown."""
+    C + NOISE_ABS + NOISE_REL C (the photo's noise; with CAP_SLACK_OF_PHOTO off NOISE_REL B, B the plate clipped to
+    [0, 1]), which holds for any alpha and any background.  ``F`` itself where BLOWN_CAP is off or no pixel is blown."""
     from capture.matting_known import CLIP_LEVEL, NOISE_ABS, NOISE_REL
 
     blown = np.asarray(blown, bool) & (np.asarray(alpha) > 0)
@@ -32,7 +42,7 @@ def blown_cap(F: np.ndarray, image: np.ndarray, alpha: np.ndarray, background: n
     C = np.asarray(image, np.float64)[blown]
     B = np.clip(np.asarray(background, np.float64)[blown], 0.0, 1.0)
     a = np.asarray(alpha, np.float64)[blown][:, None]
-    cap = (C + NOISE_ABS + NOISE_REL * B) / np.maximum(a, 1e-6)
+    cap = (C + NOISE_ABS + NOISE_REL * (C if CAP_SLACK_OF_PHOTO else B)) / np.maximum(a, 1e-6)
     out = np.array(F, np.float64, copy=True)
     out[blown] = np.where(C < CLIP_LEVEL, np.minimum(out[blown], cap), out[blown])
     return out

@@ -8,7 +8,8 @@ photo or the plate clipped, capture.matting_known.clipped; unknown) and by the t
 
 Prints per class and range: pixels, share of the summed squared alpha error, alpha MSE, mean alpha
 error (bias), share and mean of the premultiplied colour's squared error (linear, summed over
-channels).  OUT_DIR gets per kept view NN.npz (alpha, class map, colour) for scripts/hybrid_mattes.py.
+channels).  OUT_DIR gets per kept view NN.npz (alpha, class map, colour, the plate and where it is known) for
+scripts/hybrid_mattes.py and scripts/blown_opaque.py.
 """
 
 from __future__ import annotations
@@ -81,8 +82,12 @@ def main(room: str, black: str, out_dir: str) -> None:
                 k = (cls == c) & (rg == r)
                 acc[c, r, :4] += (ea[k].sum(), ep[k].sum(), k.sum(), (m.alpha - ta)[k].sum())
         acc[0, 0, 4] += ta.size
+        full = pl.full() if pl is not None else None
         np.savez_compressed(Path(out_dir) / f"{i:02d}.npz", alpha=m.alpha.astype(np.float32), cls=cls,
-                            fg=m.foreground.astype(np.float16))
+                            fg=m.foreground.astype(np.float16),
+                            plate=(full.background if full is not None else np.zeros_like(m.foreground)).astype(
+                                np.float16),
+                            known=full.known if full is not None else np.zeros(cls.shape, bool))
     print(f"{room}: plate {rec['mode']}, band known {rec.get('band_known_mean')}")
     _print(acc)
 
