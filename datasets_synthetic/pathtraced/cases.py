@@ -144,6 +144,21 @@ def spec_for(obj: str, opts: Options, size, spp: int | None = None, **kw) -> Ren
                       **kw)
 
 
+#: The room's words in the room cases' descriptions, longest first (room_described).
+COURTYARD_WORDS = ("the courtyard's brown brick floor", "the courtyard's brown bricks", "the courtyard")
+
+
+def room_described(what: str, opts: Options) -> str:
+    """A case's description ``what`` with the courtyard named as the map that --room-map put behind the room
+    (``opts.room_map``); ``what`` itself without one (the INDEX then says what was rendered)."""
+    if opts.room_map is None:
+        return what
+    for words in COURTYARD_WORDS:
+        if words in what:
+            return what.replace(words, f"the {Path(opts.room_map).stem} map (--room-map)")
+    return what
+
+
 def _room(opts: Options, default: tuple[str, float]) -> dict:
     """The map and its turn behind a room case: ``default`` (map, degrees) unless opts.room_map / room_rotation."""
     return {"env": default[0] if opts.room_map is None else env_path(opts.room_map, opts),
@@ -197,6 +212,7 @@ def _write(name: str, what: str, spec: RenderSpec, layout: Layout, got, opts: Op
     from datasets_synthetic.pathtraced.scene import exposure_for
 
     renders, obj, cams, wall = got
+    what = room_described(what, opts)
     env = resolve_env(spec.env)
     exposure = exposure_for(env, layout.key)
     room = layout.room_views(len(cams))

@@ -276,7 +276,7 @@ def test_room_map_and_turn_reach_every_room_case(tmp_path):
     (tmp_path / "maps" / "interior.exr").write_bytes(b"")
     turned = Options(out=tmp_path, cache=tmp_path, env_dir=tmp_path / "maps", room_rotation=90.0, room_map="interior")
     for name in ("fur_similar_bg", "fur_similar_bg_orbit", "conifer_room_turntable", "conifer_room_orbit",
-                 "conifer_room_table_ae_lens"):
+                 "conifer_room_table_ae_lens", "bunny_room_turntable", "bunny_room_orbit"):
         spec = case_spec(name, turned)
         assert spec.env == str(tmp_path / "maps" / "interior.exr") and spec.env_rotation_deg == 90.0, name
     orbit, tt = case_spec("fur_similar_bg_orbit", plain), case_spec("fur_similar_bg", plain)
@@ -286,6 +286,22 @@ def test_room_map_and_turn_reach_every_room_case(tmp_path):
     # a case with no room behind it never looks the map up
     assert case_spec("furball_uniform_turntable", Options(out=tmp_path, cache=tmp_path, room_map="nowhere")).env \
         == case_spec("furball_uniform_turntable", plain).env
+
+
+def test_the_index_names_the_map_behind_the_room():
+    """A room case rendered with --room-map says so in its INDEX description (a bunny before the interior map was
+    described as before the courtyard's bricks); without it the description is as written."""
+    from datasets_synthetic.pathtraced.cases import Options, room_described
+
+    what = "furry bunny before the courtyard's brown bricks, camera circling"
+    assert room_described(what, Options(out=None, cache=None)) == what
+    got = room_described(what, Options(out=None, cache=None, room_map="interior"))
+    assert got == "furry bunny before the interior map (--room-map), camera circling"
+    assert room_described("uniform brown fur ball before the courtyard's brown brick floor (similar colour)",
+                          Options(out=None, cache=None, room_map="city")) == \
+        "uniform brown fur ball before the city map (--room-map) (similar colour)"
+    assert room_described("conifer in the courtyard, fixed camera", Options(out=None, cache=None, room_map="forest")) \
+        == "conifer in the forest map (--room-map), fixed camera"
 
 
 def _script():
