@@ -70,7 +70,8 @@ def variants(rgb, al, ta, tp) -> dict:
             "true colour at the opaque pixels": (_straight(np.where(opq, tp, pm), al), al),
             "partial pixels' low-passed error taken out": (_straight(np.where(part, pm + low, pm), al), al),
             f"partial pixels times {np.round(gain, 3).tolist()}": (_straight(np.where(part, pm * gain, pm), al), al),
-            "a true gain per band of the model's alpha": (_straight(pm * band_gain, al), al)}
+            "a true gain per band of the model's alpha": (_straight(pm * band_gain, al), al),
+            "its alpha and colour, none where the true alpha is 0": (rgb, np.where(ta > 0, al, 0).astype(np.float32))}
 
 
 def main(argv=None) -> int:
