@@ -40,9 +40,9 @@ def blown_cap(F: np.ndarray, image: np.ndarray, alpha: np.ndarray, background: n
     if not BLOWN_CAP or not blown.any():
         return F
     C = np.asarray(image, np.float64)[blown]
-    B = np.clip(np.asarray(background, np.float64)[blown], 0.0, 1.0)
+    noisy = C if CAP_SLACK_OF_PHOTO else np.clip(np.asarray(background, np.float64)[blown], 0.0, 1.0)
     a = np.asarray(alpha, np.float64)[blown][:, None]
-    cap = (C + NOISE_ABS + NOISE_REL * (C if CAP_SLACK_OF_PHOTO else B)) / np.maximum(a, 1e-6)
+    cap = (C + NOISE_ABS + NOISE_REL * noisy) / np.maximum(a, 1e-6)
     out = np.array(F, np.float64, copy=True)
     out[blown] = np.where(C < CLIP_LEVEL, np.minimum(out[blown], cap), out[blown])
     return out

@@ -25,18 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.imageio import read_color, write_png
-
-
-def frame_selection(spec: str, n: int) -> list[int]:
-    """The frame indices of a Python slice ``spec`` ('0::2', '1::2', ':') over ``n`` frames."""
-    parts = spec.split(":")
-    if len(parts) not in (2, 3):
-        raise SystemExit(f"--frames {spec!r}: expected a slice such as 0::2")
-    try:
-        bounds = [int(p) if p else None for p in parts]
-    except ValueError:
-        raise SystemExit(f"--frames {spec!r}: expected a slice such as 0::2") from None
-    return list(range(n))[slice(*bounds)]
+from capture.scan import select_indices
 
 
 def noisy(rgb: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
@@ -49,7 +38,8 @@ def main(argv=None) -> Path:
     p.add_argument("capture", type=Path)
     p.add_argument("out", type=Path)
     p.add_argument("--sigma", type=float, required=True, help="noise in 8-bit sRGB steps (e.g. 1.5)")
-    p.add_argument("--frames", default="0::2", help="the frames given noise, a slice (default 0::2: the kept)")
+    p.add_argument("--frames", default="0::2",
+                   help="the frames given noise, as furrow's --frames (default 0::2: the kept)")
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
     src = a.capture / "transforms.json"
@@ -58,7 +48,10 @@ def main(argv=None) -> Path:
     if not a.sigma > 0:
         raise SystemExit(f"--sigma must be > 0, got {a.sigma}")
     frames = json.loads(src.read_text())["frames"]
-    chosen = set(frame_selection(a.frames, len(frames)))
+    try:
+        chosen = set(select_indices(a.frames, len(frames)))  # furrow's --frames syntax
+    except (ValueError, IndexError) as e:
+        raise SystemExit(f"--frames: {e}") from None
     a.out.mkdir(parents=True, exist_ok=True)
     for entry in a.capture.iterdir():
         link = a.out / entry.name

@@ -53,7 +53,7 @@ def test_the_kept_frames_get_noise_of_the_stated_sigma_and_the_rest_stay(tmp_pat
 
 
 @pytest.mark.parametrize("argv, message", [(["--sigma", "0"], "--sigma must be > 0"),
-                                           (["--sigma", "1", "--frames", "x"], "expected a slice")])
+                                           (["--sigma", "1", "--frames", "x"], "bad frame spec")])
 def test_bad_arguments_say_what_is_wrong(tmp_path, argv, message):
     src = tmp_path / "cap"
     _capture(src)
