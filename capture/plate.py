@@ -95,10 +95,16 @@ class PlateConfig:
     neighbours: int = NEIGHBOURS
     #: Folder of plates the user shot (``--background-plates``; capture.plate_io), or None.
     plates_dir: str | None = None
+    #: 'auto': the frames' sensor noise is measured and, where it is at least capture.noise.NOISE_MIN_SIGMA
+    #: 8-bit steps, the plate is made from the frames through a bilateral filter on the scale of the noise (the
+    #: matte still reads the photos; capture.noise); 'off': the frames as they are.
+    denoise: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in PLATE_MODES:
             raise ValueError(f"plate mode must be one of {', '.join(PLATE_MODES)}, got {self.mode!r}")
+        if self.denoise not in ("auto", "off"):
+            raise ValueError(f"plate denoise must be 'auto' or 'off', got {self.denoise!r}")
         if int(self.neighbours) < 1:
             raise ValueError(f"plate neighbours must be >= 1, got {self.neighbours}")
 

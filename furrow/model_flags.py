@@ -137,6 +137,11 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                    help="plates you shot without the object (the same path, or a fixed camera): one image per "
                         "frame named like the frame's colour image, or one image for every frame "
                         "(capture/plate_io.py)")
+    g.add_argument("--plate-denoise", choices=["auto", "off"], default="auto",
+                   help="the frames' sensor noise, measured (capture/noise.py): auto (default: where it is at least "
+                        "1 8-bit step, the plate is made from the frames through a bilateral filter on the scale of "
+                        "the noise; the matte still reads the photos; the figure in the plate record and on the "
+                        "console) or off")
     g.add_argument("--matte-resolution", choices=["full", "working"], default="working",
                    help="where a solved matte (estimated from the depth, or with a known background: plate, "
                         "backdrop) is solved: working (default; capture/matting_scale.py: on a copy scaled so that "
@@ -174,7 +179,8 @@ def pipeline_config(args, **save):
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
         matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution,
                                  across=getattr(args, "matte_across", "auto")),
-        plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates),
+        plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates,
+                          denoise=getattr(args, "plate_denoise", "auto")),
         photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,

@@ -45,6 +45,7 @@ import numpy as np
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
 from capture.matting_cells import fit_cap
+from capture.noise import capture_noise, noise_frames, smooth_frame, smoothing
 from capture.plate import background_plates
 from capture.plate_scale import grow_plate, plate_scale, shrink_scan
 from capture.scan import Scan
@@ -81,25 +82,32 @@ def plate_stage(work, cfg, ctx):
     plane, focus = work.parts.get("support") or (None, None)
     user = None if cfg.plates_dir is None else read_user_plates(cfg.plates_dir, work.scans)
     scale = plate_scale(len(work.refs), *work.scans[0].depth.shape[:2]) if user is None and work.scans else 1.0
-    views = _plate_views(work.scans, captured, scale)
+    noise = float("nan")  # the frames' sensor noise (capture.noise), measured on a few of them
+    if user is None and cfg.denoise == "auto":
+        noise = capture_noise([work.scans[i].rgb for i in noise_frames(len(work.scans))])
+    views = _plate_views(work.scans, captured, scale, smoothing(noise))
     plates, rec = background_plates(views if user is None else list(views), cfg, plane, focus, user, crop=True)
     if scale < 1.0:
         rec = {**rec, "working_scale": round(scale, 4)}
+    if np.isfinite(noise):  # capture.noise: the frames' noise and the smoothing the plate read them with
+        rec = {**rec, "frame_noise": round(noise, 3), "frame_smoothing": round(smoothing(noise), 3)}
     if "per_view" in rec:  # each view's record names its frame (the console names refused views by it)
         rec = {**rec, "per_view": [{"name": ref.name, **r} for ref, r in zip(work.refs, rec["per_view"], strict=True)]}
     store = dict(zip((ref.index for ref in work.refs), plates, strict=True))
     return work.made(plates=store, captured=None).record("background plate", rec)
 
 
-def _plate_views(scans, captured, scale: float):
+def _plate_views(scans, captured, scale: float, smooth: float = 0.0):
     """The plate stage's views, read a few at a time side by side (a generator; capture.plate_threads),
     float16 colour, shrunk to ``scale`` (the working scale of capture.plate_scale: below 1 when all the
-    views at full size would pass its memory budget; never for user plates, which are at the views' size)."""
+    views at full size would pass its memory budget; never for user plates, which are at the views' size),
+    the colour smoothed first on the colour scale ``smooth`` (capture.noise.smooth_frame; 0: as read)."""
     from capture.plate_threads import thread_map
 
     def one(sc):
         s, c = sc
-        return shrink_scan(s.camera, s.rgb, s.depth, c.depth, scale)  # shrink_view's view (SHRINK_FAST)
+        rgb = smooth_frame(s.rgb, smooth)  # the frames' sensor noise (capture.noise)
+        return shrink_scan(s.camera, rgb, s.depth, c.depth, scale)  # shrink_view's view (SHRINK_FAST)
 
     # read a few views ahead side by side (the plate stage's own threads take them as they come)
     return thread_map(one, zip(scans, captured, strict=True))

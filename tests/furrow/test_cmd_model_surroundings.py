@@ -193,3 +193,28 @@ def test_the_report_names_the_views_whose_plate_was_refused():
     assert "dropped in part of 1 view(s)" in said and "(r0_v002.png)" in said  # view 1 counts as refused only
     quiet = report([], {})
     assert "refused" not in quiet and "dropped in part" not in quiet and "background plate (fixed)" in quiet
+
+
+def test_noisy_frames_are_measured_and_the_plate_reads_them_smoothed(table_dir, tmp_path, capsys):
+    """capture.noise through `furrow model`: frames with sensor noise of 3 8-bit steps are measured (within 10 %)
+    and the plate stage smooths its copy (the record and the console say so); `--plate-denoise off` reads them as
+    they are; the clean capture measures under 1 step and is not smoothed."""
+    from capture.io import read_scanset
+
+    ss = read_scanset(str(table_dir))
+    rng = np.random.default_rng(5)
+    noisy = [Scan(np.clip(np.round(s.srgb8 + rng.normal(0, 3.0, s.srgb8.shape)), 0, 255).astype(np.uint8),
+                  s.depth, s.camera, s.name) for s in ss.scans]
+    out = tmp_path / "noisy"
+    write_transforms(ScanSet(tuple(noisy), ss.bounds), out)
+    runs = {}
+    for name, cap, extra in (("noisy", out, []), ("off", out, ["--plate-denoise", "off"]), ("clean", table_dir, [])):
+        rc, s, err = _model([str(cap), "-o", str(tmp_path / f"m_{name}"), "--matte", "plate", *extra], capsys)
+        assert rc == 0, err
+        runs[name] = (s["surroundings"]["plate"], err)
+    plate, err = runs["noisy"]
+    assert abs(plate["frame_noise"] - 3.0) <= 0.3 and plate["frame_smoothing"] > 0, plate
+    assert "the frames' noise 3." in err and "smoothed" in err
+    assert "frame_noise" not in runs["off"][0] and "smoothed" not in runs["off"][1]
+    assert runs["clean"][0]["frame_noise"] < 1.0 and runs["clean"][0]["frame_smoothing"] == 0.0
+    assert "smoothed" not in runs["clean"][1]
