@@ -84,7 +84,8 @@ def plate_stage(work, cfg, ctx):
     scale = plate_scale(len(work.refs), *work.scans[0].depth.shape[:2]) if user is None and work.scans else 1.0
     noise = float("nan")  # the frames' sensor noise (capture.noise), measured on a few of them
     if user is None and cfg.denoise == "auto":
-        noise = capture_noise([work.scans[i].rgb for i in noise_frames(len(work.scans))])
+        picks = [work.scans[i] for i in noise_frames(len(work.scans))]
+        noise = capture_noise([s.rgb for s in picks], [s.depth for s in picks])
     views = _plate_views(work.scans, captured, scale, smoothing(noise))
     plates, rec = background_plates(views if user is None else list(views), cfg, plane, focus, user, crop=True)
     if scale < 1.0:

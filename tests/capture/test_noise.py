@@ -52,6 +52,20 @@ def test_a_clean_frame_measures_no_noise_and_is_read_as_it_is():
     assert noise.smooth_frame(frames[0], noise.smoothing(got)) is frames[0]
 
 
+def test_the_object_is_left_out_of_the_measurement():
+    """A clean room with a rough object before it (fur: its texture and a path tracer's noise, here noise of 6 steps
+    on two thirds of the frame) measures the room's noise, not the object's; with too little room, none."""
+    img = _smooth_image()
+    rough = _noisy(img, 6.0, seed=3)
+    depth = np.zeros(img.shape[:2], np.float32)
+    depth[20:220, 30:290] = 0.5
+    frame = np.where((depth > 0)[..., None], rough, _noisy(img, 0.0, seed=0))
+    assert noise.frame_noise(frame) > 0.5  # the whole frame sees the object (measured 0.74 on a fur ball)
+    assert noise.frame_noise(frame, depth) <= CLEAN_MAX
+    assert noise.capture_noise([frame, frame], [depth, depth]) <= CLEAN_MAX
+    assert np.isnan(noise.frame_noise(frame, np.ones_like(depth)))
+
+
 def test_only_8_bit_frames_are_measured():
     assert np.isnan(noise.frame_noise(_smooth_image().astype(np.float32) / 255))
     assert np.isnan(noise.capture_noise([]))
