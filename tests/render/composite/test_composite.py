@@ -27,6 +27,15 @@ from volume.model import SphereSet
 
 #: GL (float32) vs numpy (float64) shadow-ratio grid: measured max 3e-4.
 GRID_TWIN_TOL = 2e-3
+#: Far from the object (test_shadow_falls_away_from_the_sun) the ray-cast of the SG lighting is above
+#: FAR_UNSHADOWED, and the analytic ratio at most FAR_TOL below it.  The analytic (SSDF) ratio cuts a lobe at the
+#: cone towards the nearest occluder, which over-occludes a broad lobe beside a small sphere: where the fit of the
+#: procedural sky lands in the optimum with a sky lobe of sharpness 0.5 (the fit's floor; rel. error 0.060, an
+#: AVX-512 BF16 machine, 2026-12-05; 0.053 elsewhere) the far ground reads 0.960-0.969 against the ray-cast's
+#: 0.993-0.995 (a zenith lobe of sharpness 0.5 alone: 0.970).  Until 2026-12-05 this test asked for > 0.97 of the
+#: analytic ratio alone, which held only for the other optimum.
+FAR_UNSHADOWED = 0.99
+FAR_TOL = 0.04
 #: GL vs numpy composite, relative to the pixel value: float32 atan / bilinear weights; measured
 #: max 2.3e-4 absolute on values up to ~10.
 COMPOSITE_TWIN_REL = 1e-3
@@ -151,9 +160,14 @@ def test_shadow_falls_away_from_the_sun():
     at = lambda xy: float(shadow_ratio(np.array([[xy[0], xy[1], 0.0]]), sph, fit, 0.0)[0] @ LUMA)
     assert at(expect) < at(-expect) - 0.3, (at(expect), at(-expect))
     assert r.min() < 0.6 and np.all(r <= 1 + 1e-9) and np.all(r > 0)
-    # far from the object the ground is unshadowed
+    # far from the object the ground is unshadowed: the ray-cast of the same lighting says so, and the analytic
+    # ratio stays within FAR_TOL of it (FAR_TOL: the SSDF cone's over-occlusion of a broad lobe, below)
     far = np.linalg.norm(pts[:, :2] - expect, axis=1) > 0.35
-    assert np.all(r[far] > 0.97)
+    V, F = spheres_mesh(sph, 48)
+    P = pts[far][::8]
+    ref = shadow_ratio_raycast(P, V, F, lambda d: sg_mixture_eval(d, fit.axes, fit.lams, fit.mus), 8192) @ LUMA
+    assert np.all(ref > FAR_UNSHADOWED), ref.min()
+    assert np.all(r[far][::8] > ref - FAR_TOL), (r[far][::8] - ref).min()
 
 
 def _shadow_errors(name):
