@@ -84,8 +84,11 @@ def _near_object(obj: np.ndarray) -> np.ndarray:
 
 
 def noise_frames(n: int) -> list[int]:
-    """The frames of ``n`` that :func:`capture_noise` reads: at most NOISE_FRAMES, evenly spaced."""
-    return [] if n <= 0 else np.unique(np.linspace(0, n - 1, min(n, NOISE_FRAMES)).round().astype(int)).tolist()
+    """The frames of ``n`` that :func:`capture_noise` reads: at most NOISE_FRAMES, evenly spaced (the fixed
+    plate's own rule, capture.plate_fixed.mode_frames)."""
+    from capture.plate_fixed import mode_frames
+
+    return mode_frames(n, None, NOISE_FRAMES)
 
 
 def capture_noise(frames: list[np.ndarray], object_depths: list[np.ndarray] | None = None) -> float:
