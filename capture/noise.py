@@ -118,3 +118,22 @@ def smooth_frame(rgb: np.ndarray, colour_scale: float) -> np.ndarray:
     import cv2
 
     return cv2.bilateralFilter(np.ascontiguousarray(rgb), SMOOTH_DIAMETER, float(colour_scale), SMOOTH_SPACE)
+
+
+#: Frame files whose compression takes out the finest detail that :func:`frame_noise` reads: noise of 3 steps
+#: saved as JPEG quality 90 measured 0.74, at quality 80 0.00 (docs/matting.md, stop 60).
+JPEG_SUFFIXES = (".jpg", ".jpeg")
+
+
+def noise_note(noise: float, names) -> str | None:
+    """What the record and the console say beside a measured ``noise`` (8-bit steps, NaN when not measured)
+    of frames named ``names`` (their files): why it was not measured, or that JPEG frames may read low and so
+    were not smoothed; None when the measurement can be taken as it is."""
+    if not np.isfinite(noise):
+        return (f"not measured (fewer than {NOISE_MIN_BLOCKS} background 2 x 2 blocks beside the object, or frames "
+                "that are not 8-bit): the plate read the frames as they are")
+    jpeg = [n for n in names if str(n).lower().endswith(JPEG_SUFFIXES)]
+    if jpeg and noise < NOISE_MIN_SIGMA:
+        return (f"measured on JPEG frames ({len(jpeg)} of {len(names)}): compression takes out the fine detail this "
+                "measurement reads, so a noisy capture may read low and was not smoothed (--plate-denoise)")
+    return None

@@ -198,6 +198,9 @@ def _print_surroundings(console, rec: dict) -> None:
         if pl.get("frame_smoothing"):  # capture.noise: noisy frames, read smoothed by the plate stage
             scale += (f"; the frames' noise {pl['frame_noise']:.1f} 8-bit steps: made from them smoothed "
                       "(bilateral filter)")
+        if pl.get("frame_noise_note"):  # capture.noise.noise_note: the frames' noise not measured or maybe low
+            console.print(f"[yellow]background plate: the frames' noise {pl['frame_noise_note']}[/yellow]",
+                          highlight=False)
         console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
                       f"band (least {pl['band_known_min']:.1%}){lines}; error on held-back background {err}{scale}",
                       highlight=False)

@@ -45,7 +45,7 @@ import numpy as np
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
 from capture.matting_cells import fit_cap
-from capture.noise import capture_noise, noise_frames, smooth_frame, smoothing
+from capture.noise import capture_noise, noise_frames, noise_note, smooth_frame, smoothing
 from capture.plate import background_plates
 from capture.plate_scale import grow_plate, plate_scale, shrink_scan
 from capture.scan import Scan
@@ -92,6 +92,9 @@ def plate_stage(work, cfg, ctx):
         rec = {**rec, "working_scale": round(scale, 4)}
     if np.isfinite(noise):  # capture.noise: the frames' noise and the smoothing the plate read them with
         rec = {**rec, "frame_noise": round(noise, 3), "frame_smoothing": round(smoothing(noise), 3)}
+    note = noise_note(noise, [s.name for s in picks]) if user is None and cfg.denoise == "auto" else None
+    if note:  # not measured, or read on JPEG frames: the record and the console say so
+        rec = {**rec, "frame_noise": rec.get("frame_noise"), "frame_noise_note": note}
     if "per_view" in rec:  # each view's record names its frame (the console names refused views by it)
         rec = {**rec, "per_view": [{"name": ref.name, **r} for ref, r in zip(work.refs, rec["per_view"], strict=True)]}
     store = dict(zip((ref.index for ref in work.refs), plates, strict=True))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -217,4 +218,28 @@ def test_noisy_frames_are_measured_and_the_plate_reads_them_smoothed(table_dir, 
     assert "the frames' noise 3." in err and "smoothed" in err
     assert "frame_noise" not in runs["off"][0] and "smoothed" not in runs["off"][1]
     assert runs["clean"][0]["frame_noise"] < 1.0 and runs["clean"][0]["frame_smoothing"] == 0.0
-    assert "smoothed" not in runs["clean"][1]
+    assert "smoothed" not in runs["clean"][1] and "frame_noise_note" not in runs["clean"][0]
+
+
+def test_jpeg_frames_and_unmeasured_noise_are_said(table_dir, tmp_path, capsys):
+    """capture.noise.noise_note through `furrow model`: the table capture's frames as JPEG files (quality 95) measure
+    under a step, and the record and the console say that JPEG frames may read low."""
+    import shutil
+
+    import cv2
+
+    jpg = tmp_path / "jpeg"
+    shutil.copytree(table_dir, jpg)
+    meta = json.loads((jpg / "transforms.json").read_text())
+    for fr in meta["frames"]:
+        png = jpg / fr["file_path"]
+        new = png.with_suffix(".jpg")
+        cv2.imwrite(str(new), cv2.imread(str(png), cv2.IMREAD_UNCHANGED), [cv2.IMWRITE_JPEG_QUALITY, 95])
+        png.unlink()
+        fr["file_path"] = str(Path(fr["file_path"]).with_suffix(".jpg"))
+    (jpg / "transforms.json").write_text(json.dumps(meta))
+    rc, s, err = _model([str(jpg), "-o", str(tmp_path / "m"), "--matte", "plate"], capsys)
+    assert rc == 0, err
+    plate = s["surroundings"]["plate"]
+    assert plate["frame_noise"] < 1.0 and "JPEG frames (8 of 8)" in plate["frame_noise_note"], plate
+    assert "may read low" in " ".join(err.split())
