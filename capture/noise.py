@@ -48,6 +48,11 @@ MAD_TO_SIGMA = 0.6745
 #: 640).  A path-traced fur ball at 16 spp (its Monte Carlo noise and the hairs' texture, 35 % of the frame)
 #: measured 0.74 over the whole frame, 5.9 on the object and 0.00 on its room.
 NOISE_OBJECT_MARGIN = 16 / 640
+#: Where the noise between frames (:func:`pair_noise`) is under this share of the frames' own fine detail, the detail
+#: is the room's texture, not noise, and the capture's noise is the one between frames.  Independent noise reads
+#: alike both ways (within 5 % at 1.5-5 steps); a fixed camera before a room with pixel-scale grain of 3.7 steps and
+#: no noise read 3.71 / 0.00, and smoothing its frames made the test scene's plate 5 x worse (docs/matting.md).
+TEXTURE_RATIO = 0.7
 #: Least background blocks for a frame's measurement (fewer: not measured; the median of 256 has a standard
 #: error of about 8 %, and a 64 x 48 test frame keeps about 500).
 NOISE_MIN_BLOCKS = 256
@@ -59,20 +64,57 @@ def frame_noise(rgb: np.ndarray, object_depth: np.ndarray | None = None) -> floa
     estimator; the detail of independent noise sigma has sigma, a smooth image's none), over at most
     NOISE_BLOCKS blocks (evenly spaced pairs of rows) and, given the object's depth (H, W; > 0 on the object),
     only the blocks beyond NOISE_OBJECT_MARGIN of it: the background the plate is made of.  NaN for a frame
-    that is not 8-bit, smaller than 2 x 2, or with fewer than NOISE_MIN_BLOCKS such blocks."""
+    that is not 8-bit, smaller than 2 x 2, or with fewer than NOISE_MIN_BLOCKS such blocks.  A room's own
+    texture at the pixel scale reads as noise here (:func:`pair_noise` tells them apart)."""
     x = np.asarray(rgb)
     if x.dtype != np.uint8 or x.ndim != 3 or x.shape[0] < 2 or x.shape[1] < 2:
         return float("nan")
+    return _haar_noise(x.astype(np.int16), [object_depth])
+
+
+def pair_noise(a: np.ndarray, b: np.ndarray, depth_a: np.ndarray | None = None,
+               depth_b: np.ndarray | None = None) -> float:
+    """Noise of two frames (H, W, 3) uint8 of a camera that did not move (8-bit steps): :func:`frame_noise`'s
+    estimator on their difference a - b, over sqrt 2, beyond both objects' depths.  The room's texture is the same
+    in both and leaves the difference, their independent noise does not; a slow change of exposure leaves next to
+    no fine detail.  Where the camera moved the difference holds the room's detail of both frames and reads about
+    as high as :func:`frame_noise` or higher.  NaN as :func:`frame_noise`, or for frames of other sizes."""
+    x, y = np.asarray(a), np.asarray(b)
+    if x.dtype != np.uint8 or y.dtype != np.uint8 or x.shape != y.shape or x.ndim != 3 or min(x.shape[:2]) < 2:
+        return float("nan")
+    return _haar_noise(x.astype(np.int16) - y.astype(np.int16), [depth_a, depth_b]) / np.sqrt(2.0)
+
+
+def _haar_noise(x: np.ndarray, object_depths: list) -> float:
+    """Donoho's estimate (:func:`frame_noise`) on ``x`` (H, W, 3) int16, beyond every given object depth."""
     h, w = x.shape[0] // 2 * 2, x.shape[1] // 2 * 2
     step = max(1, -(-(h // 2) * (w // 2) // NOISE_BLOCKS))  # every step-th pair of rows (ceil division)
-    x = x[:h, :w].reshape(h // 2, 2, w, 3)[::step].reshape(-1, w, 3).astype(np.int16)
-    detail = np.abs(x[0::2, 0::2] - x[0::2, 1::2] - x[1::2, 0::2] + x[1::2, 1::2]) / 2.0
-    if object_depth is not None:
-        near = _near_object(np.asarray(object_depth)[:h, :w] > 0).reshape(h // 2, 2, w // 2, 2)[::step].any((1, 3))
+    x = x[:h, :w].reshape(h // 2, 2, w, 3)[::step].reshape(-1, w, 3)
+    detail = np.abs(x[0::2, 0::2] - x[0::2, 1::2] - x[1::2, 0::2] + x[1::2, 1::2])  # twice the detail, integers
+    deps = [d for d in object_depths if d is not None]
+    if deps:
+        obj = np.logical_or.reduce([np.asarray(d)[:h, :w] > 0 for d in deps])
+        near = _near_object(obj).reshape(h // 2, 2, w // 2, 2)[::step].any((1, 3))
         detail = detail[~near]
         if len(detail) < NOISE_MIN_BLOCKS:
             return float("nan")
-    return float(np.median(detail) / MAD_TO_SIGMA)
+    return grouped_median(detail) / 2.0 / MAD_TO_SIGMA
+
+
+def grouped_median(v: np.ndarray) -> float:
+    """The median of non-negative integers ``v`` read as rounded values of a continuous quantity: inside the
+    integer where half the values are reached, linearly (bin k spans k - 0.5 to k + 0.5, bin 0 from 0 to 0.5).
+    The plain median of 8-bit Haar details moves in steps of 0.74 noise steps (noise of 3 steps read 2.22 or 2.97
+    by where the median fell); this one moves smoothly."""
+    counts = np.bincount(np.asarray(v, np.int64).ravel())
+    if not counts.sum():
+        return float("nan")
+    cum = np.cumsum(counts)
+    half = 0.5 * cum[-1]
+    k = int(np.searchsorted(cum, half))  # the first bin whose cumulative count reaches half
+    lo, width = (0.0, 0.5) if k == 0 else (k - 0.5, 1.0)
+    before = cum[k - 1] if k else 0
+    return float(lo + width * (half - before) / counts[k])
 
 
 def _near_object(obj: np.ndarray) -> np.ndarray:
@@ -92,13 +134,26 @@ def noise_frames(n: int) -> list[int]:
 
 
 def capture_noise(frames: list[np.ndarray], object_depths: list[np.ndarray] | None = None) -> float:
-    """The capture's noise (8-bit steps): the median of :func:`frame_noise` over ``frames`` (H, W, 3) uint8
-    (the :func:`noise_frames` of a capture), each beyond its object's depth where ``object_depths`` are given;
-    NaN when none is measured."""
+    """The capture's noise (8-bit steps; :func:`noise_parts`' chosen value)."""
+    return noise_parts(frames, object_depths)[0]
+
+
+def noise_parts(frames: list[np.ndarray], object_depths: list[np.ndarray] | None = None) -> tuple[float, float, float]:
+    """(the capture's noise, the frames' own fine detail, the noise between frames), 8-bit steps: the median of
+    :func:`frame_noise` over ``frames`` (H, W, 3) uint8 (the :func:`noise_frames` of a capture), each beyond its
+    object's depth where ``object_depths`` are given, and the median of :func:`pair_noise` over consecutive
+    frames.  The capture's noise is the noise between frames where that is under TEXTURE_RATIO of the frames'
+    detail (a camera that did not move before a room with texture at the pixel scale: the texture is no noise),
+    else the frames' detail; NaN when none is measured."""
     deps = [None] * len(frames) if object_depths is None else object_depths
     got = np.array([frame_noise(f, d) for f, d in zip(frames, deps, strict=True)])
     got = got[np.isfinite(got)]
-    return float(np.median(got)) if len(got) else float("nan")
+    detail = float(np.median(got)) if len(got) else float("nan")
+    pairs = np.array([pair_noise(frames[i], frames[i + 1], deps[i], deps[i + 1]) for i in range(len(frames) - 1)])
+    pairs = pairs[np.isfinite(pairs)]
+    between = float(np.median(pairs)) if len(pairs) else float("nan")
+    chosen = between if np.isfinite(between) and between < TEXTURE_RATIO * detail else detail
+    return chosen, detail, between
 
 
 def smoothing(noise: float) -> float:
