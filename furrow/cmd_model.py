@@ -195,6 +195,9 @@ def _print_surroundings(console, rec: dict) -> None:
         scale = f"; made at {pl['working_scale']:.2f} x the views' size (memory)" if "working_scale" in pl else ""
         est = pl.get("band_estimated_mean", 0.0)
         lines = f", {est:.1%} of it solved from the frames' lines (no frame saw it clean)" if est else ""
+        if pl.get("frame_texture") and pl.get("frame_detail", 0) >= 1.0:  # capture.noise.TEXTURE_RATIO
+            scale += (f"; the frames' fine detail ({pl['frame_detail']:.1f} 8-bit steps) is the room's texture, "
+                      f"the noise between frames {pl['frame_noise']:.1f}")
         if pl.get("frame_smoothing"):  # capture.noise: noisy frames, read smoothed by the plate stage
             scale += (f"; the frames' noise {pl['frame_noise']:.1f} 8-bit steps: made from them smoothed "
                       "(bilateral filter)")

@@ -45,7 +45,7 @@ import numpy as np
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
 from capture.matting_cells import fit_cap
-from capture.noise import capture_noise, noise_frames, noise_note, smooth_frame, smoothing
+from capture.noise import noise_frames, noise_note, noise_parts, smooth_frame, smoothing
 from capture.plate import background_plates
 from capture.plate_scale import grow_plate, plate_scale, shrink_scan
 from capture.scan import Scan
@@ -82,16 +82,19 @@ def plate_stage(work, cfg, ctx):
     plane, focus = work.parts.get("support") or (None, None)
     user = None if cfg.plates_dir is None else read_user_plates(cfg.plates_dir, work.scans)
     scale = plate_scale(len(work.refs), *work.scans[0].depth.shape[:2]) if user is None and work.scans else 1.0
-    noise = float("nan")  # the frames' sensor noise (capture.noise), measured on a few of them
+    noise, parts = float("nan"), None  # the frames' sensor noise (capture.noise), measured on a few of them
     if user is None and cfg.denoise == "auto":
         picks = [work.scans[i] for i in noise_frames(len(work.scans))]
-        noise = capture_noise([s.rgb for s in picks], [s.depth for s in picks])
+        noise, *parts = noise_parts([s.rgb for s in picks], [s.depth for s in picks])
     views = _plate_views(work.scans, captured, scale, smoothing(noise))
     plates, rec = background_plates(views if user is None else list(views), cfg, plane, focus, user, crop=True)
     if scale < 1.0:
         rec = {**rec, "working_scale": round(scale, 4)}
     if np.isfinite(noise):  # capture.noise: the frames' noise and the smoothing the plate read them with
-        rec = {**rec, "frame_noise": round(noise, 3), "frame_smoothing": round(smoothing(noise), 3)}
+        rec = {**rec, "frame_noise": round(noise, 3), "frame_smoothing": round(smoothing(noise), 3),
+               "frame_detail": round(parts[0], 3)}
+        if np.isfinite(parts[1]):  # the noise between frames: where it is the one taken, the detail was texture
+            rec = {**rec, "frame_noise_between": round(parts[1], 3), "frame_texture": bool(noise < parts[0])}
     note = noise_note(noise, [s.name for s in picks]) if user is None and cfg.denoise == "auto" else None
     if note:  # not measured, or read on JPEG frames: the record and the console say so
         rec = {**rec, "frame_noise": rec.get("frame_noise"), "frame_noise_note": note}

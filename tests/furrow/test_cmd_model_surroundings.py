@@ -243,3 +243,22 @@ def test_jpeg_frames_and_unmeasured_noise_are_said(table_dir, tmp_path, capsys):
     plate = s["surroundings"]["plate"]
     assert plate["frame_noise"] < 1.0 and "JPEG frames (8 of 8)" in plate["frame_noise_note"], plate
     assert "may read low" in " ".join(err.split())
+
+
+def test_a_textured_room_is_not_smoothed_as_noise(table_dir, tmp_path, capsys):
+    """capture.noise.TEXTURE_RATIO through `furrow model`: every frame of the table capture given the same grain of
+    6 8-bit steps (a room's texture, fixed in the image): the frames' own detail reads it as noise, the noise between
+    frames does not, so the plate is made from the frames as they are and the record and the console say why."""
+    from capture.io import read_scanset
+
+    ss = read_scanset(str(table_dir))
+    grain = np.random.default_rng(9).normal(0, 6.0, ss.scans[0].srgb8.shape)
+    rough = [Scan(np.clip(np.round(s.srgb8 + grain), 0, 255).astype(np.uint8), s.depth, s.camera, s.name)
+             for s in ss.scans]
+    out = tmp_path / "grain"
+    write_transforms(ScanSet(tuple(rough), ss.bounds), out)
+    rc, s, err = _model([str(out), "-o", str(tmp_path / "m"), "--matte", "plate"], capsys)
+    assert rc == 0, err
+    plate = s["surroundings"]["plate"]
+    assert plate["frame_detail"] > 3.0 and plate["frame_noise"] < 1.0 and plate["frame_texture"], plate
+    assert plate["frame_smoothing"] == 0.0 and "is the room's texture" in " ".join(err.split())
