@@ -195,15 +195,7 @@ def _print_surroundings(console, rec: dict) -> None:
         scale = f"; made at {pl['working_scale']:.2f} x the views' size (memory)" if "working_scale" in pl else ""
         est = pl.get("band_estimated_mean", 0.0)
         lines = f", {est:.1%} of it solved from the frames' lines (no frame saw it clean)" if est else ""
-        if pl.get("frame_texture") and pl.get("frame_detail", 0) >= 1.0:  # capture.noise.TEXTURE_RATIO
-            scale += (f"; the frames' fine detail ({pl['frame_detail']:.1f} 8-bit steps) is the room's texture, "
-                      f"the noise between frames {pl['frame_noise']:.1f}")
-        if pl.get("frame_smoothing"):  # capture.noise: noisy frames, read smoothed by the plate stage
-            scale += (f"; the frames' noise {pl['frame_noise']:.1f} 8-bit steps: made from them smoothed "
-                      "(bilateral filter)")
-        if pl.get("frame_noise_note"):  # capture.noise.noise_note: the frames' noise not measured or maybe low
-            console.print(f"[yellow]background plate: the frames' noise {pl['frame_noise_note']}[/yellow]",
-                          highlight=False)
+        scale += _noise_words(console, pl)
         console.print(f"background plate ({pl['mode']}): known behind {pl['band_known_mean']:.1%} of the matting "
                       f"band (least {pl['band_known_min']:.1%}){lines}; error on held-back background {err}{scale}",
                       highlight=False)
@@ -256,6 +248,28 @@ def _print_surroundings(console, rec: dict) -> None:
                           f"{mean['gap']:.2f} (relative) from the matte's own mean colour {_rgb(mean['colour'])}: "
                           "the mean taken for the object's colour[/yellow]", highlight=False)
             break
+
+
+def _noise_words(console, pl: dict) -> str:
+    """The plate line's words on the frames' noise (capture.noise, capture.noise_check); the warnings printed."""
+    said = ""
+    if pl.get("frame_texture") and pl.get("frame_detail", 0) >= 1.0:  # capture.noise.TEXTURE_RATIO
+        said += (f"; the frames' fine detail ({pl['frame_detail']:.1f} 8-bit steps) is the room's texture, "
+                 f"the noise between frames {pl['frame_noise']:.1f}")
+    chk = pl.get("smoothing_check") or {}
+    if chk and not chk["smoothed"]:  # capture.noise_check: the smoothed frames' plate lost to the frames' own
+        console.print(f"[yellow]background plate: the frames' noise measured {pl['frame_noise']:.1f} 8-bit steps, "
+                      f"but a plate from them smoothed predicted {chk['views']} views' held-back background worse "
+                      f"(RMS {chk['rms_smoothed']:.4f} against {chk['rms_raw']:.4f}): made from them as they are "
+                      "(a room's texture?)[/yellow]", highlight=False)
+    if pl.get("frame_smoothing"):  # capture.noise: noisy frames, read smoothed by the plate stage
+        said += (f"; the frames' noise {pl['frame_noise']:.1f} 8-bit steps: made from them smoothed "
+                 "(bilateral filter" + (f"; held-back RMS on {chk['views']} views {chk['rms_raw']:.4f} -> "
+                                        f"{chk['rms_smoothed']:.4f})" if chk else ")"))
+    if pl.get("frame_noise_note"):  # capture.noise.noise_note: the frames' noise not measured or maybe low
+        console.print(f"[yellow]background plate: the frames' noise {pl['frame_noise_note']}[/yellow]",
+                      highlight=False)
+    return said
 
 
 def _rgb(c) -> str:

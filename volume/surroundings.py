@@ -86,13 +86,19 @@ def plate_stage(work, cfg, ctx):
     if user is None and cfg.denoise == "auto":
         picks = [work.scans[i] for i in noise_frames(len(work.scans))]
         noise, *parts = noise_parts([s.rgb for s in picks], [s.depth for s in picks])
-    views = _plate_views(work.scans, captured, scale, smoothing(noise))
+    smooth, check = smoothing(noise), None
+    if smooth > 0:  # capture.noise_check: the smoothed frames' plate against the frames' own, on a few views
+        check = _smoothing_check(work.scans, captured, scale, smooth, (plane, focus, cfg))
+        smooth = smooth if check["smoothed"] else 0.0
+    views = _plate_views(work.scans, captured, scale, smooth)
     plates, rec = background_plates(views if user is None else list(views), cfg, plane, focus, user, crop=True)
     if scale < 1.0:
         rec = {**rec, "working_scale": round(scale, 4)}
     if np.isfinite(noise):  # capture.noise: the frames' noise and the smoothing the plate read them with
-        rec = {**rec, "frame_noise": round(noise, 3), "frame_smoothing": round(smoothing(noise), 3),
+        rec = {**rec, "frame_noise": round(noise, 3), "frame_smoothing": round(smooth, 3),
                "frame_detail": round(parts[0], 3)}
+        if check is not None:
+            rec = {**rec, "smoothing_check": check}
         if np.isfinite(parts[1]):  # the noise between frames: where it is the one taken, the detail was texture
             rec = {**rec, "frame_noise_between": round(parts[1], 3), "frame_texture": bool(noise < parts[0])}
     note = noise_note(noise, [s.name for s in picks]) if user is None and cfg.denoise == "auto" else None
@@ -102,6 +108,16 @@ def plate_stage(work, cfg, ctx):
         rec = {**rec, "per_view": [{"name": ref.name, **r} for ref, r in zip(work.refs, rec["per_view"], strict=True)]}
     store = dict(zip((ref.index for ref in work.refs), plates, strict=True))
     return work.made(plates=store, captured=None).record("background plate", rec)
+
+
+def _smoothing_check(scans, captured, scale: float, smooth: float, setting) -> dict:
+    """capture.noise_check.smoothing_check on its views (check_frames) read both ways at the plate's ``scale``;
+    ``setting``: (plane, focus, PlateConfig) as the plate stage's."""
+    from capture.noise_check import check_frames, smoothing_check
+
+    idx = check_frames(len(scans))
+    sub = [scans[i] for i in idx], [captured[i] for i in idx]
+    return smoothing_check(list(_plate_views(*sub, scale)), list(_plate_views(*sub, scale, smooth)), *setting)
 
 
 def _plate_views(scans, captured, scale: float, smooth: float = 0.0):
