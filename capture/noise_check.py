@@ -45,6 +45,9 @@ def smoothing_check(raw_views: list, smoothed_views: list, plane, focus, cfg) ->
     rms_smoothed, median_raw, median_smoothed, views, smoothed (bool; an unknown error is not held against it)."""
     from capture.plate import _paths, _trial, choose_mode, plate_set, refit
 
+    if len(raw_views) < 2:  # nothing to hold back against: not checked
+        return {"mode": None, "rms_raw": None, "rms_smoothed": None, "median_raw": None, "median_smoothed": None,
+                "views": len(raw_views), "smoothed": True}
     raw = plate_set(raw_views, plane, focus, cfg)
     sm = plate_set(smoothed_views, plane, focus, cfg)
     sm = replace(sm, views=tuple(replace(p, observed=q.observed) for p, q in zip(sm.views, raw.views, strict=True)))
@@ -53,8 +56,11 @@ def smoothing_check(raw_views: list, smoothed_views: list, plane, focus, cfg) ->
     errs = [_errors(refit(ps, mode, t)) for ps, t in ((raw, trials[mode]), (sm, _trial(sm, mode)))]
     (med_r, rms_r), (med_s, rms_s) = errs
     ok = not any(np.isfinite(r) and np.isfinite(m) and m > CHECK_TOL * r for r, m in ((med_r, med_s), (rms_r, rms_s)))
-    return {"mode": mode, "rms_raw": round(rms_r, 5), "rms_smoothed": round(rms_s, 5), "median_raw": round(med_r, 5),
-            "median_smoothed": round(med_s, 5), "views": len(raw_views), "smoothed": bool(ok)}
+    def r5(x):
+        return round(x, 5) if np.isfinite(x) else None  # None: no held-back pixel predicted
+
+    return {"mode": mode, "rms_raw": r5(rms_r), "rms_smoothed": r5(rms_s), "median_raw": r5(med_r),
+            "median_smoothed": r5(med_s), "views": len(raw_views), "smoothed": bool(ok)}
 
 
 def _errors(trial) -> tuple[float, float]:

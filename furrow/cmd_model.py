@@ -265,7 +265,8 @@ def _noise_words(console, pl: dict) -> str:
     if pl.get("frame_smoothing"):  # capture.noise: noisy frames, read smoothed by the plate stage
         said += (f"; the frames' noise {pl['frame_noise']:.1f} 8-bit steps: made from them smoothed "
                  "(bilateral filter" + (f"; held-back RMS on {chk['views']} views {chk['rms_raw']:.4f} -> "
-                                        f"{chk['rms_smoothed']:.4f})" if chk else ")"))
+                                        f"{chk['rms_smoothed']:.4f})" if chk.get("rms_raw") is not None
+                                        and chk.get("rms_smoothed") is not None else ")"))
     if pl.get("frame_noise_note"):  # capture.noise.noise_note: the frames' noise not measured or maybe low
         console.print(f"[yellow]background plate: the frames' noise {pl['frame_noise_note']}[/yellow]",
                       highlight=False)

@@ -52,3 +52,13 @@ def test_a_textured_room_smoothed_fails_the_check():
     detail = noise.capture_noise([codes[i] for i in noise.noise_frames(12)])  # no depths: a rough upper reading
     got = smoothing_check(*_both(views, codes, noise.SMOOTH_COLOUR * max(detail, 3.0)), None, None, PlateConfig())
     assert not got["smoothed"] and got["median_smoothed"] > CHECK_TOL * got["median_raw"], got
+
+
+def test_one_view_is_not_checked():
+    """A single view has nothing to hold back against: not checked (the errors None in the record), the measured
+    noise stands (smoothed True)."""
+    views, _, _, _ = ps.turntable_capture(n=12, width=128, height=96)
+    codes = _codes(views, 3.0)
+    raw, sm = _both(views, codes, noise.smoothing(3.0))
+    got = smoothing_check(raw[:1], sm[:1], None, None, PlateConfig())
+    assert got["smoothed"] and got["rms_raw"] is None and got["median_smoothed"] is None, got
