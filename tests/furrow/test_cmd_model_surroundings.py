@@ -262,3 +262,32 @@ def test_a_textured_room_is_not_smoothed_as_noise(table_dir, tmp_path, capsys):
     plate = s["surroundings"]["plate"]
     assert plate["frame_detail"] > 3.0 and plate["frame_noise"] < 1.0 and plate["frame_texture"], plate
     assert plate["frame_smoothing"] == 0.0 and "is the room's texture" in " ".join(err.split())
+
+
+def test_the_report_says_when_the_smoothing_was_refused():
+    """The plate line's noise words (capture.noise_check): a refused smoothing is a yellow line with both held-back
+    errors; a kept one is named on the plate line with its RMS before and after; an unchecked one (errors None) is
+    named without them."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(smoothing: float, check: dict) -> str:
+        plate = {"mode": "panorama", "error_median": 0.002, "band_known_mean": 0.9, "band_known_min": 0.8,
+                 "frame_noise": 2.1, "frame_smoothing": smoothing, "frame_detail": 2.1, "smoothing_check": check}
+        out = StringIO()
+        _print_surroundings(Console(file=out, width=400), {"plate": plate})
+        return out.getvalue()
+
+    chk = {"mode": "panorama", "rms_raw": 0.0055, "rms_smoothed": 0.0063, "median_raw": 0.0024,
+           "median_smoothed": 0.0034, "views": 12, "smoothed": False}
+    said = report(0.0, chk)
+    assert "predicted 12 views' held-back background worse (RMS 0.0063 against 0.0055)" in said
+    assert "made from them smoothed" not in said
+    said = report(8.4, {**chk, "rms_smoothed": 0.0050, "smoothed": True})
+    assert "worse" not in said and "made from them smoothed (bilateral filter; held-back RMS on 12 views 0.0055 -> " \
+        "0.0050)" in said
+    said = report(8.4, {**chk, "rms_raw": None, "rms_smoothed": None, "smoothed": True})
+    assert "made from them smoothed (bilateral filter)" in said
