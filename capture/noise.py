@@ -57,6 +57,10 @@ TEXTURE_RATIO = 0.7
 #: camera's demosaicing and JPEG take the noise out of the finest detail (a camera-like copy of a path-traced conifer,
 #: noise of about 3 steps through a Bayer mosaic, bilinear demosaicing and JPEG quality 90, read 0.56 at the finest).
 TWO_SCALES = True
+#: ... where the coarser level reads over this times the finest.  Independent noise reads alike at both (within 5 %;
+#: the larger of the two, taken always, read the orbit's noise of 1.5 steps 7 % high, and its smoothing then lost
+#: the self-check); JPEG quality 90 and demosaicing read 3-4 x at the coarser level.
+COARSE_RATIO = 1.25
 #: Least background blocks for a frame's measurement (fewer: not measured; the median of 256 has a standard
 #: error of about 8 %, and a 64 x 48 test frame keeps about 500).
 NOISE_MIN_BLOCKS = 256
@@ -91,10 +95,11 @@ def pair_noise(a: np.ndarray, b: np.ndarray, depth_a: np.ndarray | None = None,
 
 def _haar_noise(x: np.ndarray, object_depths: list) -> float:
     """Donoho's estimate (:func:`frame_noise`) on ``x`` (H, W, 3) int16, beyond every given object depth: the larger
-    of the finest level's and the next level's (:func:`_level`; NaN there, too few blocks: the finest alone)."""
+    of the finest level's and the next level's where that is over COARSE_RATIO times it (:func:`_level`; NaN there,
+    too few blocks: the finest alone)."""
     fine = _level(x, object_depths, 2)
     coarse = _level(x, object_depths, 4) if TWO_SCALES else float("nan")
-    return fine if not np.isfinite(coarse) or not coarse > fine else coarse
+    return coarse if np.isfinite(coarse) and coarse > COARSE_RATIO * fine else fine
 
 
 def _level(x: np.ndarray, object_depths: list, size: int) -> float:
