@@ -64,3 +64,25 @@ def test_bad_arguments_say_what_is_wrong(tmp_path, argv, message):
 def test_a_capture_without_transforms_is_refused(tmp_path):
     with pytest.raises(SystemExit, match="no transforms.json"):
         _script().main([str(tmp_path), str(tmp_path / "o"), "--sigma", "1"])
+
+
+def test_camera_noise_is_correlated_as_a_camera_leaves_it(tmp_path):
+    """--camera on mid grey (sRGB 124, linear about CAMERA_GREY): the kept frames' difference has an sd between 0.4
+    and 1.0 x sigma 3 (bilinear demosaicing leaves 0.75-0.8 x an independent noise, JPEG takes some more), its
+    mean within 0.5 step; capture.noise's finest level reads it under a step and the two-scale reading at least 1.5
+    (the correlation a demosaicing and JPEG leave); the held-out frames stay bit for bit."""
+    from capture import noise
+
+    src, out = tmp_path / "cap", tmp_path / "cam"
+    (src / "images").mkdir(parents=True)
+    frames = []
+    for i in range(2):
+        write_png(src / "images" / f"v{i}.png", np.full((96, 128, 3), 124, np.uint8))
+        frames.append({"file_path": f"images/v{i}.png"})
+    (src / "transforms.json").write_text(json.dumps({"frames": frames}))
+    _script().main([str(src), str(out), "--sigma", "3", "--camera"])
+    kept = read_color(out / "images" / "v0.png")
+    d = kept.astype(float) - 124.0
+    assert 1.2 <= d.std() <= 3.0 and abs(d.mean()) <= 0.5, (d.std(), d.mean())
+    assert noise._level(kept.astype(np.int16), [None], 2) < 1.0 <= 1.5 <= noise.frame_noise(kept)
+    assert np.array_equal(read_color(out / "images" / "v1.png"), read_color(src / "images" / "v1.png"))
