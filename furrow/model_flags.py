@@ -138,10 +138,12 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "frame named like the frame's colour image, or one image for every frame "
                         "(capture/plate_io.py)")
     g.add_argument("--plate-denoise", choices=["auto", "off"], default="auto",
-                   help="the frames' sensor noise, measured (capture/noise.py): auto (default: where it is at least "
-                        "1 8-bit step, the plate is made from the frames through a bilateral filter on the scale of "
-                        "the noise; the matte still reads the photos; the figure in the plate record and on the "
-                        "console) or off")
+                   help="the frames' sensor noise, measured (capture/noise.py, at two scales so that a camera's "
+                        "demosaicing and JPEG do not hide it; a room's texture that stays put between frames is not "
+                        "noise): auto (default: where it is at least 1 8-bit step, the plate is made from the frames "
+                        "through a bilateral filter on the scale of the noise, unless 12 views' plates say the "
+                        "smoothed frames predict the held-back background worse (capture/noise_check.py); the matte "
+                        "still reads the photos; the figures in the plate record and on the console) or off")
     g.add_argument("--matte-resolution", choices=["full", "working"], default="working",
                    help="where a solved matte (estimated from the depth, or with a known background: plate, "
                         "backdrop) is solved: working (default; capture/matting_scale.py: on a copy scaled so that "
