@@ -20,6 +20,11 @@ plate worse than the noisy frames (band error 0.012 -> 0.028 linear), the bilate
 (0.008; the band seen by the robust mode 21 % -> 39 %, 54 % clean).  Only the plate stage's copy is
 smoothed: the matte, the colours and everything after them read the photos.  A clean capture (noise
 below NOISE_MIN_SIGMA) is read as before, bit for bit.
+
+Stop 61 (docs/matting.md): the noise is read at two scales (:func:`_level`; a camera's demosaicing and JPEG take it
+out of the finest detail), on a capture that does not move also between frames (:func:`pair_noise`: a room's own
+texture is the same in every frame and is not noise), and the plate stage checks the smoothing against doing nothing
+before it uses it (capture.noise_check).
 """
 
 from __future__ import annotations
@@ -53,8 +58,8 @@ NOISE_OBJECT_MARGIN = 16 / 640
 #: alike both ways (within 5 % at 1.5-5 steps); a fixed camera before a room with pixel-scale grain of 3.7 steps and
 #: no noise read 3.71 / 0.00, and smoothing its frames made the test scene's plate 5 x worse (docs/matting.md).
 TEXTURE_RATIO = 0.7
-#: Read the noise at two scales (:func:`_level`: the finest and that of the 2 x 2 means) and take the larger: a
-#: camera's demosaicing and JPEG take the noise out of the finest detail (a camera-like copy of a path-traced conifer,
+#: Read the noise at two scales too (:func:`_level`: the finest and that of the 2 x 2 means; the coarser taken where
+#: COARSE_RATIO says): a camera's demosaicing and JPEG take the noise out of the finest detail (a camera-like copy of a path-traced conifer,
 #: noise of about 3 steps through a Bayer mosaic, bilinear demosaicing and JPEG quality 90, read 0.56 at the finest).
 TWO_SCALES = True
 #: ... where the coarser level reads over this times the finest.  Independent noise reads alike at both (within 5 %;
@@ -198,8 +203,9 @@ def smooth_frame(rgb: np.ndarray, colour_scale: float) -> np.ndarray:
     return cv2.bilateralFilter(np.ascontiguousarray(rgb), SMOOTH_DIAMETER, float(colour_scale), SMOOTH_SPACE)
 
 
-#: Frame files whose compression takes out the finest detail that :func:`frame_noise` reads: noise of 3 steps
-#: saved as JPEG quality 90 measured 0.74, at quality 80 0.00 (docs/matting.md, stop 60).
+#: Frame files whose compression takes out the fine detail that :func:`frame_noise` reads: noise of 3 steps saved as
+#: JPEG quality 90 read 0.74 at the finest level alone (stop 60); with the coarser level 1.99 (quality 80: 1.27), so a
+#: JPEG capture that still reads under a step gets the note.
 JPEG_SUFFIXES = (".jpg", ".jpeg")
 
 
