@@ -59,8 +59,9 @@ NOISE_OBJECT_MARGIN = 16 / 640
 #: no noise read 3.71 / 0.00, and smoothing its frames made the test scene's plate 5 x worse (docs/matting.md).
 TEXTURE_RATIO = 0.7
 #: Read the noise at two scales too (:func:`_level`: the finest and that of the 2 x 2 means; the coarser taken where
-#: COARSE_RATIO says): a camera's demosaicing and JPEG take the noise out of the finest detail (a camera-like copy of a path-traced conifer,
-#: noise of about 3 steps through a Bayer mosaic, bilinear demosaicing and JPEG quality 90, read 0.56 at the finest).
+#: COARSE_RATIO says): a camera's demosaicing and JPEG take the noise out of the finest detail (a camera-like copy
+#: of a path-traced conifer, noise of about 3 steps through a Bayer mosaic, bilinear demosaicing and JPEG quality 90,
+#: read 0.56 at the finest).
 TWO_SCALES = True
 #: ... where the coarser level reads over this times the finest.  Independent noise reads alike at both (within 5 %;
 #: the larger of the two, taken always, read the orbit's noise of 1.5 steps 7 % high, and its smoothing then lost
