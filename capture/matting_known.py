@@ -41,6 +41,7 @@ import io
 
 import numpy as np
 
+from capture import matting_channels as mch
 from capture.fill import push_pull
 from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
@@ -69,7 +70,8 @@ REFINE_ALPHA = 0.5
 #: Linear level at which a channel counts as clipped (8-bit sRGB 252).
 CLIP_LEVEL = 0.975
 #: Where the plate is blown out and the photo is not, alpha is kept above the bound against the plate
-#: (:func:`blown_bound`; the matte's alpha there is the Laplacian's, the data term still leaves it out).
+#: (:func:`blown_bound`; the matte's alpha there is the Laplacian's, the data term's only from the channels a
+#: clipped pixel keeps, capture.matting_channels).
 BLOWN_BOUND = True
 #: Alpha from which a pixel whose background is not known is taken as opaque (F = C).
 OPAQUE_ALPHA = 0.999
@@ -102,11 +104,10 @@ RESIDUAL = 0.03
 #: (green needles by a brown core: the nearest sure colour is often the core's) no palette cost
 #: +20 % alpha MSE, the margin 0.02 -2 % to +1 %.
 PALETTE_MARGIN = 0.02
-#: Step 2's candidates include the colour each pixel's window of lines meets at over a textured
-#: known background (capture.matting_window), in windows of radius WINDOW_RADIUS.  Off: on the
-#: path-traced conifer turntable it left the kept views' alpha MSE as it was (the fit passed its
-#: checks in 10-13 % of the band, its colour error 0.10 median against the nearest sure colour's
-#: 0.045) for 0.15 s a view; on tests/plate_scenes.needle_composite it cut alpha MSE by 10-30 %.
+#: Step 2's candidates include the colour each pixel's window of lines meets at over a textured known background
+#: (capture.matting_window), in windows of radius WINDOW_RADIUS.  Off: on the path-traced conifer turntable it left the
+#: kept views' alpha MSE as it was (the fit passed its checks in 10-13 % of the band, its colour error 0.10 median
+#: against the nearest sure colour's 0.045) for 0.15 s a view; on tests/plate_scenes.needle_composite -10 to -30 %.
 WINDOW_CANDIDATE = False
 WINDOW_RADIUS = 3
 #: Weight lambda of the data term against the matting Laplacian.
@@ -247,11 +248,13 @@ def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, 
 
 def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
               noise: float = NOISE_ABS, alpha: np.ndarray | None = None,
-              opaque: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              opaque: np.ndarray | None = None, channels: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(target alpha, weight, lower bound), each (h, w), of steps 1-2 for the unknown pixels of
     ``trimap``; weight and bound are 0 where the background is not known.  ``alpha``: a previous
     solve, whose pixels above REFINE_ALPHA become the colour sources; ``opaque``: pixels the depth
-    calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass)."""
+    calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass);
+    ``channels``: (h, w, 3) open channels of the pixels clipped in some (capture.matting_channels)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     known = np.asarray(known, bool)
@@ -267,8 +270,11 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     unk = trimap == UNKNOWN
     if src.any():
         extra = _window_candidate(C, B, known, known & unk) if WINDOW_CANDIDATE else []
-        a_hat, conf = fit_candidates(C, B, push_pull(Fs, src.astype(np.float64)), Fs[src], lower, extra)
+        a_hat, conf = fit_candidates(C, B, near := push_pull(Fs, src.astype(np.float64)), Fs[src], lower, extra)
         w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
+        if channels is not None:  # clipped in a channel, not in all (capture.matting_channels)
+            a_hat, w_data = mch.open_channel_term(C, B, near, channels, unk & ~known, a_hat, w_data,
+                                                  (DATA_WEIGHT, SEPARATION, RESIDUAL))
     else:
         a_hat, w_data = np.zeros(C.shape[:2]), np.zeros(C.shape[:2])
     w_op = np.where(opaque & unk, OPAQUE_PRIOR, 0.0)
@@ -278,8 +284,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
 
 
 def _window_candidate(C: np.ndarray, B: np.ndarray, known: np.ndarray, where: np.ndarray) -> list[np.ndarray]:
-    """[the colour each pixel's window points to (capture.matting_window; NaN where its fit fails:
-    never chosen)], or [] where no window fits."""
+    """[the colour each pixel's window points to (capture.matting_window; NaN: never chosen)], or []."""
     from capture.matting_window import window_foreground
 
     Fw = window_foreground(C, B, known, WINDOW_RADIUS, where)
@@ -419,6 +424,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
 
     given = np.asarray(known, bool)
     known = given & ~clipped(img, background)
+    channels = mch.open_channels(img, background, CLIP_LEVEL, given & ~known)  # None: CLIPPED_CHANNELS off
     floor = blown_bound(img, background, given & ~known, noise)
     tri, opaque = solve_trimap(trimap, img, background, known, noise)
     unk_map = tri == UNKNOWN
@@ -426,7 +432,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     unk, a_u = unk_map.ravel(), np.zeros(0)
     L = laplacian(img, unk_map) if unk_map.any() else None
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
-        a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque)
+        a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque, channels)
         lower = np.maximum(lower, floor)
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask)
         if record is not None:
