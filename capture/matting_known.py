@@ -48,6 +48,7 @@ from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
 from capture.matting_palette import palette
+from capture.matting_window import window_candidates
 
 #: Trimap values (pymatting's convention, as capture.matting).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
@@ -269,7 +270,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     Fs = np.clip(np.where(known[..., None], B + (C - B) / np.maximum(a_src, 1e-6)[..., None], C), 0.0, 1.0)
     unk = trimap == UNKNOWN
     if src.any():
-        extra = _window_candidate(C, B, known, known & unk) if WINDOW_CANDIDATE else []
+        extra = window_candidates(C, B, known, WINDOW_RADIUS, known & unk) if WINDOW_CANDIDATE else []
         a_hat, conf = fit_candidates(C, B, near := push_pull(Fs, src.astype(np.float64)), Fs[src], lower, extra)
         w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
         if channels is not None:  # clipped in a channel, not in all (capture.matting_channels)
@@ -281,14 +282,6 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     w = w_data + w_op
     target = np.where(w > 0, (w_data * a_hat + w_op) / np.maximum(w, 1e-12), 0.0)
     return target, w, lower
-
-
-def _window_candidate(C: np.ndarray, B: np.ndarray, known: np.ndarray, where: np.ndarray) -> list[np.ndarray]:
-    """[the colour each pixel's window points to (capture.matting_window; NaN: never chosen)], or []."""
-    from capture.matting_window import window_foreground
-
-    Fw = window_foreground(C, B, known, WINDOW_RADIUS, where)
-    return [Fw] if np.isfinite(Fw[..., 0]).any() else []
 
 
 def _system(L, trimap: np.ndarray, a_hat: np.ndarray, weight: np.ndarray):
@@ -437,6 +430,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask)
         if record is not None:
             record["blind_prior"] = rec
+            record["clipped_channels"] = 0 if channels is None else int((channels.any(-1) & unk_map).sum())
         if L is None:
             break
         A, b, unk = _system(L, tri, a_hat, weight)

@@ -149,3 +149,11 @@ def window_foreground_reference(image: np.ndarray, background: np.ndarray, known
             if ok:
                 out[y, x] = np.clip(F, 0.0, 1.0)
     return out
+
+
+def window_candidates(image: np.ndarray, background: np.ndarray, known: np.ndarray, radius: int,
+                      where: np.ndarray) -> list[np.ndarray]:
+    """[:func:`window_foreground` at the ``where`` pixels] as a candidate of capture.matting_known's step 2
+    (NaN: never chosen), or [] where no window fits."""
+    Fw = window_foreground(image, background, known, radius, where)
+    return [Fw] if np.isfinite(Fw[..., 0]).any() else []

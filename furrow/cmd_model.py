@@ -235,6 +235,10 @@ def _print_surroundings(console, rec: dict) -> None:
     if rim.get("views"):  # capture.matting_rim: the depth's opaque pixels of thin branches before a seen background
         console.print(f"matte: {rim['pixels']} depth-opaque pixels of thin branches in {rim['views']} view(s) solved "
                       "against the background the other views saw behind them (capture.matting_rim)", highlight=False)
+    cch = m.get("clipped_channels") or {}
+    if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps
+        console.print(f"matte: {cch['pixels']} pixels clipped in some channels, not all, in {cch['views']} view(s) "
+                      "took alpha from the channels clipped in neither (capture.matting_channels)", highlight=False)
     cells = m.get("cells") or {}
     if cells.get("across"):  # capture.matting_cells.KEEP_ACROSS: the photo's part across each pixel's line kept
         console.print(f"colour across views: {cells['across']} partial pixels given a cube's or the object's colour "

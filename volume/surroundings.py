@@ -316,7 +316,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1)))}
-    for key in ("blind_prior", "colour", "opaque_sources", "rim"):
+    for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels"):
         if m.notes.get(key):
             note[key] = m.notes[key]
     if plate is not None and m.method.startswith("plate"):
@@ -352,9 +352,11 @@ def matte_record(work, notes: dict, cfg):
               "sigma_fill": [c["sigma_fill"] for c in col], "sigma_alpha": [c.get("sigma_alpha") for c in col]}
     opq = [x["opaque_sources"] for x in n if "opaque_sources" in x]
     rim = [x["rim"] for x in n if "rim" in x]
+    cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
+        "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
         "seconds_per_view": round(float(np.mean(sec)), 4), "seconds_per_view_max": round(float(np.max(sec)), 4),
