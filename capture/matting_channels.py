@@ -25,6 +25,8 @@ import numpy as np
 #: Switch (capture.matting_known's data term, step 2); off: a pixel clipped in any channel gets no data
 #: term (the blind prior and the Laplacian decide, as before).
 CLIPPED_CHANNELS = True
+#: Switch of :func:`colour_bound`; off: the bound against a blown plate takes F = 0 (capture.matting_known.blown_bound).
+COLOUR_BOUND = True
 
 
 def open_channels(image: np.ndarray, background: np.ndarray, level: float, where: np.ndarray) -> np.ndarray | None:
@@ -66,3 +68,28 @@ def open_channel_term(image: np.ndarray, background: np.ndarray, nearest: np.nda
     target, weight = target.copy(), weight.copy()
     target[idx], weight[idx] = a, data_weight * conf
     return target, weight
+
+
+def open_count(image: np.ndarray, background: np.ndarray, level: float, where: np.ndarray) -> int:
+    """Pixels of ``where`` that keep an open channel (:func:`open_channels`; 0 with CLIPPED_CHANNELS off)."""
+    ch = open_channels(image, background, level, where)
+    return 0 if ch is None else int(ch.any(-1).sum())
+
+
+def colour_bound(image: np.ndarray, background: np.ndarray, colour: np.ndarray, where: np.ndarray, level: float,
+                 noise: float) -> np.ndarray:
+    """(h, w) least alpha at the ``where`` pixels from each channel that the plate clipped (``level``) and the photo
+    did not: in such a channel the true B is at least the plate's, and a = (B - C) / (B - F) only grows
+    with B, so a >= (B - C - noise) / (B - F) with the candidate colour ``colour`` for F (a dark needle before a sky
+    the plate holds at 1 covers more than 1 - C); the largest over those channels, 0 elsewhere and with COLOUR_BOUND
+    off.  Only the photo's ``noise`` is allowed for: a clipped plate's own error can only raise B, and the bound."""
+    C = np.asarray(image, np.float64)
+    B = np.asarray(background, np.float64)
+    use = np.asarray(where, bool) & (C.min(-1) < level) & (B.max(-1) >= level)
+    out = np.zeros(C.shape[:2])
+    if not COLOUR_BOUND or not use.any():
+        return out
+    c, b, f = C[use], B[use], np.asarray(colour, np.float64)[use]
+    lo = (b - c - noise) / np.maximum(b - f, 1e-6)
+    out[use] = np.clip(np.where((b >= level) & (c < level) & (f < c), lo, 0.0).max(-1), 0.0, 1.0)
+    return out

@@ -249,13 +249,13 @@ def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, 
 
 def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
               noise: float = NOISE_ABS, alpha: np.ndarray | None = None,
-              opaque: np.ndarray | None = None, channels: np.ndarray | None = None
+              opaque: np.ndarray | None = None, blown: np.ndarray | None = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(target alpha, weight, lower bound), each (h, w), of steps 1-2 for the unknown pixels of
     ``trimap``; weight and bound are 0 where the background is not known.  ``alpha``: a previous
     solve, whose pixels above REFINE_ALPHA become the colour sources; ``opaque``: pixels the depth
     calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass);
-    ``channels``: (h, w, 3) open channels of the pixels clipped in some (capture.matting_channels)."""
+    ``blown``: (h, w) the pixels whose B is given but clipped (capture.matting_channels' data and bound)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     known = np.asarray(known, bool)
@@ -273,9 +273,11 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
         extra = window_candidates(C, B, known, WINDOW_RADIUS, known & unk) if WINDOW_CANDIDATE else []
         a_hat, conf = fit_candidates(C, B, near := push_pull(Fs, src.astype(np.float64)), Fs[src], lower, extra)
         w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
-        if channels is not None:  # clipped in a channel, not in all (capture.matting_channels)
-            a_hat, w_data = mch.open_channel_term(C, B, near, channels, unk & ~known, a_hat, w_data,
+        if blown is not None and (ch := mch.open_channels(C, B, CLIP_LEVEL, blown & unk)) is not None:
+            a_hat, w_data = mch.open_channel_term(C, B, near, ch, ch.any(-1), a_hat, w_data,
                                                   (DATA_WEIGHT, SEPARATION, RESIDUAL))
+        if blown is not None:  # the bound against a blown plate with the candidate's colour
+            lower = np.maximum(lower, mch.colour_bound(C, B, near, blown & unk, CLIP_LEVEL, noise))
     else:
         a_hat, w_data = np.zeros(C.shape[:2]), np.zeros(C.shape[:2])
     w_op = np.where(opaque & unk, OPAQUE_PRIOR, 0.0)
@@ -417,7 +419,6 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
 
     given = np.asarray(known, bool)
     known = given & ~clipped(img, background)
-    channels = mch.open_channels(img, background, CLIP_LEVEL, given & ~known)  # None: CLIPPED_CHANNELS off
     floor = blown_bound(img, background, given & ~known, noise)
     tri, opaque = solve_trimap(trimap, img, background, known, noise)
     unk_map = tri == UNKNOWN
@@ -425,12 +426,12 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     unk, a_u = unk_map.ravel(), np.zeros(0)
     L = laplacian(img, unk_map) if unk_map.any() else None
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
-        a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque, channels)
+        a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known)
         lower = np.maximum(lower, floor)
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask)
         if record is not None:
             record["blind_prior"] = rec
-            record["clipped_channels"] = 0 if channels is None else int((channels.any(-1) & unk_map).sum())
+            record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
         if L is None:
             break
         A, b, unk = _system(L, tri, a_hat, weight)

@@ -263,7 +263,9 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     (capture.matting_blind), whose record goes into ``record``."""
     import cv2
 
+    from capture.matting_channels import colour_bound
     from capture.matting_known import (
+        CLIP_LEVEL,
         alpha_lower_bound,
         blown_bound,
         clipped,
@@ -300,6 +302,7 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
         a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, sure, scale)
     # the full-size path's alpha floor where the plate is blown out and the photo is not
     a = np.maximum(np.maximum(a, lower), blown_bound(ci, B, band & given & ~sure, noise))
+    a = np.maximum(a, colour_bound(ci, B, f_up, band & given & ~sure, CLIP_LEVEL, noise))  # capture.matting_channels
     a[tri <= BG] = 0.0
     a[tri >= FG] = 1.0
     F = _full_colour(ci, a, B, given, f_up)

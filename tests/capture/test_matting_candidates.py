@@ -83,5 +83,8 @@ def test_a_blown_out_plate_still_bounds_alpha(monkeypatch, seed):
     region = ((A > 0) | (tri > 0)) & (room.max(-1) >= 1) & (C.max(-1) < mk.CLIP_LEVEL)
     assert region.sum() > 100
     assert (mk.blown_bound(C, plate, np.ones(A.shape, bool), 0.004) - A).max() <= BOUND_SLACK
+    import capture.matting_channels as mch
+
+    monkeypatch.setattr(mch, "COLOUR_BOUND", False)  # the bound against the plate alone (F = 0)
     mse = ps.switched_alpha_mse(monkeypatch, mk, "BLOWN_BOUND", C, tri, plate, A, D, region)
     assert mse[True] <= BEAT_BLOWN * mse[False], mse
