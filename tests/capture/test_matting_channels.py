@@ -81,7 +81,8 @@ COLOUR_BOUND_SLACK = 0.005
 def test_the_colour_bound_before_a_blown_window(monkeypatch, seed):
     """capture.matting_channels.colour_bound: shaded needles before a window of linear 1.6 that the plate holds at 1
     (tests/capture/test_matting_candidates' scene): a >= (B - C) / (B - F) with the nearest sure colour for F lifts
-    the pixels that the bound with F = 0 left low; with the true F it never passes the true alpha."""
+    the pixels that the bound with F = 0 left low; with the true F it never passes the true alpha.  Off by default:
+    held out it did not gain (docs/matting.md, stop 62)."""
     import capture.matting_known as mk
     from tests.capture.test_matting_candidates import SHADE, WINDOW_COLUMNS, WINDOW_LEVEL, _q
 
@@ -90,6 +91,7 @@ def test_the_colour_bound_before_a_blown_window(monkeypatch, seed):
     C, B, A, F, D = ps.needle_composite(seed=seed, background=room, shade=SHADE)
     C, plate, tri = _q(C), np.clip(B, 0.0, 1.0), depth_trimap(D)
     region = ((A > 0) | (tri > 0)) & (room.max(-1) >= 1) & (C.max(-1) < CLIP_LEVEL)
+    monkeypatch.setattr(mch, "COLOUR_BOUND", True)  # off by default (held out it did not gain)
     bound = mch.colour_bound(C, plate, F, np.ones(A.shape, bool), CLIP_LEVEL, 0.004)
     assert (bound - A)[region].max() <= COLOUR_BOUND_SLACK
     assert (bound[region] > mk.blown_bound(C, plate, np.ones(A.shape, bool), 0.004)[region] + 0.05).mean() > 0.3
