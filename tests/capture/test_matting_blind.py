@@ -53,7 +53,7 @@ def test_the_coverage_prior_brings_blown_out_alpha_nearer_the_truth(monkeypatch,
     assert rec["used"] and rec["r2"] > 0.5, rec
     monkeypatch.setattr(mb, "BLIND_PRIOR", False)
     off = _solve(C, plate, D)
-    assert off.notes["blind_prior"] == {"blind": rec["blind"], "used": False, "reason": "off"}
+    assert off.notes["blind_prior"] == {"blind": rec["blind"], "weak": 0, "used": False, "reason": "off"}
     mse_on, mse_off = (float(np.mean((m.alpha - A)[region] ** 2)) for m in (on, off))
     assert mse_on <= BEAT_BLIND * mse_off, (mse_on, mse_off)
 
@@ -164,3 +164,38 @@ def test_colour_from_seen_beats_unmixing_through_a_poor_estimate(monkeypatch, sh
             reg = est & ((A > 0) | (m.alpha > 0))
             err[on].append(float(np.abs(m.alpha[..., None] * m.foreground - A[..., None] * F)[reg].mean()))
     assert np.mean(err[True]) <= BEAT_SEEN * np.mean(err[False]), err
+
+
+def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
+    """capture.matting_blind.WEAK_PRIOR (off by default: held out it lost 0.054 dB on one capture, docs/matting.md):
+    on, an unknown pixel whose photo is not clipped and whose data weight w is in (0, MIN_CONFIDENCE) gets the
+    coverage table's alpha p beside its target t: (w t + q p) / (w + q) with q = R^2 (1 - w / MIN_CONFIDENCE), weight
+    w + q; sure pixels, clipped ones and w = 0 keep theirs; off, nothing changes at all."""
+    rng = np.random.default_rng(3)
+    h, w = 64, 64
+    mask = rng.random((h, w)) < 0.5
+    cov = mb.coverage(mask)
+    truth = np.clip(cov + 0.02 * rng.standard_normal((h, w)), 0, 1)  # alpha that the coverage explains
+    unknown = np.ones((h, w), bool)
+    weight = np.where(rng.random((h, w)) < 0.2, 0.1, 0.8)  # a fifth of the pixels weak
+    weight[:4] = 0.0  # no data at all, photo not clipped: left alone
+    target = np.where(weight >= 0.5, truth, 0.9)  # the weak pixels' data says 0.9
+    image = np.full((h, w, 3), 0.3)
+    image[4:8] = 1.0  # clipped rows (blind where their weight is 0; never weak)
+    monkeypatch.setattr(mb, "WEAK_PRIOR", True)
+    t_on, w_on, rec = mb.blind_prior(image, unknown, target, weight, mask)
+    weak = (weight > 0) & (weight < mb.MIN_CONFIDENCE) & (image.max(-1) < mb.CLIP_LEVEL)
+    assert rec["used"] and rec["weak"] == int(weak.sum()) > 100, rec
+    q = w_on - weight  # the prior's weight: R^2 (1 - w / MIN_CONFIDENCE) (the record's R^2 rounded to 4 digits)
+    np.testing.assert_allclose(q[weak], (rec["r2"] * (1 - weight / mb.MIN_CONFIDENCE))[weak], atol=1e-4)
+    p = (t_on * (weight + q) - weight * target) / np.where(weak, q, 1.0)  # the table's alpha, out of the mix
+    assert np.abs(p[weak] - truth[weak]).mean() < 0.05  # the table's alpha, near the truth the coverage explains
+    assert np.abs(t_on[weak] - 0.9).mean() > 0.1  # pulled off the weak data's 0.9
+    rest = ~weak & (image.max(-1) < mb.CLIP_LEVEL)
+    np.testing.assert_array_equal(t_on[rest], target[rest])
+    np.testing.assert_array_equal(w_on[rest], weight[rest])
+    monkeypatch.setattr(mb, "WEAK_PRIOR", False)
+    t_off, w_off, rec_off = mb.blind_prior(image, unknown, target, weight, mask)
+    assert rec_off["weak"] == 0
+    np.testing.assert_array_equal(t_off[rest | weak], target[rest | weak])
+
