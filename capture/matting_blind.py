@@ -44,12 +44,12 @@ HOLDOUT_BLOCK = 16
 #: Training pixels need a data-term weight of at least this (capture.matting_known's confidence).
 MIN_CONFIDENCE = 0.25
 #: The prior also goes to the unknown pixels whose data term is weak (weight in (0, MIN_CONFIDENCE), the photo not
-#: clipped: a needle before a background of nearly its own colour), weighted R^2 (1 - weight / MIN_CONFIDENCE) beside
-#: the data.  The path-traced conifer orbit's kept views (four of them before a dark part of the courtyard, B close
-#: to the needles' F): alpha squared error 7841 -> 6618; the turntable 3387 -> 3360.  Off (the default): held out
-#: it gained +0.050 dB on average over 8 room captures (SSIM +0.0037, over white up on every one) but the orbit lost
-#: 0.054 dB, past the rule's -0.05 written before the runs, and on tests/plate_scenes.needle_composite it raised the
-#: alpha MSE in 7 of 8 scenes (docs/matting.md, stop 62).  False: blown-out pixels only.
+#: clipped) because the candidate colour is within capture.matting_known.SEPARATION of B (a needle before a background
+#: of nearly its own colour: C hardly moves with alpha), weighted R^2 (1 - weight / MIN_CONFIDENCE) beside the data.
+#: The path-traced conifer orbit's kept views (four of them before a dark part of the courtyard): alpha squared error
+#: 7841 -> 4835; the turntable 3387 -> 3361 (every weak pixel, not only these: 6618, and the test scenes' alpha worse).
+#: Off (the default): held out +0.043 dB on average over 8 room captures (SSIM +0.0037, over white up on every one),
+#: but the orbit lost 0.055 dB, past the rule's -0.05 written before the runs (docs/matting.md, stop 62).
 WEAK_PRIOR = False
 
 
@@ -80,15 +80,17 @@ def _r2(x, y, w, edges, fit, test) -> float:
 
 
 def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weight: np.ndarray,
-                mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, dict]:
+                mask: np.ndarray | None, similar: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(target, weight, record): the data term (``target``, ``weight``, each (h, w), of
     capture.matting_known.data_term) with the coverage prior (module docstring) added at the
     ``unknown`` pixels whose photo ``image`` is blown out and which have no data term; ``mask``: the
-    object's depth (h, w) bool (None: no prior)."""
+    object's depth (h, w) bool (None: no prior); ``similar`` (h, w) bool: where the data term's candidate colour is
+    within its SEPARATION of B, the only weak pixels WEAK_PRIOR takes (None: every weak pixel)."""
     C = np.asarray(image)
     lit = C.max(axis=-1) < CLIP_LEVEL
     blind = np.asarray(unknown, bool) & ~lit & (weight <= 0)
     weak = np.asarray(unknown, bool) & lit & (weight > 0) & (weight < MIN_CONFIDENCE) & WEAK_PRIOR
+    weak &= True if similar is None else np.asarray(similar, bool)
     rec = {"blind": int(blind.sum()), "weak": int(weak.sum())}
     if not BLIND_PRIOR or mask is None or not (blind.any() or weak.any()):
         return target, weight, dict(rec, used=False, reason="off" if not BLIND_PRIOR else

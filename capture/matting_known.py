@@ -251,9 +251,10 @@ def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, 
 def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
               noise: float = NOISE_ABS, alpha: np.ndarray | None = None,
               opaque: np.ndarray | None = None, blown: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(target alpha, weight, lower bound), each (h, w), of steps 1-2 for the unknown pixels of
-    ``trimap``; weight and bound are 0 where the background is not known.  ``alpha``: a previous
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(target alpha, weight, lower bound, similar), each (h, w), of steps 1-2 for the unknown pixels of
+    ``trimap``; weight and bound are 0 where the background is not known; similar: the nearest sure colour
+    within SEPARATION of B (alpha barely moves C there; capture.matting_blind.WEAK_PRIOR).  ``alpha``: a previous
     solve, whose pixels above REFINE_ALPHA become the colour sources; ``opaque``: pixels the depth
     calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass);
     ``blown``: (h, w) the pixels whose B is given but clipped (capture.matting_channels' data and bound)."""
@@ -273,6 +274,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     if src.any():
         extra = window_candidates(C, B, known, WINDOW_RADIUS, known & unk) if WINDOW_CANDIDATE else []
         a_hat, conf = fit_candidates(C, B, near := push_pull(Fs, src.astype(np.float64)), Fs[src], lower, extra)
+        similar = unk & (channel_sum((near - B) ** 2) < SEPARATION ** 2)
         w_data = DATA_WEIGHT * np.where(known & unk, conf, 0.0)
         if blown is not None and (ch := mch.open_channels(C, B, CLIP_LEVEL, blown & unk)) is not None:
             a_hat, w_data = mch.open_channel_term(C, B, near, ch, ch.any(-1), a_hat, w_data,
@@ -280,11 +282,11 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
         if blown is not None:  # the bound against a blown plate with the candidate's colour
             lower = np.maximum(lower, mch.colour_bound(C, B, near, blown & unk, CLIP_LEVEL, noise))
     else:
-        a_hat, w_data = np.zeros(C.shape[:2]), np.zeros(C.shape[:2])
+        a_hat, w_data, similar = np.zeros(C.shape[:2]), np.zeros(C.shape[:2]), np.zeros(C.shape[:2], bool)
     w_op = np.where(opaque & unk, OPAQUE_PRIOR, 0.0)
     w = w_data + w_op
     target = np.where(w > 0, (w_data * a_hat + w_op) / np.maximum(w, 1e-12), 0.0)
-    return target, w, lower
+    return target, w, lower, similar
 
 
 def _system(L, trimap: np.ndarray, a_hat: np.ndarray, weight: np.ndarray):
@@ -427,9 +429,9 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     unk, a_u = unk_map.ravel(), np.zeros(0)
     L = laplacian(img, unk_map) if unk_map.any() else None
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
-        a_hat, weight, lower = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known)
+        a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known)
         lower = np.maximum(lower, floor)
-        a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask)
+        a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask, similar)
         if record is not None:
             record["blind_prior"] = rec
             record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)

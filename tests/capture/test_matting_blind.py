@@ -194,6 +194,11 @@ def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
     rest = ~weak & (image.max(-1) < mb.CLIP_LEVEL)
     np.testing.assert_array_equal(t_on[rest], target[rest])
     np.testing.assert_array_equal(w_on[rest], weight[rest])
+    half = rng.random((h, w)) < 0.5  # only where the candidate is as dark as B (capture.matting_known's `similar`)
+    t_s, w_s, rec_s = mb.blind_prior(image, unknown, target, weight, mask, half)
+    assert rec_s["weak"] == int((weak & half).sum())
+    np.testing.assert_array_equal(t_s[weak & half], t_on[weak & half])
+    np.testing.assert_array_equal(t_s[weak & ~half], target[weak & ~half])
     monkeypatch.setattr(mb, "WEAK_PRIOR", False)
     t_off, w_off, rec_off = mb.blind_prior(image, unknown, target, weight, mask)
     assert rec_off["weak"] == 0
