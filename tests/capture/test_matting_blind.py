@@ -59,6 +59,7 @@ def test_the_coverage_prior_brings_blown_out_alpha_nearer_the_truth(monkeypatch,
 
 
 def test_nothing_blown_out_changes_nothing(monkeypatch):
+    monkeypatch.setattr(mb, "WEAK_PRIOR", False)  # the blown-out part alone (the weak one: its own test below)
     C, plate, A, F, D = _scene(0, None)
     assert C.max() < mk.CLIP_LEVEL
     on = _solve(C, plate, D)
@@ -167,10 +168,10 @@ def test_colour_from_seen_beats_unmixing_through_a_poor_estimate(monkeypatch, sh
 
 
 def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
-    """capture.matting_blind.WEAK_PRIOR (off by default: held out it lost 0.054 dB on one capture, docs/matting.md):
-    on, an unknown pixel whose photo is not clipped and whose data weight w is in (0, MIN_CONFIDENCE) gets the
-    coverage table's alpha p beside its target t: (w t + q p) / (w + q) with q = R^2 (1 - w / MIN_CONFIDENCE), weight
-    w + q; sure pixels, clipped ones and w = 0 keep theirs; off, nothing changes at all."""
+    """capture.matting_blind.WEAK_PRIOR (docs/matting.md, stop 62): an unknown pixel whose photo is not clipped and
+    whose data weight w is in (0, MIN_CONFIDENCE) gets the coverage table's alpha p beside its target t:
+    (w t + q p) / (w + q) with q = R^2 (1 - w / MIN_CONFIDENCE), weight w + q; sure pixels, clipped ones and w = 0
+    keep theirs; given ``similar``, only the weak pixels in it; off, nothing changes at all."""
     rng = np.random.default_rng(3)
     h, w = 64, 64
     mask = rng.random((h, w)) < 0.5
