@@ -92,13 +92,14 @@ def colour_bound(image: np.ndarray, background: np.ndarray, colour: np.ndarray, 
     with B, so a >= (B - C - noise) / (B - F) with the candidate colour ``colour`` for F (a dark needle before a sky
     the plate holds at 1 covers more than 1 - C); the largest over those channels, 0 elsewhere and with COLOUR_BOUND
     off.  Only the photo's ``noise`` is allowed for: a clipped plate's own error can only raise B, and the bound."""
-    C = np.asarray(image, np.float64)
-    B = np.asarray(background, np.float64)
-    use = np.asarray(where, bool) & (C.min(-1) < level) & (B.max(-1) >= level)
-    out = np.zeros(C.shape[:2])
-    if not COLOUR_BOUND or not use.any():
+    out = np.zeros(np.shape(image)[:2])
+    if not COLOUR_BOUND:
         return out
-    c, b, f = C[use], B[use], np.asarray(colour, np.float64)[use]
+    C, B = np.asarray(image), np.asarray(background)
+    use = np.asarray(where, bool) & (C.min(-1) < level) & (B.max(-1) >= level)
+    if not use.any():
+        return out
+    c, b, f = (np.asarray(x, np.float64)[use] for x in (C, B, colour))
     lo = (b - c - noise) / np.maximum(b - f, 1e-6)
     out[use] = np.clip(np.where((b >= level) & (c < level) & (f < c), lo, 0.0).max(-1), 0.0, 1.0)
     return out
