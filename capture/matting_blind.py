@@ -91,8 +91,11 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
     C = np.asarray(image)
     lit = C.max(axis=-1) < CLIP_LEVEL
     blind = np.asarray(unknown, bool) & ~lit & (weight <= 0)
-    weak = np.asarray(unknown, bool) & lit & (weight > 0) & (weight < MIN_CONFIDENCE) & WEAK_PRIOR
-    weak &= True if similar is None else np.asarray(similar, bool)
+    weak = np.asarray(unknown, bool) & lit & (weight > 0) & (weight < MIN_CONFIDENCE)
+    if not WEAK_PRIOR:
+        weak[:] = False
+    elif similar is not None:
+        weak &= np.asarray(similar, bool)
     rec = {"blind": int(blind.sum()), "weak": int(weak.sum())}
     if not BLIND_PRIOR or mask is None or not (blind.any() or weak.any()):
         return target, weight, dict(rec, used=False, reason="off" if not BLIND_PRIOR else

@@ -345,7 +345,7 @@ def matte_record(work, notes: dict, cfg):
     blind = {"views": len(bp), "used": sum(b["used"] for b in bp),
              "reasons": sorted({b["reason"] for b in bp if not b["used"]}),
              "r2": [b["r2"] for b in bp if "r2" in b], "blind_pixels": sum(b["blind"] for b in bp),
-             "weak_pixels": sum(b.get("weak", 0) for b in bp)}
+             "weak_pixels": sum(b.get("weak", 0) for b in bp if b["used"])}  # those the prior went to
     col = [x["colour"] for x in n if "colour" in x]
     counts = ("estimated", "unmixed", "filled", "seen_filled")
     colour = {"views": len(col), **{k: sum(c.get(k, 0) for c in col) for k in counts},
