@@ -235,16 +235,7 @@ def _print_surroundings(console, rec: dict) -> None:
     if rim.get("views"):  # capture.matting_rim: the depth's opaque pixels of thin branches before a seen background
         console.print(f"matte: {rim['pixels']} depth-opaque pixels of thin branches in {rim['views']} view(s) solved "
                       "against the background the other views saw behind them (capture.matting_rim)", highlight=False)
-    cch = m.get("clipped_channels") or {}
-    if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps
-        console.print(f"matte: {cch['pixels']} pixels clipped in some channels, not all, in {cch['views']} view(s): "
-                      "their data term came from the channels clipped in neither (capture.matting_channels)",
-                      highlight=False)
-    weak = (m.get("blind_prior") or {}).get("weak_pixels", 0)
-    if weak:  # capture.matting_blind.WEAK_PRIOR: the background about the object's colour
-        console.print(f"matte: {weak} pixels before a background of nearly their own colour took the depth "
-                      "coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
-                      highlight=False)
+    _print_matte_data(console, m)
     cells = m.get("cells") or {}
     if cells.get("across"):  # capture.matting_cells.KEEP_ACROSS: the photo's part across each pixel's line kept
         console.print(f"colour across views: {cells['across']} partial pixels given a cube's or the object's colour "
@@ -258,6 +249,20 @@ def _print_surroundings(console, rec: dict) -> None:
                           f"{mean['gap']:.2f} (relative) from the matte's own mean colour {_rgb(mean['colour'])}: "
                           "the mean taken for the object's colour[/yellow]", highlight=False)
             break
+
+
+def _print_matte_data(console, m: dict) -> None:
+    """The matte record's lines on where its data term came from (capture.matting_channels, capture.matting_blind)."""
+    cch = m.get("clipped_channels") or {}
+    if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps
+        console.print(f"matte: {cch['pixels']} pixels clipped in some channels, not all, in {cch['views']} view(s): "
+                      "their data term came from the channels clipped in neither (capture.matting_channels)",
+                      highlight=False)
+    weak = (m.get("blind_prior") or {}).get("weak_pixels", 0)
+    if weak:  # capture.matting_blind.WEAK_PRIOR: the background about the object's colour
+        console.print(f"matte: {weak} pixels before a background of nearly their own colour took the depth "
+                      "coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
+                      highlight=False)
 
 
 def _noise_words(console, pl: dict) -> str:
