@@ -43,7 +43,7 @@ def smoothing_check(raw_views: list, smoothed_views: list, plane, focus, cfg) ->
     path the raw views choose (``plane``, ``focus``, ``cfg``: as capture.plate.background_plates), by the median and
     the RMS of the views' held-back errors (both no worse than CHECK_TOL times).  Record: mode, rms_raw,
     rms_smoothed, median_raw, median_smoothed, views, smoothed (bool; an unknown error is not held against it)."""
-    from capture.plate import _paths, _trial, choose_mode, plate_set, refit
+    from capture.plate import choose_mode, plate_set, refit, ring_trial, tried_paths
 
     if len(raw_views) < 2:  # nothing to hold back against: not checked
         return {"mode": None, "rms_raw": None, "rms_smoothed": None, "median_raw": None, "median_smoothed": None,
@@ -51,9 +51,9 @@ def smoothing_check(raw_views: list, smoothed_views: list, plane, focus, cfg) ->
     raw = plate_set(raw_views, plane, focus, cfg)
     sm = plate_set(smoothed_views, plane, focus, cfg)
     sm = replace(sm, views=tuple(replace(p, observed=q.observed) for p, q in zip(sm.views, raw.views, strict=True)))
-    trials = {path: _trial(raw, path) for path in _paths(cfg)}
+    trials = {path: ring_trial(raw, path) for path in tried_paths(cfg)}
     mode = choose_mode({p: t.errors for p, t in trials.items()})
-    errs = [_errors(refit(ps, mode, t)) for ps, t in ((raw, trials[mode]), (sm, _trial(sm, mode)))]
+    errs = [_errors(refit(ps, mode, t)) for ps, t in ((raw, trials[mode]), (sm, ring_trial(sm, mode)))]
     (med_r, rms_r), (med_s, rms_s) = errs
     ok = not any(np.isfinite(r) and np.isfinite(m) and m > CHECK_TOL * r for r, m in ((med_r, med_s), (rms_r, rms_s)))
     def r5(x):

@@ -340,7 +340,7 @@ PATH_ONLY = ("source", "background_depth", "room", "weight")
 PATH_READS = {"fixed": ("weight",), "panorama": ("source", "background_depth", "room")}
 
 
-def _paths(cfg: PlateConfig) -> tuple[str, ...]:
+def tried_paths(cfg: PlateConfig) -> tuple[str, ...]:
     """The paths background_plates tries: both in 'auto', else the one forced."""
     return ("fixed", "panorama") if cfg.mode == "auto" else (cfg.mode,)
 
@@ -367,7 +367,7 @@ def plate_set(views, plane: np.ndarray | None, focus: tuple[np.ndarray, float] |
     capture.extent.focus_region of the cameras."""
     from capture.extent import focus_region
 
-    paths = _paths(cfg)
+    paths = tried_paths(cfg)
     prepared = tuple(thread_map(lambda v: prepare(v, plane, paths), views))  # side by side (the same views)
     focus = focus or focus_region([p.view.camera for p in prepared])
     return PlateSet(prepared, plane, focus, int(cfg.neighbours))
@@ -406,7 +406,7 @@ def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
     return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
 
 
-def _trial(ps: PlateSet, path: str, gains: np.ndarray | None = None) -> Trial:
+def ring_trial(ps: PlateSet, path: str, gains: np.ndarray | None = None) -> Trial:
     """The path's prediction of every ring with ``gains`` (default the path's first gains)."""
     start, predict, _ = path_functions(path)
     g = start(ps) if gains is None else gains
@@ -419,7 +419,7 @@ def refit(ps: PlateSet, path: str, trial: Trial) -> Trial:
     pass predicting again with the new gains."""
     for _ in range(GAIN_PASSES):
         common = [q * trial.gains[i] for i, q in enumerate(trial.predicted)]
-        trial = _trial(ps, path, fit_gains([p.observed for p in ps.views], common, trial.gains))
+        trial = ring_trial(ps, path, fit_gains([p.observed for p in ps.views], common, trial.gains))
     return trial
 
 
@@ -457,7 +457,7 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
         plates, rec = user_plates(views, user)
         return ([p.cropped() for p in plates] if crop else plates), rec
     ps = plate_set(views, plane, focus, cfg)
-    trials = {path: _trial(ps, path) for path in _paths(cfg)}
+    trials = {path: ring_trial(ps, path) for path in tried_paths(cfg)}
     mode = choose_mode({path: t.errors for path, t in trials.items()})
     ps = ps.for_path(mode)
     from capture.plate_exposure import plate_exposure  # the gains against none on held-back pixels

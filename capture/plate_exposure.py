@@ -74,7 +74,7 @@ def plate_exposure(ps, mode: str, start, fit, samples=None):
     ``fit`` its fitted one; ``samples``: the panorama's pair samples (capture.plate_pairs) when its gains
     came from them.  Refused gains give the trial at gain 1, except the views whose own gain is taken
     (VIEW_GAINS: the record's ``taken``)."""
-    from capture.plate import _trial
+    from capture.plate import ring_trial
 
     if mode == "fixed":  # the gains against none on held-back pixels: none unless they beat it
         from capture.plate_fixed import fixed_exposure_check
@@ -89,9 +89,9 @@ def plate_exposure(ps, mode: str, start, fit, samples=None):
     if FAR_CHECK and exposure["chosen"] == "plate":  # a gain near the object only is the background's light
         exposure, fit = far_checked(ps, mode, fit, exposure)
     if exposure.get("taken"):  # the views' own gains, the others' at 1
-        fit = _trial(ps, mode, some_gains(fit.gains, exposure["taken"]))
+        fit = ring_trial(ps, mode, some_gains(fit.gains, exposure["taken"]))
     elif exposure["chosen"] != "plate" and refused_at_one and not np.all(fit.gains == 1.0):
-        fit = start if mode == "panorama" else _trial(ps, mode, np.ones_like(fit.gains))
+        fit = start if mode == "panorama" else ring_trial(ps, mode, np.ones_like(fit.gains))
     if exposure["chosen"] == "plate":
         exposure["gains"] = [[float(x) for x in g] for g in fit.gains]
     return exposure, fit
@@ -208,7 +208,7 @@ def far_checked(ps, mode: str, fit, exposure: dict):
     predicted by the chosen path from the other views as the ring is; FAR_MARGIN) at 1: dropped from ``taken``
     (VIEW_GAINS; none left: nothing chosen), else, for gains taken for all views, set to 1 and the trial made
     again.  The record's ``not_taken_far`` lists them.  Only gains above FAR_MIN_EV in some channel are checked."""
-    from capture.plate import _trial
+    from capture.plate import ring_trial
 
     taken = exposure.get("taken") or []
     g = some_gains(fit.gains, taken) if taken else np.asarray(fit.gains, np.float64)
@@ -227,7 +227,7 @@ def far_checked(ps, mode: str, fit, exposure: dict):
     g[gone] = 1.0
     if np.all(g == 1.0):  # no gain left: the photometric stage aligns the views itself
         out["chosen"] = "none"
-    return out, _trial(ps, mode, g)
+    return out, ring_trial(ps, mode, g)
 
 
 def far_fails(ps, mode: str, gains: np.ndarray, check) -> list[int]:

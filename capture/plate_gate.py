@@ -265,7 +265,7 @@ def gated(ps, mode: str, fit, plates: list, crop: bool) -> tuple[list, list, lis
     capture.plate.background_plates: the plates gated (:func:`gate_plates`); where some were refused
     (DROP_SOURCES), every plate drawn again without them (:func:`without`, the same gains ``fit.gains``)
     and gated again (the views' local predictions made once)."""
-    from capture.plate import _trial, draw_plates
+    from capture.plate import draw_plates, ring_trial
     from capture.plate_threads import thread_map
 
     views = rings(ps, fit.predicted)
@@ -275,6 +275,6 @@ def gated(ps, mode: str, fit, plates: list, crop: bool) -> tuple[list, list, lis
     if not drop or not DROP_SOURCES or len(drop) == len(plates):
         return plates, gate, []
     ps2 = without(ps, drop)
-    fit2 = _trial(ps2, mode, fit.gains)  # the same gains, the rings predicted without them
+    fit2 = ring_trial(ps2, mode, fit.gains)  # the same gains, the rings predicted without them
     plates, gate = gate_plates(rings(ps2, fit2.predicted), draw_plates(ps2, mode, fit2, crop), local)
     return plates, gate, drop

@@ -111,9 +111,9 @@ def fitted(ps, mode: str, trial) -> tuple:
     """(the chosen path's capture.plate.Trial with its fitted gains, the pair samples or None) for
     capture.plate.background_plates: the panorama's gains from :func:`pair_gains` (PANORAMA_PAIR_GAINS),
     else capture.plate.refit from ``trial`` (the path's first gains)."""
-    from capture.plate import _trial, refit
+    from capture.plate import refit, ring_trial
 
     if mode != "panorama" or not PANORAMA_PAIR_GAINS:
         return refit(ps, mode, trial), None
     gains, samples = pair_gains(ps)
-    return _trial(ps, mode, gains), samples
+    return ring_trial(ps, mode, gains), samples

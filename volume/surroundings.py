@@ -111,13 +111,21 @@ def plate_stage(work, cfg, ctx):
 
 
 def _smoothing_check(scans, captured, scale: float, smooth: float, setting) -> dict:
-    """capture.noise_check.smoothing_check on its views (check_frames) read both ways at the plate's ``scale``;
+    """capture.noise_check.smoothing_check on its views (check_frames), each read once and taken both ways (as read,
+    smoothed on ``smooth``) at the plate's ``scale`` (:func:`_plate_views`' views);
     ``setting``: (plane, focus, PlateConfig) as the plate stage's."""
     from capture.noise_check import check_frames, smoothing_check
+    from capture.plate_threads import thread_map
 
     idx = check_frames(len(scans))
-    sub = [scans[i] for i in idx], [captured[i] for i in idx]
-    return smoothing_check(list(_plate_views(*sub, scale)), list(_plate_views(*sub, scale, smooth)), *setting)
+
+    def both(i):  # each view read once (a spilled view is a file), shrunk as read and smoothed
+        s, c = scans[i], captured[i]
+        rgb, depth, captured_depth = s.rgb, s.depth, c.depth  # as _plate_views passes them
+        return tuple(shrink_scan(s.camera, x, depth, captured_depth, scale) for x in (rgb, smooth_frame(rgb, smooth)))
+
+    raw, smoothed = zip(*thread_map(both, idx)) if idx else ((), ())
+    return smoothing_check(list(raw), list(smoothed), *setting)
 
 
 def _plate_views(scans, captured, scale: float, smooth: float = 0.0):
