@@ -49,6 +49,7 @@ from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
 from capture.matting_palette import palette
+from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
 
 #: Trimap values (pymatting's convention, as capture.matting).
@@ -264,8 +265,8 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     opaque = (trimap >= FG) if opaque is None else (np.asarray(opaque, bool) | (trimap >= FG))
     lower = np.where(known, alpha_lower_bound(C, B, noise), 0.0)
     if alpha is None:
-        a_src = np.ones(C.shape[:2])
         src = colour_sources(opaque, known, lower)
+        a_src = source_coverage(lower, src)
     else:
         a_src = np.maximum(lower, alpha)
         src = (trimap >= FG) | (a_src >= REFINE_ALPHA)

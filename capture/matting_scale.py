@@ -323,19 +323,21 @@ def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up
 
     from capture.fill import push_pull
     from capture.matting_known import candidate_alpha, colour_sources, fit_candidates
+    from capture.matting_sources import source_colours
 
     if not where.any():
         return a
     src = colour_sources(opaque, known, lower)
+    image_src = source_colours(image, background, lower, src, known)  # the image itself at SOURCE_COVERAGE 1
     C, B, lo = image[where][:, None], background[where][:, None], lower[where][:, None]
     if src.any():
         h, w = a.shape
         lo_w, lo_h = max(1, round(w * scale)), max(1, round(h * scale))
         wt = _resize(src.astype(np.float32), lo_w, lo_h, cv2.INTER_AREA)
-        v = _resize(image * src[..., None], lo_w, lo_h, cv2.INTER_AREA) / np.maximum(wt, 1e-6)[..., None]
+        v = _resize(image_src * src[..., None], lo_w, lo_h, cv2.INTER_AREA) / np.maximum(wt, 1e-6)[..., None]
         near = _resize(np.asarray(push_pull(v, np.minimum(wt, 1.0)), np.float32), w, h, cv2.INTER_LINEAR)
-        near = np.where(src[..., None], image, near)
-        a_px, conf = fit_candidates(C, B, near[where][:, None], image[src], lo, [f_up[where][:, None]])
+        near = np.where(src[..., None], image_src, near)
+        a_px, conf = fit_candidates(C, B, near[where][:, None], image_src[src], lo, [f_up[where][:, None]])
     else:
         a_px, conf = candidate_alpha(C, B, f_up[where][None, :, None], lo)
     wgt = REFINE_WEIGHT * conf[:, 0]
