@@ -48,6 +48,7 @@ from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
+from capture.matting_guide import laplacian_guide
 from capture.matting_palette import palette
 from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
@@ -428,7 +429,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     unk_map = tri == UNKNOWN
     converged, a_prev = True, None
     unk, a_u = unk_map.ravel(), np.zeros(0)
-    L = laplacian(img, unk_map) if unk_map.any() else None
+    L = laplacian(laplacian_guide(img), unk_map) if unk_map.any() else None  # capture.matting_guide
     for _ in range(1 + REFINE_PASSES if L is not None else 1):
         a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known)
         lower = np.maximum(lower, floor)
