@@ -96,7 +96,7 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
         weak[:] = False
     elif similar is not None:
         weak &= np.asarray(similar, bool)
-    rec = {"blind": int(blind.sum()), "weak": int(weak.sum())}
+    rec = {"blind": int(blind.sum()), "weak": int(weak.sum()), "band": int(np.count_nonzero(unknown))}
     if not BLIND_PRIOR or mask is None or not (blind.any() or weak.any()):
         return target, weight, dict(rec, used=False, reason="off" if not BLIND_PRIOR else
                                     "no depth" if mask is None else "nothing blown out")

@@ -342,6 +342,11 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     return Scan(m.foreground, view.depth, view.camera, view.name, m.alpha), note
 
 
+def _share(part: int, whole: int) -> float | None:
+    """``part`` / ``whole`` to 4 places, None when ``whole`` is 0."""
+    return round(part / whole, 4) if whole else None
+
+
 def matte_record(work, notes: dict, cfg):
     """The matte stage's record from its views' notes (``notes["matte"]``)."""
     if cfg.mode == "off":
@@ -353,7 +358,8 @@ def matte_record(work, notes: dict, cfg):
     blind = {"views": len(bp), "used": sum(b["used"] for b in bp),
              "reasons": sorted({b["reason"] for b in bp if not b["used"]}),
              "r2": [b["r2"] for b in bp if "r2" in b], "blind_pixels": sum(b["blind"] for b in bp),
-             "weak_pixels": sum(b.get("weak", 0) for b in bp if b["used"])}  # those the prior went to
+             "weak_pixels": sum(b.get("weak", 0) for b in bp if b["used"]),  # those the prior went to
+             "weak_share": _share(sum(b.get("weak", 0) for b in bp), sum(b.get("band", 0) for b in bp))}
     col = [x["colour"] for x in n if "colour" in x]
     counts = ("estimated", "unmixed", "filled", "seen_filled")
     colour = {"views": len(col), **{k: sum(c.get(k, 0) for c in col) for k in counts},

@@ -53,7 +53,9 @@ def test_the_coverage_prior_brings_blown_out_alpha_nearer_the_truth(monkeypatch,
     assert rec["used"] and rec["r2"] > 0.5, rec
     monkeypatch.setattr(mb, "BLIND_PRIOR", False)
     off = _solve(C, plate, D)
-    assert off.notes["blind_prior"] == {"blind": rec["blind"], "weak": 0, "used": False, "reason": "off"}
+    assert off.notes["blind_prior"] == {"blind": rec["blind"], "weak": 0, "band": rec["band"], "used": False,
+                                        "reason": "off"}
+    assert rec["band"] > rec["blind"] > 0  # the matting band holds the blown-out pixels and more
     mse_on, mse_off = (float(np.mean((m.alpha - A)[region] ** 2)) for m in (on, off))
     assert mse_on <= BEAT_BLIND * mse_off, (mse_on, mse_off)
 
@@ -187,6 +189,7 @@ def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
     t_on, w_on, rec = mb.blind_prior(image, unknown, target, weight, mask)
     weak = (weight > 0) & (weight < mb.MIN_CONFIDENCE) & (image.max(-1) < mb.CLIP_LEVEL)
     assert rec["used"] and rec["weak"] == int(weak.sum()) > 100, rec
+    assert rec["band"] == h * w  # the matting band: every unknown pixel (the record's weak share divides by it)
     q = w_on - weight  # the prior's weight: R^2 (1 - w / MIN_CONFIDENCE) (the record's R^2 rounded to 4 digits)
     np.testing.assert_allclose(q[weak], (rec["r2"] * (1 - weight / mb.MIN_CONFIDENCE))[weak], atol=1e-4)
     p = (t_on * (weight + q) - weight * target) / np.where(weak, q, 1.0)  # the table's alpha, out of the mix

@@ -291,3 +291,28 @@ def test_the_report_says_when_the_smoothing_was_refused():
         "0.0050)" in said
     said = report(8.4, {**chk, "rms_raw": None, "rms_smoothed": None, "smoothed": True})
     assert "made from them smoothed (bilateral filter)" in said
+
+
+def test_the_report_warns_when_the_background_has_the_objects_colour():
+    """furrow model warns (yellow) when the matte record's weak share (capture.matting_blind: the band's pixels with a
+    weak data term before a background of nearly the object's colour) reaches furrow.cmd_model.WEAK_WARN_SHARE, with
+    the share; below it, or without the field (a model built before), it says nothing of it."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import WEAK_WARN_SHARE, _print_surroundings
+
+    def report(share) -> str:
+        out = StringIO()
+        matte = {"mode": "auto", "methods": {"plate": 18}, "seconds_per_view": 0.1, "seconds_per_view_max": 0.2,
+                 "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1,
+                 "blind_prior": {"weak_pixels": 301305, **({} if share is None else {"weak_share": share})}}
+        _print_surroundings(Console(file=out, width=250), {"matte": matte})
+        return out.getvalue()
+
+    said = report(0.3579)
+    assert "36% of the matting band" in said and "comes out soft" in said
+    assert "comes out soft" in report(WEAK_WARN_SHARE)
+    for share in (WEAK_WARN_SHARE - 0.01, 0.0023, None):
+        assert "comes out soft" not in report(share) and "301305 pixels" in report(share)
