@@ -10,7 +10,7 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
    channels clipped in neither give data, and a clipped plate a bound (capture.matting_channels).
 2. **Candidate colours.**  Each pixel's F is sought among a few candidate colours: the colour of
    the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
-   ``SOURCE_ALPHA``: their F is (C - (1 - a) B) / a at that bound), filled outwards by a push-pull
+   ``SOURCE_ALPHA``, taken as opaque, F = C: capture.matting_sources), filled outwards by a push-pull
    pyramid (:func:`capture.fill.push_pull`), and a palette of the view's sure foreground colours
    (``capture.matting_palette.PALETTE_SIZE``, k-means); sources only where B is known (``SOURCES_KNOWN_ONLY``;
    :func:`colour_sources` and :func:`fit_candidates`, shared with capture.matting_scale).  Per
