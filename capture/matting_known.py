@@ -48,15 +48,14 @@ from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
-from capture.matting_guide import laplacian_guide
+from capture.matting_guide import view_guide
 from capture.matting_palette import palette
 from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
 
 #: Trimap values (pymatting's convention, as capture.matting).
 BG, UNKNOWN, FG = 0.0, 0.5, 1.0
-#: Noise of the compositing equation (linear RGB): |C - B| up to NOISE_ABS + NOISE_REL * B per
-#: channel is no evidence of the object (8-bit sRGB steps, the plate's own error).
+#: Noise of C = a F + (1 - a) B (linear): |C - B| up to NOISE_ABS + NOISE_REL * B is no evidence (8-bit, the plate).
 NOISE_ABS = 0.004
 NOISE_REL = 0.03
 #: Pixels whose alpha bound is at least this are sure foreground colour sources (step 2).
@@ -429,16 +428,17 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     unk_map = tri == UNKNOWN
     converged, a_prev = True, None
     unk, a_u = unk_map.ravel(), np.zeros(0)
-    L = laplacian(laplacian_guide(img), unk_map) if unk_map.any() else None  # capture.matting_guide
-    for _ in range(1 + REFINE_PASSES if L is not None else 1):
+    L, has = None, unk_map.any()
+    for _ in range(1 + REFINE_PASSES if has else 1):
         a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known)
         lower = np.maximum(lower, floor)
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask, similar)
         if record is not None:
             record["blind_prior"] = rec
             record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
-        if L is None:
+        if not has:
             break
+        L = laplacian(view_guide(img, rec), unk_map) if L is None else L  # capture.matting_guide
         A, b, unk = _system(L, tri, a_hat, weight)
         a_u, ok = solve(A, b, None if a_prev is None else a_prev.ravel()[unk])
         if not ok:  # the per-pixel alphas of step 2 stand

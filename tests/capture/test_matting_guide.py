@@ -25,10 +25,21 @@ DARKER = 4.0
 DARK_BETTER = 0.9
 
 
-def test_off_is_the_crop_itself():
+def test_off_is_the_crop_itself(monkeypatch):
     img = np.random.default_rng(0).uniform(0, 1, (8, 9, 3))
-    assert mg.LAPLACIAN_LEVEL is None
+    monkeypatch.setattr(mg, "LAPLACIAN_LEVEL", None)
     assert mg.laplacian_guide(img) is img
+
+
+def test_a_view_is_brightened_only_where_its_data_is_weak(monkeypatch):
+    """capture.matting_guide.view_guide: the brightened guide where the blind prior's record says at least WEAK_GATE
+    of the band is weak before a background of the object's colour; the crop itself below it, or without a count."""
+    monkeypatch.setattr(mg, "LAPLACIAN_LEVEL", 0.3)
+    dark = np.random.default_rng(3).uniform(0, 0.1, (8, 9, 3))
+    band = 1000
+    assert mg.view_guide(dark, {"weak": int(mg.WEAK_GATE * band), "band": band}).mean() == pytest.approx(0.3)
+    for rec in ({"weak": int(mg.WEAK_GATE * band) - 1, "band": band}, {"weak": 0, "band": 0}, {}):
+        assert mg.view_guide(dark, rec) is dark
 
 
 def test_the_guide_has_the_level_as_its_mean(monkeypatch):
@@ -49,6 +60,7 @@ def test_a_darker_exposure_gets_a_closer_matte(monkeypatch, seed):
     known = np.ones(A.shape, bool)
     band = tri == 0.5
     diff, dark = {}, {}
+    monkeypatch.setattr(mg, "WEAK_GATE", 0.0)  # the guide itself, in every view (the gate: the test above)
     for level in (None, 0.3):
         monkeypatch.setattr(mg, "LAPLACIAN_LEVEL", level)
         a1 = known_background_matte(C, tri, B, known, noise=0.0)[0]
