@@ -8,12 +8,6 @@ import math
 import time
 from pathlib import Path
 
-#: furrow model warns (yellow) when at least this share of the matting band has a weak data term before a background of
-#: nearly the object's own colour (the matte record's ``blind_prior.weak_share``).  Measured: 0.24-0.36 on the five
-#: conifers before a dark forest (soft held out); 0.18 on the courtyard orbit, whose views 13-16 see a dark part of it;
-#: 0.002-0.05 on the courtyard turntables, shaded or not, and on fur_similar_bg (docs/matting.md, stop 63).
-WEAK_WARN_SHARE = 0.2
-
 HELP = "build the model (SDF pyramid up to L_opt, RGBz images, occluder spheres, mesh) from a scan set"
 DESCRIPTION = """Fuse the depth maps of a posed scan set into signed distance volumes (consensus fusion in
 the spirit of Wheeler-Sato-Ikeuchi, or Open3D's TSDF as the peer), choose the resolution L_opt
@@ -269,11 +263,15 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {bp['weak_pixels']} pixels before a background of nearly their own colour took the "
                       "depth coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
                       highlight=False)
-    if (bp.get("weak_share") or 0.0) >= WEAK_WARN_SHARE:  # the data term cannot tell the object from its background
+    from capture.matting_guide import WEAK_GATE  # the share from which the Laplacian's guide is brightened too
+
+    # measured shares: 0.24-0.36 before a dark forest, 0.18 on the courtyard orbit, 0.002-0.05 on the courtyard
+    # turntables and fur_similar_bg (docs/matting.md, stop 63)
+    if (bp.get("weak_share") or 0.0) >= WEAK_GATE:  # the data term cannot tell the object from its background
         console.print(f"[yellow]matte: {bp['weak_share']:.0%} of the matting band is before a background of nearly "
                       "the object's own colour: there the data barely tells the object from the background, and the "
                       "alpha (the depth coverage's and the matting Laplacian's) comes out soft. Held out, conifers "
-                      "before a dark forest scored sharpness 0.71-0.84 and SSIM 0.09-0.11 under their black twins "
+                      "before a dark forest scored sharpness 0.78-0.88 and SSIM 0.06-0.10 under their black twins "
                       "(docs/matting.md, stop 63). A backdrop of another colour than the object's helps[/yellow]",
                       highlight=False)
 

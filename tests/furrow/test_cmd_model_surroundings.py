@@ -295,13 +295,15 @@ def test_the_report_says_when_the_smoothing_was_refused():
 
 def test_the_report_warns_when_the_background_has_the_objects_colour():
     """furrow model warns (yellow) when the matte record's weak share (capture.matting_blind: the band's pixels with a
-    weak data term before a background of nearly the object's colour) reaches furrow.cmd_model.WEAK_WARN_SHARE, with
-    the share; below it, or without the field (a model built before), it says nothing of it."""
+    weak data term before a background of nearly the object's colour) reaches capture.matting_guide.WEAK_GATE (the
+    share from which the Laplacian's guide is brightened), with the share; below it, or without the field (a model
+    built before), it says nothing of it."""
     from io import StringIO
 
     from rich.console import Console
 
-    from furrow.cmd_model import WEAK_WARN_SHARE, _print_surroundings
+    from capture.matting_guide import WEAK_GATE as WEAK_WARN_SHARE
+    from furrow.cmd_model import _print_surroundings
 
     def report(share) -> str:
         out = StringIO()
