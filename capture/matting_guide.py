@@ -39,6 +39,9 @@ def laplacian_guide(image: np.ndarray) -> np.ndarray:
 
 def view_guide(image: np.ndarray, blind_record: dict) -> np.ndarray:
     """The guide of one view's Laplacian: :func:`laplacian_guide` where the view's weak share (``blind_record``:
-    capture.matting_blind.blind_prior's record, ``weak`` / ``band``) is at least WEAK_GATE, else ``image`` itself."""
+    capture.matting_blind.blind_prior's record, ``weak`` / ``band``) is at least WEAK_GATE, else ``image`` itself.
+    Writes into ``blind_record`` whether the guide was brightened (``guided``: the matte record counts the views)."""
     share = blind_record.get("weak", 0) / max(blind_record.get("band", 0), 1)
-    return laplacian_guide(image) if share >= WEAK_GATE else image
+    guide = laplacian_guide(image) if share >= WEAK_GATE else image
+    blind_record["guided"] = guide is not image
+    return guide

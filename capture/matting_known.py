@@ -426,6 +426,8 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     floor = blown_bound(img, background, given & ~known, noise)
     tri, opaque = solve_trimap(trimap, img, background, known, noise)
     unk_map = tri == UNKNOWN
+    if record is not None:  # the channels a clip leaves (capture.matting_channels): the same in every pass
+        record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
     converged, a_prev = True, None
     unk, a_u = unk_map.ravel(), np.zeros(0)
     L, has = None, unk_map.any()
@@ -435,7 +437,6 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask, similar)
         if record is not None:
             record["blind_prior"] = rec
-            record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
         if not has:
             break
         L = laplacian(view_guide(img, rec), unk_map) if L is None else L  # capture.matting_guide
@@ -475,8 +476,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
             return None, False
 
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
-    a_u, unk, lower, tri, known, ok = _passes(
-        img, trimap, background, known, noise,
+    a_u, unk, lower, tri, known, ok = _passes(img, trimap, background, known, noise,
         lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground, colour, record)
     return a, F, tri, ok

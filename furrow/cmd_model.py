@@ -265,6 +265,11 @@ def _print_matte_data(console, m: dict) -> None:
                       highlight=False)
     from capture.matting_guide import WEAK_GATE  # the share from which the Laplacian's guide is brightened too
 
+    if bp.get("guided_views"):  # capture.matting_guide: views whose own weak share reached WEAK_GATE
+        console.print(f"matte: the matting Laplacian's guide was brightened in {bp['guided_views']} of {bp['views']} "
+                      f"view(s), where at least {WEAK_GATE:.0%} of the view's band had a weak data term "
+                      "(capture.matting_guide)", highlight=False)
+
     # measured shares: 0.24-0.36 before a dark forest, 0.18 on the courtyard orbit, 0.002-0.05 on the courtyard
     # turntables and fur_similar_bg (docs/matting.md, stop 63)
     if (bp.get("weak_share") or 0.0) >= WEAK_GATE:  # the data term cannot tell the object from its background

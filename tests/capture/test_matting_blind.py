@@ -54,7 +54,7 @@ def test_the_coverage_prior_brings_blown_out_alpha_nearer_the_truth(monkeypatch,
     monkeypatch.setattr(mb, "BLIND_PRIOR", False)
     off = _solve(C, plate, D)
     assert off.notes["blind_prior"] == {"blind": rec["blind"], "weak": 0, "band": rec["band"], "used": False,
-                                        "reason": "off"}
+                                        "reason": "off", "guided": False}  # capture.matting_guide
     assert rec["band"] > rec["blind"] > 0  # the matting band holds the blown-out pixels and more
     mse_on, mse_off = (float(np.mean((m.alpha - A)[region] ** 2)) for m in (on, off))
     assert mse_on <= BEAT_BLIND * mse_off, (mse_on, mse_off)

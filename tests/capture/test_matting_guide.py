@@ -37,9 +37,14 @@ def test_a_view_is_brightened_only_where_its_data_is_weak(monkeypatch):
     monkeypatch.setattr(mg, "LAPLACIAN_LEVEL", 0.3)
     dark = np.random.default_rng(3).uniform(0, 0.1, (8, 9, 3))
     band = 1000
-    assert mg.view_guide(dark, {"weak": int(mg.WEAK_GATE * band), "band": band}).mean() == pytest.approx(0.3)
+    gated = {"weak": int(mg.WEAK_GATE * band), "band": band}
+    assert mg.view_guide(dark, gated).mean() == pytest.approx(0.3)
+    assert gated["guided"] is True  # the record says so (the matte record counts these views)
     for rec in ({"weak": int(mg.WEAK_GATE * band) - 1, "band": band}, {"weak": 0, "band": 0}, {}):
-        assert mg.view_guide(dark, rec) is dark
+        assert mg.view_guide(dark, rec) is dark and rec["guided"] is False
+    bright = np.random.default_rng(4).uniform(0.4, 0.9, (8, 9, 3))  # gated, but brighter than the level
+    rec = {"weak": band, "band": band}
+    assert mg.view_guide(bright, rec) is bright and rec["guided"] is False
 
 
 def test_the_guide_has_the_level_as_its_mean(monkeypatch):
@@ -64,7 +69,9 @@ def test_a_darker_exposure_gets_a_closer_matte(monkeypatch, seed):
     for level in (None, 0.3):
         monkeypatch.setattr(mg, "LAPLACIAN_LEVEL", level)
         a1 = known_background_matte(C, tri, B, known, noise=0.0)[0]
-        a2 = known_background_matte(C / DARKER, tri, B / DARKER, known, noise=0.0)[0]
+        rec = {}
+        a2 = known_background_matte(C / DARKER, tri, B / DARKER, known, noise=0.0, record=rec)[0]
+        assert rec["blind_prior"]["guided"] is (level is not None)  # the record says which guide was used
         diff[level] = float(np.abs(a1 - a2)[band].mean())
         dark[level] = float(np.mean((a2 - A)[band] ** 2))
     assert dark[0.3] <= DARK_BETTER * dark[None], dark

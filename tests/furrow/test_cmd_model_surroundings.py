@@ -318,3 +318,10 @@ def test_the_report_warns_when_the_background_has_the_objects_colour():
     assert "comes out soft" in report(WEAK_WARN_SHARE)
     for share in (WEAK_WARN_SHARE - 0.01, 0.0023, None):
         assert "comes out soft" not in report(share) and "301305 pixels" in report(share)
+        assert "guide was brightened" not in report(share)  # no view counted (a model built before: no field)
+    out = StringIO()
+    _print_surroundings(Console(file=out, width=250), {"matte": {
+        "mode": "auto", "methods": {"plate": 18}, "seconds_per_view": 0.1, "seconds_per_view_max": 0.2,
+        "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1,
+        "blind_prior": {"weak_pixels": 3, "weak_share": 0.05, "views": 18, "guided_views": 2}}})
+    assert "guide was brightened in 2 of 18 view(s)" in out.getvalue()
