@@ -119,12 +119,26 @@ def test_corrupt_png_named(scan_dir):
      r"f001.png: image is 10x10 but its camera \(.*transforms\.json frame 1\) says 40x30"),
     ("depth/f001.png", np.ones((30, 41), np.uint16), r"depth/f001.png: depth is 41x30"),
     ("depth/f000.png", np.zeros((30, 40), np.uint16), r"depth/f000.png: depth is all zero"),
-], ids=["size_mismatch", "depth_size_mismatch", "all_zero_depth"])
+    ("images/f002.png", np.zeros((30, 40, 3), np.uint8),
+     r"images/f002.png: colour image is blank \(every pixel 0 to 0\)"),
+    ("images/f001.png", np.full((30, 40, 3), 200, np.uint8) + (np.arange(40) % 2).astype(np.uint8)[None, :, None],
+     r"images/f001.png: colour image is blank \(every pixel 200 to 201\)"),
+], ids=["size_mismatch", "depth_size_mismatch", "all_zero_depth", "black_frame", "one_colour_frame"])
 def test_bad_image_named(scan_dir, rel, img, msg):
     import cv2
     cv2.imwrite(str(scan_dir / rel), img)
     with pytest.raises(ScanIOError, match=msg):
         read_scanset(scan_dir)
+
+
+def test_a_dim_frame_is_not_blank(scan_dir):
+    """A frame spanning two 8-bit levels more than capture.sources.BLANK_LEVELS (a dark, flat view) is read."""
+    import cv2
+
+    from capture.sources import BLANK_LEVELS
+    img = np.full((30, 40, 3), 3, np.uint8) + (np.arange(40) % (BLANK_LEVELS + 2)).astype(np.uint8)[None, :, None]
+    cv2.imwrite(str(scan_dir / "images/f001.png"), img)
+    assert np.array_equal(read_scanset(scan_dir).scans[1].rgb, img)
 
 
 def test_nonfinite_pose_named(scan_dir):
