@@ -35,7 +35,7 @@ from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps,
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
 from volume.mesh import clean_and_decimate, colour_spec, marching_cubes, vertex_colors_views
-from volume.model import SdfLevel, SdfPyramid
+from volume.model import ModelError, SdfLevel, SdfPyramid
 from volume.pyramid import build_pyramid, choose_l_opt, discontinuity_fraction
 from volume.rgbz import build_rgbz_coloured
 from volume.spheres import fit_spheres
@@ -169,6 +169,11 @@ def pyramid_stage(work, cfg, ctx):
                         measured=measured)
     pyr = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
                            for lv in pyr.levels), f.l_opt)
+    if not any(len(lv.surface) for lv in pyr.levels):  # nothing to render: say so instead of saving it
+        raise ModelError(f"the fused volume has no surface at any level ({len(work.scans)} views): no depth of the "
+                         "object landed in it. A capture without depth (no depth_file_path) cannot be modelled: furrow "
+                         "builds its model from RGB-D views; otherwise the extent stage may have removed the object "
+                         "(try --no-extent) or the bounds miss it")
     return work.made(pyramid=pyr)
 
 

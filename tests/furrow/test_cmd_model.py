@@ -129,6 +129,22 @@ def test_non_rigid_pose(scan_dir, tmp_path, capsys):
     assert "rigid" in err
 
 
+def test_a_capture_without_depth_is_refused_not_saved_empty(scan_dir, tmp_path, capsys):
+    """Every frame without depth: the volume has no surface, and furrow model says so (exit 1, nothing written)
+    instead of saving a model with no surface voxels (volume.build.pyramid_stage)."""
+    d = _copy(scan_dir, tmp_path / "nodepth")
+    tj = d / "transforms.json"
+    meta = json.loads(tj.read_text())
+    for f in meta["frames"]:
+        f.pop("depth_file_path", None)
+    tj.write_text(json.dumps(meta))
+    out = tmp_path / "out" / "model"
+    out.parent.mkdir()
+    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
+    _assert_failed_cleanly(rc, err, out, "no surface at any level")
+    assert "without depth" in err
+
+
 def test_refuses_to_replace_a_non_model_folder(scan_dir, tmp_path, capsys):
     out = tmp_path / "precious"
     out.mkdir()
