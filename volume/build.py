@@ -170,11 +170,22 @@ def pyramid_stage(work, cfg, ctx):
     pyr = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
                            for lv in pyr.levels), f.l_opt)
     if not any(len(lv.surface) for lv in pyr.levels):  # nothing to render: say so instead of saving it
-        raise ModelError(f"the fused volume has no surface at any level ({len(work.scans)} views): no depth of the "
-                         "object landed in it. A capture without depth (no depth_file_path) cannot be modelled: furrow "
-                         "builds its model from RGB-D views; otherwise the extent stage may have removed the object "
-                         "(try --no-extent) or the bounds miss it")
+        raise _no_surface(work.scans, f)
     return work.made(pyramid=pyr)
+
+
+def _no_surface(scans, fused) -> ModelError:
+    """The error of a volume with no surface at any level, with what the views' depth says of why."""
+    depths = [np.asarray(s.depth) for s in scans]
+    n = sum(bool(np.any(d > 0)) for d in depths)
+    med = float(np.median(np.concatenate([d[d > 0] for d in depths if np.any(d > 0)]))) if n else None
+    said = (f"none of the {len(depths)} views has depth left: a capture without depth (no depth_file_path) cannot be "
+            "modelled (furrow builds its model from RGB-D views), or the extent stage removed it all as far away "
+            "(is the depth's unit right? depth_unit_scale_factor; --no-extent keeps it)"
+            if not n else
+            f"{n} of {len(depths)} views have depth (median {med:.3g} m) but none of it landed in the volume "
+            f"(a cube of {fused.extent:.3g} m): are the depth's units right (depth_unit_scale_factor)?")
+    return ModelError(f"the fused volume has no surface at any level: {said}")
 
 
 def spheres_stage(work, cfg, ctx):

@@ -145,6 +145,21 @@ def test_a_capture_without_depth_is_refused_not_saved_empty(scan_dir, tmp_path, 
     assert "without depth" in err
 
 
+def test_depth_in_the_wrong_units_is_refused_with_its_median(scan_dir, tmp_path, capsys):
+    """Depth read 1000x too far (metres taken for millimetres): the error gives the median depth and asks for the
+    units (--no-extent, so that the far depth is not removed first)."""
+    d = _copy(scan_dir, tmp_path / "units")
+    tj = d / "transforms.json"
+    meta = json.loads(tj.read_text())
+    meta["depth_unit_scale_factor"] = 1000 * meta.get("depth_unit_scale_factor", 0.001)
+    tj.write_text(json.dumps(meta))
+    out = tmp_path / "out" / "model"
+    out.parent.mkdir()
+    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", "--no-extent"], capsys)
+    _assert_failed_cleanly(rc, err, out, "depth_unit_scale_factor")
+    assert "8 of 8 views have depth (median" in err.replace("\n", "")
+
+
 def test_refuses_to_replace_a_non_model_folder(scan_dir, tmp_path, capsys):
     out = tmp_path / "precious"
     out.mkdir()
