@@ -158,6 +158,11 @@ def print_report(console, summary: dict, out) -> None:
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
+    target = summary.get("sphere_target")
+    if target is not None and summary["sphere_error"] > target:  # volume.spheres.fit_spheres: its best, reported
+        console.print(f"[yellow]spheres: 1 - IoU {summary['sphere_error']:.3f} misses the target {target:g} "
+                      "(--sphere-error): the occluder spheres the shadows use cover the solid coarsely "
+                      "(volume/spheres.py)[/]", highlight=False)
 
 
 def photometric_table(rec: dict):

@@ -192,7 +192,8 @@ def spheres_stage(work, cfg, ctx):
     """The spheres stage (cfg: SpheresConfig): the occluder sphere set fitted on its level to the error target."""
     res = ctx.config.sphere_res
     spheres, err = fit_spheres(work.parts["fused"].level(res), cfg.error)
-    return work.made(spheres=spheres).record("spheres", {"count": len(spheres), "error": err, "level": res})
+    return work.made(spheres=spheres).record("spheres", {"count": len(spheres), "error": err, "level": res,
+                                                        "target": cfg.error})
 
 
 def mesh_stage(work, cfg, ctx):

@@ -325,3 +325,24 @@ def test_the_report_warns_when_the_background_has_the_objects_colour():
         "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1,
         "blind_prior": {"weak_pixels": 3, "weak_share": 0.05, "views": 18, "guided_views": 2}}})
     assert "guide was brightened in 2 of 18 view(s)" in out.getvalue()
+
+
+@pytest.mark.parametrize("error, warned", [(0.59269, True), (0.2, False), (0.19999, False)])
+def test_the_report_warns_when_the_spheres_miss_their_target(error, warned):
+    """furrow model's closing lines say (yellow) when the occluder spheres' 1 - IoU is above --sphere-error
+    (volume.spheres.fit_spheres returns its best cover and its error when it cannot reach the target)."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import print_report
+
+    out = StringIO()
+    summary = {"holes": [], "surroundings": {}, "photometric": None,
+               "views": {"kept": 36, "of": 36, "mode": "auto"}, "resolution": {"reason": "full resolution"},
+               "l_opt": 8, "levels": [8], "surface_voxels": {"8": 282}, "spheres": 1452, "sphere_error": error,
+               "sphere_target": 0.2}
+    print_report(Console(file=out, width=250), summary, "OUT")
+    said = out.getvalue()
+    assert f"spheres 1452 (1 - IoU {error})" in said
+    assert ("misses the target 0.2 (--sphere-error)" in said) is warned

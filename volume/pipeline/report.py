@@ -76,6 +76,7 @@ def summary(work) -> dict:
         "eq1_flagged_per_measured": {L: round(v, 6) for L, v in fuse["eq1_flagged_per_measured"].items()},
         "spheres": rec["spheres"]["count"],
         "sphere_error": round(rec["spheres"]["error"], 5),
+        "sphere_target": rec["spheres"].get("target"),
         "mesh": {"vertices": int(len(verts)), "faces": int(len(faces))},
         "surroundings": surroundings(work),
         "holes": [{k: (round(v, 5) if isinstance(v, float) else v) for k, v in h.items()}
