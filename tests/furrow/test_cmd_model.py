@@ -114,17 +114,26 @@ def test_damaged_frame_file(scan_dir, tmp_path, capsys, frame, key, damage):
     _assert_failed_cleanly(rc, err, out, bad.name)
 
 
-def test_non_rigid_pose(scan_dir, tmp_path, capsys):
+def _model_of_edited(scan_dir, tmp_path, capsys, edit, *flags):
+    """furrow model on a copy of ``scan_dir`` whose transforms.json ``edit`` changed: (rc, stderr, out folder)."""
     d = _copy(scan_dir, tmp_path / "bad")
     tj = d / "transforms.json"
     meta = json.loads(tj.read_text())
-    m = np.array(meta["frames"][2]["transform_matrix"])
-    m[:3, :3] *= 1.1  # a scale: not a rigid pose
-    meta["frames"][2]["transform_matrix"] = m.tolist()
+    edit(meta)
     tj.write_text(json.dumps(meta))
     out = tmp_path / "out" / "model"
     out.parent.mkdir()
-    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
+    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+    return rc, err, out
+
+
+def test_non_rigid_pose(scan_dir, tmp_path, capsys):
+    def scale(meta):
+        m = np.array(meta["frames"][2]["transform_matrix"])
+        m[:3, :3] *= 1.1  # a scale: not a rigid pose
+        meta["frames"][2]["transform_matrix"] = m.tolist()
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, scale)
     _assert_failed_cleanly(rc, err, out, "transforms.json")
     assert "rigid" in err
 
@@ -132,15 +141,11 @@ def test_non_rigid_pose(scan_dir, tmp_path, capsys):
 def test_a_capture_without_depth_is_refused_not_saved_empty(scan_dir, tmp_path, capsys):
     """Every frame without depth: the volume has no surface, and furrow model says so (exit 1, nothing written)
     instead of saving a model with no surface voxels (volume.build.pyramid_stage)."""
-    d = _copy(scan_dir, tmp_path / "nodepth")
-    tj = d / "transforms.json"
-    meta = json.loads(tj.read_text())
-    for f in meta["frames"]:
-        f.pop("depth_file_path", None)
-    tj.write_text(json.dumps(meta))
-    out = tmp_path / "out" / "model"
-    out.parent.mkdir()
-    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16"], capsys)
+    def no_depth(meta):
+        for f in meta["frames"]:
+            f.pop("depth_file_path", None)
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, no_depth)
     _assert_failed_cleanly(rc, err, out, "no surface at any level")
     assert "without depth" in err
 
@@ -148,14 +153,10 @@ def test_a_capture_without_depth_is_refused_not_saved_empty(scan_dir, tmp_path, 
 def test_depth_in_the_wrong_units_is_refused_with_its_median(scan_dir, tmp_path, capsys):
     """Depth read 1000x too far (metres taken for millimetres): the error gives the median depth and asks for the
     units (--no-extent, so that the far depth is not removed first)."""
-    d = _copy(scan_dir, tmp_path / "units")
-    tj = d / "transforms.json"
-    meta = json.loads(tj.read_text())
-    meta["depth_unit_scale_factor"] = 1000 * meta.get("depth_unit_scale_factor", 0.001)
-    tj.write_text(json.dumps(meta))
-    out = tmp_path / "out" / "model"
-    out.parent.mkdir()
-    rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", "--no-extent"], capsys)
+    def km(meta):
+        meta["depth_unit_scale_factor"] = 1000 * meta.get("depth_unit_scale_factor", 0.001)
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, km, "--no-extent")
     _assert_failed_cleanly(rc, err, out, "depth_unit_scale_factor")
     assert "8 of 8 views have depth (median" in err.replace("\n", "")
 
