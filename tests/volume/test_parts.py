@@ -151,19 +151,18 @@ def test_measured_depth_by_hand():
     np.testing.assert_array_equal(measured_depth(m, d), [[False, True, False], [True, False, False]])
 
 
-def test_build_model_on_empty_depth_saves_an_empty_model(tmp_path):
-    from volume.model import load_model, save_model
+def test_build_model_on_empty_depth_refuses_an_empty_model():
+    """Depth empty in every view: the pipeline stops at the pyramid with the reason (volume.build._no_surface)
+    instead of returning a model with no surface voxels, no spheres and no mesh, which furrow model used to save
+    with exit status 0 (stop 64)."""
+    from volume.model import ModelError
     from volume.pipeline import build_model
     from volume.pipeline.config import FuseConfig, PipelineConfig
     from volume.pyramid import LoptConfig
 
     ss = make_scanset(sphere_scene(), scan_ring(4, 48, 36), depth_hook=lambda i, z: np.zeros_like(z))
-    model, summary = build_model(ss, PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=16))))
-    assert summary["spheres"] == 0 and summary["mesh"]["faces"] == 0
-    assert all(n == 0 for n in summary["surface_voxels"].values())
-    assert model.mesh_colors is None and np.all(model.rgbz.depth == 0)
-    m = load_model(save_model(model, tmp_path / "m"))
-    assert m.pyramid.l_opt == summary["l_opt"]
+    with pytest.raises(ModelError, match="no surface at any level: none of the 4 views has depth left"):
+        build_model(ss, PipelineConfig(fuse=FuseConfig(lopt=LoptConfig(max_res=16))))
 
 
 def test_rgbz_keeps_measured_fringe_and_geometry_fills_the_rest():
