@@ -139,6 +139,13 @@ def scaled_scan(scan, s: float):
 def select_stage(refs, cfg) -> tuple[list[int], dict]:
     """The view-selection stage (cfg: ViewsConfig): (kept view indices, the report: mode, kept, of
     and every view's reason with its name), from the cameras alone (no image is read)."""
+    sizes = {}
+    for r in refs:  # the RGBz stage stores one image size (volume.rgbz): refused here, before any work
+        sizes.setdefault((r.camera.width, r.camera.height), r.name)
+    if len(sizes) > 1:
+        raise ValueError("the frames are not all one size: " + ", ".join(f"{w}x{h} ({n}, ...)" for (w, h), n in
+                         sorted(sizes.items())) + "; furrow models one image size: resize them, or model each size "
+                         "apart (--frames)")
     kept, reasons = select_views([r.camera for r in refs], cfg.mode)
     for r in reasons:
         r["name"] = refs[r["view"]].name

@@ -161,6 +161,20 @@ def test_depth_in_the_wrong_units_is_refused_with_its_median(scan_dir, tmp_path,
     assert "8 of 8 views have depth (median" in err.replace("\n", "")
 
 
+def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):
+    """A frame whose camera is twice the others' size: refused at view selection (cameras only, no image read)
+    with a frame of each size named, instead of failing after every stage in the RGBz store (volume.views)."""
+    def double(meta):
+        f = meta["frames"][3]
+        for k in ("fl_x", "fl_y", "cx", "cy", "w", "h"):
+            f[k] = 2 * f.get(k, meta.get(k))
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, double)
+    _assert_failed_cleanly(rc, err, out, "the frames are not all one size")
+    said = err.replace("\n", "")
+    assert "64x48 (images/cam_000.png, ...)" in said and "128x96 (images/cam_003.png, ...)" in said
+
+
 def test_refuses_to_replace_a_non_model_folder(scan_dir, tmp_path, capsys):
     out = tmp_path / "precious"
     out.mkdir()
