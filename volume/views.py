@@ -138,7 +138,8 @@ def scaled_scan(scan, s: float):
 
 def select_stage(refs, cfg) -> tuple[list[int], dict]:
     """The view-selection stage (cfg: ViewsConfig): (kept view indices, the report: mode, kept, of
-    and every view's reason with its name), from the cameras alone (no image is read)."""
+    and every view's reason with its name), from the cameras alone (no image is read); frames of more than
+    one image size are refused here (ValueError naming a frame of each)."""
     sizes = {}
     for r in refs:  # the RGBz stage stores one image size (volume.rgbz): refused here, before any work
         sizes.setdefault((r.camera.width, r.camera.height), r.name)
