@@ -131,9 +131,8 @@ def _transforms_frame(tj: Path, meta: dict, i: int, fr, undistort: str) -> Frame
     except (TypeError, ValueError):
         raise ScanIOError(f"{named}: 'transform_matrix' is not a 4x4 number matrix") from None
     try:
-        cam = Camera.from_nerfstudio(tm, get("fl_x"), get("fl_y"), get("cx"), get("cy"),
-                                     _pixels(get("w"), "w", named), _pixels(get("h"), "h", named),
-                                     name=paths["file_path"])
+        w, h = _pixels(get("w"), "w", named), _pixels(get("h"), "h", named)
+        cam = Camera.from_nerfstudio(tm, *_intrinsics(fr, meta, named, get, w, h), w, h, name=paths["file_path"])
     except CameraError as e:
         raise ScanIOError(f"{named}: {e}") from None
     lens = frame_lens(fr, meta, named)
@@ -150,6 +149,27 @@ def _transforms_frame(tj: Path, meta: dict, i: int, fr, undistort: str) -> Frame
 
     return FrameRef(i, paths["file_path"], pinhole, cam, lens, file(paths["file_path"]), file(paths["depth_file_path"]),
                     file(paths["confidence_file_path"]), file(mask), unit, str(tj), where)
+
+
+def _intrinsics(fr: dict, meta: dict, named: str, get, w: int, h: int) -> tuple[float, float, float, float]:
+    """(fl_x, fl_y, cx, cy) of a frame, in nerfstudio's units.  Where fl_x is absent, from ``camera_angle_x`` (the
+    horizontal field of view in radians, as the NeRF synthetic and instant-ngp layouts give it); fl_y from
+    ``camera_angle_y``, else fl_x (square pixels) when fl_y is absent too; cx, cy the image centre (w / 2, h / 2)
+    when absent, as instant-ngp takes them.  A frame with neither fl_x nor camera_angle_x names fl_x missing."""
+    def has(key):
+        return fr.get(key, meta.get(key)) is not None
+
+    def from_angle(key, size):
+        a = finite_number(fr.get(key, meta.get(key)), f"'{key}'", named)
+        if not 0 < a < np.pi:
+            raise ScanIOError(f"{named}: '{key}' must be a field of view in radians in (0, pi), got {a}")
+        return 0.5 * size / np.tan(0.5 * a)
+
+    fx = get("fl_x") if has("fl_x") or not has("camera_angle_x") else from_angle("camera_angle_x", w)
+    fy = get("fl_y") if has("fl_y") else from_angle("camera_angle_y", h) if has("camera_angle_y") else fx
+    cx = get("cx") if has("cx") else w / 2.0
+    cy = get("cy") if has("cy") else h / 2.0
+    return fx, fy, cx, cy
 
 
 def _path_field(fr: dict, key: str, where: str) -> str | None:

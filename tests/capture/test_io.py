@@ -96,6 +96,43 @@ def _edit(scan_dir, fn):
     p.write_text(json.dumps(meta))
 
 
+def _to_angle_layout(meta, bad_frame=None, bad_angle=None):
+    """transforms.json in the NeRF synthetic / instant-ngp layout: camera_angle_x instead of fl_x / fl_y / cx / cy
+    (the principal point at the image centre), file paths without their suffix; ``bad_frame`` gets ``bad_angle``."""
+    import math
+
+    for i, f in enumerate(meta["frames"]):
+        w = f.get("w", meta.get("w"))
+        fx = f.pop("fl_x", meta.get("fl_x"))
+        for k in ("fl_y", "cx", "cy"):
+            f.pop(k, None)
+        f["camera_angle_x"] = bad_angle if i == bad_frame else 2 * math.atan(0.5 * w / fx)
+        f["file_path"] = "./" + f["file_path"].rsplit(".", 1)[0]
+    for k in ("fl_x", "fl_y", "cx", "cy"):
+        meta.pop(k, None)
+
+
+def test_camera_angle_x_layout_reads_the_same_cameras(scan_dir):
+    """The camera_angle_x layout (capture.io._intrinsics) gives the explicit intrinsics' focal length, square pixels
+    and the image centre, and the same images through suffix-less paths."""
+    before = read_scanset(scan_dir)
+    _edit(scan_dir, _to_angle_layout)
+    after = read_scanset(scan_dir)
+    for a, b in zip(before.scans, after.scans, strict=True):
+        assert (a.camera.width, a.camera.height) == (b.camera.width, b.camera.height)
+        np.testing.assert_allclose(b.camera.K, [[a.camera.K[0, 0], 0, (a.camera.width - 1) / 2],
+                                                [0, a.camera.K[0, 0], (a.camera.height - 1) / 2], [0, 0, 1]],
+                                   rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+
+
+@pytest.mark.parametrize("angle", [0.0, 3.5, "wide"])
+def test_a_field_of_view_out_of_range_is_named(scan_dir, angle):
+    _edit(scan_dir, lambda meta: _to_angle_layout(meta, 1, angle))
+    with pytest.raises(ScanIOError, match=r"frame 1 .*camera_angle_x"):
+        read_scanset(scan_dir)
+
+
 def test_missing_image_named(scan_dir):
     (scan_dir / "images/f001.png").unlink()
     with pytest.raises(ScanIOError, match=r"images/f001.png: colour image not found"):
