@@ -177,8 +177,8 @@ def pyramid_stage(work, cfg, ctx):
 def _no_surface(scans, fused) -> ModelError:
     """The error of a volume with no surface at any level, with what the views' depth says of why."""
     depths = [np.asarray(s.depth) for s in scans]
-    n = sum(bool(np.any(d > 0)) for d in depths)
-    med = float(np.median(np.concatenate([d[d > 0] for d in depths if np.any(d > 0)]))) if n else None
+    meds = [float(np.median(d[d > 0])) for d in depths if np.any(d > 0)]  # per view: no copy of every view's depth
+    n, med = len(meds), float(np.median(meds)) if meds else None
     said = (f"none of the {len(depths)} views has depth left: a capture without depth (no depth_file_path) cannot be "
             "modelled (furrow builds its model from RGB-D views), or the extent stage removed it all as far away "
             "(is the depth's unit right? depth_unit_scale_factor; --no-extent keeps it)"
