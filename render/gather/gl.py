@@ -46,7 +46,8 @@ def shader_defines(cfg: gr.GatherConfig, has_alpha: bool = False) -> dict:
     """Constants of gather_frag.glsl, one source with the numpy twin."""
     return {"K_BLEND": cfg.k_blend, "VIS_SIGMA": f"{cfg.vis_sigma_m:.9e}", "VIS_FLOOR": f"{cfg.vis_floor:.9e}",
             "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "RESAMPLE_CUBIC": int(cfg.resample == "cubic"),
-            "CUBIC_A": f"{gr.CUBIC_A:.9e}", "HAS_ALPHA": int(has_alpha)}
+            "CUBIC_A": f"{gr.CUBIC_A:.9e}", "HAS_ALPHA": int(has_alpha),
+            "PINHOLE_FILL": int(cfg.pinhole_spread_m > 0), "PINHOLE_SPREAD": f"{cfg.pinhole_spread_m:.9e}"}
 
 
 def fill_offset(far: float) -> float:
@@ -239,5 +240,6 @@ class GatherRenderer(Renderer):
         rgba = gl_rows_to_image(ct.read_colour(0))
         z = gl_rows_to_image(zt.read_colour(0))
         z = np.where(z >= off, z - off, z)
+        z = gr.fill_pinholes(np.where(z < 0.1 * Z_EMPTY, z, 0.0), self.cfg.pinhole_spread_m)
         drawn = rgba[..., 3] > 0
         return Frame(rgba[..., :3], rgba[..., 3], np.where(drawn, z, 0.0), stats)

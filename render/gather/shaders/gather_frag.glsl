@@ -6,7 +6,10 @@
 // vec4), blended with the same weights; without, the straight rgb (COL = vec3) and alpha 1.
 // Twin: render/gather/reference.py gather / sample_view / cubic / bilinear.
 // The views are their crops (render/crops.py): a pixel outside a view's rect is empty (all 0).
-// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A, HAS_ALPHA.
+// A pixel no splat covers whose 4 edge neighbours all have a depth at most PINHOLE_SPREAD apart
+// takes their mean (PINHOLE_FILL; twin: fill_pinholes).
+// Defines: K_BLEND, VIS_SIGMA, VIS_FLOOR, Z_EMPTY, RESAMPLE_CUBIC, CUBIC_A, HAS_ALPHA, PINHOLE_FILL,
+// PINHOLE_SPREAD.
 #include "framebuffer_row.glsl"
 uniform sampler2D front_z;       // pass 1 (framebuffer rows), Z_EMPTY where no splat landed
 uniform float fill_offset;       // added to the fill's z in pass 1 (render/gather/gl.py)
@@ -73,10 +76,28 @@ COL resample(int l, ivec4 r, vec2 uv, ivec2 size) {
 #endif
 }
 
+// Pass 1's z at texel p with the fill's offset taken off; Z_EMPTY where no splat landed.
+float splat_z(ivec2 p) {
+    float z = texelFetch(front_z, p, 0).r;
+    return (z < Z_EMPTY && z >= fill_offset) ? z - fill_offset : z;
+}
+
+// Depth of an empty texel p from its 4 edge neighbours (Z_EMPTY where they do not all agree).
+float pinhole_z(ivec2 p) {
+    ivec2 size = textureSize(front_z, 0);
+    if (any(lessThan(p, ivec2(1))) || any(greaterThan(p, size - 2))) return Z_EMPTY;
+    float a = splat_z(p + ivec2(0, 1)), b = splat_z(p - ivec2(0, 1));
+    float c = splat_z(p - ivec2(1, 0)), d = splat_z(p + ivec2(1, 0));
+    float lo = min(min(a, b), min(c, d)), hi = max(max(a, b), max(c, d));
+    return (hi < Z_EMPTY && hi - lo <= PINHOLE_SPREAD) ? (((a + b) + c) + d) * 0.25 : Z_EMPTY;
+}
+
 void main() {
-    float z = texelFetch(front_z, ivec2(gl_FragCoord.xy), 0).r;
+    float z = splat_z(ivec2(gl_FragCoord.xy));
+#if PINHOLE_FILL
+    if (!(z < Z_EMPTY)) z = pinhole_z(ivec2(gl_FragCoord.xy));
+#endif
     if (!(z < Z_EMPTY)) discard;
-    if (z >= fill_offset) z -= fill_offset;
     ivec2 pix = image_pixel(gl_FragCoord.xy, height);
     float yn = (float(pix.y) - eye_intr.w) / eye_intr.y;
     float xn = (float(pix.x) - eye_intr.z - eye_skew * yn) / eye_intr.x;
