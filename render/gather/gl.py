@@ -240,6 +240,10 @@ class GatherRenderer(Renderer):
         rgba = gl_rows_to_image(ct.read_colour(0))
         z = gl_rows_to_image(zt.read_colour(0))
         z = np.where(z >= off, z - off, z)
-        z = gr.fill_pinholes(np.where(z < 0.1 * Z_EMPTY, z, 0.0), self.cfg.pinhole_spread_m)
         drawn = rgba[..., 3] > 0
-        return Frame(rgba[..., :3], rgba[..., 3], np.where(drawn, z, 0.0), stats)
+        depth = np.where(drawn, z, 0.0)
+        filled = drawn & ~(z < 0.1 * Z_EMPTY)   # pixels the shader's pinhole fill drew (a few)
+        if filled.any():
+            ys, xs = np.nonzero(filled)
+            depth[ys, xs] = gr.pinhole_mean(z, ys, xs)
+        return Frame(rgba[..., :3], rgba[..., 3], depth, stats)

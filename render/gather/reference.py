@@ -134,10 +134,18 @@ def fill_pinholes(z: np.ndarray, spread: float) -> np.ndarray:
     c = z[1:-1, 1:-1]
     nb = np.stack([z[:-2, 1:-1], z[2:, 1:-1], z[1:-1, :-2], z[1:-1, 2:]]).astype(np.float32)
     lo, hi = nb.min(axis=0), nb.max(axis=0)
-    hole = (c <= 0) & (lo > 0) & (hi - lo <= np.float32(spread))
+    ys, xs = np.nonzero((c <= 0) & (lo > 0) & (hi - lo <= np.float32(spread)))
     out = z.copy()
-    out[1:-1, 1:-1] = np.where(hole, (((nb[0] + nb[1]) + nb[2]) + nb[3]) * np.float32(0.25), c)
+    out[ys + 1, xs + 1] = pinhole_mean(z, ys + 1, xs + 1)
     return out
+
+
+def pinhole_mean(z: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """The filled depth of pixels (ys, xs) of ``z`` (none on the border): the mean of the four edge
+    neighbours, summed in float32 in the shader's order (above, below, left, right)."""
+    nb = [z[ys - 1, xs], z[ys + 1, xs], z[ys, xs - 1], z[ys, xs + 1]]
+    nb = [np.asarray(v, np.float32) for v in nb]
+    return (((nb[0] + nb[1]) + nb[2]) + nb[3]) * np.float32(0.25)
 
 
 def cubic_weights(t: np.ndarray, a: float = CUBIC_A) -> np.ndarray:
