@@ -19,9 +19,10 @@ correction ``g_i`` is estimated from what neighbouring views see of the same sur
    log c_i`` (median, then Huber IRLS steps) and its weight (cells / robust variance).
 3. **Joint solve.**  ``x_i - x_j = d_ij`` (x = log gain) over all pairs, weighted least squares
    with Huber re-weighting of the pair residuals, all channels at once; the gauge (the one
-   global gain no view can tell) is fixed afterwards: ``median`` (default) puts the median view's
-   gain of every channel at 1 (the median of the log gains over views, per channel), ``mean``
-   the mean, a view name fixes that view.
+   global gain no view can tell) is fixed afterwards: ``mean`` (default) puts the mean of the views'
+   log gains at 0 in every channel (an auto-exposure camera's jitter is about zero-mean in log, and
+   the mean estimates its level with less spread than the median: docs/real_cameras.md, stop 65),
+   ``median`` the median view's gain at 1, a view name fixes that view.
 4. **Appearance is not exposure.**  Fur and needles look different from different directions
    (sheen and hair lobes of the lights, a patterned coat seen along or across its stripes): on a
    fur ball at fixed exposure under a studio's lamps the solve of step 3 finds "gains" of +-0.5 EV
@@ -113,8 +114,9 @@ class PhotometricConfig:
     """Cells a pair needs to count."""
     huber: float = 1.0
     """Huber threshold in robust standard deviations (pair locations and the joint solve)."""
-    reference: str = "median"
-    """Gauge: ``median``, ``mean`` or the name of the view whose colour is kept."""
+    reference: str = "mean"
+    """Gauge: ``mean`` (the mean of the views' log gains at 0), ``median`` or the name of the view whose
+    colour is kept."""
     appearance: str = "auto"
     """How view-dependent appearance is told from exposure (module docstring, step 4): ``auto`` (colour,
     else smoothness, each only beyond chance), ``colour``, ``smooth`` (issue 21's, no chance test) or ``none``."""
@@ -166,7 +168,7 @@ class PhotometricResult:
     pairs: int
     samples: int
     unaligned: tuple[str, ...] = ()
-    reference: str = "median"
+    reference: str = "mean"
     residual: float = 0.0
     meta: dict = field(default_factory=dict)
 

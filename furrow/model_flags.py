@@ -103,9 +103,9 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")
-    g.add_argument("--photometric-reference", default="median", metavar="NAME",
-                   help="whose colour the aligned views keep: 'median' (default: the median view in each channel), "
-                        "'mean', or a view's name")
+    g.add_argument("--photometric-reference", default="mean", metavar="NAME",
+                   help="whose colour the aligned views keep: 'mean' (default: the mean of the views' log gains, "
+                        "per channel, kept at 0), 'median' (the median view in each channel), or a view's name")
 
 
 def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
