@@ -63,7 +63,7 @@ def _usable_at(d: np.ndarray, lin: np.ndarray, alpha: np.ndarray | None, cfg) ->
     ok = (d > 0) & np.isfinite(lo) & (hi - lo <= cfg.edge_tol * d)
     ok &= np.all(lin <= srgb_to_linear(np.float32(cfg.max_srgb)), axis=2)
     if alpha is not None:
-        ok &= alpha >= 1.0 - 1e-3
+        ok &= alpha >= cfg.min_alpha
     return ok
 
 

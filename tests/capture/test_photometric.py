@@ -189,3 +189,23 @@ def test_appearance_that_changes_the_colour_is_not_taken_for_exposure():
     err = _log2_err(estimate_gains(_scans(lit, cam_gain), PhotometricConfig(stride=1)).gains, cam_gain).mean(1)
     sheen_ev = none.mean(1) - np.median(none.mean(1))
     assert np.sqrt(np.mean(err ** 2)) < np.sqrt(np.mean(sheen_ev ** 2)) + 0.03
+
+
+def test_partial_matte_pixels_are_samples():
+    """A matte of alpha 0.7 over the whole object (a conifer's needles: no pixel opaque in two views)
+    over black (C = a F, times the camera's gain): PhotometricConfig.min_alpha 0.5 finds pairs and the
+    jitter; 0.999 (the rule before) found none and kept every view's colour."""
+    rng = np.random.default_rng(3)   # seed 5's jitter happens to vary smoothly round the ring: taken for appearance
+    n = 12
+    cam_gain = np.exp2(rng.normal(0, 0.35, n))[:, None] * np.ones(3)
+    views = _views(n)
+    scans = [Scan(to_uint8_srgb(0.7 * rgb * gi.astype(np.float32)), z, cam, cam.name,
+                  np.where(z > 0, 0.7, 0.0).astype(np.float32))
+             for (cam, rgb, z), gi in zip(views, cam_gain)]
+    res = estimate_gains(scans, CFG)
+    assert res.pairs >= 12 and not res.unaligned
+    assert np.abs(_log2_err(res.gains, cam_gain)).max() < 0.02
+    before = estimate_gains(scans, PhotometricConfig(stride=1, min_alpha=0.999))
+    assert before.pairs == 0 and len(before.unaligned) == n and np.all(before.gains == 1)
+    with pytest.raises(ValueError, match="min_alpha"):
+        PhotometricConfig(min_alpha=0.0)
