@@ -51,6 +51,9 @@ SURFACE_DIAGONAL_FRACTION = 0.5
 MEASURED_MIN_VIEWS = 2
 #: Coarsest level kept in the pyramid (and the lowest resolution Eq. 1 can fall back to).
 MIN_RESOLUTION = 8
+#: :func:`view_cell_keys` finds a view's cells with one mark per cell (a 16 MiB bool array at 256^3)
+#: up to this many cells, and by sorting the points' cells above (np.unique).
+BITMAP_CELLS = 1 << 24
 
 
 @dataclass(frozen=True)
@@ -156,9 +159,52 @@ def measured_voxels_levels(points, origin, sizes: dict[int, float], min_views: i
     return measured_from_keys((view_cell_keys(p, origin, sizes) for p in points), sizes, min_views)
 
 
+def nested_finest(sizes: dict[int, float]) -> int | None:
+    """The finest L of ``sizes`` when every level is it halved k times (L_f = 2^k L) with a voxel
+    exactly 2^k times the finest's (what :func:`pyramid_sizes` gives: extent / L); else None."""
+    lf = max(sizes)
+    for L, w in sizes.items():
+        s = lf // L
+        if L < 1 or lf % L or s & (s - 1) or w != sizes[lf] * s:
+            return None
+    return lf
+
+
+def _unique_keys(keys: np.ndarray, cells: int) -> np.ndarray:
+    """np.unique of int64 ``keys`` in [0, cells): through a mark per cell where the grid is small."""
+    if cells > BITMAP_CELLS:
+        return np.unique(keys)
+    mark = np.zeros(cells, bool)
+    mark[keys] = True
+    return np.flatnonzero(mark)
+
+
 def view_cell_keys(points, origin, sizes: dict[int, float]) -> dict[int, np.ndarray]:
     """{L: sorted unique linear indices ((i * L + j) * L + k) of the L^3 cells of voxel size
-    ``sizes[L]`` from ``origin`` holding one view's ``points`` (M, 3)}; points outside are ignored."""
+    ``sizes[L]`` from ``origin`` holding one view's ``points`` (M, 3)}; points outside are ignored.
+
+    With nested levels (:func:`nested_finest`) the points are binned once, at the finest level, and
+    a coarser level's cells are the finest cells' indices shifted right: floor(x / (2^k w)) =
+    floor(floor(x / w) / 2^k), and x / (2^k w) is (x / w) / 2^k in floating point too (a power of
+    two), so the cells are those of :func:`view_cell_keys_reference` (tests/volume/test_pyramid.py);
+    other sizes go to it."""
+    lf = nested_finest(sizes) if sizes else None
+    if lf is None:
+        return view_cell_keys_reference(points, origin, sizes)
+    p = np.asarray(points, np.float64).reshape(-1, 3) - np.asarray(origin, np.float64)
+    g = cell_index(p, 0.0, sizes[lf])
+    g = g[np.all((g >= 0) & (g < lf), axis=1)]
+    fine = _unique_keys((g[:, 0] * lf + g[:, 1]) * lf + g[:, 2], lf ** 3)
+    i, j, k = fine // (lf * lf), (fine // lf) % lf, fine % lf
+    out = {}
+    for L in sizes:
+        s = (lf // L).bit_length() - 1
+        out[L] = fine if L == lf else _unique_keys(((i >> s) * L + (j >> s)) * L + (k >> s), L ** 3)
+    return out
+
+
+def view_cell_keys_reference(points, origin, sizes: dict[int, float]) -> dict[int, np.ndarray]:
+    """:func:`view_cell_keys` level by level: each level bins every point and sorts its cells."""
     p = np.asarray(points, np.float64).reshape(-1, 3) - np.asarray(origin, np.float64)
     out = {}
     for L, w in sizes.items():

@@ -171,3 +171,39 @@ def test_compiled_discontinuity_count_equals_the_mask():
                 want = discontinuity_fraction(v, 0.01, alpha, mask, fast=False)
                 assert got == want, (shape, alpha)
     assert 0.0 < discontinuity_fraction(v, 0.01, 1.5, valid) < 1.0
+
+
+def test_view_cell_keys_from_the_finest_level_equal_the_reference():
+    """volume.pyramid.view_cell_keys bins the points once at the finest level and shifts the cells for
+    the coarser ones (and marks them in a bitmap): the same sorted cells as binning at every level
+    (view_cell_keys_reference), points on cell faces, outside the cube, NaN and inf included; sizes
+    that are not nested, and a finest grid too large for the bitmap, take the other paths, also equal."""
+    from volume import pyramid
+    from volume.pyramid import nested_finest, view_cell_keys, view_cell_keys_reference
+
+    rng = np.random.default_rng(7)
+    extent, origin = 0.3, np.array([-0.15, -0.13, -0.16])
+    d = rng.normal(size=(20000, 3))
+    pts = 0.1 * d / np.linalg.norm(d, axis=1)[:, None] + rng.normal(0.0, 0.003, (20000, 3))
+    faces = origin + extent / 256 * rng.integers(-3, 260, (3000, 3))  # exactly on cell faces, some outside
+    pts = np.concatenate([pts, faces, [[np.nan, 0, 0], [np.inf, 0, 0], [0, -np.inf, 0], [1e300, 0, 0]]])
+    sizes = {L: extent / L for L in (8, 16, 32, 64, 128, 256)}
+    assert nested_finest(sizes) == 256
+    with np.errstate(invalid="ignore"):
+        cases = [(view_cell_keys(pts, origin, sz), view_cell_keys_reference(pts, origin, sz), sz)
+                 for sz in (sizes, {L: sizes[L] for L in (8, 64)}, {16: extent / 16, 32: extent / 31})]
+    for got, ref, sz in cases:
+        assert set(got) == set(ref)
+        for L in sz:
+            np.testing.assert_array_equal(got[L], ref[L])
+            assert got[L].dtype == ref[L].dtype and len(ref[L]) > 0
+    assert nested_finest({16: extent / 16, 32: extent / 31}) is None
+    small = pyramid.BITMAP_CELLS
+    try:
+        pyramid.BITMAP_CELLS = 1000  # every level sorted instead of marked
+        with np.errstate(invalid="ignore"):
+            got, ref = view_cell_keys(pts, origin, sizes), view_cell_keys_reference(pts, origin, sizes)
+    finally:
+        pyramid.BITMAP_CELLS = small
+    for L in sizes:
+        np.testing.assert_array_equal(got[L], ref[L])
