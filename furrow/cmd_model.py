@@ -138,7 +138,8 @@ def run(args, console) -> int:
 
 
 def print_report(console, summary: dict, out) -> None:
-    """The closing lines of furrow model: holes, surroundings, photometric, views, levels."""
+    """The closing lines of furrow model: holes, surroundings, photometric, views, levels, and the depth-agreement
+    check's finding where the views' depths and poses are at odds."""
     h = summary["holes"]
     if h:
         hb = [x["holes_before"] for x in h]
@@ -158,6 +159,11 @@ def print_report(console, summary: dict, out) -> None:
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
+    agree = summary.get("depth_agreement") or {}
+    if agree.get("status") in ("scale", "none"):  # capture.depth_agreement
+        msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
+        console.print(f"[yellow]depth agreement: {msg} This model may be wrong (model.json "
+                      "params.depth_agreement).[/]", highlight=False)
     target = summary.get("sphere_target")
     if target is not None and summary["sphere_error"] > target:  # volume.spheres.fit_spheres: its best, reported
         console.print(f"[yellow]spheres: 1 - IoU {summary['sphere_error']:.3f} misses the target {target:g} "

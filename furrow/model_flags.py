@@ -100,6 +100,11 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
                         + "; ".join(f"'{m}'{' (default)' if m == DEFAULT_UNDISTORT else ''}: {h}"
                                     for m, h in UNDISTORT_HELP.items())
                         + " (docs/real_cameras.md)")
+    g.add_argument("--no-agreement-check", action="store_true",
+                   help="do not check that the views' depths agree with their poses (default: each view's depth "
+                        "points projected into its 2 nearest views at depth scales 1/4..4; a warning when they agree "
+                        "best at another scale or at none: a wrong depth unit, poses at another scale, intrinsics "
+                        "or axes wrong; capture/depth_agreement.py)")
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")
@@ -163,6 +168,7 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
 def pipeline_config(args, **save):
     """The PipelineConfig of the model flags (:func:`add_model_arguments`); ``save``: the save
     stage's settings (``out``, the capture lighting)."""
+    from capture.depth_agreement import AgreementConfig
     from capture.extent import ExtentConfig
     from capture.matting import MatteConfig
     from capture.photometric import PhotometricConfig
@@ -178,6 +184,7 @@ def pipeline_config(args, **save):
     cfg = PipelineConfig(
         read=ReadConfig(getattr(args, "frames", None)), undistort=UndistortConfig(args.undistort),
         views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
+        agreement=None if getattr(args, "no_agreement_check", False) else AgreementConfig(),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
         matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution,
                                  across=getattr(args, "matte_across", "auto")),

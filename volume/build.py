@@ -170,12 +170,13 @@ def pyramid_stage(work, cfg, ctx):
     pyr = SdfPyramid(tuple(replace(lv, values=None) if lv.resolution > cfg.values_max_res else lv
                            for lv in pyr.levels), f.l_opt)
     if not any(len(lv.surface) for lv in pyr.levels):  # nothing to render: say so instead of saving it
-        raise _no_surface(work.scans, f)
+        raise _no_surface(work.scans, f, work.records.get("depth agreement"))
     return work.made(pyramid=pyr)
 
 
-def _no_surface(scans, fused) -> ModelError:
-    """The error of a volume with no surface at any level, with what the views' depth says of why."""
+def _no_surface(scans, fused, agreement: dict | None = None) -> ModelError:
+    """The error of a volume with no surface at any level, with what the views' depth says of why, and the
+    depth-agreement check's finding (``agreement``: its record) where it found the depth and poses at odds."""
     depths = [np.asarray(s.depth) for s in scans]
     meds = [float(np.median(d[d > 0])) for d in depths if np.any(d > 0)]  # per view: no copy of every view's depth
     n, med = len(meds), float(np.median(meds)) if meds else None
@@ -185,6 +186,8 @@ def _no_surface(scans, fused) -> ModelError:
             if not n else
             f"{n} of {len(depths)} views have depth (median {med:.3g} m) but none of it landed in the volume "
             f"(a cube of {fused.extent:.3g} m): are the depth's units right (depth_unit_scale_factor)?")
+    if agreement and agreement.get("status") in ("scale", "none"):
+        said += f"; before that, {agreement['message']}"
     return ModelError(f"the fused volume has no surface at any level: {said}")
 
 

@@ -148,6 +148,7 @@ def test_a_capture_without_depth_is_refused_not_saved_empty(scan_dir, tmp_path, 
     rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, no_depth)
     _assert_failed_cleanly(rc, err, out, "no surface at any level")
     assert "without depth" in err
+    assert "WARNING  depth agreement" not in err and "before that" not in err  # no depth: nothing to agree
 
 
 def test_depth_in_the_wrong_units_is_refused_with_its_median(scan_dir, tmp_path, capsys):
@@ -159,6 +160,30 @@ def test_depth_in_the_wrong_units_is_refused_with_its_median(scan_dir, tmp_path,
     rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, km, "--no-extent")
     _assert_failed_cleanly(rc, err, out, "depth_unit_scale_factor")
     assert "8 of 8 views have depth (median" in err.replace("\n", "")
+
+
+def test_poses_at_half_scale_are_named_with_the_scale_that_undoes_them(scan_dir, tmp_path, capsys):
+    """The poses' translations at half their scale (structure-from-motion poses with metric depth): furrow model
+    warns that the depth agrees best scaled by about 0.5 before any other stage, and when the model then has no
+    surface the error says so too (this small sphere: the extent stage removes every view's depth as far);
+    --no-agreement-check leaves the check out.  The capture as written agrees at scale 1 and says nothing."""
+    def half(meta):
+        for f in meta["frames"]:
+            m = np.array(f["transform_matrix"])
+            m[:3, 3] *= 0.5
+            f["transform_matrix"] = m.tolist()
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, half)
+    flat = " ".join(err.split())
+    _assert_failed_cleanly(rc, err, out, "no surface at any level")
+    assert "WARNING depth agreement: the views' depths agree best with their poses when scaled by 0.5" in flat, flat
+    assert flat.count("scaled by 0.5") == 2  # the warning, and the error
+    rc, err, out = _model_of_edited(scan_dir, tmp_path / "off", capsys, half, "--no-agreement-check")
+    assert rc == 1 and "depth agreement" not in err
+    rc, _, err = _run(["model", str(scan_dir), "-o", str(tmp_path / "right"), "--max-res", "16"], capsys)
+    rec = load_model(tmp_path / "right").params["depth_agreement"]
+    assert rc == 0 and "WARNING  depth agreement" not in err
+    assert rec["status"] == "agree" and abs(np.log(rec["best_scale"])) < np.log(1.02) and rec["share"] > 0.3, rec
 
 
 def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):

@@ -29,8 +29,8 @@ from volume.pyramid import LoptConfig
 
 #: The order issue 29 asks for (the list may hold more stages between them).
 ORDER = ("read", "units and confidence", "depth resample", "matte read", "undistort", "view selection",
-         "working scale", "extent", "background plate", "matte", "photometric", "fuse", "pyramid", "spheres", "mesh",
-         "RGBz", "save")
+         "working scale", "depth agreement", "extent", "background plate", "matte", "photometric", "fuse", "pyramid",
+         "spheres", "mesh", "RGBz", "save")
 #: docs/design.md holds the diagram in the fenced block right after this line.
 DIAGRAM_MARK = "<!-- drawn by volume/pipeline/plan.diagram(); tests/volume/test_pipeline.py keeps it -->"
 

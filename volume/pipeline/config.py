@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from capture.depth_agreement import AgreementConfig
 from capture.extent import ExtentConfig
 from capture.matting import MatteConfig
 from capture.photometric import PhotometricConfig
@@ -130,6 +131,9 @@ class PipelineConfig:
     """view selection: near-duplicate views dropped."""
     scale: ScaleConfig = field(default_factory=ScaleConfig)
     """working scale: views scaled to the output size."""
+    agreement: AgreementConfig | None = field(default_factory=AgreementConfig)
+    """depth agreement: whether the views' depths agree with their poses, warned when not (None:
+    ``--no-agreement-check``)."""
     extent: ExtentConfig | None = field(default_factory=ExtentConfig)
     """extent: support plane, far depth, clutter and floaters out of the depth (None: ``--no-extent``)."""
     plate: PlateConfig | None = field(default_factory=PlateConfig)

@@ -22,7 +22,7 @@ def _params(work, pc) -> dict:
             "eq1_fraction": fuse["eq1_fraction"], "eq1_sampled": fuse["eq1_sampled"],
             "eq1_flagged_per_measured": fuse["eq1_flagged_per_measured"], "surroundings": surroundings(work),
             "photometric": rec.get("photometric"), "views": rec.get("view selection"),
-            "resolution": rec.get("working scale"), "stages": list(rec)}
+            "resolution": rec.get("working scale"), "depth_agreement": rec.get("depth agreement"), "stages": list(rec)}
 
 
 def surroundings(work) -> dict:
@@ -84,6 +84,7 @@ def summary(work) -> dict:
         "photometric": rec.get("photometric"),
         "views": rec.get("view selection"),
         "resolution": rec.get("working scale"),
+        "depth_agreement": rec.get("depth agreement"),
     }
     model = p.get("model")
     if model is not None and model.capture_env is not None:

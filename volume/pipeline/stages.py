@@ -28,7 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from capture import sources
-from volume import build, photometric, surroundings, views
+from volume import agreement, build, photometric, surroundings, views
 from volume.pipeline import report
 
 VIEW, CAMERAS, SET = "per view", "cameras", "whole set"
@@ -99,6 +99,8 @@ STAGES: tuple[Stage, ...] = (
           "volume/views.py"),
     Stage("working scale", "scale", SET, views.scale_stage, "views scaled to the pixels the output needs",
           "volume/views.py"),
+    Stage("depth agreement", "agreement", SET, agreement.agreement_stage,
+          "whether the views' depths agree with their poses (warned when not)", "capture/depth_agreement.py"),
     Stage("extent", "extent", SET, surroundings.extent_stage, "support plane, far depth, clutter, floaters out",
           "capture/extent.py"),
     Stage("background plate", "plate", SET, surroundings.plate_stage,

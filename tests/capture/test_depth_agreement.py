@@ -1,0 +1,102 @@
+"""capture.depth_agreement: the views' depths against their poses, on seeded scenes with exact depth."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from capture.camera import make_K
+from capture.depth_agreement import (
+    AgreementConfig,
+    agreement,
+    pair_agreement,
+    scales,
+    verdict,
+    view_sample,
+)
+from tests.scenes import make_scanset, scan_ring, spheres_scene
+
+CFG = AgreementConfig()
+
+
+@pytest.fixture(scope="module")
+def ring():
+    return make_scanset(spheres_scene(), scan_ring(12, 96, 72), noise=0.0005)
+
+
+def _check(scans, cfg=CFG):
+    samples = [view_sample(s.depth, s.camera, cfg.points, i) for i, s in enumerate(scans)]
+    s, share, per_view = agreement(samples, [x.camera for x in scans], cfg)
+    return verdict(s, share), s, share
+
+
+def _with_depth(scans, f):
+    return [replace(x, depth=f(i, x.depth).astype(np.float32)) for i, x in enumerate(scans)]
+
+
+def test_right_depth_agrees_at_scale_one(ring):
+    rec, s, share = _check(ring.scans)
+    assert rec["status"] == "agree", rec
+    assert abs(np.log(rec["best_scale"])) <= np.log(1.01), rec
+    assert rec["share"] > 0.4
+    assert 1.0 in scales() and share[np.argmin(np.abs(np.log(s)))] >= 0.9 * max(share)
+
+
+@pytest.mark.parametrize("factor", [2.0, 0.4])
+def test_depth_in_another_unit_agrees_best_at_its_inverse(ring, factor):
+    """Depth x factor (a wrong depth unit, or poses at 1 / factor of their scale): the check names the
+    scale that undoes it, to a grid step, and the share there is the right capture's."""
+    rec, _, _ = _check(_with_depth(ring.scans, lambda i, z: z * factor))
+    assert rec["status"] == "scale", rec
+    assert abs(np.log(rec["best_scale"] * factor)) <= np.log(1.01), rec
+    right, _, _ = _check(ring.scans)
+    assert rec["best_share"] == pytest.approx(right["share"], abs=0.05) and rec["share"] < right["share"] / 2
+    assert "depth_unit_scale_factor" in rec["message"]
+
+
+def test_intrinsics_of_another_frame_agree_nowhere(ring):
+    """The principal point at the corner (a frame of another convention): no scale agrees."""
+    scans = [replace(x, camera=replace(x.camera, K=make_K(x.camera.K[0, 0], x.camera.K[1, 1], 0.0, 0.0)))
+             for x in ring.scans]
+    rec, _, share = _check(scans)
+    assert rec["status"] == "none" and max(share) < 0.05, rec
+
+
+def _pair_reference(points, cam_i, cam_j, depth_small, step, s, rel):
+    """pair_agreement point by point and scale by scale (the reference): (agreeing, landed) per scale."""
+    out = []
+    for sc in s:
+        n = landed = 0
+        for p in points:
+            w = cam_i.world_from_cam[:3, :3] @ (sc * p) + cam_i.world_from_cam[:3, 3]
+            q = cam_j.world_from_cam[:3, :3].T @ (w - cam_j.world_from_cam[:3, 3])
+            if q[2] <= 1e-9:
+                continue
+            uvw = cam_j.K @ q
+            u, v = uvw[0] / uvw[2], uvw[1] / uvw[2]
+            r, c = int(np.rint(v / step)), int(np.rint(u / step))
+            if 0 <= r < depth_small.shape[0] and 0 <= c < depth_small.shape[1]:
+                zj = sc * float(depth_small[r, c])
+                n += zj > 0 and abs(q[2] - zj) <= rel * zj
+                landed += zj > 0
+        out.append((n, landed))
+    return np.array(out).T
+
+
+def test_pair_agreement_equals_the_point_by_point_reference(ring):
+    a, b = ring.scans[0], ring.scans[1]
+    pts, _, _ = view_sample(a.depth, a.camera, 300, 0)
+    _, small, step = view_sample(b.depth, b.camera, 10, 1)
+    s = scales()[::7]
+    got = pair_agreement(pts, a.camera, b.camera, small, step, s, 0.01)
+    np.testing.assert_array_equal(got, _pair_reference(pts, a.camera, b.camera, small, step, s, 0.01))
+    assert got[0].max() > 50 and (got[1] >= got[0]).all() and got[1].max() > got[0].max()
+
+
+def test_config_is_validated():
+    with pytest.raises(ValueError):
+        AgreementConfig(rel=0.0)
+    with pytest.raises(ValueError):
+        AgreementConfig(points=0)
