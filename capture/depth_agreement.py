@@ -35,7 +35,9 @@ neighbours measured only the object is not counted against), but no view is name
 view's depth file lowered its own share only from about 0.8 to 0.6-0.7 on a synthetic ring of five
 spheres, too little to tell from a view that sees less of its neighbours.
 
-Nothing is changed: the check warns (volume/agreement.py) and the model record keeps its figures.
+By default nothing is changed: the check warns (volume/agreement.py) and the model record keeps its
+figures; ``--depth-agreement fix`` scales every view's depth by s on a ``scale`` verdict (the poses stay
+the capture's; the half-scale fur ball's held-out views: docs/capture_formats.md).
 """
 
 from __future__ import annotations
@@ -76,6 +78,9 @@ class AgreementConfig:
     """Nearest views in viewing direction each view's points are projected into."""
     rel: float = AGREE_REL
     """Agreement tolerance: a fraction of the measured depth."""
+    fix: bool = False
+    """``--depth-agreement fix``: where the depth agrees best at another scale s (verdict ``scale``), every
+    view's depth is scaled by s (the poses, and the model's frame, stay the capture's)."""
 
     def __post_init__(self) -> None:
         if self.points < 1 or self.neighbours < 1 or not 0 < self.rel < 1:

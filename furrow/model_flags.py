@@ -100,11 +100,12 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
                         + "; ".join(f"'{m}'{' (default)' if m == DEFAULT_UNDISTORT else ''}: {h}"
                                     for m, h in UNDISTORT_HELP.items())
                         + " (docs/real_cameras.md)")
-    g.add_argument("--no-agreement-check", action="store_true",
-                   help="do not check that the views' depths agree with their poses (default: each view's depth "
-                        "points projected into its 2 nearest views at depth scales 1/4..4; a warning when they agree "
-                        "best at another scale or at none: a wrong depth unit, poses at another scale, intrinsics "
-                        "or axes wrong; capture/depth_agreement.py)")
+    g.add_argument("--depth-agreement", choices=("check", "fix", "off"), default="check",
+                   help="whether the views' depths agree with their poses (each view's depth points projected into "
+                        "its 2 nearest views at depth scales 1/4..4; capture/depth_agreement.py): 'check' (default) "
+                        "warns when they agree best at another scale (a wrong depth unit, structure-from-motion poses "
+                        "with metric depth) or at none (intrinsics, axes, files); 'fix' also scales the depth to the "
+                        "poses on the first (the model stays in the poses' frame and unit); 'off'")
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")
@@ -168,7 +169,6 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
 def pipeline_config(args, **save):
     """The PipelineConfig of the model flags (:func:`add_model_arguments`); ``save``: the save
     stage's settings (``out``, the capture lighting)."""
-    from capture.depth_agreement import AgreementConfig
     from capture.extent import ExtentConfig
     from capture.matting import MatteConfig
     from capture.photometric import PhotometricConfig
@@ -184,7 +184,7 @@ def pipeline_config(args, **save):
     cfg = PipelineConfig(
         read=ReadConfig(getattr(args, "frames", None)), undistort=UndistortConfig(args.undistort),
         views=ViewsConfig(str(args.views)), scale=ScaleConfig(args.output_size),
-        agreement=None if getattr(args, "no_agreement_check", False) else AgreementConfig(),
+        agreement=_agreement(getattr(args, "depth_agreement", "check")),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
         matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution,
                                  across=getattr(args, "matte_across", "auto")),
@@ -197,6 +197,13 @@ def pipeline_config(args, **save):
         save=SaveConfig(**save), spill=args.spill,
         workers=args.view_workers if args.view_workers is not None else AUTO_WORKERS)
     return cfg.reference() if args.reference_pipeline else cfg
+
+
+def _agreement(mode: str):
+    """The depth-agreement stage's config of ``--depth-agreement`` (None: off)."""
+    from capture.depth_agreement import AgreementConfig
+
+    return None if mode == "off" else AgreementConfig(fix=mode == "fix")
 
 
 def pipeline_hooks(timer):

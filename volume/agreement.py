@@ -1,13 +1,16 @@
 """The depth-agreement stage of the pipeline (volume/pipeline/stages.py): before any model is built,
 whether the views' depths agree with their poses (capture.depth_agreement), said on the console when
-they do not; the model record keeps the figures.  Nothing is changed.  Off with ``--no-agreement-check``
-(its config None)."""
+they do not; the model record keeps the figures.  Nothing is changed.  Off with ``--depth-agreement off``
+(its config None); ``--depth-agreement fix`` scales the depth to the poses where it agrees best at
+another scale."""
 
 from __future__ import annotations
 
 import logging
 import zlib
-from dataclasses import asdict
+from dataclasses import asdict, replace
+
+import numpy as np
 
 from capture.depth_agreement import AgreementConfig, agreement, verdict, view_sample
 
@@ -33,6 +36,27 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     rec = verdict(s, share)
     log = logging.getLogger("furrow.capture")
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
+    if cfg.fix and rec["status"] == "scale":
+        work, rec = _rescaled(work, rec, ctx)
     rec["curve"] = {f"{x:.4g}": round(float(a), 4) for x, a in zip(s, share)}
     rec["per_view"] = {x.name: None if v != v else round(float(v), 4) for x, v in zip(work.scans, per_view)}
     return work.record("depth agreement", {**rec, "config": asdict(cfg)})
+
+
+def rescale_view(scan, ref, s: float):
+    """Per view: the scan with its depth times ``s``."""
+    return replace(scan, depth=(np.asarray(scan.depth, np.float32) * np.float32(s)).astype(np.float32)), None
+
+
+def _rescaled(work, rec: dict, ctx):
+    """(work with every view's depth scaled by the best scale, and its bounds found again from the depth
+    where the capture gives none; the record with ``applied``).  The poses stay as they are, so that the
+    model keeps the capture's frame: the held-out views of furrow eval, a camera path of the same poses."""
+    from capture.io import auto_bounds
+
+    s = float(rec["best_scale"])
+    scans, _ = ctx.map_views(rescale_view, work, s, "depth agreement: depth rescaled")
+    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every view's depth scaled by %.4g to the poses (--depth-agreement fix)", s)
+    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "applied": round(s, 6)}

@@ -166,7 +166,8 @@ def test_poses_at_half_scale_are_named_with_the_scale_that_undoes_them(scan_dir,
     """The poses' translations at half their scale (structure-from-motion poses with metric depth): furrow model
     warns that the depth agrees best scaled by about 0.5 before any other stage, and when the model then has no
     surface the error says so too (this small sphere: the extent stage removes every view's depth as far);
-    --no-agreement-check leaves the check out.  The capture as written agrees at scale 1 and says nothing."""
+    --depth-agreement off leaves the check out, fix scales the depth to the poses.  The capture as written agrees
+    at scale 1 and says nothing."""
     def half(meta):
         for f in meta["frames"]:
             m = np.array(f["transform_matrix"])
@@ -178,8 +179,17 @@ def test_poses_at_half_scale_are_named_with_the_scale_that_undoes_them(scan_dir,
     _assert_failed_cleanly(rc, err, out, "no surface at any level")
     assert "WARNING depth agreement: the views' depths agree best with their poses when scaled by 0.5" in flat, flat
     assert flat.count("scaled by 0.5") == 2  # the warning, and the error
-    rc, err, out = _model_of_edited(scan_dir, tmp_path / "off", capsys, half, "--no-agreement-check")
+    rc, err, out = _model_of_edited(scan_dir, tmp_path / "off", capsys, half, "--depth-agreement", "off")
     assert rc == 1 and "depth agreement" not in err
+    # --depth-agreement fix: every view's depth times that scale, the poses kept: the model is made, its sphere
+    # of 7 cm at half size in the poses' frame (3.5 cm) where the right capture's is 7 cm
+    rc, err, out = _model_of_edited(scan_dir, tmp_path / "fix", capsys, half, "--depth-agreement", "fix")
+    assert rc == 0, err
+    m = load_model(out)
+    assert abs(np.log(m.params["depth_agreement"]["applied"] / 0.5)) < np.log(1.02)
+    lv = m.pyramid.levels[-1]
+    r = np.linalg.norm(lv.centers(), axis=1)  # the scene, its sphere at the origin, at half scale
+    assert abs(np.median(r) - 0.035) < 1.5 * lv.voxel_size, (np.median(r), lv.voxel_size)
     rc, _, err = _run(["model", str(scan_dir), "-o", str(tmp_path / "right"), "--max-res", "16"], capsys)
     rec = load_model(tmp_path / "right").params["depth_agreement"]
     assert rc == 0 and "WARNING  depth agreement" not in err

@@ -133,7 +133,7 @@ class PipelineConfig:
     """working scale: views scaled to the output size."""
     agreement: AgreementConfig | None = field(default_factory=AgreementConfig)
     """depth agreement: whether the views' depths agree with their poses, warned when not (None:
-    ``--no-agreement-check``)."""
+    ``--depth-agreement off``)."""
     extent: ExtentConfig | None = field(default_factory=ExtentConfig)
     """extent: support plane, far depth, clutter and floaters out of the depth (None: ``--no-extent``)."""
     plate: PlateConfig | None = field(default_factory=PlateConfig)
