@@ -1,0 +1,122 @@
+"""Copies of a transforms.json capture broken the way a user's capture can be (docs/capture_formats.md, "Depth
+that does not agree with its poses"): each a full copy (no links) under OUT/NAME.
+
+    PYTHONPATH=. .venv/bin/python scripts/broken_captures.py CAPTURE OUT [NAME ...]
+
+Names (default: all): rgba, rgb16, gray (the colour files re-encoded); unit10, unit2 (depth_unit_scale_factor
+x 0.1, x 2); flipgl (the poses' y and z axes negated: OpenCV axes read as OpenGL's); focal15, focal07 (fl_x, fl_y
+x 1.5, x 0.7); cx0 (principal point at (0, 0)); shufdepth (each frame given the next frame's depth file); posemm,
+pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid).
+Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+
+def _frames(edit):
+    def e(tj):
+        for f in tj["frames"]:
+            edit(f)
+    return e
+
+
+def _pose(edit):
+    def e(f):
+        m = np.array(f["transform_matrix"], np.float64)
+        edit(m)
+        f["transform_matrix"] = m.tolist()
+    return _frames(e)
+
+
+def _unit(k):
+    def e(tj):
+        tj["depth_unit_scale_factor"] = k * tj.get("depth_unit_scale_factor", 0.001)
+    return e
+
+
+def _focal(k):
+    def e(f):
+        f["fl_x"] *= k
+        f["fl_y"] *= k
+    return _frames(e)
+
+
+def _shuffle_depth(d: Path, tj: dict) -> None:
+    fr = tj["frames"]
+    data = [(d / f["depth_file_path"]).read_bytes() for f in fr]
+    for i, f in enumerate(fr):
+        (d / f["depth_file_path"]).write_bytes(data[(i + 1) % len(fr)])
+
+
+def _scale_t(k):
+    def e(m):
+        m[:3, 3] *= k
+    return e
+
+
+def _flip(m):
+    m[:3, 1:3] *= -1
+
+
+def _rot13(m):
+    m[:3, :3] *= 1.3
+
+
+VARIANTS = {
+    "rgba": {"image": lambda im: cv2.cvtColor(im, cv2.COLOR_BGR2BGRA)},
+    "rgb16": {"image": lambda im: im.astype(np.uint16) * 257},
+    "gray": {"image": lambda im: cv2.cvtColor(im, cv2.COLOR_BGR2GRAY)},
+    "unit10": {"meta": _unit(0.1)},
+    "unit2": {"meta": _unit(2.0)},
+    "flipgl": {"meta": _pose(_flip)},
+    "focal15": {"meta": _focal(1.5)},
+    "focal07": {"meta": _focal(0.7)},
+    "cx0": {"meta": _frames(lambda f: f.update(cx=0.0, cy=0.0))},
+    "shufdepth": {"files": _shuffle_depth},
+    "posemm": {"meta": _pose(_scale_t(1000.0))},
+    "pose05": {"meta": _pose(_scale_t(0.5))},
+    "pose3": {"meta": _pose(_scale_t(3.0))},
+    "rotscale": {"meta": _pose(_rot13)},
+}
+
+
+def broken_copy(src: Path, out: Path, name: str) -> Path:
+    """OUT/NAME: a copy of the capture ``src`` broken as ``name`` (module docstring)."""
+    v = VARIANTS[name]
+    d = out / name
+    if d.exists():
+        shutil.rmtree(d)
+    shutil.copytree(src, d, symlinks=False)
+    tj = json.loads((d / "transforms.json").read_text())
+    if "meta" in v:
+        v["meta"](tj)
+    (d / "transforms.json").write_text(json.dumps(tj, indent=1))
+    if "image" in v:
+        for f in tj["frames"]:
+            p = d / f["file_path"]
+            cv2.imwrite(str(p), v["image"](cv2.imread(str(p), cv2.IMREAD_UNCHANGED)))
+    if "files" in v:
+        v["files"](d, tj)
+    return d
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("capture", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("names", nargs="*", choices=[[], *VARIANTS], default=[])
+    a = ap.parse_args()
+    for name in a.names or VARIANTS:
+        print(broken_copy(a.capture, a.out, name))
+
+
+if __name__ == "__main__":
+    main()
