@@ -32,8 +32,8 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     if sum(len(p) for p, _, _ in samples) == 0:  # no view has depth: the fuse stage's error says so
         return work.record("depth agreement", {"status": "no depth", "config": asdict(cfg)})
     cams = [s.camera for s in work.scans]
-    s, share, per_view = agreement(samples, cams, cfg)
-    rec = verdict(s, share)
+    s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
+    rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
     log = logging.getLogger("furrow.capture")
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
     if cfg.fix and rec["status"] == "scale":

@@ -16,7 +16,7 @@ from capture.depth_agreement import (
     verdict,
     view_sample,
 )
-from tests.scenes import make_scanset, scan_ring, spheres_scene
+from tests.scenes import Scene, make_scanset, ring_cameras, scan_ring, spheres_scene
 
 CFG = AgreementConfig()
 
@@ -28,8 +28,8 @@ def ring():
 
 def _check(scans, cfg=CFG):
     samples = [view_sample(s.depth, s.camera, cfg.points, i) for i, s in enumerate(scans)]
-    s, share, per_view = agreement(samples, [x.camera for x in scans], cfg)
-    return verdict(s, share), s, share
+    s, share, share_all, per_view, _ = agreement(samples, [x.camera for x in scans], cfg)
+    return verdict(s, share, share_all), s, share_all
 
 
 def _with_depth(scans, f):
@@ -62,6 +62,35 @@ def test_intrinsics_of_another_frame_agree_nowhere(ring):
              for x in ring.scans]
     rec, _, share = _check(scans)
     assert rec["status"] == "none" and max(share) < 0.05, rec
+
+
+def _table_scene(height=-0.06, radius=0.6):
+    """The five spheres on a round table top (z = ``height``) of ``radius``: ray cast in closed form."""
+    sp = spheres_scene()
+
+    def ray(o, d):
+        down = d[:, 2] < -1e-9
+        t = np.where(down, (height - o[:, 2]) / np.where(down, d[:, 2], -1.0), np.inf)
+        t = np.where(t > 0, t, np.inf)
+        p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d
+        return np.minimum(sp.raycast(o, d), np.where(np.hypot(p[:, 0], p[:, 1]) < radius, t, np.inf))
+    return Scene("table", sp.sdf, ray, sp.bounds)
+
+
+def test_a_table_top_is_scale_blind_and_left_out():
+    """A table seen by a ring of cameras at one height agrees at every depth scale (each camera's scaled plane
+    is one plane): its points are found scale-blind and left out of the scale search, which still finds 1 on
+    the right capture and the undoing scale on the half-scale one."""
+    cams = ring_cameras(6, 96, 72, elevations=(25.0,), fov_deg=40.0)
+    ss = make_scanset(_table_scene(), cams, noise=0.0005)
+    samples = [view_sample(x.depth, x.camera, CFG.points, i) for i, x in enumerate(ss.scans)]
+    s, share, share_all, _, blind = agreement(samples, cams, CFG)
+    rec = verdict(s, share, share_all)
+    assert rec["status"] == "agree" and abs(np.log(rec["best_scale"])) <= np.log(1.01), rec
+    assert blind > 0.5  # most of the frame is table
+    half = [view_sample(0.5 * x.depth, x.camera, CFG.points, i) for i, x in enumerate(ss.scans)]
+    rec = verdict(*agreement(half, cams, CFG)[:3])
+    assert rec["status"] == "scale" and abs(np.log(rec["best_scale"] / 2.0)) <= np.log(1.01), rec
 
 
 def _pair_reference(points, cam_i, cam_j, depth_small, step, s, rel):
