@@ -152,16 +152,6 @@ def pair_hits(points: np.ndarray, cam_i, cam_j, small: np.ndarray, step: int, s:
     return landed & (np.abs(z - zj) <= rel * zj), landed
 
 
-def pair_agreement(points: np.ndarray, cam_i, cam_j, small: np.ndarray, step: int, s: np.ndarray,
-                   rel: float, keep: np.ndarray | None = None) -> np.ndarray:
-    """(2, S): how many of the ``keep`` (m,) points of :func:`pair_hits` agree, and how many land on measured
-    depth, at each of ``s`` (every point without ``keep``)."""
-    ok, landed = pair_hits(points, cam_i, cam_j, small, step, s, rel)
-    if keep is not None:
-        ok, landed = ok[:, keep], landed[:, keep]
-    return np.stack([np.count_nonzero(ok, axis=1), np.count_nonzero(landed, axis=1)])
-
-
 def agreement(samples, cameras, cfg: AgreementConfig):
     """(the scales searched (S,) ascending; the share of the points that are not scale-blind that agree at
     each (S,); the share of every point that agrees at each (S,); each view's own share at scale 1 (V,), NaN

@@ -11,7 +11,7 @@ from capture.camera import make_K
 from capture.depth_agreement import (
     AgreementConfig,
     agreement,
-    pair_agreement,
+    pair_hits,
     scales,
     verdict,
     view_sample,
@@ -94,11 +94,10 @@ def test_a_table_top_is_scale_blind_and_left_out():
 
 
 def _pair_reference(points, cam_i, cam_j, depth_small, step, s, rel):
-    """pair_agreement point by point and scale by scale (the reference): (agreeing, landed) per scale."""
-    out = []
-    for sc in s:
-        n = landed = 0
-        for p in points:
+    """pair_hits point by point and scale by scale (the reference): (agreeing, landed), each (S, m)."""
+    ok, on = np.zeros((len(s), len(points)), bool), np.zeros((len(s), len(points)), bool)
+    for a, sc in enumerate(s):
+        for b, p in enumerate(points):
             w = cam_i.world_from_cam[:3, :3] @ (sc * p) + cam_i.world_from_cam[:3, 3]
             q = cam_j.world_from_cam[:3, :3].T @ (w - cam_j.world_from_cam[:3, 3])
             if q[2] <= 1e-9:
@@ -108,20 +107,21 @@ def _pair_reference(points, cam_i, cam_j, depth_small, step, s, rel):
             r, c = int(np.rint(v / step)), int(np.rint(u / step))
             if 0 <= r < depth_small.shape[0] and 0 <= c < depth_small.shape[1]:
                 zj = sc * float(depth_small[r, c])
-                n += zj > 0 and abs(q[2] - zj) <= rel * zj
-                landed += zj > 0
-        out.append((n, landed))
-    return np.array(out).T
+                ok[a, b] = zj > 0 and abs(q[2] - zj) <= rel * zj
+                on[a, b] = zj > 0
+    return ok, on
 
 
-def test_pair_agreement_equals_the_point_by_point_reference(ring):
+def test_pair_hits_equal_the_point_by_point_reference(ring):
     a, b = ring.scans[0], ring.scans[1]
     pts, _, _ = view_sample(a.depth, a.camera, 300, 0)
     _, small, step = view_sample(b.depth, b.camera, 10, 1)
     s = scales()[::7]
-    got = pair_agreement(pts, a.camera, b.camera, small, step, s, 0.01)
-    np.testing.assert_array_equal(got, _pair_reference(pts, a.camera, b.camera, small, step, s, 0.01))
-    assert got[0].max() > 50 and (got[1] >= got[0]).all() and got[1].max() > got[0].max()
+    ok, on = pair_hits(pts, a.camera, b.camera, small, step, s, 0.01)
+    ref_ok, ref_on = _pair_reference(pts, a.camera, b.camera, small, step, s, 0.01)
+    np.testing.assert_array_equal(ok, ref_ok)
+    np.testing.assert_array_equal(on, ref_on)
+    assert ok.sum(1).max() > 50 and (on | ~ok).all() and on.sum() > ok.sum()
 
 
 def test_config_is_validated():
