@@ -51,6 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Views further apart in viewing direction than this (degrees) are not compared.
+MAX_PAIR_ANGLE = 75.0
 #: Depth pixels sampled per view.
 AGREE_POINTS = 1000
 #: Nearest views (in viewing direction) each view's points are projected into.
@@ -119,12 +121,16 @@ def view_sample(depth: np.ndarray, camera, n: int, seed: int) -> tuple[np.ndarra
 
 
 def neighbours(cameras, k: int) -> np.ndarray:
-    """(V, min(k, V - 1)) the views nearest each view in viewing direction (its optical axis)."""
+    """(V, min(k, V - 1)) the views nearest each view in viewing direction (its optical axis), -1 where the
+    next nearest is more than :data:`MAX_PAIR_ANGLE` degrees away (two views of opposite sides share too
+    little of the object to be compared)."""
     f = np.array([c.forward for c in cameras], np.float64)
     f /= np.maximum(np.linalg.norm(f, axis=1, keepdims=True), 1e-12)
     cos = f @ f.T
     np.fill_diagonal(cos, -np.inf)
-    return np.argsort(-cos, axis=1, kind="stable")[:, : max(0, min(int(k), len(cameras) - 1))]
+    nb = np.argsort(-cos, axis=1, kind="stable")[:, : max(0, min(int(k), len(cameras) - 1))]
+    far = np.take_along_axis(cos, nb, axis=1) < np.cos(np.radians(MAX_PAIR_ANGLE))
+    return np.where(far, -1, nb)
 
 
 def pair_hits(points: np.ndarray, cam_i, cam_j, small: np.ndarray, step: int, s: np.ndarray,
@@ -163,12 +169,14 @@ def agreement(samples, cameras, cfg: AgreementConfig):
     s = scales()
     one = int(np.argmin(np.abs(np.log(s))))
     nb = neighbours(cameras, cfg.neighbours)
+    if not (nb >= 0).any():
+        return s, np.zeros(len(s)), np.zeros(len(s)), np.full(len(cameras), np.nan), 0.0
     hits, every, kept, seen = np.zeros(len(s)), np.zeros(len(s)), 0, 0
     per_view = np.full(len(cameras), np.nan)
     keeps = {}
     for i, (pts, _, _) in enumerate(samples):
         h = np.zeros((2, len(s)))
-        for j in nb[i] if len(pts) else ():
+        for j in nb[i][nb[i] >= 0] if len(pts) else ():
             ok, landed = pair_hits(pts, cameras[i], cameras[j], samples[j][1], samples[j][2], s, cfg.rel)
             keeps[i, j] = keep = np.count_nonzero(ok, axis=0) <= BLIND_SCALES
             h += [np.count_nonzero(ok[:, keep], axis=1), np.count_nonzero(landed[:, keep], axis=1)]

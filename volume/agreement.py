@@ -12,7 +12,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from capture.depth_agreement import AgreementConfig, agreement, verdict, view_sample
+from capture.depth_agreement import MAX_PAIR_ANGLE, AgreementConfig, agreement, neighbours, verdict, view_sample
 
 
 def sample_view(scan, ref, arg):
@@ -25,13 +25,18 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     """The depth-agreement stage: each view's sample through ``ctx.map_views``, the share of points
     agreeing at each depth scale, the verdict warned unless it is ``agree``; record: the verdict, the
     scales' shares (rounded), each view's own share and the config; None with fewer than 2 views, status
-    ``no depth`` where no view has any (the fuse stage refuses such a capture, and says why)."""
+    ``no depth`` where no view has any (the fuse stage refuses such a capture, and says why), ``no pairs``
+    where no two views are within MAX_PAIR_ANGLE of each other."""
     if len(work.scans) < 2:
         return work.record("depth agreement", None)
     samples = ctx.map_views(sample_view, work, int(cfg.points), "depth agreement")[1]
     if sum(len(p) for p, _, _ in samples) == 0:  # no view has depth: the fuse stage's error says so
         return work.record("depth agreement", {"status": "no depth", "config": asdict(cfg)})
     cams = [s.camera for s in work.scans]
+    if not (neighbours(cams, cfg.neighbours) >= 0).any():
+        logging.getLogger("furrow.capture").info("depth agreement: no two views within %g degrees of each other: "
+                                                 "nothing to compare", MAX_PAIR_ANGLE)
+        return work.record("depth agreement", {"status": "no pairs", "config": asdict(cfg)})
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
     rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
     log = logging.getLogger("furrow.capture")

@@ -9,8 +9,10 @@ import pytest
 
 from capture.camera import make_K
 from capture.depth_agreement import (
+    MAX_PAIR_ANGLE,
     AgreementConfig,
     agreement,
+    neighbours,
     pair_hits,
     scales,
     verdict,
@@ -122,6 +124,22 @@ def test_pair_hits_equal_the_point_by_point_reference(ring):
     np.testing.assert_array_equal(ok, ref_ok)
     np.testing.assert_array_equal(on, ref_on)
     assert ok.sum(1).max() > 50 and (on | ~ok).all() and on.sum() > ok.sum()
+
+
+def test_views_of_opposite_sides_are_not_compared(ring):
+    """Views further apart than MAX_PAIR_ANGLE have no neighbour (-1): 2 of the 12 ring views 180 degrees
+    apart are not compared (they share too little of the object: a fur ball's two opposite views had agreed best
+    at the scale 1.26 by chance), 4 of them 90 degrees apart neither, every 3rd of them (120) neither; the
+    whole ring (30 degrees) has both neighbours."""
+    assert MAX_PAIR_ANGLE < 90
+    cams = [x.camera for x in ring.scans]
+    for step in (6, 3, 4):
+        assert (neighbours(cams[::step], 2) == -1).all(), step
+    nb = neighbours(cams, 2)
+    assert (nb >= 0).all() and sorted(nb[0]) == [1, 11]
+    samples = [view_sample(x.depth, x.camera, 100, i) for i, x in enumerate(ring.scans[::6])]
+    _, share, share_all, per_view, _ = agreement(samples, cams[::6], CFG)
+    assert not share.any() and not share_all.any() and np.isnan(per_view).all()
 
 
 def test_config_is_validated():
