@@ -90,7 +90,8 @@ class AgreementConfig:
     """Agreement tolerance: a fraction of the measured depth."""
     fix: bool = False
     """``--depth-agreement fix``: where the depth agrees best at another scale s (verdict ``scale``), every
-    view's depth is scaled by s (the poses, and the model's frame, stay the capture's)."""
+    view's depth is scaled by s (the poses, and the model's frame, stay the capture's); where the colour's edges
+    sit beside the depth's (capture.depth_registration), every depth map is moved onto its colour."""
 
     def __post_init__(self) -> None:
         if self.points < 1 or self.neighbours < 1 or not 0 < self.rel < 1:

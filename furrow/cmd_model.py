@@ -164,6 +164,9 @@ def print_report(console, summary: dict, out) -> None:
         msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
         console.print(f"[yellow]depth agreement: {msg} This model may be wrong (model.json "
                       "params.depth_agreement).[/]", highlight=False)
+    if agree.get("colour_offset"):  # capture.depth_registration
+        done = " (moved back: --depth-agreement fix)" if agree.get("colour_offset_applied") else ""
+        console.print(f"[yellow]depth agreement: {agree['colour_offset_message']}{done}[/]", highlight=False)
     target = summary.get("sphere_target")
     if target is not None and summary["sphere_error"] > target:  # volume.spheres.fit_spheres: its best, reported
         console.print(f"[yellow]spheres: 1 - IoU {summary['sphere_error']:.3f} misses the target {target:g} "

@@ -194,6 +194,30 @@ def test_poses_at_half_scale_are_named_with_the_scale_that_undoes_them(scan_dir,
     rec = load_model(tmp_path / "right").params["depth_agreement"]
     assert rc == 0 and "WARNING  depth agreement" not in err
     assert rec["status"] == "agree" and abs(np.log(rec["best_scale"])) < np.log(1.02) and rec["share"] > 0.3, rec
+    assert rec["colour_offset_px"] == [0.0, 0.0] and not rec["colour_offset"]
+
+
+def test_depth_beside_its_colour_is_warned_and_fixed(scan_dir, tmp_path, capsys):
+    """Every depth file moved 5 px right of its colour (depth not registered to the colour camera): furrow model
+    warns with the offset, (-5, 0), and ``--depth-agreement fix`` moves the depth back; the capture as written
+    has no offset (test_poses_at_half_scale_...)."""
+    import cv2
+
+    d = _copy(scan_dir, tmp_path / "moved")
+    for f in json.loads((d / "transforms.json").read_text())["frames"]:
+        p = d / f["depth_file_path"]
+        z = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        m = np.zeros_like(z)
+        m[:, 5:] = z[:, :-5]
+        cv2.imwrite(str(p), m)
+    for flags, applied in (((), None), (("--depth-agreement", "fix"), [-5, 0])):
+        out = tmp_path / f"m{len(flags)}"
+        rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+        assert rc == 0, err
+        assert "colour images' edges sit (-5, +0) px from the depth's" in " ".join(err.split()), err
+        rec = load_model(out).params["depth_agreement"]
+        assert rec["colour_offset"] and rec["colour_offset_px"] == [-5.0, 0.0]
+        assert rec.get("colour_offset_applied") == applied
 
 
 def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):

@@ -1,0 +1,58 @@
+"""capture.depth_registration: the depth's edges against the colour's, on seeded scenes with exact depth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from capture.depth_registration import OFFSET_RADIUS, depth_edges, edge_scores, offset_verdict, shifted_depth
+from tests.scenes import make_scanset, scan_ring, spheres_scene
+
+
+@pytest.fixture(scope="module")
+def ring():
+    return make_scanset(spheres_scene(), scan_ring(8, 160, 120), noise=0.0005)
+
+
+def _verdict(scans, move=(0, 0)):
+    scores = [edge_scores(np.asarray(x.rgb), shifted_depth(x.depth, *move), i) for i, x in enumerate(scans)]
+    return offset_verdict(np.sum([s for s, _ in scores], axis=0), len(scores), scores[0][1])
+
+
+def test_registered_depth_has_no_offset(ring):
+    rec = _verdict(ring.scans)
+    assert rec["colour_offset_px"] == [0.0, 0.0] and not rec["colour_offset"], rec
+
+
+@pytest.mark.parametrize("move", [(4, -3), (-6, 0), (0, 5)])
+def test_moved_depth_is_found_by_its_offset(ring, move):
+    """Every depth map moved by (dx, dy): the colour's edges sit at (-dx, -dy) from the depth's, reported."""
+    rec = _verdict(ring.scans, move)
+    assert rec["colour_offset"] and rec["colour_offset_px"] == [-move[0], -move[1]], rec
+    assert rec["colour_offset_gain"] > 1.05 and "registered" in rec["colour_offset_message"]
+
+
+def test_a_small_move_is_not_reported(ring):
+    """2 px (under OFFSET_MIN_PX) is found but not reported."""
+    rec = _verdict(ring.scans, (2, 0))
+    assert rec["colour_offset_px"] == [-2.0, 0.0] and not rec["colour_offset"], rec
+
+
+def test_edges_are_symmetric_and_the_shift_is_exact():
+    z = np.zeros((6, 7), np.float32)
+    z[2:4, 2:5] = 1.0
+    e = depth_edges(z)
+    np.testing.assert_array_equal(e, depth_edges(z[::-1, ::-1])[::-1, ::-1])  # no side preferred
+    assert e[2, 1] and e[2, 2] and not e[0, 0]
+    moved = shifted_depth(z, 2, -1)
+    ref = np.zeros_like(z)
+    ref[1:3, 4:7] = 1.0
+    np.testing.assert_array_equal(moved, ref)
+    assert not shifted_depth(z, 7, 0).any()
+
+
+def test_too_few_edges_score_nothing():
+    z = np.ones((40, 40), np.float32)  # measured everywhere, flat: no edge
+    scores, scale = edge_scores(np.zeros((40, 40, 3), np.uint8), z)
+    assert scores is None and scale == 1.0
+    assert OFFSET_RADIUS >= 3
