@@ -114,9 +114,7 @@ def view_sample(depth: np.ndarray, camera, n: int, seed: int) -> tuple[np.ndarra
     pick = np.sort(rng.choice(v, min(int(n), len(v)), replace=False)) if len(v) else v
     ys, xs = np.divmod(pick, d.shape[1])
     z = d.ravel()[pick].astype(np.float64)
-    K = camera.K
-    pts = np.stack([(xs - K[0, 2] - K[0, 1] * (ys - K[1, 2]) / K[1, 1]) / K[0, 0] * z,
-                    (ys - K[1, 2]) / K[1, 1] * z, z], axis=1)
+    pts = camera.pixel_rays(np.stack([xs, ys], axis=1)) * z[:, None]
     step = max(1, int(np.ceil(max(d.shape) / AGREE_MAP_PX)))
     small = np.where(np.isfinite(d[::step, ::step]), d[::step, ::step], 0.0).astype(np.float32)
     return pts, small, step
@@ -140,19 +138,13 @@ def pair_hits(points: np.ndarray, cam_i, cam_j, small: np.ndarray, step: int, s:
     """((S, m) whether each of view i's camera-frame ``points`` agrees with view j's depth (``small``, every
     ``step`` pixels), (S, m) whether it lands on a pixel where view j measured depth), with every depth
     scaled by each of ``s`` (module docstring)."""
-    Ti, Tj = cam_i.world_from_cam, cam_j.world_from_cam
-    Rj = Tj[:3, :3]
-    Mp = points @ (Rj.T @ Ti[:3, :3]).T                  # view i's rays in view j's frame
-    b = Rj.T @ (Ti[:3, 3] - Tj[:3, 3])                   # the baseline, which does not scale
-    q = s[:, None, None] * Mp[None] + b                  # (S, m, 3)
-    z = q[..., 2]
+    Ti = cam_i.world_from_cam
+    world = s[:, None, None] * (points @ Ti[:3, :3].T)[None] + Ti[:3, 3]   # (S, m, 3): depth x s about view i
+    uv, z = cam_j.project(world)                                          # uv NaN behind view j
     front = z > 1e-9
-    zs = np.where(front, z, 1.0)
-    K = cam_j.K
-    v = K[1, 1] * q[..., 1] / zs + K[1, 2]
-    u = K[0, 0] * q[..., 0] / zs + K[0, 1] * q[..., 1] / zs + K[0, 2]
-    r, c = np.rint(v / step), np.rint(u / step)
-    inside = front & (r >= 0) & (r < small.shape[0]) & (c >= 0) & (c < small.shape[1])
+    with np.errstate(invalid="ignore"):
+        r, c = np.rint(uv[..., 1] / step), np.rint(uv[..., 0] / step)
+        inside = front & (r >= 0) & (r < small.shape[0]) & (c >= 0) & (c < small.shape[1])
     zj = np.zeros(z.shape)
     zj[inside] = small[r[inside].astype(np.int64), c[inside].astype(np.int64)]
     zj *= s[:, None]
