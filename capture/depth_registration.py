@@ -4,7 +4,7 @@ An RGB-D capture whose depth was not registered to the colour camera (or was reg
 calibration) puts every depth pixel a few pixels beside the colour it belongs to.  The depths still agree
 with each other and with the poses (capture.depth_agreement sees nothing), and the model is built without
 a word: on the 24-view synthetic fur ball, every depth map moved 6 px to the right cost the held-out views
-1.95 dB (24.48 -> 22.53, docs/capture_formats.md).
+1.95 dB (24.48 -> 22.52, docs/capture_formats.md).
 
 The check.  Where the depth has an edge (a measured pixel beside an unmeasured one, or a step of more than
 :data:`EDGE_LOG_STEP` in log depth: the object's silhouette and its folds), the colour image has one too.  Each
