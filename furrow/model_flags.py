@@ -104,11 +104,12 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
                    help="whether the views' depths agree with their poses (each view's depth points projected into "
                         "its 2 nearest views at depth scales 1/4..4; capture/depth_agreement.py): 'check' (default) "
                         "warns when they agree best at another scale (a wrong depth unit, structure-from-motion poses "
-                        "with metric depth) or at none (intrinsics, axes, files), and when the colour's edges sit "
+                        "with metric depth) or at none (intrinsics, axes, files), when other focal lengths fit "
+                        "(fl_x, fl_y of another image size), and when the colour's edges sit "
                         "beside the depth's (depth not registered to the colour; capture/depth_registration.py); "
                         "'fix' also "
                         "scales the depth to the poses and moves it onto its colour (the model stays in the poses' "
-                        "frame and unit); 'off'")
+                        "frame and unit; the intrinsics stay as given); 'off'")
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")

@@ -5,7 +5,8 @@ that does not agree with its poses"): each a full copy (no links) under OUT/NAME
 
 Names (default: all): rgba, rgb16, gray (the colour files re-encoded); unit10, unit2 (depth_unit_scale_factor
 x 0.1, x 2); flipgl (the poses' y and z axes negated: OpenCV axes read as OpenGL's); focal15, focal07 (fl_x, fl_y
-x 1.5, x 0.7); cx0 (principal point at (0, 0)); shufdepth (each frame given the next frame's depth file); posemm,
+x 1.5, x 0.7; also focal08, focal09, focal11, focal12, focal125, focal20);
+cx0 (principal point at (0, 0)); shufdepth (each frame given the next frame's depth file); posemm,
 pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
@@ -43,10 +44,12 @@ def _unit(k):
 
 
 def _focal(k):
-    def e(f):
-        f["fl_x"] *= k
-        f["fl_y"] *= k
-    return _frames(e)
+    def e(tj):
+        for d in [tj, *tj["frames"]]:  # shared intrinsics or each frame's
+            for key in ("fl_x", "fl_y"):
+                if key in d:
+                    d[key] *= k
+    return e
 
 
 def _shuffle_depth(d: Path, tj: dict) -> None:
@@ -79,6 +82,8 @@ VARIANTS = {
     "flipgl": {"meta": _pose(_flip)},
     "focal15": {"meta": _focal(1.5)},
     "focal07": {"meta": _focal(0.7)},
+    **{f"focal{n}": {"meta": _focal(k)} for n, k in (("08", 0.8), ("09", 0.9), ("11", 1.1), ("12", 1.2),
+                                                      ("125", 1.25), ("20", 2.0))},
     "cx0": {"meta": _frames(lambda f: f.update(cx=0.0, cy=0.0))},
     "shufdepth": {"files": _shuffle_depth},
     "posemm": {"meta": _pose(_scale_t(1000.0))},

@@ -2,7 +2,9 @@
 whether the views' depths agree with their poses (capture.depth_agreement) and with their colour images
 (capture.depth_registration), said on the console when they do not; the model record keeps the figures.
 Nothing is changed, unless ``--depth-agreement fix``: then the depth is scaled to the poses where it agrees
-best at another scale, and moved onto its colour where the colour's edges sit beside it.  Off with
+best at another scale, and moved onto its colour where the colour's edges sit beside it.  A focal length
+that is off (capture.depth_agreement.focal_check) is looked for where the scales' verdict is ``agree`` or
+``scale`` (a focal length 0.7x its own reads as the scale 0.85): it is warned about, and never fixed.  Off with
 ``--depth-agreement off`` (its config None)."""
 
 from __future__ import annotations
@@ -13,7 +15,15 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from capture.depth_agreement import MAX_PAIR_ANGLE, AgreementConfig, agreement, neighbours, verdict, view_sample
+from capture.depth_agreement import (
+    MAX_PAIR_ANGLE,
+    AgreementConfig,
+    agreement,
+    focal_check,
+    neighbours,
+    verdict,
+    view_sample,
+)
 from capture.depth_registration import edge_scores, offset_verdict, shifted_depth
 
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
@@ -61,9 +71,17 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         return work.record("depth agreement", {**rec, "status": "no pairs", "config": asdict(cfg)})
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
     rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4), **rec}
+    if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
+        focal = focal_check(samples, cams, cfg)
+        rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
+        if focal["status"] == "focal":
+            rec["status"], rec["message"] = "focal", focal["message"]
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
     if cfg.fix and rec["status"] == "scale":
         work, rec = _rescaled(work, rec, ctx)
+    elif cfg.fix and rec["status"] == "focal":
+        log.warning("depth agreement: --depth-agreement fix leaves the intrinsics as the capture gives them "
+                    "(a depth scale would not undo a focal length; the held-out views keep the capture's cameras)")
     rec["curve"] = {f"{x:.4g}": round(float(a), 4) for x, a in zip(s, share)}
     rec["per_view"] = {x.name: None if v != v else round(float(v), 4) for x, v in zip(work.scans, per_view)}
     return work.record("depth agreement", {**rec, "config": asdict(cfg)})

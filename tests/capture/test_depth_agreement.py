@@ -12,6 +12,8 @@ from capture.depth_agreement import (
     MAX_PAIR_ANGLE,
     AgreementConfig,
     agreement,
+    focal_check,
+    focal_factors,
     neighbours,
     pair_hits,
     scales,
@@ -140,6 +142,58 @@ def test_views_of_opposite_sides_are_not_compared(ring):
     samples = [view_sample(x.depth, x.camera, 100, i) for i, x in enumerate(ring.scans[::6])]
     _, share, share_all, per_view, _ = agreement(samples, cams[::6], CFG)
     assert not share.any() and not share_all.any() and np.isnan(per_view).all()
+
+
+def _focal_times(scans, k):
+    """The scans with every camera's fl_x and fl_y times ``k`` (principal point kept), the depth as measured."""
+    def cam(c):
+        return replace(c, K=make_K(c.K[0, 0] * k, c.K[1, 1] * k, c.K[0, 2], c.K[1, 2]))
+    return [replace(x, camera=cam(x.camera)) for x in scans]
+
+
+def _focal(scans):
+    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
+    return focal_check(samples, [x.camera for x in scans], CFG)
+
+
+@pytest.mark.parametrize("k", [0.8, 1.25, 1.5])
+def test_a_focal_length_off_is_named_with_the_factor_that_undoes_it(ring, k):
+    """Focal lengths k times the ones the depth was measured with (intrinsics of another image size): the check
+    says ``focal`` with the factor 1 / k (to 2 %), nearly every view pair agreeing more there, the depth at its own
+    scale; a scale search alone would have read it as a depth scale or as nothing."""
+    rec = _focal(_focal_times(ring.scans, k))
+    assert rec["status"] == "focal", rec
+    assert abs(np.log(rec["focal_factor"] * k)) <= np.log(1.02), rec
+    assert rec["pairs_better"] >= 0.9 * (rec["pairs_better"] + rec["pairs_worse"])
+    assert abs(np.log(rec["depth_scale_at_focal"])) <= np.log(1.011)
+    assert rec["focal_share"] > 1.2 * rec["share_as_given"] and "fl_x" in rec["message"]
+
+
+def test_right_intrinsics_and_a_depth_scale_are_not_a_focal_length(ring):
+    """The right capture keeps its focal lengths (best factor 1); depth in another unit (x 2) is not taken for
+    a focal length: no factor makes it agree at the depth's own scale."""
+    rec = _focal(ring.scans)
+    assert rec["status"] == "as given" and rec["focal_factor"] == 1.0, rec
+    assert 1.0 in focal_factors()
+    rec = _focal(_with_depth(ring.scans, lambda i, z: z * 2.0))
+    assert rec["status"] == "as given", rec
+
+
+def test_pair_hits_with_a_focal_factor_equal_the_point_by_point_reference(ring):
+    """pair_hits(..., focal=f) is the point-by-point reference with both cameras' fl_x, fl_y times f and view
+    i's points back-projected through them (x and y over f)."""
+    a, b = ring.scans[0], ring.scans[1]
+    pts, _, _ = view_sample(a.depth, a.camera, 200, 0)
+    _, small, step = view_sample(b.depth, b.camera, 10, 1)
+    f = np.array([0.8, 1.0, 1.3])
+    s = np.array([1.0, 1.0, 1.1])
+    ok, on = pair_hits(pts, a.camera, b.camera, small, step, s, 0.01, f)
+    for g, (fg, sg) in enumerate(zip(f, s)):
+        ca, cb = (_focal_times([x], fg)[0].camera for x in (a, b))
+        ref_ok, ref_on = _pair_reference(pts * [1 / fg, 1 / fg, 1.0], ca, cb, small, step, [sg], 0.01)
+        np.testing.assert_array_equal(ok[g], ref_ok[0])
+        np.testing.assert_array_equal(on[g], ref_on[0])
+    assert ok[1].sum() > 50 and ok[0].sum() < ok[1].sum()
 
 
 def test_config_is_validated():

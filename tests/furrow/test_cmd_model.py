@@ -197,6 +197,28 @@ def test_poses_at_half_scale_are_named_with_the_scale_that_undoes_them(scan_dir,
     assert rec["colour_offset_px"] == [0.0, 0.0] and not rec["colour_offset"]
 
 
+def test_a_focal_length_off_is_named_and_not_fixed(scan_dir, tmp_path, capsys):
+    """Every frame's fl_x and fl_y 1.3 times the ones the depth was measured with: furrow model warns that the
+    depths agree best with the focal lengths times about 1 / 1.3, says so again at the end, and records it;
+    --depth-agreement fix leaves the depth and the intrinsics alone (no depth scale undoes a focal length)."""
+    def focal(meta):
+        for d in [meta, *meta["frames"]]:
+            for key in ("fl_x", "fl_y"):
+                if key in d:
+                    d[key] *= 1.3
+
+    for flags in ((), ("--depth-agreement", "fix")):
+        rc, err, out = _model_of_edited(scan_dir, tmp_path / f"f{len(flags)}", capsys, focal, *flags)
+        flat = " ".join(err.split())
+        rec = load_model(out).params["depth_agreement"]
+        assert rc == 0 and rec["status"] == "focal", (rec, flat)
+        assert abs(np.log(rec["focal"]["focal_factor"] * 1.3)) < np.log(1.03), rec
+        assert "WARNING depth agreement: the views' depths agree best with their poses when every focal length" \
+            in flat, flat
+        assert "This model may be wrong" in flat and "applied" not in rec
+        assert ("leaves the intrinsics as the capture gives them" in flat) == bool(flags)
+
+
 def test_depth_beside_its_colour_is_warned_and_fixed(scan_dir, tmp_path, capsys):
     """Every depth file moved 5 px right of its colour (depth not registered to the colour camera): furrow model
     warns with the offset, (-5, 0), and ``--depth-agreement fix`` moves the depth back; the capture as written

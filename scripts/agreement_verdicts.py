@@ -1,0 +1,40 @@
+"""The depth-agreement stage's verdicts on captures, as ``furrow model`` reaches them (capture/depth_agreement.py,
+volume/agreement.py), one line each: the scales' verdict and best scale, then the focal-length search's factor, the
+points agreeing as given and at that factor, the view pairs better / worse, the depth's best scale there.
+
+    PYTHONPATH=. .venv/bin/python scripts/agreement_verdicts.py CAPTURE [CAPTURE ...]
+
+docs/capture_formats.md ("A focal length that is off") was measured with it, on the copies that
+``scripts/broken_captures.py`` makes.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import zlib
+
+from capture.depth_agreement import AgreementConfig, agreement, focal_check, verdict, view_sample
+from capture.io import read_scanset
+
+
+def line(path: str) -> str:
+    """One capture's verdicts (module docstring)."""
+    scans = read_scanset(path).scans
+    t = time.perf_counter()
+    cfg = AgreementConfig()
+    samples = [view_sample(s.depth, s.camera, cfg.points, zlib.crc32(s.name.encode())) for s in scans]
+    cams = [s.camera for s in scans]
+    rec = verdict(*agreement(samples, cams, cfg)[:3])
+    f = focal_check(samples, cams, cfg) if rec["status"] in ("agree", "scale") else {}
+    status = "focal" if f.get("status") == "focal" else rec["status"]
+    focal = (f"focal x {f['focal_factor']:.4g}: {f['share_as_given']:.1%} -> {f['focal_share']:.1%}, pairs "
+             f"{f['pairs_better']}/{f['pairs_worse']}, depth scale there {f.get('depth_scale_at_focal', '-')}"
+             if f else "focal not searched")
+    return (f"{path.rstrip('/').split('/')[-1]:>28} {status:6} (scales: {rec['status']}, best {rec['best_scale']:.4g}) "
+            f"{focal}  {time.perf_counter() - t:.2f} s")
+
+
+if __name__ == "__main__":
+    for p in sys.argv[1:]:
+        print(line(p), flush=True)
