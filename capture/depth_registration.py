@@ -17,6 +17,12 @@ plant, noisy and pose-jittered copies, the 72-view phone plant, path-traced capt
 their best shift at exactly (0, 0); the fur ball with its depth moved 6 px right finds (-6, 0) at 1.13 times,
 the path-traced fur before a background of its own colour likewise at 1.04 times.
 The stage scores about 24 views of a capture (volume/agreement.py EDGE_VIEWS).
+
+A depth camera with its own field of view (its focal length a times the colour's, the maps read with the colour's
+intrinsics) puts the depth's edges a times as far from the principal point as the colour's: the depths then agree
+with the poses with every focal length times a (capture.depth_agreement.focal_check), as they do when the focal
+lengths are wrong for both images.  :func:`zoom_sums` tells the two apart (:data:`ZOOM_GAIN`), and
+:func:`zoomed_depth` draws the depth back (``--depth-agreement fix``).
 """
 
 from __future__ import annotations
@@ -38,6 +44,12 @@ EDGE_LOG_STEP = 0.05
 MIN_EDGE_PIXELS = 50
 #: ... and one with more is scored on this many of them (seeded by ``seed``; 4,000 found the same offsets).
 EDGE_SAMPLES = 2000
+#: Where the focal search (capture.depth_agreement.focal_check) finds a factor a, the colour's edges are held
+#: against the depth's drawn a times closer to the principal point (:func:`zoom_sums`): a depth camera with its own
+#: field of view, read with the colour's intrinsics, scores this many times the gradient there or more (1.34-1.77
+#: on the fur ball with its depth maps zoomed 0.9x / 1.15x); focal lengths wrong for colour and depth alike score
+#: less (0.12-0.95 on nine captures; docs/capture_formats.md).
+ZOOM_GAIN = 1.1
 
 
 def depth_edges(depth: np.ndarray) -> np.ndarray:
@@ -58,11 +70,10 @@ def depth_edges(depth: np.ndarray) -> np.ndarray:
     return e
 
 
-def edge_scores(rgb: np.ndarray, depth: np.ndarray, seed: int = 0) -> tuple[np.ndarray | None, float]:
-    """((2R+1, 2R+1) mean colour-gradient magnitude at the depth's edges shifted by (dy, dx) = index - R, over
-    the image's mean gradient, or None with too few edges; the working scale (working / full pixels)) of one
-    view (module docstring).  ``rgb``: (H, W, 3) colour (8-bit sRGB or linear), ``depth``: (H, W) metres; at most
-    EDGE_SAMPLES edge pixels, drawn with ``seed``."""
+def _gradient_and_edges(rgb: np.ndarray, depth: np.ndarray, seed: int):
+    """(the colour's gradient magnitude G at the working size, the depth's edge pixels (ys, xs) at least
+    OFFSET_RADIUS inside it, at most EDGE_SAMPLES of them drawn with ``seed``, the working scale) of one view, or
+    None for G with too few edges or no gradient."""
     import cv2
 
     raw = np.asarray(rgb)
@@ -81,10 +92,22 @@ def edge_scores(rgb: np.ndarray, depth: np.ndarray, seed: int = 0) -> tuple[np.n
     inside = (ys >= R) & (ys < G.shape[0] - R) & (xs >= R) & (xs < G.shape[1] - R)
     ys, xs = ys[inside], xs[inside]
     if len(ys) < MIN_EDGE_PIXELS or not G.mean() > 0:
-        return None, f
+        return None, ys, xs, f
     if len(ys) > EDGE_SAMPLES:
         pick = np.sort(np.random.default_rng(seed).choice(len(ys), EDGE_SAMPLES, replace=False))
         ys, xs = ys[pick], xs[pick]
+    return G, ys, xs, f
+
+
+def edge_scores(rgb: np.ndarray, depth: np.ndarray, seed: int = 0) -> tuple[np.ndarray | None, float]:
+    """((2R+1, 2R+1) mean colour-gradient magnitude at the depth's edges shifted by (dy, dx) = index - R, over
+    the image's mean gradient, or None with too few edges; the working scale (working / full pixels)) of one
+    view (module docstring).  ``rgb``: (H, W, 3) colour (8-bit sRGB or linear), ``depth``: (H, W) metres; at most
+    EDGE_SAMPLES edge pixels, drawn with ``seed``."""
+    G, ys, xs, f = _gradient_and_edges(rgb, depth, seed)
+    if G is None:
+        return None, f
+    R = OFFSET_RADIUS
     d = np.arange(-R, R + 1)
     s = G[(ys[None, :] + d[:, None])[:, None, :], (xs[None, :] + d[:, None])[None, :, :]].mean(axis=-1)
     return s / G.mean(), f
@@ -120,4 +143,37 @@ def shifted_depth(depth: np.ndarray, dx: int, dy: int) -> np.ndarray:
         return out
     to = (slice(max(dy, 0), H + min(dy, 0)), slice(max(dx, 0), W + min(dx, 0)))
     out[to] = z[max(-dy, 0):H + min(-dy, 0), max(-dx, 0):W + min(-dx, 0)]
+    return out
+
+
+def zoom_sums(rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray, zoom: float, seed: int = 0) -> np.ndarray:
+    """(2,) the colour's gradient magnitude summed at the depth's edges as they are, and at the same edges drawn
+    ``zoom`` times closer to ``centre`` (full-size pixels (cx, cy): the principal point), of one view; (0, 0) with
+    too few edges.  A depth map from a camera whose focal length is ``zoom`` times the colour's, read with the
+    colour's intrinsics, has its edges ``zoom`` times further from the centre than the colour's: the second sum is
+    the larger (:func:`zoom_verdict`)."""
+    G, ys, xs, f = _gradient_and_edges(rgb, depth, seed)
+    if G is None:
+        return np.zeros(2)
+    c = np.asarray(centre, np.float64) * f
+    my = np.rint(c[1] + (ys - c[1]) / zoom).astype(np.int64)
+    mx = np.rint(c[0] + (xs - c[0]) / zoom).astype(np.int64)
+    ok = (my >= 0) & (my < G.shape[0]) & (mx >= 0) & (mx < G.shape[1])
+    return np.array([G[ys[ok], xs[ok]].sum(), G[my[ok], mx[ok]].sum()], np.float64)
+
+
+def zoomed_depth(depth: np.ndarray, centre: np.ndarray, width: int, zoom: float) -> np.ndarray:
+    """``depth`` drawn ``zoom`` times closer to ``centre`` (the principal point (cx, cy) in pixels of an image
+    ``width`` wide; the depth map may be smaller): each pixel p takes the depth at centre + zoom (p - centre)
+    (nearest; 0 outside): what ``--depth-agreement fix`` does with a depth camera's own field of view
+    (volume/agreement.py)."""
+    z = np.asarray(depth, np.float32)
+    H, W = z.shape
+    c = np.asarray(centre, np.float64) * (W / float(width))
+    ys, xs = np.mgrid[0:H, 0:W]
+    sy = np.rint(c[1] + zoom * (ys - c[1])).astype(np.int64)
+    sx = np.rint(c[0] + zoom * (xs - c[0])).astype(np.int64)
+    ok = (sy >= 0) & (sy < H) & (sx >= 0) & (sx < W)
+    out = np.zeros_like(z)
+    out[ok] = z[sy[ok], sx[ok]]
     return out

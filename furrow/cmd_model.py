@@ -160,7 +160,7 @@ def print_report(console, summary: dict, out) -> None:
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
     agree = summary.get("depth_agreement") or {}
-    if agree.get("status") in ("scale", "none", "focal"):  # capture.depth_agreement
+    if agree.get("status") in ("scale", "none", "focal", "depth zoom"):  # capture.depth_agreement
         msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
         console.print(f"[yellow]depth agreement: {msg} This model may be wrong (model.json "
                       "params.depth_agreement).[/]", highlight=False)

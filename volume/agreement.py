@@ -24,7 +24,14 @@ from capture.depth_agreement import (
     verdict,
     view_sample,
 )
-from capture.depth_registration import edge_scores, offset_verdict, shifted_depth
+from capture.depth_registration import (
+    ZOOM_GAIN,
+    edge_scores,
+    offset_verdict,
+    shifted_depth,
+    zoom_sums,
+    zoomed_depth,
+)
 
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
@@ -45,11 +52,13 @@ def sample_view(scan, ref, arg):
 
 def agreement_stage(work, cfg: AgreementConfig, ctx):
     """The depth-agreement stage: each view's sample through ``ctx.map_views``; the share of points agreeing at
-    each depth scale, the verdict warned unless it is ``agree``; the depth's edges against the colour's
-    (capture.depth_registration), warned when they sit apart.  Record: the verdicts, the scales' shares
-    (rounded), each view's own share, the edges' offset and the config; None with fewer than 2 views, status
-    ``no depth`` where no view has any (the fuse stage refuses such a capture, and says why), ``no pairs``
-    where no two views are within MAX_PAIR_ANGLE of each other (the edges are still compared)."""
+    each depth scale, the verdict warned unless it is ``agree``; the focal-length search where that verdict is
+    ``agree`` or ``scale``; the depth's edges against the colour's (capture.depth_registration), warned when they
+    sit apart (not judged where the depth's edges sit zoomed from the colour's).  Record: the verdicts, the
+    scales' shares (rounded), each view's own share, the focal search's, the edges' offset and the config; None
+    with fewer than 2 views, status ``no depth`` where no view has any (the fuse stage refuses such a capture,
+    and says why), ``no pairs`` where no two views are within MAX_PAIR_ANGLE of each other (the edges are still
+    compared)."""
     if len(work.scans) < 2:
         return work.record("depth agreement", None)
     every = max(1, -(-len(work.scans) // EDGE_VIEWS))  # about EDGE_VIEWS views' edges: one offset for a capture
@@ -60,31 +69,45 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     log = logging.getLogger("furrow.capture")
     edges = [b[1][0] for b in both if b[1][0] is not None]
     scale = next((b[1][1] for b in both if b[1][0] is not None), 1.0)
-    rec = offset_verdict(np.sum(edges, axis=0), len(edges), scale) if edges else {}
-    if rec.get("colour_offset"):
-        log.warning("depth agreement: %s", rec["colour_offset_message"])
-        if cfg.fix:
-            work, rec = _shifted(work, rec, ctx)
+    offset = offset_verdict(np.sum(edges, axis=0), len(edges), scale) if edges else {}
     cams = [s.camera for s in work.scans]
     if not (neighbours(cams, cfg.neighbours) >= 0).any():
         log.info("depth agreement: no two views within %g degrees of each other: nothing to compare", MAX_PAIR_ANGLE)
-        return work.record("depth agreement", {**rec, "status": "no pairs", "config": asdict(cfg)})
+        work, offset = _offset(work, offset, cfg, ctx)
+        return work.record("depth agreement", {**offset, "status": "no pairs", "config": asdict(cfg)})
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
-    rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4), **rec}
+    rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
     if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
         focal = focal_check(samples, cams, cfg)
         rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
         if focal["status"] == "focal":
             rec["status"], rec["message"] = "focal", focal["message"]
+            rec = _depth_zoom(work, rec, every, ctx)
+    if rec["status"] == "depth zoom" and offset.get("colour_offset"):  # a zoom's edges peak at some shift too
+        offset = {**offset, "colour_offset": False, "colour_offset_note": "not judged: the depth's edges sit zoomed"}
+        offset.pop("colour_offset_message", None)
+    work, rec = _offset(work, {**rec, **offset}, cfg, ctx)
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
     if cfg.fix and rec["status"] == "scale":
         work, rec = _rescaled(work, rec, ctx)
+    elif cfg.fix and rec["status"] == "depth zoom":
+        work, rec = _unzoomed(work, rec, ctx)
     elif cfg.fix and rec["status"] == "focal":
         log.warning("depth agreement: --depth-agreement fix leaves the intrinsics as the capture gives them "
                     "(a depth scale would not undo a focal length; the held-out views keep the capture's cameras)")
     rec["curve"] = {f"{x:.4g}": round(float(a), 4) for x, a in zip(s, share)}
     rec["per_view"] = {x.name: None if v != v else round(float(v), 4) for x, v in zip(work.scans, per_view)}
     return work.record("depth agreement", {**rec, "config": asdict(cfg)})
+
+
+def _offset(work, rec: dict, cfg: AgreementConfig, ctx):
+    """(work, rec) with the colour's edges' offset warned where it is reported, and the depth moved onto the
+    colour with ``fix``."""
+    if rec.get("colour_offset"):
+        logging.getLogger("furrow.capture").warning("depth agreement: %s", rec["colour_offset_message"])
+        if cfg.fix:
+            return _shifted(work, rec, ctx)
+    return work, rec
 
 
 def shift_view(scan, ref, d):
@@ -119,3 +142,46 @@ def _rescaled(work, rec: dict, ctx):
     logging.getLogger("furrow.capture").warning(
         "depth agreement: every view's depth scaled by %.4g to the poses (--depth-agreement fix)", s)
     return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "applied": round(s, 6)}
+
+
+def zoom_view(scan, ref, arg):
+    """Per view: (None, :func:`capture.depth_registration.zoom_sums` of its colour and depth at ``zoom``, for the
+    views whose name's CRC-32 is a multiple of ``every``; zeros for the others); ``arg``: (zoom, every)."""
+    zoom, every = arg
+    seed = zlib.crc32(scan.name.encode())
+    return None, (zoom_sums(scan.rgb, scan.depth, scan.camera.K[:2, 2], zoom, seed) if seed % every == 0
+                  else np.zeros(2))
+
+
+def _depth_zoom(work, rec: dict, every: int, ctx) -> dict:
+    """The record of a ``focal`` verdict told apart (capture.depth_registration.ZOOM_GAIN): status ``depth zoom``
+    where the colour's edges sit at the depth's drawn the focal factor closer to the principal point (the depth
+    from a camera with another field of view, not registered to the colour's), ``focal`` where they sit at the
+    depth's as they are (both images' intrinsics off); ``depth_zoom_gain`` either way."""
+    a = float(rec["focal"]["focal_factor"])
+    sums = np.sum(ctx.map_views(zoom_view, work, (a, every), "depth agreement: the depth's edges zoomed")[1], axis=0)
+    gain = float(sums[1] / sums[0]) if sums[0] > 0 else 0.0
+    rec = {**rec, "depth_zoom_gain": round(gain, 4)}
+    if gain >= ZOOM_GAIN:
+        rec["status"] = "depth zoom"
+        rec["message"] = (
+            f"the depth maps' edges sit {a:.3g} times as far from the principal point as the colour's ({gain:.2f} "
+            "times the colour's gradient there), and the depths agree with the poses with the focal lengths times "
+            f"{a:.3g}: was the depth measured by a camera with its own field of view and not registered to the colour "
+            "camera (the depth pixels over the colour pixels they measured)?")
+    return rec
+
+
+def unzoom_view(scan, ref, zoom: float):
+    """Per view: the scan with its depth drawn ``zoom`` times closer to its principal point."""
+    return replace(scan, depth=zoomed_depth(scan.depth, scan.camera.K[:2, 2], scan.camera.width, zoom)), None
+
+
+def _unzoomed(work, rec: dict, ctx):
+    """(work with every view's depth map drawn back onto its colour, the record with ``depth_zoom_applied``)."""
+    a = float(rec["focal"]["focal_factor"])
+    scans, _ = ctx.map_views(unzoom_view, work, a, "depth agreement: depth drawn onto the colour")
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every view's depth map drawn %.4g times closer to its principal point, onto its colour "
+        "(--depth-agreement fix)", a)
+    return replace(work, scans=tuple(scans)), {**rec, "depth_zoom_applied": round(a, 6)}

@@ -186,7 +186,7 @@ def _no_surface(scans, fused, agreement: dict | None = None) -> ModelError:
             if not n else
             f"{n} of {len(depths)} views have depth (median {med:.3g} m) but none of it landed in the volume "
             f"(a cube of {fused.extent:.3g} m): are the depth's units right (depth_unit_scale_factor)?")
-    if agreement and agreement.get("status") in ("scale", "none", "focal"):
+    if agreement and agreement.get("status") in ("scale", "none", "focal", "depth zoom"):
         said += f"; before that, {agreement['message']}"
     return ModelError(f"the fused volume has no surface at any level: {said}")
 

@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capture.depth_registration import OFFSET_RADIUS, depth_edges, edge_scores, offset_verdict, shifted_depth
+from capture.depth_registration import (
+    OFFSET_RADIUS,
+    ZOOM_GAIN,
+    depth_edges,
+    edge_scores,
+    offset_verdict,
+    shifted_depth,
+    zoom_sums,
+    zoomed_depth,
+)
 from tests.scenes import make_scanset, scan_ring, spheres_scene
 
 
@@ -56,3 +65,42 @@ def test_too_few_edges_score_nothing():
     scores, scale = edge_scores(np.zeros((40, 40, 3), np.uint8), z)
     assert scores is None and scale == 1.0
     assert OFFSET_RADIUS >= 3
+
+
+def _zoom_gain(scans, zoom, depth_zoom=None):
+    """The colour's gradient at the depth's edges drawn ``zoom`` closer to the principal point, over the gradient at
+    the edges as they are, summed over ``scans`` whose depth maps were first drawn ``depth_zoom`` closer."""
+    tot = np.zeros(2)
+    for i, x in enumerate(scans):
+        c = x.camera.K[:2, 2]
+        z = x.depth if depth_zoom is None else zoomed_depth(x.depth, c, x.camera.width, depth_zoom)
+        tot += zoom_sums(np.asarray(x.rgb), z, c, zoom, i)
+    return tot[1] / tot[0]
+
+
+@pytest.mark.parametrize("k", [1.15, 0.88])
+def test_a_depth_map_zoomed_from_its_colour_is_told_from_a_focal_length(ring, k):
+    """Depth maps drawn k times as far from the principal point as their colour (a depth camera with its own field
+    of view): the colour's gradient is higher at their edges drawn back by k than where they are (ZOOM_GAIN or
+    more); the registered depth scores less drawn either way (a focal length wrong for colour and depth alike)."""
+    assert _zoom_gain(ring.scans, k, depth_zoom=1 / k) >= ZOOM_GAIN
+    assert _zoom_gain(ring.scans, k) < 1.0 and _zoom_gain(ring.scans, 1 / k) < 1.0
+
+
+def test_zoomed_depth_against_the_pixel_by_pixel_reference():
+    """zoomed_depth is the nearest depth at centre + zoom (p - centre), 0 outside; the centre is given in pixels of
+    an image ``width`` wide and scaled to the depth map's own size."""
+    rng = np.random.default_rng(0)
+    z = rng.uniform(0.5, 1.0, (9, 12)).astype(np.float32)
+    for zoom, c, width in ((1.3, (5.0, 4.0), 12), (0.7, (3.5, 2.0), 12), (1.1, (10.0, 8.0), 24)):
+        got = zoomed_depth(z, np.array(c), width, zoom)
+        f = 12 / width
+        ref = np.zeros_like(z)
+        for y in range(9):
+            for x in range(12):
+                sy = int(np.rint(c[1] * f + zoom * (y - c[1] * f)))
+                sx = int(np.rint(c[0] * f + zoom * (x - c[0] * f)))
+                if 0 <= sy < 9 and 0 <= sx < 12:
+                    ref[y, x] = z[sy, sx]
+        np.testing.assert_array_equal(got, ref)
+    np.testing.assert_array_equal(zoomed_depth(z, np.array([5.0, 4.0]), 12, 1.0), z)

@@ -242,6 +242,32 @@ def test_depth_beside_its_colour_is_warned_and_fixed(scan_dir, tmp_path, capsys)
         assert rec.get("colour_offset_applied") == applied
 
 
+def test_depth_of_another_field_of_view_is_told_from_a_focal_length_and_fixed(scan_dir, tmp_path, capsys):
+    """Every depth map drawn 1.15 times as far from its principal point as its colour (a depth camera with its own
+    field of view, not registered to the colour's): furrow model names the depth's zoom, not the focal lengths,
+    and judges no shift of the edges; --depth-agreement fix draws the depth back onto its colour."""
+    import cv2
+
+    from capture.depth_registration import zoomed_depth
+
+    d = _copy(scan_dir, tmp_path / "zoomed")
+    meta = json.loads((d / "transforms.json").read_text())
+    for f in meta["frames"]:
+        p = d / f["depth_file_path"]
+        z = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        c = np.array([f.get("cx", meta.get("cx")), f.get("cy", meta.get("cy"))], float)
+        cv2.imwrite(str(p), zoomed_depth(z.astype(np.float32), c, z.shape[1], 1 / 1.15).astype(z.dtype))
+    for flags in ((), ("--depth-agreement", "fix")):
+        out = tmp_path / f"z{len(flags)}"
+        rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+        flat = " ".join(err.split())
+        rec = load_model(out).params["depth_agreement"]
+        assert rc == 0 and rec["status"] == "depth zoom", (rec, flat)
+        assert abs(np.log(rec["focal"]["focal_factor"] / 1.15)) < np.log(1.03) and not rec["colour_offset"], rec
+        assert "the depth maps' edges sit 1.1" in flat and "This model may be wrong" in flat, flat
+        assert (rec.get("depth_zoom_applied") is not None) == bool(flags), rec
+
+
 def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):
     """A frame whose camera is twice the others' size: refused at view selection (cameras only, no image read)
     with a frame of each size named, instead of failing after every stage in the RGBz store (volume.views)."""
