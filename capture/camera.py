@@ -267,6 +267,18 @@ def invert_rigid(m: np.ndarray) -> np.ndarray:
     return out
 
 
+def misread_poses(world_from_cam: np.ndarray) -> dict[str, np.ndarray]:
+    """The (4, 4) camera-to-world transforms (OpenCV axes) meant by a pose read as ``world_from_cam``, had its file
+    been written in another convention than its format's (capture.depth_agreement.convention_check), up to one
+    rigid transform of the whole scene (which no check can see): ``axes`` (its camera y and z axes negated: a
+    transforms.json camera-to-world matrix written in OpenCV axes), ``inverse`` (a transforms.json world-to-camera
+    matrix in OpenCV axes, or a COLMAP pose that was camera-to-world), ``inverse, axes`` (a transforms.json
+    world-to-camera matrix in OpenGL axes)."""
+    P = np.asarray(world_from_cam, np.float64)
+    inv = invert_rigid(P)
+    return {"axes": P @ CV_TO_GL, "inverse": inv, "inverse, axes": inv @ CV_TO_GL}
+
+
 def gl_rows_to_image(fb: np.ndarray) -> np.ndarray:
     """OpenGL read-back (bottom row first) -> image rows (top row first). Its own inverse."""
     return np.ascontiguousarray(fb[::-1])

@@ -53,9 +53,11 @@ the capture's; the half-scale fur ball's held-out views: docs/capture_formats.md
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+
+from capture.camera import invert_rigid, misread_poses
 
 #: Views further apart in viewing direction than this (degrees) are not compared.
 MAX_PAIR_ANGLE = 75.0
@@ -101,6 +103,20 @@ FOCAL_GAIN = 1.08
 FOCAL_PAIRS = 0.8
 FOCAL_MIN_PAIRS = 8
 FOCAL_SCALE_TOLERANCE = 1.011
+#: Where the views' depths agree with their poses at no scale or at another, the poses read in other conventions
+#: (capture.camera.misread_poses) are tried: one is named when its depths agree at scale 1 (verdict ``agree``) with at
+#: least this many times the share that the poses as read reach at their best scale (points that are not
+#: scale-blind; measured: the right convention 0.25-0.76, the poses as read 0-0.015, the wrong ones under 0.01).
+CONVENTION_GAIN = 2.0
+#: What each misreading is, in the warning.
+CONVENTION_HINTS = {
+    "axes": "read with their camera y and z axes negated (camera-to-world matrices in OpenCV axes where "
+            "transforms.json has OpenGL's?)",
+    "inverse": "inverted (world-to-camera matrices where camera-to-world ones belong: in transforms.json written in "
+               "OpenCV axes; or camera-to-world poses where COLMAP's images.txt has world-to-camera ones?)",
+    "inverse, axes": "inverted with their camera y and z axes negated (world-to-camera matrices in OpenGL axes where "
+                     "transforms.json has camera-to-world ones?)",
+}
 
 
 @dataclass(frozen=True)
@@ -311,3 +327,27 @@ def focal_check(samples, cameras, cfg: AgreementConfig) -> dict:
         "after calibration?) and in pixels?" if found else
         f"the focal lengths as given agree best (or no better factor is sure: best {best:.3g})")
     return rec
+
+
+def convention_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
+    """The poses read in each other convention (capture.camera.misread_poses), the samples kept (they are in their
+    cameras' frames): for each, the share of the points that are not scale-blind agreeing at scale 1 and its
+    verdict; the best one named (status ``convention``) where its verdict is ``agree`` and its share is at least
+    :data:`CONVENTION_GAIN` times ``given_best`` (the share the poses as read reach at their best scale,
+    ``verdict``'s ``best_share``) and at least :data:`AGREE_FLOOR`; else status ``as read``.  The shares leave the
+    scale-blind points out: poses inverted put every camera at one point, where a depth agrees at every scale (0.15
+    of all points on the fur ball, 0.49 on a ring of spheres) and at none of them for a reason."""
+    tried = {}
+    for name in CONVENTION_HINTS:
+        cams = [replace(c, cam_from_world=invert_rigid(misread_poses(c.world_from_cam)[name])) for c in cameras]
+        s, share, share_all, _, _ = agreement(samples, cams, cfg)
+        rec = verdict(s, share, share_all)
+        tried[name] = {"status": rec["status"], "share": round(float(share[int(np.argmin(np.abs(np.log(s))))]), 4)}
+    ok = {n: t for n, t in tried.items() if t["status"] == "agree"
+          and t["share"] >= max(AGREE_FLOOR, CONVENTION_GAIN * given_best)}
+    if not ok:
+        return {"status": "as read", "tried": tried}
+    name = max(ok, key=lambda n: ok[n]["share"])
+    return {"status": "convention", "convention": name, "tried": tried, "message": (
+        f"the views' depths agree with their poses ({ok[name]['share']:.1%} of the points, against at best "
+        f"{given_best:.1%} as read) once the poses are {CONVENTION_HINTS[name]}")}

@@ -159,8 +159,10 @@ def print_report(console, summary: dict, out) -> None:
     console.print(f"L_opt = {summary['l_opt']}  levels {summary['levels']}  "
                   f"surface voxels {summary['surface_voxels']}  "
                   f"spheres {summary['spheres']} (1 - IoU {summary['sphere_error']})  -> {out}", highlight=False)
+    from volume.agreement import FAILED_AGREEMENT
+
     agree = summary.get("depth_agreement") or {}
-    if agree.get("status") in ("scale", "none", "focal", "depth zoom"):  # capture.depth_agreement
+    if agree.get("status") in FAILED_AGREEMENT:  # capture.depth_agreement, volume/agreement.py
         msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
         console.print(f"[yellow]depth agreement: {msg} This model may be wrong (model.json "
                       "params.depth_agreement).[/]", highlight=False)

@@ -1,6 +1,7 @@
 """The depth-agreement stage's verdicts on captures, as ``furrow model`` reaches them (capture/depth_agreement.py,
 volume/agreement.py), one line each: the scales' verdict and best scale, then the focal-length search's factor, the
-points agreeing as given and at that factor, the view pairs better / worse, the depth's best scale there.
+points agreeing as given and at that factor, the view pairs better / worse, the depth's best scale there; or the
+pose convention the depths agree with (and each convention's share).
 
     PYTHONPATH=. .venv/bin/python scripts/agreement_verdicts.py CAPTURE [CAPTURE ...]
 
@@ -14,7 +15,7 @@ import sys
 import time
 import zlib
 
-from capture.depth_agreement import AgreementConfig, agreement, focal_check, verdict, view_sample
+from capture.depth_agreement import AgreementConfig, agreement, convention_check, focal_check, verdict, view_sample
 from capture.io import read_scanset
 
 
@@ -26,6 +27,10 @@ def line(path: str) -> str:
     samples = [view_sample(s.depth, s.camera, cfg.points, zlib.crc32(s.name.encode())) for s in scans]
     cams = [s.camera for s in scans]
     rec = verdict(*agreement(samples, cams, cfg)[:3])
+    conv = convention_check(samples, cams, cfg, rec["best_share"]) if rec["status"] in ("none", "scale") else {}
+    if conv.get("status") == "convention":
+        return (f"{path.rstrip('/').split('/')[-1]:>28} convention (scales: {rec['status']}, best share "
+                f"{rec['best_share']:.1%}) poses read as '{conv['convention']}': {conv['tried']}")
     f = focal_check(samples, cams, cfg) if rec["status"] in ("agree", "scale") else {}
     status = "focal" if f.get("status") == "focal" else rec["status"]
     focal = (f"focal x {f['focal_factor']:.4g}: {f['share_as_given']:.1%} -> {f['focal_share']:.1%}, pairs "

@@ -4,8 +4,9 @@ that does not agree with its poses"): each a full copy (no links) under OUT/NAME
     PYTHONPATH=. .venv/bin/python scripts/broken_captures.py CAPTURE OUT [NAME ...]
 
 Names (default: all): rgba, rgb16, gray (the colour files re-encoded); unit10, unit2 (depth_unit_scale_factor
-x 0.1, x 2); flipgl (the poses' y and z axes negated: OpenCV axes read as OpenGL's); focal15, focal07 (fl_x, fl_y
-x 1.5, x 0.7; also focal08, focal09, focal11, focal12, focal125, focal20);
+x 0.1, x 2); flipgl (the poses' y and z axes negated: OpenCV axes read as OpenGL's); invpose,
+invcv (world-to-camera matrices where camera-to-world ones belong, in OpenGL / OpenCV axes); focal15, focal07
+(fl_x, fl_y x 1.5, x 0.7; also focal08, focal09, focal11, focal12, focal125, focal20);
 cx0 (principal point at (0, 0)); shufdepth (each frame given the next frame's depth file); posemm,
 pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
@@ -69,6 +70,15 @@ def _flip(m):
     m[:3, 1:3] *= -1
 
 
+def _invert(m):
+    m[:] = np.linalg.inv(m)
+
+
+def _invert_cv(m):
+    m[:] = np.linalg.inv(m)
+    m[1:3, :] *= -1  # the y and z rows negated: OpenCV axes
+
+
 def _rot13(m):
     m[:3, :3] *= 1.3
 
@@ -80,6 +90,8 @@ VARIANTS = {
     "unit10": {"meta": _unit(0.1)},
     "unit2": {"meta": _unit(2.0)},
     "flipgl": {"meta": _pose(_flip)},
+    "invpose": {"meta": _pose(_invert)},
+    "invcv": {"meta": _pose(_invert_cv)},
     "focal15": {"meta": _focal(1.5)},
     "focal07": {"meta": _focal(0.7)},
     **{f"focal{n}": {"meta": _focal(k)} for n, k in (("08", 0.8), ("09", 0.9), ("11", 1.1), ("12", 1.2),

@@ -19,6 +19,7 @@ from capture.depth_agreement import (
     MAX_PAIR_ANGLE,
     AgreementConfig,
     agreement,
+    convention_check,
     focal_check,
     neighbours,
     verdict,
@@ -33,6 +34,8 @@ from capture.depth_registration import (
     zoomed_depth,
 )
 
+#: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
+FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention")
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
 #: of the stage's 1.4 s on every view's edges.
@@ -52,10 +55,11 @@ def sample_view(scan, ref, arg):
 
 def agreement_stage(work, cfg: AgreementConfig, ctx):
     """The depth-agreement stage: each view's sample through ``ctx.map_views``; the share of points agreeing at
-    each depth scale, the verdict warned unless it is ``agree``; the focal-length search where that verdict is
-    ``agree`` or ``scale``; the depth's edges against the colour's (capture.depth_registration), warned when they
-    sit apart (not judged where the depth's edges sit zoomed from the colour's).  Record: the verdicts, the
-    scales' shares (rounded), each view's own share, the focal search's, the edges' offset and the config; None
+    each depth scale, the verdict warned unless it is ``agree``; the poses in other conventions where it is
+    ``none`` or ``scale``, the focal-length search where it is ``agree`` or ``scale``; the depth's edges against
+    the colour's (capture.depth_registration), warned when they sit apart (not judged where the depth's edges sit
+    zoomed from the colour's).  Record: the verdicts, the scales' shares (rounded), each view's own share, the
+    convention and focal searches', the edges' offset and the config; None
     with fewer than 2 views, status ``no depth`` where no view has any (the fuse stage refuses such a capture,
     and says why), ``no pairs`` where no two views are within MAX_PAIR_ANGLE of each other (the edges are still
     compared)."""
@@ -77,6 +81,11 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         return work.record("depth agreement", {**offset, "status": "no pairs", "config": asdict(cfg)})
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
     rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
+    if rec["status"] in ("none", "scale"):  # poses written in another convention read as a scale, or as nothing
+        conv = convention_check(samples, cams, cfg, rec["best_share"])
+        rec["convention"] = {k: v for k, v in conv.items() if k != "message"}
+        if conv["status"] == "convention":
+            rec["status"], rec["message"] = "convention", conv["message"]
     if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
         focal = focal_check(samples, cams, cfg)
         rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
@@ -92,9 +101,10 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         work, rec = _rescaled(work, rec, ctx)
     elif cfg.fix and rec["status"] == "depth zoom":
         work, rec = _unzoomed(work, rec, ctx)
-    elif cfg.fix and rec["status"] == "focal":
-        log.warning("depth agreement: --depth-agreement fix leaves the intrinsics as the capture gives them "
-                    "(a depth scale would not undo a focal length; the held-out views keep the capture's cameras)")
+    elif cfg.fix and rec["status"] in ("focal", "convention"):
+        log.warning("depth agreement: --depth-agreement fix leaves the %s as the capture gives them (a depth scale "
+                    "would not undo them; the held-out views keep the capture's cameras)",
+                    "intrinsics" if rec["status"] == "focal" else "poses")
     rec["curve"] = {f"{x:.4g}": round(float(a), 4) for x, a in zip(s, share)}
     rec["per_view"] = {x.name: None if v != v else round(float(v), 4) for x, v in zip(work.scans, per_view)}
     return work.record("depth agreement", {**rec, "config": asdict(cfg)})

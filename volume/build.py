@@ -31,6 +31,7 @@ import numpy as np
 
 from capture.scan import ScanSet
 from volume import pyramid as pyr_mod
+from volume.agreement import FAILED_AGREEMENT
 from volume.fusion import FusionConfig, completed, fuse_consensus, prepare_maps, scan_maps
 from volume.grid import cube_for_bounds
 from volume.lopt_sample import sampled_eq1
@@ -186,7 +187,7 @@ def _no_surface(scans, fused, agreement: dict | None = None) -> ModelError:
             if not n else
             f"{n} of {len(depths)} views have depth (median {med:.3g} m) but none of it landed in the volume "
             f"(a cube of {fused.extent:.3g} m): are the depth's units right (depth_unit_scale_factor)?")
-    if agreement and agreement.get("status") in ("scale", "none", "focal", "depth zoom"):
+    if agreement and agreement.get("status") in FAILED_AGREEMENT:
         said += f"; before that, {agreement['message']}"
     return ModelError(f"the fused volume has no surface at any level: {said}")
 

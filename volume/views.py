@@ -27,6 +27,10 @@ from capture.sampling import mask_box
 AUTO_MIN_ANGLE_DEG = 2.0
 #: A view whose distance to the object differs from a near-duplicate's by more than this ratio is kept.
 DISTANCE_RATIO = 1.25
+#: ``--views auto`` that would keep one view of at least this many keeps them all instead, and says so: cameras
+#: that all stand at one place looking one way are no capture of an object (poses inverted, world-to-camera where
+#: camera-to-world belong, put a ring of views there), and the depth-agreement stage needs the views to say so.
+COLLAPSE_MIN_VIEWS = 3
 #: Fraction of the output's smaller side the object is assumed to fill.
 OUTPUT_FILL = 0.9
 #: Working scales are multiples of this (1 = full resolution).
@@ -80,6 +84,11 @@ def select_views(cameras, mode: str = "auto", centre=None) -> tuple[list[int], l
         kept.append(j)
         nearest = np.minimum(nearest, eff[j])
     kept_set = sorted(kept)
+    if limit is None and len(kept_set) == 1 and n >= COLLAPSE_MIN_VIEWS:
+        why = (f"all views kept: --views auto found every view a near-duplicate of view 0 (within "
+               f"{AUTO_MIN_ANGLE_DEG} deg, seen from where their optical axes meet): cameras at one place looking one "
+               "way are no capture of an object; are the poses camera-to-world?")
+        return list(range(n)), [{"view": i, "kept": True, "reason": why, "collapsed": True} for i in range(n)]
     reasons = []
     for i in range(n):
         others = [k for k in kept_set if k != i]
@@ -150,6 +159,10 @@ def select_stage(refs, cfg) -> tuple[list[int], dict]:
     kept, reasons = select_views([r.camera for r in refs], cfg.mode)
     for r in reasons:
         r["name"] = refs[r["view"]].name
+    if reasons and reasons[0].get("collapsed"):
+        import logging
+
+        logging.getLogger("furrow.capture").warning("view selection: %s", reasons[0]["reason"])
     return kept, {"mode": cfg.mode, "kept": len(kept), "of": len(reasons), "per_view": reasons}
 
 

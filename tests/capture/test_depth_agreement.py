@@ -7,11 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from capture.camera import make_K
+from capture.camera import invert_rigid, make_K, misread_poses
 from capture.depth_agreement import (
     MAX_PAIR_ANGLE,
     AgreementConfig,
     agreement,
+    convention_check,
     focal_check,
     focal_factors,
     neighbours,
@@ -194,6 +195,43 @@ def test_pair_hits_with_a_focal_factor_equal_the_point_by_point_reference(ring):
         np.testing.assert_array_equal(ok[g], ref_ok[0])
         np.testing.assert_array_equal(on[g], ref_on[0])
     assert ok[1].sum() > 50 and ok[0].sum() < ok[1].sum()
+
+
+def _misread(scans, name):
+    """The scans as a reader would have them had each pose been written in convention ``name`` of
+    capture.camera.misread_poses (the pose read P, from the true pose T: T F, T^-1, F T^-1 with F the y/z flip)."""
+    F = np.diag([1.0, -1.0, -1.0, 1.0])
+    def read(c):
+        T = c.world_from_cam
+        P = {"axes": T @ F, "inverse": invert_rigid(T), "inverse, axes": F @ invert_rigid(T)}[name]
+        np.testing.assert_allclose(misread_poses(P)[name], T, atol=1e-9)
+        return replace(c, cam_from_world=invert_rigid(P))
+    return [replace(x, camera=read(x.camera)) for x in scans]
+
+
+@pytest.mark.parametrize("name", ["axes", "inverse", "inverse, axes"])
+def test_poses_written_in_another_convention_are_named(ring, name):
+    """Poses written in another convention (camera axes negated, world-to-camera for camera-to-world): the scales'
+    verdict is ``none`` or a wrong scale; the convention check names the misreading, its depths agreeing at scale
+    1 as the right capture's do."""
+    scans = _misread(ring.scans, name)
+    rec, _, _ = _check(scans)
+    assert rec["status"] in ("none", "scale"), rec
+    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
+    conv = convention_check(samples, [x.camera for x in scans], CFG, rec["best_share"])
+    right, _, _ = _check(ring.scans)
+    assert conv["status"] == "convention" and conv["convention"] == name, conv
+    assert conv["tried"][name]["share"] == pytest.approx(right["share"], abs=0.02)
+    assert "once the poses are" in conv["message"]
+
+
+def test_depth_in_another_unit_is_no_convention(ring):
+    """Depth x 2: the scales name it; no other convention makes the depths agree."""
+    scans = _with_depth(ring.scans, lambda i, z: z * 2.0)
+    rec, _, _ = _check(scans)
+    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
+    conv = convention_check(samples, [x.camera for x in scans], CFG, rec["best_share"])
+    assert rec["status"] == "scale" and conv["status"] == "as read", conv
 
 
 def test_config_is_validated():

@@ -219,6 +219,24 @@ def test_a_focal_length_off_is_named_and_not_fixed(scan_dir, tmp_path, capsys):
         assert ("leaves the intrinsics as the capture gives them" in flat) == bool(flags)
 
 
+def test_world_to_camera_poses_are_named(scan_dir, tmp_path, capsys):
+    """Every transform_matrix inverted (world-to-camera matrices where transforms.json has camera-to-world ones):
+    every camera then stands at one point; the depth-agreement stage names the inversion (not a depth scale), and
+    an error of a later stage repeats it (view selection's part: tests/volume/test_views.py)."""
+    def inverted(meta):
+        for f in meta["frames"]:
+            f["transform_matrix"] = np.linalg.inv(np.array(f["transform_matrix"])).tolist()
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, inverted)
+    flat = " ".join(err.split())
+    assert ("WARNING depth agreement: the views' depths agree with their poses" in flat
+            and "once the poses are inverted with their camera y and z axes negated" in flat), flat
+    if rc == 0:
+        assert load_model(out).params["depth_agreement"]["status"] == "convention"
+    else:
+        assert "before that, the views' depths agree with their poses" in flat and "Traceback" not in err, flat
+
+
 def test_depth_beside_its_colour_is_warned_and_fixed(scan_dir, tmp_path, capsys):
     """Every depth file moved 5 px right of its colour (depth not registered to the colour camera): furrow model
     warns with the offset, (-5, 0), and ``--depth-agreement fix`` moves the depth back; the capture as written

@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capture.camera import Camera, look_at, make_K
+from capture.camera import Camera, look_at, make_K, misread_poses
 from capture.scan import Scan
 from volume.views import (
     AUTO_MIN_ANGLE_DEG,
+    COLLAPSE_MIN_VIEWS,
     footprint_px,
     object_centre,
     scaled_scan,
@@ -29,6 +30,23 @@ def _ring(angles_deg, radius=0.5, w=64, h=48):
 
 def test_object_centre_is_where_the_ring_looks():
     np.testing.assert_allclose(object_centre(_ring(np.arange(0, 360, 30))), 0.0, atol=1e-9)
+
+
+def test_cameras_at_one_place_looking_one_way_are_all_kept_and_said():
+    """A ring whose poses were inverted (world-to-camera where camera-to-world belong): every camera stands at one
+    point looking one way, so --views auto would keep one; it keeps all, each view's reason says why (the
+    depth-agreement stage then names the inversion); a capture of two such views is left alone."""
+    ring = _ring(np.arange(0, 360, 30))
+    inv = [Camera(c.K, c.world_from_cam, c.width, c.height) for c in ring]  # read: world_from_cam = cam_from_world
+    for c, x in zip(ring, inv):
+        np.testing.assert_allclose(misread_poses(x.world_from_cam)["inverse"], c.world_from_cam, atol=1e-12)
+    centres = np.array([c.center for c in inv])
+    assert np.ptp(centres, axis=0).max() < 1e-9  # the collapse this guards against
+    kept, reasons = select_views(inv, "auto")
+    assert kept == list(range(12)) and all(r["collapsed"] for r in reasons)
+    assert "are the poses camera-to-world?" in reasons[0]["reason"]
+    assert select_views(inv[:2], "auto")[0] == [0] and COLLAPSE_MIN_VIEWS == 3
+    assert select_views(inv, "3")[0] != list(range(12))  # an asked number is a number
 
 
 def test_auto_drops_near_duplicates_only():

@@ -137,7 +137,10 @@ class Run:
         from volume.pipeline.pool import main_blas_threads
 
         with main_blas_threads():  # the stages' own threads and workers are the parallelism
-            return self._run(stages)
+            try:
+                return self._run(stages)
+            except ValueError as e:  # ModelError too: a later stage's error, where the depth said why first
+                raise _with_agreement(e, self.work) from None
 
     def _run(self, stages) -> Run:
         pending = []
@@ -326,3 +329,16 @@ def read_views(source: Source, refs, cfg: PipelineConfig | None = None, progress
     configs = tuple(getattr(cfg, st.key) for st in reading)
     items = progress(refs, "reading references") if progress else refs
     return [read_frame(ref, configs)[0] for ref in items]
+
+
+def _with_agreement(e: ValueError, work) -> ValueError:
+    """``e`` with the depth-agreement stage's warning appended ("before that, ..."), where its verdict was one of
+    FAILED_AGREEMENT and the message does not hold it yet: a capture whose poses were written in another
+    convention fails in a later stage (the extent stage's up direction) with a message about that stage only."""
+    from volume.agreement import FAILED_AGREEMENT
+
+    rec = (getattr(work, "records", None) or {}).get("depth agreement") or {}
+    said = e.args[0] if e.args and isinstance(e.args[0], str) else None
+    if rec.get("status") in FAILED_AGREEMENT and said is not None and "before that" not in said:
+        e.args = (f"{e.args[0]}; before that, {rec['message']}", *e.args[1:])
+    return e
