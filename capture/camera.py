@@ -279,6 +279,23 @@ def misread_poses(world_from_cam: np.ndarray) -> dict[str, np.ndarray]:
     return {"axes": P @ CV_TO_GL, "inverse": inv, "inverse, axes": inv @ CV_TO_GL}
 
 
+def misread_intrinsics(camera: Camera) -> dict[str, np.ndarray]:
+    """The (3, 3) intrinsics meant by ``camera``'s, had its file been written wrong in the common ways
+    (capture.depth_agreement.intrinsics_check): ``image size`` (fl_x, fl_y, cx, cy of an image of another size:
+    all of them scaled so that the principal point comes to the image's centre; left out when that scale is
+    within 10 % of 1, or cx is not positive), ``centre`` (the principal point at the image's centre, the focal
+    lengths kept)."""
+    K = camera.K
+    half = np.array([camera.width, camera.height], np.float64) / 2.0  # the centre in corner-origin coordinates
+    out = {"centre": make_K(K[0, 0], K[1, 1], *cv_from_corner(half), K[0, 1])}
+    c = corner_from_cv(K[:2, 2])
+    if c[0] > 0:
+        k = float(half[0] / c[0])
+        if abs(np.log(k)) > np.log(1.1):
+            out["image size"] = make_K(K[0, 0] * k, K[1, 1] * k, *resample_pixel_coords(K[:2, 2], k), K[0, 1] * k)
+    return out
+
+
 def gl_rows_to_image(fb: np.ndarray) -> np.ndarray:
     """OpenGL read-back (bottom row first) -> image rows (top row first). Its own inverse."""
     return np.ascontiguousarray(fb[::-1])

@@ -57,7 +57,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from capture.camera import invert_rigid, misread_poses
+from capture.camera import invert_rigid, misread_intrinsics, misread_poses
 
 #: Views further apart in viewing direction than this (degrees) are not compared.
 MAX_PAIR_ANGLE = 75.0
@@ -108,6 +108,12 @@ FOCAL_SCALE_TOLERANCE = 1.011
 #: least this many times the share that the poses as read reach at their best scale (points that are not
 #: scale-blind; measured: the right convention 0.25-0.76, the poses as read 0-0.015, the wrong ones under 0.01).
 CONVENTION_GAIN = 2.0
+#: The intrinsics' misreadings (capture.camera.misread_intrinsics), in the warning.
+INTRINSICS_HINTS = {
+    "image size": "with every view's fl_x, fl_y, cx and cy times {k:.3g}: are they the intrinsics of images "
+                  "{inv:.3g} times the size of these (images resized after calibration)?",
+    "centre": "with the principal point at the image's centre: are cx, cy in pixels from the top-left corner?",
+}
 #: What each misreading is, in the warning.
 CONVENTION_HINTS = {
     "axes": "read with their camera y and z axes negated (camera-to-world matrices in OpenCV axes where "
@@ -329,25 +335,64 @@ def focal_check(samples, cameras, cfg: AgreementConfig) -> dict:
     return rec
 
 
-def convention_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
-    """The poses read in each other convention (capture.camera.misread_poses), the samples kept (they are in their
-    cameras' frames): for each, the share of the points that are not scale-blind agreeing at scale 1 and its
-    verdict; the best one named (status ``convention``) where its verdict is ``agree`` and its share is at least
-    :data:`CONVENTION_GAIN` times ``given_best`` (the share the poses as read reach at their best scale,
-    ``verdict``'s ``best_share``) and at least :data:`AGREE_FLOOR`; else status ``as read``.  The shares leave the
-    scale-blind points out: poses inverted put every camera at one point, where a depth agrees at every scale (0.15
-    of all points on the fur ball, 0.49 on a ring of spheres) and at none of them for a reason."""
+def _readings(samples, cameras, cfg: AgreementConfig, given_best: float, readings: dict) -> dict:
+    """The depths held against the poses under each of ``readings`` (name -> (cameras, samples)): the share of the
+    points that are not scale-blind agreeing at scale 1 and the verdict of each (``tried``); the best named
+    (``found``) where its verdict is ``agree`` and its share is at least :data:`CONVENTION_GAIN` times
+    ``given_best`` (what the capture as read reaches at its best scale, ``verdict``'s ``best_share``) and at least
+    :data:`AGREE_FLOOR`.  Scale-blind points are left out: cameras all at one point (poses inverted) agree at
+    every scale (0.15 of all points on the fur ball, 0.49 on a ring of spheres) and at none of them for a reason."""
     tried = {}
-    for name in CONVENTION_HINTS:
-        cams = [replace(c, cam_from_world=invert_rigid(misread_poses(c.world_from_cam)[name])) for c in cameras]
-        s, share, share_all, _, _ = agreement(samples, cams, cfg)
+    for name, (cams, smp) in readings.items():
+        s, share, share_all, _, _ = agreement(smp, cams, cfg)
         rec = verdict(s, share, share_all)
         tried[name] = {"status": rec["status"], "share": round(float(share[int(np.argmin(np.abs(np.log(s))))]), 4)}
     ok = {n: t for n, t in tried.items() if t["status"] == "agree"
           and t["share"] >= max(AGREE_FLOOR, CONVENTION_GAIN * given_best)}
-    if not ok:
-        return {"status": "as read", "tried": tried}
-    name = max(ok, key=lambda n: ok[n]["share"])
-    return {"status": "convention", "convention": name, "tried": tried, "message": (
-        f"the views' depths agree with their poses ({ok[name]['share']:.1%} of the points, against at best "
+    return {"tried": tried, "found": max(ok, key=lambda n: ok[n]["share"]) if ok else None}
+
+
+def convention_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
+    """The poses read in each other convention (capture.camera.misread_poses), the samples kept (they are in their
+    cameras' frames), through :func:`_readings`: status ``convention`` with the one named, or ``as read``."""
+    readings = {name: ([replace(c, cam_from_world=invert_rigid(misread_poses(c.world_from_cam)[name]))
+                        for c in cameras], samples) for name in CONVENTION_HINTS}
+    r = _readings(samples, cameras, cfg, given_best, readings)
+    name = r["found"]
+    if name is None:
+        return {"status": "as read", "tried": r["tried"]}
+    return {"status": "convention", "convention": name, "tried": r["tried"], "message": (
+        f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
         f"{given_best:.1%} as read) once the poses are {CONVENTION_HINTS[name]}")}
+
+
+def _reprojected(sample, K_old: np.ndarray, K_new: np.ndarray):
+    """A view's :func:`view_sample` with its points back-projected through ``K_new`` from the pixels ``K_old``
+    had put them at (the depth map as it is)."""
+    pts, small, step = sample
+    if not len(pts):
+        return sample
+    z = pts[:, 2:3]
+    uv1 = (pts / z) @ K_old.T
+    return (uv1 @ np.linalg.inv(K_new).T) * z, small, step
+
+
+def intrinsics_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
+    """The intrinsics read in the common wrong ways (capture.camera.misread_intrinsics: those of another image
+    size; the principal point elsewhere than the image's centre), each view's points back-projected again, through
+    :func:`_readings`: status ``intrinsics`` with the one named and its factor (``image size``: the median of the
+    views'), or ``as read``."""
+    alt = [misread_intrinsics(c) for c in cameras]
+    readings = {}
+    for name in INTRINSICS_HINTS:
+        if all(name in a for a in alt):
+            readings[name] = ([replace(c, K=a[name]) for c, a in zip(cameras, alt)],
+                              [_reprojected(x, c.K, a[name]) for x, c, a in zip(samples, cameras, alt)])
+    r = _readings(samples, cameras, cfg, given_best, readings)
+    name = r["found"]
+    if name is None:
+        return {"status": "as read", "tried": r["tried"]}
+    k = float(np.median([a[name][0, 0] / c.K[0, 0] for c, a in zip(cameras, alt)]))
+    return {"status": "intrinsics", "intrinsics": name, "factor": round(k, 4), "tried": r["tried"], "message": (
+        f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
+        f"{given_best:.1%} as read) " + INTRINSICS_HINTS[name].format(k=k, inv=1 / k))}

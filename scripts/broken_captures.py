@@ -7,7 +7,8 @@ Names (default: all): rgba, rgb16, gray (the colour files re-encoded); unit10, u
 x 0.1, x 2); flipgl (the poses' y and z axes negated: OpenCV axes read as OpenGL's); invpose,
 invcv (world-to-camera matrices where camera-to-world ones belong, in OpenGL / OpenCV axes); focal15, focal07
 (fl_x, fl_y x 1.5, x 0.7; also focal08, focal09, focal11, focal12, focal125, focal20);
-cx0 (principal point at (0, 0)); shufdepth (each frame given the next frame's depth file); posemm,
+cx0 (principal point at (0, 0)); intr2, intr05 (fl_x, fl_y, cx, cy x 2, x 0.5: the
+intrinsics of an image twice / half the size); shufdepth (each frame given the next frame's depth file); posemm,
 pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
@@ -48,6 +49,15 @@ def _focal(k):
     def e(tj):
         for d in [tj, *tj["frames"]]:  # shared intrinsics or each frame's
             for key in ("fl_x", "fl_y"):
+                if key in d:
+                    d[key] *= k
+    return e
+
+
+def _intrinsics(k):
+    def e(tj):
+        for d in [tj, *tj["frames"]]:  # the intrinsics of an image k times the size
+            for key in ("fl_x", "fl_y", "cx", "cy"):
                 if key in d:
                     d[key] *= k
     return e
@@ -97,6 +107,8 @@ VARIANTS = {
     **{f"focal{n}": {"meta": _focal(k)} for n, k in (("08", 0.8), ("09", 0.9), ("11", 1.1), ("12", 1.2),
                                                       ("125", 1.25), ("20", 2.0))},
     "cx0": {"meta": _frames(lambda f: f.update(cx=0.0, cy=0.0))},
+    "intr2": {"meta": _intrinsics(2.0)},
+    "intr05": {"meta": _intrinsics(0.5)},
     "shufdepth": {"files": _shuffle_depth},
     "posemm": {"meta": _pose(_scale_t(1000.0))},
     "pose05": {"meta": _pose(_scale_t(0.5))},

@@ -21,6 +21,7 @@ from capture.depth_agreement import (
     agreement,
     convention_check,
     focal_check,
+    intrinsics_check,
     neighbours,
     verdict,
     view_sample,
@@ -35,7 +36,7 @@ from capture.depth_registration import (
 )
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
-FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention")
+FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics")
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
 #: of the stage's 1.4 s on every view's edges.
@@ -55,14 +56,12 @@ def sample_view(scan, ref, arg):
 
 def agreement_stage(work, cfg: AgreementConfig, ctx):
     """The depth-agreement stage: each view's sample through ``ctx.map_views``; the share of points agreeing at
-    each depth scale, the verdict warned unless it is ``agree``; the poses in other conventions where it is
-    ``none`` or ``scale``, the focal-length search where it is ``agree`` or ``scale``; the depth's edges against
-    the colour's (capture.depth_registration), warned when they sit apart (not judged where the depth's edges sit
-    zoomed from the colour's).  Record: the verdicts, the scales' shares (rounded), each view's own share, the
-    convention and focal searches', the edges' offset and the config; None
-    with fewer than 2 views, status ``no depth`` where no view has any (the fuse stage refuses such a capture,
-    and says why), ``no pairs`` where no two views are within MAX_PAIR_ANGLE of each other (the edges are still
-    compared)."""
+    each depth scale, the verdict warned unless it is ``agree`` and diagnosed further (:func:`_diagnosed`); the
+    depth's edges against the colour's (capture.depth_registration), warned when they sit apart (not judged where
+    the depth's edges sit zoomed from the colour's).  Record: the verdicts, the scales' shares (rounded), each
+    view's own share, the further searches', the edges' offset and the config; None with fewer than 2 views,
+    status ``no depth`` where no view has any (the fuse stage refuses such a capture, and says why), ``no pairs``
+    where no two views are within MAX_PAIR_ANGLE of each other (the edges are still compared)."""
     if len(work.scans) < 2:
         return work.record("depth agreement", None)
     every = max(1, -(-len(work.scans) // EDGE_VIEWS))  # about EDGE_VIEWS views' edges: one offset for a capture
@@ -81,17 +80,7 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         return work.record("depth agreement", {**offset, "status": "no pairs", "config": asdict(cfg)})
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
     rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
-    if rec["status"] in ("none", "scale"):  # poses written in another convention read as a scale, or as nothing
-        conv = convention_check(samples, cams, cfg, rec["best_share"])
-        rec["convention"] = {k: v for k, v in conv.items() if k != "message"}
-        if conv["status"] == "convention":
-            rec["status"], rec["message"] = "convention", conv["message"]
-    if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
-        focal = focal_check(samples, cams, cfg)
-        rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
-        if focal["status"] == "focal":
-            rec["status"], rec["message"] = "focal", focal["message"]
-            rec = _depth_zoom(work, rec, every, ctx)
+    rec = _diagnosed(rec, samples, cams, cfg, work, every, ctx)
     if rec["status"] == "depth zoom" and offset.get("colour_offset"):  # a zoom's edges peak at some shift too
         offset = {**offset, "colour_offset": False, "colour_offset_note": "not judged: the depth's edges sit zoomed"}
         offset.pop("colour_offset_message", None)
@@ -101,13 +90,36 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         work, rec = _rescaled(work, rec, ctx)
     elif cfg.fix and rec["status"] == "depth zoom":
         work, rec = _unzoomed(work, rec, ctx)
-    elif cfg.fix and rec["status"] in ("focal", "convention"):
+    elif cfg.fix and rec["status"] in ("focal", "convention", "intrinsics"):
         log.warning("depth agreement: --depth-agreement fix leaves the %s as the capture gives them (a depth scale "
                     "would not undo them; the held-out views keep the capture's cameras)",
-                    "intrinsics" if rec["status"] == "focal" else "poses")
+                    "poses" if rec["status"] == "convention" else "intrinsics")
     rec["curve"] = {f"{x:.4g}": round(float(a), 4) for x, a in zip(s, share)}
     rec["per_view"] = {x.name: None if v != v else round(float(v), 4) for x, v in zip(work.scans, per_view)}
     return work.record("depth agreement", {**rec, "config": asdict(cfg)})
+
+
+def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, ctx) -> dict:
+    """The scales' verdict ``rec`` diagnosed further: where it is ``none`` or ``scale``, the poses read in other
+    conventions (status ``convention``), else the intrinsics' common misreadings (``intrinsics``); where it is
+    ``agree`` or ``scale`` (and no convention was found), the focal lengths (``focal``), told from a depth camera's
+    own field of view by the colour (``depth zoom``).  Each search's record under its own key."""
+    if rec["status"] in ("none", "scale"):  # poses written in another convention read as a scale, or as nothing
+        conv = convention_check(samples, cams, cfg, rec["best_share"])
+        rec["convention"] = {k: v for k, v in conv.items() if k != "message"}
+        if conv["status"] == "convention":
+            return {**rec, "status": "convention", "message": conv["message"]}
+        intr = intrinsics_check(samples, cams, cfg, rec["best_share"])
+        rec["intrinsics"] = {k: v for k, v in intr.items() if k != "message"}
+        if intr["status"] == "intrinsics":
+            return {**rec, "status": "intrinsics", "message": intr["message"]}
+    if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
+        focal = focal_check(samples, cams, cfg)
+        rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
+        if focal["status"] == "focal":
+            rec = {**rec, "status": "focal", "message": focal["message"]}
+            rec = _depth_zoom(work, rec, every, ctx)
+    return rec
 
 
 def _offset(work, rec: dict, cfg: AgreementConfig, ctx):

@@ -11,10 +11,12 @@ from capture.camera import invert_rigid, make_K, misread_poses
 from capture.depth_agreement import (
     MAX_PAIR_ANGLE,
     AgreementConfig,
+    _reprojected,
     agreement,
     convention_check,
     focal_check,
     focal_factors,
+    intrinsics_check,
     neighbours,
     pair_hits,
     scales,
@@ -232,6 +234,50 @@ def test_depth_in_another_unit_is_no_convention(ring):
     samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
     conv = convention_check(samples, [x.camera for x in scans], CFG, rec["best_share"])
     assert rec["status"] == "scale" and conv["status"] == "as read", conv
+
+
+def _intrinsics(scans, fn):
+    """The scans with each camera's K replaced by ``fn(K, camera)``, the depth as measured."""
+    return [replace(x, camera=replace(x.camera, K=fn(x.camera.K, x.camera))) for x in scans]
+
+
+def _intrinsics_verdict(scans):
+    rec, _, _ = _check(scans)
+    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
+    return rec, intrinsics_check(samples, [x.camera for x in scans], CFG, rec["best_share"])
+
+
+def test_intrinsics_of_an_image_twice_the_size_are_named(ring):
+    """fl_x, fl_y, cx, cy of an image twice the size (images resized after calibration): read as a depth scale or
+    as nothing; the intrinsics check names it with the factor 0.5 that undoes it, agreeing as the right capture."""
+    def twice(K, c):
+        return make_K(2 * K[0, 0], 2 * K[1, 1], 2 * K[0, 2] + 0.5, 2 * K[1, 2] + 0.5)  # OpenCV centres, 2x grid
+    rec, intr = _intrinsics_verdict(_intrinsics(ring.scans, twice))
+    right, _, _ = _check(ring.scans)
+    assert rec["status"] in ("none", "scale") and intr["status"] == "intrinsics", (rec, intr)
+    assert intr["intrinsics"] == "image size" and intr["factor"] == pytest.approx(0.5, abs=0.01), intr
+    assert intr["tried"]["image size"]["share"] == pytest.approx(right["share"], abs=0.02)
+    assert "images 2 times the size" in intr["message"]
+
+
+def test_a_principal_point_at_the_corner_is_named(ring):
+    """cx = cy = 0: the views' depths agree nowhere; with the principal point at the image's centre (where the
+    ring's is) they agree as the right capture's."""
+    rec, intr = _intrinsics_verdict(_intrinsics(ring.scans, lambda K, c: make_K(K[0, 0], K[1, 1], 0.0, 0.0)))
+    assert rec["status"] == "none" and intr["status"] == "intrinsics" and intr["intrinsics"] == "centre", intr
+    rec, intr = _intrinsics_verdict(_with_depth(ring.scans, lambda i, z: z * 2.0))
+    assert rec["status"] == "scale" and intr["status"] == "as read", intr  # a depth unit is no intrinsic
+
+
+def test_reprojected_sample_is_the_sample_of_the_new_intrinsics(ring):
+    """_reprojected(view_sample(depth, camera)) through K_new is view_sample(depth, camera with K_new): the same
+    pixels, back-projected through the new intrinsics."""
+    x = ring.scans[3]
+    K_new = make_K(0.7 * x.camera.K[0, 0], 0.8 * x.camera.K[1, 1], 10.0, 20.0)
+    got = _reprojected(view_sample(x.depth, x.camera, 200, 5), x.camera.K, K_new)
+    ref = view_sample(x.depth, replace(x.camera, K=K_new), 200, 5)
+    np.testing.assert_allclose(got[0], ref[0], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(got[1], ref[1])
 
 
 def test_config_is_validated():

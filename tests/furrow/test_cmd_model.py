@@ -237,6 +237,24 @@ def test_world_to_camera_poses_are_named(scan_dir, tmp_path, capsys):
         assert "before that, the views' depths agree with their poses" in flat and "Traceback" not in err, flat
 
 
+def test_intrinsics_of_an_image_twice_the_size_are_named(scan_dir, tmp_path, capsys):
+    """fl_x, fl_y, cx, cy written for an image twice the size: furrow model names them, with the factor 0.5."""
+    def twice(meta):
+        for d in [meta, *meta["frames"]]:
+            for key in ("fl_x", "fl_y", "cx", "cy"):
+                if key in d:
+                    d[key] *= 2.0
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path, capsys, twice)
+    flat = " ".join(err.split())
+    assert "fl_x, fl_y, cx and cy times 0.5: are they the intrinsics of images 2 times the size" in flat, flat
+    if rc == 0:
+        rec = load_model(out).params["depth_agreement"]
+        assert rec["status"] == "intrinsics" and rec["intrinsics"]["factor"] == pytest.approx(0.5, abs=0.01), rec
+    else:
+        assert "before that, the views' depths agree with their poses" in flat, flat
+
+
 def test_depth_beside_its_colour_is_warned_and_fixed(scan_dir, tmp_path, capsys):
     """Every depth file moved 5 px right of its colour (depth not registered to the colour camera): furrow model
     warns with the offset, (-5, 0), and ``--depth-agreement fix`` moves the depth back; the capture as written
