@@ -1,7 +1,7 @@
 """The depth-agreement stage's verdicts on captures, as ``furrow model`` reaches them (capture/depth_agreement.py,
 volume/agreement.py), one line each: the scales' verdict and best scale, then the focal-length search's factor, the
 points agreeing as given and at that factor, the view pairs better / worse, the depth's best scale there; or the
-pose convention the depths agree with (and each convention's share).
+pose convention or the intrinsics' misreading the depths agree with (and each reading's share).
 
     PYTHONPATH=. .venv/bin/python scripts/agreement_verdicts.py CAPTURE [CAPTURE ...]
 
@@ -15,7 +15,15 @@ import sys
 import time
 import zlib
 
-from capture.depth_agreement import AgreementConfig, agreement, convention_check, focal_check, verdict, view_sample
+from capture.depth_agreement import (
+    AgreementConfig,
+    agreement,
+    convention_check,
+    focal_check,
+    intrinsics_check,
+    verdict,
+    view_sample,
+)
 from capture.io import read_scanset
 
 
@@ -31,6 +39,10 @@ def line(path: str) -> str:
     if conv.get("status") == "convention":
         return (f"{path.rstrip('/').split('/')[-1]:>28} convention (scales: {rec['status']}, best share "
                 f"{rec['best_share']:.1%}) poses read as '{conv['convention']}': {conv['tried']}")
+    intr = intrinsics_check(samples, cams, cfg, rec["best_share"]) if conv else {}
+    if intr.get("status") == "intrinsics":
+        return (f"{path.rstrip('/').split('/')[-1]:>28} intrinsics (scales: {rec['status']}, best share "
+                f"{rec['best_share']:.1%}) read as '{intr['intrinsics']}' x {intr['factor']:.3g}: {intr['tried']}")
     f = focal_check(samples, cams, cfg) if rec["status"] in ("agree", "scale") else {}
     status = "focal" if f.get("status") == "focal" else rec["status"]
     focal = (f"focal x {f['focal_factor']:.4g}: {f['share_as_given']:.1%} -> {f['focal_share']:.1%}, pairs "
@@ -42,4 +54,7 @@ def line(path: str) -> str:
 
 if __name__ == "__main__":
     for p in sys.argv[1:]:
-        print(line(p), flush=True)
+        try:
+            print(line(p), flush=True)
+        except ValueError as e:  # the reader's refusal (ScanIOError): said, and the next capture
+            print(f"{p.rstrip('/').split('/')[-1]:>28} refused: {e}", flush=True)
