@@ -15,7 +15,7 @@ import sys
 from furrow.console import console, fail
 
 #: Command names in the order ``--help`` lists them.
-COMMANDS = ["synth", "register", "model", "render", "eval", "view", "export", "batch", "bench"]
+COMMANDS = ["synth", "register", "check", "model", "render", "eval", "view", "export", "batch", "bench"]
 
 
 def _load(name: str):

@@ -1,0 +1,117 @@
+"""``furrow check``: a capture's checks before a model is built, in seconds.
+
+Runs the pipeline's first stages (volume/pipeline/stages.py: reading, view selection, depth agreement) and no
+other, then prints what each check found.  Exit status: 0 when every check passed, 1 when one did not (the
+depths do not agree with the poses, or agree only at another scale, with other intrinsics, in another pose
+convention; the depth sits beside or zoomed from its colour), 1 with the reason when the capture cannot be read.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+HELP = "check a capture before modelling it: its frames, its views and its depth against its poses and colour"
+DESCRIPTION = f"""{HELP}.
+
+The first stages of `furrow model` (reading, view selection, depth agreement) and nothing else, so a capture
+whose poses, intrinsics or depth are off is found in seconds, not after the model (docs/capture_formats.md):
+the depth held against the poses at depth scales 1/4..4, against poses read in other conventions (OpenCV axes,
+world-to-camera), other intrinsics (those of another image size, the principal point at the centre) and other
+focal lengths; and against its colour image (shifted, or zoomed: a depth camera of its own).
+
+Exit status: 0 every check passed; 1 a check failed (each says what to fix), or the capture could not be read.
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    from capture.lens import DEFAULT_UNDISTORT, UNDISTORT_MODES
+
+    p.add_argument("scans", type=Path,
+                   help="scan set: transforms.json, a folder holding one, a plain folder or a COLMAP folder")
+    p.add_argument("--frames", default=None, metavar="SPEC",
+                   help="which frames, as furrow model takes them (e.g. 0::2; default all)")
+    p.add_argument("--views", default="auto", metavar="MODE",
+                   help="view selection as furrow model's --views: auto (default), all, or a number")
+    p.add_argument("--undistort", choices=list(UNDISTORT_MODES), default=DEFAULT_UNDISTORT,
+                   help=f"lens-distorted frames, as furrow model's --undistort (default {DEFAULT_UNDISTORT})")
+    p.add_argument("--json", action="store_true", help="print the checks' records on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks")
+
+
+#: The stages furrow check runs: the pipeline up to and with this one.
+LAST_STAGE = "depth agreement"
+
+
+def check_records(source, frames, views: str, undistort: str, hooks=None) -> dict:
+    """The records of the pipeline's stages up to :data:`LAST_STAGE` on ``source`` (a capture.sources.Source):
+    stage name -> record (volume/pipeline/runner.py)."""
+    from capture.depth_agreement import AgreementConfig
+    from capture.sources import ReadConfig, UndistortConfig
+    from volume.pipeline.config import PipelineConfig, ViewsConfig
+    from volume.pipeline.runner import run_pipeline
+    from volume.pipeline.stages import STAGES
+
+    last = [s.name for s in STAGES].index(LAST_STAGE)
+    cfg = PipelineConfig(read=ReadConfig(frames), undistort=UndistortConfig(undistort), views=ViewsConfig(views),
+                         agreement=AgreementConfig())
+    run = run_pipeline(source, cfg, hooks, stages=STAGES[:last + 1])
+    try:
+        return dict(run.work.records)
+    finally:
+        run.close()
+
+
+def verdicts(records: dict) -> list[tuple[str, bool, str]]:
+    """(check, passed, what it found) for each check of ``records`` (:func:`check_records`)."""
+    from volume.agreement import FAILED_AGREEMENT
+
+    out = []
+    sel = records.get("view selection") or {}
+    if sel:
+        collapsed = any(r.get("collapsed") for r in sel.get("per_view", []))
+        out.append(("views", not collapsed, sel["per_view"][0]["reason"] if collapsed else
+                    f"{sel['kept']} of {sel['of']} kept (--views {sel['mode']})"))
+    agree = records.get("depth agreement")
+    if not agree:
+        out.append(("depth against poses", True, "not judged: fewer than 2 views"))
+        return out
+    status = agree.get("status")
+    said = {"no depth": "no view has depth: furrow models RGB-D captures (depth_file_path)",
+            "no pairs": "not judged: no two views within 75 degrees of each other"}
+    out.append(("depth against poses", status not in FAILED_AGREEMENT and status != "no depth",
+                said.get(status, agree.get("message", status))))
+    if "colour_offset" in agree:
+        off = agree["colour_offset"]
+        dx, dy = agree["colour_offset_px"]
+        found = agree.get("colour_offset_message") or agree.get("colour_offset_note") or (
+            f"the colour's edges sit at the depth's in {agree['colour_offset_views']} views (best shift "
+            f"({dx:+g}, {dy:+g}) px): registered")
+        out.append(("depth against colour", not off, found))
+    return out
+
+
+def run(args, console) -> int:
+    from rich.table import Table
+
+    from capture.sources import open_source
+    from furrow.console import StageTimer
+    from furrow.model_flags import pipeline_hooks
+
+    timer = StageTimer()
+    records = check_records(open_source(args.scans, args.undistort), args.frames, str(args.views), args.undistort,
+                            pipeline_hooks(timer))
+    found = verdicts(records)
+    table = Table(title=f"furrow check: {args.scans}")
+    for col in ("check", "result", "found"):
+        table.add_column(col, overflow="fold")
+    for name, ok, text in found:
+        table.add_row(name, "[green]pass[/]" if ok else "[bold red]FAIL[/]", text)
+    console.print(timer.table("furrow check: stage timings"))
+    console.print(table)
+    if args.json:
+        print(json.dumps({"checks": [{"check": n, "passed": ok, "found": t} for n, ok, t in found],
+                          "records": {k: records.get(k) for k in ("view selection", "depth agreement")}},
+                         default=str))
+    return 0 if all(ok for _, ok, _ in found) else 1

@@ -1,0 +1,55 @@
+"""`furrow check`: a capture's first stages only, a table of checks, exit 1 when one fails."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from capture.io import write_transforms
+from furrow.cli import main
+from tests.scenes import make_scanset, scan_ring, sphere_scene
+
+
+@pytest.fixture(scope="module")
+def scan_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("check") / "sphere"
+    write_transforms(make_scanset(sphere_scene(), scan_ring(8, 64, 48), noise=0.0005), out)
+    return out
+
+
+def _check(path, capsys, *flags):
+    rc = main(["check", str(path), *flags])
+    out = capsys.readouterr()
+    return rc, out.out, " ".join(out.err.split()) + " " + " ".join(out.out.split())
+
+
+def test_a_right_capture_passes_every_check(scan_dir, capsys, tmp_path):
+    rc, out, said = _check(scan_dir, capsys, "--json")
+    rec = json.loads(out.strip().splitlines()[-1])
+    assert rc == 0, said
+    assert [c["check"] for c in rec["checks"]] == ["views", "depth against poses", "depth against colour"]
+    assert all(c["passed"] for c in rec["checks"]) and "FAIL" not in said
+    assert rec["records"]["depth agreement"]["status"] == "agree"
+    assert "furrow check: stage timings" in said and "extent" not in said  # the first stages only
+    assert not (tmp_path / "model").exists()
+
+
+def test_focal_lengths_off_fail_with_what_to_fix(scan_dir, capsys, tmp_path):
+    """fl_x, fl_y x 1.3: exit 1, the depth-against-poses row fails with the factor that undoes it."""
+    d = shutil.copytree(scan_dir, tmp_path / "focal")
+    meta = json.loads((d / "transforms.json").read_text())
+    for f in [meta, *meta["frames"]]:
+        for key in ("fl_x", "fl_y"):
+            if key in f:
+                f[key] *= 1.3
+    (d / "transforms.json").write_text(json.dumps(meta))
+    rc, out, said = _check(d, capsys)
+    assert rc == 1 and "FAIL" in said and "every focal length (fl_x, fl_y) is 0.7" in said, said
+
+
+def test_an_unreadable_capture_is_an_error_naming_the_file(tmp_path, capsys):
+    (tmp_path / "transforms.json").write_text("{not json")
+    rc, out, said = _check(tmp_path, capsys)
+    assert rc == 1 and "transforms.json" in said and "Traceback" not in said, said
