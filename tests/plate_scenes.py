@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from capture.matting import UNKNOWN, depth_trimap
@@ -126,6 +128,19 @@ def _needles(height: int, width: int, angle: float, rng, ss: int = 6, n: int = 4
     return alpha.astype(np.float32), seen[ss // 2::ss, ss // 2::ss]
 
 
+@functools.lru_cache(maxsize=8)
+def _turning_object(n: int, width: int, height: int, seed: int) -> tuple:
+    """The :func:`_needles` of each of the turntable's ``n`` frames (made once per process: 6 s at 192x144, which
+    a dozen tests asked for again), read-only; :func:`turntable_capture` copies them."""
+    out = []
+    for i in range(n):
+        a, seen = _needles(height, width, 2 * np.pi * i / n, np.random.default_rng(seed + 1))
+        a.setflags(write=False)
+        seen.setflags(write=False)
+        out.append((a, seen))
+    return tuple(out)
+
+
 def turntable_capture(n: int = 12, width: int = 96, height: int = 72, gains=None, seed: int = 0, room=None):
     """(plate views, true background (H, W, 3), true alphas, colours of the object (3,)) of the
     turntable scene (module docstring); ``gains`` (n, 3): each frame's exposure (colour / gain);
@@ -134,8 +149,8 @@ def turntable_capture(n: int = 12, width: int = 96, height: int = 72, gains=None
     cams = scenes.ring_cameras(n, width, height, radius=RING_RADIUS, elevations=(15.0,), fov_deg=40.0)
     F = np.array([0.08, 0.3, 0.06], np.float32)
     views, alphas = [], []
-    for i, cam in enumerate(cams):
-        a, seen = _needles(height, width, 2 * np.pi * i / n, np.random.default_rng(seed + 1))
+    for i, (cam, (a, seen)) in enumerate(zip(cams, _turning_object(n, width, height, seed), strict=True)):
+        a, seen = a.copy(), seen.copy()
         col = a[..., None] * F + (1 - a[..., None]) * room
         if gains is not None:
             col = col / np.asarray(gains[i], np.float32)
@@ -152,6 +167,17 @@ def needle_composite(height: int = 96, width: int = 128, n: int = 90, background
     pixels) over ``background`` (default :func:`room_image`; an (H, W, 3) array is taken as it is);
     depth where the pixel centre hits.  ``shade``: each needle's colour is scaled by its own factor
     in [1 - shade, 1] (lit and shaded needles: colours along one direction from a bright room)."""
+    alpha, F, depth = (x.copy() for x in _needle_object(height, width, n, seed, ss, float(shade)))
+    B = room_image(width, height, seed) if background is None else np.broadcast_to(background, F.shape)
+    C = alpha[..., None] * F + (1 - alpha[..., None]) * B
+    return C.astype(np.float32), np.asarray(B, np.float32), alpha.astype(np.float32), F.astype(np.float32), depth
+
+
+@functools.lru_cache(maxsize=16)
+def _needle_object(height: int, width: int, n: int, seed: int, ss: int, shade: float) -> tuple:
+    """(alpha (H, W) float64, straight colour F (H, W, 3) float64, depth (H, W) float32) of
+    :func:`needle_composite`'s object, made once per process (8 s at 256x192 with 160 needles, asked for by a
+    dozen tests), read-only."""
     rng = np.random.default_rng(seed)
     H, W = height * ss, width * ss
     yy, xx = np.meshgrid(cell_centres(H), cell_centres(W), indexing="ij")  # supersample centres
@@ -177,10 +203,10 @@ def needle_composite(height: int = 96, width: int = 128, n: int = 90, background
         F = F * ((lit * cov).reshape(height, ss, width, ss).sum((1, 3)) / np.maximum(alpha * ss * ss, 1))[..., None]
     c = core.reshape(height, ss, width, ss).mean((1, 3))[..., None]
     F = F * (1 - c) + np.array([0.3, 0.12, 0.05]) * c
-    B = room_image(width, height, seed) if background is None else np.broadcast_to(background, F.shape)
-    C = alpha[..., None] * F + (1 - alpha[..., None]) * B
     depth = np.where(cov[ss // 2::ss, ss // 2::ss], 0.5, 0.0).astype(np.float32)
-    return C.astype(np.float32), np.asarray(B, np.float32), alpha.astype(np.float32), F.astype(np.float32), depth
+    for a in (alpha, F, depth):
+        a.setflags(write=False)
+    return alpha, F, depth
 
 
 def band_error(views, plates, truths) -> tuple[float, float]:
