@@ -10,6 +10,9 @@ has() { $F --help 2>/dev/null | grep -qE "^\s+$1\s"; }
 
 $F synth furball -o "$OUT/furball_scan" --views 36 --size 320x240 --seed 1 --preview --overwrite
 $F synth plant -o "$OUT/plant_scan" --views 36 --size 320x240 --seed 1 --preview --overwrite
+if has check; then  # the capture's poses, intrinsics and depth checked first (a second; exit 1 would stop here)
+  $F check "$OUT/furball_scan" --frames 0::2
+fi
 if has model; then
   $F model "$OUT/furball_scan" -o "$OUT/furball_model" --frames 0::2 --max-res 128 --overwrite --json > "$OUT/furball_model.json"
 fi
