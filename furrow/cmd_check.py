@@ -12,6 +12,8 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
+
 HELP = "check a capture before modelling it: its frames, its views and its depth against its poses and colour"
 DESCRIPTION = f"""{HELP}.
 
@@ -58,9 +60,25 @@ def check_records(source, frames, views: str, undistort: str, hooks=None) -> dic
                          agreement=AgreementConfig())
     run = run_pipeline(source, cfg, hooks, stages=STAGES[:last + 1])
     try:
-        return dict(run.work.records)
+        return {**run.work.records, "frames": frame_stats(run.work.scans or ())}
     finally:
         run.close()
+
+
+def frame_stats(scans) -> dict:
+    """The views' size, the share of their pixels with depth (median over the views) and the median depth (metres,
+    median of the views' medians): what a depth unit off by 1000 or a depth file of another frame shows at once."""
+    shares, medians = [], []
+    for x in scans:
+        z = np.asarray(x.depth, np.float32)
+        ok = np.isfinite(z) & (z > 0)
+        shares.append(float(ok.mean()))
+        if ok.any():
+            medians.append(float(np.median(z[ok])))
+    c = scans[0].camera if len(scans) else None
+    return {"views": len(scans), "size": [c.width, c.height] if c else None,
+            "depth_share": round(float(np.median(shares)), 4) if shares else 0.0,
+            "depth_median_m": round(float(np.median(medians)), 4) if medians else None}
 
 
 def verdicts(records: dict) -> list[tuple[str, bool, str]]:
@@ -68,6 +86,12 @@ def verdicts(records: dict) -> list[tuple[str, bool, str]]:
     from volume.agreement import FAILED_AGREEMENT
 
     out = []
+    fr = records.get("frames") or {}
+    if fr.get("views"):
+        w, h = fr["size"]
+        med = fr["depth_median_m"]
+        out.append(("frames", med is not None, f"{fr['views']} views of {w}x{h}; depth on {fr['depth_share']:.0%} of "
+                    "the pixels (median view), " + (f"median {med:.3g} m" if med is not None else "none at all")))
     sel = records.get("view selection") or {}
     if sel:
         collapsed = any(r.get("collapsed") for r in sel.get("per_view", []))
@@ -112,6 +136,6 @@ def run(args, console) -> int:
     console.print(table)
     if args.json:
         print(json.dumps({"checks": [{"check": n, "passed": ok, "found": t} for n, ok, t in found],
-                          "records": {k: records.get(k) for k in ("view selection", "depth agreement")}},
+                          "records": {k: records.get(k) for k in ("frames", "view selection", "depth agreement")}},
                          default=str))
     return 0 if all(ok for _, ok, _ in found) else 1

@@ -29,7 +29,10 @@ def test_a_right_capture_passes_every_check(scan_dir, capsys, tmp_path):
     rc, out, said = _check(scan_dir, capsys, "--json")
     rec = json.loads(out.strip().splitlines()[-1])
     assert rc == 0, said
-    assert [c["check"] for c in rec["checks"]] == ["views", "depth against poses", "depth against colour"]
+    assert [c["check"] for c in rec["checks"]] == ["frames", "views", "depth against poses", "depth against colour"]
+    fr = rec["records"]["frames"]
+    assert fr["views"] == 8 and fr["size"] == [64, 48] and 0.05 < fr["depth_share"] < 1
+    assert 0.2 < fr["depth_median_m"] < 2.0  # the ring's sphere, metres
     assert all(c["passed"] for c in rec["checks"]) and "FAIL" not in said
     assert rec["records"]["depth agreement"]["status"] == "agree"
     assert "furrow check: stage timings" in said and "extent" not in said  # the first stages only
