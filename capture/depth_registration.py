@@ -147,19 +147,40 @@ def shifted_depth(depth: np.ndarray, dx: int, dy: int) -> np.ndarray:
 
 
 def zoom_sums(rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray, zoom: float, seed: int = 0) -> np.ndarray:
-    """(2,) the colour's gradient magnitude summed at the depth's edges as they are, and at the same edges drawn
-    ``zoom`` times closer to ``centre`` (full-size pixels (cx, cy): the principal point), of one view; (0, 0) with
-    too few edges.  A depth map from a camera whose focal length is ``zoom`` times the colour's, read with the
-    colour's intrinsics, has its edges ``zoom`` times further from the centre than the colour's: the second sum is
-    the larger (:func:`zoom_verdict`)."""
+    """(1 + (2R+1)^2,) the colour's gradient magnitude summed at the depth's edges as they are, then at the same
+    edges drawn ``zoom`` times closer to ``centre`` (full-size pixels (cx, cy): the principal point) and shifted by
+    (dy, dx) = index - R working pixels (row by row), of one view; zeros with too few edges.  A depth map from a
+    camera whose focal length is ``zoom`` times the colour's, read with the colour's intrinsics, has its edges
+    ``zoom`` times further from the centre than the colour's (and beside them where the two cameras stand apart):
+    the zoomed sums are the larger (:func:`zoom_verdict`)."""
+    R = OFFSET_RADIUS
     G, ys, xs, f = _gradient_and_edges(rgb, depth, seed)
     if G is None:
-        return np.zeros(2)
+        return np.zeros(1 + (2 * R + 1) ** 2)
     c = np.asarray(centre, np.float64) * f
     my = np.rint(c[1] + (ys - c[1]) / zoom).astype(np.int64)
     mx = np.rint(c[0] + (xs - c[0]) / zoom).astype(np.int64)
-    ok = (my >= 0) & (my < G.shape[0]) & (mx >= 0) & (mx < G.shape[1])
-    return np.array([G[ys[ok], xs[ok]].sum(), G[my[ok], mx[ok]].sum()], np.float64)
+    ok = (my >= R) & (my < G.shape[0] - R) & (mx >= R) & (mx < G.shape[1] - R)
+    d = np.arange(-R, R + 1)
+    grid = G[(my[ok][None, :] + d[:, None])[:, None, :], (mx[ok][None, :] + d[:, None])[None, :, :]].sum(axis=-1)
+    return np.concatenate([[G[ys[ok], xs[ok]].sum()], grid.ravel()])
+
+
+def zoom_verdict(total: np.ndarray, zoom: float, width: int) -> dict:
+    """From the views' summed :func:`zoom_sums` at ``zoom`` (views ``width`` pixels wide): ``depth_zoom_gain`` (the
+    best zoomed sum over the sum as they are), ``depth_zoom_shift_px`` (the best one's shift, full pixels, x right,
+    y down: the colour's edges from the depth's drawn back; (0, 0) when under OFFSET_MIN_PX working pixels) and
+    ``depth_zoom`` (the gain at least ZOOM_GAIN)."""
+    R = OFFSET_RADIUS
+    grid = np.asarray(total[1:], np.float64).reshape(2 * R + 1, 2 * R + 1)
+    by, bx = np.unravel_index(int(np.argmax(grid)), grid.shape)
+    if max(abs(int(bx) - R), abs(int(by) - R)) < OFFSET_MIN_PX:  # a shift too small to report is none
+        by, bx = R, R
+    gain = float(grid[by, bx] / total[0]) if total[0] > 0 else 0.0
+    f = min(1.0, OFFSET_WORK_PX / float(width))
+    return {"depth_zoom_gain": round(gain, 4), "depth_zoom_shift_px": [round((int(bx) - R) / f, 1),
+                                                                       round((int(by) - R) / f, 1)],
+            "depth_zoom": bool(gain >= ZOOM_GAIN)}
 
 
 def zoomed_depth(depth: np.ndarray, centre: np.ndarray, width: int, zoom: float) -> np.ndarray:

@@ -27,11 +27,12 @@ from capture.depth_agreement import (
     view_sample,
 )
 from capture.depth_registration import (
-    ZOOM_GAIN,
+    OFFSET_RADIUS,
     edge_scores,
     offset_verdict,
     shifted_depth,
     zoom_sums,
+    zoom_verdict,
     zoomed_depth,
 )
 
@@ -172,38 +173,45 @@ def zoom_view(scan, ref, arg):
     zoom, every = arg
     seed = zlib.crc32(scan.name.encode())
     return None, (zoom_sums(scan.rgb, scan.depth, scan.camera.K[:2, 2], zoom, seed) if seed % every == 0
-                  else np.zeros(2))
+                  else np.zeros(1 + (2 * OFFSET_RADIUS + 1) ** 2))
 
 
 def _depth_zoom(work, rec: dict, every: int, ctx) -> dict:
-    """The record of a ``focal`` verdict told apart (capture.depth_registration.ZOOM_GAIN): status ``depth zoom``
-    where the colour's edges sit at the depth's drawn the focal factor closer to the principal point (the depth
-    from a camera with another field of view, not registered to the colour's), ``focal`` where they sit at the
-    depth's as they are (both images' intrinsics off); ``depth_zoom_gain`` either way."""
+    """The record of a ``focal`` verdict told apart (capture.depth_registration.zoom_verdict): status ``depth zoom``
+    where the colour's edges sit at the depth's drawn the focal factor closer to the principal point (and shifted
+    by up to OFFSET_RADIUS working pixels: the depth from a camera with another field of view, standing beside the
+    colour's), ``focal`` where they do not (both images' intrinsics off); the zoom's figures either way."""
     a = float(rec["focal"]["focal_factor"])
     sums = np.sum(ctx.map_views(zoom_view, work, (a, every), "depth agreement: the depth's edges zoomed")[1], axis=0)
-    gain = float(sums[1] / sums[0]) if sums[0] > 0 else 0.0
-    rec = {**rec, "depth_zoom_gain": round(gain, 4)}
-    if gain >= ZOOM_GAIN:
+    z = zoom_verdict(sums, a, work.scans[0].camera.width)
+    rec = {**rec, **z}
+    if z["depth_zoom"]:
+        dx, dy = z["depth_zoom_shift_px"]
         rec["status"] = "depth zoom"
         rec["message"] = (
-            f"the depth maps' edges sit {a:.3g} times as far from the principal point as the colour's ({gain:.2f} "
-            "times the colour's gradient there), and the depths agree with the poses with the focal lengths times "
-            f"{a:.3g}: was the depth measured by a camera with its own field of view and not registered to the colour "
-            "camera (the depth pixels over the colour pixels they measured)?")
+            f"the depth maps' edges sit {a:.3g} times as far from the principal point as the colour's"
+            + (f" (the colour's ({dx:+.0f}, {dy:+.0f}) px from them drawn back)" if max(abs(dx), abs(dy)) >= 1 else "")
+            + f" ({z['depth_zoom_gain']:.2f} times the colour's gradient there), and the depths agree with the poses "
+            f"with the focal lengths times {a:.3g}: was the depth measured by a camera with its own field of view and "
+            "not registered to the colour camera (the depth pixels over the colour pixels they measured)?")
     return rec
 
 
-def unzoom_view(scan, ref, zoom: float):
-    """Per view: the scan with its depth drawn ``zoom`` times closer to its principal point."""
-    return replace(scan, depth=zoomed_depth(scan.depth, scan.camera.K[:2, 2], scan.camera.width, zoom)), None
+def unzoom_view(scan, ref, arg):
+    """Per view: the scan with its depth drawn ``zoom`` times closer to its principal point, then moved by
+    (dx, dy) whole pixels; ``arg``: (zoom, (dx, dy))."""
+    zoom, (dx, dy) = arg
+    z = zoomed_depth(scan.depth, scan.camera.K[:2, 2], scan.camera.width, zoom)
+    return replace(scan, depth=shifted_depth(z, dx, dy) if dx or dy else z), None
 
 
 def _unzoomed(work, rec: dict, ctx):
-    """(work with every view's depth map drawn back onto its colour, the record with ``depth_zoom_applied``)."""
+    """(work with every view's depth map drawn back onto its colour, the record with ``depth_zoom_applied``:
+    the zoom and the shift)."""
     a = float(rec["focal"]["focal_factor"])
-    scans, _ = ctx.map_views(unzoom_view, work, a, "depth agreement: depth drawn onto the colour")
+    d = tuple(int(round(v)) for v in rec["depth_zoom_shift_px"])
+    scans, _ = ctx.map_views(unzoom_view, work, (a, d), "depth agreement: depth drawn onto the colour")
     logging.getLogger("furrow.capture").warning(
-        "depth agreement: every view's depth map drawn %.4g times closer to its principal point, onto its colour "
-        "(--depth-agreement fix)", a)
-    return replace(work, scans=tuple(scans)), {**rec, "depth_zoom_applied": round(a, 6)}
+        "depth agreement: every view's depth map drawn %.4g times closer to its principal point and moved by "
+        "(%+d, %+d) px, onto its colour (--depth-agreement fix)", a, *d)
+    return replace(work, scans=tuple(scans)), {**rec, "depth_zoom_applied": [round(a, 6), list(d)]}

@@ -13,6 +13,7 @@ from capture.depth_registration import (
     offset_verdict,
     shifted_depth,
     zoom_sums,
+    zoom_verdict,
     zoomed_depth,
 )
 from tests.scenes import make_scanset, scan_ring, spheres_scene
@@ -67,24 +68,38 @@ def test_too_few_edges_score_nothing():
     assert OFFSET_RADIUS >= 3
 
 
-def _zoom_gain(scans, zoom, depth_zoom=None):
-    """The colour's gradient at the depth's edges drawn ``zoom`` closer to the principal point, over the gradient at
-    the edges as they are, summed over ``scans`` whose depth maps were first drawn ``depth_zoom`` closer."""
-    tot = np.zeros(2)
+def _zoom(scans, zoom, depth_zoom=None, move=(0, 0)):
+    """zoom_verdict of the colour's gradient at the depth's edges drawn ``zoom`` closer to the principal point,
+    summed over ``scans`` whose depth maps were first drawn ``depth_zoom`` closer and then moved by ``move``."""
+    tot = 0
     for i, x in enumerate(scans):
         c = x.camera.K[:2, 2]
-        z = x.depth if depth_zoom is None else zoomed_depth(x.depth, c, x.camera.width, depth_zoom)
-        tot += zoom_sums(np.asarray(x.rgb), z, c, zoom, i)
-    return tot[1] / tot[0]
+        z = x.depth
+        if depth_zoom is not None:
+            z = shifted_depth(zoomed_depth(z, c, x.camera.width, depth_zoom), *move)
+        tot = tot + zoom_sums(np.asarray(x.rgb), z, c, zoom, i)
+    return zoom_verdict(tot, zoom, scans[0].camera.width)
 
 
 @pytest.mark.parametrize("k", [1.15, 0.88])
 def test_a_depth_map_zoomed_from_its_colour_is_told_from_a_focal_length(ring, k):
     """Depth maps drawn k times as far from the principal point as their colour (a depth camera with its own field
     of view): the colour's gradient is higher at their edges drawn back by k than where they are (ZOOM_GAIN or
-    more); the registered depth scores less drawn either way (a focal length wrong for colour and depth alike)."""
-    assert _zoom_gain(ring.scans, k, depth_zoom=1 / k) >= ZOOM_GAIN
-    assert _zoom_gain(ring.scans, k) < 1.0 and _zoom_gain(ring.scans, 1 / k) < 1.0
+    more), with no shift; the registered depth scores less drawn either way, whatever the shift (a focal length
+    wrong for colour and depth alike)."""
+    z = _zoom(ring.scans, k, depth_zoom=1 / k)
+    assert z["depth_zoom"] and z["depth_zoom_gain"] >= ZOOM_GAIN and z["depth_zoom_shift_px"] == [0.0, 0.0], z
+    for zoom in (k, 1 / k):
+        z = _zoom(ring.scans, zoom)
+        assert not z["depth_zoom"] and z["depth_zoom_gain"] < 1.0, z
+
+
+def test_a_zoomed_depth_beside_its_colour_is_found_with_its_shift(ring):
+    """Depth maps zoomed 1.15x and then moved (6, -6) px (a depth camera of its own, beside the colour's): drawn back,
+    the colour's edges sit (-6, +6) / 1.15 px from them (to a pixel)."""
+    z = _zoom(ring.scans, 1.15, depth_zoom=1 / 1.15, move=(6, -6))
+    assert z["depth_zoom"], z
+    assert np.allclose(z["depth_zoom_shift_px"], [-6 / 1.15, 6 / 1.15], atol=1.0), z
 
 
 def test_zoomed_depth_against_the_pixel_by_pixel_reference():
