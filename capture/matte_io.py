@@ -53,6 +53,38 @@ def read_matte(path: Path, shape: tuple[int, int]) -> np.ndarray:
     raise ScanIOError(f"{path}: unsupported mask dtype {m.dtype}")
 
 
+#: A capture's given mattes are read as inverted (white = not the object) when, over the median view, the pixels
+#: they call the object have depth less often than the pixels they call background (right mattes: 0.82-0.98 of
+#: the object's pixels have depth against 0.01-0.47 of the rest, at least 1.9 times as often, on 13 captures with
+#: their true mattes, a room, a table or clutter in the depth among them; inverted, the two swap).
+MATTE_INVERTED_RATIO = 1.0
+
+
+def matte_depth_shares(alpha: np.ndarray, depth: np.ndarray) -> tuple[float, float]:
+    """(the share of the pixels a matte calls the object (alpha >= 0.5) that have depth, the share of the others
+    that have depth); NaN where a side has no pixel."""
+    a = np.asarray(alpha)
+    z = np.asarray(depth, np.float32)
+    d = np.isfinite(z) & (z > 0)
+    fg = a >= 0.5
+    return (float(d[fg].mean()) if fg.any() else float("nan"), float(d[~fg].mean()) if (~fg).any() else float("nan"))
+
+
+def matte_verdict(shares) -> dict | None:
+    """The given mattes against the depth, from each matted view's :func:`matte_depth_shares`: ``views``, the median
+    shares, ``inverted`` (:data:`MATTE_INVERTED_RATIO`) and a ``message``; None without mattes."""
+    s = np.array([x for x in shares if x is not None], np.float64).reshape(-1, 2)
+    if not len(s):
+        return None
+    fg, bg = (float(np.nanmedian(s[:, k])) if np.isfinite(s[:, k]).any() else float("nan") for k in (0, 1))
+    inverted = bool(np.isfinite(fg) and np.isfinite(bg) and fg < MATTE_INVERTED_RATIO * bg)
+    msg = (f"the given mattes call the object pixels of which {fg:.0%} have depth, and the rest pixels of which "
+           f"{bg:.0%} have depth: " + ("are they inverted (white = background)? furrow reads white as the object"
+                                       if inverted else "they cover the object"))
+    return {"views": len(s), "object_depth_share": round(fg, 4), "rest_depth_share": round(bg, 4),
+            "inverted": inverted, "message": msg}
+
+
 def png_has_alpha(path: Path) -> bool:
     """True when ``path`` is a PNG whose colour type carries an alpha channel (reads 26 bytes)."""
     try:

@@ -21,7 +21,8 @@ The first stages of `furrow model` (reading, view selection, depth agreement) an
 whose poses, intrinsics or depth are off is found in seconds, not after the model (docs/capture_formats.md):
 the depth held against the poses at depth scales 1/4..4, against poses read in other conventions (OpenCV axes,
 world-to-camera), other intrinsics (those of another image size, the principal point at the centre) and other
-focal lengths; and against its colour image (shifted, or zoomed: a depth camera of its own).
+focal lengths; against its colour image (shifted, or zoomed: a depth camera of its own); and the capture's own
+mattes (mask_path, masks/) against the depth (inverted ones).
 
 Exit status: 0 every check passed; 1 a check failed (each says what to fix), or the capture could not be read.
 """
@@ -106,6 +107,9 @@ def verdicts(records: dict) -> list[tuple[str, bool, str]]:
             "no pairs": "not judged: no two views within 75 degrees of each other"}
     out.append(("depth against poses", status not in FAILED_AGREEMENT and status != "no depth",
                 said.get(status, agree.get("message", status))))
+    if agree.get("given_matte"):
+        m = agree["given_matte"]
+        out.append(("given mattes against depth", not m["inverted"], f"{m['views']} views: {m['message']}"))
     if "colour_offset" in agree:
         off = agree["colour_offset"]
         dx, dy = agree["colour_offset_px"]

@@ -166,6 +166,8 @@ def print_report(console, summary: dict, out) -> None:
         msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
         console.print(f"[yellow]depth agreement: {msg} This model may be wrong (model.json "
                       "params.depth_agreement).[/]", highlight=False)
+    if (agree.get("given_matte") or {}).get("inverted"):  # capture.matte_io.matte_verdict
+        console.print(f"[yellow]depth agreement: {agree['given_matte']['message']}[/]", highlight=False)
     if agree.get("colour_offset"):  # capture.depth_registration
         done = " (moved back: --depth-agreement fix)" if agree.get("colour_offset_applied") else ""
         console.print(f"[yellow]depth agreement: {agree['colour_offset_message']}{done}[/]", highlight=False)

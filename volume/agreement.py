@@ -35,6 +35,7 @@ from capture.depth_registration import (
     zoom_verdict,
     zoomed_depth,
 )
+from capture.matte_io import matte_depth_shares, matte_verdict
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
 FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics")
@@ -47,12 +48,14 @@ EDGE_VIEWS = 24
 def sample_view(scan, ref, arg):
     """Per view (capture.view_map): (None, (:func:`capture.depth_agreement.view_sample` of its depth,
     :func:`capture.depth_registration.edge_scores` of its colour and depth, or (None, 1) for a view not
-    among those scored), both seeded by the view's name); ``arg``: (the number of points, score the edges of
+    among those scored), both seeded by the view's name; capture.matte_io.matte_depth_shares of its given
+    matte, or None)); ``arg``: (the number of points, score the edges of
     the views whose name's CRC-32 is a multiple of this)."""
     points, every = arg
     seed = zlib.crc32(scan.name.encode())
     edges = edge_scores(scan.rgb, scan.depth, seed) if seed % every == 0 else (None, 1.0)
-    return None, (view_sample(scan.depth, scan.camera, points, seed), edges)
+    matte = None if scan.alpha is None else matte_depth_shares(scan.alpha, scan.depth)
+    return None, (view_sample(scan.depth, scan.camera, points, seed), edges, matte)
 
 
 def agreement_stage(work, cfg: AgreementConfig, ctx):
@@ -74,6 +77,15 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     edges = [b[1][0] for b in both if b[1][0] is not None]
     scale = next((b[1][1] for b in both if b[1][0] is not None), 1.0)
     offset = offset_verdict(np.sum(edges, axis=0), len(edges), scale) if edges else {}
+    matte = matte_verdict([b[2] for b in both])
+    if matte is not None:
+        offset = {**offset, "given_matte": matte}
+        (log.warning if matte["inverted"] else log.info)("depth agreement: %s", matte["message"])
+        if matte["inverted"] and cfg.fix:
+            work = replace(work, scans=tuple(ctx.map_views(invert_matte_view, work, None,
+                                                           "depth agreement: mattes inverted")[0]))
+            offset["given_matte"] = {**matte, "inverted_applied": True}
+            log.warning("depth agreement: every given matte inverted (--depth-agreement fix)")
     cams = [s.camera for s in work.scans]
     if not (neighbours(cams, cfg.neighbours) >= 0).any():
         log.info("depth agreement: no two views within %g degrees of each other: nothing to compare", MAX_PAIR_ANGLE)
@@ -131,6 +143,13 @@ def _offset(work, rec: dict, cfg: AgreementConfig, ctx):
         if cfg.fix:
             return _shifted(work, rec, ctx)
     return work, rec
+
+
+def invert_matte_view(scan, ref, arg):
+    """Per view: the scan with its given matte inverted (1 - alpha), or as it is without one."""
+    if scan.alpha is None:
+        return None, None
+    return replace(scan, alpha=(1.0 - np.asarray(scan.alpha, np.float32)).astype(np.float32)), None
 
 
 def shift_view(scan, ref, d):

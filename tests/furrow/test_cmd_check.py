@@ -56,3 +56,31 @@ def test_an_unreadable_capture_is_an_error_naming_the_file(tmp_path, capsys):
     (tmp_path / "transforms.json").write_text("{not json")
     rc, out, said = _check(tmp_path, capsys)
     assert rc == 1 and "transforms.json" in said and "Traceback" not in said, said
+
+
+def test_inverted_mattes_fail_and_fix_turns_them(scan_dir, capsys, tmp_path):
+    """Masks written white where the object is not (mask_path): furrow check fails them against the depth; furrow
+    model --depth-agreement fix turns them over (and says so), the default only warns."""
+    import cv2
+    import numpy as np
+
+    from volume.model import load_model
+
+    d = shutil.copytree(scan_dir, tmp_path / "masked")
+    meta = json.loads((d / "transforms.json").read_text())
+    (d / "masks").mkdir()
+    for f in meta["frames"]:
+        z = cv2.imread(str(d / f["depth_file_path"]), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(d / "masks" / (f["file_path"].split("/")[-1].rsplit(".", 1)[0] + ".png")),
+                    np.where(z > 0, 0, 255).astype(np.uint8))  # inverted: the object black
+        f["mask_path"] = "masks/" + f["file_path"].split("/")[-1].rsplit(".", 1)[0] + ".png"
+    (d / "transforms.json").write_text(json.dumps(meta))
+    rc, out, said = _check(d, capsys)
+    assert rc == 1 and "given mattes against depth" in said and "are they inverted" in said, said
+    for flags, applied in (((), None), (("--depth-agreement", "fix"), True)):
+        m = tmp_path / f"m{len(flags)}"
+        rc = main(["model", str(d), "-o", str(m), "--max-res", "16", *flags])
+        said = " ".join(capsys.readouterr().err.split())
+        rec = load_model(m).params["depth_agreement"]["given_matte"]
+        assert rc == 0 and rec["inverted"] and rec.get("inverted_applied") == applied, (rec, said)
+        assert ("every given matte inverted" in said) == bool(flags)
