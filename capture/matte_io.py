@@ -53,36 +53,55 @@ def read_matte(path: Path, shape: tuple[int, int]) -> np.ndarray:
     raise ScanIOError(f"{path}: unsupported mask dtype {m.dtype}")
 
 
-#: A capture's given mattes are read as inverted (white = not the object) when, over the median view, the pixels
-#: they call the object have depth less often than the pixels they call background (right mattes: 0.82-0.98 of
-#: the object's pixels have depth against 0.01-0.47 of the rest, at least 1.9 times as often, on 13 captures with
-#: their true mattes, a room, a table or clutter in the depth among them; inverted, the two swap).
-MATTE_INVERTED_RATIO = 1.0
+#: A capture's given mattes are read as inverted (white = not the object) from the median view's figures
+#: (:func:`matte_verdict`): when the pixels they call the object have depth less than MATTE_SHARE_RATIO times as
+#: often as the rest (right mattes on 13 captures with their true mattes, over black, before a room, with a table and
+#: clutter in the depth: 0.82-0.98 against 0.01-0.47, at least 1.9 times as often); where neither has depth this
+#: many times as often as the other (depth over the whole frame: a room, a phone's LiDAR), when the object's median
+#: depth is farther than MATTE_DEPTH_RATIO times the rest's (an object stands before its background).
+MATTE_SHARE_RATIO = 0.5
+MATTE_DEPTH_RATIO = 1.05
 
 
-def matte_depth_shares(alpha: np.ndarray, depth: np.ndarray) -> tuple[float, float]:
+def matte_depth_shares(alpha: np.ndarray, depth: np.ndarray) -> tuple[float, float, float, float]:
     """(the share of the pixels a matte calls the object (alpha >= 0.5) that have depth, the share of the others
-    that have depth); NaN where a side has no pixel."""
+    that have depth, the median depth of each where they have it); NaN where a side has none."""
     a = np.asarray(alpha)
     z = np.asarray(depth, np.float32)
     d = np.isfinite(z) & (z > 0)
     fg = a >= 0.5
-    return (float(d[fg].mean()) if fg.any() else float("nan"), float(d[~fg].mean()) if (~fg).any() else float("nan"))
+    out = []
+    for side in (fg, ~fg):
+        out.append(float(d[side].mean()) if side.any() else float("nan"))
+    for side in (fg, ~fg):
+        out.append(float(np.median(z[side & d])) if (side & d).any() else float("nan"))
+    return tuple(out)
 
 
 def matte_verdict(shares) -> dict | None:
     """The given mattes against the depth, from each matted view's :func:`matte_depth_shares`: ``views``, the median
-    shares, ``inverted`` (:data:`MATTE_INVERTED_RATIO`) and a ``message``; None without mattes."""
-    s = np.array([x for x in shares if x is not None], np.float64).reshape(-1, 2)
+    figures, ``inverted`` (:data:`MATTE_SHARE_RATIO`, :data:`MATTE_DEPTH_RATIO`) and a ``message``; None without
+    mattes."""
+    s = np.array([x for x in shares if x is not None], np.float64).reshape(-1, 4)
     if not len(s):
         return None
-    fg, bg = (float(np.nanmedian(s[:, k])) if np.isfinite(s[:, k]).any() else float("nan") for k in (0, 1))
-    inverted = bool(np.isfinite(fg) and np.isfinite(bg) and fg < MATTE_INVERTED_RATIO * bg)
-    msg = (f"the given mattes call the object pixels of which {fg:.0%} have depth, and the rest pixels of which "
-           f"{bg:.0%} have depth: " + ("are they inverted (white = background)? furrow reads white as the object"
-                                       if inverted else "they cover the object"))
+    with np.errstate(all="ignore"):
+        fg, bg, zf, zb = (float(np.nanmedian(s[:, k])) if np.isfinite(s[:, k]).any() else float("nan")
+                          for k in range(4))
+    inverted = False
+    if np.isfinite(fg) and np.isfinite(bg):
+        if fg < MATTE_SHARE_RATIO * bg:
+            inverted = True
+        elif bg < MATTE_SHARE_RATIO * fg:
+            inverted = False
+        else:  # depth on both sides alike: the object must stand in front of the rest
+            inverted = bool(np.isfinite(zf) and np.isfinite(zb) and zf > MATTE_DEPTH_RATIO * zb)
+    msg = (f"the given mattes call the object pixels of which {fg:.0%} have depth (median {zf:.3g} m), and the rest "
+           f"pixels of which {bg:.0%} have depth (median {zb:.3g} m): "
+           + ("are they inverted (white = background)? furrow reads white as the object" if inverted
+              else "they cover the object"))
     return {"views": len(s), "object_depth_share": round(fg, 4), "rest_depth_share": round(bg, 4),
-            "inverted": inverted, "message": msg}
+            "object_depth_m": round(zf, 4), "rest_depth_m": round(zb, 4), "inverted": inverted, "message": msg}
 
 
 def png_has_alpha(path: Path) -> bool:

@@ -10,7 +10,7 @@ import pytest
 
 from capture.imageio import ScanIOError
 from capture.io import read_scanset, write_transforms
-from capture.matte_io import MATTE_INVERTED_RATIO, matte_depth_shares, matte_verdict
+from capture.matte_io import MATTE_SHARE_RATIO, matte_depth_shares, matte_verdict
 from tests.scenes import make_scanset, ring_cameras, sphere_scene
 
 
@@ -72,27 +72,27 @@ def test_rgba_colour_supplies_its_alpha_unless_opaque(capture):
     assert np.allclose(read_scanset(out).scans[0].alpha, a / 255.0, atol=0.5 / 255)
 
 
-def _depth_and_matte(room: bool):
-    """An object's depth (a disc, 0.3 m) and its matte (soft at the rim), and, with ``room``, a wall at 0.6 m behind
-    it on the top third of the frame (a room or a table in the depth)."""
+def _depth_and_matte(room: str):
+    """An object's depth (a disc, 0.3 m) and its matte (soft at the rim), and behind it a wall at 0.6 m: none
+    (``room`` "none"), on the top third of the frame ("part": a room or a table in the depth), or everywhere else
+    ("all": a phone's LiDAR)."""
     yy, xx = np.mgrid[0:60, 0:80]
     r = np.hypot(yy - 30, xx - 40)
     alpha = np.clip(15.5 - r, 0.0, 1.0).astype(np.float32)
     depth = np.where(r < 15, 0.3, 0.0).astype(np.float32)
-    if room:
-        depth = np.where((depth == 0) & (yy < 22), 0.6, depth).astype(np.float32)
-    return alpha, depth
+    wall = {"none": np.zeros_like(yy, bool), "part": yy < 22, "all": np.ones_like(yy, bool)}[room]
+    return alpha, np.where((depth == 0) & wall, 0.6, depth).astype(np.float32)
 
 
-@pytest.mark.parametrize("room", [False, True])
+@pytest.mark.parametrize("room", ["none", "part", "all"])
 def test_inverted_mattes_are_told_by_the_depth(room):
-    """Mattes whose object has depth and whose rest has less are right; inverted (1 - alpha), the shares swap and
-    the verdict says so; no matte, no verdict."""
+    """Mattes whose object has depth and whose rest has less (or, with depth everywhere, is farther) are right;
+    inverted (1 - alpha), the verdict says so; no matte, no verdict."""
     alpha, depth = _depth_and_matte(room)
-    fg, bg = matte_depth_shares(alpha, depth)
-    assert fg > 0.95 and bg < 0.5 and (bg > 0.2) == room
-    right = matte_verdict([(fg, bg)] * 3)
-    assert right["views"] == 3 and not right["inverted"] and "cover the object" in right["message"]
+    fg, bg, zf, zb = matte_depth_shares(alpha, depth)
+    assert fg > 0.95 and zf == pytest.approx(0.3) and (bg > 0.9) == (room == "all")
+    right = matte_verdict([(fg, bg, zf, zb)] * 3)
+    assert right["views"] == 3 and not right["inverted"] and "cover the object" in right["message"], right
     wrong = matte_verdict([matte_depth_shares(1.0 - alpha, depth)] * 3)
     assert wrong["inverted"] and "inverted" in wrong["message"], wrong
-    assert matte_verdict([None, None]) is None and MATTE_INVERTED_RATIO == 1.0
+    assert matte_verdict([None, None]) is None and MATTE_SHARE_RATIO == 0.5
