@@ -58,9 +58,10 @@ def read_matte(path: Path, shape: tuple[int, int]) -> np.ndarray:
 #: often as the rest (right mattes on 13 captures with their true mattes, over black, before a room, with a table and
 #: clutter in the depth: 0.82-0.98 against 0.01-0.47, at least 1.9 times as often); where neither has depth this
 #: many times as often as the other (depth over the whole frame: a room, a phone's LiDAR), when the object's median
-#: depth is farther than MATTE_DEPTH_RATIO times the rest's (an object stands before its background).
+#: depth is farther than MATTE_DEPTH_RATIO times the rest's (an object stands before its background; the margin is
+#: for a table nearer than the object filling the rest, seen from above; inverted, the room is the "object").
 MATTE_SHARE_RATIO = 0.5
-MATTE_DEPTH_RATIO = 1.05
+MATTE_DEPTH_RATIO = 1.25
 
 
 def matte_depth_shares(alpha: np.ndarray, depth: np.ndarray) -> tuple[float, float, float, float]:
