@@ -1,10 +1,12 @@
 """The depth-agreement stage of the pipeline (volume/pipeline/stages.py): before any model is built,
-whether the views' depths agree with their poses (capture.depth_agreement) and with their colour images
-(capture.depth_registration), said on the console when they do not; the model record keeps the figures.
-Nothing is changed, unless ``--depth-agreement fix``: then the depth is scaled to the poses where it agrees
-best at another scale, and moved onto its colour where the colour's edges sit beside it.  A focal length
-that is off (capture.depth_agreement.focal_check) is looked for where the scales' verdict is ``agree`` or
-``scale`` (a focal length 0.7x its own reads as the scale 0.85): it is warned about, and never fixed.  Off with
+whether the views' depths agree with their poses (capture.depth_agreement), with their colour images
+(capture.depth_registration) and with the capture's own mattes (capture.matte_io), said on the console when
+they do not; the model record keeps the figures.  Where the depths agree with the poses at no scale or at another,
+the poses are read in other conventions and the intrinsics in their common wrong ways; where they agree at a
+scale, other focal lengths are tried (a focal length 0.7x its own reads as the scale 0.85), and a focal factor is
+told from a depth camera's own field of view by the colour.  Nothing is changed, unless ``--depth-agreement fix``:
+then the depth is scaled to the poses where it agrees best at another scale, moved (or drawn back and moved) onto
+its colour, and inverted mattes are turned over; poses and intrinsics are never changed.  Off with
 ``--depth-agreement off`` (its config None)."""
 
 from __future__ import annotations
@@ -49,8 +51,8 @@ def sample_view(scan, ref, arg):
     """Per view (capture.view_map): (None, (:func:`capture.depth_agreement.view_sample` of its depth,
     :func:`capture.depth_registration.edge_scores` of its colour and depth, or (None, 1) for a view not
     among those scored), both seeded by the view's name; capture.matte_io.matte_depth_shares of its given
-    matte, or None)); ``arg``: (the number of points, score the edges of
-    the views whose name's CRC-32 is a multiple of this)."""
+    matte, or None)); ``arg``: (the number of points, score the edges of the views whose name's CRC-32 is a
+    multiple of this)."""
     points, every = arg
     seed = zlib.crc32(scan.name.encode())
     edges = edge_scores(scan.rgb, scan.depth, seed) if seed % every == 0 else (None, 1.0)
@@ -77,15 +79,7 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     edges = [b[1][0] for b in both if b[1][0] is not None]
     scale = next((b[1][1] for b in both if b[1][0] is not None), 1.0)
     offset = offset_verdict(np.sum(edges, axis=0), len(edges), scale) if edges else {}
-    matte = matte_verdict([b[2] for b in both])
-    if matte is not None:
-        offset = {**offset, "given_matte": matte}
-        (log.warning if matte["inverted"] else log.info)("depth agreement: %s", matte["message"])
-        if matte["inverted"] and cfg.fix:
-            work = replace(work, scans=tuple(ctx.map_views(invert_matte_view, work, None,
-                                                           "depth agreement: mattes inverted")[0]))
-            offset["given_matte"] = {**matte, "inverted_applied": True}
-            log.warning("depth agreement: every given matte inverted (--depth-agreement fix)")
+    work, offset = _mattes(work, offset, [b[2] for b in both], cfg, ctx)
     cams = [s.camera for s in work.scans]
     if not (neighbours(cams, cfg.neighbours) >= 0).any():
         log.info("depth agreement: no two views within %g degrees of each other: nothing to compare", MAX_PAIR_ANGLE)
@@ -143,6 +137,21 @@ def _offset(work, rec: dict, cfg: AgreementConfig, ctx):
         if cfg.fix:
             return _shifted(work, rec, ctx)
     return work, rec
+
+
+def _mattes(work, rec: dict, shares, cfg: AgreementConfig, ctx):
+    """(work, rec with ``given_matte``: the given mattes against the depth, capture.matte_io.matte_verdict of the
+    views' ``shares``), said on the console; inverted ones turned over with ``fix``.  Unchanged without mattes."""
+    matte = matte_verdict(shares)
+    if matte is None:
+        return work, rec
+    log = logging.getLogger("furrow.capture")
+    (log.warning if matte["inverted"] else log.info)("depth agreement: %s", matte["message"])
+    if matte["inverted"] and cfg.fix:
+        scans, _ = ctx.map_views(invert_matte_view, work, None, "depth agreement: mattes inverted")
+        work, matte = replace(work, scans=tuple(scans)), {**matte, "inverted_applied": True}
+        log.warning("depth agreement: every given matte inverted (--depth-agreement fix)")
+    return work, {**rec, "given_matte": matte}
 
 
 def invert_matte_view(scan, ref, arg):
