@@ -114,6 +114,10 @@ INTRINSICS_HINTS = {
                   "{inv:.3g} times the size of these (images resized after calibration)?",
     "centre": "with the principal point at the image's centre: are cx, cy in pixels from the top-left corner?",
 }
+#: Depth units off by more than the scale search reaches (SCALE_RANGE): every depth times each of these is tried
+#: (:func:`units_check`: millimetres or centimetres read as metres, or the reverse; the poses' translations in
+#: other units read the same).
+UNIT_FACTORS = (0.001, 0.01, 0.1, 10.0, 100.0, 1000.0)
 #: What each misreading is, in the warning.
 CONVENTION_HINTS = {
     "axes": "read with their camera y and z axes negated (camera-to-world matrices in OpenCV axes where "
@@ -396,3 +400,20 @@ def intrinsics_check(samples, cameras, cfg: AgreementConfig, given_best: float) 
     return {"status": "intrinsics", "intrinsics": name, "factor": round(k, 4), "tried": r["tried"], "message": (
         f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
         f"{given_best:.1%} as read) " + INTRINSICS_HINTS[name].format(k=k, inv=1 / k))}
+
+
+def units_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
+    """Every view's depth times each of :data:`UNIT_FACTORS` (its points and its depth map), through
+    :func:`_readings`: status ``units`` with the factor that makes the depths agree with the poses, or ``as
+    read``."""
+    readings = {f"x{k:g}": (cameras, [(p * k, small * np.float32(k), step) for p, small, step in samples])
+                for k in UNIT_FACTORS}
+    r = _readings(samples, cameras, cfg, given_best, readings)
+    name = r["found"]
+    if name is None:
+        return {"status": "as read", "tried": r["tried"]}
+    k = float(name[1:])
+    return {"status": "units", "factor": k, "tried": r["tried"], "message": (
+        f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
+        f"{given_best:.1%} as read) with every depth times {k:g}: is the depth's unit {k:g} times what the capture "
+        f"says (depth_unit_scale_factor x {k:g}), or are the poses' translations in other units (x {1 / k:g})?")}

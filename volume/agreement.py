@@ -25,6 +25,7 @@ from capture.depth_agreement import (
     focal_check,
     intrinsics_check,
     neighbours,
+    units_check,
     verdict,
     view_sample,
 )
@@ -40,7 +41,7 @@ from capture.depth_registration import (
 from capture.matte_io import matte_depth_shares, matte_verdict
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
-FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics")
+FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units")
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
 #: of the stage's 1.4 s on every view's edges.
@@ -93,7 +94,7 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         offset.pop("colour_offset_message", None)
     work, rec = _offset(work, {**rec, **offset}, cfg, ctx)
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
-    if cfg.fix and rec["status"] == "scale":
+    if cfg.fix and rec["status"] in ("scale", "units"):
         work, rec = _rescaled(work, rec, ctx)
     elif cfg.fix and rec["status"] == "depth zoom":
         work, rec = _unzoomed(work, rec, ctx)
@@ -120,6 +121,10 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
         rec["intrinsics"] = {k: v for k, v in intr.items() if k != "message"}
         if intr["status"] == "intrinsics":
             return {**rec, "status": "intrinsics", "message": intr["message"]}
+        units = units_check(samples, cams, cfg, rec["best_share"])
+        rec["units"] = {k: v for k, v in units.items() if k != "message"}
+        if units["status"] == "units":
+            return {**rec, "status": "units", "message": units["message"]}
     if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
         focal = focal_check(samples, cams, cfg)
         rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
@@ -182,12 +187,12 @@ def rescale_view(scan, ref, s: float):
 
 
 def _rescaled(work, rec: dict, ctx):
-    """(work with every view's depth scaled by the best scale, and its bounds found again from the depth
-    where the capture gives none; the record with ``applied``).  The poses stay as they are, so that the
-    model keeps the capture's frame: the held-out views of furrow eval, a camera path of the same poses."""
+    """(work with every view's depth scaled by the best scale (or the units' factor), and its bounds found again
+    from the depth where the capture gives none; the record with ``applied``).  The poses stay as they are, so
+    that the model keeps the capture's frame: the held-out views of furrow eval, a camera path of the same poses."""
     from capture.io import auto_bounds
 
-    s = float(rec["best_scale"])
+    s = float(rec["units"]["factor"] if rec["status"] == "units" else rec["best_scale"])
     scans, _ = ctx.map_views(rescale_view, work, s, "depth agreement: depth rescaled")
     bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
     logging.getLogger("furrow.capture").warning(

@@ -20,6 +20,7 @@ from capture.depth_agreement import (
     neighbours,
     pair_hits,
     scales,
+    units_check,
     verdict,
     view_sample,
 )
@@ -278,6 +279,22 @@ def test_reprojected_sample_is_the_sample_of_the_new_intrinsics(ring):
     ref = view_sample(x.depth, replace(x.camera, K=K_new), 200, 5)
     np.testing.assert_allclose(got[0], ref[0], rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(got[1], ref[1])
+
+
+@pytest.mark.parametrize("k", [1000.0, 0.01])
+def test_depth_units_beyond_the_scale_search_are_named(ring, k):
+    """Depth k times its true value (millimetres read as metres, or the reverse), beyond the scales searched: the
+    scales find nothing; the units check names the factor 1 / k that undoes it, agreeing as the right capture."""
+    scans = _with_depth(ring.scans, lambda i, z: z * k)
+    rec, _, _ = _check(scans)
+    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
+    units = units_check(samples, [x.camera for x in scans], CFG, rec["best_share"])
+    right, _, _ = _check(ring.scans)
+    assert rec["status"] in ("none", "scale") and units["status"] == "units", (rec, units)
+    assert units["factor"] == pytest.approx(1 / k) and "depth_unit_scale_factor" in units["message"]
+    assert units["tried"][f"x{1 / k:g}"]["share"] == pytest.approx(right["share"], abs=0.02)
+    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(ring.scans)]
+    assert units_check(samples, [x.camera for x in ring.scans], CFG, right["best_share"])["status"] == "as read"
 
 
 def test_config_is_validated():

@@ -255,6 +255,21 @@ def test_intrinsics_of_an_image_twice_the_size_are_named(scan_dir, tmp_path, cap
         assert "before that, the views' depths agree with their poses" in flat, flat
 
 
+def test_a_depth_unit_ten_times_off_is_named_and_fixed(scan_dir, tmp_path, capsys):
+    """depth_unit_scale_factor ten times too small (beyond the scales searched): furrow model names the factor 10;
+    without fix the model has no surface and the error says why, with fix the depth is scaled and the model made."""
+    def unit(meta):
+        meta["depth_unit_scale_factor"] = 0.1 * meta.get("depth_unit_scale_factor", 0.001)
+
+    rc, err, out = _model_of_edited(scan_dir, tmp_path / "u0", capsys, unit)
+    flat = " ".join(err.split())
+    assert "with every depth times 10: is the depth's unit 10 times what the capture says" in flat, flat
+    assert rc == 0 or "before that, the views' depths agree with their poses" in flat, flat
+    rc, err, out = _model_of_edited(scan_dir, tmp_path / "u1", capsys, unit, "--depth-agreement", "fix")
+    rec = load_model(out).params["depth_agreement"]
+    assert rc == 0 and rec["status"] == "units" and rec["applied"] == pytest.approx(10.0), rec
+
+
 def test_depth_beside_its_colour_is_warned_and_fixed(scan_dir, tmp_path, capsys):
     """Every depth file moved 5 px right of its colour (depth not registered to the colour camera): furrow model
     warns with the offset, (-5, 0), and ``--depth-agreement fix`` moves the depth back; the capture as written
