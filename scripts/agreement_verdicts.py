@@ -21,6 +21,7 @@ from capture.depth_agreement import (
     convention_check,
     focal_check,
     intrinsics_check,
+    units_check,
     verdict,
     view_sample,
 )
@@ -43,6 +44,10 @@ def line(path: str) -> str:
     if intr.get("status") == "intrinsics":
         return (f"{path.rstrip('/').split('/')[-1]:>28} intrinsics (scales: {rec['status']}, best share "
                 f"{rec['best_share']:.1%}) read as '{intr['intrinsics']}' x {intr['factor']:.3g}: {intr['tried']}")
+    units = units_check(samples, cams, cfg, rec["best_share"]) if conv else {}
+    if units.get("status") == "units":
+        return (f"{path.rstrip('/').split('/')[-1]:>28} units (scales: {rec['status']}, best share "
+                f"{rec['best_share']:.1%}) depth x {units['factor']:g}: {units['tried']}")
     f = focal_check(samples, cams, cfg) if rec["status"] in ("agree", "scale") else {}
     status = "focal" if f.get("status") == "focal" else rec["status"]
     focal = (f"focal x {f['focal_factor']:.4g}: {f['share_as_given']:.1%} -> {f['focal_share']:.1%}, pairs "
