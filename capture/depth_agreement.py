@@ -101,13 +101,13 @@ FOCAL_TOLERANCE = 1.08
 #: noise) failed the last two: 0.69-0.74 of their pairs, the depth's best scale 0.88-0.95 there (focal_check).
 FOCAL_GAIN = 1.08
 FOCAL_PAIRS = 0.8
+FOCAL_MIN_PAIRS = 8
+FOCAL_SCALE_TOLERANCE = 1.011
 #: ... and the points that agree at a but not as given outnumber the reverse by at least this many standard
 #: deviations (McNemar's z, (b - c) / sqrt(b + c)): focal lengths off by 10-43 % score 7.2-73; right captures with
 #: pose noise whose best factor is off 1 score 3.2-3.3 (six noisy views 60 degrees apart had passed every other
 #: rule at 0.917: the best of 38 factors on a few hundred points).
 FOCAL_Z = 5.0
-FOCAL_MIN_PAIRS = 8
-FOCAL_SCALE_TOLERANCE = 1.011
 #: Where the views' depths agree with their poses at no scale or at another, the poses read in other conventions
 #: (capture.camera.misread_poses) are tried: one is named when its depths agree at scale 1 (verdict ``agree``) with at
 #: least this many times the share that the poses as read reach at their best scale (points that are not
@@ -361,10 +361,11 @@ def focal_check(samples, cameras, cfg: AgreementConfig) -> dict:
 def _readings(samples, cameras, cfg: AgreementConfig, given_best: float, readings: dict) -> dict:
     """The depths held against the poses under each of ``readings`` (name -> (cameras, samples)): the share of the
     points that are not scale-blind agreeing at scale 1 and the verdict of each (``tried``); the best named
-    (``found``) where its verdict is ``agree`` and its share is at least :data:`CONVENTION_GAIN` times
-    ``given_best`` (what the capture as read reaches at its best scale, ``verdict``'s ``best_share``) and at least
-    :data:`AGREE_FLOOR`.  Scale-blind points are left out: cameras all at one point (poses inverted) agree at
-    every scale (0.15 of all points on the fur ball, 0.49 on a ring of spheres) and at none of them for a reason."""
+    (``found``, and ``said``: the warning's first words) where its verdict is ``agree`` and its share is at least
+    :data:`CONVENTION_GAIN` times ``given_best`` (what the capture as read reaches at its best scale, ``verdict``'s
+    ``best_share``) and at least :data:`AGREE_FLOOR`.  Scale-blind points are left out: cameras all at one point
+    (poses inverted) agree at every scale (0.15 of all points on the fur ball, 0.49 on a ring of spheres) and at
+    none of them for a reason."""
     tried = {}
     for name, (cams, smp) in readings.items():
         s, share, share_all, _, _ = agreement(smp, cams, cfg)
@@ -372,7 +373,10 @@ def _readings(samples, cameras, cfg: AgreementConfig, given_best: float, reading
         tried[name] = {"status": rec["status"], "share": round(float(share[int(np.argmin(np.abs(np.log(s))))]), 4)}
     ok = {n: t for n, t in tried.items() if t["status"] == "agree"
           and t["share"] >= max(AGREE_FLOOR, CONVENTION_GAIN * given_best)}
-    return {"tried": tried, "found": max(ok, key=lambda n: ok[n]["share"]) if ok else None}
+    found = max(ok, key=lambda n: ok[n]["share"]) if ok else None
+    said = None if found is None else (f"the views' depths agree with their poses ({ok[found]['share']:.1%} of the "
+                                       f"points, against at best {given_best:.1%} as read)")
+    return {"tried": tried, "found": found, "said": said}
 
 
 def convention_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
@@ -384,9 +388,8 @@ def convention_check(samples, cameras, cfg: AgreementConfig, given_best: float) 
     name = r["found"]
     if name is None:
         return {"status": "as read", "tried": r["tried"]}
-    return {"status": "convention", "convention": name, "tried": r["tried"], "message": (
-        f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
-        f"{given_best:.1%} as read) once the poses are {CONVENTION_HINTS[name]}")}
+    return {"status": "convention", "convention": name, "tried": r["tried"],
+            "message": f"{r['said']} once the poses are {CONVENTION_HINTS[name]}"}
 
 
 def _reprojected(sample, K_old: np.ndarray, K_new: np.ndarray):
@@ -416,9 +419,8 @@ def intrinsics_check(samples, cameras, cfg: AgreementConfig, given_best: float) 
     if name is None:
         return {"status": "as read", "tried": r["tried"]}
     k = float(np.median([a[name][0, 0] / c.K[0, 0] for c, a in zip(cameras, alt)]))
-    return {"status": "intrinsics", "intrinsics": name, "factor": round(k, 4), "tried": r["tried"], "message": (
-        f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
-        f"{given_best:.1%} as read) " + INTRINSICS_HINTS[name].format(k=k, inv=1 / k))}
+    return {"status": "intrinsics", "intrinsics": name, "factor": round(k, 4), "tried": r["tried"],
+            "message": f"{r['said']} " + INTRINSICS_HINTS[name].format(k=k, inv=1 / k)}
 
 
 def units_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> dict:
@@ -433,6 +435,5 @@ def units_check(samples, cameras, cfg: AgreementConfig, given_best: float) -> di
         return {"status": "as read", "tried": r["tried"]}
     k = float(name[1:])
     return {"status": "units", "factor": k, "tried": r["tried"], "message": (
-        f"the views' depths agree with their poses ({r['tried'][name]['share']:.1%} of the points, against at best "
-        f"{given_best:.1%} as read) with every depth times {k:g}: is the depth's unit {k:g} times what the capture "
-        f"says (depth_unit_scale_factor x {k:g}), or are the poses' translations in other units (x {1 / k:g})?")}
+        f"{r['said']} with every depth times {k:g}: is the depth's unit {k:g} times what the capture says "
+        f"(depth_unit_scale_factor x {k:g}), or are the poses' translations in other units (x {1 / k:g})?")}

@@ -107,10 +107,14 @@ def edge_scores(rgb: np.ndarray, depth: np.ndarray, seed: int = 0) -> tuple[np.n
     G, ys, xs, f = _gradient_and_edges(rgb, depth, seed)
     if G is None:
         return None, f
-    R = OFFSET_RADIUS
-    d = np.arange(-R, R + 1)
-    s = G[(ys[None, :] + d[:, None])[:, None, :], (xs[None, :] + d[:, None])[None, :, :]].mean(axis=-1)
-    return s / G.mean(), f
+    return _around(G, ys, xs).mean(axis=-1) / G.mean(), f
+
+
+def _around(G: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """(2R+1, 2R+1, m) ``G`` at each pixel (ys, xs) shifted by (dy, dx) = index - R, R = OFFSET_RADIUS (the pixels
+    at least R inside ``G``)."""
+    d = np.arange(-OFFSET_RADIUS, OFFSET_RADIUS + 1)
+    return G[(ys[None, :] + d[:, None])[:, None, :], (xs[None, :] + d[:, None])[None, :, :]]
 
 
 def offset_verdict(total: np.ndarray, views: int, scale: float) -> dict:
@@ -161,9 +165,7 @@ def zoom_sums(rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray, zoom: floa
     my = np.rint(c[1] + (ys - c[1]) / zoom).astype(np.int64)
     mx = np.rint(c[0] + (xs - c[0]) / zoom).astype(np.int64)
     ok = (my >= R) & (my < G.shape[0] - R) & (mx >= R) & (mx < G.shape[1] - R)
-    d = np.arange(-R, R + 1)
-    grid = G[(my[ok][None, :] + d[:, None])[:, None, :], (mx[ok][None, :] + d[:, None])[None, :, :]].sum(axis=-1)
-    return np.concatenate([[G[ys[ok], xs[ok]].sum()], grid.ravel()])
+    return np.concatenate([[G[ys[ok], xs[ok]].sum()], _around(G, my[ok], mx[ok]).sum(axis=-1).ravel()])
 
 
 def zoom_verdict(total: np.ndarray, zoom: float, width: int) -> dict:
