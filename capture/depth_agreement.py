@@ -147,7 +147,8 @@ class AgreementConfig:
     fix: bool = False
     """``--depth-agreement fix``: where the depth agrees best at another scale s (verdict ``scale``), every
     view's depth is scaled by s (the poses, and the model's frame, stay the capture's); where the colour's edges
-    sit beside the depth's (capture.depth_registration), every depth map is moved onto its colour."""
+    sit beside the depth's (capture.depth_registration), every depth map is moved onto its colour; where the depth
+    agrees only flipped or read as range (capture.depth_readings), it is read so."""
 
     def __post_init__(self) -> None:
         if self.points < 1 or self.neighbours < 1 or not 0 < self.rel < 1:
@@ -205,15 +206,21 @@ def pair_hits(points: np.ndarray, cam_i, cam_j, small: np.ndarray, step: int, s:
     if focal is not None:
         c = cam_j.K[:2, 2]
         uv = c + focal[:, None, None] * (uv - c)
-    front = z > 1e-9
+    zj, _ = depth_at(uv, z, small, step)
+    zj *= s[:, None]
+    landed = zj > 0
+    return landed & (np.abs(z - zj) <= rel * zj), landed
+
+
+def depth_at(uv: np.ndarray, z: np.ndarray, small: np.ndarray, step: int) -> tuple[np.ndarray, np.ndarray]:
+    """(the depth map ``small`` (a view's, every ``step`` pixels) at its sample nearest each pixel ``uv`` (..., 2)
+    whose point is in front (``z`` > 0), 0 elsewhere; whether the pixel falls inside the map and in front)."""
     with np.errstate(invalid="ignore"):
         r, c = np.rint(uv[..., 1] / step), np.rint(uv[..., 0] / step)
-        inside = front & (r >= 0) & (r < small.shape[0]) & (c >= 0) & (c < small.shape[1])
+        inside = (z > 1e-9) & (r >= 0) & (r < small.shape[0]) & (c >= 0) & (c < small.shape[1])
     zj = np.zeros(z.shape)
     zj[inside] = small[r[inside].astype(np.int64), c[inside].astype(np.int64)]
-    zj *= s[:, None]
-    landed = inside & (zj > 0)
-    return landed & (np.abs(z - zj) <= rel * zj), landed
+    return zj, inside
 
 
 def agreement(samples, cameras, cfg: AgreementConfig):

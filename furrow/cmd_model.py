@@ -164,7 +164,11 @@ def print_report(console, summary: dict, out) -> None:
     agree = summary.get("depth_agreement") or {}
     if agree.get("status") in FAILED_AGREEMENT:  # capture.depth_agreement, volume/agreement.py
         msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
-        console.print(f"[yellow]depth agreement: {msg} This model may be wrong (model.json "
+        applied = agree.get("reading_applied")
+        read = "" if not applied else (" The depth maps were read as z-depth (--depth-agreement fix)." if applied ==
+                                       "range" else f" The depth maps were flipped back ({applied}; --depth-agreement "
+                                       "fix).")
+        console.print(f"[yellow]depth agreement: {msg}{read} This model may be wrong (model.json "
                       "params.depth_agreement).[/]", highlight=False)
     if (agree.get("given_matte") or {}).get("inverted"):  # capture.matte_io.matte_verdict
         console.print(f"[yellow]depth agreement: {agree['given_matte']['message']}[/]", highlight=False)

@@ -105,10 +105,11 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
                         "its 2 nearest views at depth scales 1/4..4; capture/depth_agreement.py): 'check' (default) "
                         "warns when they agree best at another scale (a wrong depth unit, structure-from-motion poses "
                         "with metric depth) or at none (intrinsics, axes, files), when other focal lengths fit "
-                        "(fl_x, fl_y of another image size), and when the colour's edges sit "
-                        "beside the depth's (depth not registered to the colour; capture/depth_registration.py); "
-                        "'fix' also "
-                        "scales the depth to the poses and moves it onto its colour (the model stays in the poses' "
+                        "(fl_x, fl_y of another image size), when the colour's edges sit "
+                        "beside the depth's (depth not registered to the colour; capture/depth_registration.py), and "
+                        "when the depth maps agree only flipped or read as distances along the rays "
+                        "(capture/depth_readings.py); 'fix' also scales the depth to the poses, moves it onto its "
+                        "colour, flips it back and reads range as z-depth (the model stays in the poses' "
                         "frame and unit; the intrinsics stay as given); 'off'")
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "

@@ -9,7 +9,9 @@ invcv (world-to-camera matrices where camera-to-world ones belong, in OpenGL / O
 (fl_x, fl_y x 1.5, x 0.7; also focal08, focal09, focal11, focal12, focal125, focal20);
 cx0 (principal point at (0, 0)); intr2, intr05 (fl_x, fl_y, cx, cy x 2, x 0.5: the
 intrinsics of an image twice / half the size); shufdepth (each frame given the next frame's depth file); posemm,
-pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid).
+pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid); flipdepth,
+mirrordepth (each depth map upside down, left to right); range (each depth pixel the distance along its ray from the
+camera's centre, not along the optical axis).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -70,6 +72,26 @@ def _shuffle_depth(d: Path, tj: dict) -> None:
         (d / f["depth_file_path"]).write_bytes(data[(i + 1) % len(fr)])
 
 
+def _depth_maps(edit):
+    def e(d: Path, tj: dict) -> None:
+        for f in tj["frames"]:
+            p = d / f["depth_file_path"]
+            z = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            cv2.imwrite(str(p), edit(z, {**tj, **f}))
+    return e
+
+
+def _range(z: np.ndarray, f: dict) -> np.ndarray:
+    """The distance along each pixel's ray, the depth's own pixel grid scaled from the colour's intrinsics."""
+    from capture.camera import cv_from_corner, resample_pixel_coords
+
+    h, w = z.shape
+    u = (resample_pixel_coords(np.arange(w), f["w"] / w) - cv_from_corner(f["cx"])) / f["fl_x"]
+    v = (resample_pixel_coords(np.arange(h), f["h"] / h) - cv_from_corner(f["cy"])) / f["fl_y"]
+    r = z * np.sqrt(1.0 + u[None, :] ** 2 + v[:, None] ** 2)
+    return np.clip(np.rint(r), 0, 65535).astype(z.dtype)
+
+
 def _scale_t(k):
     def e(m):
         m[:3, 3] *= k
@@ -114,6 +136,9 @@ VARIANTS = {
     "pose05": {"meta": _pose(_scale_t(0.5))},
     "pose3": {"meta": _pose(_scale_t(3.0))},
     "rotscale": {"meta": _pose(_rot13)},
+    "flipdepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[::-1]))},
+    "mirrordepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[:, ::-1]))},
+    "range": {"files": _depth_maps(_range)},
 }
 
 

@@ -29,6 +29,7 @@ from capture.depth_agreement import (
     verdict,
     view_sample,
 )
+from capture.depth_readings import FLIP_COLOUR_GAIN, READINGS, flip_sums, read_depth, reading_check
 from capture.depth_registration import (
     OFFSET_RADIUS,
     edge_scores,
@@ -41,7 +42,7 @@ from capture.depth_registration import (
 from capture.matte_io import matte_depth_shares, matte_verdict
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
-FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units")
+FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units", "depth reading")
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
 #: of the stage's 1.4 s on every view's edges.
@@ -89,8 +90,10 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
     rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
     rec = _diagnosed(rec, samples, cams, cfg, work, every, ctx)
-    if rec["status"] == "depth zoom" and offset.get("colour_offset"):  # a zoom's edges peak at some shift too
-        offset = {**offset, "colour_offset": False, "colour_offset_note": "not judged: the depth's edges sit zoomed"}
+    flipped = rec["status"] == "depth reading" and not READINGS[rec["reading"]["reading"]][2]
+    if (rec["status"] == "depth zoom" and offset.get("colour_offset")) or (flipped and offset):  # some shift peaks
+        offset = {**offset, "colour_offset": False, "colour_offset_note": "not judged: the depth's edges sit "
+                  + ("flipped" if flipped else "zoomed")}
         offset.pop("colour_offset_message", None)
     work, rec = _offset(work, {**rec, **offset}, cfg, ctx)
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
@@ -98,6 +101,8 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         work, rec = _rescaled(work, rec, ctx)
     elif cfg.fix and rec["status"] == "depth zoom":
         work, rec = _unzoomed(work, rec, ctx)
+    elif cfg.fix and rec["status"] == "depth reading":
+        work, rec = _reread(work, rec, ctx)
     elif cfg.fix and rec["status"] in ("focal", "convention", "intrinsics"):
         log.warning("depth agreement: --depth-agreement fix leaves the %s as the capture gives them (a depth scale "
                     "would not undo them; the held-out views keep the capture's cameras)",
@@ -111,7 +116,23 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
     """The scales' verdict ``rec`` diagnosed further: where it is ``none`` or ``scale``, the poses read in other
     conventions (status ``convention``), else the intrinsics' common misreadings (``intrinsics``); where it is
     ``agree`` or ``scale`` (and no convention was found), the focal lengths (``focal``), told from a depth camera's
-    own field of view by the colour (``depth zoom``).  Each search's record under its own key."""
+    own field of view by the colour (``depth zoom``).  Before all, the depth maps read flipped (``depth reading``,
+    :func:`_reading`); after all, where none of these is found, read as distances along the rays (a focal length 1.25x
+    its own agrees better so too).  Each search's record under its own key."""
+    rec, ranged = _reading(rec, samples, cams, cfg, work, every, ctx)
+    if rec["status"] == "depth reading":
+        return rec
+    rec = _explained(rec, samples, cams, cfg, work, every, ctx)
+    if ranged is not None:
+        if rec["status"] in ("agree", "scale", "none"):
+            return {**rec, "status": "depth reading", "message": ranged}
+        rec["reading"]["superseded_by"] = rec["status"]
+    return rec
+
+
+def _explained(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, ctx) -> dict:
+    """The searches of :func:`_diagnosed` after the depth's flips: the poses' conventions, the intrinsics, the units,
+    the focal lengths and the depth's zoom."""
     if rec["status"] in ("none", "scale"):  # poses written in another convention read as a scale, or as nothing
         conv = convention_check(samples, cams, cfg, rec["best_share"])
         rec["convention"] = {k: v for k, v in conv.items() if k != "message"}
@@ -132,6 +153,64 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
             rec = {**rec, "status": "focal", "message": focal["message"]}
             rec = _depth_zoom(work, rec, every, ctx)
     return rec
+
+
+def _reading(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, ctx) -> dict:
+    """(``rec`` with the depth read in other ways (capture.depth_readings.reading_check, at the best scale where the
+    scales' verdict is ``agree`` or ``scale``, else 1) under ``reading``: status ``depth reading`` where a flip is
+    named, with the colour's edges at the flipped depth's against the stored one's (``flip_colour_gain``, over the
+    views whose edges are scored: :func:`flip_view`); the warning where the depth reads as range, else None)."""
+    nb = neighbours(cams, cfg.neighbours)
+    pairs = [(i, int(j)) for i in range(len(cams)) for j in nb[i] if j >= 0]
+    scale = float(rec["best_scale"]) if rec["status"] in ("agree", "scale") else 1.0
+    found = reading_check(samples, [(c.height, c.width) for c in cams], cams, pairs, scale, cfg.rel)
+    rec = {**rec, "reading": {k: v for k, v in found.items() if k != "message"}}
+    if found["status"] != "reading":
+        return rec, None
+    name, message = found["reading"], found["message"]
+    if READINGS[name][2]:
+        return rec, message
+    sums = np.sum(ctx.map_views(flip_view, work, (name, every), "depth agreement: the depth's edges flipped")[1],
+                  axis=0)
+    gain = float(sums[1] / sums[0]) if sums[0] > 0 else 0.0
+    rec["reading"]["flip_colour_gain"] = round(gain, 4)
+    message += (f" The colour's edges sit at the flipped depth's ({gain:.2f} times the gradient at the stored "
+                "depth's edges)." if gain >= FLIP_COLOUR_GAIN else
+                f" The colour's edges sit at the stored depth's, not the flipped one's ({gain:.2f} times): were "
+                "the colour images stored the same way, and the poses meant for them turned?")
+    return {**rec, "status": "depth reading", "message": message}, None
+
+
+def flip_view(scan, ref, arg):
+    """Per view: (None, capture.depth_readings.flip_sums of its colour and depth for the views whose name's CRC-32
+    is a multiple of ``every``, zeros for the others); ``arg``: (the reading, every)."""
+    name, every = arg
+    seed = zlib.crc32(scan.name.encode())
+    return None, (flip_sums(scan.rgb, scan.depth, name, seed) if seed % every == 0 else np.zeros(2))
+
+
+def reread_view(scan, ref, name):
+    """Per view: the scan with its depth read as ``name`` says (capture.depth_readings.read_depth)."""
+    return replace(scan, depth=read_depth(scan.depth, scan.camera, name)), None
+
+
+def _reread(work, rec: dict, ctx):
+    """(work with every view's depth read as the named reading says, its bounds found again from the depth where
+    the capture gives none; the record with ``reading_applied``), or as it was, with a warning, for a flip the
+    colour's edges do not follow."""
+    from capture.io import auto_bounds
+
+    log = logging.getLogger("furrow.capture")
+    name = rec["reading"]["reading"]
+    if rec["reading"].get("flip_colour_gain", FLIP_COLOUR_GAIN) < FLIP_COLOUR_GAIN:
+        log.warning("depth agreement: --depth-agreement fix leaves the depth maps as stored: the colour's edges do "
+                    "not follow them %s", name)
+        return work, rec
+    scans, _ = ctx.map_views(reread_view, work, name, "depth agreement: depth read again")
+    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
+    log.warning("depth agreement: every view's depth map read as %s (--depth-agreement fix)",
+                "z-depth from the distance along its rays" if name == "range" else f"flipped {name}")
+    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "reading_applied": name}
 
 
 def _offset(work, rec: dict, cfg: AgreementConfig, ctx):

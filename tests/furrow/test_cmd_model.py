@@ -319,6 +319,56 @@ def test_depth_of_another_field_of_view_is_told_from_a_focal_length_and_fixed(sc
         assert (rec.get("depth_zoom_applied") is not None) == bool(flags), rec
 
 
+@pytest.fixture(scope="module")
+def spheres_dir(tmp_path_factory):
+    """Three spheres of a ring of 12 views (one sphere alone looks the same flipped, and spans too narrow an angle
+    for depth along the rays to differ from z-depth by more than the check's 1 %)."""
+    from tests.scenes import spheres_scene
+
+    out = tmp_path_factory.mktemp("scans") / "spheres"
+    write_transforms(make_scanset(spheres_scene(), scan_ring(12, 96, 72), noise=0.0005), out)
+    return out
+
+
+def _ranged(z, f, meta):
+    """A 16-bit z-depth map as the distance along each pixel's ray (transforms.json's corner-origin cx, cy)."""
+    from capture.camera import cv_from_corner
+
+    fx, fy = f.get("fl_x", meta.get("fl_x")), f.get("fl_y", meta.get("fl_y"))
+    cx, cy = cv_from_corner(f.get("cx", meta.get("cx"))), cv_from_corner(f.get("cy", meta.get("cy")))
+    ys, xs = np.mgrid[0:z.shape[0], 0:z.shape[1]]
+    r = z * np.sqrt(1 + ((xs - cx) / fx) ** 2 + ((ys - cy) / fy) ** 2)
+    return np.clip(np.rint(r), 0, 65535).astype(z.dtype)
+
+
+@pytest.mark.parametrize("name, said", [("range", "distances along each pixel's ray"),
+                                        ("upside down", "stored upside down")])
+def test_depth_stored_as_range_or_upside_down_is_named_and_fixed(spheres_dir, tmp_path, capsys, name, said):
+    """Every depth pixel the distance along its ray (a ray tracer's hit distance), or every depth map stored bottom
+    row first: furrow model names the reading, and --depth-agreement fix reads the depth as it was meant."""
+    import cv2
+
+    d = _copy(spheres_dir, tmp_path / "stored")
+    meta = json.loads((d / "transforms.json").read_text())
+    for f in meta["frames"]:
+        p = d / f["depth_file_path"]
+        z = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(p), _ranged(z, f, meta) if name == "range" else np.ascontiguousarray(z[::-1]))
+    for flags in ((), ("--depth-agreement", "fix")):
+        out = tmp_path / f"r{len(flags)}"
+        rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+        flat = " ".join(err.split())
+        rec = load_model(out).params["depth_agreement"]
+        assert rc == 0 and rec["status"] == "depth reading", (rec["reading"], flat)
+        assert rec["reading"]["reading"] == name, rec["reading"]
+        assert said in flat and "This model may be wrong" in flat, flat
+        assert rec.get("reading_applied") == (name if flags else None), rec
+        assert ("were read as z-depth" in flat or "were flipped back (upside down" in flat) == bool(flags), flat
+    rc, _, err = _run(["model", str(spheres_dir), "-o", str(tmp_path / "right"), "--max-res", "16"], capsys)
+    rec = load_model(tmp_path / "right").params["depth_agreement"]
+    assert rc == 0 and rec["status"] == "agree" and rec["reading"]["status"] == "as stored", rec["reading"]
+
+
 def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):
     """A frame whose camera is twice the others' size: refused at view selection (cameras only, no image read)
     with a frame of each size named, instead of failing after every stage in the RGBz store (volume.views)."""
