@@ -84,6 +84,7 @@ def frame_stats(scans) -> dict:
 
 def verdicts(records: dict) -> list[tuple[str, bool, str]]:
     """(check, passed, what it found) for each check of ``records`` (:func:`check_records`)."""
+    from capture.depth_pairing import PAIR_GAIN, PAIR_MIN_VIEWS, PAIR_SHARE
     from volume.agreement import FAILED_AGREEMENT
 
     out = []
@@ -117,6 +118,12 @@ def verdicts(records: dict) -> list[tuple[str, bool, str]]:
             f"the colour's edges sit at the depth's in {agree['colour_offset_views']} views (best shift "
             f"({dx:+g}, {dy:+g}) px): registered")
         out.append(("depth against colour", not off, found))
+    if "pairing_views" in agree:  # capture.depth_pairing
+        n, gain = agree["pairing_views"], agree["pairing_gain"]
+        out.append(("depth files against frames", not agree["mispaired"], agree.get("pairing_message") or (
+            f"{n} colour images: {agree['pairing_other_best']} fit a neighbouring view's depth edges better than "
+            f"their own (median {gain:.2f} times, from {PAIR_GAIN} with {PAIR_SHARE:.0%} of them a fault)"
+            if n >= PAIR_MIN_VIEWS else f"not judged: {n} colour images scored (fewer than {PAIR_MIN_VIEWS})")))
     return out
 
 

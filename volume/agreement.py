@@ -29,6 +29,7 @@ from capture.depth_agreement import (
     verdict,
     view_sample,
 )
+from capture.depth_pairing import pairing_data, pairing_verdict, pairing_views
 from capture.depth_readings import FLIP_COLOUR_GAIN, READINGS, flip_sums, read_depth, reading_check
 from capture.depth_registration import (
     OFFSET_RADIUS,
@@ -53,13 +54,15 @@ def sample_view(scan, ref, arg):
     """Per view (capture.view_map): (None, (:func:`capture.depth_agreement.view_sample` of its depth,
     :func:`capture.depth_registration.edge_scores` of its colour and depth, or (None, 1) for a view not
     among those scored), both seeded by the view's name; capture.matte_io.matte_depth_shares of its given
-    matte, or None)); ``arg``: (the number of points, score the edges of the views whose name's CRC-32 is a
-    multiple of this)."""
-    points, every = arg
+    matte, or None; capture.depth_pairing.pairing_data of the views named, or None)); ``arg``: (the number of
+    points, score the edges of the views whose name's CRC-32 is a multiple of this, the names of the views whose
+    pairing data is needed)."""
+    points, every, paired = arg
     seed = zlib.crc32(scan.name.encode())
     edges = edge_scores(scan.rgb, scan.depth, seed) if seed % every == 0 else (None, 1.0)
     matte = None if scan.alpha is None else matte_depth_shares(scan.alpha, scan.depth)
-    return None, (view_sample(scan.depth, scan.camera, points, seed), edges, matte)
+    pair = pairing_data(scan.rgb, scan.depth, seed) if scan.name in paired else None
+    return None, (view_sample(scan.depth, scan.camera, points, seed), edges, matte, pair)
 
 
 def agreement_stage(work, cfg: AgreementConfig, ctx):
@@ -73,7 +76,10 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     if len(work.scans) < 2:
         return work.record("depth agreement", None)
     every = max(1, -(-len(work.scans) // EDGE_VIEWS))  # about EDGE_VIEWS views' edges: one offset for a capture
-    both = ctx.map_views(sample_view, work, (int(cfg.points), every), "depth agreement")[1]
+    scored = [k for k, r in enumerate(work.refs) if zlib.crc32(r.name.encode()) % every == 0]
+    cand, need = pairing_views([r.camera for r in work.refs], scored) if len(work.refs) > 2 else ({}, [])
+    paired = frozenset(work.refs[k].name for k in need)
+    both = ctx.map_views(sample_view, work, (int(cfg.points), every, paired), "depth agreement")[1]
     samples = [b[0] for b in both]
     if sum(len(p) for p, _, _ in samples) == 0:  # no view has depth: the fuse stage's error says so
         return work.record("depth agreement", {"status": "no depth", "config": asdict(cfg)})
@@ -81,6 +87,8 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     edges = [b[1][0] for b in both if b[1][0] is not None]
     scale = next((b[1][1] for b in both if b[1][0] is not None), 1.0)
     offset = offset_verdict(np.sum(edges, axis=0), len(edges), scale) if edges else {}
+    if cand:  # capture.depth_pairing: each depth file its own frame's?
+        offset = {**offset, **pairing_verdict({k: both[k][3] for k in need}, cand)}
     work, offset = _mattes(work, offset, [b[2] for b in both], cfg, ctx)
     cams = [s.camera for s in work.scans]
     if not (neighbours(cams, cfg.neighbours) >= 0).any():
@@ -95,6 +103,9 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         offset = {**offset, "colour_offset": False, "colour_offset_note": "not judged: the depth's edges sit "
                   + ("flipped" if flipped else "zoomed")}
         offset.pop("colour_offset_message", None)
+    if (flipped or rec["status"] == "depth zoom") and offset.get("mispaired"):  # no depth's edges fit its colour
+        offset = {**offset, "mispaired": False}
+        offset.pop("pairing_message", None)
     work, rec = _offset(work, {**rec, **offset}, cfg, ctx)
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
     if cfg.fix and rec["status"] in ("scale", "units"):
@@ -158,8 +169,11 @@ def _explained(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
 def _reading(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, ctx) -> dict:
     """(``rec`` with the depth read in other ways (capture.depth_readings.reading_check, at the best scale where the
     scales' verdict is ``agree`` or ``scale``, else 1) under ``reading``: status ``depth reading`` where a flip is
-    named, with the colour's edges at the flipped depth's against the stored one's (``flip_colour_gain``, over the
-    views whose edges are scored: :func:`flip_view`); the warning where the depth reads as range, else None)."""
+    found and the colour's edges sit at the flipped depth's at least as well as at the stored one's
+    (``flip_colour_gain`` >= FLIP_COLOUR_GAIN, over the views whose edges are scored: :func:`flip_view`; where they
+    do not, the reading's status says so and nothing is named: depth files of the next frame on a ring of three
+    spheres agreed better flipped, z 56, the colour 0.65 times); the warning where the depth reads as range, else
+    None)."""
     nb = neighbours(cams, cfg.neighbours)
     pairs = [(i, int(j)) for i in range(len(cams)) for j in nb[i] if j >= 0]
     scale = float(rec["best_scale"]) if rec["status"] in ("agree", "scale") else 1.0
@@ -174,10 +188,10 @@ def _reading(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, c
                   axis=0)
     gain = float(sums[1] / sums[0]) if sums[0] > 0 else 0.0
     rec["reading"]["flip_colour_gain"] = round(gain, 4)
-    message += (f" The colour's edges sit at the flipped depth's ({gain:.2f} times the gradient at the stored "
-                "depth's edges)." if gain >= FLIP_COLOUR_GAIN else
-                f" The colour's edges sit at the stored depth's, not the flipped one's ({gain:.2f} times): were "
-                "the colour images stored the same way, and the poses meant for them turned?")
+    if gain < FLIP_COLOUR_GAIN:  # the colour's edges sit at the stored depth's: no flip of the depth alone
+        rec["reading"]["status"] = "colour disagrees"
+        return rec, None
+    message += f" The colour's edges sit at the flipped depth's ({gain:.2f} times the gradient at the stored depth's)."
     return {**rec, "status": "depth reading", "message": message}, None
 
 
@@ -196,16 +210,11 @@ def reread_view(scan, ref, name):
 
 def _reread(work, rec: dict, ctx):
     """(work with every view's depth read as the named reading says, its bounds found again from the depth where
-    the capture gives none; the record with ``reading_applied``), or as it was, with a warning, for a flip the
-    colour's edges do not follow."""
+    the capture gives none; the record with ``reading_applied``)."""
     from capture.io import auto_bounds
 
     log = logging.getLogger("furrow.capture")
     name = rec["reading"]["reading"]
-    if rec["reading"].get("flip_colour_gain", FLIP_COLOUR_GAIN) < FLIP_COLOUR_GAIN:
-        log.warning("depth agreement: --depth-agreement fix leaves the depth maps as stored: the colour's edges do "
-                    "not follow them %s", name)
-        return work, rec
     scans, _ = ctx.map_views(reread_view, work, name, "depth agreement: depth read again")
     bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
     log.warning("depth agreement: every view's depth map read as %s (--depth-agreement fix)",
@@ -216,6 +225,8 @@ def _reread(work, rec: dict, ctx):
 def _offset(work, rec: dict, cfg: AgreementConfig, ctx):
     """(work, rec) with the colour's edges' offset warned where it is reported, and the depth moved onto the
     colour with ``fix``."""
+    if rec.get("mispaired"):
+        logging.getLogger("furrow.capture").warning("depth agreement: %s", rec["pairing_message"])
     if rec.get("colour_offset"):
         logging.getLogger("furrow.capture").warning("depth agreement: %s", rec["colour_offset_message"])
         if cfg.fix:

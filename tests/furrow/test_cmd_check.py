@@ -29,7 +29,8 @@ def test_a_right_capture_passes_every_check(scan_dir, capsys, tmp_path):
     rc, out, said = _check(scan_dir, capsys, "--json")
     rec = json.loads(out.strip().splitlines()[-1])
     assert rc == 0, said
-    assert [c["check"] for c in rec["checks"]] == ["frames", "views", "depth against poses", "depth against colour"]
+    assert [c["check"] for c in rec["checks"]] == ["frames", "views", "depth against poses", "depth against colour",
+                                                   "depth files against frames"]
     fr = rec["records"]["frames"]
     assert fr["views"] == 8 and fr["size"] == [64, 48] and 0.05 < fr["depth_share"] < 1
     assert 0.2 < fr["depth_median_m"] < 2.0  # the ring's sphere, metres
@@ -84,3 +85,25 @@ def test_inverted_mattes_fail_and_fix_turns_them(scan_dir, capsys, tmp_path):
         rec = load_model(m).params["depth_agreement"]["given_matte"]
         assert rc == 0 and rec["inverted"] and rec.get("inverted_applied") == applied, (rec, said)
         assert ("every given matte inverted" in said) == bool(flags)
+
+
+def test_depth_files_of_the_next_frame_fail(tmp_path, capsys):
+    """Three spheres, each frame given the next frame's depth file (a stream that dropped a frame): the depths still
+    agree with the poses (a ring's views i + 1, j + 1 stand as i, j do), the colour's edges do not; the right
+    capture passes the row."""
+    from tests.scenes import spheres_scene
+
+    d = tmp_path / "spheres"
+    write_transforms(make_scanset(spheres_scene(), scan_ring(16, 128, 96), noise=0.0005), d)
+    rc, out, said = _check(d, capsys, "--json")
+    row = {c["check"]: c for c in json.loads(out.strip().splitlines()[-1])["checks"]}["depth files against frames"]
+    assert rc == 0 and row["passed"], said
+    frames = json.loads((d / "transforms.json").read_text())["frames"]
+    data = [(d / f["depth_file_path"]).read_bytes() for f in frames]
+    for i, f in enumerate(frames):
+        (d / f["depth_file_path"]).write_bytes(data[(i + 1) % len(frames)])
+    rc, out, said = _check(d, capsys, "--json")
+    rec = json.loads(out.strip().splitlines()[-1])
+    row = {c["check"]: c for c in rec["checks"]}["depth files against frames"]
+    assert rc == 1 and not row["passed"] and "depth_file_path" in row["found"], said
+    assert rec["records"]["depth agreement"]["status"] == "agree"  # the poses alone see nothing
