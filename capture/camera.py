@@ -301,6 +301,17 @@ def gl_rows_to_image(fb: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(fb[::-1])
 
 
+def mirror_pixels(uv, shape: tuple[int, int], rows: bool, cols: bool) -> np.ndarray:
+    """(..., 2) OpenCV pixels (x, y) of an (H, W) = ``shape`` image stored mirrored: y -> H - 1 - y where ``rows``
+    (upside down), x -> W - 1 - x where ``cols`` (left to right); float64, a copy.  Its own inverse."""
+    out = np.array(uv, np.float64, copy=True)
+    if cols:
+        out[..., 0] = shape[1] - 1 - out[..., 0]
+    if rows:
+        out[..., 1] = gl_row(out[..., 1], shape[0])
+    return out
+
+
 def gl_row(row, height: int):
     """Image row (top first) <-> OpenGL framebuffer row (bottom first) of an image ``height``
     rows tall: ``height - 1 - row`` (integers or arrays). Its own inverse."""

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from capture.camera import mirror_pixels
 from capture.depth_agreement import depth_at
 
 #: The readings tried: name -> (rows reversed, columns reversed, the depth along the ray).
@@ -65,16 +66,6 @@ READING_HINTS = {
 }
 
 
-def _mirror(uv: np.ndarray, shape: tuple[int, int], rows: bool, cols: bool) -> np.ndarray:
-    """(..., 2) pixels (x, y) mirrored in a (H, W) map: y -> H - 1 - y where ``rows``, x -> W - 1 - x where ``cols``."""
-    out = np.array(uv, np.float64, copy=True)
-    if cols:
-        out[..., 0] = shape[1] - 1 - out[..., 0]
-    if rows:
-        out[..., 1] = shape[0] - 1 - out[..., 1]
-    return out
-
-
 def read_points(points: np.ndarray, camera, shape: tuple[int, int], reading: str) -> np.ndarray:
     """(m, 3) a view's sampled camera-frame ``points`` (capture.depth_agreement.view_sample of a (H, W) = ``shape``
     depth map) as ``reading`` (a key of :data:`READINGS`) says the depth was meant."""
@@ -87,7 +78,7 @@ def read_points(points: np.ndarray, camera, shape: tuple[int, int], reading: str
         return pts * (z / np.linalg.norm(pts, axis=1, keepdims=True))
     K = camera.K
     uv = (pts / z) @ K[:2].T
-    return camera.pixel_rays(_mirror(uv, shape, rows, cols)) * z
+    return camera.pixel_rays(mirror_pixels(uv, shape, rows, cols)) * z
 
 
 def reading_hits(points: np.ndarray, cam_i, cam_j, sample_j, shape_j: tuple[int, int], s: np.ndarray, rel: float,
@@ -102,7 +93,7 @@ def reading_hits(points: np.ndarray, cam_i, cam_j, sample_j, shape_j: tuple[int,
     world = s[:, None, None] * (np.asarray(points, np.float64) @ Ti[:3, :3].T)[None] + Ti[:3, 3]
     uv, z = cam_j.project(world)
     rows, cols, along = (False, False, False) if reading is None else READINGS[reading]
-    zj, inside = depth_at(_mirror(uv, shape_j, rows, cols), z, small, step)
+    zj, inside = depth_at(mirror_pixels(uv, shape_j, rows, cols), z, small, step)
     if along:
         zj[inside] /= np.linalg.norm(cam_j.pixel_rays(uv[inside]), axis=-1)
     zj *= s[:, None]
@@ -186,6 +177,6 @@ def flip_sums(rgb: np.ndarray, depth: np.ndarray, reading: str, seed: int = 0) -
     G, ys, xs, _ = _gradient_and_edges(rgb, depth, seed)
     if G is None:
         return np.zeros(2)
-    m = _mirror(np.stack([xs, ys], axis=-1), G.shape, rows, cols).astype(np.int64)
+    m = mirror_pixels(np.stack([xs, ys], axis=-1), G.shape, rows, cols).astype(np.int64)
     ok = (m[:, 1] >= R) & (m[:, 1] < G.shape[0] - R) & (m[:, 0] >= R) & (m[:, 0] < G.shape[1] - R)
     return np.array([_around(G, ys[ok], xs[ok]).sum(axis=-1).max(), _around(G, m[ok, 1], m[ok, 0]).sum(axis=-1).max()])

@@ -111,7 +111,10 @@ def verdicts(records: dict) -> list[tuple[str, bool, str]]:
     if agree.get("given_matte"):
         m = agree["given_matte"]
         out.append(("given mattes against depth", not m["inverted"], f"{m['views']} views: {m['message']}"))
-    if "colour_offset" in agree:
+    flip = agree.get("colour_flip") or {}
+    if flip.get("flipped"):  # capture.colour_flip
+        out.append(("depth against colour", False, flip["message"]))
+    elif "colour_offset" in agree:
         off = agree["colour_offset"]
         dx, dy = agree["colour_offset_px"]
         found = agree.get("colour_offset_message") or agree.get("colour_offset_note") or (

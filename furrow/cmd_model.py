@@ -172,6 +172,9 @@ def print_report(console, summary: dict, out) -> None:
                       "params.depth_agreement).[/]", highlight=False)
     if (agree.get("given_matte") or {}).get("inverted"):  # capture.matte_io.matte_verdict
         console.print(f"[yellow]depth agreement: {agree['given_matte']['message']}[/]", highlight=False)
+    flip = agree.get("colour_flip") or {}
+    if flip.get("flipped"):  # capture.colour_flip
+        console.print(f"[yellow]depth agreement: {flip['message']}[/]", highlight=False)
     if agree.get("colour_offset"):  # capture.depth_registration
         done = " (moved back: --depth-agreement fix)" if agree.get("colour_offset_applied") else ""
         console.print(f"[yellow]depth agreement: {agree['colour_offset_message']}{done}[/]", highlight=False)

@@ -11,7 +11,7 @@ cx0 (principal point at (0, 0)); intr2, intr05 (fl_x, fl_y, cx, cy x 2, x 0.5: t
 intrinsics of an image twice / half the size); shufdepth (each frame given the next frame's depth file); posemm,
 pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid); flipdepth,
 mirrordepth (each depth map upside down, left to right); range (each depth pixel the distance along its ray from the
-camera's centre, not along the optical axis).
+camera's centre, not along the optical axis); flipcolour (each colour image and matte upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -81,6 +81,15 @@ def _depth_maps(edit):
     return e
 
 
+def _masks(edit):
+    def e(d: Path, tj: dict) -> None:
+        for f in tj["frames"]:
+            if f.get("mask_path"):
+                p = d / f["mask_path"]
+                cv2.imwrite(str(p), np.ascontiguousarray(edit(cv2.imread(str(p), cv2.IMREAD_UNCHANGED))))
+    return e
+
+
 def _range(z: np.ndarray, f: dict) -> np.ndarray:
     """The distance along each pixel's ray, the depth's own pixel grid scaled from the colour's intrinsics."""
     from capture.camera import cv_from_corner, resample_pixel_coords
@@ -139,6 +148,7 @@ VARIANTS = {
     "flipdepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[::-1]))},
     "mirrordepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[:, ::-1]))},
     "range": {"files": _depth_maps(_range)},
+    "flipcolour": {"image": lambda im: np.ascontiguousarray(im[::-1]), "files": _masks(lambda m: m[::-1])},
 }
 
 

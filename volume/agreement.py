@@ -17,6 +17,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
+from capture.colour_flip import EDGE_GAIN, edge_flips
 from capture.depth_agreement import (
     MAX_PAIR_ANGLE,
     AgreementConfig,
@@ -98,6 +99,12 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
     s, share, share_all, per_view, blind = agreement(samples, cams, cfg)
     rec = {**verdict(s, share, share_all), "scale_blind": round(blind, 4)}
     rec = _diagnosed(rec, samples, cams, cfg, work, every, ctx)
+    rec = _colour_flip(rec, {k: both[k][3] for k in scored if both[k][3] is not None})
+    if rec.get("colour_flip", {}).get("flipped"):  # the colour's edges then sit anywhere but at the depth's
+        offset = {**offset, "colour_offset": False, "mispaired": False,
+                  "colour_offset_note": "not judged: the colour and the depth sit flipped against each other"}
+        offset.pop("colour_offset_message", None)
+        offset.pop("pairing_message", None)
     flipped = rec["status"] == "depth reading" and not READINGS[rec["reading"]["reading"]][2]
     if (rec["status"] == "depth zoom" and offset.get("colour_offset")) or (flipped and offset):  # some shift peaks
         offset = {**offset, "colour_offset": False, "colour_offset_note": "not judged: the depth's edges sit "
@@ -108,6 +115,8 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         offset.pop("pairing_message", None)
     work, rec = _offset(work, {**rec, **offset}, cfg, ctx)
     (log.info if rec["status"] == "agree" else log.warning)("depth agreement: %s", rec["message"])
+    if rec.get("colour_flip", {}).get("flipped"):
+        log.warning("depth agreement: %s", rec["colour_flip"]["message"])
     if cfg.fix and rec["status"] in ("scale", "units"):
         work, rec = _rescaled(work, rec, ctx)
     elif cfg.fix and rec["status"] == "depth zoom":
@@ -128,14 +137,20 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
     conventions (status ``convention``), else the intrinsics' common misreadings (``intrinsics``); where it is
     ``agree`` or ``scale`` (and no convention was found), the focal lengths (``focal``), told from a depth camera's
     own field of view by the colour (``depth zoom``).  Before all, the depth maps read flipped (``depth reading``,
-    :func:`_reading`); after all, where none of these is found, read as distances along the rays (a focal length 1.25x
-    its own agrees better so too).  Each search's record under its own key."""
+    :func:`_reading`); after all, read as distances along the rays, where none of these is found or where a focal
+    factor is, with a smaller McNemar z than range's (a focal length 1.25x its own agrees better as range too, z 7.3
+    against its own 30.7; the conifer's range depth, every other view, reads as a focal factor 1.5 and a depth zoom,
+    z 47.8 against range's 64.4).  Each search's record under its own key."""
     rec, ranged = _reading(rec, samples, cams, cfg, work, every, ctx)
     if rec["status"] == "depth reading":
         return rec
     rec = _explained(rec, samples, cams, cfg, work, every, ctx)
     if ranged is not None:
-        if rec["status"] in ("agree", "scale", "none"):
+        z = rec["reading"]["tried"]["range"]["z"]
+        if rec["status"] in ("agree", "scale", "none") or (  # a focal factor and range: the larger McNemar z
+                rec["status"] in ("focal", "depth zoom") and z > rec["focal"].get("discordance_z", 0.0)):
+            if "focal" in rec:
+                rec["focal"]["superseded_by"] = "depth reading"
             return {**rec, "status": "depth reading", "message": ranged}
         rec["reading"]["superseded_by"] = rec["status"]
     return rec
@@ -193,6 +208,26 @@ def _reading(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, c
         return rec, None
     message += f" The colour's edges sit at the flipped depth's ({gain:.2f} times the gradient at the stored depth's)."
     return {**rec, "status": "depth reading", "message": message}, None
+
+
+def _colour_flip(rec: dict, pair_data: dict) -> dict:
+    """``rec`` with ``colour_flip``: the colour's edges at the depth's mirrored (capture.colour_flip.edge_flips, on
+    ``pair_data``: view -> capture.depth_pairing.pairing_data), ``flipped`` and ``message`` where one fits EDGE_GAIN
+    times better.  Judged only where the depth agrees with the poses (at some scale, focal factor, or read as range:
+    a capture whose depth agrees with nothing has its warning, and the synthetic one with D435 noise, flying pixels
+    and clutter fits the mirror 1.23 times); not where the depth reads flipped (capture.depth_readings names it)."""
+    if not pair_data or rec["status"] not in ("agree", "scale", "focal", "depth zoom", "depth reading") or (
+            rec["status"] == "depth reading" and not READINGS[rec["reading"]["reading"]][2]):
+        return rec
+    edges = edge_flips(pair_data)
+    name = edges["best"]
+    out = {"edge_gains": edges["gains"], "flip": name, "flipped": edges["gains"][name] >= EDGE_GAIN}
+    if out["flipped"]:
+        out["message"] = (
+            f"the depth's edges, mirrored ({name}), fit the colour images {edges['gains'][name]:.2f} times as well "
+            "as stored: is the colour or the depth stored flipped (the colour, where the depth agrees with the "
+            "poses)? The colour's shift from the depth is not judged.")
+    return {**rec, "colour_flip": out}
 
 
 def flip_view(scan, ref, arg):

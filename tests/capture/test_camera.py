@@ -147,3 +147,14 @@ def test_cam_from_world_of_transform_reads_what_to_nerfstudio_writes():
     # OpenCV axes: the target lies in front of the camera, along its +z
     assert got[2, :3] @ (np.array([0, 0.1, 0]) - cam.center) > 0
 
+
+
+def test_mirror_pixels_reverses_rows_and_columns_and_is_its_own_inverse():
+    from capture.camera import mirror_pixels
+
+    uv = np.array([[0.0, 0.0], [9.0, 4.0], [2.5, 1.0]])
+    np.testing.assert_array_equal(mirror_pixels(uv, (5, 10), True, False), [[0, 4], [9, 0], [2.5, 3]])
+    np.testing.assert_array_equal(mirror_pixels(uv, (5, 10), False, True), [[9, 0], [0, 4], [6.5, 1]])
+    np.testing.assert_array_equal(mirror_pixels(mirror_pixels(uv, (5, 10), True, True), (5, 10), True, True), uv)
+    img = np.arange(50).reshape(5, 10)  # a pixel's value moves where the mirror says
+    assert img[::-1][4, 0] == img[tuple(mirror_pixels([[0, 4]], (5, 10), True, False)[0, ::-1].astype(int))]

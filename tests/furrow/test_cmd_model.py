@@ -369,6 +369,27 @@ def test_depth_stored_as_range_or_upside_down_is_named_and_fixed(spheres_dir, tm
     assert rc == 0 and rec["status"] == "agree" and rec["reading"]["status"] == "as stored", rec["reading"]
 
 
+def test_colour_stored_upside_down_is_named_and_no_shift_is_made(spheres_dir, tmp_path, capsys):
+    """Every colour image stored bottom row first, the depth and poses right: furrow model says the colour and the
+    depth sit flipped against each other, judges no shift of the colour's edges, and --depth-agreement fix makes
+    none (it had moved the depth by a shift the flip left)."""
+    import cv2
+
+    d = _copy(spheres_dir, tmp_path / "stored")
+    for f in json.loads((d / "transforms.json").read_text())["frames"]:
+        p = d / f["file_path"]
+        cv2.imwrite(str(p), np.ascontiguousarray(cv2.imread(str(p), cv2.IMREAD_UNCHANGED)[::-1]))
+    for flags in ((), ("--depth-agreement", "fix")):
+        out = tmp_path / f"c{len(flags)}"
+        rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+        flat = " ".join(err.split())
+        rec = load_model(out).params["depth_agreement"]
+        flip = rec.get("colour_flip") or {}
+        assert rc == 0 and rec["status"] == "agree" and flip.get("flipped") and flip["flip"] == "upside down", rec
+        assert "mirrored (upside down), fit the colour images" in flat, flat
+        assert not rec["colour_offset"] and "colour_offset_applied" not in rec, rec
+
+
 def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):
     """A frame whose camera is twice the others' size: refused at view selection (cameras only, no image read)
     with a frame of each size named, instead of failing after every stage in the RGBz store (volume.views)."""
