@@ -17,9 +17,11 @@ weighs.  The files are called mispaired where at least :data:`PAIR_SHARE` of the
 neighbour's depth best and the median of (best neighbour / own) is at least :data:`PAIR_GAIN`
 (:func:`pairing_verdict`).  Measured (docs/capture_formats.md): the copies with each frame given the next frame's
 depth: three path-traced conifers 33-36 of 36 views, median 1.07-1.16, the 72-view phone plant 61 of 72, 1.24; right
-captures at most 1.02-1.024 (noisy synthetic depth; fur balls 1.007-1.013, where a neighbour's depth is as good as
-their own: a fur ball looks alike from each side, and its mispaired copies, 1.015-1.04, are not found).  It warns
-only: which frame a depth file belongs to is for the user to say.
+captures at most 1.02-1.03 (noisy synthetic depth; fur balls 1.007-1.017, where a neighbour's depth is as good as
+their own: a fur ball looks alike from each side, and its mispaired copies, 1.015-1.04, are not found).  Where most
+scored views (:data:`PAIR_SHIFT_SHARE`) fit best the depth file k places from their own in the capture's order,
+the files are shifted by k frames, and ``--depth-agreement fix`` gives each frame the depth file k places on (the
+frames without one left out).
 """
 
 from __future__ import annotations
@@ -41,6 +43,10 @@ PAIR_SHARE = 0.75
 PAIR_GAIN = 1.05
 #: Fewer scored colour views than this are not judged.
 PAIR_MIN_VIEWS = 8
+#: Mispaired files are shifted by k frames (``--depth-agreement fix`` pairs them again) where at least this share of
+#: the scored views fit best the depth file k places from their own in the capture's order (the copies given the
+#: next frame's depth: 29-51 of their views at -1; a right capture's best neighbours are either side).
+PAIR_SHIFT_SHARE = 2 / 3
 
 
 def pairing_data(rgb: np.ndarray, depth: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,23 +105,30 @@ def pairing_verdict(data: dict, candidates: dict[int, list[int]]) -> dict:
     ``candidates`` (:func:`pairing_views`): ``pairing_views`` (colour views scored), ``pairing_other_best`` (of
     them, those a neighbour's depth fits best), ``pairing_gain`` (the median best neighbour / own), ``mispaired``
     (the rule of PAIR_SHARE and PAIR_GAIN, from PAIR_MIN_VIEWS views), and a message where it is."""
-    other, gains = 0, []
+    other, gains, shifts = 0, [], []
     for j, cand in candidates.items():
         G = data[j][0]
         fit = {i: edge_fit(G, data[i][1], data[i][2]) for i in cand}
-        others = [v for i, v in fit.items() if i != j and v == v]
+        others = {i: v for i, v in fit.items() if i != j and v == v}
         if not fit[j] > 0 or not others:
             continue
-        best = max(others)
-        other += best > fit[j]
-        gains.append(best / fit[j])
+        best = max(others, key=others.get)
+        other += others[best] > fit[j]
+        gains.append(others[best] / fit[j])
+        shifts.append(best - j if others[best] > fit[j] else 0)
     n = len(gains)
     gain = float(np.median(gains)) if gains else 1.0
     bad = n >= PAIR_MIN_VIEWS and other >= PAIR_SHARE * n and gain >= PAIR_GAIN
     rec = {"pairing_views": n, "pairing_other_best": int(other), "pairing_gain": round(gain, 4), "mispaired": bool(bad)}
     if bad:
+        k, count = np.unique(shifts, return_counts=True)
+        top = int(np.argmax(count))
+        shift = int(k[top]) if k[top] != 0 and count[top] >= PAIR_SHIFT_SHARE * n else None
+        rec["pairing_shift"] = shift
         rec["pairing_message"] = (
             f"{other} of {n} colour images fit a neighbouring view's depth edges better than their own (median "
-            f"{gain:.2f} times): is each depth file its own frame's (depth_file_path; a stream that dropped a frame "
-            "pairs every later depth with the next colour image)?")
+            f"{gain:.2f} times)" + ("" if shift is None else
+                                    f", {int(count[top])} of them the depth file {shift:+d} frames from their own")
+            + ": is each depth file its own frame's (depth_file_path; a stream that dropped a frame pairs every later "
+            "depth with the next colour image)?")
     return rec

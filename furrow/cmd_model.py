@@ -172,6 +172,11 @@ def print_report(console, summary: dict, out) -> None:
                       "params.depth_agreement).[/]", highlight=False)
     if (agree.get("given_matte") or {}).get("inverted"):  # capture.matte_io.matte_verdict
         console.print(f"[yellow]depth agreement: {agree['given_matte']['message']}[/]", highlight=False)
+    if agree.get("mispaired"):  # capture.depth_pairing
+        done = agree.get("pairing_applied")
+        done = (f" (paired again, {done['shift']:+d} frames; left out: {', '.join(done['left_out'])}: "
+                "--depth-agreement fix)") if done else ""
+        console.print(f"[yellow]depth agreement: {agree['pairing_message']}{done}[/]", highlight=False)
     flip = agree.get("colour_flip") or {}
     if flip.get("flipped"):  # capture.colour_flip
         console.print(f"[yellow]depth agreement: {flip['message']}[/]", highlight=False)

@@ -42,6 +42,7 @@ from capture.depth_registration import (
     zoomed_depth,
 )
 from capture.matte_io import matte_depth_shares, matte_verdict
+from capture.view_map import PerView
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
 FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units", "depth reading")
@@ -257,11 +258,34 @@ def _reread(work, rec: dict, ctx):
     return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "reading_applied": name}
 
 
+def repair_view(scan, ref, partner):
+    """Per view: the scan with the depth of ``partner`` (the view whose depth file is this frame's; a spilled scan
+    pickles as its file name)."""
+    return replace(scan, depth=np.asarray(partner.depth, np.float32)), None
+
+
+def _repaired(work, rec: dict, ctx):
+    """(work with each frame given the depth file ``pairing_shift`` places on in the capture's order, the frames
+    without one left out; the record with ``pairing_applied``: the shift and the frames left out)."""
+    k, n = int(rec["pairing_shift"]), len(work.scans)
+    keep = [j for j in range(n) if 0 <= j + k < n]
+    out = replace(work, refs=tuple(work.refs[j] for j in keep), scans=tuple(work.scans[j] for j in keep))
+    scans, _ = ctx.map_views(repair_view, out, PerView([work.scans[j + k] for j in keep]),
+                             "depth agreement: depth files paired again")
+    dropped = [work.refs[j].name for j in range(n) if j not in keep]
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every frame given the depth file %+d frames on (--depth-agreement fix); left out without "
+        "one: %s", k, ", ".join(dropped))
+    return replace(out, scans=tuple(scans)), {**rec, "pairing_applied": {"shift": k, "left_out": dropped}}
+
+
 def _offset(work, rec: dict, cfg: AgreementConfig, ctx):
     """(work, rec) with the colour's edges' offset warned where it is reported, and the depth moved onto the
     colour with ``fix``."""
     if rec.get("mispaired"):
         logging.getLogger("furrow.capture").warning("depth agreement: %s", rec["pairing_message"])
+        if cfg.fix and rec.get("pairing_shift"):
+            work, rec = _repaired(work, rec, ctx)
     if rec.get("colour_offset"):
         logging.getLogger("furrow.capture").warning("depth agreement: %s", rec["colour_offset_message"])
         if cfg.fix:

@@ -44,6 +44,7 @@ def test_each_frame_given_its_neighbours_depth_is_mispaired(ring, k):
     rec = _verdict(scans)
     assert rec["mispaired"] and rec["pairing_other_best"] >= 14 and rec["pairing_gain"] >= 1.05, rec
     assert "depth_file_path" in rec["pairing_message"]
+    assert rec["pairing_shift"] == -k, rec  # frame i's depth is in the file of frame i - k
 
 
 def test_edge_fit_is_the_best_shifted_mean_of_the_gradient():

@@ -390,6 +390,49 @@ def test_colour_stored_upside_down_is_named_and_no_shift_is_made(spheres_dir, tm
         assert not rec["colour_offset"] and "colour_offset_applied" not in rec, rec
 
 
+def _agreed_depths(path, fix: bool) -> dict:
+    """Each view's depth (name -> array) after the depth-agreement stage of ``path``, with or without its fix."""
+    from dataclasses import replace
+
+    from capture.depth_agreement import AgreementConfig
+    from capture.sources import open_source
+    from volume.pipeline import runner
+    from volume.pipeline.config import PipelineConfig
+    from volume.pipeline.stages import STAGES
+
+    upto = STAGES[: [s.name for s in STAGES].index("depth agreement") + 1]
+    run = runner.run_pipeline(open_source(path), replace(PipelineConfig(), agreement=AgreementConfig(fix=fix)),
+                              stages=upto)
+    try:
+        return {s.name: np.asarray(s.depth, np.float32).copy() for s in run.work.scans}
+    finally:
+        run.close()
+
+
+def test_depth_files_of_the_next_frame_are_paired_again_by_fix(tmp_path, capsys):
+    """Each frame of a ring of three spheres given the next frame's depth file: furrow model warns with the shift,
+    and --depth-agreement fix gives each frame the file one place back (the first frame, without one, left out):
+    every depth map then the right capture's."""
+    from tests.scenes import spheres_scene
+
+    right = tmp_path / "right"
+    write_transforms(make_scanset(spheres_scene(), scan_ring(16, 128, 96), noise=0.0005), right)
+    d = _copy(right, tmp_path / "shifted")
+    frames = json.loads((d / "transforms.json").read_text())["frames"]
+    data = [(d / f["depth_file_path"]).read_bytes() for f in frames]
+    for i, f in enumerate(frames):
+        (d / f["depth_file_path"]).write_bytes(data[(i + 1) % len(frames)])
+    for flags in ((), ("--depth-agreement", "fix")):
+        out = tmp_path / f"p{len(flags)}"
+        rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+        rec = load_model(out).params["depth_agreement"]
+        assert rc == 0 and rec["mispaired"] and rec["pairing_shift"] == -1, rec
+        applied = rec.get("pairing_applied")
+        assert (applied == {"shift": -1, "left_out": [frames[0]["file_path"]]}) == bool(flags), rec
+    want, got = _agreed_depths(right, False), _agreed_depths(d, True)
+    assert sorted(got) == sorted(want)[1:] and all(np.array_equal(got[n], want[n]) for n in got)
+
+
 def test_frames_of_two_sizes_are_refused_before_any_work(scan_dir, tmp_path, capsys):
     """A frame whose camera is twice the others' size: refused at view selection (cameras only, no image read)
     with a frame of each size named, instead of failing after every stage in the RGBz store (volume.views)."""
