@@ -53,27 +53,9 @@ def pairing_data(rgb: np.ndarray, depth: np.ndarray, seed: int) -> tuple[np.ndar
     """(the colour's gradient magnitude (h, w) float16 at most PAIR_WORK_PX wide, the depth's edge pixels (ys, xs)
     at least PAIR_RADIUS inside it, at most PAIR_EDGES drawn with ``seed``) of one view (``depth`` on the colour's
     pixel grid, metres)."""
-    import cv2
+    from capture.depth_registration import gradient_and_edges
 
-    from capture.depth_registration import depth_edges
-
-    raw = np.asarray(rgb)
-    H, W = raw.shape[:2]
-    f = min(1.0, PAIR_WORK_PX / W)
-    w, h = max(1, round(W * f)), max(1, round(H * f))
-    raw = cv2.resize(raw if raw.dtype in (np.uint8, np.float32) else raw.astype(np.float32), (w, h),
-                     interpolation=cv2.INTER_AREA)
-    d = cv2.resize(np.asarray(depth, np.float32), (w, h), interpolation=cv2.INTER_NEAREST)
-    g = raw.mean(axis=-1, dtype=np.float32) if raw.ndim == 3 else raw.astype(np.float32)
-    g = g / 255.0 if raw.dtype == np.uint8 else np.sqrt(np.clip(g, 0.0, None))
-    G = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3))
-    R = PAIR_RADIUS
-    ys, xs = np.nonzero(depth_edges(d))
-    inside = (ys >= R) & (ys < h - R) & (xs >= R) & (xs < w - R)
-    ys, xs = ys[inside], xs[inside]
-    if len(ys) > PAIR_EDGES:
-        pick = np.sort(np.random.default_rng(seed).choice(len(ys), PAIR_EDGES, replace=False))
-        ys, xs = ys[pick], xs[pick]
+    G, ys, xs, _ = gradient_and_edges(rgb, depth, seed, PAIR_WORK_PX, PAIR_RADIUS, PAIR_EDGES)
     return G.astype(np.float16), ys.astype(np.int32), xs.astype(np.int32)
 
 

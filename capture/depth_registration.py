@@ -70,15 +70,16 @@ def depth_edges(depth: np.ndarray) -> np.ndarray:
     return e
 
 
-def _gradient_and_edges(rgb: np.ndarray, depth: np.ndarray, seed: int):
-    """(the colour's gradient magnitude G at the working size, the depth's edge pixels (ys, xs) at least
-    OFFSET_RADIUS inside it, at most EDGE_SAMPLES of them drawn with ``seed``, the working scale) of one view, or
-    None for G with too few edges or no gradient."""
+def gradient_and_edges(rgb: np.ndarray, depth: np.ndarray, seed: int, work_px: int, radius: int,
+                       samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """(the colour's gradient magnitude G (h, w) float32 at most ``work_px`` wide (colour by area, depth by nearest
+    sample), the depth's edge pixels (ys, xs) at least ``radius`` inside it, at most ``samples`` of them drawn with
+    ``seed``, the working scale) of one view (``depth`` on the colour's pixel grid, metres)."""
     import cv2
 
     raw = np.asarray(rgb)
     H, W = raw.shape[:2]
-    f = min(1.0, OFFSET_WORK_PX / W)
+    f = min(1.0, work_px / W)
     if f < 1.0:  # measured at the working size: the colour by area, the depth by nearest sample
         w, h = max(1, round(W * f)), max(1, round(H * f))
         raw = cv2.resize(raw if raw.dtype in (np.uint8, np.float32) else raw.astype(np.float32), (w, h),
@@ -87,15 +88,21 @@ def _gradient_and_edges(rgb: np.ndarray, depth: np.ndarray, seed: int):
     g = raw.mean(axis=-1, dtype=np.float32) if raw.ndim == 3 else raw.astype(np.float32)
     g = g / 255.0 if raw.dtype == np.uint8 else np.sqrt(np.clip(g, 0.0, None))  # 8-bit sRGB, or linear: ~perceptual
     G = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3))
-    R = OFFSET_RADIUS
     ys, xs = np.nonzero(depth_edges(depth))
-    inside = (ys >= R) & (ys < G.shape[0] - R) & (xs >= R) & (xs < G.shape[1] - R)
+    inside = (ys >= radius) & (ys < G.shape[0] - radius) & (xs >= radius) & (xs < G.shape[1] - radius)
     ys, xs = ys[inside], xs[inside]
+    if len(ys) > samples:
+        pick = np.sort(np.random.default_rng(seed).choice(len(ys), samples, replace=False))
+        ys, xs = ys[pick], xs[pick]
+    return G, ys, xs, f
+
+
+def _gradient_and_edges(rgb: np.ndarray, depth: np.ndarray, seed: int):
+    """:func:`gradient_and_edges` at OFFSET_WORK_PX, OFFSET_RADIUS and EDGE_SAMPLES, None for G with too few edges
+    (MIN_EDGE_PIXELS) or no gradient."""
+    G, ys, xs, f = gradient_and_edges(rgb, depth, seed, OFFSET_WORK_PX, OFFSET_RADIUS, EDGE_SAMPLES)
     if len(ys) < MIN_EDGE_PIXELS or not G.mean() > 0:
         return None, ys, xs, f
-    if len(ys) > EDGE_SAMPLES:
-        pick = np.sort(np.random.default_rng(seed).choice(len(ys), EDGE_SAMPLES, replace=False))
-        ys, xs = ys[pick], xs[pick]
     return G, ys, xs, f
 
 
