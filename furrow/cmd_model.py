@@ -164,11 +164,7 @@ def print_report(console, summary: dict, out) -> None:
     agree = summary.get("depth_agreement") or {}
     if agree.get("status") in FAILED_AGREEMENT:  # capture.depth_agreement, volume/agreement.py
         msg = agree["message"] if agree["message"].endswith("?") else agree["message"] + "."
-        applied = agree.get("reading_applied")
-        read = "" if not applied else (" The depth maps were read as z-depth (--depth-agreement fix)." if applied ==
-                                       "range" else f" The depth maps were flipped back ({applied}; --depth-agreement "
-                                       "fix).")
-        console.print(f"[yellow]depth agreement: {msg}{read} This model may be wrong (model.json "
+        console.print(f"[yellow]depth agreement: {msg}{_reread_said(agree)} This model may be wrong (model.json "
                       "params.depth_agreement).[/]", highlight=False)
     if (agree.get("given_matte") or {}).get("inverted"):  # capture.matte_io.matte_verdict
         console.print(f"[yellow]depth agreement: {agree['given_matte']['message']}[/]", highlight=False)
@@ -188,6 +184,18 @@ def print_report(console, summary: dict, out) -> None:
         console.print(f"[yellow]spheres: 1 - IoU {summary['sphere_error']:.3f} misses the target {target:g} "
                       "(--sphere-error): the occluder spheres the shadows use cover the solid coarsely "
                       "(volume/spheres.py)[/]", highlight=False)
+
+
+def _reread_said(agree: dict) -> str:
+    """What --depth-agreement fix did to the depth maps' reading (volume/agreement.py), for the closing line."""
+    applied = agree.get("reading_applied")
+    if agree.get("disparity_applied") is not None:
+        return (f" The depth maps were read as disparity, depth = {agree['disparity_applied']:.4g} / value "
+                "(--depth-agreement fix).")
+    if not applied:
+        return ""
+    return (" The depth maps were read as z-depth (--depth-agreement fix)." if applied == "range" else
+            f" The depth maps were flipped back ({applied}; --depth-agreement fix).")
 
 
 def photometric_table(rec: dict):

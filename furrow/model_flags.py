@@ -108,8 +108,9 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
                         "(fl_x, fl_y of another image size), when the colour's edges sit "
                         "beside the depth's (depth not registered to the colour; capture/depth_registration.py), and "
                         "when the depth maps agree only flipped or read as distances along the rays "
-                        "(capture/depth_readings.py); 'fix' also scales the depth to the poses, moves it onto its "
-                        "colour, flips it back and reads range as z-depth (the model stays in the poses' "
+                        "(capture/depth_readings.py) or as disparity, inverse depth (capture/depth_disparity.py); "
+                        "'fix' also scales the depth to the poses, moves it onto its colour, flips it back, reads "
+                        "range as z-depth and disparity as depth (the model stays in the poses' "
                         "frame and unit; the intrinsics stay as given); 'off'")
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "

@@ -11,7 +11,8 @@ cx0 (principal point at (0, 0)); intr2, intr05 (fl_x, fl_y, cx, cy x 2, x 0.5: t
 intrinsics of an image twice / half the size); shufdepth (each frame given the next frame's depth file); posemm,
 pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid); flipdepth,
 mirrordepth (each depth map upside down, left to right); range (each depth pixel the distance along its ray from the
-camera's centre, not along the optical axis); flipcolour (each colour image and matte upside down, the depth not).
+camera's centre, not along the optical axis); disparity (1000 / z in metres: an
+iPhone's disparity stored as millimetres); flipcolour (each colour image and matte upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -101,6 +102,15 @@ def _range(z: np.ndarray, f: dict) -> np.ndarray:
     return np.clip(np.rint(r), 0, 65535).astype(z.dtype)
 
 
+def _disparity(z: np.ndarray, f: dict) -> np.ndarray:
+    """Disparity where depth belongs: 1 / z in 1/m, times 1000 (an iPhone's AVDepthData read as disparity and
+    stored as if it were millimetres); 0 kept."""
+    v = z > 0
+    out = np.zeros_like(z)
+    out[v] = np.clip(np.rint(1e6 / z[v].astype(np.float64)), 1, 65535)
+    return out
+
+
 def _scale_t(k):
     def e(m):
         m[:3, 3] *= k
@@ -148,6 +158,7 @@ VARIANTS = {
     "flipdepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[::-1]))},
     "mirrordepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[:, ::-1]))},
     "range": {"files": _depth_maps(_range)},
+    "disparity": {"files": _depth_maps(_disparity)},
     "flipcolour": {"image": lambda im: np.ascontiguousarray(im[::-1]), "files": _masks(lambda m: m[::-1])},
 }
 

@@ -30,6 +30,7 @@ from capture.depth_agreement import (
     verdict,
     view_sample,
 )
+from capture.depth_disparity import disparity_check, read_disparity
 from capture.depth_pairing import pairing_data, pairing_verdict, pairing_views
 from capture.depth_readings import FLIP_COLOUR_GAIN, READINGS, flip_sums, read_depth, reading_check
 from capture.depth_registration import (
@@ -45,7 +46,8 @@ from capture.matte_io import matte_depth_shares, matte_verdict
 from capture.view_map import PerView
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
-FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units", "depth reading")
+FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units", "depth reading",
+                    "disparity")
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
 #: of the stage's 1.4 s on every view's edges.
@@ -124,6 +126,8 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         work, rec = _unzoomed(work, rec, ctx)
     elif cfg.fix and rec["status"] == "depth reading":
         work, rec = _reread(work, rec, ctx)
+    elif cfg.fix and rec["status"] == "disparity":
+        work, rec = _from_disparity(work, rec, ctx)
     elif cfg.fix and rec["status"] in ("focal", "convention", "intrinsics"):
         log.warning("depth agreement: --depth-agreement fix leaves the %s as the capture gives them (a depth scale "
                     "would not undo them; the held-out views keep the capture's cameras)",
@@ -159,7 +163,7 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
 
 def _explained(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, ctx) -> dict:
     """The searches of :func:`_diagnosed` after the depth's flips: the poses' conventions, the intrinsics, the units,
-    the focal lengths and the depth's zoom."""
+    the depth read as disparity (capture.depth_disparity), the focal lengths and the depth's zoom."""
     if rec["status"] in ("none", "scale"):  # poses written in another convention read as a scale, or as nothing
         conv = convention_check(samples, cams, cfg, rec["best_share"])
         rec["convention"] = {k: v for k, v in conv.items() if k != "message"}
@@ -173,6 +177,10 @@ def _explained(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
         rec["units"] = {k: v for k, v in units.items() if k != "message"}
         if units["status"] == "units":
             return {**rec, "status": "units", "message": units["message"]}
+        disp = disparity_check(samples, cams, cfg, float(rec["best_scale"]))  # capture.depth_disparity
+        rec["disparity"] = {k: v for k, v in disp.items() if k != "message"}
+        if disp["status"] == "disparity":
+            return {**rec, "status": "disparity", "message": disp["message"]}
     if rec["status"] in ("agree", "scale"):  # a focal length off reads as a scale, or as nothing (module docstring)
         focal = focal_check(samples, cams, cfg)
         rec["focal"] = {k: v for k, v in focal.items() if k != "message"}
@@ -217,7 +225,8 @@ def _colour_flip(rec: dict, pair_data: dict) -> dict:
     times better.  Judged only where the depth agrees with the poses (at some scale, focal factor, or read as range:
     a capture whose depth agrees with nothing has its warning, and the synthetic one with D435 noise, flying pixels
     and clutter fits the mirror 1.23 times); not where the depth reads flipped (capture.depth_readings names it)."""
-    if not pair_data or rec["status"] not in ("agree", "scale", "focal", "depth zoom", "depth reading") or (
+    agreeing = ("agree", "scale", "focal", "depth zoom", "depth reading", "disparity")
+    if not pair_data or rec["status"] not in agreeing or (
             rec["status"] == "depth reading" and not READINGS[rec["reading"]["reading"]][2]):
         return rec
     edges = edge_flips(pair_data)
@@ -256,6 +265,24 @@ def _reread(work, rec: dict, ctx):
     log.warning("depth agreement: every view's depth map read as %s (--depth-agreement fix)",
                 "z-depth from the distance along its rays" if name == "range" else f"flipped {name}")
     return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "reading_applied": name}
+
+
+def disparity_view(scan, ref, k: float):
+    """Per view: the scan with its depth read as disparity, k / value (capture.depth_disparity.read_disparity)."""
+    return replace(scan, depth=read_disparity(scan.depth, k)), None
+
+
+def _from_disparity(work, rec: dict, ctx):
+    """(work with every view's depth map read as disparity, its bounds found again from the depth where the capture
+    gives none; the record with ``disparity_applied``: the constant)."""
+    from capture.io import auto_bounds
+
+    k = float(rec["disparity"]["constant"])
+    scans, _ = ctx.map_views(disparity_view, work, k, "depth agreement: depth from disparity")
+    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every view's depth map read as disparity, depth = %.4g / value (--depth-agreement fix)", k)
+    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "disparity_applied": k}
 
 
 def repair_view(scan, ref, partner):

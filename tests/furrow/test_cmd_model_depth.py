@@ -127,3 +127,32 @@ def test_depth_files_of_the_next_frame_are_paired_again_by_fix(tmp_path, capsys)
         assert (applied == {"shift": -1, "left_out": [frames[0]["file_path"]]}) == bool(flags), rec
     want, got = _agreed_depths(right, False), _agreed_depths(d, True)
     assert sorted(got) == sorted(want)[1:] and all(np.array_equal(got[n], want[n]) for n in got)
+
+
+def test_depth_stored_as_disparity_is_named_and_read_by_fix(spheres_dir, tmp_path, capsys):
+    """Every depth map 1000 / z in metres (an iPhone's disparity written as if millimetres): furrow model names it
+    with its constant (1 m squared) in its error (the spheres read inside out leave no surface), and
+    --depth-agreement fix reads each map as k / value: within the 16-bit rounding of the right capture's depth."""
+    import cv2
+
+    d = _copy(spheres_dir, tmp_path / "stored")
+    for f in json.loads((d / "transforms.json").read_text())["frames"]:
+        p = d / f["depth_file_path"]
+        z = cv2.imread(str(p), cv2.IMREAD_UNCHANGED).astype(np.float64)
+        cv2.imwrite(str(p), np.where(z > 0, np.rint(1e6 / np.maximum(z, 1)), 0).astype(np.uint16))
+    rc, _, err = _run(["model", str(d), "-o", str(tmp_path / "d0"), "--max-res", "16"], capsys)
+    flat = " ".join(err.split())  # as stored, the spheres inside out: no surface, and the error says why
+    assert rc != 0 and "before that, the views' depths agree with their poses read as disparity" in flat, flat
+    rc, _, err = _run(["model", str(d), "-o", str(tmp_path / "d1"), "--max-res", "16", "--depth-agreement", "fix"],
+                      capsys)
+    flat = " ".join(err.split())
+    rec = load_model(tmp_path / "d1").params["depth_agreement"]
+    assert rc == 0 and rec["status"] == "disparity" and "read as disparity" in flat, (rec, flat)
+    assert rec["disparity"]["constant"] == pytest.approx(1.0, rel=0.01), rec["disparity"]
+    assert rec["disparity_applied"] == rec["disparity"]["constant"], rec
+    assert "were read as disparity, depth = " in flat, flat
+    want, got = _agreed_depths(spheres_dir, False), _agreed_depths(d, True)
+    assert sorted(got) == sorted(want)
+    for n, z in want.items():
+        v = z > 0
+        assert np.array_equal(got[n] > 0, v) and np.allclose(got[n][v], z[v], rtol=0.012), n  # k within 1 %, 16 bits
