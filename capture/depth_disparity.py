@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from capture.depth_agreement import agreement, neighbours, pair_hits, verdict
+from capture.orbit import closest_point_to_axes
 
 #: Disparity is named where the points agreeing read so only outnumber those agreeing as stored only by this many
 #: standard deviations (McNemar's z): the disparity copies +51.9 to +209, right captures -26 to -62.
@@ -35,21 +36,10 @@ DISPARITY_Z = 5.0
 
 
 def pose_distance(cameras) -> float:
-    """The median distance (metres) of the cameras' centres from the point nearest every optical axis (least
-    squares); NaN where the axes are all parallel (no such point)."""
-    A, b = np.zeros((3, 3)), np.zeros(3)
-    centres = []
-    for c in cameras:
-        T = np.asarray(c.world_from_cam, np.float64)
-        f = T[:3, 2] / max(float(np.linalg.norm(T[:3, 2])), 1e-12)
-        P = np.eye(3) - np.outer(f, f)
-        A += P
-        b += P @ T[:3, 3]
-        centres.append(T[:3, 3])
-    if np.linalg.cond(A) > 1e8:
-        return float("nan")
-    x = np.linalg.solve(A, b)
-    return float(np.median(np.linalg.norm(np.asarray(centres) - x, axis=1)))
+    """The median distance (metres) of the cameras' centres from the point nearest every optical axis
+    (capture.orbit.closest_point_to_axes: 1 m in front of them where the axes are all parallel)."""
+    x = closest_point_to_axes(cameras)
+    return float(np.median([np.linalg.norm(np.asarray(c.center, np.float64) - x) for c in cameras]))
 
 
 def inverted_sample(sample, k: float):

@@ -192,6 +192,8 @@ def _reread_said(agree: dict) -> str:
     if agree.get("disparity_applied") is not None:
         return (f" The depth maps were read as disparity, depth = {agree['disparity_applied']:.4g} / value "
                 "(--depth-agreement fix).")
+    if agree.get("view_scales_applied"):
+        return " Each view's depth was scaled by its own factor (model.json; --depth-agreement fix)."
     if not applied:
         return ""
     return (" The depth maps were read as z-depth (--depth-agreement fix)." if applied == "range" else

@@ -108,8 +108,11 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
                         "(fl_x, fl_y of another image size), when the colour's edges sit "
                         "beside the depth's (depth not registered to the colour; capture/depth_registration.py), and "
                         "when the depth maps agree only flipped or read as distances along the rays "
-                        "(capture/depth_readings.py) or as disparity, inverse depth (capture/depth_disparity.py); "
-                        "'fix' also scales the depth to the poses, moves it onto its colour, flips it back, reads "
+                        "(capture/depth_readings.py) or as disparity, inverse depth (capture/depth_disparity.py), "
+                        "and when each view's depth agrees far better at its own scale (a monocular network's; "
+                        "capture/depth_view_scales.py); "
+                        "'fix' also scales the depth to the poses (each view by its own factor where they drift), "
+                        "moves it onto its colour, flips it back, reads "
                         "range as z-depth and disparity as depth (the model stays in the poses' "
                         "frame and unit; the intrinsics stay as given); 'off'")
     g.add_argument("--no-photometric", action="store_true",

@@ -12,7 +12,8 @@ intrinsics of an image twice / half the size); shufdepth (each frame given the n
 pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotations x 1.3: not rigid); flipdepth,
 mirrordepth (each depth map upside down, left to right); range (each depth pixel the distance along its ray from the
 camera's centre, not along the optical axis); disparity (1000 / z in metres: an
-iPhone's disparity stored as millimetres); flipcolour (each colour image and matte upside down, the depth not).
+iPhone's disparity stored as millimetres); scaledrift, scaledrift5 (each frame's depth times its own factor within 15 %,
+5 % either way: a monocular network's); flipcolour (each colour image and matte upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -111,6 +112,17 @@ def _disparity(z: np.ndarray, f: dict) -> np.ndarray:
     return out
 
 
+def _scale_drift(k: float):
+    """Each frame's depth times its own factor within ``k`` either way (a monocular network's metric depth, whose
+    scale drifts from frame to frame), seeded by the file's name."""
+    import zlib
+
+    def e(z: np.ndarray, f: dict) -> np.ndarray:
+        x = np.random.default_rng(zlib.crc32(f["depth_file_path"].encode())).uniform(np.log(1 - k), np.log(1 + k))
+        return np.clip(np.rint(z * np.exp(x)), 0, 65535).astype(z.dtype)
+    return e
+
+
 def _scale_t(k):
     def e(m):
         m[:3, 3] *= k
@@ -159,6 +171,8 @@ VARIANTS = {
     "mirrordepth": {"files": _depth_maps(lambda z, f: np.ascontiguousarray(z[:, ::-1]))},
     "range": {"files": _depth_maps(_range)},
     "disparity": {"files": _depth_maps(_disparity)},
+    "scaledrift": {"files": _depth_maps(_scale_drift(0.15))},
+    "scaledrift5": {"files": _depth_maps(_scale_drift(0.05))},
     "flipcolour": {"image": lambda im: np.ascontiguousarray(im[::-1]), "files": _masks(lambda m: m[::-1])},
 }
 

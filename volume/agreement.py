@@ -42,12 +42,13 @@ from capture.depth_registration import (
     zoom_verdict,
     zoomed_depth,
 )
+from capture.depth_view_scales import view_scale_check
 from capture.matte_io import matte_depth_shares, matte_verdict
 from capture.view_map import PerView
 
 #: The verdicts warned about again at the end of furrow model, and in a later stage's error ("before that, ...").
 FAILED_AGREEMENT = ("scale", "none", "focal", "depth zoom", "convention", "intrinsics", "units", "depth reading",
-                    "disparity")
+                    "disparity", "view scales")
 #: The colour's edges are held against the depth's in about this many views (a pseudo-random set, by name): a
 #: capture's depth and colour come from one rig, so one offset is looked for; 72 views at 1280x960 spent 0.7 s
 #: of the stage's 1.4 s on every view's edges.
@@ -128,6 +129,8 @@ def agreement_stage(work, cfg: AgreementConfig, ctx):
         work, rec = _reread(work, rec, ctx)
     elif cfg.fix and rec["status"] == "disparity":
         work, rec = _from_disparity(work, rec, ctx)
+    elif cfg.fix and rec["status"] == "view scales":
+        work, rec = _view_rescaled(work, rec, ctx)
     elif cfg.fix and rec["status"] in ("focal", "convention", "intrinsics"):
         log.warning("depth agreement: --depth-agreement fix leaves the %s as the capture gives them (a depth scale "
                     "would not undo them; the held-out views keep the capture's cameras)",
@@ -145,7 +148,8 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
     :func:`_reading`); after all, read as distances along the rays, where none of these is found or where a focal
     factor is, with a smaller McNemar z than range's (a focal length 1.25x its own agrees better as range too, z 7.3
     against its own 30.7; the conifer's range depth, every other view, reads as a focal factor 1.5 and a depth zoom,
-    z 47.8 against range's 64.4).  Each search's record under its own key."""
+    z 47.8 against range's 64.4).  Last, each view's depth at its own factor (``view scales``, :func:`_view_scales`).
+    Each search's record under its own key."""
     rec, ranged = _reading(rec, samples, cams, cfg, work, every, ctx)
     if rec["status"] == "depth reading":
         return rec
@@ -158,7 +162,25 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
                 rec["focal"]["superseded_by"] = "depth reading"
             return {**rec, "status": "depth reading", "message": ranged}
         rec["reading"]["superseded_by"] = rec["status"]
-    return rec
+    return _view_scales(rec, samples, cams, cfg)
+
+
+def _view_scales(rec: dict, samples, cams, cfg: AgreementConfig) -> dict:
+    """``rec`` with ``view_scales`` (capture.depth_view_scales.view_scale_check, from the best scale) where the
+    verdict is still ``agree``, ``scale``, ``none``, ``focal`` or ``depth zoom``; status ``view scales`` where each
+    view's depth agrees far better at its own factor, over a focal factor where its McNemar z is the larger (the
+    synthetic fur ball's drifting depth on every third view read as a focal factor; a focal length off moves every
+    view alike, and the factors do not spread)."""
+    if rec["status"] not in ("agree", "scale", "none", "focal", "depth zoom"):
+        return rec
+    found = view_scale_check(samples, cams, cfg, float(rec["best_scale"]))
+    rec = {**rec, "view_scales": {k: v for k, v in found.items() if k != "message"}}
+    if found["status"] != "view scales" or (
+            rec["status"] in ("focal", "depth zoom") and found["z"] <= rec["focal"].get("discordance_z", 0.0)):
+        return rec
+    if "focal" in rec:
+        rec["focal"]["superseded_by"] = "view scales"
+    return {**rec, "status": "view scales", "message": found["message"]}
 
 
 def _explained(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int, ctx) -> dict:
@@ -225,7 +247,7 @@ def _colour_flip(rec: dict, pair_data: dict) -> dict:
     times better.  Judged only where the depth agrees with the poses (at some scale, focal factor, or read as range:
     a capture whose depth agrees with nothing has its warning, and the synthetic one with D435 noise, flying pixels
     and clutter fits the mirror 1.23 times); not where the depth reads flipped (capture.depth_readings names it)."""
-    agreeing = ("agree", "scale", "focal", "depth zoom", "depth reading", "disparity")
+    agreeing = ("agree", "scale", "focal", "depth zoom", "depth reading", "disparity", "view scales")
     if not pair_data or rec["status"] not in agreeing or (
             rec["status"] == "depth reading" and not READINGS[rec["reading"]["reading"]][2]):
         return rec
@@ -374,6 +396,26 @@ def _rescaled(work, rec: dict, ctx):
     logging.getLogger("furrow.capture").warning(
         "depth agreement: every view's depth scaled by %.4g to the poses (--depth-agreement fix)", s)
     return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "applied": round(s, 6)}
+
+
+def view_rescale_view(scan, ref, factors: dict):
+    """Per view: the scan with its depth times its own factor (``factors``: view name -> factor)."""
+    return rescale_view(scan, ref, factors[scan.name])
+
+
+def _view_rescaled(work, rec: dict, ctx):
+    """(work with every view's depth times its own factor (capture.depth_view_scales), its bounds found again from the
+    depth where the capture gives none; the record with ``view_scales_applied``)."""
+    from capture.io import auto_bounds
+
+    factors = dict(zip((s.name for s in work.scans), rec["view_scales"]["factors"]))
+    scans, _ = ctx.map_views(view_rescale_view, work, factors, "depth agreement: each view's depth rescaled")
+    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
+    f = np.array(list(factors.values()))
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every view's depth scaled by its own factor, %.4g-%.4g (--depth-agreement fix)", f.min(),
+        f.max())
+    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "view_scales_applied": True}
 
 
 def zoom_view(scan, ref, arg):

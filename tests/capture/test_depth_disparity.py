@@ -34,8 +34,8 @@ def _check(scans):
 
 def test_pose_distance_is_the_ring_radius(ring):
     assert pose_distance([s.camera for s in ring.scans]) == pytest.approx(0.45, rel=1e-9)
-    one = [ring.scans[0].camera] * 3  # every optical axis the same line: no nearest point
-    assert np.isnan(pose_distance(one))
+    one = [ring.scans[0].camera] * 3  # every optical axis the same line: 1 m in front of them
+    assert pose_distance(one) == pytest.approx(1.0, rel=1e-9)
 
 
 def test_right_depth_is_read_as_stored(ring):

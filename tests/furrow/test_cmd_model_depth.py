@@ -156,3 +156,30 @@ def test_depth_stored_as_disparity_is_named_and_read_by_fix(spheres_dir, tmp_pat
     for n, z in want.items():
         v = z > 0
         assert np.array_equal(got[n] > 0, v) and np.allclose(got[n][v], z[v], rtol=0.012), n  # k within 1 %, 16 bits
+
+
+def test_depth_drifting_from_view_to_view_is_named_and_rescaled_by_fix(spheres_dir, tmp_path, capsys):
+    """Each view's depth times its own factor within 15 % (a monocular network's): furrow model names it, and
+    --depth-agreement fix scales each view's depth by its factor: within 1.5 % of the right capture's (the factors'
+    fit, 16-bit rounding)."""
+    import cv2
+
+    d = _copy(spheres_dir, tmp_path / "stored")
+    frames = json.loads((d / "transforms.json").read_text())["frames"]
+    drift = np.exp(np.random.default_rng(5).uniform(np.log(0.85), np.log(1.15), len(frames)))
+    for f, k in zip(frames, drift):
+        p = d / f["depth_file_path"]
+        z = cv2.imread(str(p), cv2.IMREAD_UNCHANGED).astype(np.float64)
+        cv2.imwrite(str(p), np.clip(np.rint(z * k), 0, 65535).astype(np.uint16))
+    for flags in ((), ("--depth-agreement", "fix")):
+        out = tmp_path / f"v{len(flags)}"
+        rc, _, err = _run(["model", str(d), "-o", str(out), "--max-res", "16", *flags], capsys)
+        flat = " ".join(err.split())
+        rec = load_model(out).params["depth_agreement"]
+        assert rc == 0 and rec["status"] == "view scales" and "each at its own scale" in flat, (rec, flat)
+        assert bool(rec.get("view_scales_applied")) == bool(flags), rec
+        assert ("Each view's depth was scaled by its own factor" in flat) == bool(flags), flat
+    want, got = _agreed_depths(spheres_dir, False), _agreed_depths(d, True)
+    for n, z in want.items():
+        v = (z > 0) & (got[n] > 0)
+        assert np.array_equal(got[n] > 0, z > 0) and np.allclose(got[n][v], z[v], rtol=0.015), n
