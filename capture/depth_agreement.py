@@ -281,8 +281,9 @@ def verdict(s: np.ndarray, share: np.ndarray, share_all: np.ndarray) -> dict:
         rec["message"] = (f"the views' depths do not agree with their poses at any scale (at best "
                           f"{top:.1%} of the points land on a neighbour's measured depth): are the poses "
                           "in the capture's convention (transforms.json: OpenGL axes), the intrinsics those of "
-                          "these image sizes (fl_x, fl_y, cx, cy), each depth file its frame's, and the depth's unit "
-                          f"and the poses' within {SCALE_RANGE:g}x of each other?")
+                          "these image sizes (fl_x, fl_y, cx, cy), each depth file its frame's, the depth's unit "
+                          f"and the poses' within {SCALE_RANGE:g}x of each other, and the depth metric (not a "
+                          "network's relative depth)?")
     elif abs(np.log(s[best])) > np.log(SCALE_TOLERANCE) and share[best] >= SCALE_GAIN * share[one]:
         rec["status"] = "scale"
         rec["message"] = (f"the views' depths agree best with their poses when scaled by {s[best]:.3g} "
