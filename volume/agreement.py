@@ -162,18 +162,20 @@ def _diagnosed(rec: dict, samples, cams, cfg: AgreementConfig, work, every: int,
                 rec["focal"]["superseded_by"] = "depth reading"
             return {**rec, "status": "depth reading", "message": ranged}
         rec["reading"]["superseded_by"] = rec["status"]
-    return _view_scales(rec, samples, cams, cfg)
+    return _view_scales(rec, samples, cams, cfg, [r.name for r in work.refs])
 
 
-def _view_scales(rec: dict, samples, cams, cfg: AgreementConfig) -> dict:
+def _view_scales(rec: dict, samples, cams, cfg: AgreementConfig, names) -> dict:
     """``rec`` with ``view_scales`` (capture.depth_view_scales.view_scale_check, from the best scale) where the
     verdict is still ``agree``, ``scale``, ``none``, ``focal`` or ``depth zoom``; status ``view scales`` where each
     view's depth agrees far better at its own factor, over a focal factor where its McNemar z is the larger (the
     synthetic fur ball's drifting depth on every third view read as a focal factor; a focal length off moves every
-    view alike, and the factors do not spread)."""
+    view alike, and the factors do not spread); the factors by view name (``names``, the samples' order)."""
     if rec["status"] not in ("agree", "scale", "none", "focal", "depth zoom"):
         return rec
     found = view_scale_check(samples, cams, cfg, float(rec["best_scale"]))
+    if "factors" in found:  # by view name: a later fix may leave frames out (capture.depth_pairing)
+        found["factors"] = dict(zip(names, found["factors"]))
     rec = {**rec, "view_scales": {k: v for k, v in found.items() if k != "message"}}
     if found["status"] != "view scales" or (
             rec["status"] in ("focal", "depth zoom") and found["z"] <= rec["focal"].get("discordance_z", 0.0)):
@@ -278,15 +280,12 @@ def reread_view(scan, ref, name):
 def _reread(work, rec: dict, ctx):
     """(work with every view's depth read as the named reading says, its bounds found again from the depth where
     the capture gives none; the record with ``reading_applied``)."""
-    from capture.io import auto_bounds
-
-    log = logging.getLogger("furrow.capture")
     name = rec["reading"]["reading"]
-    scans, _ = ctx.map_views(reread_view, work, name, "depth agreement: depth read again")
-    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
-    log.warning("depth agreement: every view's depth map read as %s (--depth-agreement fix)",
-                "z-depth from the distance along its rays" if name == "range" else f"flipped {name}")
-    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "reading_applied": name}
+    work = _with_bounds(work, ctx.map_views(reread_view, work, name, "depth agreement: depth read again")[0])
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every view's depth map read as %s (--depth-agreement fix)",
+        "z-depth from the distance along its rays" if name == "range" else f"flipped {name}")
+    return work, {**rec, "reading_applied": name}
 
 
 def disparity_view(scan, ref, k: float):
@@ -297,14 +296,11 @@ def disparity_view(scan, ref, k: float):
 def _from_disparity(work, rec: dict, ctx):
     """(work with every view's depth map read as disparity, its bounds found again from the depth where the capture
     gives none; the record with ``disparity_applied``: the constant)."""
-    from capture.io import auto_bounds
-
     k = float(rec["disparity"]["constant"])
-    scans, _ = ctx.map_views(disparity_view, work, k, "depth agreement: depth from disparity")
-    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
+    work = _with_bounds(work, ctx.map_views(disparity_view, work, k, "depth agreement: depth from disparity")[0])
     logging.getLogger("furrow.capture").warning(
         "depth agreement: every view's depth map read as disparity, depth = %.4g / value (--depth-agreement fix)", k)
-    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "disparity_applied": k}
+    return work, {**rec, "disparity_applied": k}
 
 
 def repair_view(scan, ref, partner):
@@ -388,34 +384,32 @@ def _rescaled(work, rec: dict, ctx):
     """(work with every view's depth scaled by the best scale (or the units' factor), and its bounds found again
     from the depth where the capture gives none; the record with ``applied``).  The poses stay as they are, so
     that the model keeps the capture's frame: the held-out views of furrow eval, a camera path of the same poses."""
-    from capture.io import auto_bounds
-
     s = float(rec["units"]["factor"] if rec["status"] == "units" else rec["best_scale"])
-    scans, _ = ctx.map_views(rescale_view, work, s, "depth agreement: depth rescaled")
-    bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
+    work = _with_bounds(work, ctx.map_views(rescale_view, work, s, "depth agreement: depth rescaled")[0])
     logging.getLogger("furrow.capture").warning(
         "depth agreement: every view's depth scaled by %.4g to the poses (--depth-agreement fix)", s)
-    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "applied": round(s, 6)}
-
-
-def view_rescale_view(scan, ref, factors: dict):
-    """Per view: the scan with its depth times its own factor (``factors``: view name -> factor)."""
-    return rescale_view(scan, ref, factors[scan.name])
+    return work, {**rec, "applied": round(s, 6)}
 
 
 def _view_rescaled(work, rec: dict, ctx):
-    """(work with every view's depth times its own factor (capture.depth_view_scales), its bounds found again from the
-    depth where the capture gives none; the record with ``view_scales_applied``)."""
+    """(work with every view's depth times its own factor (capture.depth_view_scales; 1 for a view without one),
+    its bounds found again from the depth where the capture gives none; the record with ``view_scales_applied``)."""
+    factors = rec["view_scales"]["factors"]
+    f = PerView([float(factors.get(s.name, 1.0)) for s in work.scans])
+    work = _with_bounds(work, ctx.map_views(rescale_view, work, f, "depth agreement: each view's depth rescaled")[0])
+    v = np.array(list(factors.values()))
+    logging.getLogger("furrow.capture").warning(
+        "depth agreement: every view's depth scaled by its own factor, %.4g-%.4g (--depth-agreement fix)", v.min(),
+        v.max())
+    return work, {**rec, "view_scales_applied": True}
+
+
+def _with_bounds(work, scans):
+    """``work`` with ``scans``, its bounds found again from their depth where the capture gives none."""
     from capture.io import auto_bounds
 
-    factors = dict(zip((s.name for s in work.scans), rec["view_scales"]["factors"]))
-    scans, _ = ctx.map_views(view_rescale_view, work, factors, "depth agreement: each view's depth rescaled")
     bounds = work.bounds if work.source.bounds is not None else auto_bounds(scans, str(work.source.path))
-    f = np.array(list(factors.values()))
-    logging.getLogger("furrow.capture").warning(
-        "depth agreement: every view's depth scaled by its own factor, %.4g-%.4g (--depth-agreement fix)", f.min(),
-        f.max())
-    return replace(work, scans=tuple(scans), bounds=bounds), {**rec, "view_scales_applied": True}
+    return replace(work, scans=tuple(scans), bounds=bounds)
 
 
 def zoom_view(scan, ref, arg):
