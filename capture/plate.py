@@ -99,12 +99,15 @@ class PlateConfig:
     #: 8-bit steps, the plate is made from the frames through a bilateral filter on the scale of the noise (the
     #: matte still reads the photos; capture.noise); 'off': the frames as they are.
     denoise: str = "auto"
+    #: Frames blurred where the others are sharp (capture.blurred_views; the fixed camera's): 'keep' (tested, said,
+    #: kept), 'leave out' (left out of the model: volume/surroundings.py), 'off' (not tested).
+    blurred: str = "keep"
 
     def __post_init__(self) -> None:
         if self.mode not in PLATE_MODES:
             raise ValueError(f"plate mode must be one of {', '.join(PLATE_MODES)}, got {self.mode!r}")
-        if self.denoise not in ("auto", "off"):
-            raise ValueError(f"plate denoise must be 'auto' or 'off', got {self.denoise!r}")
+        if self.denoise not in ("auto", "off") or self.blurred not in ("keep", "leave out", "off"):
+            raise ValueError(f"plate denoise 'auto' or 'off', blurred 'keep', 'leave out' or 'off': {self!r}")
         if int(self.neighbours) < 1:
             raise ValueError(f"plate neighbours must be >= 1, got {self.neighbours}")
 
@@ -470,6 +473,10 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     plates, gate, dropped = gated(ps, mode, fit, plates, crop)  # refused plates out, and their views as sources
     rec = gate_record(plate_record(mode, plates, fit.gains, {path: t.errors for path, t in trials.items()}), gate,
                       dropped)
+    if mode == "fixed" and cfg.blurred != "off":  # frames blurred where the others are sharp (capture.blurred_views)
+        from capture.blurred_views import blurred_views
+
+        rec = {**rec, "per_view": [{**r, "blur": b} for r, b in zip(rec["per_view"], blurred_views(ps, fit.gains))]}
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
 

@@ -13,8 +13,8 @@ pose05, pose3 (the poses' translations x 1000, x 0.5, x 3); rotscale (the rotati
 mirrordepth (each depth map upside down, left to right); range (each depth pixel the distance along its ray from the
 camera's centre, not along the optical axis); disparity (1000 / z in metres: an
 iPhone's disparity stored as millimetres); scaledrift, scaledrift5 (each frame's depth times its own factor within 15 %,
-5 % either way: a monocular network's); blur (every sixth frame's colour blurred along a line 2 % of the
-width: a shaken phone); flipcolour (each colour image and matte upside down, the depth not).
+5 % either way: a monocular network's); blur (every sixth frame's colour and matte blurred along a line
+2 % of the width: a shaken phone); flipcolour (each colour image and matte upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -125,21 +125,25 @@ def _scale_drift(k: float):
 
 
 def _blur_frames(d: Path, tj: dict) -> None:
-    """Every sixth frame's colour (i % 6 == 0: every third of the views ``furrow eval --holdout 2`` keeps) blurred
-    along a line 2 % of the image's width long, at an angle seeded by the file's name (a shaken phone)."""
+    """Every sixth frame's colour and matte (i % 6 == 0: every third of the views ``furrow eval --holdout 2`` keeps)
+    blurred along a line 2 % of the image's width long, at an angle seeded by the file's name (a shaken phone: the
+    matte of a blurred photo is the blurred matte)."""
     import zlib
 
     for i, f in enumerate(tj["frames"]):
         if i % 6:
             continue
-        p = d / f["file_path"]
-        im = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        n = max(3, int(round(0.02 * im.shape[1])) | 1)
-        k = np.zeros((n, n), np.float32)
-        k[n // 2] = 1.0 / n
-        a = np.random.default_rng(zlib.crc32(f["file_path"].encode())).uniform(0.0, 180.0)
-        k = cv2.warpAffine(k, cv2.getRotationMatrix2D(((n - 1) / 2, (n - 1) / 2), a, 1.0), (n, n))
-        cv2.imwrite(str(p), cv2.filter2D(im, -1, k / k.sum(), borderType=cv2.BORDER_REFLECT))
+        for key in ("file_path", "mask_path"):
+            if not f.get(key):
+                continue
+            p = d / f[key]
+            im = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            n = max(3, int(round(0.02 * im.shape[1])) | 1)
+            k = np.zeros((n, n), np.float32)
+            k[n // 2] = 1.0 / n
+            a = np.random.default_rng(zlib.crc32(f["file_path"].encode())).uniform(0.0, 180.0)
+            k = cv2.warpAffine(k, cv2.getRotationMatrix2D(((n - 1) / 2, (n - 1) / 2), a, 1.0), (n, n))
+            cv2.imwrite(str(p), cv2.filter2D(im, -1, k / k.sum(), borderType=cv2.BORDER_REFLECT))
 
 
 def _scale_t(k):

@@ -65,6 +65,10 @@ def extent_stage(work, cfg, ctx):
     return out
 
 
+#: Blurred views are left out only where at least this share of the views stays (else kept, and said).
+BLURRED_KEEP = 0.6
+
+
 def _plates_wanted(config) -> bool:
     return config.plate is not None and config.plate.mode != "off" and config.matte.mode not in NO_PLATE_MATTES
 
@@ -106,8 +110,30 @@ def plate_stage(work, cfg, ctx):
         rec = {**rec, "frame_noise": rec.get("frame_noise"), "frame_noise_note": note}
     if "per_view" in rec:  # each view's record names its frame (the console names refused views by it)
         rec = {**rec, "per_view": [{"name": ref.name, **r} for ref, r in zip(work.refs, rec["per_view"], strict=True)]}
+    work, plates, rec = _without_blurred(work, plates, rec, cfg.blurred == "leave out")
     store = dict(zip((ref.index for ref in work.refs), plates, strict=True))
     return work.made(plates=store, captured=None).record("background plate", rec)
+
+
+def _without_blurred(work, plates: list, rec: dict, leave_out: bool = True):
+    """(work, plates, rec) without the views capture.blurred_views calls blurred, with ``leave_out`` (--blurred-views
+    'leave out') and where at least BLURRED_KEEP of the views are left; the record's ``blurred_left_out`` names them,
+    or ``blurred_kept`` (kept: by default, or too many); the warning says which."""
+    blurred = [i for i, r in enumerate(rec.get("per_view", [])) if (r.get("blur") or {}).get("blurred")]
+    if not blurred:
+        return work, plates, rec
+    names = [work.refs[i].name for i in blurred]
+    log = logging.getLogger("furrow.capture")
+    if not leave_out or len(work.refs) - len(blurred) < BLURRED_KEEP * len(work.refs):
+        log.warning("background plate: %d of %d views blurred where the others are sharp (%s): kept (%s)",
+                    len(blurred), len(work.refs), ", ".join(names),
+                    "too many to leave out" if leave_out else "--blurred-views 'leave out' leaves them out")
+        return work, plates, {**rec, "blurred_kept": names}
+    keep = [i for i in range(len(work.refs)) if i not in blurred]
+    log.warning("background plate: %d view(s) blurred where the others are sharp, left out (%s; capture.blurred_views)",
+                len(blurred), ", ".join(names))
+    work = replace(work, refs=tuple(work.refs[i] for i in keep), scans=tuple(work.scans[i] for i in keep))
+    return work, [plates[i] for i in keep], {**rec, "blurred_left_out": names}
 
 
 def _smoothing_check(scans, captured, scale: float, smooth: float, setting) -> dict:
