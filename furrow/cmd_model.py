@@ -186,6 +186,17 @@ def print_report(console, summary: dict, out) -> None:
                       "(volume/spheres.py)[/]", highlight=False)
 
 
+def _print_blurred(console, pl: dict) -> None:
+    """The frames capture.blurred_views found blurred where the others are sharp: left out, or kept (the default)."""
+    for key, done in (("blurred_left_out", "left out of the model (--blurred-views 'leave out')"),
+                      ("blurred_kept", "kept ('leave out' leaves them out: a conifer before a bright sky gained "
+                                       "3.4 dB held out, a fur ball lost 1.1)")):
+        if pl.get(key):
+            console.print(f"[yellow]background plate: {len(pl[key])} frame(s) blurred where the others are sharp "
+                          f"({', '.join(pl[key][:8])}{', ...' if len(pl[key]) > 8 else ''}): {done}[/yellow]",
+                          highlight=False)
+
+
 def _reread_said(agree: dict) -> str:
     """What --depth-agreement fix did to the depth maps' reading (volume/agreement.py), for the closing line."""
     applied = agree.get("reading_applied")
@@ -255,6 +266,7 @@ def _print_surroundings(console, rec: dict) -> None:
             console.print(f"[yellow]background plate dropped in part of {len(part)} view(s) where the ring disagrees "
                           f"with it on one side ({', '.join(names)}{', ...' if len(part) > 8 else ''})[/yellow]",
                           highlight=False)
+        _print_blurred(console, pl)
         ex = pl.get("exposure") or {}
         if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
             ev = [sum(math.log2(g) for g in ex["gains"][i]) / 3 for i in ex["taken"]]
