@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from capture.depth_agreement import agreement, neighbours, pair_hits, verdict
+from capture.depth_agreement import agreement, neighbours, verdict
+from capture.depth_view_scales import judged_hits
 from capture.orbit import closest_point_to_axes
 
 #: Disparity is named where the points agreeing read so only outnumber those agreeing as stored only by this many
@@ -54,15 +55,6 @@ def inverted_sample(sample, k: float):
     return pts, out, step
 
 
-def _hits(samples, cameras, s: float, rel: float) -> np.ndarray:
-    """(n,) whether each sampled point agrees with its nearest views' depth (capture.depth_agreement's pairs), every
-    depth times ``s``."""
-    nb = neighbours(cameras, 2)
-    out = [pair_hits(samples[i][0], cameras[i], cameras[j], samples[j][1], samples[j][2], np.array([s]), rel)[0][0]
-           for i in range(len(cameras)) for j in nb[i] if j >= 0 and len(samples[i][0])]
-    return np.concatenate(out) if out else np.zeros(0, bool)
-
-
 def disparity_check(samples, cameras, cfg, stored_scale: float) -> dict:
     """The depth read as disparity against as stored at ``stored_scale`` (its best, the scales' verdict's; module
     docstring): ``status`` ``disparity`` with ``constant`` (k, metres squared: depth = k / value) and the warning's
@@ -76,7 +68,9 @@ def disparity_check(samples, cameras, cfg, stored_scale: float) -> dict:
     inv = [inverted_sample(x, k0) for x in samples]
     s, share, share_all, _, _ = agreement(inv, cameras, cfg)
     rec = verdict(s, share, share_all)
-    a, b = _hits(samples, cameras, stored_scale, cfg.rel), _hits(inv, cameras, rec["best_scale"], cfg.rel)
+    nb, V = neighbours(cameras, cfg.neighbours), len(cameras)  # each at its best scale, over the scales' search's pairs
+    a = judged_hits(samples, cameras, nb, np.full(V, float(stored_scale)), None, cfg.rel)
+    b = judged_hits(inv, cameras, nb, np.full(V, float(rec["best_scale"])), None, cfg.rel)
     n_b, n_c = int(np.count_nonzero(b & ~a)), int(np.count_nonzero(a & ~b))
     z = (n_b - n_c) / max(float(np.sqrt(n_b + n_c)), 1e-9)
     k = k0 * float(rec["best_scale"])

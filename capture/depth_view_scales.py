@@ -110,9 +110,11 @@ def scaled_samples(samples, s: np.ndarray):
     return [(p * k, small * np.float32(k), step) for (p, small, step), k in zip(samples, s)]
 
 
-def _judged(samples, cameras, nb: np.ndarray, s: np.ndarray, held, rel: float) -> np.ndarray:
-    """(n,) whether each ``held`` point of every view agrees with its neighbours, every view's depth times its ``s``."""
-    out = [_agrees(samples[i][0][held[i]], s[i:i + 1], cameras[i], cameras[j], samples[j], s[j:j + 1], rel)[0]
+def judged_hits(samples, cameras, nb: np.ndarray, s: np.ndarray, held, rel: float) -> np.ndarray:
+    """(n,) whether each ``held`` point (per view, which of its sampled points; None: all) of every view agrees with
+    its neighbours ``nb`` (capture.depth_agreement.neighbours), every view's depth times its ``s`` (V,)."""
+    pts = [x[0] if held is None else x[0][held[k]] for k, x in enumerate(samples)]
+    out = [_agrees(pts[i], s[i:i + 1], cameras[i], cameras[j], samples[j], s[j:j + 1], rel)[0]
            for i in range(len(cameras)) for j in nb[i][nb[i] >= 0] if len(samples[i][0])]
     return np.concatenate(out) if out else np.zeros(0, bool)
 
@@ -131,8 +133,8 @@ def view_scale_check(samples, cameras, cfg, scale: float, seed: int = 0) -> dict
         g, share, share_all, _, _ = agreement(scaled_samples(samples, s), cameras, cfg)
         s *= verdict(g, share, share_all)["best_scale"]
     held = [~u for u in use]
-    own = _judged(samples, cameras, nb, s, held, cfg.rel)
-    one = _judged(samples, cameras, nb, np.full(len(cameras), float(scale)), held, cfg.rel)
+    own = judged_hits(samples, cameras, nb, s, held, cfg.rel)
+    one = judged_hits(samples, cameras, nb, np.full(len(cameras), float(scale)), held, cfg.rel)
     b, c = int(np.count_nonzero(own & ~one)), int(np.count_nonzero(one & ~own))
     z = (b - c) / max(float(np.sqrt(b + c)), 1e-9)
     spread = float(np.std(np.log(s)))

@@ -384,3 +384,21 @@ def sun_sky_env(h: int = 32, sun=(0.6, -0.3, 0.75), ambient: float = 0.3, sky: f
     blue = ambient + sky * np.maximum(d[..., 2:3], 0) * np.array([0.6, 0.8, 1.0])
     disc = power * np.exp(sharpness * (d @ s - 1))[..., None] * np.array([1.0, 0.9, 0.7])
     return EnvMap((blue + disc).astype(np.float32), "sun")
+
+
+def agreement_samples(scans, points: int) -> list:
+    """capture.depth_agreement.view_sample of each scan (``points`` points), seeded by its index: the depth checks'
+    tests' inputs."""
+    from capture.depth_agreement import view_sample
+
+    return [view_sample(s.depth, s.camera, points, i) for i, s in enumerate(scans)]
+
+
+def agreement_inputs(scans, cfg) -> tuple[list, list, float]:
+    """(:func:`agreement_samples`, the cameras, the best depth scale of capture.depth_agreement's search) of
+    ``scans`` under the AgreementConfig ``cfg``."""
+    from capture.depth_agreement import agreement, verdict
+
+    samples, cams = agreement_samples(scans, cfg.points), [s.camera for s in scans]
+    g, share, share_all, _, _ = agreement(samples, cams, cfg)
+    return samples, cams, float(verdict(g, share, share_all)["best_scale"])

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from capture.depth_agreement import AgreementConfig, agreement, verdict, view_sample
+from capture.depth_agreement import AgreementConfig, view_sample
 from capture.depth_disparity import DISPARITY_Z, disparity_check, inverted_sample, pose_distance, read_disparity
-from tests.scenes import make_scanset, scan_ring, spheres_scene
+from tests.scenes import agreement_inputs, make_scanset, scan_ring, spheres_scene
 
 CFG = AgreementConfig()
 K = 0.2  # metres squared: the disparity values 0.35-0.6 where the depths are 0.33-0.57 m, plausible as depth
@@ -26,10 +26,8 @@ def _disparity(scans, k=K):
 
 
 def _check(scans):
-    cams = [s.camera for s in scans]
-    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
-    s, share, share_all, _, _ = agreement(samples, cams, CFG)
-    return disparity_check(samples, cams, CFG, verdict(s, share, share_all)["best_scale"])
+    samples, cams, best = agreement_inputs(scans, CFG)
+    return disparity_check(samples, cams, CFG, best)
 
 
 def test_pose_distance_is_the_ring_radius(ring):

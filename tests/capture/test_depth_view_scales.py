@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from capture.depth_agreement import AgreementConfig, agreement, pair_hits, verdict, view_sample
+from capture.depth_agreement import AgreementConfig, pair_hits, view_sample
 from capture.depth_view_scales import VIEW_SCALE_Z, _agrees, scaled_samples, view_scale_check
-from tests.scenes import make_scanset, scan_ring, spheres_scene
+from tests.scenes import agreement_inputs, agreement_samples, make_scanset, scan_ring, spheres_scene
 
 CFG = AgreementConfig()
 
@@ -25,10 +25,8 @@ def _drift(n: int, k: float, seed: int = 3) -> np.ndarray:
 
 
 def _check(scans):
-    cams = [s.camera for s in scans]
-    samples = [view_sample(s.depth, s.camera, CFG.points, i) for i, s in enumerate(scans)]
-    g, share, share_all, _, _ = agreement(samples, cams, CFG)
-    return view_scale_check(samples, cams, CFG, verdict(g, share, share_all)["best_scale"])
+    samples, cams, best = agreement_inputs(scans, CFG)
+    return view_scale_check(samples, cams, CFG, best)
 
 
 def test_right_depth_agrees_at_one_scale(ring):
@@ -49,11 +47,10 @@ def test_drifting_depth_is_named_with_each_views_factor(ring):
 
 
 def test_agrees_at_equal_scales_is_pair_hits(ring):
-    scans = ring.scans
+    scans, smp = ring.scans, agreement_samples(ring.scans, CFG.points)
     s = np.array([0.96, 1.0, 1.03])
     for i, j in ((0, 1), (5, 4), (9, 10)):
-        a = view_sample(scans[i].depth, scans[i].camera, CFG.points, i)
-        b = view_sample(scans[j].depth, scans[j].camera, CFG.points, j)
+        a, b = smp[i], smp[j]
         want, _ = pair_hits(a[0], scans[i].camera, scans[j].camera, b[1], b[2], s, CFG.rel)
         assert np.array_equal(_agrees(a[0], s, scans[i].camera, scans[j].camera, b, s, CFG.rel), want)
 
