@@ -22,6 +22,8 @@ bilinear step of the push-pull fill (docs/speed.md, round 4).
   entries instead of pymatting's 250 million (two arrays of 2 GB: a new mapping, faulted in afresh, for
   every view's factor). The factor is the same bit for bit (the room only bounds it); one that needs more
   is made again with pymatting's room.
+* :func:`pcg`: pymatting's ``cg`` with that factor, except that a system its start already solves comes back
+  as it is (pymatting's divides 0 by 0 there and ran every iteration on NaN).
 """
 
 from __future__ import annotations
@@ -133,3 +135,30 @@ def ichol_sized(A, discard_threshold: float):
         if "max_nnz" not in str(e):
             raise
     return ichol(A, discard_threshold=discard_threshold)
+
+
+def pcg(A, b: np.ndarray, x0: np.ndarray | None, pre: dict, discard_threshold: float, rtol: float,
+        maxiter: int) -> tuple[np.ndarray | None, bool]:
+    """(x, converged) of ``A x = b`` by pymatting's ``cg`` from ``x0`` (None: zeros), preconditioned by
+    :func:`ichol_sized` (made once into ``pre['M']``), its prints kept off stdout (``furrow model --json``);
+    (None, False) where it does not converge.  Where the start solves the system already (``b = 0`` with no
+    ``x0``: an unknown band with no data and no opaque pixel beside it) the start comes back, converged:
+    pymatting's ``cg`` tests its residual against ``rtol`` x |b| = 0 there, divides 0 by 0 and runs every
+    iteration on NaN (the matte was then called not converged)."""
+    import contextlib
+    import io
+
+    from pymatting import cg
+
+    x = np.zeros_like(b) if x0 is None else np.asarray(x0)
+    if not np.any(b - A @ x):
+        return x, True
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout
+            if "M" not in pre:
+                pre["M"] = ichol_sized(A, discard_threshold)
+            return cg(A, b, x0=x0, M=pre["M"], rtol=rtol, maxiter=maxiter), True
+    except ValueError as e:  # "Conjugate gradient descent did not converge ..."
+        if "converge" not in str(e):
+            raise
+        return None, False

@@ -37,9 +37,6 @@ downscaled crop (issue 32).
 
 from __future__ import annotations
 
-import contextlib
-import io
-
 import numpy as np
 
 from capture import matting_channels as mch
@@ -458,22 +455,14 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
     ``record``: a dict that gets its record; ``colour``: step 4's rule for where B counts as known
     (:func:`_finish`)."""
-    from pymatting import cf_laplacian, cg
+    from pymatting import cf_laplacian
 
-    from capture.matting_fast import ichol_sized
+    from capture.matting_fast import pcg
 
-    pre = {}
+    pre = {}  # one preconditioner for every pass (they differ in the data weights only)
 
     def solve(A, b, x0):
-        try:
-            with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints on stdout (`furrow model --json`)
-                if "M" not in pre:  # the passes differ in the data weights only: one preconditioner
-                    pre["M"] = ichol_sized(A, ICHOL_DISCARD)
-                return cg(A, b, x0=x0, M=pre["M"], rtol=CG_RTOL, maxiter=CG_MAX_ITERATIONS), True
-        except ValueError as e:  # "Conjugate gradient descent did not converge ..."
-            if "converge" not in str(e):
-                raise
-            return None, False
+        return pcg(A, b, x0, pre, ICHOL_DISCARD, CG_RTOL, CG_MAX_ITERATIONS)
 
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, ok = _passes(img, trimap, background, known, noise,

@@ -75,3 +75,26 @@ def test_ichol_sized_is_pymattings_factor(monkeypatch, room):
     assert len(got.L.data) > 40 * 50  # room 0 (n entries) cannot hold it: the retry made it
     b = rng.random(40 * 50)
     assert np.array_equal(got(b), ref(b))
+
+
+def test_pcg_solves_a_matting_system_and_takes_a_zero_right_side_as_solved():
+    """capture.matting_fast.pcg: on a seeded matting system it gives the sparse direct solution within the CG
+    tolerance (1e-6 relative: 1e-4 in alpha); with b = 0 it returns zeros, converged, without pymatting's
+    0 / 0 (that system had run 2000 iterations on NaN and been called not converged)."""
+    import warnings
+
+    import scipy.sparse as sp
+    from pymatting import cf_laplacian
+    from scipy.sparse.linalg import spsolve
+
+    from capture.matting_fast import pcg
+
+    rng = np.random.default_rng(5)
+    A = (cf_laplacian(rng.random((30, 40, 3)), epsilon=1e-5, radius=1) + sp.diags(rng.random(1200) + 0.1)).tocsr()
+    b = rng.random(1200)
+    x, ok = pcg(A, b, None, {}, 3e-3, 1e-6, 2000)
+    assert ok and np.abs(x - spsolve(A.tocsc(), b)).max() < 1e-4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # pymatting's cg warned "invalid value encountered in scalar divide"
+        x0, ok0 = pcg(A, np.zeros(1200), None, {}, 3e-3, 1e-6, 2000)
+    assert ok0 and not np.any(x0)
