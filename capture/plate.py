@@ -53,6 +53,7 @@ from capture.plate_record import plate_record
 from capture.plate_reproject import room_depth
 from capture.plate_threads import thread_map
 from capture.sampling import mask_box
+from capture.vignetting import measured
 
 #: Plate modes of PlateConfig.mode / ``furrow model --plate``.
 PLATE_MODES = ("auto", "user", "fixed", "panorama", "off")
@@ -102,12 +103,15 @@ class PlateConfig:
     #: Frames blurred where the others are sharp (capture.blurred_views; the fixed camera's): 'keep' (tested, said,
     #: kept), 'leave out' (left out of the model: volume/surroundings.py), 'off' (not tested).
     blurred: str = "keep"
+    #: A moving camera's lens vignetting (capture.vignetting): 'auto' (measured on the panorama's held-back
+    #: background, taken out of every frame where it beats none), 'off' (not measured).
+    vignetting: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in PLATE_MODES:
             raise ValueError(f"plate mode must be one of {', '.join(PLATE_MODES)}, got {self.mode!r}")
-        if self.denoise not in ("auto", "off") or self.blurred not in ("keep", "leave out", "off"):
-            raise ValueError(f"plate denoise 'auto' or 'off', blurred 'keep', 'leave out' or 'off': {self!r}")
+        if {self.denoise, self.vignetting} - {"auto", "off"} or self.blurred not in ("keep", "leave out", "off"):
+            raise ValueError(f"plate denoise, vignetting 'auto'|'off'; blurred 'keep', 'leave out' or 'off': {self!r}")
         if int(self.neighbours) < 1:
             raise ValueError(f"plate neighbours must be >= 1, got {self.neighbours}")
 
@@ -175,20 +179,18 @@ class Plate:
         if self.frame is None:
             return self
         H, W, y0, x0 = self.frame
-        bg = np.zeros((H, W, 3), np.float32)
-        known = np.zeros((H, W), bool)
         h, w = self.known.shape
-        bg[y0:y0 + h, x0:x0 + w] = self.background
-        known[y0:y0 + h, x0:x0 + w] = self.known
-        est = sig = None
-        if self.estimated is not None:
-            est = np.zeros((H, W), bool)
-            est[y0:y0 + h, x0:x0 + w] = self.estimated
-        if self.sigma is not None:
-            sig = np.zeros((H, W), np.float32)
-            sig[y0:y0 + h, x0:x0 + w] = self.sigma
-        return Plate(bg, known, self.noise, self.method, self.band_known, self.error, self.error_rmse,
-                     self.band_estimated, estimated=est, sigma=sig, band_crossing=self.band_crossing)
+
+        def put(a, dtype, *c):  # the box's array at its place in a frame of zeros (None: None)
+            out = None if a is None else np.zeros((H, W, *c), dtype)
+            if out is not None:
+                out[y0:y0 + h, x0:x0 + w] = a
+            return out
+
+        return Plate(put(self.background, np.float32, 3), put(self.known, bool), self.noise, self.method,
+                     self.band_known, self.error, self.error_rmse, self.band_estimated,
+                     estimated=put(self.estimated, bool), sigma=put(self.sigma, np.float32),
+                     band_crossing=self.band_crossing)
 
     def record(self) -> dict:
         """JSON-able summary of the view's plate (model.json, the stage table)."""
@@ -330,9 +332,8 @@ class PlateSet:
         return [p.view.camera for p in self.views]
 
     def for_path(self, path: str) -> PlateSet:
-        """The set with only what ``path`` reads (:data:`PATH_READS`): the chosen path's gains refit
-        and drawing no longer hold the other path's per-view arrays (at 200 phone views the room
-        depths alone are 8 bytes a working pixel)."""
+        """The set with only what ``path`` reads (:data:`PATH_READS`): the chosen path's gains and drawing no longer
+        hold the other path's per-view arrays (at 200 phone views the room depths alone are 8 bytes a working pixel)."""
         drop = {k: None for k in PATH_ONLY if k not in PATH_READS[path]}
         return replace(self, views=tuple(replace(p, **drop) for p in self.views))
 
@@ -402,8 +403,7 @@ class Trial:
 def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
     """(median of the largest channel's |error|, RMS) over the predicted rows (NaN: none), the
     prediction clipped to the sensor's ceiling (SENSOR_MAX) as the photo is."""
-    ok = np.isfinite(predicted).all(axis=1)
-    if not ok.any():
+    if not (ok := np.isfinite(predicted).all(axis=1)).any():
         return float("nan"), float("nan")
     d = np.abs(np.minimum(predicted[ok], SENSOR_MAX) - observed[ok])
     return float(np.median(d.max(axis=1))), float(np.sqrt(np.mean(d * d)))
@@ -412,8 +412,7 @@ def _error(observed: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
 def ring_trial(ps: PlateSet, path: str, gains: np.ndarray | None = None) -> Trial:
     """The path's prediction of every ring with ``gains`` (default the path's first gains)."""
     start, predict, _ = path_functions(path)
-    g = start(ps) if gains is None else gains
-    pred = predict(ps, g)
+    pred = predict(ps, g := start(ps) if gains is None else gains)
     return Trial(g, pred, [_error(p.observed, q) for p, q in zip(ps.views, pred, strict=True)])
 
 
@@ -462,7 +461,7 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     ps = plate_set(views, plane, focus, cfg)
     trials = {path: ring_trial(ps, path) for path in tried_paths(cfg)}
     mode = choose_mode({path: t.errors for path, t in trials.items()})
-    ps = ps.for_path(mode)
+    vig = measured(ps := ps.for_path(mode), mode, cfg, trials)  # a moving camera's vignetting (capture.vignetting)
     from capture.plate_exposure import plate_exposure  # the gains against none on held-back pixels
     from capture.plate_pairs import fitted  # the panorama's gains from pairs of views at once
 
@@ -477,6 +476,7 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
         from capture.blurred_views import blurred_views
 
         rec = {**rec, "per_view": [{**r, "blur": b} for r, b in zip(rec["per_view"], blurred_views(ps, fit.gains))]}
+    rec = rec if vig is None else {**rec, "vignetting": vig}
     return plates, rec if exposure is None else {**rec, "exposure": exposure}
 
 

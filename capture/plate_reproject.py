@@ -236,15 +236,17 @@ def reproject_plate(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: l
 
 
 def first_samples(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: list[PlateSource],
-                  plane: np.ndarray | None, room: np.ndarray | None, fast: bool | None = None) -> np.ndarray:
+                  plane: np.ndarray | None, room: np.ndarray | None, fast: bool | None = None,
+                  kinds: np.ndarray | None = None) -> np.ndarray:
     """(K, N, 3) float32 samples (NaN = none) of the background behind pixels ``pix`` (N, 2) of ``cam`` from
     each of the K ``sources``, in the exposure of gain ``gain_i``: per pixel those of the first hypothesis
     (:func:`background_points`, in its order) that any source has a sample of (module docstring).  What the
-    plate's median takes (:func:`reproject_plate`) and the exposure's pairs compare (capture.plate_pairs)."""
+    plate's median takes (:func:`reproject_plate`) and the exposure's pairs compare (capture.plate_pairs).  ``kinds``:
+    (N,) int, -1, gets each pixel's hypothesis (its index in background_points' list; capture.vignetting)."""
     n = len(pix)
     s = np.full((len(sources), n, 3), np.nan, np.float32)
     done = np.zeros(n, bool)
-    for kind, pts, valid in background_points(cam, pix, plane, room):
+    for h, (kind, pts, valid) in enumerate(background_points(cam, pix, plane, room)):
         todo = np.flatnonzero(valid & ~done)
         if not len(todo) or not sources:
             continue
@@ -257,6 +259,8 @@ def first_samples(cam: Camera, pix: np.ndarray, gain_i: np.ndarray, sources: lis
         if not whole:
             s[:, todo[seen]] = got[:, seen]
         done[todo[seen]] = True
+        if kinds is not None:
+            kinds[todo[seen]] = h
     return s
 
 

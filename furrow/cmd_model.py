@@ -267,6 +267,9 @@ def _print_surroundings(console, rec: dict) -> None:
                           f"with it on one side ({', '.join(names)}{', ...' if len(part) > 8 else ''})[/yellow]",
                           highlight=False)
         _print_blurred(console, pl)
+        if (pl.get("vignetting") or {}).get("applied"):  # capture.vignetting: a moving camera's lens
+            console.print(f"[yellow]background plate: the lens darkens the corners ({pl['vignetting']['reason']}): "
+                          "taken out of every frame (--vignetting off leaves them)[/yellow]", highlight=False)
         ex = pl.get("exposure") or {}
         if ex.get("taken"):  # capture.plate_exposure.VIEW_GAINS: some views' own gains, the others' at 1
             ev = [sum(math.log2(g) for g in ex["gains"][i]) / 3 for i in ex["taken"]]

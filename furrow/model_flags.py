@@ -166,6 +166,13 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "console and in the plate record, kept in the model), 'leave out' (left out of the model "
                         "while 60%% of the views stay: a conifer before a bright sky gained 3.4 dB held out, a fur "
                         "ball lost 1.1) or off (not tested)")
+    g.add_argument("--vignetting", choices=["auto", "off"], default="auto",
+                   help="a moving camera's lens vignetting (its image darker towards the corners), measured on the "
+                        "background the views share (capture/vignetting.py: the panorama plate's held-back pixels "
+                        "seen by two views at different radii): auto (default: taken out of every frame where it "
+                        "beats none on held-back pixels by 5 standard errors and changes the image by 3%% or more; "
+                        "half a stop cost a path-traced conifer orbit 3.1 dB held out) or off (not measured; a fixed "
+                        "camera's frames are never measured: its background sits at the same pixels in every frame)")
     g.add_argument("--matte-resolution", choices=["full", "working"], default="working",
                    help="where a solved matte (estimated from the depth, or with a known background: plate, "
                         "backdrop) is solved: working (default; capture/matting_scale.py: on a copy scaled so that "
@@ -206,7 +213,8 @@ def pipeline_config(args, **save):
                                  across=getattr(args, "matte_across", "auto")),
         plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates,
                           denoise=getattr(args, "plate_denoise", "auto"),
-                          blurred=getattr(args, "blurred_views", "keep")),
+                          blurred=getattr(args, "blurred_views", "keep"),
+                          vignetting=getattr(args, "vignetting", "auto")),
         photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,

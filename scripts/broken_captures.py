@@ -14,7 +14,9 @@ mirrordepth (each depth map upside down, left to right); range (each depth pixel
 camera's centre, not along the optical axis); disparity (1000 / z in metres: an
 iPhone's disparity stored as millimetres); scaledrift, scaledrift5 (each frame's depth times its own factor within 15 %,
 5 % either way: a monocular network's); blur (every sixth frame's colour and matte blurred along a line
-2 % of the width: a shaken phone); flipcolour (each colour image and matte upside down, the depth not).
+2 % of the width: a shaken phone); vignette, vignette15 (the kept frames darkened towards their corners,
+0.7 / 0.85 of the centre's linear colour there: an uncorrected lens); flipcolour (each colour image and matte
+upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -146,6 +148,30 @@ def _blur_frames(d: Path, tj: dict) -> None:
             cv2.imwrite(str(p), cv2.filter2D(im, -1, k / k.sum(), borderType=cv2.BORDER_REFLECT))
 
 
+def _vignette(k: float):
+    """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) darkened towards its corners as an uncorrected
+    lens does: the linear colour times 1 - k r^2, r the distance from the image's centre over the half-diagonal
+    (k 0.3: 0.7 at the corners, half a stop); the held-out frames stay the scene's own radiance."""
+    return lambda d, tj: _vignette_files(d, tj, k)
+
+
+def _vignette_files(d: Path, tj: dict, k: float) -> None:
+    from capture.scan import srgb_to_linear, to_uint8_srgb
+
+    for i, f in enumerate(tj["frames"]):
+        if i % 2:
+            continue
+        p = d / f["file_path"]
+        im = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        h, w = im.shape[:2]
+        y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+        r2 = ((x - (w - 1) / 2) ** 2 + (y - (h - 1) / 2) ** 2) / (((w - 1) / 2) ** 2 + ((h - 1) / 2) ** 2)
+        lin = srgb_to_linear(im[..., :3].astype(np.float32) / 255.0) * (1.0 - k * r2)[..., None]
+        im[..., :3] = to_uint8_srgb(lin)
+        cv2.imwrite(str(p), im)
+
+
+
 def _scale_t(k):
     def e(m):
         m[:3, 3] *= k
@@ -197,6 +223,8 @@ VARIANTS = {
     "scaledrift": {"files": _depth_maps(_scale_drift(0.15))},
     "scaledrift5": {"files": _depth_maps(_scale_drift(0.05))},
     "blur": {"files": _blur_frames},
+    "vignette": {"files": _vignette(0.3)},
+    "vignette15": {"files": _vignette(0.15)},
     "flipcolour": {"image": lambda im: np.ascontiguousarray(im[::-1]), "files": _masks(lambda m: m[::-1])},
 }
 

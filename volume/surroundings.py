@@ -111,6 +111,8 @@ def plate_stage(work, cfg, ctx):
     if "per_view" in rec:  # each view's record names its frame (the console names refused views by it)
         rec = {**rec, "per_view": [{"name": ref.name, **r} for ref, r in zip(work.refs, rec["per_view"], strict=True)]}
     work, plates, rec = _without_blurred(work, plates, rec, cfg.blurred == "leave out")
+    if (rec.get("vignetting") or {}).get("applied"):  # the plates' frames were divided by v: so are the scans
+        work = _devignetted(work, rec["vignetting"], ctx)
     store = dict(zip((ref.index for ref in work.refs), plates, strict=True))
     return work.made(plates=store, captured=None).record("background plate", rec)
 
@@ -134,6 +136,20 @@ def _without_blurred(work, plates: list, rec: dict, leave_out: bool = True):
                 len(blurred), ", ".join(names))
     work = replace(work, refs=tuple(work.refs[i] for i in keep), scans=tuple(work.scans[i] for i in keep))
     return work, [plates[i] for i in keep], {**rec, "blurred_left_out": names}
+
+
+def _devignetted(work, vig: dict, ctx):
+    """``work`` with every scan's linear colour divided by the lens's vignetting (capture.vignetting; ``vig``: the
+    plate record's), each new scan kept (``ctx.keep``), said on the console's log."""
+    from capture.view_map import PerView, or_serial
+    from capture.vignetting import devignette_view
+
+    logging.getLogger("furrow.capture").warning("background plate: the lens darkens the corners: %s; taken out of "
+                                                "every frame (--vignetting off leaves them)", vig["reason"])
+    coef = np.asarray(vig["coefficients"], np.float64)
+    scans = or_serial(ctx.map_views, ctx.keep)(devignette_view, list(work.scans), PerView((coef,) * len(work.scans)),
+                                               "vignetting")[0]
+    return replace(work, scans=tuple(scans))
 
 
 def _smoothing_check(scans, captured, scale: float, smooth: float, setting) -> dict:

@@ -54,3 +54,23 @@ def test_black_capture_scores_what_matte_off_scores(gl_ctx):
     # and the matte is not the depth mask: fringe pixels are partial
     assert auto["summary"]["surroundings"]["matte"]["partial_fraction_mean"] > 0
     assert np.isfinite(auto["gather"]["alpha_mse"])
+
+
+def test_a_measured_vignette_is_taken_out_of_every_scan(caplog):
+    """volume.surroundings._devignetted: where the plate stage took a vignette out of its views, every scan the
+    matte and later stages read is divided by the same v (capture.vignetting.devignette_view), and the log says so."""
+    from capture.camera import Camera, make_K
+    from capture.vignetting import devignette_view
+    from volume.pipeline.work import Context, Work
+    from volume.surroundings import _devignetted
+
+    cam = Camera(make_K(50.0, 50.0, 31.5, 23.5), np.eye(4), 64, 48)
+    rng = np.random.default_rng(4)
+    scans = tuple(Scan(rng.integers(10, 240, (48, 64, 3)).astype(np.uint8), np.ones((48, 64), np.float32), cam,
+                       f"v{k}") for k in range(3))
+    vig = {"coefficients": [-0.3, -0.05], "reason": "the corners at 0.71 of the centre"}
+    out = _devignetted(Work(None, (), scans), vig, Context(None, lambda s: s))
+    for s, o in zip(scans, out.scans, strict=True):
+        assert np.array_equal(o.rgb, devignette_view(s, 0, vig["coefficients"])[0].rgb)
+        assert o.rgb[:4, :4].mean() > s.rgb[:4, :4].mean() + 10 and np.array_equal(o.rgb[23, 31], s.rgb[23, 31])
+    assert "darkens the corners" in caplog.text
