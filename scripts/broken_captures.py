@@ -151,7 +151,8 @@ def _blur_frames(d: Path, tj: dict) -> None:
 def _vignette(k: float):
     """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) darkened towards its corners as an uncorrected
     lens does: the linear colour times 1 - k r^2, r the distance from the image's centre over the half-diagonal
-    (k 0.3: 0.7 at the corners, half a stop); the held-out frames stay the scene's own radiance."""
+    (k 0.3: 0.7 at the corners, half a stop), a channel blown out in the frame left so (the lens darkens the light
+    before the sensor clips it); the held-out frames stay the scene's own radiance."""
     return lambda d, tj: _vignette_files(d, tj, k)
 
 
@@ -167,7 +168,8 @@ def _vignette_files(d: Path, tj: dict, k: float) -> None:
         y, x = np.mgrid[0:h, 0:w].astype(np.float32)
         r2 = ((x - (w - 1) / 2) ** 2 + (y - (h - 1) / 2) ** 2) / (((w - 1) / 2) ** 2 + ((h - 1) / 2) ** 2)
         lin = srgb_to_linear(im[..., :3].astype(np.float32) / 255.0) * (1.0 - k * r2)[..., None]
-        im[..., :3] = to_uint8_srgb(lin)
+        blown = im[..., :3] >= 254  # the lens darkens the light before the sensor clips: blown out stays blown out
+        im[..., :3] = np.where(blown, im[..., :3], to_uint8_srgb(lin))
         cv2.imwrite(str(p), im)
 
 
