@@ -18,8 +18,9 @@ channels), both colours within the gain fit's range (capture.plate's ``_usable``
 u the views' log exposures (free).  Least squares with Huber weights (VIGNETTE_HUBER, VIGNETTE_PASSES).
 **Judged** on held-back pixels: both models (exposures alone; exposures and f) are fitted on every other ring pixel
 and scored on the rest by their Huber loss, pair of views by pair; the vignette is taken where the mean gain over the
-pairs is at least VIGNETTE_Z standard errors, v changes by at least VIGNETTE_MIN somewhere on r in [0, 1], and v stays
-within VIGNETTE_RANGE.  Else the frames stay as they are and the record says why.
+pairs is at least VIGNETTE_Z standard errors, v changes by at least VIGNETTE_MIN somewhere on r in [0, 1], v stays
+within VIGNETTE_RANGE, and the even views alone and the odd views alone find the same v (VIGNETTE_AGREE: one lens; the
+200-view phone plant's 1 % fit had z 7.3).  Else the frames stay as they are and the record says why.
 **Applied**: every frame's linear colour divided by v (:func:`devignette_linear`: the plate's views in place,
 before their exposures are fitted; :func:`devignette_view`: the scans the matte and every later stage read,
 volume/surroundings.py).
@@ -43,6 +44,9 @@ VIGNETTE_Z = 5.0
 VIGNETTE_MIN = 0.03
 #: ... and where v stays within this range on r in [0, 1] (else the fit is not a lens's).
 VIGNETTE_RANGE = (0.3, 1.5)
+#: ... and where the even views' fit and the odd views' agree to within this share of log v's largest size (one
+#: lens in every frame: vignetted orbits 0.003, right captures' 1-3 % fits 0.36-1.3).
+VIGNETTE_AGREE = 0.25
 #: Huber threshold of the log residuals, and the reweighting passes.
 VIGNETTE_HUBER = 0.05
 VIGNETTE_PASSES = 3
@@ -181,15 +185,22 @@ def vignetting_check(ps) -> tuple[np.ndarray | None, dict]:
                       "reason": f"{pairs} pairs of views with {VIGNETTE_MIN_PIXELS} held-back pixels (under "
                                 f"{VIGNETTE_MIN_PAIRS})"}
     coef, _ = fit(rows, V, VIGNETTE_TERMS)
-    v = vignette(coef, np.linspace(0.0, 1.0, 11))
+    r2 = np.linspace(0.0, 1.0, 11)
+    v = vignette(coef, r2)
+    half = [vignette(fit(rows, V, VIGNETTE_TERMS, rows["i"] % 2 == k)[0], r2) for k in (0, 1)]  # even, odd views
+    apart = float(np.abs(np.log(half[0] / half[1])).max()) if np.isfinite(half).all() else np.inf
     rec = {"coefficients": [round(float(c), 6) for c in coef], "z": round(z, 2), "pairs": pairs,
-           "pixels": int(len(rows["y"])), "corner": round(float(v[-1]), 4) if np.isfinite(v[-1]) else None}
+           "pixels": int(len(rows["y"])), "corner": round(float(v[-1]), 4) if np.isfinite(v[-1]) else None,
+           "halves": [round(float(h[-1]), 4) if np.isfinite(h[-1]) else None for h in half]}
     if z < VIGNETTE_Z:
         return None, {**rec, "applied": False, "reason": f"no better than none on held-back pixels (z {z:.1f})"}
     if np.abs(v - 1.0).max() < VIGNETTE_MIN:
         return None, {**rec, "applied": False, "reason": f"within {VIGNETTE_MIN:.0%} of flat"}
     if not np.isfinite(v).all() or v.min() < VIGNETTE_RANGE[0] or v.max() > VIGNETTE_RANGE[1]:
         return None, {**rec, "applied": False, "reason": f"v from {v.min():.2f} to {v.max():.2f}: not a lens's"}
+    if apart > VIGNETTE_AGREE * np.abs(np.log(v)).max():  # one lens: the even and the odd views must find it
+        return None, {**rec, "applied": False, "reason": f"the even and the odd views disagree (corners at "
+                      f"{half[0][-1]:.2f} and {half[1][-1]:.2f}): not one lens's"}
     return coef, {**rec, "applied": True,
                   "reason": f"the corners at {v[-1]:.2f} of the centre (z {z:.1f} on {pairs} pairs' held-back pixels)"}
 

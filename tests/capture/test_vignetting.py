@@ -64,6 +64,19 @@ def test_a_right_orbit_keeps_its_frames(orbit):
     assert rec["vignetting"]["applied"] is False, rec["vignetting"]
 
 
+def test_frames_of_two_lenses_are_not_given_one(orbit, monkeypatch):
+    """Every other view vignetted (two cameras, one lens corrected): the even and the odd views find different v
+    (measured corners 0.96 and 0.73), so no v is taken, even with the z rule switched off."""
+    import capture.vignetting as cv
+
+    monkeypatch.setattr(cv, "VIGNETTE_Z", -np.inf)
+    views = orbit[0]
+    mixed = [v if k % 2 else w for k, (v, w) in enumerate(zip(views, _vignetted(views), strict=True))]
+    _, rec = background_plates(mixed, PlateConfig(), PLANE)
+    vig = rec["vignetting"]
+    assert not vig["applied"] and abs(vig["halves"][0] - vig["halves"][1]) > 0.1 and "disagree" in vig["reason"], vig
+
+
 def test_a_fixed_camera_is_not_measured():
     views, *_ = ps.turntable_capture(12, 96, 72)
     _, rec = background_plates(views, PlateConfig())
