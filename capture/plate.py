@@ -461,7 +461,7 @@ def background_plates(views, cfg: PlateConfig | None = None, plane: np.ndarray |
     ps = plate_set(views, plane, focus, cfg)
     trials = {path: ring_trial(ps, path) for path in tried_paths(cfg)}
     mode = choose_mode({path: t.errors for path, t in trials.items()})
-    vig = measured(ps := ps.for_path(mode), mode, cfg, trials)  # a moving camera's vignetting (capture.vignetting)
+    ps, vig = measured(ps.for_path(mode), mode, cfg, trials)  # a moving camera's vignetting (capture.vignetting)
     from capture.plate_exposure import plate_exposure  # the gains against none on held-back pixels
     from capture.plate_pairs import fitted  # the panorama's gains from pairs of views at once
 

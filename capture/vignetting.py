@@ -21,8 +21,8 @@ and scored on the rest by their Huber loss, pair of views by pair; the vignette 
 pairs is at least VIGNETTE_Z standard errors, v changes by at least VIGNETTE_MIN somewhere on r in [0, 1], v stays
 within VIGNETTE_RANGE, and the even views alone and the odd views alone find the same v (VIGNETTE_AGREE: one lens; the
 200-view phone plant's 1 % fit had z 7.3).  Else the frames stay as they are and the record says why.
-**Applied**: every frame's linear colour divided by v (:func:`devignette_linear`: the plate's views in place,
-before their exposures are fitted; :func:`devignette_view`: the scans the matte and every later stage read,
+**Applied**: every frame's linear colour divided by v (:func:`devignette_set`: the plate's views, before their
+exposures are fitted; :func:`devignette_view`: the scans the matte and every later stage read,
 volume/surroundings.py).
 """
 
@@ -205,23 +205,26 @@ def vignetting_check(ps) -> tuple[np.ndarray | None, dict]:
                   "reason": f"the corners at {v[-1]:.2f} of the centre (z {z:.1f} on {pairs} pairs' held-back pixels)"}
 
 
-def devignette_set(ps, coef) -> None:
-    """Every view of the PlateSet ``ps`` and its ring's observed colours divided by v, in place."""
-    for p in ps.views:
-        devignette_linear(p.view.linear, p.view.camera, coef)
-        p.observed[...] = p.observed / vignette(coef, radius2(p.view.camera, p.ring))[:, None]
+def devignette_set(ps, coef):
+    """The PlateSet ``ps`` with every view's colour and its ring's observed colours divided by v (new arrays: the
+    caller's views stay as they were)."""
+    from dataclasses import replace
+
+    return replace(ps, views=tuple(
+        replace(p, view=replace(p.view, linear=devignette_linear(np.array(p.view.linear), p.view.camera, coef)),
+                observed=p.observed / vignette(coef, radius2(p.view.camera, p.ring))[:, None]) for p in ps.views))
 
 
-def measured(ps, mode: str, cfg, trials: dict) -> dict | None:
-    """For capture.plate.background_plates: the vignetting's record where ``mode`` is 'panorama' and
-    ``cfg.vignetting`` (capture.plate.PlateConfig) 'auto', else None; where it is applied, every view of ``ps``
-    is divided by v in place and ``trials[mode]`` predicted again (the path's first trial, at gain 1)."""
+def measured(ps, mode: str, cfg, trials: dict):
+    """For capture.plate.background_plates: (the PlateSet, the vignetting's record) where ``mode`` is 'panorama' and
+    ``cfg.vignetting`` (capture.plate.PlateConfig) 'auto', else (``ps``, None); where v is applied, the set's views
+    are divided by it (:func:`devignette_set`) and ``trials[mode]`` is predicted again (the path's first trial)."""
     if mode != "panorama" or getattr(cfg, "vignetting", "off") != "auto":
-        return None
+        return ps, None
     from capture.plate import ring_trial
 
     coef, rec = vignetting_check(ps)
     if coef is not None:
-        devignette_set(ps, coef)
+        ps = devignette_set(ps, coef)
         trials[mode] = ring_trial(ps, mode)
-    return rec
+    return ps, rec

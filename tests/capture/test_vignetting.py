@@ -106,3 +106,13 @@ def test_devignette_view_divides_the_linear_colour_by_v():
     assert out.rgb.dtype == np.uint8
     assert np.abs(got - np.minimum(want, 1.0)).max() <= 0.01  # one 8-bit sRGB step at the brightest
     assert np.array_equal(out.rgb[29:31, 39:41], rgb[29:31, 39:41])  # the centre stays
+
+
+def test_the_callers_views_are_left_as_they_were(orbit):
+    """background_plates divides copies of the views by v, not the arrays it was given (a float Scan's linear_rgb
+    is its own colour array)."""
+    views = _vignetted(orbit[0])
+    before = [v.linear.copy() for v in views]
+    _, rec = background_plates(views, PlateConfig(), PLANE)
+    assert rec["vignetting"]["applied"]
+    assert all(np.array_equal(v.linear, b) for v, b in zip(views, before, strict=True))
