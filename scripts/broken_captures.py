@@ -15,7 +15,8 @@ camera's centre, not along the optical axis); disparity (1000 / z in metres: an
 iPhone's disparity stored as millimetres); scaledrift, scaledrift5 (each frame's depth times its own factor within 15 %,
 5 % either way: a monocular network's); blur (every sixth frame's colour and matte blurred along a line
 2 % of the width: a shaken phone); vignette, vignette15 (the kept frames darkened towards their corners,
-0.7 / 0.85 of the centre's linear colour there: an uncorrected lens); flipcolour (each colour image and matte
+0.7 / 0.85 of the centre's linear colour there: an uncorrected lens); jpeg90, jpeg75 (the kept frames as JPEGs
+of that quality, 4:2:0: a phone's; jpeg90full: 4:4:4); flipcolour (each colour image and matte
 upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
@@ -174,6 +175,27 @@ def _vignette_files(d: Path, tj: dict, k: float) -> None:
 
 
 
+def _jpeg(quality: int, full_chroma: bool = False):
+    """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) written as a JPEG of ``quality`` with OpenCV's
+    defaults (4:2:0 chroma: a phone's; ``full_chroma``: 4:4:4), its ``file_path`` renamed; the held-out frames stay
+    PNG."""
+    flags = [cv2.IMWRITE_JPEG_QUALITY, int(quality)] + \
+        ([cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444] if full_chroma else [])
+
+    def e(d: Path, tj: dict) -> None:
+        for i, f in enumerate(tj["frames"]):
+            if i % 2:
+                continue
+            p = d / f["file_path"]
+            im = cv2.imread(str(p), cv2.IMREAD_COLOR)
+            q = p.with_suffix(".jpg")
+            cv2.imwrite(str(q), im, flags)
+            p.unlink()
+            f["file_path"] = str(Path(f["file_path"]).with_suffix(".jpg"))
+        (d / "transforms.json").write_text(json.dumps(tj, indent=1))
+    return e
+
+
 def _scale_t(k):
     def e(m):
         m[:3, 3] *= k
@@ -227,6 +249,9 @@ VARIANTS = {
     "blur": {"files": _blur_frames},
     "vignette": {"files": _vignette(0.3)},
     "vignette15": {"files": _vignette(0.15)},
+    "jpeg90": {"files": _jpeg(90)},
+    "jpeg75": {"files": _jpeg(75)},
+    "jpeg90full": {"files": _jpeg(90, True)},
     "flipcolour": {"image": lambda im: np.ascontiguousarray(im[::-1]), "files": _masks(lambda m: m[::-1])},
 }
 
