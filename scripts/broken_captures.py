@@ -14,10 +14,10 @@ mirrordepth (each depth map upside down, left to right); range (each depth pixel
 camera's centre, not along the optical axis); disparity (1000 / z in metres: an
 iPhone's disparity stored as millimetres); scaledrift, scaledrift5 (each frame's depth times its own factor within 15 %,
 5 % either way: a monocular network's); blur (every sixth frame's colour and matte blurred along a line
-2 % of the width: a shaken phone); vignette, vignette15 (the kept frames darkened towards their corners,
-0.7 / 0.85 of the centre's linear colour there: an uncorrected lens); jpeg90, jpeg75 (the kept frames as JPEGs
-of that quality, 4:2:0: a phone's; jpeg90full: 4:4:4); flipcolour (each colour image and matte
-upside down, the depth not).
+2 % of the width: a shaken phone; blurphys: a blown-out channel stays blown out); vignette, vignette15 (the kept
+frames darkened towards their corners, 0.7 / 0.85 of the centre's linear colour there: an uncorrected lens); jpeg90,
+jpeg75 (the kept frames as JPEGs of that quality, 4:2:0: a phone's; jpeg90full: 4:4:4); flipcolour (each colour
+image and matte upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
 
@@ -127,10 +127,15 @@ def _scale_drift(k: float):
     return e
 
 
-def _blur_frames(d: Path, tj: dict) -> None:
+def _blur(blown_stays: bool):
+    return lambda d, tj: _blur_frames(d, tj, blown_stays)
+
+
+def _blur_frames(d: Path, tj: dict, blown_stays: bool = False) -> None:
     """Every sixth frame's colour and matte (i % 6 == 0: every third of the views ``furrow eval --holdout 2`` keeps)
     blurred along a line 2 % of the image's width long, at an angle seeded by the file's name (a shaken phone: the
-    matte of a blurred photo is the blurred matte)."""
+    matte of a blurred photo is the blurred matte); ``blown_stays``: a colour channel blown out in the frame stays
+    blown out (the light is smeared before the sensor clips it)."""
     import zlib
 
     for i, f in enumerate(tj["frames"]):
@@ -146,7 +151,8 @@ def _blur_frames(d: Path, tj: dict) -> None:
             k[n // 2] = 1.0 / n
             a = np.random.default_rng(zlib.crc32(f["file_path"].encode())).uniform(0.0, 180.0)
             k = cv2.warpAffine(k, cv2.getRotationMatrix2D(((n - 1) / 2, (n - 1) / 2), a, 1.0), (n, n))
-            cv2.imwrite(str(p), cv2.filter2D(im, -1, k / k.sum(), borderType=cv2.BORDER_REFLECT))
+            out = cv2.filter2D(im, -1, k / k.sum(), borderType=cv2.BORDER_REFLECT)
+            cv2.imwrite(str(p), np.where(im >= 254, im, out) if blown_stays and key == "file_path" else out)
 
 
 def _vignette(k: float):
@@ -246,7 +252,8 @@ VARIANTS = {
     "disparity": {"files": _depth_maps(_disparity)},
     "scaledrift": {"files": _depth_maps(_scale_drift(0.15))},
     "scaledrift5": {"files": _depth_maps(_scale_drift(0.05))},
-    "blur": {"files": _blur_frames},
+    "blur": {"files": _blur(False)},
+    "blurphys": {"files": _blur(True)},
     "vignette": {"files": _vignette(0.3)},
     "vignette15": {"files": _vignette(0.15)},
     "jpeg90": {"files": _jpeg(90)},
