@@ -16,7 +16,8 @@ iPhone's disparity stored as millimetres); scaledrift, scaledrift5 (each frame's
 5 % either way: a monocular network's); blur (every sixth frame's colour and matte blurred along a line
 2 % of the width: a shaken phone; blurphys: a blown-out channel stays blown out); vignette, vignette15 (the kept
 frames darkened towards their corners, 0.7 / 0.85 of the centre's linear colour there: an uncorrected lens); jpeg90,
-jpeg75 (the kept frames as JPEGs of that quality, 4:2:0: a phone's; jpeg90full: 4:4:4); flipcolour (each colour
+jpeg75 (the kept frames as JPEGs of that quality, 4:2:0: a phone's; jpeg90full: 4:4:4); lateralca (red and
+blue magnified by 1 +- 0.003: a lens's lateral colour); flipcolour (each colour
 image and matte upside down, the depth not).
 Then ``furrow eval OUT/NAME --holdout 2 --methods gather`` for each.
 """
@@ -181,6 +182,29 @@ def _vignette_files(d: Path, tj: dict, k: float) -> None:
 
 
 
+def _lateral_ca(k: float):
+    """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) with a lens's lateral chromatic aberration: red
+    magnified by 1 + k about the image's centre, blue by 1 - k, in linear light (k 0.003: 1.2 pixels at a 640x480
+    frame's corners); the held-out frames stay as rendered."""
+    def e(d: Path, tj: dict) -> None:
+        from capture.scan import srgb_to_linear, to_uint8_srgb
+
+        for i, f in enumerate(tj["frames"]):
+            if i % 2:
+                continue
+            p = d / f["file_path"]
+            im = cv2.imread(str(p), cv2.IMREAD_COLOR)
+            h, w = im.shape[:2]
+            lin = srgb_to_linear(im.astype(np.float32) / 255.0)
+            y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+            cx, cy = (w - 1) / 2, (h - 1) / 2
+            for c, m in ((2, 1.0 + k), (0, 1.0 - k)):  # BGR: red, blue
+                lin[..., c] = cv2.remap(np.ascontiguousarray(lin[..., c]), cx + (x - cx) / m, cy + (y - cy) / m,
+                                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+            cv2.imwrite(str(p), to_uint8_srgb(lin))
+    return e
+
+
 def _jpeg(quality: int, full_chroma: bool = False):
     """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) written as a JPEG of ``quality`` with OpenCV's
     defaults (4:2:0 chroma: a phone's; ``full_chroma``: 4:4:4), its ``file_path`` renamed; the held-out frames stay
@@ -259,6 +283,7 @@ VARIANTS = {
     "jpeg90": {"files": _jpeg(90)},
     "jpeg75": {"files": _jpeg(75)},
     "jpeg90full": {"files": _jpeg(90, True)},
+    "lateralca": {"files": _lateral_ca(0.003)},
     "flipcolour": {"image": lambda im: np.ascontiguousarray(im[::-1]), "files": _masks(lambda m: m[::-1])},
 }
 
