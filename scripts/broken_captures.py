@@ -156,6 +156,13 @@ def _blur_frames(d: Path, tj: dict, blown_stays: bool = False) -> None:
             cv2.imwrite(str(p), np.where(im >= 254, im, out) if blown_stays and key == "file_path" else out)
 
 
+def _kept_frames(d: Path, tj: dict, flags: int = cv2.IMREAD_UNCHANGED):
+    """(frame entry, colour file, its image) of every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0)."""
+    for f in tj["frames"][0::2]:
+        p = d / f["file_path"]
+        yield f, p, cv2.imread(str(p), flags)
+
+
 def _vignette(k: float):
     """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) darkened towards its corners as an uncorrected
     lens does: the linear colour times 1 - k r^2, r the distance from the image's centre over the half-diagonal
@@ -167,11 +174,7 @@ def _vignette(k: float):
 def _vignette_files(d: Path, tj: dict, k: float) -> None:
     from capture.scan import srgb_to_linear, to_uint8_srgb
 
-    for i, f in enumerate(tj["frames"]):
-        if i % 2:
-            continue
-        p = d / f["file_path"]
-        im = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+    for _, p, im in _kept_frames(d, tj):
         h, w = im.shape[:2]
         y, x = np.mgrid[0:h, 0:w].astype(np.float32)
         r2 = ((x - (w - 1) / 2) ** 2 + (y - (h - 1) / 2) ** 2) / (((w - 1) / 2) ** 2 + ((h - 1) / 2) ** 2)
@@ -181,7 +184,6 @@ def _vignette_files(d: Path, tj: dict, k: float) -> None:
         cv2.imwrite(str(p), im)
 
 
-
 def _lateral_ca(k: float):
     """Every frame ``furrow eval --holdout 2`` keeps (i % 2 == 0) with a lens's lateral chromatic aberration: red
     magnified by 1 + k about the image's centre, blue by 1 - k, in linear light (k 0.003: 1.2 pixels at a 640x480
@@ -189,11 +191,7 @@ def _lateral_ca(k: float):
     def e(d: Path, tj: dict) -> None:
         from capture.scan import srgb_to_linear, to_uint8_srgb
 
-        for i, f in enumerate(tj["frames"]):
-            if i % 2:
-                continue
-            p = d / f["file_path"]
-            im = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        for _, p, im in _kept_frames(d, tj, cv2.IMREAD_COLOR):
             h, w = im.shape[:2]
             lin = srgb_to_linear(im.astype(np.float32) / 255.0)
             y, x = np.mgrid[0:h, 0:w].astype(np.float32)
@@ -213,11 +211,7 @@ def _jpeg(quality: int, full_chroma: bool = False):
         ([cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444] if full_chroma else [])
 
     def e(d: Path, tj: dict) -> None:
-        for i, f in enumerate(tj["frames"]):
-            if i % 2:
-                continue
-            p = d / f["file_path"]
-            im = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        for f, p, im in _kept_frames(d, tj, cv2.IMREAD_COLOR):
             q = p.with_suffix(".jpg")
             cv2.imwrite(str(q), im, flags)
             p.unlink()
