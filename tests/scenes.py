@@ -394,6 +394,17 @@ def agreement_samples(scans, points: int) -> list:
     return [view_sample(s.depth, s.camera, points, i) for i, s in enumerate(scans)]
 
 
+def pair_hit_cases(scans, points: int, pairs, scales: np.ndarray, rel: float):
+    """(i, j, view i's sample, view j's sample, capture.depth_agreement.pair_hits of i's points in j) for each
+    pair (i, j): what the depth checks' compiled or reshaped hit counts are held against."""
+    from capture.depth_agreement import pair_hits
+
+    smp = agreement_samples(scans, points)
+    for i, j in pairs:
+        a, b = smp[i], smp[j]
+        yield i, j, a, b, pair_hits(a[0], scans[i].camera, scans[j].camera, b[1], b[2], scales, rel)[0]
+
+
 def agreement_inputs(scans, cfg) -> tuple[list, list, float]:
     """(:func:`agreement_samples`, the cameras, the best depth scale of capture.depth_agreement's search) of
     ``scans`` under the AgreementConfig ``cfg``."""

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from capture.depth_agreement import AgreementConfig, neighbours, pair_hits, view_sample
+from capture.depth_agreement import AgreementConfig, neighbours, view_sample
 from capture.depth_readings import (
     READING_Z,
     READINGS,
@@ -18,7 +18,7 @@ from capture.depth_readings import (
     reading_check,
     reading_hits,
 )
-from tests.scenes import agreement_samples, make_scanset, scan_ring, spheres_scene
+from tests.scenes import make_scanset, pair_hit_cases, scan_ring, spheres_scene
 
 CFG = AgreementConfig()
 FLIPS = {"upside down": lambda z: z[::-1], "left to right": lambda z: z[:, ::-1],
@@ -67,11 +67,8 @@ def test_depth_stored_flipped_or_as_range_is_named(ring, name):
 
 
 def test_reading_hits_as_stored_equal_pair_hits(ring):
-    scans, smp = ring.scans, agreement_samples(ring.scans, CFG.points)
-    s = np.array([0.97, 1.0, 1.02])
-    for i, j in ((0, 1), (3, 2), (7, 8)):
-        a, b = smp[i], smp[j]
-        want, _ = pair_hits(a[0], scans[i].camera, scans[j].camera, b[1], b[2], s, CFG.rel)
+    scans, s = ring.scans, np.array([0.97, 1.0, 1.02])
+    for i, j, a, b, want in pair_hit_cases(scans, CFG.points, ((0, 1), (3, 2), (7, 8)), s, CFG.rel):
         got = reading_hits(a[0], scans[i].camera, scans[j].camera, b, scans[j].depth.shape, s, CFG.rel, None)
         assert np.array_equal(got, want)
 

@@ -10,7 +10,7 @@ import pytest
 
 from capture.depth_agreement import AgreementConfig, pair_hits, view_sample
 from capture.depth_view_scales import VIEW_SCALE_Z, _agrees, scaled_samples, view_scale_check
-from tests.scenes import agreement_inputs, agreement_samples, make_scanset, scan_ring, spheres_scene
+from tests.scenes import agreement_inputs, make_scanset, pair_hit_cases, scan_ring, spheres_scene
 
 CFG = AgreementConfig()
 
@@ -47,11 +47,8 @@ def test_drifting_depth_is_named_with_each_views_factor(ring):
 
 
 def test_agrees_at_equal_scales_is_pair_hits(ring):
-    scans, smp = ring.scans, agreement_samples(ring.scans, CFG.points)
-    s = np.array([0.96, 1.0, 1.03])
-    for i, j in ((0, 1), (5, 4), (9, 10)):
-        a, b = smp[i], smp[j]
-        want, _ = pair_hits(a[0], scans[i].camera, scans[j].camera, b[1], b[2], s, CFG.rel)
+    scans, s = ring.scans, np.array([0.96, 1.0, 1.03])
+    for i, j, a, b, want in pair_hit_cases(scans, CFG.points, ((0, 1), (5, 4), (9, 10)), s, CFG.rel):
         assert np.array_equal(_agrees(a[0], s, scans[i].camera, scans[j].camera, b, s, CFG.rel), want)
 
 
