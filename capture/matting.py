@@ -113,6 +113,9 @@ class MatteConfig:
     depth_width: int | None = None
     #: One of MATTE_ACROSS: the colour across the views (needs a plate; volume.surroundings).
     across: str = "auto"
+    #: The view's frame is a JPEG with subsampled chroma (capture.jpeg_chroma.subsampled_chroma; set per view
+    #: by the pipeline): the alpha bound allows its chroma's error near edges of colour.
+    subsampled: bool = False
 
     def __post_init__(self) -> None:
         if self.mode not in MATTE_MODES:
@@ -346,12 +349,14 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     chosen = {}
     if gate is not None:  # where the colour was unmixed, for the lines' colour (capture.matting_lines)
         gate = _kept(gate, chosen)
-    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes) \
+    chroma = cfg is not None and cfg.subsampled  # a JPEG's chroma (capture.jpeg_chroma)
+    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes, chroma) \
         if scale < 1.0 else None
     if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
         scale = 1.0
         out = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
-                                     np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes, gate)
+                                     np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes, gate,
+                                     chroma)
     elif gate is not None:  # the working solve's colour unmixed every known pixel: the choice at full size
         ci, bi, ki, Fw = np.asarray(image)[box], np.asarray(background)[box], np.asarray(known)[box], out[1]
         out = (out[0], foreground_colour(ci, out[0], bi, gate(ci, out[0], bi, ki), lambda C, a, need: Fw, notes),

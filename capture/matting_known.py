@@ -41,6 +41,7 @@ import numpy as np
 
 from capture import matting_channels as mch
 from capture.fill import push_pull
+from capture.jpeg_chroma import chroma_lower_bound
 from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
@@ -152,10 +153,14 @@ def widen_px(width: int) -> int:
     return max(WIDEN_MIN_PX, int(round(WIDEN_FRACTION * width)))
 
 
-def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = NOISE_ABS) -> np.ndarray:
+def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = NOISE_ABS,
+                      chroma: bool = False) -> np.ndarray:
     """(h, w) least alpha for which F = B + (C - B) / a stays in [0, 1] (step 1 of the module
     docstring), with the noise allowance (``noise`` + NOISE_REL B, linear) taken off: 0 where C is
-    within noise of B.  capture.matting_bound's compiled pass when it takes the arrays."""
+    within noise of B.  capture.matting_bound's compiled pass when it takes the arrays.  ``chroma``: a
+    (h, w, 3) frame whose chroma was subsampled (a JPEG's) also has capture.jpeg_chroma's allowance."""
+    if chroma and np.ndim(image) == 3:
+        return chroma_lower_bound(image, background, noise, NOISE_REL)
     if (fused := lower_bound(image, background, noise, NOISE_REL)) is not None:
         return fused
     C = np.asarray(image, np.float64)
@@ -235,11 +240,11 @@ def widen_trimap(trimap: np.ndarray, lower: np.ndarray, known: np.ndarray) -> np
 
 
 def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, known: np.ndarray,
-                 noise: float) -> tuple[np.ndarray, np.ndarray]:
+                 noise: float, chroma: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(trimap solved, opaque prior (h, w) bool): the depth's ``trimap`` widened (:func:`widen_trimap`)
     and its opaque pixels made unknown where the background is known (they keep a prior)."""
     known = np.asarray(known, bool)
-    lower = np.where(known, alpha_lower_bound(image, background, noise), 0.0)
+    lower = np.where(known, alpha_lower_bound(image, background, noise, chroma), 0.0)
     tri = widen_trimap(np.asarray(trimap, np.float64), lower, known)
     opaque = (tri >= FG) & known
     tri[opaque] = UNKNOWN
@@ -248,7 +253,7 @@ def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, 
 
 def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
               noise: float = NOISE_ABS, alpha: np.ndarray | None = None,
-              opaque: np.ndarray | None = None, blown: np.ndarray | None = None
+              opaque: np.ndarray | None = None, blown: np.ndarray | None = None, chroma: bool = False
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(target alpha, weight, lower bound, similar), each (h, w), of steps 1-2 for the unknown pixels of
     ``trimap``; weight and bound are 0 where the background is not known; similar: the nearest sure colour
@@ -260,7 +265,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     known = np.asarray(known, bool)
     opaque = (trimap >= FG) if opaque is None else (np.asarray(opaque, bool) | (trimap >= FG))
-    lower = np.where(known, alpha_lower_bound(C, B, noise), 0.0)
+    lower = np.where(known, alpha_lower_bound(C, B, noise, chroma), 0.0)
     if alpha is None:
         src = colour_sources(opaque, known, lower)
         a_src = source_coverage(lower, src)
@@ -329,7 +334,8 @@ def clipped(image: np.ndarray, background: np.ndarray) -> np.ndarray:
     return (channel_max(image) >= CLIP_LEVEL) | (channel_max(background) >= CLIP_LEVEL)
 
 
-def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, noise: float) -> np.ndarray:
+def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, noise: float,
+                chroma: bool = False) -> np.ndarray:
     """(h, w) least alpha at the ``where`` pixels whose plate is blown out (:func:`clipped`) but whose
     photo is not: the true background there is at least the plate, so the bound against the plate
     (:func:`alpha_lower_bound`; darker than it, C - B < 0, needs alpha >= (B - C) / B, which only
@@ -339,7 +345,7 @@ def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, no
     if not BLOWN_BOUND or not use.any():
         return np.zeros(C.shape[:2])
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
-    return np.where(use, alpha_lower_bound(C, B, noise), 0.0)
+    return np.where(use, alpha_lower_bound(C, B, noise, chroma), 0.0)
 
 
 def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
@@ -410,18 +416,18 @@ def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None
     return F
 
 
-def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None):
+def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None, chroma=False):
     """Steps 1-3 (module docstring) with ``laplacian(img, unknown (h, w) bool)`` and
     ``solve(A, b, x0 or None) -> (x, converged)``: (alpha_u, unknown mask (h w,), lower bound,
     trimap solved, known as given (blown-out pixels included: step 4 tells them), converged).
     ``mask``: the object's depth (h, w) bool, for the prior where the photo is blown out
-    (capture.matting_blind); its record goes into ``record`` (a dict) when given."""
+    (capture.matting_blind); its record goes into ``record`` (a dict) when given; ``chroma``: alpha_lower_bound's."""
     from capture.matting_blind import blind_prior
 
     given = np.asarray(known, bool)
     known = given & ~clipped(img, background)
-    floor = blown_bound(img, background, given & ~known, noise)
-    tri, opaque = solve_trimap(trimap, img, background, known, noise)
+    floor = blown_bound(img, background, given & ~known, noise, chroma)
+    tri, opaque = solve_trimap(trimap, img, background, known, noise, chroma)
     unk_map = tri == UNKNOWN
     if record is not None:  # the channels a clip leaves (capture.matting_channels): the same in every pass
         record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
@@ -429,7 +435,8 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     unk, a_u = unk_map.ravel(), np.zeros(0)
     L, has = None, unk_map.any()
     for _ in range(1 + REFINE_PASSES if has else 1):
-        a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known)
+        a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known,
+                                                  chroma)
         lower = np.maximum(lower, floor)
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask, similar)
         if record is not None:
@@ -447,14 +454,15 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
 
 def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
                            noise: float = NOISE_ABS, mask: np.ndarray | None = None,
-                           record: dict | None = None, colour=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+                           record: dict | None = None, colour=None,
+                           chroma: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """(alpha (h, w), straight colour F (h, w, 3), the trimap solved (widened), converged) of
     linear ``image`` (h, w, 3) under ``trimap`` (BG / UNKNOWN / FG) with the background
     ``background`` (h, w, 3) known where ``known`` (h, w); ``noise``: linear noise of C - B (module
     docstring).  Not converged: the per-pixel alphas of step 2 stand.  ``mask``: the object's depth
     (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
     ``record``: a dict that gets its record; ``colour``: step 4's rule for where B counts as known
-    (:func:`_finish`)."""
+    (:func:`_finish`); ``chroma``: the frame's chroma was subsampled (:func:`alpha_lower_bound`)."""
     from pymatting import cf_laplacian
 
     from capture.matting_fast import pcg
@@ -466,7 +474,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
 
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, ok = _passes(img, trimap, background, known, noise,
-        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record)
+        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record, chroma)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground, colour, record)
     return a, F, tri, ok
 

@@ -253,14 +253,16 @@ def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, b
 
 def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
                          noise: float, scale: float, box, mask: np.ndarray | None = None,
-                         record: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
+                         record: dict | None = None,
+                         chroma: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
     """(alpha (h, w), straight colour F (h, w, 3), the full-resolution trimap solved, converged) of the
     known-background matte (capture.matting_known.known_background_matte's result on the crop ``box``
     of linear ``image`` (H, W, 3), ``trimap``, ``background`` (H, W, 3) known where ``known`` (H, W),
     ``noise``) solved at ``scale`` < 1 (module docstring); None when the working trimap keeps no
     opaque pixel (an object thin all over: solve it at full size).  ``mask`` (H, W): the object's
     depth, downscaled (area, half covered) for the prior where the photo is blown out
-    (capture.matting_blind), whose record goes into ``record``."""
+    (capture.matting_blind), whose record goes into ``record``; ``chroma``: the frame's chroma was subsampled
+    (capture.matting_known.alpha_lower_bound)."""
     import cv2
 
     from capture.matting_channels import colour_bound
@@ -281,11 +283,11 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
         return None
     mask_lo = None if mask is None else \
         _resize(np.asarray(mask, np.float32)[box], w, h, cv2.INTER_AREA) >= 0.5
-    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise, mask_lo, record)
+    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise, mask_lo, record, chroma=chroma)
     B = np.clip(np.asarray(background, np.float32)[box], 0.0, 1.0)
     given = np.asarray(known, bool)[box]
     sure = given & ~clipped(ci, B)
-    tri, _ = solve_trimap(ct, ci, B, sure, noise)  # the full-resolution trimap the fast path is held to
+    tri, _ = solve_trimap(ct, ci, B, sure, noise, chroma)  # the full-resolution trimap the fast path is held to
     # the guided filter where alpha is open (the band); elsewhere alpha is the trimap's and the colour
     # (alpha 0: the object's colour extended; opaque: the pixel's own) the working one, bilinear
     band = tri == UNKNOWN
@@ -297,11 +299,12 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     a[band] = np.clip(up[:, 0], 0.0, 1.0)
     open_ = band & sure
     lower = np.zeros(ct.shape, np.float32)
-    lower[open_] = alpha_lower_bound(ci[open_], B[open_], noise)
+    lower[open_] = alpha_lower_bound(ci, B, noise, True)[open_] if chroma else \
+        alpha_lower_bound(ci[open_], B[open_], noise)
     if REFINE_WEIGHT > 0:
         a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, sure, scale)
     # the full-size path's alpha floor where the plate is blown out and the photo is not
-    a = np.maximum(np.maximum(a, lower), blown_bound(ci, B, band & given & ~sure, noise))
+    a = np.maximum(np.maximum(a, lower), blown_bound(ci, B, band & given & ~sure, noise, chroma))
     a = np.maximum(a, colour_bound(ci, B, f_up, band & given & ~sure, CLIP_LEVEL, noise))  # capture.matting_channels
     a[tri <= BG] = 0.0
     a[tri >= FG] = 1.0

@@ -281,6 +281,9 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "
                       f"{m['seconds_per_view_max']:.2f}), unknown {m['unknown_fraction_mean']:.2%}, partial alpha "
                       f"{m['partial_fraction_mean']:.2%} of the pixels", highlight=False)
+    if m.get("subsampled_chroma_views"):  # capture.jpeg_chroma
+        console.print(f"matte: {m['subsampled_chroma_views']} view(s) are JPEGs with subsampled chroma (a phone's "
+                      "4:2:0); their alpha bound allows the chroma's error beside edges of colour", highlight=False)
     opq = m.get("opaque_sources") or {}
     if opq.get("views"):  # capture.matting_known.OPAQUE_SOURCES
         console.print(f"[yellow]matte: in {opq['views']} view(s) the background was known behind too few sure "

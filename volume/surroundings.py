@@ -209,7 +209,8 @@ def matte_stage(work, cfg, ctx):
         with ctx.row("matte colour across views: skipped"):  # the stage table says so (why: the record)
             pass
     cap = fit_cap(len(work.refs))
-    per_view = PerView([(cfg, plates.get(ref.index), cap, k) for k, ref in enumerate(work.refs)])  # its plate only
+    per_view = PerView([(_for_frame(cfg, ref), plates.get(ref.index), cap, k)  # its plate only
+                        for k, ref in enumerate(work.refs)])
     with ctx.row("matte"):
         scans, notes = ctx.map_views(matte_one, work, per_view, "matting")
     fits = [None if n is None else n.pop("lines", None) for n in notes]
@@ -330,6 +331,21 @@ def cell_colour_stage(scans, samples, sigma_alpha, gains, keep):
     return tuple(out), rec
 
 
+def _for_frame(cfg, ref):
+    """The matte config for the view of ``ref`` (capture.sources.FrameRef): ``subsampled`` where its colour file
+    is a JPEG with subsampled chroma (capture.jpeg_chroma)."""
+    from capture.jpeg_chroma import subsampled_chroma
+    from capture.sources import resolve_file
+
+    if cfg.mode == "off" or ref is None or ref.rgb is None:
+        return cfg
+    try:
+        path = resolve_file(ref.rgb, "colour image", ref.where)
+    except ValueError:  # ScanIOError: the read stage has said so already
+        return cfg
+    return replace(cfg, subsampled=True) if subsampled_chroma(path) else cfg
+
+
 def matte_one(view, ref, arg):
     """:func:`matte_view` of one view with its plate (``arg``: (MatteConfig, the view's Plate or None[,
     the most lines it hands back for the fit, the draw's seed])."""
@@ -365,7 +381,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     t0 = time.perf_counter()
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
-            "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1)))}
+            "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
     for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels"):
         if m.notes.get(key):
             note[key] = m.notes[key]
@@ -417,6 +433,7 @@ def matte_record(work, notes: dict, cfg):
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
+        "subsampled_chroma_views": sum(bool(x.get("subsampled_chroma")) for x in n),  # capture.jpeg_chroma
         "seconds_per_view": round(float(np.mean(sec)), 4), "seconds_per_view_max": round(float(np.max(sec)), 4),
         "unknown_fraction_mean": round(float(np.mean([x["unknown"] for x in n])), 5),
         "partial_fraction_mean": round(float(np.mean([x["partial"] for x in n])), 5)})
