@@ -83,17 +83,14 @@ def _sampling_subsampled(sof: bytes) -> bool:
     return any((c[1] >> 4) < h0 or (c[1] & 15) < v0 for c in comps[1:])
 
 
-def _encoded(linear: np.ndarray) -> np.ndarray:
-    x = np.clip(np.asarray(linear, np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-
-
 def chroma_allowance(image: np.ndarray) -> np.ndarray:
     """(h, w, 3) float64 linear: how far each channel of the linear ``image`` (h, w, 3) may be off where its
     chroma was subsampled (module docstring); 0 where Cb and Cr are flat over the window."""
     from scipy import ndimage
 
-    E = _encoded(image)
+    from capture.scan import linear_to_srgb
+
+    E = np.asarray(linear_to_srgb(image), np.float64)
     R, G, B = E[..., 0], E[..., 1], E[..., 2]
     cb = -0.168736 * R - 0.331264 * G + 0.5 * B
     cr = 0.5 * R - 0.418688 * G - 0.081312 * B
