@@ -146,15 +146,17 @@ def panorama_exposure_check(ps, start, samples=None) -> dict:
     else:
         gains = fit_gains([o[0::2] for o in obs], [np.asarray(p)[0::2] for p in start.predicted])
     with_g = panorama_predict(ps, gains)
-    fit, none, pixels = np.full(V, np.nan), np.full(V, np.nan), 0
+    fit, none, pixels, ring = np.full(V, np.nan), np.full(V, np.nan), 0, [None] * V
     for i in range(V):
         o, p0, p1 = obs[i][1::2], start.predicted[i][1::2], with_g[i][1::2]
         ok = _usable(o) & np.isfinite(p0).all(-1) & np.isfinite(p1).all(-1)
         ok &= _usable(np.nan_to_num(p0)) & _usable(np.nan_to_num(p1))
         fit[i], none[i], pixels = _log_error(o, p1, ok), _log_error(o, p0, ok), pixels + int(ok.sum())
+        ring[i] = ring_log2(o, p0, ok)
     have = np.isfinite(fit) & np.isfinite(none)
     need = int(np.ceil(V / 2 + np.sqrt(V)))
-    rec = {"chosen": "none", "views": V, "wins": 0, "needed": need, "pixels": pixels, "path": "panorama"}
+    rec = {"chosen": "none", "views": V, "wins": 0, "needed": need, "pixels": pixels, "path": "panorama",
+           "ring_log2": ring}
     if not have.any():
         return {**rec, "reason": "no held-back background pixels the panorama predicts"}
     got, verdict = gain_verdict(fit[have], none[have], need)
@@ -162,6 +164,18 @@ def panorama_exposure_check(ps, start, samples=None) -> dict:
         got["taken"] = [int(i) for i in np.flatnonzero(have)[got["taken"]]]
     return {**rec, **got, "reason": f"the panorama's gains (fitted on half of each ring) beat none in {got['wins']} of "
                                     f"{V} views on the other half ({verdict})"}
+
+
+def ring_log2(observed: np.ndarray, predicted: np.ndarray, ok: np.ndarray) -> list | None:
+    """Per channel the median log2 of the ``observed`` ring colours (N, 3) over the others' prediction at gain 1
+    (``predicted``) where ``ok``: the view's exposure against the others' (capture.photometric_background); None
+    with fewer than capture.photometric_background.BG_MIN_PIXELS."""
+    from capture.photometric_background import BG_MIN_PIXELS
+
+    if int(np.count_nonzero(ok)) < BG_MIN_PIXELS:
+        return None
+    r = np.log2(np.asarray(observed, np.float64)[ok] / np.asarray(predicted, np.float64)[ok])
+    return [round(float(x), 5) for x in np.median(r, axis=0)]
 
 
 def gain_verdict(fit: np.ndarray, none: np.ndarray, need: int) -> tuple[dict, str]:

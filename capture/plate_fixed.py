@@ -309,7 +309,9 @@ def fixed_exposure_check(ps: PlateSet, gains: np.ndarray) -> dict:
     from capture.plate_exposure import gain_verdict
 
     got, verdict = gain_verdict(error(gains), error(np.ones((V, 3))), need)
-    return {**rec, **got,
+    lg = np.log2(obs)  # each frame against the others' median: its exposure (capture.photometric_background)
+    ring = [[round(float(x), 5) for x in np.median(lg[i] - m, axis=0)] for i, m in enumerate(others_median(lg))]
+    return {**rec, **got, "ring_log2": ring,
             "reason": f"the background's gains beat none in {got['wins']} of {V} views on held-back pixels ({verdict})"}
 
 
