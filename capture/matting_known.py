@@ -6,8 +6,9 @@ lies along F - B, and only how far (1 / a) is open.  :func:`known_background_mat
 
 1. **Bounds.**  F lies in [0, 1] per channel, so a >= max over channels of (C - B) / (1 - B) where
    C > B and (B - C) / B where C < B, less the noise of C and of the plate (``NOISE_ABS``,
-   ``NOISE_REL`` of B): :func:`alpha_lower_bound`.  Where C or B is clipped in a channel, only the
-   channels clipped in neither give data, and a clipped plate a bound (capture.matting_channels).
+   ``NOISE_REL`` of B; a JPEG's subsampled chroma: capture.jpeg_chroma): :func:`alpha_lower_bound`.  Where C or B
+   is clipped in a channel, only the channels clipped in neither give data, and a clipped plate a bound
+   (capture.matting_channels).
 2. **Candidate colours.**  Each pixel's F is sought among a few candidate colours: the colour of
    the nearest sure foreground (the trimap's opaque pixels and pixels whose bound is above
    ``SOURCE_ALPHA``, taken as opaque, F = C: capture.matting_sources), filled outwards by a push-pull
