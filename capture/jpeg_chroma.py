@@ -39,34 +39,32 @@ JFIF_FROM_CB = np.array([0.0, 0.344136, 1.772])
 JFIF_FROM_CR = np.array([1.402, 0.714136, 0.0])
 #: Start-of-frame markers (baseline, progressive, lossless, arithmetic; not DHT 0xC4, JPG 0xC8, DAC 0xCC).
 _SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
-#: How much of a file's start is read for its header (its EXIF and ICC blocks come first and are skipped).
-_HEADER_BYTES = 1 << 20
+#: The most segments read before the frame header (a JPEG's EXIF, ICC, XMP and thumbnail blocks come first).
+_MAX_SEGMENTS = 64
 
 
 def subsampled_chroma(path) -> bool:
     """Whether the image file ``path`` is a JPEG whose chroma components are sampled less often than its luma
-    (4:2:0, 4:2:2, 4:1:1).  False for any other file, a grey JPEG, 4:4:4, or a header it cannot read."""
+    (4:2:0, 4:2:2, 4:1:1).  False for any other file, a grey JPEG, 4:4:4, or a header it cannot read.  Reads the
+    segments' headers only, skipping their bodies, up to the start-of-frame segment."""
     try:
         with open(Path(path), "rb") as f:
-            data = f.read(_HEADER_BYTES)
+            if f.read(2) != b"\xff\xd8":
+                return False
+            for _ in range(_MAX_SEGMENTS):
+                head = f.read(4)
+                while len(head) >= 2 and head[0] == 0xFF and head[1] == 0xFF:  # fill bytes before a marker
+                    head = head[1:] + f.read(1)
+                if len(head) < 4 or head[0] != 0xFF:
+                    return False
+                marker, size = head[1], int.from_bytes(head[2:4], "big")
+                if marker in _SOF:
+                    return _sampling_subsampled(f.read(max(size - 2, 0)))
+                if marker == 0xDA or size < 2:  # a scan before any frame header, or a broken length
+                    return False
+                f.seek(size - 2, 1)
     except OSError:
         return False
-    if data[:2] != b"\xff\xd8":
-        return False
-    i = 2
-    while i + 4 <= len(data):
-        if data[i] != 0xFF:
-            return False
-        marker = data[i + 1]
-        if marker == 0xFF:  # fill byte
-            i += 1
-            continue
-        size = int.from_bytes(data[i + 2:i + 4], "big")
-        if marker in _SOF:
-            return _sampling_subsampled(data[i + 4:i + 2 + size])
-        if marker == 0xDA or size < 2:  # start of scan before any frame header
-            return False
-        i += 2 + size
     return False
 
 

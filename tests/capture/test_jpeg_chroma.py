@@ -63,6 +63,10 @@ def test_the_header_says_what_pillow_says(tmp_path):
             want = JpegImagePlugin.get_sampling(im) in (1, 2) and len(im.getbands()) == 3
         assert subsampled_chroma(path) == want, name
     assert [subsampled_chroma(files[k]) for k in ("420", "422", "444", "grey")] == [True, True, False, False]
+    body = files["420"].read_bytes()
+    app1 = b"\xff\xe1" + (60_002).to_bytes(2, "big") + bytes(60_000)  # a 60 kB metadata block before the frame
+    (tmp_path / "h.jpg").write_bytes(body[:2] + app1 + b"\xff" + body[2:])  # and a fill byte before the next marker
+    assert subsampled_chroma(tmp_path / "h.jpg")
     cv2.imwrite(str(tmp_path / "e.png"), u8)
     (tmp_path / "f.jpg").write_bytes(files["420"].read_bytes()[:40])  # cut inside the headers
     (tmp_path / "g.jpg").write_bytes(b"\xff\xd8\x00garbage")
