@@ -116,6 +116,9 @@ class MatteConfig:
     #: The view's frame is a JPEG with subsampled chroma (capture.jpeg_chroma.subsampled_chroma; set per view
     #: by the pipeline): the alpha bound allows its chroma's error near edges of colour.
     subsampled: bool = False
+    #: 'auto': the views whose frame is a JPEG with subsampled chroma get ``subsampled`` (capture.jpeg_chroma);
+    #: 'off': none does (``furrow model --jpeg-chroma off``).
+    jpeg_chroma: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in MATTE_MODES:
@@ -124,6 +127,8 @@ class MatteConfig:
             raise ValueError(f"matte resolution must be one of {', '.join(MATTE_RESOLUTIONS)}, got {self.resolution!r}")
         if self.across not in MATTE_ACROSS:
             raise ValueError(f"matte colour across views must be one of {', '.join(MATTE_ACROSS)}, got {self.across!r}")
+        if self.jpeg_chroma not in ("auto", "off"):
+            raise ValueError(f"jpeg chroma must be 'auto' or 'off', got {self.jpeg_chroma!r}")
         if self.backdrop is not None:
             b = np.asarray(self.backdrop, float)
             if b.shape != (3,) or not np.all((b >= 0) & (b <= 1)):

@@ -131,6 +131,9 @@ class PhotometricConfig:
     apply whatever was estimated."""
     check_folds: int = 4
     """Folds of the check (blocks of cells held back in turn)."""
+    background: str = "auto"
+    """'auto': gains the cells took are refused where the background rings do not show them
+    (capture.photometric_background; asked only where the plate's exposure check took none); 'off': not asked."""
     check_z: float = 2.0
     """A more complex correction (exposure, then exposure and white balance) is applied only when it
     beats the simpler one on the held-back cells by more than this many standard errors."""
@@ -148,6 +151,8 @@ class PhotometricConfig:
             raise ValueError(f"photometric: appearance must be one of {APPEARANCE_MODES}, appearance_deg > 0")
         if self.check_folds < 2 or not self.check_z >= 0:
             raise ValueError("photometric: check_folds must be >= 2 and check_z >= 0")
+        if self.background not in ("auto", "off"):
+            raise ValueError(f"photometric: background must be 'auto' or 'off', got {self.background!r}")
 
 
 @dataclass(frozen=True)

@@ -118,6 +118,12 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")
+    g.add_argument("--photometric-background", choices=["auto", "off"], default="auto",
+                   help="where the background plate saw no exposure change but the object's cells ask for gains, "
+                        "ask the background too (capture/photometric_background.py: each view's background ring "
+                        "against the other views' prediction of it): auto (default: gains that make the rings "
+                        "less alike in most views are refused, the console says why; a fixed-exposure furry bunny "
+                        "orbit had been given 0.38 EV, 0.15 dB held out) or off (the cells decide alone)")
     g.add_argument("--photometric-reference", default="mean", metavar="NAME",
                    help="whose colour the aligned views keep: 'mean' (default: the mean of the views' log gains, "
                         "per channel, kept at 0), 'median' (the median view in each channel), or a view's name")
@@ -174,6 +180,11 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "half a stop cost a path-traced conifer orbit 1.1 dB held out, 0.4 taken out) or off (not "
                         "measured; a fixed camera's frames are never measured: its background sits at the same "
                         "pixels in every frame, and its turntable lost nothing to half a stop)")
+    g.add_argument("--jpeg-chroma", choices=["auto", "off"], default="auto",
+                   help="JPEG frames whose chroma is stored at half resolution (a phone's 4:2:0, read from each "
+                        "file's header; capture/jpeg_chroma.py): auto (default: the matte's alpha bound allows the "
+                        "chroma the decoder smeared beside every edge of colour; a path-traced JPEG conifer "
+                        "turntable +0.78 dB held out) or off (read as any frame)")
     g.add_argument("--matte-resolution", choices=["full", "working"], default="working",
                    help="where a solved matte (estimated from the depth, or with a known background: plate, "
                         "backdrop) is solved: working (default; capture/matting_scale.py: on a copy scaled so that "
@@ -211,12 +222,14 @@ def pipeline_config(args, **save):
         agreement=_agreement(getattr(args, "depth_agreement", "check")),
         extent=None if args.no_extent else ExtentConfig(keep_support=args.keep_support),
         matte=MatteConfig(mode=args.matte, backdrop=args.backdrop, resolution=args.matte_resolution,
-                                 across=getattr(args, "matte_across", "auto")),
+                                 across=getattr(args, "matte_across", "auto"),
+                                 jpeg_chroma=getattr(args, "jpeg_chroma", "auto")),
         plate=PlateConfig(mode=args.plate, plates_dir=args.background_plates,
                           denoise=getattr(args, "plate_denoise", "auto"),
                           blurred=getattr(args, "blurred_views", "keep"),
                           vignetting=getattr(args, "vignetting", "auto")),
-        photometric=None if args.no_photometric else PhotometricConfig(reference=args.photometric_reference),
+        photometric=None if args.no_photometric else PhotometricConfig(
+            reference=args.photometric_reference, background=getattr(args, "photometric_background", "auto")),
         fuse=FuseConfig(sdf=args.sdf, lopt=lopt, fusion=FusionConfig(quorum=args.quorum)),
         spheres=SpheresConfig(error=args.sphere_error), mesh=MeshConfig(target_faces=args.mesh_faces,
                                                                          level=args.mesh_level),

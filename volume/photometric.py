@@ -18,9 +18,6 @@ from capture.photometric import PhotometricResult, apply_gains, estimate_gains
 #: Take a fixed camera's exposure from its plate where the plate's held-back check accepted it (the
 #: conifer with auto exposure: 0.002 EV RMS against the true exposures, the object's cells 0.10 EV).
 PLATE_EXPOSURE = True
-#: Refuse the object's cells' gains where the frames against their background plates say the camera did not
-#: change (capture.photometric_background; a fixed-exposure furry bunny orbit: 0.38 EV asked, -0.15 dB held out).
-BACKGROUND_WITNESS = True
 
 
 def photometric_stage(work, cfg, ctx):
@@ -36,7 +33,7 @@ def photometric_stage(work, cfg, ctx):
         res = plate_result(work.scans, plate, cfg)
     else:
         res = estimate_gains(work.scans, cfg, ctx.progress, bounds=work.bounds, map_views=ctx.map_views)
-        res = background_witness(res, plate)
+        res = background_witness(res, plate, cfg)
     check = res.meta.get("check")
     if check:
         log = logging.getLogger("furrow.capture")
@@ -45,15 +42,16 @@ def photometric_stage(work, cfg, ctx):
     return replace(work, scans=scans).record("photometric", {**res.record(), "config": asdict(cfg)})
 
 
-def background_witness(res: PhotometricResult, exposure: dict) -> PhotometricResult:
+def background_witness(res: PhotometricResult, exposure: dict, cfg) -> PhotometricResult:
     """``res`` unless the background refuses its gains (capture.photometric_background: each frame's background
     ring against the other frames' prediction of it, ``exposure["ring_log2"]`` of the plate's exposure record),
     then the views kept as they are, the check saying why.  Asked only where the cells took gains and the plate's
-    own exposure check took none (BACKGROUND_WITNESS)."""
+    own exposure check took none, and ``cfg.background`` (capture.photometric.PhotometricConfig) is not 'off' (a
+    fixed-exposure furry bunny orbit: 0.38 EV asked, 0.15 dB lost held out; docs/real_cameras.md)."""
     from capture.photometric_background import background_verdict
 
     check, ratios = res.meta.get("check") or {}, exposure.get("ring_log2")
-    if not BACKGROUND_WITNESS or check.get("chosen") in (None, "none") or exposure.get("chosen") == "plate" \
+    if cfg.background == "off" or check.get("chosen") in (None, "none") or exposure.get("chosen") == "plate" \
             or not ratios or len(ratios) != len(res.names):
         return res
     verdict = background_verdict(ratios, res.gains)

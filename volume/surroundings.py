@@ -337,7 +337,7 @@ def _for_frame(cfg, ref):
     from capture.jpeg_chroma import subsampled_chroma
     from capture.sources import resolve_file
 
-    if cfg.mode == "off" or ref is None or ref.rgb is None:
+    if cfg.mode == "off" or cfg.jpeg_chroma == "off" or ref is None or ref.rgb is None:
         return cfg
     try:
         path = resolve_file(ref.rgb, "colour image", ref.where)

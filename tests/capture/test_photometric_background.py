@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import volume.photometric as vp
-from capture.photometric import PhotometricResult
+from capture.photometric import PhotometricConfig, PhotometricResult
 from capture.photometric_background import BG_WORSE_EV, background_verdict
 from capture.plate import PlateConfig, background_plates
 from tests import plate_scenes as ps
@@ -77,12 +77,12 @@ def _cells_result(gains, chosen="ev"):
 
 
 @pytest.mark.parametrize("witness", [True, False])
-def test_the_stage_keeps_the_views_when_the_background_refuses(monkeypatch, witness):
-    monkeypatch.setattr(vp, "BACKGROUND_WITNESS", witness)
+def test_the_stage_keeps_the_views_when_the_background_refuses(witness):
+    cfg = PhotometricConfig(background="auto" if witness else "off")
     V = 12
     asked = 2.0 ** np.random.default_rng(4).normal(0.0, 0.15, (V, 1)) * np.ones((1, 3))
     flat = {"chosen": "none", "ring_log2": [[0.001 * ((i % 3) - 1)] * 3 for i in range(V)]}
-    got = vp.background_witness(_cells_result(asked), flat)
+    got = vp.background_witness(_cells_result(asked), flat, cfg)
     if witness:
         assert np.all(got.gains == 1.0) and got.meta["check"]["chosen"] == "none"
         assert got.meta["check"]["cells_chose"] == "ev" and got.meta["background"]["refused"]
@@ -90,9 +90,9 @@ def test_the_stage_keeps_the_views_when_the_background_refuses(monkeypatch, witn
     else:
         assert np.array_equal(got.gains, asked)
     # the plate's own gains taken, or the cells took none: the background is not asked
-    assert np.array_equal(vp.background_witness(_cells_result(asked), {**flat, "chosen": "plate"}).gains, asked)
-    assert np.array_equal(vp.background_witness(_cells_result(asked, "none"), flat).gains, asked)
+    assert np.array_equal(vp.background_witness(_cells_result(asked), {**flat, "chosen": "plate"}, cfg).gains, asked)
+    assert np.array_equal(vp.background_witness(_cells_result(asked, "none"), flat, cfg).gains, asked)
     # the background shows those exposures: the cells' gains stand
     shown = {"chosen": "none", "ring_log2": (-np.log2(asked)).tolist()}
-    kept = vp.background_witness(_cells_result(asked), shown)
+    kept = vp.background_witness(_cells_result(asked), shown, cfg)
     assert np.array_equal(kept.gains, asked) and (not witness or kept.meta["background"]["refused"] is False)

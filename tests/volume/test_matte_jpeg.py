@@ -27,3 +27,4 @@ def test_only_a_subsampled_jpeg_frame_is_flagged(tmp_path):
     for name in ("b.jpg", "c.png", "missing.jpg"):
         assert _for_frame(cfg, ref(name)) is cfg, name
     assert _for_frame(MatteConfig(mode="off"), ref("a.jpg")).subsampled is False
+    assert _for_frame(MatteConfig(jpeg_chroma="off"), ref("a.jpg")).subsampled is False  # --jpeg-chroma off
