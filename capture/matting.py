@@ -119,6 +119,13 @@ class MatteConfig:
     #: 'auto': the views whose frame is a JPEG with subsampled chroma get ``subsampled`` (capture.jpeg_chroma);
     #: 'off': none does (``furrow model --jpeg-chroma off``).
     jpeg_chroma: str = "auto"
+    #: The extent stage's support plane and the object's place, (nx, ny, nz, d, cx, cy, cz, radius) in world units
+    #: (set by the pipeline), or None: where a fixed camera's plate lacks the object's own shadow on it
+    #: (capture.plate_shadow).
+    support: tuple | None = None
+    #: 'auto': a fixed camera's plate is lit as the frame is on the support beside the object where the ring shows
+    #: a shadow (capture.plate_shadow); 'off': not (``furrow model --plate-shadow off``).
+    shadow: str = "auto"
 
     def __post_init__(self) -> None:
         if self.mode not in MATTE_MODES:
@@ -127,6 +134,8 @@ class MatteConfig:
             raise ValueError(f"matte resolution must be one of {', '.join(MATTE_RESOLUTIONS)}, got {self.resolution!r}")
         if self.across not in MATTE_ACROSS:
             raise ValueError(f"matte colour across views must be one of {', '.join(MATTE_ACROSS)}, got {self.across!r}")
+        if self.shadow not in ("auto", "off"):
+            raise ValueError(f"plate shadow must be 'auto' or 'off', got {self.shadow!r}")
         if self.jpeg_chroma not in ("auto", "off"):
             raise ValueError(f"jpeg chroma must be 'auto' or 'off', got {self.jpeg_chroma!r}")
         if self.backdrop is not None:
@@ -280,12 +289,27 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         tri, rim = open_rim(tri, img, plate)
         est = plate.estimated if plate.estimated is not None else np.zeros(plate.known.shape, bool)
         gated = COLOUR_FROM_SEEN and (GATE_SEEN or est.any())
-        m = solve_known(img, tri, plate.background, plate.known, plate.noise, "plate", mask, cfg,
+        B, shadow = _shadowed(scan, img, plate, tri, cfg)
+        m = solve_known(img, tri, B, plate.known, plate.noise, "plate", mask, cfg,
                         (est, plate.sigma) if gated else None)
         if rim:
             m.notes["rim"] = rim
+        if shadow:
+            m.notes["shadow"] = shadow
         return m
     return _solve_at(img, tri, "estimate", mask, cfg)
+
+
+def _shadowed(scan: Scan, image: np.ndarray, plate, trimap: np.ndarray, cfg: MatteConfig):
+    """(the plate's background for the matte, the shadow record or None): a fixed camera's plate lit as the frame is
+    on the support beside the object where its ring shows a shadow (capture.plate_shadow; cfg.shadow, cfg.support)."""
+    if cfg.shadow == "off" or cfg.support is None or plate.method != "fixed":
+        return plate.background, None
+    from capture.plate_shadow import shadow_relit, support_pixels
+
+    s = cfg.support
+    sup = support_pixels(scan.camera, s[:4], s[4:7], s[7], trimap.shape)
+    return shadow_relit(image, plate.background, plate.known, trimap, sup)
 
 
 def _solve_at(image: np.ndarray, trimap: np.ndarray, method: str, mask: np.ndarray, cfg: MatteConfig) -> Matte:

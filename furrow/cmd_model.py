@@ -227,6 +227,17 @@ def photometric_table(rec: dict):
     return t
 
 
+def _print_matte_inputs(console, m: dict) -> None:
+    """The matte record's lines on what its inputs needed: the object's shadow put into a fixed camera's plate
+    (capture.plate_shadow), JPEG frames' subsampled chroma (capture.jpeg_chroma)."""
+    if m.get("shadow_views"):
+        console.print(f"matte: in {m['shadow_views']} view(s) the object's shadow on its support was not in the "
+                      "plate; the plate was lit as the frame is there (--plate-shadow off leaves it)", highlight=False)
+    if m.get("subsampled_chroma_views"):
+        console.print(f"matte: {m['subsampled_chroma_views']} view(s) are JPEGs with subsampled chroma (a phone's "
+                      "4:2:0); their alpha bound allows the chroma's error beside edges of colour", highlight=False)
+
+
 def _print_surroundings(console, rec: dict) -> None:
     """The extent and matte stages' numbers, one line each."""
     ex = rec.get("extent")
@@ -281,9 +292,7 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"matte ({m['mode']}): {m['methods']}, {m['seconds_per_view']:.2f} s per view (max "
                       f"{m['seconds_per_view_max']:.2f}), unknown {m['unknown_fraction_mean']:.2%}, partial alpha "
                       f"{m['partial_fraction_mean']:.2%} of the pixels", highlight=False)
-    if m.get("subsampled_chroma_views"):  # capture.jpeg_chroma
-        console.print(f"matte: {m['subsampled_chroma_views']} view(s) are JPEGs with subsampled chroma (a phone's "
-                      "4:2:0); their alpha bound allows the chroma's error beside edges of colour", highlight=False)
+    _print_matte_inputs(console, m)
     opq = m.get("opaque_sources") or {}
     if opq.get("views"):  # capture.matting_known.OPAQUE_SOURCES
         console.print(f"[yellow]matte: in {opq['views']} view(s) the background was known behind too few sure "

@@ -365,6 +365,9 @@ def matte_given(cfg, work):
     """The matte config the views get: with the width the depth was measured at (the scan set's
     ``depth_size``) when it is known and the views' working resolution may use it."""
     size = (work.metadata or {}).get("depth_size")
+    plane, focus = work.parts.get("support") or (None, None)
+    if plane is not None and focus is not None:  # capture.plate_shadow: the object's shadow on its support
+        cfg = replace(cfg, support=tuple(float(x) for x in (*np.asarray(plane)[:4], *np.asarray(focus[0]), focus[1])))
     if cfg.resolution != "working" or not size:
         return cfg
     return replace(cfg, depth_width=int(size[0]))
@@ -382,7 +385,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels"):
+    for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels", "shadow"):
         if m.notes.get(key):
             note[key] = m.notes[key]
     if plate is not None and m.method.startswith("plate"):
@@ -433,6 +436,7 @@ def matte_record(work, notes: dict, cfg):
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
+        "shadow_views": sum(bool(x.get("shadow")) for x in n),  # capture.plate_shadow
         "subsampled_chroma_views": sum(bool(x.get("subsampled_chroma")) for x in n),  # capture.jpeg_chroma
         "seconds_per_view": round(float(np.mean(sec)), 4), "seconds_per_view_max": round(float(np.max(sec)), 4),
         "unknown_fraction_mean": round(float(np.mean([x["unknown"] for x in n])), 5),
