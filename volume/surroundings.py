@@ -365,7 +365,7 @@ def matte_given(cfg, work):
     """The matte config the views get: with the width the depth was measured at (the scan set's
     ``depth_size``) when it is known and the views' working resolution may use it."""
     size = (work.metadata or {}).get("depth_size")
-    plane, focus = work.parts.get("support") or (None, None)
+    plane, focus = (getattr(work, "parts", None) or {}).get("support") or (None, None)
     if plane is not None and focus is not None:  # capture.plate_shadow: the object's shadow on its support
         cfg = replace(cfg, support=tuple(float(x) for x in (*np.asarray(plane)[:4], *np.asarray(focus[0]), focus[1])))
     if cfg.resolution != "working" or not size:
