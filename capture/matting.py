@@ -305,10 +305,10 @@ def _shadowed(scan: Scan, image: np.ndarray, plate, trimap: np.ndarray, cfg: Mat
     on the support beside the object where its ring shows a shadow (capture.plate_shadow; cfg.shadow, cfg.support)."""
     if cfg.shadow == "off" or cfg.support is None or plate.method != "fixed":
         return plate.background, None
-    from capture.plate_shadow import shadow_relit, support_pixels
+    from capture.plate_shadow import reach_box, shadow_relit, support_pixels
 
     s = cfg.support
-    sup = support_pixels(scan.camera, s[:4], s[4:7], s[7], trimap.shape)
+    sup = support_pixels(scan.camera, s[:4], s[4:7], s[7], trimap.shape, reach_box(trimap))
     return shadow_relit(image, plate.background, plate.known, trimap, sup)
 
 

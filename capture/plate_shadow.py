@@ -34,11 +34,13 @@ SUPPORT_REACH = 1.5
 DARK, CLIP = 0.02, 0.98
 
 
-def support_pixels(camera, plane, centre, radius: float, shape) -> np.ndarray:
+def support_pixels(camera, plane, centre, radius: float, shape, box=None) -> np.ndarray:
     """(H, W) bool: pixels of ``camera`` (capture.camera.Camera, OpenCV) whose ray meets ``plane`` ((4,): n . x + d
-    = 0, world) in front of the camera within SUPPORT_REACH x ``radius`` of ``centre`` (3,)."""
+    = 0, world) in front of the camera within SUPPORT_REACH x ``radius`` of ``centre`` (3,); ``box`` (y0, y1, x0,
+    x1): only those pixels (the rest False)."""
     H, W = shape
-    v, u = np.mgrid[0:H, 0:W]
+    y0, y1, x0, x1 = (0, H, 0, W) if box is None else box
+    v, u = np.mgrid[y0:y1, x0:x1]
     rays = np.stack([u, v, np.ones_like(u)], -1).reshape(-1, 3).astype(np.float64) @ np.linalg.inv(camera.K).T
     R, t = camera.cam_from_world[:3, :3], camera.cam_from_world[:3, 3]
     dirs, origin = rays @ R, -R.T @ t  # R^T d for each ray; the camera centre
@@ -48,7 +50,21 @@ def support_pixels(camera, plane, centre, radius: float, shape) -> np.ndarray:
         hit = -(n @ origin + d) / np.where(np.abs(den) > 1e-12, den, np.nan)
     pts = origin + hit[:, None] * dirs
     near = np.linalg.norm(pts - np.asarray(centre, np.float64), axis=1) < SUPPORT_REACH * float(radius)
-    return ((hit > 0) & near).reshape(H, W)
+    out = np.zeros((H, W), bool)
+    out[y0:y1, x0:x1] = ((hit > 0) & near).reshape(y1 - y0, x1 - x0)
+    return out
+
+
+def reach_box(trimap: np.ndarray):
+    """(y0, y1, x0, x1): the box around the trimap's band and object widened by RING_PX + 1 (where the ring and
+    the scale can be), or None without one."""
+    ys, xs = np.nonzero(np.asarray(trimap) > 0.0)
+    if not len(ys):
+        return None
+    H, W = np.shape(trimap)
+    m = RING_PX + 1
+    return (max(int(ys.min()) - m, 0), min(int(ys.max()) + m + 1, H),
+            max(int(xs.min()) - m, 0), min(int(xs.max()) + m + 1, W))
 
 
 def shadow_relit(image: np.ndarray, background: np.ndarray, known: np.ndarray, trimap: np.ndarray,
@@ -59,9 +75,14 @@ def shadow_relit(image: np.ndarray, background: np.ndarray, known: np.ndarray, t
     from capture.fill import push_pull
     from capture.matting_fast import dilate
 
-    C = np.asarray(image, np.float64)
-    B = np.asarray(background, np.float64)
-    tri = np.asarray(trimap)
+    box = reach_box(trimap)
+    if box is None:
+        return background, None
+    sl = (slice(box[0], box[1]), slice(box[2], box[3]))  # the ring and the scale lie in it: the same values
+    C = np.asarray(image)[sl].astype(np.float64)
+    B = np.asarray(background)[sl].astype(np.float64)
+    tri = np.asarray(trimap)[sl]
+    known, support = np.asarray(known, bool)[sl], np.asarray(support, bool)[sl]
     reach = dilate(tri > 0.0, RING_PX) & np.asarray(known, bool) & np.asarray(support, bool)
     lc, lb = C.mean(-1), B.mean(-1)
     ring = reach & (tri <= 0.0) & (lb > DARK) & (lc > DARK / 4) & (C.max(-1) < CLIP) & (B.max(-1) < CLIP)
@@ -75,5 +96,6 @@ def shadow_relit(image: np.ndarray, background: np.ndarray, known: np.ndarray, t
     r[ring] = np.clip(ratio, MIN_SCALE, 1.0)
     filled = np.where(ring, r, push_pull(r[..., None], ring.astype(np.float64))[..., 0])
     scale = np.where(reach, np.clip(filled, MIN_SCALE, 1.0), 1.0)
-    lit = (B * scale[..., None]).astype(np.asarray(background).dtype)
+    lit = np.array(background, copy=True)
+    lit[sl] = (B * scale[..., None]).astype(lit.dtype)
     return lit, {"ring": int(ring.sum()), "dark_share": round(share, 4), "scale_min": round(float(scale.min()), 4)}
