@@ -228,11 +228,19 @@ def photometric_table(rec: dict):
 
 
 def _print_matte_inputs(console, m: dict) -> None:
-    """The matte record's lines on what its inputs needed: the object's shadow put into a fixed camera's plate
-    (capture.plate_shadow), JPEG frames' subsampled chroma (capture.jpeg_chroma)."""
+    """The matte record's lines on what its inputs needed or lacked: the object's shadow put into a fixed camera's
+    plate (capture.plate_shadow), a blown-out background (capture.matting_cap.blown_partial), JPEG frames'
+    subsampled chroma (capture.jpeg_chroma)."""
     if m.get("shadow_views"):
         console.print(f"matte: in {m['shadow_views']} view(s) the object's shadow on its support was not in the "
                       "plate; the plate was lit as the frame is there (--plate-shadow off leaves it)", highlight=False)
+    bb = m.get("blown_background") or {}
+    if bb.get("views"):  # capture.matting_cap.blown_partial: a clipped background holds no colour
+        share = ", ".join(f"{v} ({s:.0%})" for v, s in zip(bb["views"], bb["shares"], strict=True))
+        console.print(f"[yellow]matte: views {share} have that share of their partial pixels before a blown-out "
+                      "background: their colour is a fill from the nearest measured colours, not a measurement (a "
+                      "back-lit fringe loses its glow); a shorter exposure of those views would keep it[/yellow]",
+                      highlight=False)
     if m.get("subsampled_chroma_views"):
         console.print(f"matte: {m['subsampled_chroma_views']} view(s) are JPEGs with subsampled chroma (a phone's "
                       "4:2:0); their alpha bound allows the chroma's error beside edges of colour", highlight=False)

@@ -44,6 +44,7 @@ import numpy as np
 
 from capture.extent import remove_surroundings
 from capture.matting import matte_scan, warm_up
+from capture.matting_cap import BLOWN_VIEW_SHARE, blown_partial
 from capture.matting_cells import fit_cap
 from capture.noise import noise_frames, noise_note, noise_parts, smooth_frame, smoothing
 from capture.plate import background_plates
@@ -388,6 +389,8 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels", "shadow"):
         if m.notes.get(key):
             note[key] = m.notes[key]
+    if plate is not None:  # the partial pixels before a blown-out plate: a fill, not a measurement
+        note["blown"] = blown_partial(m.alpha, plate.background, plate.known)
     if plate is not None and m.method.startswith("plate"):
         from capture import matting_lines as ml
 
@@ -430,10 +433,15 @@ def matte_record(work, notes: dict, cfg):
     opq = [x["opaque_sources"] for x in n if "opaque_sources" in x]
     rim = [x["rim"] for x in n if "rim" in x]
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
+    blown = [(i, x["blown"]) for i, x in enumerate(notes["matte"]) if x is not None and "blown" in x]
+    shares = {i: b / p for i, (b, p) in blown if p}
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},
+        "blown_background": {"pixels": int(sum(b for _, (b, _) in blown)),  # capture.matting_cap.blown_partial
+                             "views": [i for i in sorted(shares) if shares[i] >= BLOWN_VIEW_SHARE],
+                             "shares": [round(shares[i], 3) for i in sorted(shares) if shares[i] >= BLOWN_VIEW_SHARE]},
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
         "shadow_views": sum(bool(x.get("shadow")) for x in n),  # capture.plate_shadow
