@@ -62,5 +62,5 @@ def blown_partial(alpha: np.ndarray, background: np.ndarray, known: np.ndarray) 
 
     a = np.asarray(alpha)
     partial = (a > 0) & (a < 1)
-    blown = partial & np.asarray(known, bool) & (np.max(np.asarray(background), axis=-1) >= CLIP_LEVEL)
-    return int(blown.sum()), int(partial.sum())
+    behind = np.asarray(background).reshape(-1, 3)[np.flatnonzero(partial & np.asarray(known, bool))]
+    return int(np.count_nonzero((behind >= CLIP_LEVEL).any(axis=1))), int(np.count_nonzero(partial))
