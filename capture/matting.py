@@ -289,9 +289,8 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         tri, rim = open_rim(tri, img, plate)
         est = plate.estimated if plate.estimated is not None else np.zeros(plate.known.shape, bool)
         gated = COLOUR_FROM_SEEN and (GATE_SEEN or est.any())
-        B, shadow = _shadowed(scan, img, plate, tri, cfg)
-        m = solve_known(img, tri, B, plate.known, plate.noise, "plate", mask, cfg,
-                        (est, plate.sigma) if gated else None)
+        B, known, est, shadow = _shadowed(scan, img, plate, est, tri, cfg)
+        m = solve_known(img, tri, B, known, plate.noise, "plate", mask, cfg, (est, plate.sigma) if gated else None)
         if rim:
             m.notes["rim"] = rim
         if shadow:
@@ -300,16 +299,18 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
     return _solve_at(img, tri, "estimate", mask, cfg)
 
 
-def _shadowed(scan: Scan, image: np.ndarray, plate, trimap: np.ndarray, cfg: MatteConfig):
-    """(the plate's background for the matte, the shadow record or None): a fixed camera's plate lit as the frame is
-    on the support beside the object where its ring shows a shadow (capture.plate_shadow; cfg.shadow, cfg.support)."""
+def _shadowed(scan: Scan, image: np.ndarray, plate, estimated: np.ndarray, trimap: np.ndarray, cfg: MatteConfig):
+    """(the plate's background for the matte, where it is known, where the frames' lines ``estimated`` it, the shadow
+    record or None): a fixed camera's plate lit as the frame is on the support beside the object where its ring shows
+    a shadow, and the lines' estimates on that support taken out (capture.plate_shadow; cfg.shadow, cfg.support)."""
     if cfg.shadow == "off" or cfg.support is None or plate.method != "fixed":
-        return plate.background, None
-    from capture.plate_shadow import reach_box, shadow_relit, support_pixels
+        return plate.background, plate.known, estimated, None
+    from capture.plate_shadow import lines_off_shadow, reach_box, shadow_relit, support_pixels
 
     s = cfg.support
     sup = support_pixels(scan.camera, s[:4], s[4:7], s[7], trimap.shape, reach_box(trimap))
-    return shadow_relit(image, plate.background, plate.known, trimap, sup)
+    lit, rec = shadow_relit(image, plate.background, plate.known, trimap, sup)
+    return lit, *lines_off_shadow(plate.known, estimated, sup, rec), rec
 
 
 def _solve_at(image: np.ndarray, trimap: np.ndarray, method: str, mask: np.ndarray, cfg: MatteConfig) -> Matte:

@@ -232,8 +232,12 @@ def _print_matte_inputs(console, m: dict) -> None:
     plate (capture.plate_shadow), a blown-out background (capture.matting_cap.blown_partial), JPEG frames'
     subsampled chroma (capture.jpeg_chroma)."""
     if m.get("shadow_views"):
+        lines = m.get("shadow_lines_dropped", 0)
+        lines = (f", and {lines} pixels the frames' lines had estimated there (the shadow turns with the object) "
+                 "counted as unknown") if lines else ""
         console.print(f"matte: in {m['shadow_views']} view(s) the object's shadow on its support was not in the "
-                      "plate; the plate was lit as the frame is there (--plate-shadow off leaves it)", highlight=False)
+                      f"plate; the plate was lit as the frame is there{lines} (--plate-shadow off leaves it)",
+                      highlight=False)
     bb = m.get("blown_background") or {}
     if bb.get("views"):  # capture.matting_cap.blown_partial: a clipped background holds no colour
         share = ", ".join(f"{v} ({s:.0%})" for v, s in zip(bb["views"], bb["shares"], strict=True))

@@ -183,8 +183,9 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--plate-shadow", choices=["auto", "off"], default="auto",
                    help="a fixed camera's plate lacks the shadow the object casts on its support (it turns with the "
                         "object): auto (default; capture/plate_shadow.py: where at least 10%% of the support just "
-                        "beside the object is darker than 0.85 of its plate, the plate is lit as the frame is there; "
-                        "fur on a table: alpha MSE 0.0161 -> 0.0112 held out) or off")
+                        "beside the object is darker than 0.85 of its plate, the plate is lit as the frame is there "
+                        "and the frames' lines' estimates on the table count as unknown; fur on a table: alpha MSE "
+                        "0.0161 -> 0.0094 held out) or off")
     g.add_argument("--jpeg-chroma", choices=["auto", "off"], default="auto",
                    help="JPEG frames whose chroma is stored at half resolution (a phone's 4:2:0, read from each "
                         "file's header; capture/jpeg_chroma.py): auto (default: the matte's alpha bound allows the "

@@ -445,6 +445,7 @@ def matte_record(work, notes: dict, cfg):
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
         "shadow_views": sum(bool(x.get("shadow")) for x in n),  # capture.plate_shadow
+        "shadow_lines_dropped": sum((x.get("shadow") or {}).get("lines_dropped", 0) for x in n),
         "subsampled_chroma_views": sum(bool(x.get("subsampled_chroma")) for x in n),  # capture.jpeg_chroma
         "seconds_per_view": round(float(np.mean(sec)), 4), "seconds_per_view_max": round(float(np.max(sec)), 4),
         "unknown_fraction_mean": round(float(np.mean([x["unknown"] for x in n])), 5),
