@@ -36,9 +36,10 @@ DARK, CLIP = 0.02, 0.98
 #: (capture.plate_lines: one background per pixel across the frames) count as unknown (:func:`lines_off_shadow`);
 #: False: kept.  The shadow turns with the object, so the lines there mix lit and shadowed table and cross at neither:
 #: on a furry bunny on a table (path-traced, auto exposure, a lens) those pixels held 62 % of the kept views' squared
-#: alpha error (6,878 of 11,105; on the support 6,281 -> 2,734 of 6,871 after).  Held out (docs/matting.md "The lines under the shadow"): the bunny
-#: 24.155 -> 24.197 dB, alpha MSE 0.0111 -> 0.0094; the fur ball on the table 23.817 -> 23.847, 0.0111 -> 0.0105;
-#: dropped everywhere in such a view instead of on the support, the fur ball lost 1.0 dB.
+#: alpha error (6,878 of 11,105; on the support 6,281 -> 2,734 of 6,871 after).  Held out (docs/matting.md "The
+#: lines under the shadow"): the bunny 24.155 -> 24.197 dB, alpha MSE 0.0111 -> 0.0094; the fur ball on the table
+#: 23.817 -> 23.847, 0.0111 -> 0.0105; dropped everywhere in such a view instead of on the support, the fur ball lost
+#: 1.0 dB.
 SHADOW_DROPS_LINES = True
 
 
