@@ -28,6 +28,10 @@ PLATE_VIEW_BUDGET_BYTES = 1 << 30
 PLATE_BYTES_PER_PIXEL = 14
 #: Smallest working scale (below it the plate would no longer resolve the room behind a needle).
 PLATE_MIN_SCALE = 0.2
+#: A working scale at or above this is taken as full size: shrinking by less than a tenth keeps at most a fifth of the
+#: budget's bytes off the peak and costs every view's shrinking and every plate's growing back (72 views at 1280x960,
+#: 0.93 by the budget: docs/speed.md "The plate at full size").  1.0: the budget alone (the rule before).
+PLATE_FULL_SCALE = 0.9
 #: :func:`shrink_scan` shrinks a view of 8-bit colour with fewer passes (the float32 colour by one
 #: table lookup, the float16 cast and the object's maximum filter by OpenCV; the same view bit for bit,
 #: tests/capture/test_plate_scale.py); False: :func:`shrink_view` of the float16 view, the reference.
@@ -35,11 +39,11 @@ SHRINK_FAST = True
 
 
 def plate_scale(views: int, height: int, width: int, budget: int = PLATE_VIEW_BUDGET_BYTES) -> float:
-    """The factor the plate stage shrinks ``views`` views of ``height`` x ``width`` by (1: full size)."""
+    """The factor the plate stage shrinks ``views`` views of ``height`` x ``width`` by (1: full size, also where the
+    budget would shrink them by less than PLATE_FULL_SCALE)."""
     need = float(views) * height * width * PLATE_BYTES_PER_PIXEL
-    if need <= budget:
-        return 1.0
-    return max(PLATE_MIN_SCALE, math.sqrt(budget / need))
+    scale = math.sqrt(budget / need) if need > budget else 1.0
+    return 1.0 if scale >= PLATE_FULL_SCALE else max(PLATE_MIN_SCALE, scale)
 
 
 def shrink_view(view: PlateView, scale: float) -> PlateView:

@@ -48,6 +48,21 @@ def test_scale_follows_the_memory_budget():
     assert plate_scale(10 ** 6, 1440, 1920) == PLATE_MIN_SCALE
 
 
+def test_a_view_shrunk_by_less_than_the_full_scale_level_stays_full_size(monkeypatch):
+    """PLATE_FULL_SCALE: 72 views at 1280x960 need 0.93 by the budget and get 1; just below the level (views whose
+    budget scale is 0.89) the budget's scale stands; with the level at 1 the budget alone (the rule before)."""
+    import capture.plate_scale as psc
+
+    budget_72 = np.sqrt((1 << 30) / (72 * 960 * 1280 * PLATE_BYTES_PER_PIXEL))
+    assert 0.9 < budget_72 < 0.95 and plate_scale(72, 960, 1280) == 1.0
+    n = int(np.ceil((1 << 30) / (0.89 ** 2 * 960 * 1280 * PLATE_BYTES_PER_PIXEL)))
+    s = plate_scale(n, 960, 1280)
+    assert s < psc.PLATE_FULL_SCALE
+    assert s == pytest.approx(np.sqrt((1 << 30) / (n * 960 * 1280 * PLATE_BYTES_PER_PIXEL)))
+    monkeypatch.setattr(psc, "PLATE_FULL_SCALE", 1.0)
+    assert plate_scale(72, 960, 1280) == pytest.approx(budget_72)
+
+
 def test_half_size_plates_match_the_room_behind_the_object():
     views, truth = ps.orbit_capture(12, 192, 144)
     plane = np.array([0.0, 0.0, 1.0, -ps.TABLE_Z])
