@@ -14,8 +14,8 @@ JPEG quality 90 at 4:2:0 cost the path-traced conifer turntable 1.41 dB held out
   range of Cb and of Cr over the CHROMA_WINDOW x CHROMA_WINDOW pixels around it (the reach of the 2 x 2 blocks
   and the decoder's upsampling), carried into linear R, G, B through the JFIF matrix and the sRGB curve's slope.
   Zero where the chroma is flat: a frame's plain background keeps the noise it had.
-* :func:`chroma_lower_bound`: capture.matting_known.alpha_lower_bound's bound with that allowance added to the
-  noise, for frames whose chroma is subsampled (capture.matting.MatteConfig.subsampled).
+capture.matting_known.alpha_lower_bound adds that allowance to the noise for frames whose chroma is subsampled
+(capture.matting.MatteConfig.subsampled).
 
 Only the bound and what follows it (the trimap's widening, the colour sources) use the allowance; the candidates'
 alpha still fits the whole colour difference.  Taking the chroma difference out of the matte altogether (C moved
@@ -99,16 +99,3 @@ def chroma_allowance(image: np.ndarray) -> np.ndarray:
     enc = CHROMA_SHARE * (spread(cb)[..., None] * JFIF_FROM_CB + spread(cr)[..., None] * JFIF_FROM_CR)
     slope = np.where(E <= 0.04045, 1 / 12.92, 2.4 / 1.055 * np.power((np.maximum(E, 0.04045) + 0.055) / 1.055, 1.4))
     return enc * slope
-
-
-def chroma_lower_bound(image: np.ndarray, background: np.ndarray, noise: float, rel: float) -> np.ndarray:
-    """(h, w) capture.matting_known.alpha_lower_bound of a frame with subsampled chroma: the least alpha for
-    which F = B + (C - B) / a stays in [0, 1], with ``noise`` + ``rel`` B + :func:`chroma_allowance` taken off
-    each channel's |C - B|.  ``image``, ``background``: (h, w, 3) linear."""
-    C = np.asarray(image, np.float64)
-    B = np.asarray(background, np.float64)
-    d = C - B
-    slack = np.abs(d) - (noise + rel * B + chroma_allowance(C))
-    room = np.where(d > 0, 1.0 - B, B)
-    lo = np.where(slack > 0, slack / np.maximum(room, 1e-6), 0.0)
-    return np.clip(np.max(lo, axis=-1), 0.0, 1.0)

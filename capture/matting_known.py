@@ -42,7 +42,7 @@ import numpy as np
 
 from capture import matting_channels as mch
 from capture.fill import push_pull
-from capture.jpeg_chroma import chroma_lower_bound
+from capture.jpeg_chroma import chroma_allowance
 from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
@@ -160,14 +160,14 @@ def alpha_lower_bound(image: np.ndarray, background: np.ndarray, noise: float = 
     docstring), with the noise allowance (``noise`` + NOISE_REL B, linear) taken off: 0 where C is
     within noise of B.  capture.matting_bound's compiled pass when it takes the arrays.  ``chroma``: a
     (h, w, 3) frame whose chroma was subsampled (a JPEG's) also has capture.jpeg_chroma's allowance."""
-    if chroma and np.ndim(image) == 3:
-        return chroma_lower_bound(image, background, noise, NOISE_REL)
-    if (fused := lower_bound(image, background, noise, NOISE_REL)) is not None:
+    chroma = chroma and np.ndim(image) == 3
+    if not chroma and (fused := lower_bound(image, background, noise, NOISE_REL)) is not None:
         return fused
     C = np.asarray(image, np.float64)
     B = np.asarray(background, np.float64)
     d = C - B
-    slack = np.abs(d) - (noise + NOISE_REL * B)
+    allow = noise + NOISE_REL * B
+    slack = np.abs(d) - (allow + chroma_allowance(C) if chroma else allow)
     room = np.where(d > 0, 1.0 - B, B)
     lo = np.where(slack > 0, slack / np.maximum(room, 1e-6), 0.0)
     return np.clip(channel_max(lo), 0.0, 1.0)

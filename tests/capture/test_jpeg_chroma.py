@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from capture.jpeg_chroma import chroma_allowance, chroma_lower_bound, subsampled_chroma
+from capture.jpeg_chroma import chroma_allowance, subsampled_chroma
 from capture.matting import depth_trimap
-from capture.matting_known import NOISE_REL, alpha_lower_bound, known_background_matte
+from capture.matting_known import alpha_lower_bound, known_background_matte
 from capture.scan import srgb_to_linear, to_uint8_srgb
 from tests import plate_scenes as ps
 
@@ -82,8 +82,6 @@ def test_no_allowance_where_the_chroma_is_flat():
     assert np.abs(chroma_allowance(flat)).max() < 1e-12
     B = rng.uniform(0.0, 1.0, (30, 40, 3))
     # there the bound is alpha_lower_bound's own (its compiled pass and the numpy twin agree bit for bit)
-    np.testing.assert_allclose(chroma_lower_bound(grey, B, NOISE, NOISE_REL), alpha_lower_bound(grey, B, NOISE),
-                               rtol=0, atol=1e-12)
     np.testing.assert_allclose(alpha_lower_bound(grey, B, NOISE, chroma=True), alpha_lower_bound(grey, B, NOISE),
                                rtol=0, atol=1e-12)
 
