@@ -20,6 +20,11 @@ Where the photo is not blown out but the data term is weak (``WEAK_PRIOR``: a ne
 nearly its own colour, where C = a F + (1 - a) B hardly moves with alpha), the same prior goes in beside the
 data, weighted R^2 (1 - weight / MIN_CONFIDENCE), where the data term's candidate colour is within its SEPARATION
 of B (stop 62, docs/matting.md).
+
+Where the photo is not blown out but the pixel still has no data term because the plate does not know its
+background (``UNSEEN_PRIOR``: no frame saw it and the frames' lines gave none, capture.plate_shadow took them, or
+the plate is blown out behind an unclipped photo), the prior goes in as at a blown-out pixel (stop 72,
+docs/matting.md "Where no frame saw the background").
 """
 
 from __future__ import annotations
@@ -53,6 +58,14 @@ MIN_CONFIDENCE = 0.25
 #: 0.055 dB, past the first rule's -0.05; a confirmatory rule written before rendering two fresh captures (seed 21,
 #: room turned 90 degrees) was met there: orbit +0.209, turntable +0.348 dB (docs/matting.md, stop 62).  On.
 WEAK_PRIOR = True
+#: The prior also goes, as at a blown-out pixel, to the unknown pixels with no data term whose photo is not blown out:
+#: where the plate does not know the background.  The Laplacian alone carried the opaque pixels' alpha out there: a fur
+#: ball turning on a table (path-traced, auto exposure, a lens), whose silhouette no frame sees past, came out too
+#: opaque in its fringe (alpha MSE 0.030 at those pixels of the kept views; the coverage table 0.020).  Held out on
+#: eleven room captures it was not found on: mean +0.058 dB, from -0.034 (a fresh fur ball on a table before an
+#: interior) to +0.32 (the conifer's auto-exposure orbit), held-out alpha MSE lower or the same on every one; the fur
+#: ball it was found on +0.22 (docs/matting.md).  False: blown-out pixels only (the rule before).
+UNSEEN_PRIOR = True
 
 
 def coverage(mask: np.ndarray, radius: int = COVERAGE_RADIUS) -> np.ndarray:
@@ -85,18 +98,22 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
                 mask: np.ndarray | None, similar: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(target, weight, record): the data term (``target``, ``weight``, each (h, w), of
     capture.matting_known.data_term) with the coverage prior (module docstring) added at the
-    ``unknown`` pixels whose photo ``image`` is blown out and which have no data term; ``mask``: the
+    ``unknown`` pixels which have no data term (with UNSEEN_PRIOR off: only those whose photo ``image`` is blown
+    out); ``mask``: the
     object's depth (h, w) bool (None: no prior); ``similar`` (h, w) bool: where the data term's candidate colour is
     within its SEPARATION of B, the only weak pixels WEAK_PRIOR takes (None: every weak pixel)."""
     C = np.asarray(image)
     lit = C.max(axis=-1) < CLIP_LEVEL
-    blind = np.asarray(unknown, bool) & ~lit & (weight <= 0)
+    blind = np.asarray(unknown, bool) & (weight <= 0)
+    unseen = blind & lit  # UNSEEN_PRIOR: no data term although the photo is not blown out (B not known)
+    blind &= ~lit | UNSEEN_PRIOR
     weak = np.asarray(unknown, bool) & lit & (weight > 0) & (weight < MIN_CONFIDENCE)
     if not WEAK_PRIOR:
         weak[:] = False
     elif similar is not None:
         weak &= np.asarray(similar, bool)
-    rec = {"blind": int(blind.sum()), "weak": int(weak.sum()), "band": int(np.count_nonzero(unknown))}
+    rec = {"blind": int(blind.sum()), "unseen": int(unseen.sum()) if UNSEEN_PRIOR else 0, "weak": int(weak.sum()),
+           "band": int(np.count_nonzero(unknown))}
     if not BLIND_PRIOR or mask is None or not (blind.any() or weak.any()):
         return target, weight, dict(rec, used=False, reason="off" if not BLIND_PRIOR else
                                     "no depth" if mask is None else "nothing blown out")

@@ -342,6 +342,9 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {bp['weak_pixels']} pixels before a background of nearly their own colour took the "
                       "depth coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
                       highlight=False)
+    if bp.get("unseen_pixels"):  # capture.matting_blind.UNSEEN_PRIOR: no background known, the photo not blown out
+        console.print(f"matte: {bp['unseen_pixels']} pixels whose background no frame showed took the depth "
+                      "coverage's alpha as their data term (capture.matting_blind.UNSEEN_PRIOR)", highlight=False)
     from capture.matting_guide import WEAK_GATE  # the share from which the Laplacian's guide is brightened too
 
     if bp.get("guided_views"):  # capture.matting_guide: views whose own weak share reached WEAK_GATE
