@@ -99,9 +99,8 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
     """(target, weight, record): the data term (``target``, ``weight``, each (h, w), of
     capture.matting_known.data_term) with the coverage prior (module docstring) added at the
     ``unknown`` pixels which have no data term (with UNSEEN_PRIOR off: only those whose photo ``image`` is blown
-    out); ``mask``: the
-    object's depth (h, w) bool (None: no prior); ``similar`` (h, w) bool: where the data term's candidate colour is
-    within its SEPARATION of B, the only weak pixels WEAK_PRIOR takes (None: every weak pixel)."""
+    out); ``mask``: the object's depth (h, w) bool (None: no prior); ``similar`` (h, w) bool: where the data term's
+    candidate colour is within its SEPARATION of B, the only weak pixels WEAK_PRIOR takes (None: every weak pixel)."""
     C = np.asarray(image)
     lit = C.max(axis=-1) < CLIP_LEVEL
     blind = np.asarray(unknown, bool) & (weight <= 0)

@@ -240,7 +240,8 @@ def _print_matte_inputs(console, m: dict) -> None:
                       highlight=False)
     bb = m.get("blown_background") or {}
     if bb.get("views"):  # capture.matting_cap.blown_partial: a clipped background holds no colour
-        share = ", ".join(f"{v} ({s:.0%})" for v, s in zip(bb["views"], bb["shares"], strict=True))
+        names = bb.get("names") or [str(v) for v in bb["views"]]
+        share = ", ".join(f"{v} ({s:.0%})" for v, s in zip(names, bb["shares"], strict=True))
         console.print(f"[yellow]matte: views {share} have that share of their partial pixels before a blown-out "
                       "background: their colour is a fill from the nearest measured colours, not a measurement (a "
                       "back-lit fringe loses its glow); a shorter exposure of those views would keep it[/yellow]",

@@ -436,13 +436,15 @@ def matte_record(work, notes: dict, cfg):
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
     blown = [(i, x["blown"]) for i, x in enumerate(notes["matte"]) if x is not None and "blown" in x]
     shares = {i: b / p for i, (b, p) in blown if p}
+    named = [i for i in sorted(shares) if shares[i] >= BLOWN_VIEW_SHARE]
+    refs = getattr(work, "refs", None) or ()
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},
         "blown_background": {"pixels": int(sum(b for _, (b, _) in blown)),  # capture.matting_cap.blown_partial
-                             "views": [i for i in sorted(shares) if shares[i] >= BLOWN_VIEW_SHARE],
-                             "shares": [round(shares[i], 3) for i in sorted(shares) if shares[i] >= BLOWN_VIEW_SHARE]},
+                             "views": named, "shares": [round(shares[i], 3) for i in named],
+                             "names": [refs[i].name if i < len(refs) else str(i) for i in named]},
         "mode": cfg.mode, "backdrop": cfg.backdrop, "methods": {k: methods.count(k) for k in sorted(set(methods))},
         "resolution": cfg.resolution, "scale_mean": round(float(np.mean([x.get("scale", 1.0) for x in n])), 4),
         "shadow_views": sum(bool(x.get("shadow")) for x in n),  # capture.plate_shadow

@@ -55,7 +55,7 @@ def test_the_record_names_the_views_whose_share_reaches_the_level():
                        {**base, "blown": (low, 1000)}, {**base, "blown": (BLOWN_VIEW_SHARE * 1000, 1000)}]}
     rec = matte_record(_Work(), notes, MatteConfig())["matte"]["blown_background"]
     assert rec == {"pixels": 400 + low + int(BLOWN_VIEW_SHARE * 1000), "views": [2, 5],
-                   "shares": [0.4, round(BLOWN_VIEW_SHARE, 3)]}
+                   "shares": [0.4, round(BLOWN_VIEW_SHARE, 3)], "names": ["2", "5"]}  # the stand-in has no refs
 
 
 def test_the_console_names_the_views_and_says_their_colour_is_a_fill():
@@ -66,9 +66,11 @@ def test_the_console_names_the_views_and_says_their_colour_is_a_fill():
     from furrow.cmd_model import _print_matte_inputs
 
     console = Console(record=True, width=400)
-    _print_matte_inputs(console, {"blown_background": {"pixels": 9, "views": [6, 13], "shares": [0.553, 0.14]}})
+    _print_matte_inputs(console, {"blown_background": {"pixels": 9, "views": [6, 13], "shares": [0.553, 0.14],
+                                                       "names": ["images/r0_v012.png", "images/r0_v026.png"]}})
     text = console.export_text()
-    assert "views 6 (55%), 13 (14%)" in text and "blown-out background" in text and "not a measurement" in text
+    assert "views images/r0_v012.png (55%), images/r0_v026.png (14%)" in text
+    assert "blown-out background" in text and "not a measurement" in text
     console = Console(record=True, width=400)
     _print_matte_inputs(console, {"blown_background": {"pixels": 3, "views": [], "shares": []}})
     assert console.export_text() == ""
