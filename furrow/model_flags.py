@@ -10,6 +10,11 @@ import argparse
 from functools import partial
 
 
+def _auto_off(g, flag: str, text: str) -> None:
+    """An ``auto`` | ``off`` switch of the model flags (``auto`` by default); ``text``: its help."""
+    g.add_argument(flag, choices=["auto", "off"], default="auto", help=text)
+
+
 def _pow2(text: str) -> int:
     try:
         v = int(text)
@@ -118,12 +123,12 @@ def _add_camera_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--no-photometric", action="store_true",
                    help="do not align the views' exposure and white balance (default: a per-view, per-channel "
                         "gain in linear light estimated from what neighbouring views see of the same surface)")
-    g.add_argument("--photometric-background", choices=["auto", "off"], default="auto",
-                   help="where the background plate saw no exposure change but the object's cells ask for gains, "
-                        "ask the background too (capture/photometric_background.py: each view's background ring "
-                        "against the other views' prediction of it): auto (default: gains that make the rings "
-                        "less alike in most views are refused, the console says why; a fixed-exposure furry bunny "
-                        "orbit had been given 0.38 EV, 0.15 dB held out) or off (the cells decide alone)")
+    _auto_off(g, "--photometric-background",
+              "where the background plate saw no exposure change but the object's cells ask for gains, "
+              "ask the background too (capture/photometric_background.py: each view's background ring "
+              "against the other views' prediction of it): auto (default: gains that make the rings "
+              "less alike in most views are refused, the console says why; a fixed-exposure furry bunny "
+              "orbit had been given 0.38 EV, 0.15 dB held out) or off (the cells decide alone)")
     g.add_argument("--photometric-reference", default="mean", metavar="NAME",
                    help="whose colour the aligned views keep: 'mean' (default: the mean of the views' log gains, "
                         "per channel, kept at 0), 'median' (the median view in each channel), or a view's name")
@@ -158,13 +163,13 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                    help="plates you shot without the object (the same path, or a fixed camera): one image per "
                         "frame named like the frame's colour image, or one image for every frame "
                         "(capture/plate_io.py)")
-    g.add_argument("--plate-denoise", choices=["auto", "off"], default="auto",
-                   help="the frames' sensor noise, measured (capture/noise.py, at two scales so that a camera's "
-                        "demosaicing and JPEG do not hide it; a room's texture that stays put between frames is not "
-                        "noise): auto (default: where it is at least 1 8-bit step, the plate is made from the frames "
-                        "through a bilateral filter on the scale of the noise, unless 12 views' plates say the "
-                        "smoothed frames predict the held-back background worse (capture/noise_check.py); the matte "
-                        "still reads the photos; the figures in the plate record and on the console) or off")
+    _auto_off(g, "--plate-denoise",
+              "the frames' sensor noise, measured (capture/noise.py, at two scales so that a camera's "
+              "demosaicing and JPEG do not hide it; a room's texture that stays put between frames is not "
+              "noise): auto (default: where it is at least 1 8-bit step, the plate is made from the frames "
+              "through a bilateral filter on the scale of the noise, unless 12 views' plates say the "
+              "smoothed frames predict the held-back background worse (capture/noise_check.py); the matte "
+              "still reads the photos; the figures in the plate record and on the console) or off")
     g.add_argument("--blurred-views", choices=["keep", "leave out", "off"], default="keep",
                    help="frames blurred where the others are sharp (a shaken camera), found by a fixed camera's "
                         "background plate (capture/blurred_views.py: the kernel that takes the plate to the photo "
@@ -172,25 +177,25 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
                         "console and in the plate record, kept in the model), 'leave out' (left out of the model "
                         "while 60%% of the views stay: a conifer before a bright sky gained 3.4 dB held out, a fur "
                         "ball lost 1.1) or off (not tested)")
-    g.add_argument("--vignetting", choices=["auto", "off"], default="auto",
-                   help="a moving camera's lens vignetting (its image darker towards the corners), measured on the "
-                        "background the views share (capture/vignetting.py: the panorama plate's held-back pixels "
-                        "seen by two views at different radii): auto (default: taken out of every frame where it "
-                        "beats none on held-back pixels by 5 standard errors and changes the image by 3%% or more; "
-                        "half a stop cost a path-traced conifer orbit 1.1 dB held out, 0.4 taken out) or off (not "
-                        "measured; a fixed camera's frames are never measured: its background sits at the same "
-                        "pixels in every frame, and its turntable lost nothing to half a stop)")
-    g.add_argument("--plate-shadow", choices=["auto", "off"], default="auto",
-                   help="a fixed camera's plate lacks the shadow the object casts on its support (it turns with the "
-                        "object): auto (default; capture/plate_shadow.py: where at least 10%% of the support just "
-                        "beside the object is darker than 0.85 of its plate, the plate is lit as the frame is there "
-                        "and the frames' lines' estimates on the table count as unknown; fur on a table: alpha MSE "
-                        "0.0161 -> 0.0094 held out) or off")
-    g.add_argument("--jpeg-chroma", choices=["auto", "off"], default="auto",
-                   help="JPEG frames whose chroma is stored at half resolution (a phone's 4:2:0, read from each "
-                        "file's header; capture/jpeg_chroma.py): auto (default: the matte's alpha bound allows the "
-                        "chroma the decoder smeared beside every edge of colour; a path-traced JPEG conifer "
-                        "turntable +0.78 dB held out) or off (read as any frame)")
+    _auto_off(g, "--vignetting",
+              "a moving camera's lens vignetting (its image darker towards the corners), measured on the "
+              "background the views share (capture/vignetting.py: the panorama plate's held-back pixels "
+              "seen by two views at different radii): auto (default: taken out of every frame where it "
+              "beats none on held-back pixels by 5 standard errors and changes the image by 3%% or more; "
+              "half a stop cost a path-traced conifer orbit 1.1 dB held out, 0.4 taken out) or off (not "
+              "measured; a fixed camera's frames are never measured: its background sits at the same "
+              "pixels in every frame, and its turntable lost nothing to half a stop)")
+    _auto_off(g, "--plate-shadow",
+              "a fixed camera's plate lacks the shadow the object casts on its support (it turns with the "
+              "object): auto (default; capture/plate_shadow.py: where at least 10%% of the support just "
+              "beside the object is darker than 0.85 of its plate, the plate is lit as the frame is there "
+              "and the frames' lines' estimates on the table count as unknown; fur on a table: alpha MSE "
+              "0.0161 -> 0.0094 held out) or off")
+    _auto_off(g, "--jpeg-chroma",
+              "JPEG frames whose chroma is stored at half resolution (a phone's 4:2:0, read from each "
+              "file's header; capture/jpeg_chroma.py): auto (default: the matte's alpha bound allows the "
+              "chroma the decoder smeared beside every edge of colour; a path-traced JPEG conifer "
+              "turntable +0.78 dB held out) or off (read as any frame)")
     g.add_argument("--matte-resolution", choices=["full", "working"], default="working",
                    help="where a solved matte (estimated from the depth, or with a known background: plate, "
                         "backdrop) is solved: working (default; capture/matting_scale.py: on a copy scaled so that "
