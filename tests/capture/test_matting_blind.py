@@ -259,3 +259,20 @@ def test_where_no_frame_saw_the_background_the_prior_brings_alpha_nearer_the_tru
             if flag:
                 assert m.notes["blind_prior"]["used"] and m.notes["blind_prior"]["unseen"] > 300
     assert np.mean(on) <= BEAT_BLIND * np.mean(off), (on, off)
+
+
+def test_where_no_frame_saw_the_background_a_depth_that_says_nothing_is_refused(monkeypatch):
+    """The defeat case of UNSEEN_PRIOR: the plate unknown left of WINDOW_COLUMNS and a depth mask unrelated to the
+    needles (seeded noise): the coverage explains nothing on held-back pixels, no prior is given (the same alpha as
+    with the prior off) and the record says why."""
+    C, plate, A, F, D = _scene(1, None)
+    tri = depth_trimap(D)
+    known = np.ones(C.shape[:2], bool)
+    known[:, :WINDOW_COLUMNS] = False
+    noise = np.random.default_rng(5).random(D.shape) < 0.5
+    on = solve_known(C, tri, plate, known, 0.004, "plate", noise)
+    rec = on.notes["blind_prior"]
+    assert rec["unseen"] > 300 and not rec["used"] and "explains nothing" in rec["reason"], rec
+    monkeypatch.setattr(mb, "UNSEEN_PRIOR", False)
+    off = solve_known(C, tri, plate, known, 0.004, "plate", noise)
+    np.testing.assert_array_equal(on.alpha, off.alpha)
