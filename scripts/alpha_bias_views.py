@@ -21,15 +21,18 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import sys
+from pathlib import Path
 
 import numpy as np
 
-from capture.extent import remove_surroundings
-from capture.io import read_scanset
 from capture.matting import MatteConfig, matte_scan, warm_up
 from capture.matting_known import CLIP_LEVEL
-from capture.plate import PlateConfig, PlateView, background_plates
+from capture.plate import PlateConfig, background_plates
 from capture.scan import Scan
+
+sys.path.insert(0, str(Path(__file__).parent))
+from plate_error_split import kept_with_twin
 
 #: The true alpha's range read (where both the true colour and the true background are readable).
 TRUE_RANGE = (0.3, 0.9)
@@ -72,11 +75,7 @@ def main(argv=None) -> None:
     p.add_argument("--frames", default="0::2", help="the kept frames (default 0::2, furrow eval --holdout 2)")
     a = p.parse_args(argv)
     warm_up()
-    ss, bs = read_scanset(a.room, a.frames), read_scanset(a.black, a.frames)
-    if any(s.alpha is None for s in ss.scans):
-        raise SystemExit(f"{a.room}: the kept frames need their true matte (mask_path)")
-    out, rep = remove_surroundings(ss)
-    views = [PlateView(o.camera, o.linear_rgb, o.depth, s.depth) for s, o in zip(ss.scans, out.scans, strict=True)]
+    ss, bs, out, rep, views = kept_with_twin(a.room, a.black, a.frames)
     plates, rec = background_plates(views, PlateConfig(), rep.plane, (rep.focus_center, rep.focus_radius))
     print(f"{a.room}: plate {rec.get('mode')}; true alpha in [{TRUE_RANGE[0]}, {TRUE_RANGE[1]}), B seen, not blown")
     print("view  pixels  alpha error: matte / with the true F   B luminance error   true B   true F")

@@ -75,6 +75,18 @@ def _background_error(scan, black, plate, seen) -> np.ndarray:
     return np.abs(plate.background - truth).max(-1)[m]
 
 
+def kept_with_twin(room: str, black: str, frames: str):
+    """(room scan set, black twin's, the room's after the extent stage, its report, the plate stage's views) of the
+    kept ``frames`` of a room capture and its black twin; SystemExit when the room's kept frames have no true matte.
+    Shared by the scripts that score the kept views against the truth (alpha_bias_views, data_term_error)."""
+    ss, bs = read_scanset(room, frames), read_scanset(black, frames)
+    if any(s.alpha is None for s in ss.scans):
+        raise SystemExit(f"{room}: the kept frames need their true matte (mask_path)")
+    out, rep = remove_surroundings(ss)
+    views = [PlateView(o.camera, o.linear_rgb, o.depth, s.depth) for s, o in zip(ss.scans, out.scans, strict=True)]
+    return ss, bs, out, rep, views
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("room")
@@ -82,11 +94,7 @@ def main(argv=None) -> None:
     p.add_argument("--frames", default="0::2", help="the kept frames (default 0::2, furrow eval --holdout 2)")
     a = p.parse_args(argv)
     warm_up()
-    ss, bs = read_scanset(a.room, a.frames), read_scanset(a.black, a.frames)
-    if any(s.alpha is None for s in ss.scans):
-        raise SystemExit(f"{a.room}: the kept frames need their true matte (mask_path)")
-    out, rep = remove_surroundings(ss)
-    views = [PlateView(o.camera, o.linear_rgb, o.depth, s.depth) for s, o in zip(ss.scans, out.scans, strict=True)]
+    ss, bs, out, rep, views = kept_with_twin(a.room, a.black, a.frames)
     plates, rec, seens = _plates(views, rep)
     err = {k: np.zeros(3) for k in CLASSES}  # estimated matte, true matte, pixels
     b_err = []
