@@ -18,7 +18,6 @@ The room capture must not have auto exposure (the black twin's photo is the trut
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import sys
@@ -32,7 +31,7 @@ from capture.plate import PlateConfig, background_plates
 from capture.scan import Scan
 
 sys.path.insert(0, str(Path(__file__).parent))
-from plate_error_split import kept_with_twin
+from plate_error_split import kept_with_twin, room_twin_args
 
 #: The true alpha's range read (where both the true colour and the true background are readable).
 TRUE_RANGE = (0.3, 0.9)
@@ -69,11 +68,7 @@ def view_row(scan, out_scan, black, plate) -> dict | None:
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("room")
-    p.add_argument("black")
-    p.add_argument("--frames", default="0::2", help="the kept frames (default 0::2, furrow eval --holdout 2)")
-    a = p.parse_args(argv)
+    a = room_twin_args(__doc__, argv)
     warm_up()
     ss, bs, out, rep, views = kept_with_twin(a.room, a.black, a.frames)
     plates, rec = background_plates(views, PlateConfig(), rep.plane, (rep.focus_center, rep.focus_radius))

@@ -75,6 +75,16 @@ def _background_error(scan, black, plate, seen) -> np.ndarray:
     return np.abs(plate.background - truth).max(-1)[m]
 
 
+def room_twin_args(doc: str, argv=None) -> argparse.Namespace:
+    """The command line of the scripts that score a room capture's kept views against its black twin: ROOM BLACK
+    [--frames SPEC]; ``doc``: the script's docstring (its first line is the description)."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    p.add_argument("room")
+    p.add_argument("black")
+    p.add_argument("--frames", default="0::2", help="the kept frames (default 0::2, furrow eval --holdout 2)")
+    return p.parse_args(argv)
+
+
 def kept_with_twin(room: str, black: str, frames: str):
     """(room scan set, black twin's, the room's after the extent stage, its report, the plate stage's views) of the
     kept ``frames`` of a room capture and its black twin; SystemExit when the room's kept frames have no true matte.
@@ -88,11 +98,7 @@ def kept_with_twin(room: str, black: str, frames: str):
 
 
 def main(argv=None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("room")
-    p.add_argument("black")
-    p.add_argument("--frames", default="0::2", help="the kept frames (default 0::2, furrow eval --holdout 2)")
-    a = p.parse_args(argv)
+    a = room_twin_args(__doc__, argv)
     warm_up()
     ss, bs, out, rep, views = kept_with_twin(a.room, a.black, a.frames)
     plates, rec, seens = _plates(views, rep)
