@@ -343,6 +343,11 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {bp['weak_pixels']} pixels before a background of nearly their own colour took the "
                       "depth coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
                       highlight=False)
+    if bp.get("empty_pixels"):  # capture.matting_blind.EMPTY_PRIOR: no coverage table, the depth saw nothing there
+        console.print(f"matte: {bp['empty_pixels']} pixels in {bp['empty_views']} view(s) before a background of "
+                      "nearly their own colour, with no object depth beside them, were pulled towards alpha 0: too "
+                      "few sure pixels taught their view a coverage table (capture.matting_blind.EMPTY_PRIOR)",
+                      highlight=False)
     if bp.get("unseen_pixels"):  # capture.matting_blind.UNSEEN_PRIOR: no background known, the photo not blown out
         console.print(f"matte: {bp['unseen_pixels']} pixels whose background no frame showed took the depth "
                       "coverage's alpha as their data term (capture.matting_blind.UNSEEN_PRIOR)", highlight=False)

@@ -424,6 +424,8 @@ def matte_record(work, notes: dict, cfg):
              "r2": [b["r2"] for b in bp if "r2" in b], "blind_pixels": sum(b["blind"] for b in bp),
              "weak_pixels": sum(b.get("weak", 0) for b in bp if b["used"]),  # those the prior went to
              "unseen_pixels": sum(b.get("unseen", 0) for b in bp if b["used"]),  # UNSEEN_PRIOR: no B, photo not blown
+             "empty_pixels": sum(b.get("empty", 0) for b in bp),  # EMPTY_PRIOR: table refused, weak, no depth near
+             "empty_views": sum(bool(b.get("empty")) for b in bp),
              "weak_share": _share(sum(b.get("weak", 0) for b in bp), sum(b.get("band", 0) for b in bp)),
              "guided_views": sum(bool(b.get("guided")) for b in bp)}  # capture.matting_guide: guide brightened
     col = [x["colour"] for x in n if "colour" in x]

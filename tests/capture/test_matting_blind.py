@@ -276,3 +276,41 @@ def test_where_no_frame_saw_the_background_a_depth_that_says_nothing_is_refused(
     monkeypatch.setattr(mb, "UNSEEN_PRIOR", False)
     off = solve_known(C, tri, plate, known, 0.004, "plate", noise)
     np.testing.assert_array_equal(on.alpha, off.alpha)
+
+
+def test_where_the_table_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(monkeypatch):
+    """capture.matting_blind.EMPTY_PRIOR (docs/matting.md "A night park", stop 74): with too few sure pixels to train
+    the coverage table, a weak pixel (weight in (0, MIN_CONFIDENCE), photo not clipped) whose coverage box holds no
+    object depth gets target w t / (w + q), weight w + q, q = EMPTY_PRIOR (1 - w / MIN_CONFIDENCE); weak pixels with
+    depth beside them, sure ones and the rest keep theirs; a trained table, or EMPTY_PRIOR 0, leaves the rule out."""
+    rng = np.random.default_rng(5)
+    h, w = 64, 64
+    mask = np.zeros((h, w), bool)
+    mask[:, :32] = rng.random((h, 32)) < 0.5  # object depth on the left half only
+    unknown = np.ones((h, w), bool)
+    weight = np.full((h, w), 0.1)  # weak everywhere (a background of the needles' own colour) ...
+    sure = rng.random((h, w)) < 0.01
+    weight[sure] = 0.8  # ... but for a few sure pixels: too few to train a table (MIN_TRAIN a half)
+    target = np.full((h, w), 0.4)  # the Laplacian's grey veil the weak data allows
+    image = np.full((h, w, 3), 0.05)
+    monkeypatch.setattr(mb, "WEAK_PRIOR", True)
+    monkeypatch.setattr(mb, "EMPTY_PRIOR", 0.5)
+    t, wt, rec = mb.blind_prior(image, unknown, target, weight, mask)
+    empty = (weight < mb.MIN_CONFIDENCE) & (mb.coverage(mask) <= 0)
+    assert not rec["used"] and rec["reason"] == "too few known pixels" and rec["empty"] == int(empty.sum()) > 500, rec
+    q = 0.5 * (1 - 0.1 / mb.MIN_CONFIDENCE)
+    np.testing.assert_allclose(t[empty], 0.1 * 0.4 / (0.1 + q))  # 0.4 -> 0.1: towards the empty depth's 0
+    np.testing.assert_allclose(wt[empty], 0.1 + q)
+    np.testing.assert_array_equal(t[~empty], target[~empty])
+    np.testing.assert_array_equal(wt[~empty], weight[~empty])
+    monkeypatch.setattr(mb, "EMPTY_PRIOR", 0.0)
+    t0, w0, rec0 = mb.blind_prior(image, unknown, target, weight, mask)
+    assert rec0["empty"] == 0
+    np.testing.assert_array_equal(t0, target)
+    np.testing.assert_array_equal(w0, weight)
+    monkeypatch.setattr(mb, "EMPTY_PRIOR", 0.5)
+    many = rng.random((h, w)) < 0.5  # enough sure pixels: the table is trained and the rule stays out
+    weight2 = np.where(many, 0.8, 0.1)
+    target2 = np.where(many, mb.coverage(mask), 0.4)
+    t2, _, rec2 = mb.blind_prior(image, unknown, target2, weight2, mask)
+    assert rec2["used"] and "empty" not in rec2, rec2
