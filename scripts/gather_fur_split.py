@@ -124,10 +124,11 @@ def report_sweep(held, M) -> None:
         print(f"{over or 'default'}: {fmt(mean_scores(held, frames))}", flush=True)
 
 
-def render_again(case: str, env_dir: Path | None, views, runs) -> dict:
+def render_again(case: str, opts, views, runs) -> dict:
     """{(view, tag): linear premultiplied colour over black} of the capture's ``case`` rendered by Mitsuba as
     datasets_synthetic.pathtraced.render.render_views renders it (room turn, reconstruction filter), with
-    ``runs`` ((tag, spp or 0 = the case's, seed offset added to the case's seed) each)."""
+    ``runs`` ((tag, spp or 0 = the case's, seed offset added to the case's seed) each); ``opts``: the
+    cases.Options the capture was made with (its env_dir, seed, room_map, room_rotation: :func:`case_options`)."""
     from datasets_synthetic.lighting import resolve_env
     from datasets_synthetic.pathtraced import cases
     from datasets_synthetic.pathtraced.film import render_view
@@ -136,7 +137,6 @@ def render_again(case: str, env_dir: Path | None, views, runs) -> dict:
     from datasets_synthetic.pathtraced.scene import PathScene, Room, exposure_for
 
     load_mitsuba()
-    opts = cases.Options(out=Path("."), cache=Path("."), env_dir=env_dir)
     spec = cases.case_spec(case, opts)
     obj = spec.build_object()
     cams = spec.cameras(obj)
@@ -153,7 +153,7 @@ def render_again(case: str, env_dir: Path | None, views, runs) -> dict:
     return out
 
 
-def report_noise(cap, M, view: int, case: str, env_dir, spp: int, holdout: int = 2) -> None:
+def report_noise(cap, M, view: int, case: str, opts, spp: int, holdout: int = 2) -> None:
     """The reference's own noise and gather against converged renders, for held-out view ``view``."""
     scans = read_scanset(cap).scans
     kept = [i for i in range(len(scans)) if i % holdout == 0]
@@ -161,8 +161,8 @@ def report_noise(cap, M, view: int, case: str, env_dir, spp: int, holdout: int =
         raise SystemExit(f"the model kept {len(M['cams'])} of the {len(kept)} kept frames: build it with --views all")
     scan = scans[view]
     nb = pr.nearest_views(scan.camera, M["cams"], M["centre"], g.GatherConfig().k_blend)[0]
-    r = render_again(case, env_dir, [view], (("other", 0, 3), ("conv", spp, 7)))
-    r.update(render_again(case, env_dir, [kept[i] for i in nb], (("conv", spp, 7),)))
+    r = render_again(case, opts, [view], (("other", 0, 3), ("conv", spp, 7)))
+    r.update(render_again(case, opts, [kept[i] for i in nb], (("conv", spp, 7),)))
     ref, other, conv = scan.srgb8, metrics.as_srgb8(r[view, "other"]), metrics.as_srgb8(r[view, "conv"])
     rgb = M["rgb"].copy()
     for i in nb:
@@ -180,12 +180,12 @@ def report_noise(cap, M, view: int, case: str, env_dir, spp: int, holdout: int =
               f"(MSE {mse(conv, f):6.1f}, sharpness {metrics.sharpness_ratio(conv, f, U):.3f})")
 
 
-def report_converged(held, M, case: str, env_dir, spp: int, cache: Path | None) -> None:
+def report_converged(held, M, case: str, opts, spp: int, cache: Path | None) -> None:
     """Gather and the point splatter scored as furrow eval against every held-out view rendered again at
     ``spp`` (the truth up to 1/``spp`` of the noise) and against the capture's own views."""
     path = lambda i: (cache or Path(".")) / f"v{i:03d}_{spp}spp.npy"
     todo = [i for i, _ in held if cache is None or not path(i).is_file()]
-    fresh = render_again(case, env_dir, todo, (("conv", spp, 7),)) if todo else {}
+    fresh = render_again(case, opts, todo, (("conv", spp, 7),)) if todo else {}
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
         for i in todo:
@@ -204,6 +204,15 @@ def report_converged(held, M, case: str, env_dir, spp: int, cache: Path | None) 
           f"{fmt({k: float(np.nanmean([r[k] for r in recs])) for k in own})}")
 
 
+def case_options(a):
+    """cases.Options of the capture's case from the command line (``--env-dir``, ``--seed``, ``--room-map``,
+    ``--room-rotation``: those scripts/hardcases.py made it with)."""
+    from datasets_synthetic.pathtraced import cases
+
+    return cases.Options(out=Path("."), cache=Path("."), env_dir=a.env_dir, seed=a.seed, room_map=a.room_map,
+                         room_rotation=a.room_rotation)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("capture", help="the capture furrow eval scored (its held-out views carry the true matte)")
@@ -213,6 +222,9 @@ def main(argv=None) -> None:
     ap.add_argument("--noise", type=int, metavar="VIEW", help="a held-out view rendered again by Mitsuba")
     ap.add_argument("--case", default="fur_similar_bg", help="the scripts/hardcases.py case of the capture")
     ap.add_argument("--env-dir", type=Path, help="scripts/hardcases.py --env-dir")
+    ap.add_argument("--seed", type=int, default=0, help="scripts/hardcases.py --seed the capture was made with")
+    ap.add_argument("--room-map", help="scripts/hardcases.py --room-map the capture was made with")
+    ap.add_argument("--room-rotation", type=float, help="scripts/hardcases.py --room-rotation of the capture")
     ap.add_argument("--spp", type=int, default=128, help="samples per pixel of the converged renders")
     ap.add_argument("--converged", action="store_true", help="every held-out view rendered again at --spp: "
                     "gather and points scored against them")
@@ -225,9 +237,9 @@ def main(argv=None) -> None:
     if a.sweep:
         report_sweep(held, M)
     if a.noise is not None:
-        report_noise(a.capture, M, a.noise, a.case, a.env_dir, a.spp, a.holdout)
+        report_noise(a.capture, M, a.noise, a.case, case_options(a), a.spp, a.holdout)
     if a.converged:
-        report_converged(held, M, a.case, a.env_dir, a.spp, a.cache)
+        report_converged(held, M, a.case, case_options(a), a.spp, a.cache)
 
 
 if __name__ == "__main__":
