@@ -131,19 +131,20 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
         return target, weight, dict(rec, used=False, reason="off" if not BLIND_PRIOR else
                                     "no depth" if mask is None else "nothing blown out")
     cov = coverage(mask)
+    empty = weak & (cov <= 0)  # EMPTY_PRIOR's pixels, where the table is refused
     train = np.asarray(unknown, bool) & (weight >= MIN_CONFIDENCE) & lit
     yy, xx = np.nonzero(train)
     half = ((yy // HOLDOUT_BLOCK + xx // HOLDOUT_BLOCK) % 2).astype(bool)
     rec["train"] = int(train.sum())
     if min(half.sum(), (~half).sum()) < MIN_TRAIN:
-        return _empty_prior(target, weight, weak & (cov <= 0), dict(rec, used=False, reason="too few known pixels"))
+        return _empty_prior(target, weight, empty, dict(rec, used=False, reason="too few known pixels"))
     x, y, w = cov[train], target[train], weight[train]
     edges = np.unique(np.quantile(x, np.linspace(0, 1, COVERAGE_BINS + 1)[1:-1]))
     r2 = 0.5 * (_r2(x, y, w, edges, half, ~half) + _r2(x, y, w, edges, ~half, half))
     rec["r2"] = round(r2, 4)
     if r2 <= 0:
-        return _empty_prior(target, weight, weak & (cov <= 0),
-                            dict(rec, used=False, reason="coverage explains nothing on held-back pixels"))
+        return _empty_prior(target, weight, empty, dict(rec, used=False,
+                                                        reason="coverage explains nothing on held-back pixels"))
     prior = _table(x, y, w, edges)[np.digitize(cov, edges)]
     pw = np.where(weak, r2 * (1.0 - weight / MIN_CONFIDENCE), 0.0)  # WEAK_PRIOR: beside a weak data term
     mixed = (weight * target + pw * prior) / np.maximum(weight + pw, 1e-12)
