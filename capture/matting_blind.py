@@ -28,7 +28,8 @@ docs/matting.md "Where no frame saw the background").
 
 Where the table is refused, a weak pixel whose coverage box holds no object depth is pulled towards alpha 0
 (``EMPTY_PRIOR``: a needle before a background of its own colour, the table without sure pixels to learn from; stop
-74, docs/matting.md "A night park").
+74, docs/matting.md "A night park"), unless the depth has too many holes to be trusted where it saw nothing
+(``EMPTY_MAX_HOLES``, :func:`depth_holes`; stop 75).
 """
 
 from __future__ import annotations
@@ -80,11 +81,32 @@ UNSEEN_PRIOR = True
 #: rendered after the choice +0.14; nothing moved on the 24 other captures (every table trained; docs/matting.md,
 #: stop 74).  0: off.
 EMPTY_PRIOR = 0.5
+#: EMPTY_PRIOR trusts the depth's emptiness; a depth that misses needles makes it wrong.  Its guard: the depth's own
+#: hole rate (:func:`depth_holes`, the share of pixels without object depth among those with object depth at
+#: HOLE_NEIGHBOURS or more of their 8 neighbours); above EMPTY_MAX_HOLES the rule is refused and the record says so.
+#: The night conifer turntable (clean path-traced depth 0.16-0.18 a view) with its depth pixels knocked out at random
+#: (scripts/depth_dropout.py): 10 % -> 0.23-0.27, the rule +0.22 dB held out; 20 % -> 0.32-0.36, the rule -0.13;
+#: 30 % -> 0.40-0.48, the rule -0.26 (docs/matting.md "A depth that misses needles", stop 75).
+EMPTY_MAX_HOLES = 0.3
+#: Neighbours (of 8) with object depth that make a pixel the depth's interior for :func:`depth_holes`.
+HOLE_NEIGHBOURS = 6
+#: Fewest interior pixels for :func:`depth_holes` to be measured: fewer and EMPTY_PRIOR is refused (cannot check).
+MIN_INTERIOR = 200
 
 
 def coverage(mask: np.ndarray, radius: int = COVERAGE_RADIUS) -> np.ndarray:
     """(h, w) share of pixels with object depth (``mask``) in each pixel's (2 radius + 1)^2 box."""
     return ndimage.uniform_filter(np.asarray(mask, np.float64), 2 * radius + 1, mode="constant")
+
+
+def depth_holes(mask: np.ndarray) -> tuple[float, int]:
+    """(hole rate, interior pixels) of the object depth ``mask`` (h, w) bool: among the pixels with object depth at
+    HOLE_NEIGHBOURS or more of their 8 neighbours (the interior), the share without object depth themselves."""
+    m = np.asarray(mask, bool)
+    box = ndimage.uniform_filter(m.astype(np.float64), 3, mode="constant") * 9.0
+    inner = (box - m) >= HOLE_NEIGHBOURS - 0.5
+    n = int(inner.sum())
+    return (float((inner & ~m).sum()) / n if n else 1.0), n
 
 
 def _table(x: np.ndarray, y: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -137,14 +159,14 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
     half = ((yy // HOLDOUT_BLOCK + xx // HOLDOUT_BLOCK) % 2).astype(bool)
     rec["train"] = int(train.sum())
     if min(half.sum(), (~half).sum()) < MIN_TRAIN:
-        return _empty_prior(target, weight, empty, dict(rec, used=False, reason="too few known pixels"))
+        return _empty_prior(target, weight, empty, mask, dict(rec, used=False, reason="too few known pixels"))
     x, y, w = cov[train], target[train], weight[train]
     edges = np.unique(np.quantile(x, np.linspace(0, 1, COVERAGE_BINS + 1)[1:-1]))
     r2 = 0.5 * (_r2(x, y, w, edges, half, ~half) + _r2(x, y, w, edges, ~half, half))
     rec["r2"] = round(r2, 4)
     if r2 <= 0:
-        return _empty_prior(target, weight, empty, dict(rec, used=False,
-                                                        reason="coverage explains nothing on held-back pixels"))
+        return _empty_prior(target, weight, empty, mask, dict(rec, used=False,
+                                                              reason="coverage explains nothing on held-back pixels"))
     prior = _table(x, y, w, edges)[np.digitize(cov, edges)]
     pw = np.where(weak, r2 * (1.0 - weight / MIN_CONFIDENCE), 0.0)  # WEAK_PRIOR: beside a weak data term
     mixed = (weight * target + pw * prior) / np.maximum(weight + pw, 1e-12)
@@ -152,11 +174,18 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
     return target, np.where(blind, r2, weight + pw), dict(rec, used=True)
 
 
-def _empty_prior(target: np.ndarray, weight: np.ndarray, empty: np.ndarray, rec: dict) -> tuple:
+def _empty_prior(target: np.ndarray, weight: np.ndarray, empty: np.ndarray, mask: np.ndarray, rec: dict) -> tuple:
     """(target, weight, record) with the ``empty`` pixels (weak, no object depth in their coverage box) pulled towards
-    alpha 0 by EMPTY_PRIOR (its comment); the record counts them (``empty``)."""
+    alpha 0 by EMPTY_PRIOR (its comment) unless the depth ``mask`` has too many holes to be trusted empty
+    (EMPTY_MAX_HOLES); the record counts them (``empty``) and, where refused, the pixels (``empty_refused``) and why
+    (``empty_reason``); ``depth_holes``: the hole rate measured."""
     if EMPTY_PRIOR <= 0 or not empty.any():
         return target, weight, dict(rec, empty=0)
+    holes, inner = depth_holes(mask)
+    rec = dict(rec, depth_holes=round(holes, 4))
+    if inner < MIN_INTERIOR or holes > EMPTY_MAX_HOLES:
+        why = "too little depth to check it" if inner < MIN_INTERIOR else "the depth has holes"
+        return target, weight, dict(rec, empty=0, empty_refused=int(empty.sum()), empty_reason=why)
     q = np.where(empty, EMPTY_PRIOR * (1.0 - weight / MIN_CONFIDENCE), 0.0)
     t = np.where(empty, weight * target / np.maximum(weight + q, 1e-12), target)
     return t, weight + q, dict(rec, empty=int(empty.sum()))

@@ -426,6 +426,9 @@ def matte_record(work, notes: dict, cfg):
              "unseen_pixels": sum(b.get("unseen", 0) for b in bp if b["used"]),  # UNSEEN_PRIOR: no B, photo not blown
              "empty_pixels": sum(b.get("empty", 0) for b in bp),  # EMPTY_PRIOR: table refused, weak, no depth near
              "empty_views": sum(bool(b.get("empty")) for b in bp),
+             "empty_refused_pixels": sum(b.get("empty_refused", 0) for b in bp),  # EMPTY_MAX_HOLES: depth with holes
+             "empty_refused_views": sum(bool(b.get("empty_refused")) for b in bp),
+             "depth_holes": [b["depth_holes"] for b in bp if "depth_holes" in b],
              "weak_share": _share(sum(b.get("weak", 0) for b in bp), sum(b.get("band", 0) for b in bp)),
              "guided_views": sum(bool(b.get("guided")) for b in bp)}  # capture.matting_guide: guide brightened
     col = [x["colour"] for x in n if "colour" in x]

@@ -286,7 +286,7 @@ def test_where_the_table_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(mon
     rng = np.random.default_rng(5)
     h, w = 64, 64
     mask = np.zeros((h, w), bool)
-    mask[:, :32] = rng.random((h, 32)) < 0.5  # object depth on the left half only
+    mask[:, :32] = rng.random((h, 32)) < 0.95  # object depth on the left half only, few holes (EMPTY_MAX_HOLES)
     unknown = np.ones((h, w), bool)
     weight = np.full((h, w), 0.1)  # weak everywhere (a background of the needles' own colour) ...
     sure = rng.random((h, w)) < 0.01
@@ -314,3 +314,50 @@ def test_where_the_table_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(mon
     target2 = np.where(many, mb.coverage(mask), 0.4)
     t2, _, rec2 = mb.blind_prior(image, unknown, target2, weight2, mask)
     assert rec2["used"] and "empty" not in rec2, rec2
+
+
+def test_depth_holes_counts_the_pixels_missing_inside_the_depth():
+    """capture.matting_blind.depth_holes: a solid block with every fifth pixel of a lattice removed (isolated holes,
+    each with all 8 neighbours in the depth) has hole rate holes / (interior pixels), counted by hand."""
+    m = np.zeros((40, 40), bool)
+    m[5:35, 5:35] = True
+    holes = np.zeros_like(m)
+    holes[10:30:5, 10:30:5] = True  # 16 isolated holes, far from the block's edge
+    m &= ~holes
+    rate, n = mb.depth_holes(m)
+    # the block's border pixels have 5 (corners 3) neighbours in depth, every pixel of its inner 28 x 28 (the holes
+    # included) 7 or 8: the interior is the inner 28 x 28
+    inner = 28 * 28
+    assert n == inner and rate == 16 / inner, (rate, n)
+    assert mb.depth_holes(np.zeros((10, 10), bool)) == (1.0, 0)
+
+
+def test_a_depth_with_holes_refuses_the_empty_prior(monkeypatch):
+    """capture.matting_blind.EMPTY_MAX_HOLES (docs/matting.md "A depth that misses needles", stop 75): the scene of the
+    test above with 40 % of its depth pixels lost (a sensor that misses needles) measures a hole rate above
+    EMPTY_MAX_HOLES and leaves target and weight as the data term gave them, the record saying why and how many pixels
+    it did not take; a depth too small to measure is refused too."""
+    rng = np.random.default_rng(5)
+    h, w = 64, 64
+    dense = np.zeros((h, w), bool)
+    dense[:, :32] = rng.random((h, 32)) < 0.95
+    lossy = dense & (rng.random((h, w)) >= 0.4)
+    weight = np.where(rng.random((h, w)) < 0.01, 0.8, 0.1)
+    target = np.full((h, w), 0.4)
+    image = np.full((h, w, 3), 0.05)
+    unknown = np.ones((h, w), bool)
+    monkeypatch.setattr(mb, "WEAK_PRIOR", True)
+    monkeypatch.setattr(mb, "EMPTY_PRIOR", 0.5)
+    _, _, rec_d = mb.blind_prior(image, unknown, target, weight, dense)
+    assert rec_d["empty"] > 500 and rec_d["depth_holes"] <= mb.EMPTY_MAX_HOLES and "empty_reason" not in rec_d, rec_d
+    t, wt, rec = mb.blind_prior(image, unknown, target, weight, lossy)
+    assert rec["depth_holes"] > mb.EMPTY_MAX_HOLES and rec["empty"] == 0, rec
+    assert rec["empty_reason"] == "the depth has holes", rec
+    assert rec["empty_refused"] == int(((weight < mb.MIN_CONFIDENCE) & (mb.coverage(lossy) <= 0)).sum()) > 500, rec
+    np.testing.assert_array_equal(t, target)
+    np.testing.assert_array_equal(wt, weight)
+    tiny = np.zeros((h, w), bool)
+    tiny[30:36, 10:16] = True  # 36 pixels of depth: an interior of 16, fewer than MIN_INTERIOR
+    t3, _, rec3 = mb.blind_prior(image, unknown, target, weight, tiny)
+    assert rec3["empty_reason"] == "too little depth to check it" and rec3["empty"] == 0, rec3
+    np.testing.assert_array_equal(t3, target)
