@@ -41,11 +41,13 @@ MAX_GROWTH = 1.25
 #: cost the same at 60 lines as at 720: shrinking below that buys a few percent of frame rate for
 #: a picture 10x blurrier; measured in docs/viewer.md).
 MIN_PIXEL_SHARE = 1.0 / 3.0
-#: ... but never more than MAX_STRETCH x the budget (at the default 12 fps: 8 fps at the least by
-#: the model's own account): under a load of 10 the fixed cost read from the frames drifted from 26
+#: ... but never more than MAX_STRETCH x the budget (at the default 12 fps: 10 fps at the least by
+#: the model's own account, issue 32's floor): under a load of 10 the fixed cost read from the frames drifted from 26
 #: to 51 ms of CPU, and an unbounded stretch then sized 3.5 fps full-size frames (measured).  Above
-#: it the frames shrink to the budget as they always did.
-MAX_STRETCH = 1.5
+#: it the frames shrink to the budget as they always did.  1.5 (8 fps) until stop 75: on a quiet machine its third
+#: drags grew to 540-630 lines at 7.8-10.5 fps (browser bench medians 10.2 / 11.5 / 9.5 / 11.3 fps over four runs, 3
+#: of 12 drags under 10); 1.2: 11.4 / 10.5 / 10.3 / 11.2 fps at 450-472 lines, 1 of 12 under 10 (docs/viewer.md).
+MAX_STRETCH = 1.2
 #: Recent moving frames the cost model is fitted to, and recent full-size one-sample frames kept
 #: beside them (same renderer and settings: they pin the per-pixel slope).
 HISTORY = 8
