@@ -16,8 +16,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
-from capture.atomic import write_json
+from hide_mattes import write_copy  # scripts/ is the script's own folder on sys.path
 
 
 def main(argv=None) -> Path:
@@ -46,13 +45,7 @@ def main(argv=None) -> Path:
         cv2.imwrite(str(tmp), d)
         tmp.replace(a.out / rel)
         fr["depth_file_path"] = rel
-    for entry in a.capture.iterdir():
-        link = a.out / entry.name
-        if entry.name not in ("transforms.json", "depth_dropout") and not link.exists():
-            link.symlink_to(entry.resolve())
-    write_json(a.out / "transforms.json", t)
-    print(a.out)
-    return a.out
+    return write_copy(a.capture, a.out, t, own=("depth_dropout",))
 
 
 if __name__ == "__main__":

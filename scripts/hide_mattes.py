@@ -30,14 +30,20 @@ def main(argv=None) -> Path:
     for i, fr in enumerate(t["frames"]):
         if i % a.holdout == 0:
             fr.pop("mask_path", None)
-    a.out.mkdir(parents=True, exist_ok=True)
-    for entry in a.capture.iterdir():
-        link = a.out / entry.name
-        if entry.name != "transforms.json" and not link.exists():
+    return write_copy(a.capture, a.out, t)
+
+
+def write_copy(capture: Path, out: Path, transforms: dict, own: tuple = ()) -> Path:
+    """OUT with ``transforms`` as its transforms.json and a symbolic link to every other entry of ``capture`` but the
+    names in ``own`` (what the copy writes itself); prints and returns OUT."""
+    out.mkdir(parents=True, exist_ok=True)
+    for entry in capture.iterdir():
+        link = out / entry.name
+        if entry.name != "transforms.json" and entry.name not in own and not link.exists():
             link.symlink_to(entry.resolve())
-    write_json(a.out / "transforms.json", t)
-    print(a.out)
-    return a.out
+    write_json(out / "transforms.json", transforms)
+    print(out)
+    return out
 
 
 if __name__ == "__main__":
