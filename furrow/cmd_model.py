@@ -351,11 +351,14 @@ def _print_matte_data(console, m: dict) -> None:
     if bp.get("empty_refused_pixels"):  # capture.matting_blind.EMPTY_MAX_HOLES: a depth that may miss needles
         from capture.matting_blind import EMPTY_MAX_HOLES
 
-        h = [x for x in bp.get("depth_holes") or [] if x > EMPTY_MAX_HOLES] or [0.0]
-        console.print(f"matte: in {bp['empty_refused_views']} view(s) the depth has holes ({min(h):.0%}-{max(h):.0%} "
-                      "of its interior, more than capture.matting_blind.EMPTY_MAX_HOLES): where it saw nothing may be "
-                      f"needles, so {bp['empty_refused_pixels']} weak pixels were not pulled towards alpha 0 and the "
-                      "Laplacian alone decides them", highlight=False)
+        h = [x for x in bp.get("depth_holes") or [] if x > EMPTY_MAX_HOLES]
+        why = (f"the depth has holes ({min(h):.0%}-{max(h):.0%} of its interior, more than "
+               "capture.matting_blind.EMPTY_MAX_HOLES)" if h else "too little depth to check it")
+        if h and "too little depth to check it" in (bp.get("empty_refused_reasons") or []):
+            why += " or too little depth to check it"
+        console.print(f"matte: in {bp['empty_refused_views']} view(s) {why}: where it saw nothing may be needles, so "
+                      f"{bp['empty_refused_pixels']} weak pixels were not pulled towards alpha 0 and the Laplacian "
+                      "alone decides them", highlight=False)
     if bp.get("unseen_pixels"):  # capture.matting_blind.UNSEEN_PRIOR: no background known, the photo not blown out
         console.print(f"matte: {bp['unseen_pixels']} pixels whose background no frame showed took the depth "
                       "coverage's alpha as their data term (capture.matting_blind.UNSEEN_PRIOR)", highlight=False)

@@ -346,3 +346,30 @@ def test_the_report_warns_when_the_spheres_miss_their_target(error, warned):
     said = out.getvalue()
     assert f"spheres 1452 (1 - IoU {error})" in said
     assert ("misses the target 0.2 (--sphere-error)" in said) is warned
+
+
+def test_the_report_says_where_the_empty_depth_rule_was_refused_and_why():
+    """furrow model's report names capture.matting_blind.EMPTY_MAX_HOLES when views refused EMPTY_PRIOR: the hole
+    rates above the threshold, or too little depth to check it, with the pixels left to the Laplacian; nothing when
+    no view refused it."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(bp: dict) -> str:
+        out = StringIO()
+        matte = {"mode": "auto", "methods": {"plate": 18}, "seconds_per_view": 0.1, "seconds_per_view_max": 0.2,
+                 "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1, "blind_prior": bp}
+        _print_surroundings(Console(file=out, width=400), {"matte": matte})
+        return out.getvalue()
+
+    holes = report({"empty_refused_pixels": 59789, "empty_refused_views": 8, "depth_holes": [0.2, 0.35, 0.4],
+                    "empty_refused_reasons": ["the depth has holes"]})
+    assert "in 8 view(s) the depth has holes (35%-40% of its interior" in holes and "59789 weak pixels" in holes
+    assert "too little" not in holes
+    little = report({"empty_refused_pixels": 12, "empty_refused_views": 1, "depth_holes": [0.1],
+                     "empty_refused_reasons": ["too little depth to check it"]})
+    assert "in 1 view(s) too little depth to check it" in little and "12 weak pixels" in little
+    assert "EMPTY_MAX_HOLES" not in report({"empty_refused_pixels": 0, "empty_refused_views": 0, "depth_holes": []})
