@@ -343,6 +343,11 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {bp['weak_pixels']} pixels before a background of nearly their own colour took the "
                       "depth coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
                       highlight=False)
+    if bp.get("identity_pixels"):  # capture.matting_blind.IDENTITY_PRIOR: no coverage table, the coverage itself
+        console.print(f"matte: in {bp['identity_views']} view(s) too few sure pixels taught a coverage table; "
+                      f"{bp['identity_pixels']} pixels with a weak or no data term took the depth's own coverage as "
+                      "their alpha's prior, weighed by how well it predicts the view's sure pixels "
+                      "(capture.matting_blind.IDENTITY_PRIOR)", highlight=False)
     if bp.get("empty_pixels"):  # capture.matting_blind.EMPTY_PRIOR: no coverage table, the depth saw nothing there
         console.print(f"matte: {bp['empty_pixels']} pixels in {bp['empty_views']} view(s) before a background of "
                       "nearly their own colour, with no object depth beside them, were pulled towards alpha 0: too "

@@ -428,6 +428,8 @@ def matte_record(work, notes: dict, cfg):
              "empty_views": sum(bool(b.get("empty")) for b in bp),
              "empty_refused_pixels": sum(b.get("empty_refused", 0) for b in bp),  # EMPTY_MAX_HOLES: depth with holes
              "empty_refused_views": sum(bool(b.get("empty_refused")) for b in bp),
+             "identity_pixels": sum(b.get("identity", 0) for b in bp),  # IDENTITY_PRIOR: table refused, coverage taken
+             "identity_views": sum(bool(b.get("identity")) for b in bp),
              "empty_refused_reasons": sorted({b["empty_reason"] for b in bp if "empty_reason" in b}),
              "depth_holes": [b["depth_holes"] for b in bp if "depth_holes" in b],
              "weak_share": _share(sum(b.get("weak", 0) for b in bp), sum(b.get("band", 0) for b in bp)),

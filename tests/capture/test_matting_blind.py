@@ -361,3 +361,48 @@ def test_a_depth_with_holes_refuses_the_empty_prior(monkeypatch):
     t3, _, rec3 = mb.blind_prior(image, unknown, target, weight, tiny)
     assert rec3["empty_reason"] == "too little depth to check it" and rec3["empty"] == 0, rec3
     np.testing.assert_array_equal(t3, target)
+
+
+def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch):
+    """capture.matting_blind.IDENTITY_PRIOR (docs/matting.md "The depth's coverage as alpha", stop 75): with too few
+    sure pixels for a table (MIN_TRAIN a half) but IDENTITY_MIN_TRAIN or more, whose alpha the coverage predicts
+    (R^2 > 0 against alpha = coverage, weighted), a weak pixel gets target (w t + q c) / (w + q), weight w + q,
+    q = R^2 (1 - w / MIN_CONFIDENCE), c its coverage; sure pixels keep theirs.  Sure pixels the coverage does not
+    predict (R^2 <= 0), or a depth with holes, leave it to EMPTY_PRIOR (and its own guard)."""
+    rng = np.random.default_rng(7)
+    h, w = 64, 64
+    mask = np.zeros((h, w), bool)
+    mask[:, :32] = rng.random((h, 32)) < 0.95
+    mask[:, 28:40] &= rng.random((h, 12)) < 0.5  # a sparse fringe: coverage between 0 and 1
+    cov = mb.coverage(mask)
+    sure = np.zeros((h, w), bool)
+    sure[rng.integers(0, h, 150), rng.integers(0, w, 150)] = True  # ~150 sure pixels: too few for a table
+    weight = np.where(sure, 0.8, 0.1)
+    truth = np.clip(cov + rng.normal(0, 0.05, (h, w)), 0, 1)
+    target = np.where(sure, truth, 0.4)
+    image = np.full((h, w, 3), 0.05)
+    unknown = np.ones((h, w), bool)
+    monkeypatch.setattr(mb, "WEAK_PRIOR", True)
+    monkeypatch.setattr(mb, "IDENTITY_PRIOR", True)
+    t, wt, rec = mb.blind_prior(image, unknown, target, weight, mask)
+    y, c = truth[sure], cov[sure]  # the R^2 of alpha = coverage on the sure pixels (equal weights here)
+    r2 = 1 - ((y - c) ** 2).sum() / ((y - y.mean()) ** 2).sum()
+    assert not rec["used"] and rec["reason"] == "too few known pixels" and 0.8 < r2 < 1, rec
+    assert rec["identity_r2"] == round(r2, 4), rec
+    assert rec["identity"] == int((~sure).sum()) and rec["empty"] == 0, rec
+    q = r2 * (1 - 0.1 / mb.MIN_CONFIDENCE)
+    np.testing.assert_allclose(t[~sure], ((0.1 * 0.4 + q * cov) / (0.1 + q))[~sure], atol=1e-6)
+    np.testing.assert_allclose(wt[~sure], 0.1 + q, atol=1e-6)
+    np.testing.assert_array_equal(t[sure], target[sure])
+    # sure pixels against the coverage: the coverage predicts nothing, EMPTY_PRIOR takes the empty boxes only
+    t2, _, rec2 = mb.blind_prior(image, unknown, np.where(sure, 1 - cov, 0.4), weight, mask)
+    assert rec2["identity_r2"] <= 0 and "identity" not in rec2 and rec2["empty"] > 0, rec2
+    # a depth with holes: neither rule
+    lossy = mask & (rng.random((h, w)) >= 0.4)
+    t3, w3, rec3 = mb.blind_prior(image, unknown, target, weight, lossy)
+    assert "identity" not in rec3 and rec3["empty"] == 0 and rec3["empty_reason"] == "the depth has holes", rec3
+    np.testing.assert_array_equal(t3, target)
+    np.testing.assert_array_equal(w3, weight)
+    monkeypatch.setattr(mb, "IDENTITY_PRIOR", False)
+    _, _, rec4 = mb.blind_prior(image, unknown, target, weight, mask)
+    assert "identity" not in rec4 and "identity_r2" not in rec4, rec4
