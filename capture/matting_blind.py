@@ -179,39 +179,44 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
     if r2 <= 0:
         return _refused(target, weight, cov, train, blind, weak, empty, mask,
                         dict(rec, used=False, reason="coverage explains nothing on held-back pixels"))
-    prior = _table(x, y, w, edges)[np.digitize(cov, edges)]
-    pw = np.where(weak, r2 * (1.0 - weight / MIN_CONFIDENCE), 0.0)  # WEAK_PRIOR: beside a weak data term
+    t, wt = _give(target, weight, _table(x, y, w, edges)[np.digitize(cov, edges)], r2, blind, weak)
+    return t, wt, dict(rec, used=True)
+
+
+def _give(target, weight, prior, r2: float, blind, weak) -> tuple:
+    """(target, weight) with ``prior`` (h, w) given as the data term at the ``blind`` pixels (weight ``r2``) and beside
+    the weak data term at the ``weak`` ones (WEAK_PRIOR: weight r2 (1 - w / MIN_CONFIDENCE))."""
+    pw = np.where(weak, r2 * (1.0 - weight / MIN_CONFIDENCE), 0.0)
     mixed = (weight * target + pw * prior) / np.maximum(weight + pw, 1e-12)
-    target = np.where(blind, prior, np.where(weak, mixed, target))
-    return target, np.where(blind, r2, weight + pw), dict(rec, used=True)
+    return np.where(blind, prior, np.where(weak, mixed, target)), np.where(blind, r2, weight + pw)
 
 
 def _refused(target, weight, cov, train, blind, weak, empty, mask, rec: dict) -> tuple:
     """Where the coverage table is refused: IDENTITY_PRIOR (the coverage as the prior, weighted by its R^2 on the
     ``train`` pixels; record ``identity``, ``identity_r2``) where it applies, else :func:`_empty_prior`."""
-    n = int(train.sum())
-    if IDENTITY_PRIOR and n >= IDENTITY_MIN_TRAIN:
-        holes, inner = depth_holes(mask)
+    holes = None  # the depth's hole rate, measured once for both rules
+    if IDENTITY_PRIOR and int(train.sum()) >= IDENTITY_MIN_TRAIN:
+        holes = depth_holes(mask)
         x, y, w = cov[train], target[train], weight[train]
         mu = (w * y).sum() / w.sum()
         r2 = float(1.0 - (w * (y - x) ** 2).sum() / max((w * (y - mu) ** 2).sum(), 1e-12))
-        rec = dict(rec, identity_r2=round(r2, 4), depth_holes=round(holes, 4))
-        if r2 > 0 and inner >= MIN_INTERIOR and holes <= EMPTY_MAX_HOLES:
-            pw = np.where(weak, r2 * (1.0 - weight / MIN_CONFIDENCE), 0.0)
-            mixed = (weight * target + pw * cov) / np.maximum(weight + pw, 1e-12)
-            t = np.where(blind, cov, np.where(weak, mixed, target))
-            return t, np.where(blind, r2, weight + pw), dict(rec, empty=0, identity=int((blind | weak).sum()))
-    return _empty_prior(target, weight, empty, mask, rec)
+        rec = dict(rec, identity_r2=round(r2, 4), depth_holes=round(holes[0], 4))
+        if r2 > 0 and holes[1] >= MIN_INTERIOR and holes[0] <= EMPTY_MAX_HOLES:
+            t, wt = _give(target, weight, cov, r2, blind, weak)
+            return t, wt, dict(rec, empty=0, identity=int((blind | weak).sum()))
+    return _empty_prior(target, weight, empty, mask, rec, holes)
 
 
-def _empty_prior(target: np.ndarray, weight: np.ndarray, empty: np.ndarray, mask: np.ndarray, rec: dict) -> tuple:
+def _empty_prior(target: np.ndarray, weight: np.ndarray, empty: np.ndarray, mask: np.ndarray, rec: dict,
+                 holes: tuple | None = None) -> tuple:
     """(target, weight, record) with the ``empty`` pixels (weak, no object depth in their coverage box) pulled towards
     alpha 0 by EMPTY_PRIOR (its comment) unless the depth ``mask`` has too many holes to be trusted empty
     (EMPTY_MAX_HOLES); the record counts them (``empty``) and, where refused, the pixels (``empty_refused``) and why
-    (``empty_reason``); ``depth_holes``: the hole rate measured."""
+    (``empty_reason``); ``depth_holes``: the hole rate measured (``holes``: :func:`depth_holes` of ``mask`` when
+    already measured)."""
     if EMPTY_PRIOR <= 0 or not empty.any():
         return target, weight, dict(rec, empty=0)
-    holes, inner = depth_holes(mask)
+    holes, inner = depth_holes(mask) if holes is None else holes
     rec = dict(rec, depth_holes=round(holes, 4))
     if inner < MIN_INTERIOR or holes > EMPTY_MAX_HOLES:
         why = "too little depth to check it" if inner < MIN_INTERIOR else "the depth has holes"
