@@ -276,8 +276,13 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
         raise ValueError("--matte backdrop needs --backdrop COLOUR")
     if cfg.mode == "plate" and (plate is None or not plate.known.any()):
         raise ValueError(f"scan {scan.name!r}: --matte plate but the view has no background plate")
+    refused = None  # capture.matting_choice: a detected backdrop the view's plate predicts better
     if cfg.mode == "auto" and backdrop is None:
+        from capture.matting_choice import plate_beats_backdrop
+
         backdrop = detect_backdrop(img, tri, scan.rgb)
+        if backdrop is not None and (refused := plate_beats_backdrop(img, depth, backdrop, plate)):
+            backdrop = None
     if backdrop is not None and cfg.mode in ("auto", "backdrop"):
         B = np.broadcast_to(np.asarray(backdrop, np.float32), img.shape)
         return solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
@@ -295,6 +300,8 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
             m.notes["rim"] = rim
         if shadow:
             m.notes["shadow"] = shadow
+        if refused:
+            m.notes["backdrop_refused"] = refused
         return m
     return _solve_at(img, tri, "estimate", mask, cfg)
 

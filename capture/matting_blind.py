@@ -91,14 +91,23 @@ EMPTY_MAX_HOLES = 0.3
 #: Where the coverage table is refused, the coverage itself stands in for it before EMPTY_PRIOR: the prior alpha of a
 #: pixel is the share of object depth in its 3 x 3 box (a depth sampled at the colour's pixels, as a path tracer's
 #: is: on the night conifer turntable's kept views the true alpha per coverage bin was within 0.03 of the coverage,
-#: R^2 0.82 over the band), given as the table's prior is, with weight its R^2 on the view's sure pixels (nothing fitted
-#: to them, so a few suffice: IDENTITY_MIN_TRAIN), and only where the depth passes EMPTY_MAX_HOLES.  R^2 <= 0, too few
+#: R^2 0.82 over the band), given as the table's prior is, with weight its R^2 on the view's pixels of data weight
+#: IDENTITY_MIN_WEIGHT or more (nothing fitted to them: IDENTITY_MIN_TRAIN), and only where the depth passes
+#: EMPTY_MAX_HOLES.  R^2 <= 0, too few
 #: sure pixels or a depth with holes: EMPTY_PRIOR as before.  Held out: night turntable 26.40 / 0.583 / 0.92 -> 27.19 /
 #: 0.643 / 0.85 (over white 16.62 -> 17.68, alpha MSE 0.0437 -> 0.0340), night orbit 27.41 / 0.651 -> 27.70 / 0.670
 #: (docs/matting.md "The depth's coverage as alpha", stop 75).  False: EMPTY_PRIOR alone.
 IDENTITY_PRIOR = True
-#: Fewest sure pixels for IDENTITY_PRIOR's R^2 (a fixed predictor: no halves).
+#: Fewest pixels (of weight IDENTITY_MIN_WEIGHT or more) for IDENTITY_PRIOR's R^2 (a fixed predictor: no halves).
 IDENTITY_MIN_TRAIN = 50
+#: IDENTITY_PRIOR's R^2 is measured on the band's lit pixels whose data-term weight is at least this (MIN_CONFIDENCE
+#: before stop 76).  At 0.25 a night park's sure pixels were 11-42 a view once the plate knew the grass (the check
+#: then refused, and alpha MSE rose from 0.009 to 0.03 in 12 of 18 views), and they were all nearly opaque (alpha
+#: 0.6-1, coverage 0.67-1): a sample that could not see a dilated depth (R^2 +0.05 to +0.86 with the depth grown by
+#: one pixel, whose coverage explains -0.5 to -0.75 of alpha's variance over the band).  At 0.1: 3,300-6,000 pixels a
+#: view, R^2 0.48-0.66 with the true depth, -0.45 to -1.1 grown by one pixel (+0.13, +0.15 in 2 of 9 views), below
+#: -0.5 grown by two, about 0 eroded by one or shifted by 4 pixels (docs/matting.md "A dark room is not a backdrop").
+IDENTITY_MIN_WEIGHT = 0.1
 #: Neighbours (of 8) with object depth that make a pixel the depth's interior for :func:`depth_holes`.
 HOLE_NEIGHBOURS = 6
 #: Fewest interior pixels for :func:`depth_holes` to be measured: fewer and EMPTY_PRIOR is refused (cannot check).
@@ -166,18 +175,19 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
     cov = coverage(mask)
     empty = weak & (cov <= 0)  # EMPTY_PRIOR's pixels, where the table is refused
     train = np.asarray(unknown, bool) & (weight >= MIN_CONFIDENCE) & lit
+    sample = np.asarray(unknown, bool) & (weight >= IDENTITY_MIN_WEIGHT) & lit  # IDENTITY_PRIOR's check
     yy, xx = np.nonzero(train)
     half = ((yy // HOLDOUT_BLOCK + xx // HOLDOUT_BLOCK) % 2).astype(bool)
     rec["train"] = int(train.sum())
     if min(half.sum(), (~half).sum()) < MIN_TRAIN:
-        return _refused(target, weight, cov, train, blind, weak, empty, mask,
+        return _refused(target, weight, cov, sample, blind, weak, empty, mask,
                         dict(rec, used=False, reason="too few known pixels"))
     x, y, w = cov[train], target[train], weight[train]
     edges = np.unique(np.quantile(x, np.linspace(0, 1, COVERAGE_BINS + 1)[1:-1]))
     r2 = 0.5 * (_r2(x, y, w, edges, half, ~half) + _r2(x, y, w, edges, ~half, half))
     rec["r2"] = round(r2, 4)
     if r2 <= 0:
-        return _refused(target, weight, cov, train, blind, weak, empty, mask,
+        return _refused(target, weight, cov, sample, blind, weak, empty, mask,
                         dict(rec, used=False, reason="coverage explains nothing on held-back pixels"))
     t, wt = _give(target, weight, _table(x, y, w, edges)[np.digitize(cov, edges)], r2, blind, weak)
     return t, wt, dict(rec, used=True)
@@ -193,7 +203,8 @@ def _give(target, weight, prior, r2: float, blind, weak) -> tuple:
 
 def _refused(target, weight, cov, train, blind, weak, empty, mask, rec: dict) -> tuple:
     """Where the coverage table is refused: IDENTITY_PRIOR (the coverage as the prior, weighted by its R^2 on the
-    ``train`` pixels; record ``identity``, ``identity_r2``) where it applies, else :func:`_empty_prior`."""
+    ``train`` pixels, IDENTITY_MIN_WEIGHT's; record ``identity``, ``identity_r2``) where it applies, else
+    :func:`_empty_prior`."""
     holes = None  # the depth's hole rate, measured once for both rules
     if IDENTITY_PRIOR and int(train.sum()) >= IDENTITY_MIN_TRAIN:
         holes = depth_holes(mask)

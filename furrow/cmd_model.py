@@ -331,8 +331,21 @@ def _print_surroundings(console, rec: dict) -> None:
             break
 
 
+def _print_backdrop_refused(console, m: dict) -> None:
+    """The matte record's line on the backdrops its plates beat (capture.matting_choice)."""
+    br = m.get("backdrop_refused") or {}
+    if br.get("views"):  # a dark, textured room is not a backdrop
+        console.print(f"matte: a plain backdrop was detected in {br['views']} view(s), but their background plate "
+                      f"predicts the held-back background better (RMS {min(br['plate_rmse']):.4f}-"
+                      f"{max(br['plate_rmse']):.4f} against the backdrop's {min(br['backdrop_rmse']):.4f}-"
+                      f"{max(br['backdrop_rmse']):.4f}): matted against the plate (capture.matting_choice)",
+                      highlight=False)
+
+
 def _print_matte_data(console, m: dict) -> None:
-    """The matte record's lines on where its data term came from (capture.matting_channels, capture.matting_blind)."""
+    """The matte record's lines on where its data term came from (capture.matting_choice, capture.matting_channels,
+    capture.matting_blind)."""
+    _print_backdrop_refused(console, m)
     cch = m.get("clipped_channels") or {}
     if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps
         console.print(f"matte: {cch['pixels']} pixels clipped in some channels, not all, in {cch['views']} view(s): "

@@ -188,11 +188,14 @@ def _plate_views(scans, captured, scale: float, smooth: float = 0.0):
 
 
 def _all_plain(scans) -> bool:
-    """Whether every view shows a plain backdrop (capture.matting.detect_backdrop): the auto matte
-    then takes the backdrop path and reads no plate."""
+    """Whether every view shows a plain backdrop (capture.matting.detect_backdrop) that no plate can beat
+    (capture.matting_choice.exact_backdrop): the auto matte then takes the backdrop path and reads no plate."""
     from capture.matting import depth_trimap, detect_backdrop
+    from capture.matting_choice import exact_backdrop
 
-    return all(s.alpha is None and detect_backdrop(s.linear_rgb, depth_trimap(s.depth)) is not None for s in scans)
+    return all(s.alpha is None and exact_backdrop(s.linear_rgb, s.depth, detect_backdrop(s.linear_rgb,
+                                                                                         depth_trimap(s.depth)))
+               for s in scans)
 
 
 def matte_stage(work, cfg, ctx):
@@ -386,7 +389,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels", "shadow"):
+    for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels", "shadow", "backdrop_refused"):
         if m.notes.get(key):
             note[key] = m.notes[key]
     if plate is not None:  # the partial pixels before a blown-out plate: a fill, not a measurement
@@ -441,6 +444,7 @@ def matte_record(work, notes: dict, cfg):
               "sigma_fill": [c["sigma_fill"] for c in col], "sigma_alpha": [c.get("sigma_alpha") for c in col]}
     opq = [x["opaque_sources"] for x in n if "opaque_sources" in x]
     rim = [x["rim"] for x in n if "rim" in x]
+    refused = [x["backdrop_refused"] for x in n if "backdrop_refused" in x]  # capture.matting_choice
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
     blown = [(i, x["blown"]) for i, x in enumerate(notes["matte"]) if x is not None and "blown" in x]
     shares = {i: b / p for i, (b, p) in blown if p}
@@ -449,6 +453,8 @@ def matte_record(work, notes: dict, cfg):
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
+        "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],
+                             "plate_rmse": [r["plate_rmse"] for r in refused]},
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},
         "blown_background": {"pixels": int(sum(b for _, (b, _) in blown)),  # capture.matting_cap.blown_partial
                              "views": named, "shares": [round(shares[i], 3) for i in named],

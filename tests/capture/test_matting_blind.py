@@ -365,10 +365,11 @@ def test_a_depth_with_holes_refuses_the_empty_prior(monkeypatch):
 
 def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch):
     """capture.matting_blind.IDENTITY_PRIOR (docs/matting.md "The depth's coverage as alpha", stop 75): with too few
-    sure pixels for a table (MIN_TRAIN a half) but IDENTITY_MIN_TRAIN or more, whose alpha the coverage predicts
-    (R^2 > 0 against alpha = coverage, weighted), a weak pixel gets target (w t + q c) / (w + q), weight w + q,
-    q = R^2 (1 - w / MIN_CONFIDENCE), c its coverage; sure pixels keep theirs.  Sure pixels the coverage does not
-    predict (R^2 <= 0), or a depth with holes, leave it to EMPTY_PRIOR (and its own guard)."""
+    sure pixels for a table (MIN_TRAIN a half) but IDENTITY_MIN_TRAIN or more with a data weight of at least
+    IDENTITY_MIN_WEIGHT (stop 76), whose alpha the coverage predicts (R^2 > 0 against alpha = coverage, weighted by
+    the data weights), a weak pixel gets target (w t + q c) / (w + q), weight w + q, q = R^2 (1 - w / MIN_CONFIDENCE),
+    c its coverage; sure pixels keep theirs.  Pixels the coverage does not predict (R^2 <= 0), or a depth with holes,
+    leave it to EMPTY_PRIOR (and its own guard)."""
     rng = np.random.default_rng(7)
     h, w = 64, 64
     mask = np.zeros((h, w), bool)
@@ -377,25 +378,27 @@ def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch
     cov = mb.coverage(mask)
     sure = np.zeros((h, w), bool)
     sure[rng.integers(0, h, 150), rng.integers(0, w, 150)] = True  # ~150 sure pixels: too few for a table
-    weight = np.where(sure, 0.8, 0.1)
+    mid = ~sure & (rng.random((h, w)) < 0.2)  # weight 0.15: in IDENTITY_PRIOR's sample, below MIN_CONFIDENCE
+    weight = np.where(sure, 0.8, np.where(mid, 0.15, 0.05))
     truth = np.clip(cov + rng.normal(0, 0.05, (h, w)), 0, 1)
-    target = np.where(sure, truth, 0.4)
+    target = np.where(sure | mid, truth, 0.4)
     image = np.full((h, w, 3), 0.05)
     unknown = np.ones((h, w), bool)
     monkeypatch.setattr(mb, "WEAK_PRIOR", True)
     monkeypatch.setattr(mb, "IDENTITY_PRIOR", True)
+    assert mb.IDENTITY_MIN_WEIGHT <= 0.15 and mb.IDENTITY_MIN_WEIGHT > 0.05
     t, wt, rec = mb.blind_prior(image, unknown, target, weight, mask)
-    y, c = truth[sure], cov[sure]  # the R^2 of alpha = coverage on the sure pixels (equal weights here)
-    r2 = 1 - ((y - c) ** 2).sum() / ((y - y.mean()) ** 2).sum()
+    s_, y, c = weight[sure | mid], truth[sure | mid], cov[sure | mid]  # R^2 of alpha = coverage, weighted
+    r2 = 1 - (s_ * (y - c) ** 2).sum() / (s_ * (y - np.average(y, weights=s_)) ** 2).sum()
     assert not rec["used"] and rec["reason"] == "too few known pixels" and 0.8 < r2 < 1, rec
     assert rec["identity_r2"] == round(r2, 4), rec
     assert rec["identity"] == int((~sure).sum()) and rec["empty"] == 0, rec
-    q = r2 * (1 - 0.1 / mb.MIN_CONFIDENCE)
-    np.testing.assert_allclose(t[~sure], ((0.1 * 0.4 + q * cov) / (0.1 + q))[~sure], atol=1e-6)
-    np.testing.assert_allclose(wt[~sure], 0.1 + q, atol=1e-6)
+    q = r2 * (1 - weight / mb.MIN_CONFIDENCE)
+    np.testing.assert_allclose(t[~sure], ((weight * target + q * cov) / (weight + q))[~sure], atol=1e-6)
+    np.testing.assert_allclose(wt[~sure], (weight + q)[~sure], atol=1e-6)
     np.testing.assert_array_equal(t[sure], target[sure])
-    # sure pixels against the coverage: the coverage predicts nothing, EMPTY_PRIOR takes the empty boxes only
-    t2, _, rec2 = mb.blind_prior(image, unknown, np.where(sure, 1 - cov, 0.4), weight, mask)
+    # the sample against the coverage: the coverage predicts nothing, EMPTY_PRIOR takes the empty boxes only
+    t2, _, rec2 = mb.blind_prior(image, unknown, np.where(sure | mid, 1 - cov, 0.4), weight, mask)
     assert rec2["identity_r2"] <= 0 and "identity" not in rec2 and rec2["empty"] > 0, rec2
     # a depth with holes: neither rule
     lossy = mask & (rng.random((h, w)) >= 0.4)
