@@ -379,21 +379,21 @@ def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch
     sure = np.zeros((h, w), bool)
     sure[rng.integers(0, h, 150), rng.integers(0, w, 150)] = True  # ~150 sure pixels: too few for a table
     mid = ~sure & (rng.random((h, w)) < 0.2)  # weight 0.15: in IDENTITY_PRIOR's sample, below MIN_CONFIDENCE
-    weight = np.where(sure, 0.8, np.where(mid, 0.15, 0.05))
+    weight = np.where(sure, 0.8, np.where(mid, 0.15, 0.02))
     truth = np.clip(cov + rng.normal(0, 0.05, (h, w)), 0, 1)
     target = np.where(sure | mid, truth, 0.4)
     image = np.full((h, w, 3), 0.05)
     unknown = np.ones((h, w), bool)
     monkeypatch.setattr(mb, "WEAK_PRIOR", True)
     monkeypatch.setattr(mb, "IDENTITY_PRIOR", True)
-    assert mb.IDENTITY_MIN_WEIGHT <= 0.15 and mb.IDENTITY_MIN_WEIGHT > 0.05
+    assert 0.02 < mb.IDENTITY_MIN_WEIGHT <= 0.15
     t, wt, rec = mb.blind_prior(image, unknown, target, weight, mask)
     s_, y, c = weight[sure | mid], truth[sure | mid], cov[sure | mid]  # R^2 of alpha = coverage, weighted
     r2 = 1 - (s_ * (y - c) ** 2).sum() / (s_ * (y - np.average(y, weights=s_)) ** 2).sum()
     assert not rec["used"] and rec["reason"] == "too few known pixels" and 0.8 < r2 < 1, rec
     assert rec["identity_r2"] == round(r2, 4), rec
     assert rec["identity"] == int((~sure).sum()) and rec["empty"] == 0, rec
-    q = r2 * (1 - weight / mb.MIN_CONFIDENCE)
+    q = r2 * (1 - weight / mb.MIN_CONFIDENCE)  # the weak pixels' weight: the 0.15s and the 0.02s
     np.testing.assert_allclose(t[~sure], ((weight * target + q * cov) / (weight + q))[~sure], atol=1e-6)
     np.testing.assert_allclose(wt[~sure], (weight + q)[~sure], atol=1e-6)
     np.testing.assert_array_equal(t[sure], target[sure])
