@@ -74,3 +74,40 @@ def test_a_black_backdrop_stays_and_needs_no_plate():
     # the dark room is not exact: the plate stage runs for it
     room = _q(ps.needle_composite(background=_dark_room(), seed=0)[0])
     assert not mc.exact_backdrop(room, D, detect_backdrop(room, depth_trimap(D)))
+
+
+class _Work:
+    """The matte record's stand-in for volume.pipeline.work.Work: ``record`` gives back what it was given."""
+
+    def record(self, name, rec):
+        return {name: rec}
+
+
+def test_the_record_and_the_report_say_which_views_took_the_plate():
+    """volume.surroundings.matte_record gathers the views' ``backdrop_refused`` notes; furrow model's report names
+    capture.matting_choice with the RMS ranges, and says nothing when no backdrop was refused."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+    from volume.surroundings import matte_record
+
+    base = {"method": "plate", "seconds": 0.1, "unknown": 0.1, "partial": 0.1}
+    notes = {"matte": [{**base, "backdrop_refused": {"backdrop_rmse": 0.0072, "plate_rmse": 0.0003}}, None,
+                       {**base, "method": "backdrop"},
+                       {**base, "backdrop_refused": {"backdrop_rmse": 0.0061, "plate_rmse": 0.0002}}]}
+    rec = matte_record(_Work(), notes, MatteConfig())["matte"]
+    assert rec["backdrop_refused"] == {"views": 2, "backdrop_rmse": [0.0072, 0.0061], "plate_rmse": [0.0003, 0.0002]}
+    assert rec["methods"] == {"backdrop": 1, "plate": 2}
+
+    def report(matte: dict) -> str:
+        out = StringIO()
+        _print_surroundings(Console(file=out, width=300), {"matte": matte})
+        return out.getvalue()
+
+    said = report(rec)
+    assert "detected in 2 view(s)" in said and "RMS 0.0002-0.0003" in said and "0.0061-0.0072" in said, said
+    assert "matting_choice" in said
+    none = matte_record(_Work(), {"matte": [dict(base)]}, MatteConfig())["matte"]
+    assert "matting_choice" not in report(none)
