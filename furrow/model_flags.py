@@ -144,7 +144,9 @@ def _add_surroundings_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--matte", choices=["auto", "given", "backdrop", "plate", "estimate", "off"], default="auto",
                    help="soft alpha matte per view and the object's colour under it (capture/matting.py): auto "
                         "(default: the capture's own matte, mask_path or RGBA alpha, its colour unmixed from the "
-                        "background plate; else a plain backdrop, named or detected; else the background plate "
+                        "background plate; else a plain backdrop, named or detected (a detected one only where it "
+                        "predicts the view's background no worse than the plate: capture/matting_choice.py); else "
+                        "the background plate "
                         "where it is known: C = a F + (1 - a) B solved with B, capture/matting_known.py; else "
                         "estimated from the depth by closed-form matting), given, backdrop, plate, estimate, or "
                         "off (the binary depth mask, as before)")
