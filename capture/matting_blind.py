@@ -93,10 +93,10 @@ EMPTY_MAX_HOLES = 0.3
 #: is: on the night conifer turntable's kept views the true alpha per coverage bin was within 0.03 of the coverage,
 #: R^2 0.82 over the band), given as the table's prior is, with weight its R^2 on the view's pixels of data weight
 #: IDENTITY_MIN_WEIGHT or more (nothing fitted to them: IDENTITY_MIN_TRAIN), and only where the depth passes
-#: EMPTY_MAX_HOLES.  R^2 <= 0, too few
-#: sure pixels or a depth with holes: EMPTY_PRIOR as before.  Held out: night turntable 26.40 / 0.583 / 0.92 -> 27.19 /
-#: 0.643 / 0.85 (over white 16.62 -> 17.68, alpha MSE 0.0437 -> 0.0340), night orbit 27.41 / 0.651 -> 27.70 / 0.670
-#: (docs/matting.md "The depth's coverage as alpha", stop 75).  False: EMPTY_PRIOR alone.
+#: EMPTY_MAX_HOLES.  R^2 <= 0, too few such pixels or a depth with holes: EMPTY_PRIOR as before.  Held out: night
+#: turntable 26.40 / 0.583 / 0.92 -> 27.19 / 0.643 / 0.85 (over white 16.62 -> 17.68, alpha MSE 0.0437 -> 0.0340),
+#: night orbit 27.41 / 0.651 -> 27.70 / 0.670 (docs/matting.md "The depth's coverage as alpha", stop 75).  False:
+#: EMPTY_PRIOR alone.
 IDENTITY_PRIOR = True
 #: Fewest pixels (of weight IDENTITY_MIN_WEIGHT or more) for IDENTITY_PRIOR's R^2 (a fixed predictor: no halves).
 IDENTITY_MIN_TRAIN = 50
@@ -144,14 +144,16 @@ def _table(x: np.ndarray, y: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np
     return np.where(sw > 0, sy / np.maximum(sw, 1e-12), mean)
 
 
+def _weighted_r2(pred: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    """The share of ``y``'s ``w``-weighted variance that ``pred`` explains (1 - weighted SSE / weighted SS)."""
+    mu = (w * y).sum() / w.sum()
+    return float(1.0 - (w * (pred - y) ** 2).sum() / max((w * (y - mu) ** 2).sum(), 1e-12))
+
+
 def _r2(x, y, w, edges, fit, test) -> float:
     """Weighted R^2 on ``test`` of the table fitted on ``fit``."""
     t = _table(x[fit], y[fit], w[fit], edges)
-    pred = t[np.digitize(x[test], edges)]
-    yt, wt = y[test], w[test]
-    mu = (wt * yt).sum() / wt.sum()
-    var = (wt * (yt - mu) ** 2).sum()
-    return float(1.0 - (wt * (pred - yt) ** 2).sum() / max(var, 1e-12))
+    return _weighted_r2(t[np.digitize(x[test], edges)], y[test], w[test])
 
 
 def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weight: np.ndarray,
@@ -205,16 +207,14 @@ def _give(target, weight, prior, r2: float, blind, weak) -> tuple:
     return np.where(blind, prior, np.where(weak, mixed, target)), np.where(blind, r2, weight + pw)
 
 
-def _refused(target, weight, cov, train, blind, weak, empty, mask, rec: dict) -> tuple:
+def _refused(target, weight, cov, sample, blind, weak, empty, mask, rec: dict) -> tuple:
     """Where the coverage table is refused: IDENTITY_PRIOR (the coverage as the prior, weighted by its R^2 on the
-    ``train`` pixels, IDENTITY_MIN_WEIGHT's; record ``identity``, ``identity_r2``) where it applies, else
-    :func:`_empty_prior`."""
+    ``sample`` pixels, those of data weight IDENTITY_MIN_WEIGHT or more; record ``identity``, ``identity_r2``) where it
+    applies, else :func:`_empty_prior`."""
     holes = None  # the depth's hole rate, measured once for both rules
-    if IDENTITY_PRIOR and int(train.sum()) >= IDENTITY_MIN_TRAIN:
+    if IDENTITY_PRIOR and int(sample.sum()) >= IDENTITY_MIN_TRAIN:
         holes = depth_holes(mask)
-        x, y, w = cov[train], target[train], weight[train]
-        mu = (w * y).sum() / w.sum()
-        r2 = float(1.0 - (w * (y - x) ** 2).sum() / max((w * (y - mu) ** 2).sum(), 1e-12))
+        r2 = _weighted_r2(cov[sample], target[sample], weight[sample])
         rec = dict(rec, identity_r2=round(r2, 4), depth_holes=round(holes[0], 4))
         if r2 > 0 and holes[1] >= MIN_INTERIOR and holes[0] <= EMPTY_MAX_HOLES:
             t, wt = _give(target, weight, cov, r2, blind, weak)
