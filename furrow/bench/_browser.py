@@ -127,13 +127,22 @@ def wait_still(page, width: int, height: int, samples: int, after: int = 0,
                timeout_s: float = FRAME_TIMEOUT_S) -> int:
     """Wait until the page's readout reports a full ``width`` x ``height`` frame with ``samples``
     x ``samples`` samples per pixel that is still frame number ``after + 1`` or later; returns
-    its number."""
+    its number.  The readout is read as ``textContent``, so it is seen while :func:`hide_overlays`
+    hides it (``innerText`` leaves hidden text out)."""
     pattern = STILL_TEXT.format(w=width, h=height, s=samples)
     handle = page.wait_for_function(
-        "([p, n]) => { const m = document.body.innerText.match(new RegExp(p)); "
+        "([p, n]) => { const m = document.body.textContent.match(new RegExp(p)); "
         "return m && parseInt(m[1]) > n ? parseInt(m[1]) : null; }", arg=[pattern, after],
         timeout=timeout_s * 1000)
     return int(handle.json_value())
+
+
+def still_number(page) -> int:
+    """The number of the last still frame the page's readout reports (0: none yet), read as
+    :func:`wait_still` reads it."""
+    pattern = STILL_TEXT.format(w=r"\d+", h=r"\d+", s=r"\d+")
+    return int(page.evaluate("(p) => { const m = document.body.textContent.match(new RegExp(p)); "
+                             "return m ? parseInt(m[1]) : 0; }", pattern))
 
 
 def wait_opaque(page, timeout_s: float = FRAME_TIMEOUT_S) -> None:
