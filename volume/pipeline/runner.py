@@ -86,6 +86,7 @@ class Run:
         self.spill, self._spill_decided = None, False
         self._pool = None
         self._set_peaks = None  # in a whole-set stage: its workers' peak MiB by process id
+        self._set_cpu = 0.0  # ... and their CPU seconds in it
         from volume.pipeline.pool import keep_freed_memory, workers_for
 
         self.workers = workers_for(cfg.workers, work.refs, cfg.matte.mode)
@@ -183,22 +184,25 @@ class Run:
     def row(self, name: str):
         """A whole-set stage's row of the stage table (the command's ``hooks.row``); its peak memory
         is the main process's plus, when its per-view passes ran in the pool, each worker's peak in
-        them (an upper bound, as for the per-view stages: :meth:`_rows`)."""
+        them (an upper bound, as for the per-view stages: :meth:`_rows`), and its CPU seconds the
+        main process's plus the workers' in those passes (the row's own: not added to an outer row's)."""
         from volume.pipeline.pool import peak_rss_mb, release_free_memory
 
         release_free_memory()  # what earlier stages freed is not this row's
         outer, self._set_peaks = self._set_peaks, {}
+        outer_cpu, self._set_cpu = self._set_cpu, 0.0
         try:
             with self.hooks.row(name):
                 yield
             peak_main = peak_rss_mb()  # the row's own: the stage table reset the mark at its start
         finally:
             peaks, self._set_peaks = self._set_peaks, outer
+            cpu, self._set_cpu = self._set_cpu, outer_cpu
             if outer is not None:
                 for pid, mb in peaks.items():
                     outer[pid] = max(outer.get(pid, 0.0), mb)
-        if peaks and self.hooks.add is not None:
-            self.hooks.add(name, 0.0, 0.0, peak_main + sum(peaks.values()))
+        if (peaks or cpu) and self.hooks.add is not None:
+            self.hooks.add(name, 0.0, cpu, peak_main + sum(peaks.values()))
 
     def views(self, pending) -> None:
         """Queued per-view stages, view by view (module docstring); reading ends in the scan set."""
@@ -290,6 +294,8 @@ class Run:
             peaks[pid] = max(peaks.get(pid, 0.0), peak)
             if self._set_peaks is not None:
                 self._set_peaks[pid] = max(self._set_peaks.get(pid, 0.0), peak)
+                if not rows:  # a whole-set stage's passes: their CPU joins its row (:meth:`row`)
+                    self._set_cpu += sum(cpu for _, cpu in step_times)
             yield view, notes
         if rows:
             self._rows(steps, times, time.perf_counter() - t0, time.process_time() - c0,
