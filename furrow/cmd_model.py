@@ -149,7 +149,7 @@ def print_report(console, summary: dict, out) -> None:
                       f"{min(ha):.4f} / {sum(ha) / len(ha):.4f} / {max(ha):.4f}  (per view: --json)", highlight=False)
     _print_surroundings(console, summary["surroundings"])
     if summary.get("photometric"):
-        console.print(photometric_table(summary["photometric"]))
+        console.print(photometric_report(summary["photometric"]), highlight=False)
         if summary["photometric"]["unaligned"]:
             console.print(f"[yellow]photometric: {len(summary['photometric']['unaligned'])} views share no usable "
                           "surface with a neighbour and keep their colour[/]", highlight=False)
@@ -209,6 +209,28 @@ def _reread_said(agree: dict) -> str:
         return ""
     return (" The depth maps were read as z-depth (--depth-agreement fix)." if applied == "range" else
             f" The depth maps were flipped back ({applied}; --depth-agreement fix).")
+
+
+#: The photometric record's per-view table is printed up to this many views; past it, or where no alignment was
+#: applied (every row EV 0, WB 1), one line says the gains' range and the table stays in model.json.
+PHOTOMETRIC_TABLE_ROWS = 24
+
+
+def photometric_report(rec: dict):
+    """The photometric record for the report: its per-view table (:func:`photometric_table`), or one line where
+    the alignment was not applied or the views are more than PHOTOMETRIC_TABLE_ROWS."""
+    chosen = (rec.get("check") or {}).get("chosen")
+    if chosen != "none" and len(rec["views"]) <= PHOTOMETRIC_TABLE_ROWS:
+        return photometric_table(rec)
+    head = (f"photometric alignment ({rec['pairs']} view pairs, {rec['samples']} samples, residual "
+            f"{rec['residual_log']:.4f} log)")
+    if chosen == "none":
+        return f"{head}: none applied, every view keeps its colour (the check's reason above; model.json)"
+    ev = [v["ev"] for v in rec["views"]]
+    wb = " ".join(f"{min(v['wb'][c] for v in rec['views']):.3f}-{max(v['wb'][c] for v in rec['views']):.3f}"
+                  for c in range(3))
+    return (f"{head}, applied: {chosen or 'all'}: EV {min(ev):+.3f} to {max(ev):+.3f} over {len(ev)} views, "
+            f"WB r g b {wb} (per view: model.json)")
 
 
 def photometric_table(rec: dict):

@@ -414,3 +414,30 @@ def test_model_spill_gives_the_same_files(scan_dir, tmp_path, capsys, monkeypatc
     for name, data in files["never"].items():
         assert files["always"][name] == data, name
     assert not list(scratch.iterdir())  # the spill folder is gone
+
+
+def _photometric_record(n: int, chosen: str) -> dict:
+    rng = np.random.default_rng(n)
+    ev = rng.normal(0, 0.2, n) if chosen != "none" else np.zeros(n)
+    views = [{"name": f"images/v{i:03d}.png", "ev": float(e), "wb": [1.0 + 0.01 * i, 1.0, 1.0 - 0.005 * i]}
+             for i, e in enumerate(ev)]
+    return {"pairs": 3 * n, "samples": 1000 * n, "reference": "mean", "residual_log": 0.0091,
+            "appearance_share": 0.5, "check": {"chosen": chosen}, "views": views, "unaligned": []}
+
+
+def test_the_photometric_report_is_a_table_only_where_it_says_something():
+    """furrow model's photometric lines: the per-view table for an applied alignment of a few views; one line
+    (the gains' range) for many views; one line where none was applied (72 rows of EV +0.000 before)."""
+    from rich.table import Table
+
+    from furrow.cmd_model import PHOTOMETRIC_TABLE_ROWS, photometric_report
+
+    few = photometric_report(_photometric_record(PHOTOMETRIC_TABLE_ROWS, "exposure"))
+    assert isinstance(few, Table) and few.row_count == PHOTOMETRIC_TABLE_ROWS
+    many = _photometric_record(PHOTOMETRIC_TABLE_ROWS + 1, "exposure")
+    line = photometric_report(many)
+    lo, hi = min(v["ev"] for v in many["views"]), max(v["ev"] for v in many["views"])
+    assert isinstance(line, str) and f"EV {lo:+.3f} to {hi:+.3f} over {PHOTOMETRIC_TABLE_ROWS + 1} views" in line
+    assert f"1.000-{1.0 + 0.01 * PHOTOMETRIC_TABLE_ROWS:.3f}" in line and "applied: exposure" in line
+    none = photometric_report(_photometric_record(5, "none"))
+    assert isinstance(none, str) and "none applied" in none
