@@ -122,7 +122,7 @@ IDENTITY_MIN_WEIGHT = 0.05
 #: -0.42; the black twin's backdrop matte -0.16); at 0.5 the kept views' band alpha MSE 0.0077 -> 0.0056 and the slope
 #: -0.06 (4 views).  The data term cannot check it (its own fine pattern is noise there: R^2 against it falls with
 #: HIT_DETAIL), so it was checked held out: found on a night turntable (seed 811, 27.66 / 0.659 / 0.86 -> 27.72 /
-#: 0.679 / 0.98), then on eleven room captures under a rule written down before they ran (a courtyard among them,
+#: 0.679 / 0.98), then on twelve room captures under a rule written down before they ran (two courtyards among them,
 #: rendered after it): PSNR +0.00 to +0.16, SSIM +0.002 to +0.025, sharpness up 0.03-0.12, black twins the same digits,
 #: and the same capture with its depth rendered with 3 x 3 rays a pixel (every needle's hits dilated) +0.04 / +0.018
 #: (docs/matting.md "What the room matte smooths away", stop 77).
