@@ -194,9 +194,15 @@ class RenderOptions:
     #: Each method's own options (an instance of its spec's options dataclass) by registry name, as
     #: sorted (name, options) pairs (a dict is accepted); a method not named draws with its defaults.
     methods: tuple = ()
+    #: A frame drawn while the viewer's camera moves (set by render.viewer, no flag or control): a
+    #: method may leave out a refinement that costs more than a glance shows (gather: its second depth
+    #: layer); the still frame that follows has it.
+    draft: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "supersample", check_factor(self.supersample))
+        if not isinstance(self.draft, bool):
+            raise ValueError(f"draft must be a bool, got {self.draft!r}")
         pairs = dict(self.methods)
         for name, opts in pairs.items():
             spec = method_spec(name)

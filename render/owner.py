@@ -32,8 +32,9 @@ NEAR_FAR_MARGIN = 0.05
 #: Near plane when the eye is inside the box (or the box reaches behind it): this share of the
 #: box diagonal.
 NEAR_FRACTION_INSIDE = 1e-3
-#: Render targets kept per owner (most recently used first); older sizes are released.
-MAX_TARGETS = 4
+#: Render targets kept per owner (most recently used first); older sizes are released.  Gather's frame
+#: uses four (front z, second layer z and colour, colour), and the viewer alternates two sizes (moving, still).
+MAX_TARGETS = 8
 
 
 def mat4_bytes(m: np.ndarray) -> bytes:
@@ -204,11 +205,13 @@ class GLOwner:
         self._owned.clear()
 
     # ------------------------------------------------------------------ targets
-    def target(self, width: int, height: int, colours: tuple[int, ...] = (4,), depth: bool = True) -> Target:
+    def target(self, width: int, height: int, colours: tuple[int, ...] = (4,), depth: bool = True,
+               name: str = "") -> Target:
         """The cached framebuffer of this size and layout: one float32 colour texture per entry of
         ``colours`` (its component count) and, if ``depth``, a depth texture (NEAREST filtering,
-        so they can be fetched by the resolve)."""
-        key = (int(width), int(height), tuple(colours), bool(depth))
+        so they can be fetched by the resolve); ``name`` tells apart two targets of one layout that a
+        frame needs at once."""
+        key = (int(width), int(height), tuple(colours), bool(depth), str(name))
         if key in self._targets:
             self._targets.move_to_end(key)
             return self._targets[key]

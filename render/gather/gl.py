@@ -11,11 +11,20 @@ frame only uniforms change:
 
 1. ``gather_depth_*.glsl``: the points of the ``k_depth`` nearest cameras drawn as GL points of
    side ``splat_px`` into an R32F target with MIN blending: the nearest z-depth per pixel
-   (exactly the z-buffer of the twin; no depth buffer is involved);
+   (exactly the z-buffer of the twin; no depth buffer is involved); with a second layer also
+   minus the z into a second R32F target (MIN: the farthest z, in the same draw);
 2. ``gather_frag.glsl`` over a full-screen triangle: per pixel with a depth, the point is
    projected into the ``k_blend`` nearest cameras, their colours resampled (bilinear, or
    Catmull-Rom bicubic: 4 or 16 texel fetches, no hardware filtering, so the twin is exact) and
-   blended with (1 / angle) x soft visibility.
+   blended with (1 / angle) x soft visibility (``gather_blend.glsl``).
+
+With a matte and ``GatherConfig.back_gap_m`` > 0, the second layer (the twin's step 3) runs between
+them: ``gather_mark_frag.glsl`` (1b) writes a depth where the farthest splat lies more than the gap
+behind the front, and ``gather_under_frag.glsl`` (2a) gathers that point behind an early depth test
+that passes only there (llvmpipe then shades no 4 x 4 block without one: a discard in a full-screen
+pass saves nothing, measured); pass 2 composites it under the front.  About 1.4 x the frame time of
+one layer at 960x720 (docs/novel_views.md); a draft frame (``RenderOptions.draft``: the viewer's
+moving frames) leaves it out.
 
 One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
 colours are interpolated from the photos, whose own area sampling already anti-aliases strand
@@ -47,7 +56,17 @@ def shader_defines(cfg: gr.GatherConfig, has_alpha: bool = False) -> dict:
     return {"K_BLEND": cfg.k_blend, "VIS_SIGMA": f"{cfg.vis_sigma_m:.9e}", "VIS_FLOOR": f"{cfg.vis_floor:.9e}",
             "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "RESAMPLE_CUBIC": int(cfg.resample == "cubic"),
             "CUBIC_A": f"{gr.CUBIC_A:.9e}", "HAS_ALPHA": int(has_alpha),
-            "PINHOLE_FILL": int(cfg.pinhole_spread_m > 0), "PINHOLE_SPREAD": f"{cfg.pinhole_spread_m:.9e}"}
+            "PINHOLE_FILL": int(cfg.pinhole_spread_m > 0), "PINHOLE_SPREAD": f"{cfg.pinhole_spread_m:.9e}",
+            "BACK_LAYER": int(has_alpha and cfg.back_gap_m > 0), "BACK_SOLID": f"{cfg.back_solid:.9e}"}
+
+
+#: Depth pass 1b writes where a pixel has a second layer (the full-screen triangles lie at 0.5).
+MARK_DEPTH = 0.25
+
+
+def mark_defines(cfg: gr.GatherConfig) -> dict:
+    """Constants of gather_mark_frag.glsl."""
+    return {"BACK_GAP": f"{cfg.back_gap_m:.9e}", "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "MARK_DEPTH": MARK_DEPTH}
 
 
 def fill_offset(far: float) -> float:
@@ -92,9 +111,22 @@ class GatherRenderer(Renderer):
         self.point_bytes = 0
         has_alpha = self.crops.matte is not None
         self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
-        self.prog = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl",
-                                     defines=shader_defines(self.cfg, has_alpha)))
-        self.vao = self.own(ctx.vertex_array(self.prog, []))
+        #: passes 1b and 2a (the second layer) where the model has a matte and the config asks for it
+        self.layered = has_alpha and self.cfg.back_gap_m > 0
+        self._fill_offset = 0.0
+        #: pass 2 by whether it composites a second layer (a draft frame does not: RenderOptions.draft)
+        self.progs, self.vaos = {}, {}
+        for under in {False, self.layered}:
+            d = dict(shader_defines(self.cfg, has_alpha), BACK_LAYER=int(under))
+            self.progs[under] = self.own(program(ctx, "resolve_vert.glsl", "gather_frag.glsl", defines=d))
+            self.vaos[under] = self.own(ctx.vertex_array(self.progs[under], []))
+        if self.layered:
+            self.mark_prog = self.own(program(ctx, "resolve_vert.glsl", "gather_mark_frag.glsl",
+                                              defines=mark_defines(self.cfg)))
+            self.under_prog = self.own(program(ctx, "resolve_vert.glsl", "gather_under_frag.glsl",
+                                               defines=shader_defines(self.cfg, has_alpha)))
+            self.mark_vao = self.own(ctx.vertex_array(self.mark_prog, []))
+            self.under_vao = self.own(ctx.vertex_array(self.under_prog, []))
 
     def load(self, views=None) -> None:
         """Make the given views (default: as many as are resident at once) resident: the crop's
@@ -157,7 +189,7 @@ class GatherRenderer(Renderer):
 
     def _depth_pass(self, eye: Camera, cams, near: float, far: float, fill_offset: float):
         ctx = self.ctx
-        tgt = self.target(eye.width, eye.height, colours=(1,), depth=False)
+        tgt = self.target(eye.width, eye.height, colours=(1, 1) if self.layered else (1,), depth=False, name="front")
         tgt.fbo.use()
         ctx.viewport = (0, 0, eye.width, eye.height)
         tgt.fbo.clear(Z_EMPTY, Z_EMPTY, Z_EMPTY, Z_EMPTY)
@@ -185,19 +217,21 @@ class GatherRenderer(Renderer):
         ctx.disable(ctx.BLEND)
         return tgt
 
-    def _gather_pass(self, eye: Camera, zt, blend, weights, fill_offset: float):
-        ctx = self.ctx
+    def read_back_depth(self, eye: Camera) -> np.ndarray | None:
+        """The second layer's z-depth (H, W; 0 = none) of the last frame drawn for ``eye``'s size
+        (pass 1b's target, for tests and debugging), or None without a second layer."""
+        if not self.layered:
+            return None
+        tgt = self.target(eye.width, eye.height, colours=(1, 1), depth=False, name="front")
+        z = gl_rows_to_image(tgt.read_colour(0))
+        far = -gl_rows_to_image(tgt.read_colour(1))
+        front = np.where(z >= self._fill_offset, z - self._fill_offset, z)
+        return np.where((z < 0.1 * Z_EMPTY) & (far > front + np.float32(self.cfg.back_gap_m)), far, 0.0)
+
+    def _blend_uniforms(self, p, eye: Camera, blend, weights) -> None:
+        """The eye's and the blend cameras' uniforms of gather_blend.glsl in program ``p``; the crops bound."""
         K = self.cfg.k_blend
-        tgt = self.target(eye.width, eye.height, colours=(4,), depth=False)
-        tgt.fbo.use()
-        ctx.viewport = (0, 0, eye.width, eye.height)
-        tgt.fbo.clear(0.0, 0.0, 0.0, 0.0)
-        ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
-        zt.colours[0].use(0)
         self.tex.use(1)
-        p = self.prog
-        p["front_z"].value = 0
-        p["fill_offset"].value = fill_offset
         p["rgbz"].value = 1
         if self.alpha_tex is not None:
             self.alpha_tex.use(2)
@@ -223,7 +257,55 @@ class GatherRenderer(Renderer):
         p["skew"].write(skew.tobytes())
         p["layer"].write(layer.tobytes())
         p["weight"].write(w.tobytes())
-        self.vao.render(ctx.TRIANGLES, vertices=3)
+
+    def _full_screen(self, eye: Camera, name: str):
+        """Bind and clear (0) an RGBA32F target of the eye's size for a full-screen pass."""
+        ctx = self.ctx
+        tgt = self.target(eye.width, eye.height, colours=(4,), depth=False, name=name)
+        tgt.fbo.use()
+        ctx.viewport = (0, 0, eye.width, eye.height)
+        tgt.fbo.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
+        return tgt
+
+    def _under_pass(self, eye: Camera, zt, blend, weights, fill_offset: float):
+        """Passes 1b and 2a: depth MARK_DEPTH where the pixel has a second layer (gather_mark_frag.glsl),
+        then behind a depth test that passes only there, its colour and how solid it is
+        (gather_under_frag.glsl)."""
+        ctx = self.ctx
+        tgt = self.target(eye.width, eye.height, colours=(4,), depth=True, name="under")
+        tgt.fbo.use()
+        ctx.viewport = (0, 0, eye.width, eye.height)
+        tgt.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "1"
+        zt.colours[0].use(0)
+        zt.colours[1].use(4)
+        self.mark_prog["front_z"].value = 0
+        self.mark_prog["far_z"].value = 4
+        self.mark_prog["fill_offset"].value = fill_offset
+        self.mark_vao.render(ctx.TRIANGLES, vertices=3)
+        tgt.fbo.depth_mask = False
+        ctx.depth_func = ">"
+        self.under_prog["far_z"].value = 4
+        self._blend_uniforms(self.under_prog, eye, blend, weights)
+        self.under_vao.render(ctx.TRIANGLES, vertices=3)
+        tgt.fbo.depth_mask = True
+        ctx.depth_func = "<"
+        ctx.disable(ctx.DEPTH_TEST)
+        return tgt
+
+    def _gather_pass(self, eye: Camera, zt, blend, weights, fill_offset: float, ut=None):
+        tgt = self._full_screen(eye, "")
+        p = self.progs[ut is not None]
+        zt.colours[0].use(0)
+        p["front_z"].value = 0
+        p["fill_offset"].value = fill_offset
+        if ut is not None:
+            ut.colours[0].use(3)
+            p["under"].value = 3
+        self._blend_uniforms(p, eye, blend, weights)
+        self.vaos[ut is not None].render(self.ctx.TRIANGLES, vertices=3)
         return tgt
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
@@ -233,7 +315,9 @@ class GatherRenderer(Renderer):
         off = fill_offset(far)
         with FrameTimer(self.ctx) as t:
             zt = self._depth_pass(eye, depth_cams, near, far, off)
-            ct = self._gather_pass(eye, zt, blend, weights, off)
+            self._fill_offset = off
+            ut = self._under_pass(eye, zt, blend, weights, off) if self.layered and not options.draft else None
+            ct = self._gather_pass(eye, zt, blend, weights, off, ut)
         stats = FrameStats(t.ms, t.cpu_ms, supersample=1, facets=int(self.counts[depth_cams].sum()))
         if not read:
             return Frame.empty(eye.width, eye.height, stats)

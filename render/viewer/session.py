@@ -234,7 +234,7 @@ class Session:
             full = cam.full_size(settings.max_lines)
             size = frame_size(full, scale) if kind == "moving" else full
             ss = settings.still_samples if kind == "refine" else 1
-            drawn = draw(scene, cam.camera(*size), settings, ss)
+            drawn = draw(scene, cam.camera(*size), settings, ss, draft=kind == "moving")
             return v, scale, settings, drawn, (started, cpu0, self.clock(), time.process_time())
 
         return job

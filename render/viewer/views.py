@@ -125,11 +125,12 @@ def colour_image(scene, frame, camera: Camera, env_settings: EnvSettings) -> np.
     return srgb8(img)
 
 
-def draw(scene, camera: Camera, settings: ViewSettings, supersample: int) -> Drawn:
-    """Render ``camera`` with ``settings`` (``supersample`` samples per pixel and axis) and make
-    the asked view (runs on the GL thread: ``scene`` is a render.viewer.gl_worker.GLScene)."""
+def draw(scene, camera: Camera, settings: ViewSettings, supersample: int, draft: bool = False) -> Drawn:
+    """Render ``camera`` with ``settings`` (``supersample`` samples per pixel and axis; ``draft``: a
+    moving frame, render.methods.RenderOptions.draft) and make the asked view (runs on the GL thread:
+    ``scene`` is a render.viewer.gl_worker.GLScene)."""
     renderer = scene.renderer(settings.method)
-    opts = settings.options.changed(supersample=supersample)
+    opts = settings.options.changed(supersample=supersample, draft=draft)
     view, note = settings.view, ""
     if view not in FRAME_VIEWS:
         if view in renderer.spec.debug_outputs:

@@ -76,7 +76,11 @@ def test_crops_path_matches_numpy_twin(gl_ctx, models, kind):
             t_rgb, t_a, t_z, n = gr.gather_frame(eye, clouds, r.cameras, rgb, depth, m.bounds.mean(0), cfg, alpha=alpha)
             fr = rr.render(eye)
             assert fr.stats.facets == n > 0
-            assert_frame_matches_twin(fr, t_rgb, t_a, t_z)
+            back = None
+            if alpha is not None:
+                zb = gr.frame_depths(eye, clouds, r.cameras, rgb, depth, m.bounds.mean(0), cfg, back=True)[1]
+                back = (zb, rr.read_back_depth(eye))
+            assert_frame_matches_twin(fr, t_rgb, t_a, t_z, back)
 
 
 def test_a_frame_uploads_only_the_views_it_reads(gl_ctx, models):

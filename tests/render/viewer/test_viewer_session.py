@@ -66,15 +66,25 @@ def view(i: int) -> ViewCamera:
     return ViewCamera((np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)), (0.0, 0.0, -1.0), 0.8, *FULL)
 
 
+class DrawLog(list):
+    """The (camera, supersample) of each fake draw, and ``drafts``: whether each was a draft."""
+
+    def __init__(self):
+        super().__init__()
+        self.drafts = []
+
+
 @pytest.fixture
 def fake_draw(monkeypatch):
     """draw() costing 4 ms + 0.5 ms per 1000 pixels x samples^2 (a full 320x240 frame: ~42 ms,
-    supersampled 2x2: ~158 ms); records the cameras it draws (when it starts each)."""
-    drawn = []
+    supersampled 2x2: ~158 ms); records the cameras it draws (when it starts each), and in
+    ``drawn.drafts`` whether each was a draft (RenderOptions.draft)."""
+    drawn = DrawLog()
 
-    def draw(scene, camera, settings, supersample):
+    def draw(scene, camera, settings, supersample, draft=False):
         ms = 4.0 + 0.5e-3 * camera.width * camera.height * supersample ** 2
         drawn.append((camera, supersample))
+        drawn.drafts.append(draft)
         time.sleep(ms / 1e3)
         return views.Drawn(np.zeros((camera.height, camera.width, 3), np.uint8), Stats(ms=ms, supersample=supersample))
 
@@ -112,6 +122,10 @@ def test_moving_then_full_then_supersampled(fake_draw):
     assert still[0]["t"] >= t_stop + cfg.still_s - 0.02          # not before the camera was still
     assert still[0]["since_change_s"] < cfg.still_s + 0.3         # full frame soon after the stop
     assert still[1]["refined"] and not still[0]["refined"]
+    # the moving frames are drafts (gather leaves its second layer out), the still ones are not
+    sizes = [(c.width, s) for c, s in fake_draw]
+    assert [d for (w, s), d in zip(sizes, fake_draw.drafts) if w == FULL[0]] == [False, False]
+    assert all(fake_draw.drafts[i] for i, (w, _) in enumerate(sizes) if w < FULL[0])
 
 
 def test_one_sample_method_sends_its_full_frame_once_as_png(fake_draw):
@@ -187,7 +201,7 @@ def test_stale_full_frame_is_dropped_and_latest_camera_drawn(monkeypatch):
     started, release = threading.Event(), threading.Event()
     drawn = []
 
-    def draw(scene, camera, settings, supersample):
+    def draw(scene, camera, settings, supersample, draft=False):
         drawn.append((which_view(camera), camera.width, supersample))
         clock.advance(0.005 * supersample ** 2)              # the draw's simulated cost (s)
         if supersample == 2 and not release.is_set():
@@ -226,7 +240,7 @@ def test_failed_frame_is_reported_and_serving_goes_on(monkeypatch):
     notes, noted, framed = [], threading.Event(), threading.Event()
     calls = []
 
-    def draw(scene, camera, settings, supersample):
+    def draw(scene, camera, settings, supersample, draft=False):
         calls.append(1)
         if len(calls) == 1:
             raise RuntimeError("boom")

@@ -1,0 +1,17 @@
+#version 430
+// Pass 1b of the gather method with a second layer (full-screen triangle): depth MARK_DEPTH where the
+// pixel has one -- a front splat, and a farthest splat more than BACK_GAP behind it -- so that pass 2a
+// runs only there (its early depth test; llvmpipe shades no 4 x 4 block that has none).
+// Twin: render/gather/reference.py back_depth.  Defines: BACK_GAP, Z_EMPTY, MARK_DEPTH.
+uniform sampler2D front_z;   // pass 1: nearest z (the fill's carries fill_offset)
+uniform sampler2D far_z;     // pass 1: minus the farthest z
+uniform float fill_offset;
+
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    float f = texelFetch(front_z, p, 0).r;
+    if (!(f < Z_EMPTY)) discard;
+    if (f >= fill_offset) f -= fill_offset;
+    if (!(-texelFetch(far_z, p, 0).r > f + BACK_GAP)) discard;
+    gl_FragDepth = MARK_DEPTH;
+}
