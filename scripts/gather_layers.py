@@ -2,13 +2,14 @@
 view's alpha, and what it costs a frame.
 
     PYTHONPATH=. python scripts/gather_layers.py split CAPTURE MODEL [--solid-front]
-    PYTHONPATH=. python scripts/gather_layers.py time MODEL [--size 960x720] [--views 24] [--repeat 3]
+    PYTHONPATH=. python scripts/gather_layers.py time MODEL [--size 960x720] [--views 24] [--repeat 3] [--passes]
 
 ``split``: the held-out views (odd frames) of CAPTURE (with its true mattes) rendered by gather's numpy twin from
 MODEL (``furrow model CAPTURE_hidden --frames 0::2``) without and with the second layer; the alpha's squared error
 summed over the pixels it changes, by the front's alpha.  ``--solid-front off``: the first version, which counted
 the layer behind by its own solidity alone (the docs' table); ``on`` (default): the rule as built.
-``time``: median GPU frame times (no read-back) of the two configs, interleaved, on a ring of eyes around MODEL.
+``time``: median GPU frame times (no read-back) of the two configs, interleaved, on a ring of eyes around MODEL;
+``--passes``: instead, the second layer's passes 1b and 2a alone, and 2a with its depth test off.
 """
 
 from __future__ import annotations
@@ -60,18 +61,10 @@ def _first_version(g):
 
 
 def frame_times(model_dir: str, size: str, views: int, repeat: int) -> None:
-    from capture.orbit import ring_cameras
     from render.gather import reference as g
     from render.gather.gl import GatherRenderer
-    from render.gl import create_context
-    from volume.model import load_model
 
-    m = load_model(model_dir)
-    W, H = (int(x) for x in size.split("x"))
-    ctx = create_context()
-    c0 = m.rgbz.cameras[0]
-    radius = float(np.linalg.norm(c0.center - m.bounds.mean(0)))
-    eyes = ring_cameras(views, W, H, c0.K[0, 0] * W / c0.width, radius, (15.0,), target=m.bounds.mean(0))
+    ctx, m, eyes = _eyes(model_dir, size, views)
     configs = {"one layer": g.GatherConfig(back_gap_m=0.0), "two layers": g.GatherConfig()}
     ren = {k: GatherRenderer.from_model(ctx, m, config=c) for k, c in configs.items()}
     times = {k: [] for k in ren}
@@ -91,6 +84,68 @@ def frame_times(model_dir: str, size: str, views: int, repeat: int) -> None:
         r.release()
 
 
+def pass_times(model_dir: str, size: str, views: int, repeat: int) -> None:
+    """Median ms of pass 1b (mark), pass 2a behind its depth test and pass 2a with the test off."""
+    from render.gather.gl import GatherRenderer, fill_offset
+    from render.owner import near_far
+
+    ctx, m, eyes = _eyes(model_dir, size, views)
+    ren = GatherRenderer.from_model(ctx, m)
+    times = {"1b mark": [], "2a behind the depth test": [], "2a, test off": []}
+
+    def timed(key, draw):
+        ctx.finish()
+        t = time.perf_counter()
+        draw()
+        ctx.finish()
+        times[key].append(time.perf_counter() - t)
+
+    for _ in range(repeat):
+        for e in eyes:
+            dc, bl, w = ren.views(e)
+            ren.load(np.concatenate([dc, bl]))
+            near, far = near_far(e, ren.bounds)
+            off = fill_offset(far)
+            zt = ren._depth_pass(e, dc, near, far, off)
+            tgt = ren.target(e.width, e.height, colours=(4,), depth=True, name="under")
+            tgt.fbo.use()
+            ctx.viewport = (0, 0, e.width, e.height)
+            tgt.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            ctx.enable_only(ctx.DEPTH_TEST)
+            ctx.depth_func = "1"
+            zt.colours[0].use(0)
+            zt.colours[1].use(4)
+            p = ren.mark_prog
+            p["front_z"].value, p["far_z"].value, p["fill_offset"].value = 0, 4, off
+            timed("1b mark", lambda: ren.mark_vao.render(ctx.TRIANGLES, vertices=3))
+            tgt.fbo.depth_mask = False
+            ctx.depth_func = ">"
+            ren.under_prog["far_z"].value = 4
+            ren._blend_uniforms(ren.under_prog, e, bl, w)
+            timed("2a behind the depth test", lambda: ren.under_vao.render(ctx.TRIANGLES, vertices=3))
+            ctx.disable(ctx.DEPTH_TEST)
+            timed("2a, test off", lambda: ren.under_vao.render(ctx.TRIANGLES, vertices=3))
+            tgt.fbo.depth_mask = True
+            ctx.depth_func = "<"
+    for k, v in times.items():
+        print(f"{k}: median {1e3 * np.median(v):.1f} ms over {len(v)} frames")
+    ren.release()
+
+
+def _eyes(model_dir: str, size: str, views: int):
+    """(GL context, model, a ring of ``views`` eyes of ``size`` around it at its first camera's distance)."""
+    from capture.orbit import ring_cameras
+    from render.gl import create_context
+    from volume.model import load_model
+
+    m = load_model(model_dir)
+    W, H = (int(x) for x in size.split("x"))
+    c0 = m.rgbz.cameras[0]
+    radius = float(np.linalg.norm(c0.center - m.bounds.mean(0)))
+    eyes = ring_cameras(views, W, H, c0.K[0, 0] * W / c0.width, radius, (15.0,), target=m.bounds.mean(0))
+    return create_context(), m, eyes
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -104,11 +159,12 @@ def main() -> None:
     t.add_argument("--size", default="960x720")
     t.add_argument("--views", type=int, default=24)
     t.add_argument("--repeat", type=int, default=3)
+    t.add_argument("--passes", action="store_true", help="the second layer's passes alone")
     a = ap.parse_args()
     if a.cmd == "split":
         split(a.capture, a.model, a.solid_front == "off")
     else:
-        frame_times(a.model, a.size, a.views, a.repeat)
+        (pass_times if a.passes else frame_times)(a.model, a.size, a.views, a.repeat)
 
 
 if __name__ == "__main__":

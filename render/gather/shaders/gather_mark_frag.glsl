@@ -1,7 +1,7 @@
 #version 430
 // Pass 1b of the gather method with a second layer (full-screen triangle): depth MARK_DEPTH where the
 // pixel has one -- a front splat, and a farthest splat more than BACK_GAP behind it -- so that pass 2a
-// runs only there (its early depth test; llvmpipe shades no 4 x 4 block that has none).
+// runs only there (its early depth test: llvmpipe then skips the other pixels' shading).
 // Twin: render/gather/reference.py back_depth.  Defines: BACK_GAP, Z_EMPTY, MARK_DEPTH.
 uniform sampler2D front_z;   // pass 1: nearest z (the fill's carries fill_offset)
 uniform sampler2D far_z;     // pass 1: minus the farthest z
