@@ -91,7 +91,7 @@ def pass_times(model_dir: str, size: str, views: int, repeat: int) -> None:
 
     ctx, m, eyes = _eyes(model_dir, size, views)
     ren = GatherRenderer.from_model(ctx, m)
-    times = {"1b mark": [], "2a behind the depth test": [], "2a, test off": []}
+    times = {"mark": [], "under": [], "under, test off": []}
 
     def timed(key, draw):
         ctx.finish()
@@ -106,29 +106,9 @@ def pass_times(model_dir: str, size: str, views: int, repeat: int) -> None:
             ren.load(np.concatenate([dc, bl]))
             near, far = near_far(e, ren.bounds)
             off = fill_offset(far)
-            zt = ren._depth_pass(e, dc, near, far, off)
-            tgt = ren.target(e.width, e.height, colours=(4,), depth=True, name="under")
-            tgt.fbo.use()
-            ctx.viewport = (0, 0, e.width, e.height)
-            tgt.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            ctx.enable_only(ctx.DEPTH_TEST)
-            ctx.depth_func = "1"
-            zt.colours[0].use(0)
-            zt.colours[1].use(4)
-            p = ren.mark_prog
-            p["front_z"].value, p["far_z"].value, p["fill_offset"].value = 0, 4, off
-            timed("1b mark", lambda: ren.mark_vao.render(ctx.TRIANGLES, vertices=3))
-            tgt.fbo.depth_mask = False
-            ctx.depth_func = ">"
-            ren.under_prog["far_z"].value = 4
-            ren._blend_uniforms(ren.under_prog, e, bl, w)
-            timed("2a behind the depth test", lambda: ren.under_vao.render(ctx.TRIANGLES, vertices=3))
-            ctx.disable(ctx.DEPTH_TEST)
-            timed("2a, test off", lambda: ren.under_vao.render(ctx.TRIANGLES, vertices=3))
-            tgt.fbo.depth_mask = True
-            ctx.depth_func = "<"
+            ren._under_pass(e, ren._depth_pass(e, dc, near, far, off), bl, w, off, timed)
     for k, v in times.items():
-        print(f"{k}: median {1e3 * np.median(v):.1f} ms over {len(v)} frames")
+        print(f"pass {'1b' if k == 'mark' else '2a'} {k}: median {1e3 * np.median(v):.1f} ms over {len(v)} frames")
     ren.release()
 
 

@@ -21,10 +21,10 @@ frame only uniforms change:
 With a matte and ``GatherConfig.back_gap_m`` > 0, the second layer (the twin's step 3) runs between
 them: ``gather_mark_frag.glsl`` (1b) writes a depth where the farthest splat lies more than the gap
 behind the front, and ``gather_under_frag.glsl`` (2a) gathers that point behind an early depth test
-that passes only there (llvmpipe then skips the pixels without one: 4-6 ms at 960x720 against 43-49
-without the test, and about 32 with a discard instead); pass 2 composites it under the front.  About 1.4 x the frame time of
-one layer at 960x720 (docs/novel_views.md); a draft frame (``RenderOptions.draft``: the viewer's
-moving frames) leaves it out.
+that passes only there (llvmpipe then skips the pixels without one: 4-8 ms at 960x720 against 43-52
+without the test, and about 32 with a discard instead); pass 2 composites it under the front.  About
+1.4 x the frame time of one layer at 960x720 (docs/novel_views.md); a draft frame
+(``RenderOptions.draft``: the viewer's moving frames) leaves it out.
 
 One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
 colours are interpolated from the photos, whose own area sampling already anti-aliases strand
@@ -268,11 +268,13 @@ class GatherRenderer(Renderer):
         ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
         return tgt
 
-    def _under_pass(self, eye: Camera, zt, blend, weights, fill_offset: float):
+    def _under_pass(self, eye: Camera, zt, blend, weights, fill_offset: float, timed=None):
         """Passes 1b and 2a: depth MARK_DEPTH where the pixel has a second layer (gather_mark_frag.glsl),
         then behind a depth test that passes only there, its colour and how solid it is
-        (gather_under_frag.glsl)."""
+        (gather_under_frag.glsl).  ``timed(name, draw)`` (scripts/gather_layers.py) runs each draw: "mark",
+        "under" and, with the depth test off, "under, test off"; default: draws mark and under."""
         ctx = self.ctx
+        run = timed or (lambda name, draw: None if name.endswith("test off") else draw())
         tgt = self.target(eye.width, eye.height, colours=(4,), depth=True, name="under")
         tgt.fbo.use()
         ctx.viewport = (0, 0, eye.width, eye.height)
@@ -284,15 +286,16 @@ class GatherRenderer(Renderer):
         self.mark_prog["front_z"].value = 0
         self.mark_prog["far_z"].value = 4
         self.mark_prog["fill_offset"].value = fill_offset
-        self.mark_vao.render(ctx.TRIANGLES, vertices=3)
+        run("mark", lambda: self.mark_vao.render(ctx.TRIANGLES, vertices=3))
         tgt.fbo.depth_mask = False
         ctx.depth_func = ">"
         self.under_prog["far_z"].value = 4
         self._blend_uniforms(self.under_prog, eye, blend, weights)
-        self.under_vao.render(ctx.TRIANGLES, vertices=3)
+        run("under", lambda: self.under_vao.render(ctx.TRIANGLES, vertices=3))
+        ctx.disable(ctx.DEPTH_TEST)
+        run("under, test off", lambda: self.under_vao.render(ctx.TRIANGLES, vertices=3))
         tgt.fbo.depth_mask = True
         ctx.depth_func = "<"
-        ctx.disable(ctx.DEPTH_TEST)
         return tgt
 
     def _gather_pass(self, eye: Camera, zt, blend, weights, fill_offset: float, ut=None):
