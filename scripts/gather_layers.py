@@ -8,7 +8,7 @@ view's alpha, and what it costs a frame.
 MODEL (``furrow model CAPTURE_hidden --frames 0::2``) without and with the second layer; the alpha's squared error
 summed over the pixels it changes, by the front's alpha.  ``--solid-front off``: the first version, which counted
 the layer behind by its own solidity alone (the docs' table); ``on`` (default): the rule as built.
-``time``: median GPU frame times (no read-back) of the two configs, interleaved, on a ring of eyes around MODEL;
+``time``: median GPU frame times (no read-back) of the two configs, interleaved, on the capture's orbit around MODEL;
 ``--passes``: instead, the second layer's passes 1b and 2a alone, and 2a with its depth test off.
 """
 
@@ -113,17 +113,17 @@ def pass_times(model_dir: str, size: str, views: int, repeat: int) -> None:
 
 
 def _eyes(model_dir: str, size: str, views: int):
-    """(GL context, model, a ring of ``views`` eyes of ``size`` around it at its first camera's distance)."""
-    from capture.orbit import ring_cameras
+    """(GL context, model, ``views`` eyes on the capture's orbit (capture.orbit.orbit_cameras) at ``size``)."""
+    from capture.orbit import orbit_cameras
     from render.gl import create_context
     from volume.model import load_model
 
     m = load_model(model_dir)
     W, H = (int(x) for x in size.split("x"))
-    c0 = m.rgbz.cameras[0]
-    radius = float(np.linalg.norm(c0.center - m.bounds.mean(0)))
-    eyes = ring_cameras(views, W, H, c0.K[0, 0] * W / c0.width, radius, (15.0,), target=m.bounds.mean(0))
-    return create_context(), m, eyes
+    cams = orbit_cameras(m.rgbz.cameras, views, center=np.asarray(m.bounds, float).mean(axis=0))
+    if W * cams[0].height != H * cams[0].width:
+        raise SystemExit(f"--size {size}: not the capture's aspect ({cams[0].width}x{cams[0].height})")
+    return create_context(), m, [c.scaled(W / c.width) for c in cams]
 
 
 def main() -> None:

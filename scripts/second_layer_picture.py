@@ -20,19 +20,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ssim_split import _arrays, score
 
 from capture.io import read_scanset
-from capture.scan import linear_to_srgb, srgb_to_linear
+from capture.scan import srgb_to_linear
 from render.evaluate import COMPOSITE_BACKDROPS
+from render.frame import composite_over
 from render.gather import reference as g
+from render.metrics import as_srgb8
 
 #: The alpha error is drawn times this (white = an error of 1 / ERROR_GAIN or more).
 ERROR_GAIN = 2.0
 
 
 def over_white(col: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """8-bit sRGB of premultiplied linear ``col`` over the white backdrop."""
+    """8-bit sRGB of premultiplied linear ``col`` over the white backdrop (render.frame.composite_over)."""
     w = float(srgb_to_linear(np.float64(COMPOSITE_BACKDROPS["white"] / 255.0)))
-    lin = np.clip(col + (1.0 - alpha)[..., None] * w, 0, 1)
-    return (np.clip(linear_to_srgb(lin), 0, 1) * 255 + 0.5).astype(np.uint8)
+    return as_srgb8(np.clip(composite_over(col, alpha, (w, w, w)), 0.0, 1.0))
 
 
 def main() -> None:

@@ -21,9 +21,9 @@ frame only uniforms change:
 With a matte and ``GatherConfig.back_gap_m`` > 0, the second layer (the twin's step 3) runs between
 them: ``gather_mark_frag.glsl`` (1b) writes a depth where the farthest splat lies more than the gap
 behind the front, and ``gather_under_frag.glsl`` (2a) gathers that point behind an early depth test
-that passes only there (llvmpipe then skips the pixels without one: 4-8 ms at 960x720 against 43-52
+that passes only there (llvmpipe then skips the pixels without one: 3-6 ms at 960x720 against 40-41
 without the test, and about 32 with a discard instead); pass 2 composites it under the front.  About
-1.4 x the frame time of one layer at 960x720 (docs/novel_views.md); a draft frame
+1.3 x the frame time of one layer at 960x720 (docs/novel_views.md); a draft frame
 (``RenderOptions.draft``: the viewer's moving frames) leaves it out.
 
 One sample per pixel whatever ``RenderOptions.supersample`` says (it reads no option): the
