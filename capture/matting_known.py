@@ -47,6 +47,7 @@ from capture.matting_bound import clipped_mask, lower_bound
 from capture.matting_candidates_kernel import fit_fused
 from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
+from capture.matting_fringe import fill_colour
 from capture.matting_guide import view_guide
 from capture.matting_palette import palette
 from capture.matting_sources import source_coverage
@@ -353,16 +354,16 @@ def blown_bound(image: np.ndarray, background: np.ndarray, where: np.ndarray, no
 
 def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
                       fallback_fg, record: dict | None = None) -> np.ndarray:
-    """(h, w, 3) float64 straight colour in [0, 1] (step 4): F = B + (C - B) / alpha where B is
-    ``known``, not :func:`clipped` and alpha > 0.  Where B is known but blown out, the colour of the
-    nearest pixels whose F is exact and alpha at least REFINE_ALPHA (a push-pull fill: the needle's
-    own colour; pymatting's estimate there takes the white window into F: a conifer before a
-    blown-out wall came out white, premultiplied colour 18.1 dB against the truth over black, 21.7 dB
-    with the fill).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML
-    foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view
-    saw behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour
-    (:func:`_extended`).  Before a blown-out plate the colour is kept within the photo (capture.matting_cap).
-    ``record`` (a dict) gets ``opaque_sources``, the pixels filled, where OPAQUE_SOURCES gave the fill its sources."""
+    """(h, w, 3) float64 straight colour in [0, 1] (step 4): F = B + (C - B) / alpha where B is ``known``, not
+    :func:`clipped` and alpha > 0.  Where B is known but blown out, the colour of the nearest pixels whose F is exact
+    and alpha at least FILL_ALPHA (a push-pull fill: the needle's own colour; pymatting's estimate there takes the
+    white window into F: a conifer before a blown-out wall came out white, premultiplied colour 18.1 dB against the
+    truth over black, 21.7 dB with the fill); a partial pixel's, those of the view's measured fringe
+    (capture.matting_fringe).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML foreground: the
+    fill there made blocks of a far colour on a fur ball whose sides no other view saw behind, 10.6 dB held out
+    against 20.1).  Where alpha is 0, the nearest sure object colour (:func:`_extended`).  Before a blown-out plate
+    the colour is kept within the photo (capture.matting_cap).  ``record`` (a dict) gets ``opaque_sources``, the
+    pixels filled, where OPAQUE_SOURCES gave the fill its sources, and ``fringe`` (capture.matting_fringe)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     a = np.asarray(alpha, np.float64)
@@ -370,8 +371,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     blown = known & clipped(C, B) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
-    # an opaque pixel is its own colour whatever B, unless B is blown out: then "opaque" is the depth's
-    # word for a pixel the photo cannot tell from the window
+    # an opaque pixel is its own colour whatever B, unless B is blown out (then "opaque" is the depth's guess)
     need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
@@ -388,8 +388,8 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
             record["opaque_sources"] = int(fill.sum())
     rest = need & ~fill
     fb = np.asarray(fallback_fg(C, a, rest), np.float64) if rest.any() else C
-    if fill.any():
-        fb = np.where(fill[..., None], push_pull(F, sure.astype(np.float64)), fb)
+    if fill.any():  # the body's; a partial pixel's before a blown plate the view's fringe's (matting_fringe)
+        fb = np.where(fill[..., None], fill_colour(F, B, a, ok, sure, blown, FILL_ALPHA, MIN_SOURCES, record), fb)
     out = np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0)
     return _extended(blown_cap(out, C, a, B, blown), a)
 

@@ -367,6 +367,11 @@ def _print_backdrop_refused(console, m: dict) -> None:
 def _print_matte_data(console, m: dict) -> None:
     """The matte record's lines on where its data term came from (capture.matting_choice, capture.matting_channels,
     capture.matting_blind)."""
+    fr = m.get("fringe") or {}
+    if fr.get("views"):  # capture.matting_fringe
+        console.print(f"matte: {fr['pixels']} partial pixels before a blown-out background in {fr['views']} view(s) "
+                      "took the colour the view measured on its fringe, not its body's (capture.matting_fringe)",
+                      highlight=False)
     _print_backdrop_refused(console, m)
     cch = m.get("clipped_channels") or {}
     if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps

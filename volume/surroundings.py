@@ -389,7 +389,8 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "rim", "clipped_channels", "shadow", "backdrop_refused"):
+    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "rim", "clipped_channels", "shadow",
+                "backdrop_refused"):
         if m.notes.get(key):
             note[key] = m.notes[key]
     if plate is not None:  # the partial pixels before a blown-out plate: a fill, not a measurement
@@ -443,6 +444,7 @@ def matte_record(work, notes: dict, cfg):
               "reasons": sorted({c["reason"] for c in col if "reason" in c}),
               "sigma_fill": [c["sigma_fill"] for c in col], "sigma_alpha": [c.get("sigma_alpha") for c in col]}
     opq = [x["opaque_sources"] for x in n if "opaque_sources" in x]
+    fringe = [x["fringe"] for x in n if "fringe" in x]  # capture.matting_fringe
     rim = [x["rim"] for x in n if "rim" in x]
     refused = [x["backdrop_refused"] for x in n if "backdrop_refused" in x]  # capture.matting_choice
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
@@ -452,6 +454,7 @@ def matte_record(work, notes: dict, cfg):
     refs = getattr(work, "refs", None) or ()
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
+        "fringe": {"views": len(fringe), "pixels": int(sum(fringe))},
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
         "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],
                              "plate_rmse": [r["plate_rmse"] for r in refused]},
