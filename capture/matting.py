@@ -72,6 +72,11 @@ BACKDROP_CODES = True
 #: at least NOISE_FLOOR (one 8-bit sRGB step at black, linear).
 BACKDROP_NOISE_QUANTILE = 0.95
 NOISE_FLOOR = 1.0 / 255 / 12.92
+#: A backdrop this dark (linear, largest channel; 8-bit sRGB 37) leaves a faint strand's alpha to the body's colour
+#: (C - B = a (F - B) with |F - B| about |F|): the matte's notes say ``dark_backdrop`` and furrow model warns.  On
+#: path-traced fur over black the kept views' alpha came out 1.5-1.8 x the truth at true alpha 0.1-0.5
+#: (docs/matting.md "Fur over a black backdrop: the fringe's alpha").
+DARK_BACKDROP = 0.02
 #: Pixels of margin around the crop that is matted (the matting windows are 3x3).
 CROP_PAD = 4
 #: Closed-form matting: regularisation epsilon of the Laplacian and the CG solver's tolerance.
@@ -155,7 +160,8 @@ class Matte:
         unknown_fraction: fraction of the view's pixels the trimap left unknown (0 for 'given').
         scale: the resolution it was solved at over the view's (1: full size).
         notes: the solver's record (capture.matting_known: ``blind_prior``; capture.matting_colour:
-            ``colour``, how many estimated-background pixels were unmixed and filled).
+            ``colour``, how many estimated-background pixels were unmixed and filled; ``dark_backdrop``: the
+            backdrop was at most DARK_BACKDROP; capture.matting_fringe: ``fringe``).
     """
 
     alpha: np.ndarray
@@ -285,8 +291,11 @@ def matte_scan(scan: Scan, object_depth: np.ndarray | None = None, cfg: MatteCon
             backdrop = None
     if backdrop is not None and cfg.mode in ("auto", "backdrop"):
         B = np.broadcast_to(np.asarray(backdrop, np.float32), img.shape)
-        return solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
-                           mask, cfg)
+        m = solve_known(img, tri, B, np.ones(tri.shape, bool), backdrop_noise(img, tri, backdrop), "backdrop",
+                        mask, cfg)
+        if float(np.max(backdrop)) <= DARK_BACKDROP:
+            m.notes["dark_backdrop"] = 1
+        return m
     if plate is not None and plate.known.any() and cfg.mode in ("auto", "plate"):
         from capture.matting_colour import GATE_SEEN
         from capture.matting_rim import open_rim

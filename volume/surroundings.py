@@ -390,7 +390,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
     for key in ("blind_prior", "colour", "opaque_sources", "fringe", "rim", "clipped_channels", "shadow",
-                "backdrop_refused"):
+                "backdrop_refused", "dark_backdrop"):
         if m.notes.get(key):
             note[key] = m.notes[key]
     if plate is not None:  # the partial pixels before a blown-out plate: a fill, not a measurement
@@ -455,6 +455,7 @@ def matte_record(work, notes: dict, cfg):
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "fringe": {"views": len(fringe), "pixels": int(sum(fringe))},
+        "dark_backdrop_views": sum(bool(x.get("dark_backdrop")) for x in n),  # capture.matting.DARK_BACKDROP
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
         "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],
                              "plate_rmse": [r["plate_rmse"] for r in refused]},

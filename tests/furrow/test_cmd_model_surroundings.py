@@ -373,3 +373,26 @@ def test_the_report_says_where_the_empty_depth_rule_was_refused_and_why():
                      "empty_refused_reasons": ["too little depth to check it"]})
     assert "in 1 view(s) too little depth to check it" in little and "12 weak pixels" in little
     assert "EMPTY_MAX_HOLES" not in report({"empty_refused_pixels": 0, "empty_refused_views": 0, "depth_holes": []})
+
+
+def test_the_report_says_the_fringe_fill_and_a_black_backdrop():
+    """furrow model's report names capture.matting_fringe when partial pixels took the view's measured fringe, and
+    warns when views were matted against a black backdrop (capture.matting.DARK_BACKDROP); silent otherwise."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    def report(extra: dict) -> str:
+        out = StringIO()
+        matte = {"mode": "auto", "methods": {"backdrop": 18}, "seconds_per_view": 0.1, "seconds_per_view_max": 0.2,
+                 "unknown_fraction_mean": 0.1, "partial_fraction_mean": 0.1}
+        _print_surroundings(Console(file=out, width=400), {"matte": {**matte, **extra}})
+        return out.getvalue()
+
+    said = report({"fringe": {"views": 8, "pixels": 92763}, "dark_backdrop_views": 18})
+    assert "92763 partial pixels" in said and "in 8 view(s)" in said and "matting_fringe" in said
+    assert "18 view(s) matted against a black backdrop" in said
+    quiet = report({"fringe": {"views": 0, "pixels": 0}, "dark_backdrop_views": 0})
+    assert "matting_fringe" not in quiet and "black backdrop" not in quiet
