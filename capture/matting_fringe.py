@@ -9,14 +9,15 @@ whole outline in the black twin (mean straight colour 0.35 / 0.29 / 0.17 linear 
 took the body's 0.10 / 0.06 / 0.05.
 
 :func:`fill_colour` keeps the body's fill for pixels at alpha >= FILL_ALPHA and gives the partial pixels before a
-blown-out plate the push-pull fill of the view's own measured fringe instead: the pixels whose colour is exact (B
-known and not clipped, ``ok``), partial (alpha in [FRINGE_LOW, FILL_ALPHA)) and told from B (|F - B| >=
-FRINGE_SEPARATION: where the object's colour is close to B the alpha, and so the unmixed colour, is the least sure).
-A view with fewer than ``min_sources`` such pixels keeps the body's fill everywhere.  It takes no model of the light:
-the fringe's colour is what the same view measured on its fringe where something darker was behind it.  Held out, the
-bunny gains 0.39 dB (18.48 -> 18.87, SSIM 0.249 -> 0.257) and ten other room captures score the same; before a
-bright background no frame saw (the plate unknown, not blown) the same fill cost fur before a background of its own
-colour 0.29 dB, so it is not used there (docs/matting.md "The fringe's colour before a blown window").
+blown-out plate (or clipped in the photo: capture.matting_known.clipped) the push-pull fill of the view's own
+measured fringe instead: the pixels whose colour is exact (B known and not clipped, ``ok``), partial (alpha in
+[FRINGE_LOW, FILL_ALPHA)) and told from B (|F - B| >= FRINGE_SEPARATION: where the object's colour is close to B the
+alpha, and so the unmixed colour, is the least sure). A view with fewer than ``min_sources`` such pixels keeps the
+body's fill everywhere. It takes no model of the light: the fringe's colour is what the same view measured on its
+fringe where something darker was behind it. Held out, the bunny gains 0.39 dB (18.48 -> 18.87, SSIM 0.249 -> 0.257)
+and ten other room captures score the same; before a bright background no frame saw (the plate unknown, not blown)
+the same fill cost fur before a background of its own colour 0.29 dB, so it is not used there (docs/matting.md "The
+fringe's colour before a blown window").
 """
 
 from __future__ import annotations
@@ -45,8 +46,8 @@ def fringe_sources(F: np.ndarray, B: np.ndarray, a: np.ndarray, ok: np.ndarray, 
 def fill_colour(F: np.ndarray, B: np.ndarray, a: np.ndarray, ok: np.ndarray, sure: np.ndarray, blown: np.ndarray,
                 fill_alpha: float, min_sources: int, record: dict | None = None) -> np.ndarray:
     """(h, w, 3) float64 colour for the pixels filled (elsewhere undefined): the push-pull fill of the ``sure``
-    colours (the body's) and, with FRINGE_FILL, at the ``blown`` pixels (before a blown-out plate; every one of them
-    is filled) with alpha < ``fill_alpha`` that of the :func:`fringe_sources` when there are at least
+    colours (the body's) and, with FRINGE_FILL, at the ``blown`` pixels (the plate or the photo clipped; every one of
+    them is filled) with alpha < ``fill_alpha`` that of the :func:`fringe_sources` when there are at least
     ``min_sources`` of them.  ``F``: (h, w, 3) exact colour where ``ok``; ``B``: the plate; ``a``: alpha.
     ``record`` (a dict) gets ``fringe``: the pixels that took the fringe's colour."""
     body = push_pull(F, np.asarray(sure, np.float64))
@@ -59,4 +60,3 @@ def fill_colour(F: np.ndarray, B: np.ndarray, a: np.ndarray, ok: np.ndarray, sur
     if record is not None:
         record["fringe"] = int(tgt.sum())
     return np.where(tgt[..., None], push_pull(F, src.astype(np.float64)), body)
-
