@@ -26,7 +26,8 @@ It knows when it cannot beat doing nothing: the colour is used only
 Otherwise none, and the record (``cells['global']``) says why.  And a crossing that lies far from the matte's
 own mean colour (:func:`mean_checked`, MAX_MEAN_GAP) gives way to that mean: where the backgrounds behind the
 whole object share its hue the lines are nearly parallel and cross anywhere along them (the fifth unseen
-conifer before brick paving of its trunk's colour: a third of the true colour; docs/matting.md).
+conifer before brick paving of its trunk's colour: a third of the true colour; docs/matting.md), unless the mean
+is the less sure of the two (MEAN_BIAS_CHECK: before a bright window the mean takes the window's light).
 
 The object's colour is also the prior of the cubes' (:func:`shrink`): where the backgrounds behind a
 cube are alike its crossing errs far more than the needles' colours differ from cube to cube, and
@@ -98,6 +99,14 @@ MEAN_CHECK = True
 #: conifer (s5r180), whose crossing lies 0.70 from the truth and the mean 0.23.  Two estimates more than 0.5
 #: apart cannot both be within 0.25 of the truth.  Set before the capture made to check it was rendered.
 MAX_MEAN_GAP = 0.5
+#: The mean gives way only where it is the surer of the two: its error is the alpha's times the background,
+#: MEAN_ALPHA_BIAS x |sum B| / sum a for a systematic alpha error of MEAN_ALPHA_BIAS, against the crossing's own sigma
+#: (:func:`mean_checked`; False: the mean whenever the gap is over MAX_MEAN_GAP).  Before a bright window the mean
+#: takes the window's light into the needles (docs/matting.md "A conifer before a blown window").
+MEAN_BIAS_CHECK = True
+#: The systematic alpha error the mean's check assumes: the kept views' band alpha bias, 0.004-0.041 by class on the
+#: conifer before the window (docs/matting.md).
+MEAN_ALPHA_BIAS = 0.03
 
 
 def filled(C: np.ndarray, B: np.ndarray, alpha: np.ndarray, colour: np.ndarray) -> np.ndarray:
@@ -127,7 +136,7 @@ def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill,
     ref = np.asarray(crossed, bool) & np.asarray(fill, bool)
     if int(ref.sum()) < MIN_LINES:
         return None, {**rec, "reason": "too few filled pixels in a crossed cube to check it against"}
-    F_obj, rec["mean"] = mean_checked(F[0], C, B, np.asarray(w0) > 0, alpha, mean)
+    F_obj, rec["mean"] = mean_checked(F[0], C, B, np.asarray(w0) > 0, alpha, mean, float(np.sqrt(sig2[0])))
     e_fill = float(((np.asarray(colour, np.float64)[ref] - cell_colour[ref]) ** 2).sum(-1).mean())
     e_obj = float(((F_obj - cell_colour[ref]) ** 2).sum(-1).mean())
     rec.update(colour=[round(float(x), 5) for x in F[0]], sigma=round(float(np.sqrt(sig2[0])), 5),
@@ -148,19 +157,25 @@ def mean_colour(C, B, alpha) -> np.ndarray | None:
     return (np.asarray(C, np.float64) - (1.0 - a[:, None]) * np.asarray(B, np.float64)).sum(0) / a.sum()
 
 
-def mean_checked(F_obj: np.ndarray, C, B, lines: np.ndarray, alpha, force: bool = False) -> tuple[np.ndarray, dict]:
+def mean_checked(F_obj: np.ndarray, C, B, lines: np.ndarray, alpha, force: bool = False,
+                 sigma: float | None = None) -> tuple[np.ndarray, dict]:
     """The object's colour after the check against the matte's mean colour over the ``lines`` (N,) bool
     (:func:`mean_colour`): ``F_obj`` where the two lie at most MAX_MEAN_GAP apart (relative to the mean), else the
     mean (a crossing that far from it has crossed where the lines are nearly parallel: the backgrounds behind the
-    object all of its own hue); and the record (the mean, the gap, which was taken)."""
+    object all of its own hue), unless (MEAN_BIAS_CHECK) the mean's error from an alpha error of MEAN_ALPHA_BIAS is
+    above the crossing's ``sigma``; and the record (the mean, the gap, which was taken, the mean's error)."""
     if not MEAN_CHECK:
         return F_obj, {"reason": "off"}
-    Fm = mean_colour(np.asarray(C)[lines], np.asarray(B)[lines], np.asarray(alpha)[lines])
+    Cl, Bl, al = np.asarray(C)[lines], np.asarray(B, np.float64)[lines], np.asarray(alpha, np.float64)[lines]
+    Fm = mean_colour(Cl, Bl, al)
     if Fm is None or not np.linalg.norm(Fm) > 0:
         return F_obj, {"reason": "no alpha on the lines"}
     gap = float(np.linalg.norm(F_obj - Fm) / np.linalg.norm(Fm))
     take = gap > MAX_MEAN_GAP or bool(force)
     rec = {"colour": [round(float(x), 5) for x in Fm], "gap": round(gap, 4), "taken": take}
+    if take and not force and MEAN_BIAS_CHECK and sigma is not None:
+        rec["mean_error"] = round(MEAN_ALPHA_BIAS * float(np.linalg.norm(Bl.sum(0))) / float(al.sum()), 5)
+        rec["taken"] = take = rec["mean_error"] <= sigma
     if force:
         rec["forced"] = True
     return (np.clip(Fm, 0.0, 1.0) if take else F_obj), rec

@@ -301,3 +301,27 @@ def test_a_forced_mean_is_taken_whatever_the_gap():
     assert np.allclose(F, Fm) and rec["taken"] and rec["forced"] and rec["gap"] < mg.MAX_MEAN_GAP
     F, rec = mg.mean_checked(Fm * 1.1, C, B, np.ones(len(a), bool), a)
     assert np.array_equal(F, Fm * 1.1) and not rec["taken"] and "forced" not in rec
+
+
+def test_a_mean_pulled_by_a_bright_window_gives_way_to_the_crossing(monkeypatch):
+    """A conifer before a bright bluish window (docs/matting.md "A conifer before a blown window"): backgrounds of
+    several hues at brightness 0.6-0.95, the matte's alpha 0.1 too high.  The lines cross at the needles' colour
+    whatever the alpha; the mean takes the window's light (0.1 B / a) and lies more than MAX_MEAN_GAP from the
+    crossing.  The stop-51 rule (MEAN_BIAS_CHECK off) takes the mean; the check sees that the mean's error from an
+    alpha error of MEAN_ALPHA_BIAS is above the crossing's sigma and keeps the crossing."""
+    rng = np.random.default_rng(5)
+    n = 3000
+    B = (np.array([0.45, 0.55, 0.85]) + rng.uniform(-0.2, 0.2, (n, 3))) * rng.uniform(0.6, 0.95, (n, 1))
+    B = np.clip(B, 0.0, 0.95)
+    F = NEEDLE * rng.uniform(0.8, 1.2, (n, 1))
+    A = rng.uniform(0.15, 0.8, n)
+    C = A[:, None] * F + (1 - A[:, None]) * B + rng.normal(0, 0.003, B.shape)
+    a = np.clip(A + 0.1 + rng.normal(0, 0.02, n), 0.01, 0.99)
+    truth = (A[:, None] * F).sum(0) / A.sum()
+    monkeypatch.setattr(mg, "MEAN_BIAS_CHECK", False)
+    F_old, rec_old = _object(C, B, a)
+    monkeypatch.setattr(mg, "MEAN_BIAS_CHECK", True)
+    F_new, rec_new = _object(C, B, a)
+    assert rec_old["mean"]["taken"] and rec_old["mean"]["gap"] > mg.MAX_MEAN_GAP and _rel(F_old, truth) > 0.5
+    assert not rec_new["mean"]["taken"] and rec_new["mean"]["mean_error"] > rec_new["sigma"]
+    assert _rel(F_new, truth) <= 0.1, _rel(F_new, truth)
