@@ -343,13 +343,23 @@ def _print_surroundings(console, rec: dict) -> None:
         console.print(f"colour across views: {cells['across']} partial pixels given a cube's or the object's colour "
                       "kept the photo's part across their line: whole where a frame saw the background, shrunk "
                       "by the plate's uncertainty where not (capture.matting_cells.across_line)", highlight=False)
-    g = cells.get("global") or {}
+    _print_mean_check(console, cells.get("global") or {})
+
+
+def _print_mean_check(console, g: dict) -> None:
+    """The object's colour against the matte's mean (capture.matting_global.MEAN_CHECK, MEAN_BIAS_CHECK): one line
+    where the mean was taken, or where it was far but the less sure of the two."""
     for rec_pass in (g.get("recross", {}).get("first") or {}, g):
         mean = rec_pass.get("mean") or {}
-        if mean.get("taken"):  # capture.matting_global.MEAN_CHECK: the crossing too far from the matte's mean colour
-            console.print(f"[yellow]colour across views: the lines' crossing {_rgb(rec_pass.get('colour'))} lay "
-                          f"{mean['gap']:.2f} (relative) from the matte's own mean colour {_rgb(mean['colour'])}: "
-                          "the mean taken for the object's colour[/yellow]", highlight=False)
+        far = (f"colour across views: the lines' crossing {_rgb(rec_pass.get('colour'))} lay {mean.get('gap', 0):.2f} "
+               f"(relative) from the matte's own mean colour {_rgb(mean.get('colour'))}")
+        if mean.get("taken"):  # the crossing too far from the matte's mean colour
+            console.print(f"[yellow]{far}: the mean taken for the object's colour[/yellow]", highlight=False)
+            break
+        if "mean_error" in mean:  # far, but the mean's error from the alpha's above the crossing's sigma
+            console.print(f"{far}, but the mean's error from the alpha's ({mean['mean_error']:.3f}: a background "
+                          f"this bright) is above the crossing's sigma ({rec_pass.get('sigma', 0):.3f}): the crossing "
+                          "kept (capture.matting_global.MEAN_BIAS_CHECK)", highlight=False)
             break
 
 

@@ -396,3 +396,20 @@ def test_the_report_says_the_fringe_fill_and_a_black_backdrop():
     assert "18 view(s) matted against a black backdrop" in said
     quiet = report({"fringe": {"views": 0, "pixels": 0}, "dark_backdrop_views": 0})
     assert "matting_fringe" not in quiet and "black backdrop" not in quiet
+
+
+def test_the_report_says_when_the_mean_was_far_but_less_sure():
+    """capture.matting_global.MEAN_BIAS_CHECK: a mean far from the crossing but refused for its error from the
+    alpha's gets its own line (the crossing kept), not "the mean taken"."""
+    from io import StringIO
+
+    from rich.console import Console
+
+    from furrow.cmd_model import _print_surroundings
+
+    glob = {"colour": [0.016, 0.018, 0.0], "sigma": 0.027,
+            "mean": {"colour": [0.057, 0.066, 0.05], "gap": 0.8, "taken": False, "mean_error": 0.038}}
+    out = StringIO()
+    _print_surroundings(Console(file=out, width=400), {"matte": {"mode": "off", "cells": {"global": glob}}})
+    said = out.getvalue()
+    assert "the crossing kept" in said and "0.038" in said and "0.027" in said and "the mean taken" not in said
