@@ -136,10 +136,11 @@ def object_colour(C, B, w, alpha, colour, cell_colour, crossed, fill,
     ref = np.asarray(crossed, bool) & np.asarray(fill, bool)
     if int(ref.sum()) < MIN_LINES:
         return None, {**rec, "reason": "too few filled pixels in a crossed cube to check it against"}
-    F_obj, rec["mean"] = mean_checked(F[0], C, B, np.asarray(w0) > 0, alpha, mean, float(np.sqrt(sig2[0])))
+    sigma = float(np.sqrt(sig2[0]))
+    F_obj, rec["mean"] = mean_checked(F[0], C, B, np.asarray(w0) > 0, alpha, mean, sigma)
     e_fill = float(((np.asarray(colour, np.float64)[ref] - cell_colour[ref]) ** 2).sum(-1).mean())
     e_obj = float(((F_obj - cell_colour[ref]) ** 2).sum(-1).mean())
-    rec.update(colour=[round(float(x), 5) for x in F[0]], sigma=round(float(np.sqrt(sig2[0])), 5),
+    rec.update(colour=[round(float(x), 5) for x in F[0]], sigma=round(sigma, 5),
                check=int(ref.sum()), fill_to_cubes=round(e_fill, 7), object_to_cubes=round(e_obj, 7))
     if e_obj >= e_fill:
         return None, {**rec, "reason": "not nearer the cubes' colours than the fill"}

@@ -168,3 +168,23 @@ def test_a_matte_that_does_not_converge_falls_back_to_the_depth_mask(conifer, mo
     assert m.method == "estimate (not converged: depth mask)"
     np.testing.assert_array_equal(m.alpha, (scan.depth > 0).astype(np.float32))
     assert m.foreground.shape == scan.rgb.shape and np.all(np.isfinite(m.foreground))
+
+
+@pytest.mark.parametrize("level, dark", [(0.0, True), (0.15, False)])
+def test_a_black_backdrop_is_noted(level, dark):
+    """capture.matting.matte_scan notes ``dark_backdrop`` for a backdrop at most DARK_BACKDROP (a faint strand's
+    alpha over black rests on the body's colour), not for a grey one: a disc before a plain backdrop."""
+    from capture.camera import Camera, make_K
+    from capture.matting import DARK_BACKDROP, MatteConfig, matte_scan
+    from capture.scan import Scan
+
+    h, w = 48, 64
+    yy, xx = np.mgrid[:h, :w]
+    disc = (yy - 24) ** 2 + (xx - 32) ** 2 <= 12 ** 2
+    lin = np.where(disc[..., None], np.array([0.5, 0.3, 0.2]), level)
+    depth = np.where(disc, 0.5, 0.0).astype(np.float32)
+    cam = Camera(make_K(60.0, 60.0, 31.5, 23.5), np.eye(4), w, h)
+    m = matte_scan(Scan(lin.astype(np.float32), depth, cam, "v"),
+                   cfg=MatteConfig(mode="backdrop", backdrop=(level,) * 3))
+    assert m.method.startswith("backdrop")
+    assert bool(m.notes.get("dark_backdrop")) is dark and (level <= DARK_BACKDROP) is dark

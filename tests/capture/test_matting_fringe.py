@@ -88,22 +88,3 @@ def test_a_bright_background_not_known_keeps_the_body_fill():
     np.testing.assert_allclose(F[lit], np.broadcast_to(BODY, F[lit].shape), atol=1e-9)
     assert "fringe" not in rec
 
-
-@pytest.mark.parametrize("level, dark", [(0.0, True), (0.15, False)])
-def test_a_black_backdrop_is_noted(level, dark):
-    """capture.matting.matte_scan notes ``dark_backdrop`` for a backdrop at most DARK_BACKDROP (a faint strand's
-    alpha over black rests on the body's colour), not for a grey one: a disc before a plain backdrop."""
-    from capture.camera import Camera, make_K
-    from capture.matting import DARK_BACKDROP, MatteConfig, matte_scan
-    from capture.scan import Scan
-
-    h, w = 48, 64
-    yy, xx = np.mgrid[:h, :w]
-    disc = (yy - 24) ** 2 + (xx - 32) ** 2 <= 12 ** 2
-    lin = np.where(disc[..., None], np.array([0.5, 0.3, 0.2]), level)
-    depth = np.where(disc, 0.5, 0.0).astype(np.float32)
-    cam = Camera(make_K(60.0, 60.0, 31.5, 23.5), np.eye(4), w, h)
-    m = matte_scan(Scan(lin.astype(np.float32), depth, cam, "v"),
-                   cfg=MatteConfig(mode="backdrop", backdrop=(level,) * 3))
-    assert m.method.startswith("backdrop")
-    assert bool(m.notes.get("dark_backdrop")) is dark and (level <= DARK_BACKDROP) is dark
