@@ -54,7 +54,15 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q -e '.[dev,cluster]'
 	@touch $(STAMP)
 
-setup: sysdeps $(STAMP)
+# numba compiles each kernel on its first call (about 45 s of CPU in all on this machine): done once here, on a tiny
+# capture in a temporary folder, so that neither the first `make demo` nor the test run pays it (scripts/warm_kernels.py).
+KERNELS := $(VENV)/.kernels-warm
+
+$(KERNELS): $(STAMP)
+	$(BIN)/python scripts/warm_kernels.py
+	@touch $(KERNELS)
+
+setup: sysdeps $(STAMP) $(KERNELS)
 
 # ruff: lint + import order, rules in pyproject.toml [tool.ruff]; `$(BIN)/ruff check --fix .` repairs most.
 lint: setup
