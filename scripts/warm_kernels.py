@@ -21,7 +21,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from furrow.cli import main  # noqa: E402
+from furrow.cli import main
 
 
 def run(args: list[str]) -> None:
