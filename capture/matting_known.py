@@ -49,6 +49,7 @@ from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
 from capture.matting_fringe import fill_colour
 from capture.matting_guide import view_guide
+from capture.matting_interior import interior
 from capture.matting_palette import palette
 from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
@@ -139,10 +140,8 @@ CG_RTOL = 1e-6
 #: (largest alpha error 1-3e-4 either way; docs/speed.md round 5; tests/capture/test_matting_known.py).
 #: 3e-2 no longer factors without pymatting's diagonal shifts (a second build).
 ICHOL_DISCARD = 3e-3
-
-#: Trimap widening: a background pixel of the depth's trimap within this fraction of the image
-#: width of the unknown band whose alpha bound is above WIDEN_ALPHA becomes unknown (a needle
-#: no depth pixel saw); 12 px at 640.
+#: Trimap widening: a background pixel of the depth's trimap within this fraction of the image width of the unknown
+#: band whose alpha bound is above WIDEN_ALPHA becomes unknown (a needle no depth pixel saw); 12 px at 640.
 WIDEN_FRACTION = 12 / 640
 WIDEN_ALPHA = 0.0
 #: ... and at least this many pixels (a small image: the bottom of a sphere whose depth the extent
@@ -358,10 +357,10 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     :func:`clipped` and alpha > 0.  Where B is known but blown out, the colour of the nearest pixels whose F is exact
     and alpha at least FILL_ALPHA (a push-pull fill: the needle's own colour; pymatting's estimate there takes the
     white window into F: a conifer before a blown-out wall came out white, premultiplied colour 18.1 dB against the
-    truth over black, 21.7 dB with the fill); a partial pixel's, those of the view's measured fringe
-    (capture.matting_fringe).  Where B is not known, ``fallback_fg(C, alpha, need)`` (pymatting's ML foreground: the
-    fill there made blocks of a far colour on a fur ball whose sides no other view saw behind, 10.6 dB held out
-    against 20.1).  Where alpha is 0, the nearest sure object colour (:func:`_extended`).  Before a blown-out plate
+    truth over black, 21.7 dB with the fill); a partial pixel's, the view's measured fringe's (capture.matting_fringe);
+    the object's interior, its photo (capture.matting_interior).  Where B is not known, ``fallback_fg(C, alpha, need)``
+    (pymatting's ML foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view saw
+    behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour.  Before a blown plate
     the colour is kept within the photo (capture.matting_cap).  ``record`` (a dict) gets ``opaque_sources``, the
     pixels filled, where OPAQUE_SOURCES gave the fill its sources, and ``fringe`` (capture.matting_fringe)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
@@ -371,8 +370,9 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     blown = known & clipped(C, B) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
-    # an opaque pixel is its own colour whatever B, unless B is blown out (then "opaque" is the depth's guess)
-    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown)
+    # an opaque pixel is its own colour whatever B, unless B is blown out (then "opaque" is the depth's guess) and it
+    # is not in the object's interior (capture.matting_interior)
+    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown) & ~interior(C, a, blown, OPAQUE_ALPHA, CLIP_LEVEL)
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
     sure = ok & (a >= FILL_ALPHA)

@@ -353,18 +353,20 @@ def _full_colour(image: np.ndarray, a: np.ndarray, background: np.ndarray, known
                  f_up: np.ndarray) -> np.ndarray:
     """(h, w, 3) straight colour at full resolution (capture.matting_known.foreground_colour's rules):
     F = B + (C - B) / alpha exactly where the background is ``known``, not blown out and alpha > 0;
-    an opaque pixel of unknown background its own colour; everywhere else (the background not known
-    or blown out, alpha 0) the working solve's colour ``f_up``, brought up by the guided filter (the
-    working solve made it by the same rules: pymatting's foreground, the fills of the nearest sure
-    colours)."""
+    an opaque pixel of unknown background, or in the object's interior before a blown-out one
+    (capture.matting_interior), its own colour; everywhere else (the background not known or blown
+    out, alpha 0) the working solve's colour ``f_up``, brought up by the guided filter (the working
+    solve made it by the same rules: pymatting's foreground, the fills of the nearest sure colours)."""
     from capture.matting_full_colour import full_colour
+    from capture.matting_interior import interior
     from capture.matting_known import CLIP_LEVEL, clipped
     from capture.matting_known import OPAQUE_ALPHA as KNOWN_OPAQUE
 
-    if (fused := full_colour(image, a, background, known, f_up, CLIP_LEVEL, KNOWN_OPAQUE)) is not None:
-        return fused
     blown = known & clipped(image, background) & (a > 0)
+    inner = interior(image, a, blown, KNOWN_OPAQUE, CLIP_LEVEL)  # the object's interior keeps its photo
+    if (fused := full_colour(image, a, background, known, f_up, CLIP_LEVEL, KNOWN_OPAQUE)) is not None:
+        return np.where(inner[..., None], image, fused) if inner.any() else fused
     ok = known & ~blown & (a > 0)
     F = np.clip(background + (image - background) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
-    own = (a >= KNOWN_OPAQUE) & ~ok & ~blown
+    own = (a >= KNOWN_OPAQUE) & ~ok & (~blown | inner)
     return np.where(ok[..., None], F, np.where(own[..., None], image, f_up))
