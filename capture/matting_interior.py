@@ -9,7 +9,7 @@ Gaussian film filter of standard deviation 0.5 px reaches 2 px): on a conifer pa
 map's window, the near-opaque pixels (true alpha 0.85-0.99) within 2 px of the blown window took a background 4.0
 linear behind them (median), against the plate's 0.25-0.75 (docs/matting.md "The interior before a blown window").
 
-:func:`interior` names the pixels kept: the plate blown out (or the photo clipped) there, the photo not clipped,
+:func:`interior` names the pixels kept: the plate blown out there, the photo not clipped,
 and alpha at least OPAQUE_ALPHA over the (2 INTERIOR_PX + 1)^2 square around.  On the furry bunny before the same
 window (hardcases24), 199,112 of its kept views' pixels; their photo's colour errs by 0.00078 (mean squared,
 linear, against the black twin's colour) where the fill erred by 0.00325; on the conifer before the window no
@@ -29,14 +29,19 @@ INTERIOR_PHOTO = True
 INTERIOR_PX = 2
 
 
-def interior(image: np.ndarray, alpha: np.ndarray, blown: np.ndarray, opaque_alpha: float,
+def interior(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray, opaque_alpha: float,
              clip_level: float) -> np.ndarray:
-    """(h, w) bool: the ``blown`` pixels (the plate blown out or the photo clipped) whose photo ``image`` (h, w, 3)
-    is not clipped (every channel below ``clip_level``) and whose ``alpha`` (h, w) is at least ``opaque_alpha``
-    over the square of side 2 INTERIOR_PX + 1 around them (the frame's edge counts as not opaque).  All False
-    with INTERIOR_PHOTO off."""
-    blown = np.asarray(blown, bool)
-    if not INTERIOR_PHOTO or not blown.any():
-        return np.zeros(blown.shape, bool)
-    solid = erode(np.asarray(alpha) >= opaque_alpha, iterations=INTERIOR_PX, square=True)
+    """(h, w) bool: the pixels whose plate ``background`` (h, w, 3) is ``known`` and blown out (a channel at
+    ``clip_level``), whose photo ``image`` (h, w, 3) is not clipped (every channel below it) and whose ``alpha``
+    (h, w) is at least ``opaque_alpha`` over the square of side 2 INTERIOR_PX + 1 around them (the frame's edge
+    counts as not opaque).  All False with INTERIOR_PHOTO off or no plate pixel blown out (one reduction: the test
+    costs a view nothing before a background that is nowhere blown out)."""
+    a = np.asarray(alpha)
+    none = np.zeros(a.shape, bool)
+    if not INTERIOR_PHOTO or not np.size(background) or float(np.max(background)) < clip_level:
+        return none
+    blown = np.asarray(known, bool) & (channel_max(np.asarray(background)) >= clip_level)
+    if not blown.any():
+        return none
+    solid = erode(a >= opaque_alpha, iterations=INTERIOR_PX, square=True)
     return blown & solid & (channel_max(np.asarray(image)) < clip_level)

@@ -362,10 +362,10 @@ def _full_colour(image: np.ndarray, a: np.ndarray, background: np.ndarray, known
     from capture.matting_known import CLIP_LEVEL, clipped
     from capture.matting_known import OPAQUE_ALPHA as KNOWN_OPAQUE
 
-    blown = known & clipped(image, background) & (a > 0)
-    inner = interior(image, a, blown, KNOWN_OPAQUE, CLIP_LEVEL)  # the object's interior keeps its photo
+    inner = interior(image, a, background, known, KNOWN_OPAQUE, CLIP_LEVEL)  # the object's interior keeps its photo
     if (fused := full_colour(image, a, background, known, f_up, CLIP_LEVEL, KNOWN_OPAQUE)) is not None:
         return np.where(inner[..., None], image, fused) if inner.any() else fused
+    blown = known & clipped(image, background) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(background + (image - background) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
     own = (a >= KNOWN_OPAQUE) & ~ok & (~blown | inner)
