@@ -30,12 +30,13 @@ INTERIOR_PX = 2
 
 
 def interior(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray, opaque_alpha: float,
-             clip_level: float) -> np.ndarray:
+             clip_level: float, record: dict | None = None) -> np.ndarray:
     """(h, w) bool: the pixels whose plate ``background`` (h, w, 3) is ``known`` and blown out (a channel at
     ``clip_level``), whose photo ``image`` (h, w, 3) is not clipped (every channel below it) and whose ``alpha``
     (h, w) is at least ``opaque_alpha`` over the square of side 2 INTERIOR_PX + 1 around them (the frame's edge
     counts as not opaque).  All False with INTERIOR_PHOTO off or no plate pixel blown out (one reduction: the test
-    costs a view nothing before a background that is nowhere blown out)."""
+    costs a view nothing before a background that is nowhere blown out).  ``record`` (a dict) gets ``interior``,
+    how many, where there are any."""
     a = np.asarray(alpha)
     none = np.zeros(a.shape, bool)
     if not INTERIOR_PHOTO or not np.size(background) or float(np.max(background)) < clip_level:
@@ -44,4 +45,7 @@ def interior(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known
     if not blown.any():
         return none
     solid = erode(a >= opaque_alpha, iterations=INTERIOR_PX, square=True)
-    return blown & solid & (channel_max(np.asarray(image)) < clip_level)
+    out = blown & solid & (channel_max(np.asarray(image)) < clip_level)
+    if record is not None and (n := int(np.count_nonzero(out))):
+        record["interior"] = n
+    return out

@@ -372,7 +372,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
     # an opaque pixel is its own colour whatever B, unless B is blown out (then "opaque" is the depth's guess) and it
     # is not in the object's interior (capture.matting_interior)
-    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown) & ~interior(C, a, B, known, OPAQUE_ALPHA, CLIP_LEVEL)
+    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown) & ~interior(C, a, B, known, OPAQUE_ALPHA, CLIP_LEVEL, record)
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
     sure = ok & (a >= FILL_ALPHA)

@@ -308,7 +308,7 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     a = np.maximum(a, colour_bound(ci, B, f_up, band & given & ~sure, CLIP_LEVEL, noise))  # capture.matting_channels
     a[tri <= BG] = 0.0
     a[tri >= FG] = 1.0
-    F = _full_colour(ci, a, B, given, f_up)
+    F = _full_colour(ci, a, B, given, f_up, record)
     return a.astype(np.float32), F, tri, ok
 
 
@@ -350,19 +350,20 @@ def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up
 
 
 def _full_colour(image: np.ndarray, a: np.ndarray, background: np.ndarray, known: np.ndarray,
-                 f_up: np.ndarray) -> np.ndarray:
+                 f_up: np.ndarray, record: dict | None = None) -> np.ndarray:
     """(h, w, 3) straight colour at full resolution (capture.matting_known.foreground_colour's rules):
     F = B + (C - B) / alpha exactly where the background is ``known``, not blown out and alpha > 0;
     an opaque pixel of unknown background, or in the object's interior before a blown-out one
     (capture.matting_interior), its own colour; everywhere else (the background not known or blown
     out, alpha 0) the working solve's colour ``f_up``, brought up by the guided filter (the working
-    solve made it by the same rules: pymatting's foreground, the fills of the nearest sure colours)."""
+    solve made it by the same rules: pymatting's foreground, the fills of the nearest sure colours).
+    ``record`` gets capture.matting_interior's count at full size."""
     from capture.matting_full_colour import full_colour
     from capture.matting_interior import interior
     from capture.matting_known import CLIP_LEVEL, clipped
     from capture.matting_known import OPAQUE_ALPHA as KNOWN_OPAQUE
 
-    inner = interior(image, a, background, known, KNOWN_OPAQUE, CLIP_LEVEL)  # the object's interior keeps its photo
+    inner = interior(image, a, background, known, KNOWN_OPAQUE, CLIP_LEVEL, record)  # the interior: its photo
     if (fused := full_colour(image, a, background, known, f_up, CLIP_LEVEL, KNOWN_OPAQUE)) is not None:
         return np.where(inner[..., None], image, fused) if inner.any() else fused
     blown = known & clipped(image, background) & (a > 0)

@@ -390,6 +390,11 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {fr['pixels']} partial pixels before a blown-out background in {fr['views']} view(s) "
                       "took the colour the view measured on its fringe, not its body's (capture.matting_fringe)",
                       highlight=False)
+    inner = m.get("interior") or {}
+    if inner.get("views"):  # capture.matting_interior
+        console.print(f"matte: {inner['pixels']} pixels of the object's interior before a blown-out background in "
+                      f"{inner['views']} view(s) kept their photo's colour (opaque over the camera's spread: "
+                      "capture.matting_interior)", highlight=False)
     _print_backdrop_refused(console, m)
     cch = m.get("clipped_channels") or {}
     if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps

@@ -389,7 +389,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "rim", "clipped_channels", "shadow",
+    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "rim", "clipped_channels", "shadow",
                 "backdrop_refused", "dark_backdrop"):
         if m.notes.get(key):
             note[key] = m.notes[key]
@@ -445,6 +445,7 @@ def matte_record(work, notes: dict, cfg):
               "sigma_fill": [c["sigma_fill"] for c in col], "sigma_alpha": [c.get("sigma_alpha") for c in col]}
     opq = [x["opaque_sources"] for x in n if "opaque_sources" in x]
     fringe = [x["fringe"] for x in n if "fringe" in x]  # capture.matting_fringe
+    inner = [x["interior"] for x in n if "interior" in x]  # capture.matting_interior
     rim = [x["rim"] for x in n if "rim" in x]
     refused = [x["backdrop_refused"] for x in n if "backdrop_refused" in x]  # capture.matting_choice
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
@@ -455,6 +456,7 @@ def matte_record(work, notes: dict, cfg):
     return work.record("matte", {"blind_prior": blind, "colour": colour,
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "fringe": {"views": len(fringe), "pixels": int(sum(fringe))},
+        "interior": {"views": len(inner), "pixels": int(sum(inner))},
         "dark_backdrop_views": sum(bool(x.get("dark_backdrop")) for x in n),  # capture.matting.DARK_BACKDROP
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
         "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],

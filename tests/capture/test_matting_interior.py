@@ -59,9 +59,11 @@ def test_interior_pixels_take_their_photo_and_the_rest_the_fill():
     """Before the window the interior's colour is the true colour exactly (the photo); the body within 2 px of the
     fringe keeps the fill from the body before the wall (its photo holds the window's light)."""
     C, a, B, known, F_true = _body_before_window()
-    F = mk.foreground_colour(C, a, B, known, _fallback)
+    rec = {}
+    F = mk.foreground_colour(C, a, B, known, _fallback, rec)
     inner, near = _rings()
     np.testing.assert_allclose(F[inner], F_true[inner], atol=1e-12)
+    assert rec["interior"] == int(inner.sum())
     assert np.abs(F[near] - F_true[near]).mean() < 0.02 < np.abs(C[near] - F_true[near]).mean()
 
 
