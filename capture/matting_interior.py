@@ -25,6 +25,9 @@ from capture.matting_fast import channel_max, erode
 #: Keep the photo's colour in the object's interior before a blown-out plate (:func:`interior`); False: the fill,
 #: as before stop 80.
 INTERIOR_PHOTO = True
+#: Where the fill's sources are the opaque pixels (too few sure ones), those before a blown-out plate count only in the
+#: interior (:func:`opaque_sources`); False: every opaque pixel whose photo is not clipped, as before.
+INTERIOR_SOURCES = True
 #: The camera's spread (px at the photo's resolution): an interior pixel's neighbours up to this far are opaque.
 INTERIOR_PX = 2
 
@@ -49,3 +52,11 @@ def interior(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known
     if record is not None and (n := int(np.count_nonzero(out))):
         record["interior"] = n
     return out
+
+
+def opaque_sources(blown: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """(h, w) bool: where an opaque pixel may be a source of the fill (capture.matting_known.OPAQUE_SOURCES): not
+    before a blown-out plate (``blown``), or in the interior (``inner``, :func:`interior`); everywhere with
+    INTERIOR_SOURCES off."""
+    blown = np.asarray(blown, bool)
+    return ~blown | np.asarray(inner, bool) if INTERIOR_SOURCES else np.ones(blown.shape, bool)

@@ -49,7 +49,7 @@ from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
 from capture.matting_fringe import fill_colour
 from capture.matting_guide import view_guide
-from capture.matting_interior import interior
+from capture.matting_interior import interior, opaque_sources
 from capture.matting_palette import palette
 from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
@@ -370,15 +370,15 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     blown = known & clipped(C, B) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(B + (C - B) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
-    # an opaque pixel is its own colour whatever B, unless B is blown out (then "opaque" is the depth's guess) and it
-    # is not in the object's interior (capture.matting_interior)
-    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown) & ~interior(C, a, B, known, OPAQUE_ALPHA, CLIP_LEVEL, record)
+    # an opaque pixel is its own colour whatever B, unless B is blown out ("opaque" the depth's guess) off the interior
+    inner = interior(C, a, B, known, OPAQUE_ALPHA, CLIP_LEVEL, record)  # (capture.matting_interior)
+    need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown) & ~inner
     if not need.any():
         return _extended(np.where(ok[..., None], F, C), a)
     sure = ok & (a >= FILL_ALPHA)
     opaque = OPAQUE_SOURCES and sure.sum() < MIN_SOURCES
     if opaque:
-        sure = sure | ((a >= OPAQUE_ALPHA) & (channel_max(C) < CLIP_LEVEL))
+        sure = sure | (opaque_sources(blown, inner) & (a >= OPAQUE_ALPHA) & (channel_max(C) < CLIP_LEVEL))
     fill = np.zeros(a.shape, bool)
     if sure.sum() >= MIN_SOURCES:  # before a bright background (blown out or not known: the plate's nearest)
         bright = channel_max(push_pull(B, (known & ~blown).astype(np.float64))) >= FILL_BRIGHT if known.any() \

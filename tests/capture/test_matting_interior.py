@@ -94,3 +94,30 @@ def test_the_working_resolution_colour_keeps_the_interior_too():
     out = _full_colour(C.astype(np.float32), a, B.astype(np.float32), known, f_up)
     np.testing.assert_allclose(out[inner], F_true[inner], atol=1e-7)  # float32 photo
     assert np.all(out[near] == 0.5)
+
+
+def _all_before_window():
+    """:func:`_body_before_window` with the window behind the whole crop (no sure pixel anywhere: the fill's sources
+    are the opaque pixels, capture.matting_known.OPAQUE_SOURCES); the body within INTERIOR_PX of the fringe holds
+    0.05 of the window's light on every side."""
+    C, a, B, known, F = _body_before_window()
+    B[:] = 1.0
+    C = np.clip(a[..., None] * F + (1 - a[..., None]) * WINDOW, 0.0, 1.0)
+    inner = np.zeros(a.shape, bool)
+    inner[15 + mi.INTERIOR_PX:45 - mi.INTERIOR_PX, 15 + mi.INTERIOR_PX:65 - mi.INTERIOR_PX] = True
+    near = (a >= 1.0) & ~inner
+    C[near] += 0.05
+    return C, a, B, known, F, inner, near
+
+
+def test_with_no_sure_pixel_the_fill_comes_from_the_interior_not_the_lit_edge(monkeypatch):
+    """No sure pixel: the opaque pixels are the fill's sources; before the window only the interior's count, so the
+    body's lit edge takes the interior's colour (within the texture's 0.015), not its own photo (0.05 too bright);
+    INTERIOR_SOURCES off: the edge is its own source and keeps the window's light."""
+    C, a, B, known, F_true, inner, near = _all_before_window()
+    F = mk.foreground_colour(C, a, B, known, _fallback)
+    np.testing.assert_allclose(F[inner], F_true[inner], atol=1e-12)
+    assert np.abs(F[near] - F_true[near]).mean() < 0.02
+    monkeypatch.setattr(mi, "INTERIOR_SOURCES", False)
+    F_off = mk.foreground_colour(C, a, B, known, _fallback)
+    assert np.abs(F_off[near] - F_true[near]).mean() > 0.04
