@@ -28,6 +28,10 @@ INTERIOR_PHOTO = True
 #: Where the fill's sources are the opaque pixels (too few sure ones), those before a blown-out plate count only in the
 #: interior (:func:`opaque_sources`); False: every opaque pixel whose photo is not clipped, as before.
 INTERIOR_SOURCES = True
+#: An opaque pixel whose background no frame saw, before a known plate that is blown out around it, and whose photo is
+#: more than UNSEEN_RATIO times as bright as the fill there, takes the fill (:func:`unseen_fill`); False: its photo.
+UNSEEN_BLOWN = True
+UNSEEN_RATIO = 1.5
 #: The camera's spread (px at the photo's resolution): an interior pixel's neighbours up to this far are opaque.
 INTERIOR_PX = 2
 
@@ -60,3 +64,38 @@ def opaque_sources(blown: np.ndarray, inner: np.ndarray) -> np.ndarray:
     INTERIOR_SOURCES off."""
     blown = np.asarray(blown, bool)
     return ~blown | np.asarray(inner, bool) if INTERIOR_SOURCES else np.ones(blown.shape, bool)
+
+
+def unseen_fill(F: np.ndarray, image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray,
+                blown: np.ndarray | None, record: dict | None = None) -> np.ndarray:
+    """``F`` (h, w, 3, the matte's straight colour) with the opaque pixels (alpha >= OPAQUE_ALPHA) whose background
+    no frame saw (not ``known``) but whose nearest known plate is blown out (the push-pull of the known ``background``,
+    blown pixels included, reaching CLIP_LEVEL) given the fill of the colours of the sure pixels around them (alpha
+    >= FILL_ALPHA, not before a blown or such an unseen background, the photo not clipped), where their photo
+    ``image`` is more than UNSEEN_RATIO times the fill's brightness (largest channel).  On a fur ball turning
+    before a window, the depth calls the fur's outer band opaque where no frame saw behind it, and its photo holds
+    the window's light (docs/matting.md "The interior before a blown window").  ``record`` gets ``unseen_blown``.
+    ``blown``: the pixels before a blown-out plate or clipped in the photo (None: found here).  ``F`` itself with
+    UNSEEN_BLOWN off, no known pixel blown out, or fewer than MIN_SOURCES sources."""
+    from capture.fill import push_pull
+    from capture.matting_known import CLIP_LEVEL, FILL_ALPHA, MIN_SOURCES, OPAQUE_ALPHA, clipped
+
+    known = np.asarray(known, bool)
+    if not UNSEEN_BLOWN or not np.size(background) or float(np.max(background)) < CLIP_LEVEL or not known.any():
+        return F
+    a = np.asarray(alpha)
+    behind = channel_max(push_pull(np.asarray(background, np.float64), known.astype(np.float64))) >= CLIP_LEVEL
+    unseen = ~known & behind
+    hot = unseen & (a >= OPAQUE_ALPHA)
+    if not hot.any():
+        return F
+    C = np.asarray(image)
+    blown = known & clipped(C, background) & (a > 0) if blown is None else np.asarray(blown, bool)
+    src = (a >= FILL_ALPHA) & ~unseen & ~blown & (channel_max(C) < CLIP_LEVEL)
+    if np.count_nonzero(src) < MIN_SOURCES:
+        return F
+    fill = push_pull(np.asarray(F, np.float64), src.astype(np.float64))
+    hot &= channel_max(C) > UNSEEN_RATIO * channel_max(fill)
+    if record is not None and (n := int(np.count_nonzero(hot))):
+        record["unseen_blown"] = n
+    return np.where(hot[..., None], fill, F)

@@ -49,7 +49,7 @@ from capture.matting_cap import blown_cap
 from capture.matting_fast import channel_max, channel_sum, dilate
 from capture.matting_fringe import fill_colour
 from capture.matting_guide import view_guide
-from capture.matting_interior import interior, opaque_sources
+from capture.matting_interior import interior, opaque_sources, unseen_fill
 from capture.matting_palette import palette
 from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
@@ -374,7 +374,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     inner = interior(C, a, B, known, OPAQUE_ALPHA, CLIP_LEVEL, record)  # (capture.matting_interior)
     need = (a > 0) & ~ok & ((a < OPAQUE_ALPHA) | blown) & ~inner
     if not need.any():
-        return _extended(np.where(ok[..., None], F, C), a)
+        return _extended(unseen_fill(np.where(ok[..., None], F, C), C, a, B, known, blown, record), a)
     sure = ok & (a >= FILL_ALPHA)
     opaque = OPAQUE_SOURCES and sure.sum() < MIN_SOURCES
     if opaque:
@@ -391,7 +391,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     if fill.any():  # the body's; a partial pixel's before a blown plate the view's fringe's (matting_fringe)
         fb = np.where(fill[..., None], fill_colour(F, B, a, ok, sure, blown, FILL_ALPHA, MIN_SOURCES, record), fb)
     out = np.clip(np.where(ok[..., None], F, np.where(need[..., None], fb, C)), 0.0, 1.0)
-    return _extended(blown_cap(out, C, a, B, blown), a)
+    return _extended(blown_cap(unseen_fill(out, C, a, B, known, blown, record), C, a, B, blown), a)
 
 
 def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:

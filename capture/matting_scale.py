@@ -359,15 +359,17 @@ def _full_colour(image: np.ndarray, a: np.ndarray, background: np.ndarray, known
     solve made it by the same rules: pymatting's foreground, the fills of the nearest sure colours).
     ``record`` gets capture.matting_interior's count at full size."""
     from capture.matting_full_colour import full_colour
-    from capture.matting_interior import interior
+    from capture.matting_interior import interior, unseen_fill
     from capture.matting_known import CLIP_LEVEL, clipped
     from capture.matting_known import OPAQUE_ALPHA as KNOWN_OPAQUE
 
     inner = interior(image, a, background, known, KNOWN_OPAQUE, CLIP_LEVEL, record)  # the interior: its photo
     if (fused := full_colour(image, a, background, known, f_up, CLIP_LEVEL, KNOWN_OPAQUE)) is not None:
-        return np.where(inner[..., None], image, fused) if inner.any() else fused
+        out = np.where(inner[..., None], image, fused) if inner.any() else fused
+        return unseen_fill(out, image, a, background, known, None, record)  # the unseen band before a window
     blown = known & clipped(image, background) & (a > 0)
     ok = known & ~blown & (a > 0)
     F = np.clip(background + (image - background) / np.maximum(a, 1e-6)[..., None], 0.0, 1.0)
     own = (a >= KNOWN_OPAQUE) & ~ok & (~blown | inner)
-    return np.where(ok[..., None], F, np.where(own[..., None], image, f_up))
+    return unseen_fill(np.where(ok[..., None], F, np.where(own[..., None], image, f_up)), image, a, background, known,
+                       blown, record)

@@ -395,6 +395,11 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {inner['pixels']} pixels of the object's interior before a blown-out background in "
                       f"{inner['views']} view(s) kept their photo's colour (opaque over the camera's spread: "
                       "capture.matting_interior)", highlight=False)
+    un = m.get("unseen_blown") or {}
+    if un.get("views"):  # capture.matting_interior.unseen_fill
+        console.print(f"matte: {un['pixels']} opaque pixels in {un['views']} view(s) whose background no frame saw, "
+                      "beside a blown-out one, were brighter than the object around them (the window's light): "
+                      "they took its colour (capture.matting_interior.unseen_fill)", highlight=False)
     _print_backdrop_refused(console, m)
     cch = m.get("clipped_channels") or {}
     if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps

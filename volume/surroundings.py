@@ -389,8 +389,8 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "rim", "clipped_channels", "shadow",
-                "backdrop_refused", "dark_backdrop"):
+    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "unseen_blown", "rim",
+                "clipped_channels", "shadow", "backdrop_refused", "dark_backdrop"):
         if m.notes.get(key):
             note[key] = m.notes[key]
     if plate is not None:  # the partial pixels before a blown-out plate: a fill, not a measurement
@@ -446,6 +446,7 @@ def matte_record(work, notes: dict, cfg):
     opq = [x["opaque_sources"] for x in n if "opaque_sources" in x]
     fringe = [x["fringe"] for x in n if "fringe" in x]  # capture.matting_fringe
     inner = [x["interior"] for x in n if "interior" in x]  # capture.matting_interior
+    unseen = [x["unseen_blown"] for x in n if "unseen_blown" in x]
     rim = [x["rim"] for x in n if "rim" in x]
     refused = [x["backdrop_refused"] for x in n if "backdrop_refused" in x]  # capture.matting_choice
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
@@ -457,6 +458,7 @@ def matte_record(work, notes: dict, cfg):
         "opaque_sources": {"views": len(opq), "pixels": int(sum(opq))},
         "fringe": {"views": len(fringe), "pixels": int(sum(fringe))},
         "interior": {"views": len(inner), "pixels": int(sum(inner))},
+        "unseen_blown": {"views": len(unseen), "pixels": int(sum(unseen))},
         "dark_backdrop_views": sum(bool(x.get("dark_backdrop")) for x in n),  # capture.matting.DARK_BACKDROP
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
         "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],

@@ -121,3 +121,43 @@ def test_with_no_sure_pixel_the_fill_comes_from_the_interior_not_the_lit_edge(mo
     monkeypatch.setattr(mi, "INTERIOR_SOURCES", False)
     F_off = mk.foreground_colour(C, a, B, known, _fallback)
     assert np.abs(F_off[near] - F_true[near]).mean() > 0.04
+
+
+def _ball_before_window():
+    """A 60 x 80 crop: an object (rows 10-49, columns 10-69) the matte calls opaque, whose background no frame saw;
+    the plate known around it, dark (0.1) left of column 40 and a blown-out window (1.0) from there on.  Its colour
+    is BODY_MEAN +- 0.015, but its last 3 columns are truly alpha 0.8 before the window (radiance WINDOW): their
+    photo holds 0.2 x WINDOW of the window's light.  (C, alpha, plate B, known, true colour, the lit band)."""
+    rng = np.random.default_rng(1)
+    h, w = 60, 80
+    a = np.zeros((h, w))
+    a[10:50, 10:70] = 1.0
+    F = np.clip(BODY_MEAN + rng.uniform(-0.015, 0.015, (h, w, 3)), 0, 1)
+    B = np.where((np.arange(w) >= 40)[None, :, None], 1.0, 0.1) * np.ones((h, w, 3))
+    known = a == 0
+    band = np.zeros((h, w), bool)
+    band[10:50, 67:70] = True
+    C = np.where(known[..., None], B, F)
+    C[band] = 0.8 * F[band] + 0.2 * WINDOW
+    return np.clip(C, 0, 1), a, B, known, F, band
+
+
+def test_an_unseen_band_before_a_window_takes_the_fill_not_its_lit_photo(monkeypatch):
+    """The band that holds the window's light takes the body's fill (within the texture); the body (its photo not
+    brighter than the fill) keeps its photo; with UNSEEN_BLOWN off the band keeps its photo (0.8 too bright)."""
+    C, a, B, known, F_true, band = _ball_before_window()
+    rec = {}
+    F = mk.foreground_colour(C, a, B, known, _fallback, rec)
+    assert np.abs(F[band] - F_true[band]).max() < 0.03 and rec["unseen_blown"] == int(band.sum())
+    body = (a >= 1.0) & ~band
+    np.testing.assert_allclose(F[body], C[body], atol=1e-12)
+    monkeypatch.setattr(mi, "UNSEEN_BLOWN", False)
+    F_off = mk.foreground_colour(C, a, B, known, _fallback)
+    assert np.abs(F_off[band] - F_true[band]).min() > 0.5
+
+
+def test_the_working_resolution_colour_fills_the_unseen_band_too():
+    C, a, B, known, F_true, band = _ball_before_window()
+    f_up = np.full(C.shape, 0.5, np.float32)
+    out = _full_colour(C.astype(np.float32), a, B.astype(np.float32), known, f_up)
+    assert np.abs(out[band] - F_true[band]).max() < 0.03
