@@ -43,6 +43,15 @@ UNSEEN_RATIO = 1.5
 INTERIOR_PX = 2
 
 
+def blown_plate(background: np.ndarray, known: np.ndarray, clip_level: float) -> np.ndarray | None:
+    """(h, w) bool: the ``known`` pixels of the plate ``background`` (h, w, 3) blown out (a channel at
+    ``clip_level``); None where there is none (one reduction decides it where nothing reaches the level)."""
+    if not np.size(background) or float(np.max(background)) < clip_level:
+        return None
+    blown = np.asarray(known, bool) & (channel_max(np.asarray(background)) >= clip_level)
+    return blown if blown.any() else None
+
+
 def interior(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known: np.ndarray, opaque_alpha: float,
              clip_level: float, record: dict | None = None) -> np.ndarray:
     """(h, w) bool: the pixels whose plate ``background`` (h, w, 3) is ``known`` and blown out (a channel at
@@ -52,12 +61,9 @@ def interior(image: np.ndarray, alpha: np.ndarray, background: np.ndarray, known
     costs a view nothing before a background that is nowhere blown out).  ``record`` (a dict) gets ``interior``,
     how many, where there are any."""
     a = np.asarray(alpha)
-    none = np.zeros(a.shape, bool)
-    if not INTERIOR_PHOTO or not np.size(background) or float(np.max(background)) < clip_level:
-        return none
-    blown = np.asarray(known, bool) & (channel_max(np.asarray(background)) >= clip_level)
-    if not blown.any():
-        return none
+    blown = blown_plate(background, known, clip_level) if INTERIOR_PHOTO else None
+    if blown is None:
+        return np.zeros(a.shape, bool)
     solid = erode(a >= opaque_alpha, iterations=INTERIOR_PX, square=True)
     out = blown & solid & (channel_max(np.asarray(image)) < clip_level)
     if record is not None and (n := int(np.count_nonzero(out))):
@@ -88,7 +94,7 @@ def unseen_fill(F: np.ndarray, image: np.ndarray, alpha: np.ndarray, background:
     from capture.matting_known import CLIP_LEVEL, FILL_ALPHA, MIN_SOURCES, OPAQUE_ALPHA, clipped
 
     known = np.asarray(known, bool)
-    if not UNSEEN_BLOWN or not np.size(background) or float(np.max(background)) < CLIP_LEVEL or not known.any():
+    if not UNSEEN_BLOWN or blown_plate(background, known, CLIP_LEVEL) is None:
         return F
     a = np.asarray(alpha)
     behind = channel_max(push_pull(np.asarray(background, np.float64), known.astype(np.float64))) >= CLIP_LEVEL

@@ -362,7 +362,7 @@ def foreground_colour(image: np.ndarray, alpha: np.ndarray, background: np.ndarr
     (pymatting's ML foreground: the fill there made blocks of a far colour on a fur ball whose sides no other view saw
     behind, 10.6 dB held out against 20.1).  Where alpha is 0, the nearest sure object colour.  Before a blown plate
     the colour is kept within the photo (capture.matting_cap).  ``record`` (a dict) gets ``opaque_sources``, the
-    pixels filled, where OPAQUE_SOURCES gave the fill its sources, and ``fringe`` (capture.matting_fringe)."""
+    pixels filled, where OPAQUE_SOURCES gave the fill its sources, ``fringe``, ``interior`` and ``unseen_blown``."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     a = np.asarray(alpha, np.float64)
