@@ -148,3 +148,16 @@ def estimate_foreground_ml(image: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     F, _ = _fb_ml(img, a, np.float32(REGULARIZATION), SMALL_ITERATIONS, BIG_ITERATIONS, SMALL_SIZE,
                   np.float32(GRADIENT_WEIGHT))
     return F
+
+
+def ml_foreground_in(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None = None) -> np.ndarray:
+    """:func:`estimate_foreground_ml` of ``image`` under ``alpha``, computed on the box around the
+    ``need`` (h, w) pixels only (the image elsewhere); None: everywhere (capture.matting_known's colour
+    where the background is not known)."""
+    from capture.matting import BG, UNKNOWN, _crop
+
+    F = np.asarray(image, np.float64).copy()
+    box = _crop(np.where(need, UNKNOWN, BG)) if need is not None else (slice(None), slice(None))
+    if box is not None:
+        F[box] = estimate_foreground_ml(np.asarray(image, np.float64)[box], np.asarray(alpha, np.float64)[box])
+    return F

@@ -51,7 +51,7 @@ from capture.matting_fringe import fill_colour
 from capture.matting_guide import view_guide
 from capture.matting_interior import interior, opaque_sources, unseen_fill
 from capture.matting_palette import palette
-from capture.matting_sources import source_coverage
+from capture.matting_sources import estimated_coverage, source_coverage
 from capture.matting_window import window_candidates
 
 #: Trimap values (pymatting's convention, as capture.matting).
@@ -256,14 +256,15 @@ def solve_trimap(trimap: np.ndarray, image: np.ndarray, background: np.ndarray, 
 
 def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
               noise: float = NOISE_ABS, alpha: np.ndarray | None = None,
-              opaque: np.ndarray | None = None, blown: np.ndarray | None = None, chroma: bool = False
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+              opaque: np.ndarray | None = None, blown: np.ndarray | None = None, chroma: bool = False,
+              coverage: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(target alpha, weight, lower bound, similar), each (h, w), of steps 1-2 for the unknown pixels of
     ``trimap``; weight and bound are 0 where the background is not known; similar: the nearest sure colour
     within SEPARATION of B (alpha barely moves C there; capture.matting_blind.WEAK_PRIOR).  ``alpha``: a previous
     solve, whose pixels above REFINE_ALPHA become the colour sources; ``opaque``: pixels the depth
     calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass);
-    ``blown``: (h, w) the pixels whose B is given but clipped (capture.matting_channels' data and bound)."""
+    ``blown``: (h, w) the pixels whose B is given but clipped (capture.matting_channels' data and bound);
+    ``coverage``: the sources' measured coverage (capture.matting_sources.estimated_coverage; None: opaque)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     known = np.asarray(known, bool)
@@ -271,7 +272,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     lower = np.where(known, alpha_lower_bound(C, B, noise, chroma), 0.0)
     if alpha is None:
         src = colour_sources(opaque, known, lower)
-        a_src = source_coverage(lower, src)
+        a_src = source_coverage(lower, src, coverage)
     else:
         a_src = np.maximum(lower, alpha)
         src = (trimap >= FG) | (a_src >= REFINE_ALPHA)
@@ -406,19 +407,6 @@ def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return np.where(zero[..., None], push_pull(F, sure.astype(np.float64)), F)
 
 
-def _ml_foreground(image: np.ndarray, alpha: np.ndarray, need: np.ndarray | None = None) -> np.ndarray:
-    """pymatting's ML foreground of ``image`` under ``alpha``, computed on the box around the
-    ``need`` (h, w) pixels only (the image elsewhere); None: everywhere."""
-    from capture.foreground_ml import estimate_foreground_ml
-    from capture.matting import _crop
-
-    F = np.asarray(image, np.float64).copy()
-    box = _crop(np.where(need, UNKNOWN, BG)) if need is not None else (slice(None), slice(None))
-    if box is not None:
-        F[box] = estimate_foreground_ml(np.asarray(image, np.float64)[box], np.asarray(alpha, np.float64)[box])
-    return F
-
-
 def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None, chroma=False):
     """Steps 1-3 (module docstring) with ``laplacian(img, unknown (h, w) bool)`` and
     ``solve(A, b, x0 or None) -> (x, converged)``: (alpha_u, unknown mask (h w,), lower bound,
@@ -432,6 +420,9 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     floor = blown_bound(img, background, given & ~known, noise, chroma)
     tri, opaque = solve_trimap(trimap, img, background, known, noise, chroma)
     unk_map = tri == UNKNOWN
+    cov, slope = estimated_coverage(img, background, opaque, CLIP_LEVEL)  # the sources' (capture.matting_sources)
+    if record is not None and slope is not None:
+        record["sources"] = {"slope": round(slope, 4), "coverage": cov}
     if record is not None:  # the channels a clip leaves (capture.matting_channels): the same in every pass
         record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
     converged, a_prev = True, None
@@ -439,7 +430,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     L, has = None, unk_map.any()
     for _ in range(1 + REFINE_PASSES if has else 1):
         a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known,
-                                                  chroma)
+                                                  chroma, cov)
         lower = np.maximum(lower, floor)
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask, similar)
         if record is not None:
@@ -468,6 +459,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     (:func:`_finish`); ``chroma``: the frame's chroma was subsampled (:func:`alpha_lower_bound`)."""
     from pymatting import cf_laplacian
 
+    from capture.foreground_ml import ml_foreground_in
     from capture.matting_fast import pcg
 
     pre = {}  # one preconditioner for every pass (they differ in the data weights only)
@@ -478,7 +470,7 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, ok = _passes(img, trimap, background, known, noise,
         lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record, chroma)
-    a, F = _finish(img, tri, background, known, a_u, unk, lower, _ml_foreground, colour, record)
+    a, F = _finish(img, tri, background, known, a_u, unk, lower, ml_foreground_in, colour, record)
     return a, F, tri, ok
 
 
