@@ -321,17 +321,19 @@ def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up
     pixels and those whose bound is above SOURCE_ALPHA, only where the background is ``known``;
     :func:`~capture.matting_known.fit_candidates`, the nearest sure colour, filled outwards by a
     push-pull pyramid from ``scale``, before the palette of the sure colours, which wins only by
-    PALETTE_MARGIN), with the upsampled colour ``f_up`` one more candidate behind the same margin."""
+    PALETTE_MARGIN), with the upsampled colour ``f_up`` one more candidate behind the same margin; the sources
+    unmixed at their measured coverage (capture.matting_sources.estimated_coverage)."""
     import cv2
 
     from capture.fill import push_pull
-    from capture.matting_known import candidate_alpha, colour_sources, fit_candidates
-    from capture.matting_sources import source_colours
+    from capture.matting_known import CLIP_LEVEL, candidate_alpha, colour_sources, fit_candidates
+    from capture.matting_sources import estimated_coverage, source_colours
 
     if not where.any():
         return a
     src = colour_sources(opaque, known, lower)
-    image_src = source_colours(image, background, lower, src, known)  # the image itself at SOURCE_COVERAGE 1
+    cov, _ = estimated_coverage(image, background, opaque & known, CLIP_LEVEL)  # the full size's sources
+    image_src = source_colours(image, background, lower, src, known, cov)  # the image itself at coverage 1
     C, B, lo = image[where][:, None], background[where][:, None], lower[where][:, None]
     if src.any():
         h, w = a.shape

@@ -374,6 +374,16 @@ def _print_backdrop_refused(console, m: dict) -> None:
                       highlight=False)
 
 
+def _print_sources(console, m: dict) -> None:
+    """The matte record's line on the colour sources' measured coverage (capture.matting_sources)."""
+    src = m.get("sources") or {}
+    if src.get("views"):
+        cov = src["coverage"]
+        console.print(f"matte: in {src['views']} view(s) the depth's opaque pixels let the background through (their "
+                      f"colour follows the plate behind them): their colour was unmixed at coverage {min(cov):.2f}-"
+                      f"{max(cov):.2f}, not taken as opaque (capture.matting_sources)", highlight=False)
+
+
 def _print_matte_data(console, m: dict) -> None:
     """The matte record's lines on where its data term came from (capture.matting_choice, capture.matting_channels,
     capture.matting_blind)."""
@@ -401,6 +411,7 @@ def _print_matte_data(console, m: dict) -> None:
                       "beside a blown-out one, were brighter than the object around them (the window's light): "
                       "they took its colour (capture.matting_interior.unseen_fill)", highlight=False)
     _print_backdrop_refused(console, m)
+    _print_sources(console, m)
     cch = m.get("clipped_channels") or {}
     if cch.get("views"):  # capture.matting_channels: the channels a clipped pixel keeps
         console.print(f"matte: {cch['pixels']} pixels clipped in some channels, not all, in {cch['views']} view(s): "

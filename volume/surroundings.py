@@ -389,7 +389,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "unseen_blown", "rim",
+    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "unseen_blown", "rim", "sources",
                 "clipped_channels", "shadow", "backdrop_refused", "dark_backdrop"):
         if m.notes.get(key):
             note[key] = m.notes[key]
@@ -448,6 +448,7 @@ def matte_record(work, notes: dict, cfg):
     inner = [x["interior"] for x in n if "interior" in x]  # capture.matting_interior
     unseen = [x["unseen_blown"] for x in n if "unseen_blown" in x]
     rim = [x["rim"] for x in n if "rim" in x]
+    src = [x["sources"] for x in n if "sources" in x]  # capture.matting_sources: the sources' coverage measured
     refused = [x["backdrop_refused"] for x in n if "backdrop_refused" in x]  # capture.matting_choice
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
     blown = [(i, x["blown"]) for i, x in enumerate(notes["matte"]) if x is not None and "blown" in x]
@@ -461,6 +462,8 @@ def matte_record(work, notes: dict, cfg):
         "unseen_blown": {"views": len(unseen), "pixels": int(sum(unseen))},
         "dark_backdrop_views": sum(bool(x.get("dark_backdrop")) for x in n),  # capture.matting.DARK_BACKDROP
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
+        "sources": {"views": sum(x["coverage"] is not None for x in src), "slopes": [x["slope"] for x in src],
+                    "coverage": [x["coverage"] for x in src if x["coverage"] is not None]},
         "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],
                              "plate_rmse": [r["plate_rmse"] for r in refused]},
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},

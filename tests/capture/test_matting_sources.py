@@ -1,5 +1,5 @@
-"""The sure colour sources' coverage (capture.matting_sources; off by default: SOURCE_COVERAGE 1, docs/matting.md,
-stop 63).
+"""The sure colour sources' coverage (capture.matting_sources; a fixed SOURCE_COVERAGE, 1 by default: docs/matting.md,
+stop 63; measured per view by the slope of the photo on the plate behind them: stop 81).
 
 A mat of needles that covers 0.9 of its pixels, which the depth calls opaque, before a bright textured room, with
 partial pixels of the same colour around it.  Taken as opaque, the sources' colour carries 0.1 B, and the partial
@@ -43,6 +43,9 @@ def _mat_scene(seed: int = 0):
 
 def test_off_gives_the_image_back():
     C, B, _, _, _ = _mat_scene()
+    assert not ms.ESTIMATE_COVERAGE and ms.estimated_coverage(C, B, np.ones(C.shape[:2], bool), 0.975) == (None, None)
+    assert ms.source_colours(C, B, np.zeros(C.shape[:2]), np.ones(C.shape[:2], bool), np.ones(C.shape[:2], bool),
+                             1.0) is C
     lower = np.zeros(C.shape[:2])
     assert ms.SOURCE_COVERAGE == 1.0
     assert ms.source_colours(C, B, lower, np.ones(C.shape[:2], bool), np.ones(C.shape[:2], bool)) is C
@@ -69,6 +72,7 @@ def test_sources_unmixed_at_the_mats_coverage_take_the_alpha_bias_away(monkeypat
     C, B, a, tri, fringe = _mat_scene(seed)
     known = np.ones(a.shape, bool)
     bias = {}
+    monkeypatch.setattr(ms, "ESTIMATE_COVERAGE", False)  # the fixed coverage alone
     for k in (1.0, MAT_ALPHA):
         monkeypatch.setattr(ms, "SOURCE_COVERAGE", k)
         alpha, _, _, ok = known_background_matte(C, tri, B, known)
@@ -76,3 +80,65 @@ def test_sources_unmixed_at_the_mats_coverage_take_the_alpha_bias_away(monkeypat
         bias[k] = float(np.mean(alpha[fringe] - a[fringe]))
     assert bias[1.0] > 0.02, bias  # opaque sources: the fringe's alpha high
     assert abs(bias[MAT_ALPHA]) <= BIAS_FRACTION * bias[1.0], bias
+
+
+#: A mat the depth calls opaque that covers this much of its pixels (a low-resolution conifer's: 0.79 measured).
+THIN_ALPHA = 0.75
+#: The measured coverage must be within this of the truth (the needles' colour varies, uncorrelated with B).
+COVERAGE_TOL = 0.03
+
+
+def _thin_scene(seed: int = 0, coverage: float = THIN_ALPHA, plain: bool = False):
+    """:func:`_mat_scene` with the mat at ``coverage`` and each needle pixel's colour drawn about NEEDLE (the
+    needles' own texture, which does not follow the room behind them); ``plain``: a background of one colour."""
+    C, B, a, tri, fringe = _mat_scene(seed)
+    rng = np.random.default_rng(seed + 10)
+    if plain:
+        B = np.broadcast_to(np.asarray([0.5, 0.45, 0.4], np.float32), B.shape).copy()
+    mat = tri == FG
+    a = np.where(mat, coverage, a)
+    F = np.clip(NEEDLE * rng.uniform(0.6, 1.4, a.shape + (1,)), 0, 1)
+    C = (a[..., None] * F + (1 - a[..., None]) * B).astype(np.float32)
+    return C, B.astype(np.float32), a, tri, fringe, mat
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_slope_of_the_photo_on_the_plate_is_the_sources_transparency(monkeypatch, seed):
+    monkeypatch.setattr(ms, "ESTIMATE_COVERAGE", True)  # off by default (docs/matting.md)
+    C, B, _, _, _, mat = _thin_scene(seed)
+    cov, slope = ms.estimated_coverage(C, B, mat, 0.975)
+    assert cov is not None and abs(cov - THIN_ALPHA) <= COVERAGE_TOL, (cov, slope)
+    assert cov == pytest.approx(1.0 - slope)
+
+
+def test_opaque_sources_a_plain_background_or_too_few_sources_stay_opaque(monkeypatch):
+    monkeypatch.setattr(ms, "ESTIMATE_COVERAGE", True)
+    C, B, _, _, _, mat = _thin_scene(0, coverage=1.0)
+    cov, slope = ms.estimated_coverage(C, B, mat, 0.975)
+    assert cov is None and abs(slope) < 0.02  # opaque: the photo does not follow the plate
+    C, B, _, _, _, mat = _thin_scene(0, plain=True)
+    assert ms.estimated_coverage(C, B, mat, 0.975) == (None, None)  # nothing to regress on
+    few = np.zeros_like(mat)
+    few[np.nonzero(mat)[0][:ms.SLOPE_SOURCES - 1], np.nonzero(mat)[1][:ms.SLOPE_SOURCES - 1]] = True
+    C, B, _, _, _, mat = _thin_scene(0)
+    assert ms.estimated_coverage(C, B, few, 0.975) == (None, None)
+    assert ms.estimated_coverage(C, B, mat, 0.2)[0] is None  # every source clipped at that level
+    monkeypatch.setattr(ms, "ESTIMATE_COVERAGE", False)
+    assert ms.estimated_coverage(C, B, mat, 0.975) == (None, None)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_measured_coverage_takes_the_fringes_alpha_bias_away(monkeypatch, seed):
+    C, B, a, tri, fringe, _ = _thin_scene(seed)
+    known = np.ones(a.shape, bool)
+    bias, rec = {}, {}
+    for on in (False, True):
+        monkeypatch.setattr(ms, "ESTIMATE_COVERAGE", on)
+        rec[on] = {}
+        alpha, _, _, ok = known_background_matte(C, tri, B, known, record=rec[on])
+        assert ok
+        bias[on] = float(np.mean(alpha[fringe] - a[fringe]))
+    assert bias[False] > 0.05, bias  # the mat taken as opaque: the fringe's alpha high
+    assert abs(bias[True]) <= BIAS_FRACTION * bias[False], bias
+    assert "sources" not in rec[False]
+    assert abs(rec[True]["sources"]["coverage"] - THIN_ALPHA) <= COVERAGE_TOL
