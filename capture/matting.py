@@ -131,6 +131,9 @@ class MatteConfig:
     #: 'auto': a fixed camera's plate is lit as the frame is on the support beside the object where the ring shows
     #: a shadow (capture.plate_shadow); 'off': not (``furrow model --plate-shadow off``).
     shadow: str = "auto"
+    #: The depth-opaque colour sources' coverage measured over the capture's views (capture.matting_sources; set by
+    #: the pipeline's matte stage), in (0, 1]; None: they count as opaque.
+    source_coverage: float | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MATTE_MODES:
@@ -139,6 +142,8 @@ class MatteConfig:
             raise ValueError(f"matte resolution must be one of {', '.join(MATTE_RESOLUTIONS)}, got {self.resolution!r}")
         if self.across not in MATTE_ACROSS:
             raise ValueError(f"matte colour across views must be one of {', '.join(MATTE_ACROSS)}, got {self.across!r}")
+        if self.source_coverage is not None and not 0.0 < self.source_coverage <= 1.0:
+            raise ValueError(f"source coverage must be in (0, 1], got {self.source_coverage}")
         if self.shadow not in ("auto", "off"):
             raise ValueError(f"plate shadow must be 'auto' or 'off', got {self.shadow!r}")
         if self.jpeg_chroma not in ("auto", "off"):
@@ -396,13 +401,14 @@ def solve_known(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, k
     if gate is not None:  # where the colour was unmixed, for the lines' colour (capture.matting_lines)
         gate = _kept(gate, chosen)
     chroma = cfg is not None and cfg.subsampled  # a JPEG's chroma (capture.jpeg_chroma)
-    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes, chroma) \
+    cov = cfg.source_coverage if cfg is not None and method == "plate" else None  # capture.matting_sources
+    out = known_matte_at_scale(image, trimap, background, known, noise, scale, box, fallback, notes, chroma, cov) \
         if scale < 1.0 else None
     if out is None:  # full size: the reference (or a working copy with no opaque pixel left)
         scale = 1.0
         out = known_background_matte(np.asarray(image)[box], trimap[box], np.asarray(background)[box],
                                      np.asarray(known)[box], noise, np.asarray(fallback, bool)[box], notes, gate,
-                                     chroma)
+                                     chroma, cov)
     elif gate is not None:  # the working solve's colour unmixed every known pixel: the choice at full size
         ci, bi, ki, Fw = np.asarray(image)[box], np.asarray(background)[box], np.asarray(known)[box], out[1]
         out = (out[0], foreground_colour(ci, out[0], bi, gate(ci, out[0], bi, ki), lambda C, a, need: Fw, notes),

@@ -51,7 +51,7 @@ from capture.matting_fringe import fill_colour
 from capture.matting_guide import view_guide
 from capture.matting_interior import interior, opaque_sources, unseen_fill
 from capture.matting_palette import palette
-from capture.matting_sources import estimated_coverage, source_coverage
+from capture.matting_sources import source_coverage
 from capture.matting_window import window_candidates
 
 #: Trimap values (pymatting's convention, as capture.matting).
@@ -264,7 +264,7 @@ def data_term(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, kno
     solve, whose pixels above REFINE_ALPHA become the colour sources; ``opaque``: pixels the depth
     calls opaque (a prior towards 1 of weight OPAQUE_PRIOR, and colour sources on the first pass);
     ``blown``: (h, w) the pixels whose B is given but clipped (capture.matting_channels' data and bound);
-    ``coverage``: the sources' measured coverage (capture.matting_sources.estimated_coverage; None: opaque)."""
+    ``coverage``: the sources' measured coverage (capture.matting_sources.capture_coverage; None: opaque)."""
     C = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     B = np.clip(np.asarray(background, np.float64), 0.0, 1.0)
     known = np.asarray(known, bool)
@@ -407,7 +407,8 @@ def _extended(F: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return np.where(zero[..., None], push_pull(F, sure.astype(np.float64)), F)
 
 
-def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None, chroma=False):
+def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, record=None, chroma=False,
+            coverage=None):
     """Steps 1-3 (module docstring) with ``laplacian(img, unknown (h, w) bool)`` and
     ``solve(A, b, x0 or None) -> (x, converged)``: (alpha_u, unknown mask (h w,), lower bound,
     trimap solved, known as given (blown-out pixels included: step 4 tells them), converged).
@@ -420,9 +421,6 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     floor = blown_bound(img, background, given & ~known, noise, chroma)
     tri, opaque = solve_trimap(trimap, img, background, known, noise, chroma)
     unk_map = tri == UNKNOWN
-    cov, slope = estimated_coverage(img, background, opaque, CLIP_LEVEL)  # the sources' (capture.matting_sources)
-    if record is not None and slope is not None:
-        record["sources"] = {"slope": round(slope, 4), "coverage": cov}
     if record is not None:  # the channels a clip leaves (capture.matting_channels): the same in every pass
         record["clipped_channels"] = mch.open_count(img, background, CLIP_LEVEL, given & ~known & unk_map)
     converged, a_prev = True, None
@@ -430,7 +428,7 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
     L, has = None, unk_map.any()
     for _ in range(1 + REFINE_PASSES if has else 1):
         a_hat, weight, lower, similar = data_term(img, tri, background, known, noise, a_prev, opaque, given & ~known,
-                                                  chroma, cov)
+                                                  chroma, coverage)
         lower = np.maximum(lower, floor)
         a_hat, weight, rec = blind_prior(img, unk_map, a_hat, weight, mask, similar)
         if record is not None:
@@ -449,14 +447,16 @@ def _passes(img, trimap, background, known, noise, laplacian, solve, mask=None, 
 def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
                            noise: float = NOISE_ABS, mask: np.ndarray | None = None,
                            record: dict | None = None, colour=None,
-                           chroma: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+                           chroma: bool = False, coverage: float | None = None
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """(alpha (h, w), straight colour F (h, w, 3), the trimap solved (widened), converged) of
     linear ``image`` (h, w, 3) under ``trimap`` (BG / UNKNOWN / FG) with the background
     ``background`` (h, w, 3) known where ``known`` (h, w); ``noise``: linear noise of C - B (module
     docstring).  Not converged: the per-pixel alphas of step 2 stand.  ``mask``: the object's depth
     (h, w) bool, for the prior where the photo is blown out (capture.matting_blind; None: none);
     ``record``: a dict that gets its record; ``colour``: step 4's rule for where B counts as known
-    (:func:`_finish`); ``chroma``: the frame's chroma was subsampled (:func:`alpha_lower_bound`)."""
+    (:func:`_finish`); ``chroma``: the frame's chroma was subsampled (:func:`alpha_lower_bound`); ``coverage``: the
+    depth-opaque sources' measured coverage (capture.matting_sources.capture_coverage; None: opaque)."""
     from pymatting import cf_laplacian
 
     from capture.foreground_ml import ml_foreground_in
@@ -469,7 +469,8 @@ def known_background_matte(image: np.ndarray, trimap: np.ndarray, background: np
 
     img = np.clip(np.asarray(image, np.float64), 0.0, 1.0)
     a_u, unk, lower, tri, known, ok = _passes(img, trimap, background, known, noise,
-        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record, chroma)
+        lambda im, u: cf_laplacian(im, epsilon=CF_EPSILON, radius=CF_RADIUS, is_known=~u), solve, mask, record, chroma,
+        coverage)
     a, F = _finish(img, tri, background, known, a_u, unk, lower, ml_foreground_in, colour, record)
     return a, F, tri, ok
 

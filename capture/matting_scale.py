@@ -253,8 +253,8 @@ def matte_at_scale(image: np.ndarray, trimap: np.ndarray, solve, scale: float, b
 
 def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.ndarray, known: np.ndarray,
                          noise: float, scale: float, box, mask: np.ndarray | None = None,
-                         record: dict | None = None,
-                         chroma: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
+                         record: dict | None = None, chroma: bool = False,
+                         coverage: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool] | None:
     """(alpha (h, w), straight colour F (h, w, 3), the full-resolution trimap solved, converged) of the
     known-background matte (capture.matting_known.known_background_matte's result on the crop ``box``
     of linear ``image`` (H, W, 3), ``trimap``, ``background`` (H, W, 3) known where ``known`` (H, W),
@@ -262,7 +262,8 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     opaque pixel (an object thin all over: solve it at full size).  ``mask`` (H, W): the object's
     depth, downscaled (area, half covered) for the prior where the photo is blown out
     (capture.matting_blind), whose record goes into ``record``; ``chroma``: the frame's chroma was subsampled
-    (capture.matting_known.alpha_lower_bound)."""
+    (capture.matting_known.alpha_lower_bound); ``coverage``: the depth-opaque sources' measured coverage
+    (capture.matting_sources.capture_coverage; None: opaque)."""
     import cv2
 
     from capture.matting_channels import colour_bound
@@ -283,7 +284,8 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
         return None
     mask_lo = None if mask is None else \
         _resize(np.asarray(mask, np.float32)[box], w, h, cv2.INTER_AREA) >= 0.5
-    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise, mask_lo, record, chroma=chroma)
+    a_lo, f_lo, _, ok = known_background_matte(lo, tri_lo, bg_lo, known_lo, noise, mask_lo, record, chroma=chroma,
+                                               coverage=coverage)
     B = np.clip(np.asarray(background, np.float32)[box], 0.0, 1.0)
     given = np.asarray(known, bool)[box]
     sure = given & ~clipped(ci, B)
@@ -302,7 +304,7 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
     lower[open_] = alpha_lower_bound(ci, B, noise, True)[open_] if chroma else \
         alpha_lower_bound(ci[open_], B[open_], noise)
     if REFINE_WEIGHT > 0:
-        a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, sure, scale)
+        a = _refine_known(a, ci, B, f_up, lower, open_, ct >= FG, sure, scale, coverage)
     # the full-size path's alpha floor where the plate is blown out and the photo is not
     a = np.maximum(np.maximum(a, lower), blown_bound(ci, B, band & given & ~sure, noise, chroma))
     a = np.maximum(a, colour_bound(ci, B, f_up, band & given & ~sure, CLIP_LEVEL, noise))  # capture.matting_channels
@@ -313,7 +315,8 @@ def known_matte_at_scale(image: np.ndarray, trimap: np.ndarray, background: np.n
 
 
 def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up: np.ndarray, lower: np.ndarray,
-                  where: np.ndarray, opaque: np.ndarray, known: np.ndarray, scale: float) -> np.ndarray:
+                  where: np.ndarray, opaque: np.ndarray, known: np.ndarray, scale: float,
+                  coverage: float | None = None) -> np.ndarray:
     """The upsampled alpha ``a`` (h, w) pulled, at the ``where`` pixels (known background, unknown),
     towards each pixel's own alpha from the compositing equation by REFINE_WEIGHT x its confidence.
     The candidates and the rule that picks one are the full-size path's (step 2 of
@@ -322,18 +325,17 @@ def _refine_known(a: np.ndarray, image: np.ndarray, background: np.ndarray, f_up
     :func:`~capture.matting_known.fit_candidates`, the nearest sure colour, filled outwards by a
     push-pull pyramid from ``scale``, before the palette of the sure colours, which wins only by
     PALETTE_MARGIN), with the upsampled colour ``f_up`` one more candidate behind the same margin; the sources
-    unmixed at their measured coverage (capture.matting_sources.estimated_coverage)."""
+    unmixed at their measured ``coverage`` (capture.matting_sources.capture_coverage; None: opaque)."""
     import cv2
 
     from capture.fill import push_pull
-    from capture.matting_known import CLIP_LEVEL, candidate_alpha, colour_sources, fit_candidates
-    from capture.matting_sources import estimated_coverage, source_colours
+    from capture.matting_known import candidate_alpha, colour_sources, fit_candidates
+    from capture.matting_sources import source_colours
 
     if not where.any():
         return a
     src = colour_sources(opaque, known, lower)
-    cov, _ = estimated_coverage(image, background, opaque & known, CLIP_LEVEL)  # the full size's sources
-    image_src = source_colours(image, background, lower, src, known, cov)  # the image itself at coverage 1
+    image_src = source_colours(image, background, lower, src, known, coverage)  # the image itself at coverage 1
     C, B, lo = image[where][:, None], background[where][:, None], lower[where][:, None]
     if src.any():
         h, w = a.shape

@@ -377,11 +377,11 @@ def _print_backdrop_refused(console, m: dict) -> None:
 def _print_sources(console, m: dict) -> None:
     """The matte record's line on the colour sources' measured coverage (capture.matting_sources)."""
     src = m.get("sources") or {}
-    if src.get("views"):
-        cov = src["coverage"]
-        console.print(f"matte: in {src['views']} view(s) the depth's opaque pixels let the background through (their "
-                      f"colour follows the plate behind them): their colour was unmixed at coverage {min(cov):.2f}-"
-                      f"{max(cov):.2f}, not taken as opaque (capture.matting_sources)", highlight=False)
+    if src.get("coverage") is not None:
+        console.print(f"matte: the depth's opaque pixels let the background through (their colour follows the plate "
+                      f"behind them, median slope {src['median_slope']:.2f} over the views): their colour was unmixed "
+                      f"at coverage {src['coverage']:.2f}, not taken as opaque (capture.matting_sources)",
+                      highlight=False)
 
 
 def _print_matte_data(console, m: dict) -> None:

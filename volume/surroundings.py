@@ -52,6 +52,7 @@ from capture.plate_scale import grow_plate, plate_scale, shrink_scan
 from capture.scan import Scan
 from capture.scan_store import scan_has_alpha
 from capture.view_map import PerView
+from volume.matte_sources import sources_coverage
 
 #: Matte modes that read no plate: the plate stage is skipped for them.
 NO_PLATE_MATTES = ("off", "estimate", "backdrop")
@@ -212,6 +213,7 @@ def matte_stage(work, cfg, ctx):
         logging.getLogger("furrow.capture").info("matte colour across views skipped: %s", skipped)
         with ctx.row("matte colour across views: skipped"):  # the stage table says so (why: the record)
             pass
+    cfg, sources = sources_coverage(cfg, work, plates, ctx)
     cap = fit_cap(len(work.refs))
     per_view = PerView([(_for_frame(cfg, ref), plates.get(ref.index), cap, k)  # its plate only
                         for k, ref in enumerate(work.refs)])
@@ -227,6 +229,7 @@ def matte_stage(work, cfg, ctx):
             photos = [plates.get(ref.index) for ref in work.refs], work.scans
             scans, cells = cell_colour_passes(scans, photos, fits, sa, gains, ctx.map_views)
     out = matte_record(replace(work, scans=scans).made(plates=None), {"matte": notes}, cfg)
+    out = out if sources is None else out.record("matte", {**out.records["matte"], "sources": sources})
     return out if cells is None else out.record("matte", {**out.records["matte"], "cells": cells})
 
 
@@ -389,7 +392,7 @@ def matte_view(view, ref, cfg, plate=None, cap=None, seed=0):
     m = matte_scan(view, view.depth, cfg, plate)
     note = {"method": m.method, "seconds": time.perf_counter() - t0, "unknown": m.unknown_fraction, "scale": m.scale,
             "partial": float(np.mean((m.alpha > 0) & (m.alpha < 1))), "subsampled_chroma": cfg.subsampled}
-    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "unseen_blown", "rim", "sources",
+    for key in ("blind_prior", "colour", "opaque_sources", "fringe", "interior", "unseen_blown", "rim",
                 "clipped_channels", "shadow", "backdrop_refused", "dark_backdrop"):
         if m.notes.get(key):
             note[key] = m.notes[key]
@@ -448,7 +451,6 @@ def matte_record(work, notes: dict, cfg):
     inner = [x["interior"] for x in n if "interior" in x]  # capture.matting_interior
     unseen = [x["unseen_blown"] for x in n if "unseen_blown" in x]
     rim = [x["rim"] for x in n if "rim" in x]
-    src = [x["sources"] for x in n if "sources" in x]  # capture.matting_sources: the sources' coverage measured
     refused = [x["backdrop_refused"] for x in n if "backdrop_refused" in x]  # capture.matting_choice
     cch = [x["clipped_channels"] for x in n if "clipped_channels" in x]
     blown = [(i, x["blown"]) for i, x in enumerate(notes["matte"]) if x is not None and "blown" in x]
@@ -462,8 +464,6 @@ def matte_record(work, notes: dict, cfg):
         "unseen_blown": {"views": len(unseen), "pixels": int(sum(unseen))},
         "dark_backdrop_views": sum(bool(x.get("dark_backdrop")) for x in n),  # capture.matting.DARK_BACKDROP
         "rim": {"views": len(rim), "pixels": int(sum(rim))},
-        "sources": {"views": sum(x["coverage"] is not None for x in src), "slopes": [x["slope"] for x in src],
-                    "coverage": [x["coverage"] for x in src if x["coverage"] is not None]},
         "backdrop_refused": {"views": len(refused), "backdrop_rmse": [r["backdrop_rmse"] for r in refused],
                              "plate_rmse": [r["plate_rmse"] for r in refused]},
         "clipped_channels": {"views": len(cch), "pixels": int(sum(cch))},

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from capture import matting_rim, matting_sources
+from capture import matting_rim
 from capture.camera import Camera, make_K
 from capture.matting import FG, UNKNOWN, MatteConfig, depth_trimap, matte_scan
 from capture.matting_rim import open_rim
@@ -82,9 +82,8 @@ def test_the_opened_branches_get_their_alpha_and_premultiplied_colour(monkeypatc
     res = {}
     for on, measured in ((False, False), (True, False), (False, True)):
         monkeypatch.setattr(matting_rim, "OPEN_RIM", on)
-        # the sources' coverage measured (capture.matting_sources) also reads the branches' 0.7 off their slope
-        monkeypatch.setattr(matting_sources, "ESTIMATE_COVERAGE", measured)
-        m = matte_scan(_scan(C, D), cfg=MatteConfig(), plate=plate)
+        # the sources' coverage (capture.matting_sources, given here as the truth) also reads the branches' 0.7
+        m = matte_scan(_scan(C, D), cfg=MatteConfig(source_coverage=BRANCH_ALPHA if measured else None), plate=plate)
         assert m.method == "plate"
         res[on, measured] = (float(np.mean((m.alpha - A)[fg] ** 2)),
                              float(np.abs(m.alpha[..., None] * m.foreground - A[..., None] * F)[fg].mean()))
