@@ -41,4 +41,3 @@ def slope_one(view, ref, plate):
     plate = grow_plate(plate, *view.depth.shape[:2])
     seen = np.asarray(plate.seen(), bool)
     return None, view_slope(view.linear_rgb, plate.background, (depth_trimap(view.depth) >= FG) & seen, CLIP_LEVEL)
-
