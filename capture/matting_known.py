@@ -116,7 +116,9 @@ PALETTE_MARGIN = 0.02
 #: against the nearest sure colour's 0.045) for 0.15 s a view; on tests/plate_scenes.needle_composite -10 to -30 %.
 WINDOW_CANDIDATE = False
 WINDOW_RADIUS = 3
-#: Weight lambda of the data term against the matting Laplacian.
+#: Weight lambda of the data term against the matting Laplacian (and against capture.matting_blind's priors, whose
+#: weights are absolute).  Swept in stop 82 (docs/matting.md "The data term's weight"): 0.1 / 0.3 took three 320 x 240
+#: room conifers up by 1.1-1.8 dB and two courtyard turntables down by 0.6-1.25 dB / 0.05 SSIM; kept at 1.
 DATA_WEIGHT = 1.0
 #: Where the background is known, the depth's opaque pixels are unknown too, with a prior towards
 #: opaque of this weight (against DATA_WEIGHT x confidence): a gap between needles inside the
