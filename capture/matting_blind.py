@@ -55,8 +55,20 @@ COVERAGE_BINS = 16
 MIN_TRAIN = 200
 #: Side (pixels) of the checkerboard blocks that split the training pixels for the R^2 check.
 HOLDOUT_BLOCK = 16
-#: Training pixels need a data-term weight of at least this (capture.matting_known's confidence).
-MIN_CONFIDENCE = 0.25
+#: An R^2 is only measured where the alphas it is measured on vary: below this weighted variance (an alpha standard
+#: deviation of 0.01) there is nothing to explain, and the R^2 is 0 (the prior is refused).  Held-back pixels that are
+#: all opaque (weight MIN_CONFIDENCE or more: only the depth's opaque pixels) had been scored R^2 = 1 by a table that
+#: predicts 1 everywhere, and it then gave the blind pixels its alpha as if it knew them (stop 82).
+MIN_R2_VARIANCE = 1e-4
+#: Training pixels need a data-term weight of at least this (capture.matting_known's confidence); a pixel whose data
+#: weight is under it is weak (WEAK_PRIOR below).  1.0 since stop 82 (0.25 before): before a bright room a 320 x 240
+#: conifer's colour data are biased (its depth-opaque colour sources hold about 0.2 of the room: alpha +0.10), and a
+#: table taught by them inherits the bias; at 1.0 only the surest pixels teach it (in most views too few: the depth's
+#: own coverage stands in, IDENTITY_PRIOR) and the prior weighs more beside a weak data term.  Held out under a rule
+#: written before 20 room captures ran (docs/matting.md "The data term's weight", stop 82): mean +0.17 dB, the 320 x
+#: 240 conifers +0.01 to +1.02, bunnies +0.05 to +0.56, fur -0.04 to +0.18, the worst -0.14 (a 640 x 480 orbit), SSIM
+#: -0.004 to +0.019, black twins within 0.01 dB.
+MIN_CONFIDENCE = 1.0
 #: The prior also goes to the unknown pixels whose data term is weak (weight in (0, MIN_CONFIDENCE), the photo not
 #: clipped) because the candidate colour is within capture.matting_known.SEPARATION of B (a needle before a background
 #: of nearly its own colour: C hardly moves with alpha), weighted R^2 (1 - weight / MIN_CONFIDENCE) beside the data.
@@ -161,9 +173,13 @@ def _table(x: np.ndarray, y: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np
 
 
 def _weighted_r2(pred: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
-    """The share of ``y``'s ``w``-weighted variance that ``pred`` explains (1 - weighted SSE / weighted SS)."""
+    """The share of ``y``'s ``w``-weighted variance that ``pred`` explains (1 - weighted SSE / weighted SS); 0 where
+    that variance is under MIN_R2_VARIANCE (nothing to explain)."""
     mu = (w * y).sum() / w.sum()
-    return float(1.0 - (w * (pred - y) ** 2).sum() / max((w * (y - mu) ** 2).sum(), 1e-12))
+    ss = float((w * (y - mu) ** 2).sum())
+    if ss < MIN_R2_VARIANCE * float(w.sum()):
+        return 0.0
+    return float(1.0 - (w * (pred - y) ** 2).sum() / max(ss, 1e-12))
 
 
 def _r2(x, y, w, edges, fit, test) -> float:
