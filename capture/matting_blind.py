@@ -63,8 +63,9 @@ MIN_R2_VARIANCE = 1e-4
 #: Training pixels need a data-term weight of at least this (capture.matting_known's confidence); a pixel whose data
 #: weight is under it is weak (WEAK_PRIOR below).  1.0 since stop 82 (0.25 before): before a bright room a 320 x 240
 #: conifer's colour data are biased (its depth-opaque colour sources hold about 0.2 of the room: alpha +0.10), and a
-#: table taught by them inherits the bias; at 1.0 only the surest pixels teach it (in most views too few: the depth's
-#: own coverage stands in, IDENTITY_PRIOR) and the prior weighs more beside a weak data term.  Held out under a rule
+#: table taught by them inherits the bias; at 1.0 only the surest pixels teach it (on a fur and a conifer room capture,
+#: 18 of 18 views each had too few: the depth's own coverage, IDENTITY_PRIOR, stands in) and the prior weighs more
+#: beside a weak data term.  Held out under a rule
 #: written before 20 room captures ran (docs/matting.md "The data term's weight", stop 82): mean +0.17 dB, the 320 x
 #: 240 conifers +0.01 to +1.02, bunnies +0.05 to +0.56, fur -0.04 to +0.18, the worst -0.14 (a 640 x 480 orbit), SSIM
 #: -0.004 to +0.019, black twins within 0.01 dB.
@@ -72,6 +73,7 @@ MIN_CONFIDENCE = 1.0
 #: The prior also goes to the unknown pixels whose data term is weak (weight in (0, MIN_CONFIDENCE), the photo not
 #: clipped) because the candidate colour is within capture.matting_known.SEPARATION of B (a needle before a background
 #: of nearly its own colour: C hardly moves with alpha), weighted R^2 (1 - weight / MIN_CONFIDENCE) beside the data.
+#: (The figures below were measured with MIN_CONFIDENCE 0.25.)
 #: The path-traced conifer orbit's kept views (four of them before a dark part of the courtyard): alpha squared error
 #: 7841 -> 4835; the turntable 3387 -> 3361 (every weak pixel, not only these: 6618, and the test scenes' alpha worse).
 #: Held out +0.043 dB on average over 8 room captures (SSIM +0.0037, over white up on every one), but the orbit lost
