@@ -7,14 +7,14 @@ the dark pixels around them in: on the path-traced conifer turntable the kept vi
 whose photo is blown out had alpha 0.06-0.13 where the truth was 0.25 (87 % of the kept views' alpha
 squared error; with the true alpha there the held-out view gained 2.2 dB, docs/matting.md fifth round).
 
-The depth still saw the needles there.  :func:`blind_prior` learns, per view, the alpha expected
-from the depth's local coverage (the share of pixels with object depth in a
-(2 COVERAGE_RADIUS + 1)^2 box; a table of COVERAGE_BINS quantile bins, each its weighted mean) on the
-pixels where the background is known and the data term is sure of alpha, and gives it to the blown-out
-pixels as a data term of weight R^2: the share of alpha's variance the table explains on held-back
-known pixels (a checkerboard of HOLDOUT_BLOCK blocks, fitted on one colour, scored on the other).
-Where it explains nothing (R^2 <= 0), too few pixels train it (MIN_TRAIN) or there is nothing to
-fill, no prior is given and the record says why.
+The depth still saw the needles there.  :func:`blind_prior` takes, per view, the depth's local coverage (the share
+of pixels with object depth in a (2 COVERAGE_RADIUS + 1)^2 box, sharpened by the pixel's own hit) as the alpha
+expected there, and gives it to the blown-out pixels as a data term of weight R^2: the share of alpha's variance the
+coverage explains on the view's pixels whose data term is not weak (IDENTITY_MIN_WEIGHT).  Where it explains
+nothing (R^2 <= 0), too few pixels check it (IDENTITY_MIN_TRAIN), the depth has holes or there is nothing to fill,
+no such prior is given (EMPTY_PRIOR may still pull empty pixels towards 0) and the record says why.  (Until stop 83 a
+table of the coverage, fitted per view on the pixels of full data weight, came first; at MIN_CONFIDENCE 1.0 it was
+taught in no view of any capture measured, and it went: docs/matting.md "The coverage table removed".)
 
 Where the photo is not blown out but the data term is weak (``WEAK_PRIOR``: a needle before a background of
 nearly its own colour, where C = a F + (1 - a) B hardly moves with alpha), the same prior goes in beside the
@@ -26,13 +26,12 @@ background (``UNSEEN_PRIOR``: no frame saw it and the frames' lines gave none, c
 the plate is blown out behind an unclipped photo), the prior goes in as at a blown-out pixel (stop 72,
 docs/matting.md "Where no frame saw the background").
 
-The prior, the table's or the coverage's, is sharpened by the pixel's own depth hit (``HIT_DETAIL``: the coverage box
-spreads a needle's hit over 9 pixels; stop 77, docs/matting.md "What the room matte smooths away").
+The prior is sharpened by the pixel's own depth hit (``HIT_DETAIL``: the coverage box spreads a needle's hit over 9
+pixels; stop 77, docs/matting.md "What the room matte smooths away").
 
-Where the table is refused, a weak pixel whose coverage box holds no object depth is pulled towards alpha 0
-(``EMPTY_PRIOR``: a needle before a background of its own colour, the table without sure pixels to learn from; stop
-74, docs/matting.md "A night park"), unless the depth has too many holes to be trusted where it saw nothing
-(``EMPTY_MAX_HOLES``, :func:`depth_holes`; stop 75).
+Where the coverage is refused, a weak pixel whose coverage box holds no object depth is pulled towards alpha 0
+(``EMPTY_PRIOR``: a needle before a background of its own colour; stop 74, docs/matting.md "A night park"), unless the
+depth has too many holes to be trusted where it saw nothing (``EMPTY_MAX_HOLES``, :func:`depth_holes`; stop 75).
 """
 
 from __future__ import annotations
@@ -49,26 +48,17 @@ CLIP_LEVEL = 0.975
 #: 5 x 5, 0.33-0.42 at 9 x 9, 0.21-0.25 from depth > 0 alone, 0.04-0.08 from the distance to the
 #: trimap's background).
 COVERAGE_RADIUS = 1
-#: Quantile bins of the coverage table.
-COVERAGE_BINS = 16
-#: Fewest training pixels (each half of the checkerboard) for a table.
-MIN_TRAIN = 200
-#: Side (pixels) of the checkerboard blocks that split the training pixels for the R^2 check.
-HOLDOUT_BLOCK = 16
 #: An R^2 is only measured where the alphas it is measured on vary: below this weighted variance (an alpha standard
-#: deviation of 0.01) there is nothing to explain, and the R^2 is 0 (the prior is refused).  Held-back pixels that are
-#: all opaque (weight MIN_CONFIDENCE or more: only the depth's opaque pixels) had been scored R^2 = 1 by a table that
-#: predicts 1 everywhere, and it then gave the blind pixels its alpha as if it knew them (stop 82).
+#: deviation of 0.01) there is nothing to explain, and the R^2 is 0 (the prior is refused).  Found on the coverage
+#: table (until stop 83): held-back pixels that were all opaque had been scored R^2 = 1 (stop 82).
 MIN_R2_VARIANCE = 1e-4
-#: Training pixels need a data-term weight of at least this (capture.matting_known's confidence); a pixel whose data
-#: weight is under it is weak (WEAK_PRIOR below).  1.0 since stop 82 (0.25 before): before a bright room a 320 x 240
-#: conifer's colour data are biased (its depth-opaque colour sources hold about 0.2 of the room: alpha +0.10), and a
-#: table taught by them inherits the bias; at 1.0 only the surest pixels teach it (on a fur and a conifer room capture,
-#: 18 of 18 views each had too few: the depth's own coverage, IDENTITY_PRIOR, stands in) and the prior weighs more
-#: beside a weak data term.  Held out under a rule
-#: written before 20 room captures ran (docs/matting.md "The data term's weight", stop 82): mean +0.17 dB, the 320 x
-#: 240 conifers +0.01 to +1.02, bunnies +0.05 to +0.56, fur -0.04 to +0.18, the worst -0.14 (a 640 x 480 orbit), SSIM
-#: -0.004 to +0.019, black twins within 0.01 dB.
+#: A pixel whose data-term weight (capture.matting_known's confidence) is under this is weak (WEAK_PRIOR below), and
+#: the prior goes beside its data with weight R^2 (1 - weight / MIN_CONFIDENCE).  1.0 since stop 82 (0.25 before; it
+#: was also the weight a pixel needed to teach the coverage table, removed in stop 83): before a bright room a 320 x
+#: 240 conifer's colour data are biased (its depth-opaque colour sources hold about 0.2 of the room: alpha +0.10), and
+#: the prior weighs more beside them.  Held out under a rule written before 20 room captures ran (docs/matting.md "The
+#: data term's weight", stop 82): mean +0.17 dB, the 320 x 240 conifers +0.01 to +1.02, bunnies +0.05 to +0.56, fur
+#: -0.04 to +0.18, the worst -0.14 (a 640 x 480 orbit), SSIM -0.004 to +0.019, black twins within 0.01 dB.
 MIN_CONFIDENCE = 1.0
 #: The prior also goes to the unknown pixels whose data term is weak (weight in (0, MIN_CONFIDENCE), the photo not
 #: clipped) because the candidate colour is within capture.matting_known.SEPARATION of B (a needle before a background
@@ -88,15 +78,15 @@ WEAK_PRIOR = True
 #: interior) to +0.32 (the conifer's auto-exposure orbit), held-out alpha MSE lower or the same on every one; the fur
 #: ball it was found on +0.22 (docs/matting.md).  False: blown-out pixels only (the rule before).
 UNSEEN_PRIOR = True
-#: Where the coverage table is refused (too few sure pixels to train it, or it explains nothing held back), a weak
-#: pixel (as WEAK_PRIOR takes it) with no object depth anywhere in its coverage box is pulled towards alpha 0: target
-#: (w t) / (w + q), weight w + q, q = EMPTY_PRIOR (1 - w / MIN_CONFIDENCE).  The depth saw nothing there, and the data
-#: cannot tell the needle from the background.  Found on a conifer turning before a night park, whose grass is the
-#: needles' own dark green (kept views' B luminance 0.031, F 0.042): 94 % of the band weak, the table refused in 17 of
-#: 18 views, and the Laplacian left a grey veil (alpha 0.3-0.5) in the gaps between the lower branches; held out
-#: 26.153 -> 26.402 dB, SSIM 0.5675 -> 0.5834, sharpness 0.92 both (q at 0.5; 1: +0.23, 3: +0.15); a night orbit
-#: rendered after the choice +0.14; nothing moved on the 24 other captures (every table trained; docs/matting.md,
-#: stop 74).  0: off.
+#: Where the coverage is refused (IDENTITY_PRIOR off, too few pixels to check it, it explains nothing there, or the
+#: depth has holes), a weak pixel (as WEAK_PRIOR takes it) with no object depth anywhere in its coverage box is pulled
+#: towards alpha 0: target (w t) / (w + q), weight w + q, q = EMPTY_PRIOR (1 - w / MIN_CONFIDENCE).  The depth saw
+#: nothing there, and the data cannot tell the needle from the background.  Found on a conifer turning before a night
+#: park, whose grass is the needles' own dark green (kept views' B luminance 0.031, F 0.042): 94 % of the band weak, the
+#: table refused in 17 of 18 views, and the Laplacian left a grey veil (alpha 0.3-0.5) in the gaps between the lower
+#: branches; held out 26.153 -> 26.402 dB, SSIM 0.5675 -> 0.5834, sharpness 0.92 both (q at 0.5; 1: +0.23, 3: +0.15); a
+#: night orbit rendered after the choice +0.14; nothing moved on the 24 other captures (every table trained;
+#: docs/matting.md, stop 74).  0: off.
 EMPTY_PRIOR = 0.5
 #: EMPTY_PRIOR trusts the depth's emptiness; a depth that misses needles makes it wrong.  Its guard: the depth's own
 #: hole rate (:func:`depth_holes`, the share of pixels without object depth among those with object depth at
@@ -105,10 +95,10 @@ EMPTY_PRIOR = 0.5
 #: (scripts/depth_dropout.py): 10 % -> 0.23-0.27, the rule +0.22 dB held out; 20 % -> 0.32-0.36, the rule -0.13;
 #: 30 % -> 0.40-0.48, the rule -0.26 (docs/matting.md "A depth that misses needles", stop 75).
 EMPTY_MAX_HOLES = 0.3
-#: Where the coverage table is refused, the coverage itself stands in for it before EMPTY_PRIOR: the prior alpha of a
-#: pixel is the share of object depth in its 3 x 3 box (a depth sampled at the colour's pixels, as a path tracer's
-#: is: on the night conifer turntable's kept views the true alpha per coverage bin was within 0.03 of the coverage,
-#: R^2 0.82 over the band), given as the table's prior is, with weight its R^2 on the view's pixels of data weight
+#: The coverage itself as the prior (before stop 83 only where the coverage table was refused), before EMPTY_PRIOR:
+#: the prior alpha of a pixel is the share of object depth in its 3 x 3 box (a depth sampled at the colour's pixels,
+#: as a path tracer's is: on the night conifer turntable's kept views the true alpha per coverage bin was within 0.03
+#: of the coverage, R^2 0.82 over the band), with weight its R^2 on the view's pixels of data weight
 #: IDENTITY_MIN_WEIGHT or more (nothing fitted to them: IDENTITY_MIN_TRAIN), and only where the depth passes
 #: EMPTY_MAX_HOLES.  R^2 <= 0, too few such pixels or a depth with holes: EMPTY_PRIOR as before.  Held out: night
 #: turntable 26.40 / 0.583 / 0.92 -> 27.19 / 0.643 / 0.85 (over white 16.62 -> 17.68, alpha MSE 0.0437 -> 0.0340),
@@ -129,17 +119,17 @@ IDENTITY_MIN_TRAIN = 50
 #: -1.4 grown by one pixel, below -0.85 by two; 13 other captures the same digits (docs/matting.md "A dark room is
 #: not a backdrop").
 IDENTITY_MIN_WEIGHT = 0.05
-#: The prior (the table's or IDENTITY_PRIOR's) plus HIT_DETAIL x (the pixel's own depth hit - its 3 x 3 coverage),
-#: clipped to [0, 1]: the coverage box spreads a needle's hit over 9 pixels, the pixel's own hit says whether the needle
-#: crosses it (IDENTITY_PRIOR's prior becomes (1 - HIT_DETAIL) coverage + HIT_DETAIL hit).  On a night park the room
-#: matte kept 58 % of the needles' fine alpha pattern (the error's part finer than 3 x 3 regressed on the truth's: slope
-#: -0.42; the black twin's backdrop matte -0.16); at 0.5 the kept views' band alpha MSE 0.0077 -> 0.0056 and the slope
-#: -0.06 (4 views).  The data term cannot check it (its own fine pattern is noise there: R^2 against it falls with
-#: HIT_DETAIL), so it was checked held out: found on a night turntable (seed 811, 27.66 / 0.659 / 0.86 -> 27.72 /
-#: 0.679 / 0.98), then on twelve room captures under a rule written down before they ran (two courtyards among them,
-#: rendered after it): PSNR +0.00 to +0.16, SSIM +0.002 to +0.025, sharpness up 0.03-0.12, black twins the same digits,
-#: and the same capture with its depth rendered with 3 x 3 rays a pixel (every needle's hits dilated) +0.04 / +0.018
-#: (docs/matting.md "What the room matte smooths away", stop 77).
+#: The prior (IDENTITY_PRIOR's) plus HIT_DETAIL x (the pixel's own depth hit - its 3 x 3 coverage), clipped to [0, 1]:
+#: the coverage box spreads a needle's hit over 9 pixels, the pixel's own hit says whether the needle crosses it
+#: (IDENTITY_PRIOR's prior becomes (1 - HIT_DETAIL) coverage + HIT_DETAIL hit).  On a night park the room matte kept 58
+#: % of the needles' fine alpha pattern (the error's part finer than 3 x 3 regressed on the truth's: slope -0.42; the
+#: black twin's backdrop matte -0.16); at 0.5 the kept views' band alpha MSE 0.0077 -> 0.0056 and the slope -0.06 (4
+#: views).  The data term cannot check it (its own fine pattern is noise there: R^2 against it falls with HIT_DETAIL),
+#: so it was checked held out: found on a night turntable (seed 811, 27.66 / 0.659 / 0.86 -> 27.72 / 0.679 / 0.98), then
+#: on twelve room captures under a rule written down before they ran (two courtyards among them, rendered after it):
+#: PSNR +0.00 to +0.16, SSIM +0.002 to +0.025, sharpness up 0.03-0.12, black twins the same digits, and the same capture
+#: with its depth rendered with 3 x 3 rays a pixel (every needle's hits dilated) +0.04 / +0.018 (docs/matting.md "What
+#: the room matte smooths away", stop 77).
 #: 0: the coverage alone (the rule before).
 HIT_DETAIL = 0.5
 #: Neighbours (of 8) with object depth that make a pixel the depth's interior for :func:`depth_holes`.
@@ -163,17 +153,6 @@ def depth_holes(mask: np.ndarray) -> tuple[float, int]:
     return (float((inner & ~m).sum()) / n if n else 1.0), n
 
 
-def _table(x: np.ndarray, y: np.ndarray, w: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """Per bin of ``x`` (edges: COVERAGE_BINS - 1 inner edges) the ``w``-weighted mean of ``y`` (the
-    overall mean in an empty bin)."""
-    b = np.digitize(x, edges)
-    n = len(edges) + 1
-    sw = np.bincount(b, w, n)
-    sy = np.bincount(b, w * y, n)
-    mean = (w * y).sum() / max(w.sum(), 1e-12)
-    return np.where(sw > 0, sy / np.maximum(sw, 1e-12), mean)
-
-
 def _weighted_r2(pred: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
     """The share of ``y``'s ``w``-weighted variance that ``pred`` explains (1 - weighted SSE / weighted SS); 0 where
     that variance is under MIN_R2_VARIANCE (nothing to explain)."""
@@ -184,19 +163,16 @@ def _weighted_r2(pred: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
     return float(1.0 - (w * (pred - y) ** 2).sum() / max(ss, 1e-12))
 
 
-def _r2(x, y, w, edges, fit, test) -> float:
-    """Weighted R^2 on ``test`` of the table fitted on ``fit``."""
-    t = _table(x[fit], y[fit], w[fit], edges)
-    return _weighted_r2(t[np.digitize(x[test], edges)], y[test], w[test])
-
-
 def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weight: np.ndarray,
                 mask: np.ndarray | None, similar: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """(target, weight, record): the data term (``target``, ``weight``, each (h, w), of
     capture.matting_known.data_term) with the coverage prior (module docstring) added at the
     ``unknown`` pixels which have no data term (with UNSEEN_PRIOR off: only those whose photo ``image`` is blown
     out); ``mask``: the object's depth (h, w) bool (None: no prior); ``similar`` (h, w) bool: where the data term's
-    candidate colour is within its SEPARATION of B, the only weak pixels WEAK_PRIOR takes (None: every weak pixel)."""
+    candidate colour is within its SEPARATION of B, the only weak pixels WEAK_PRIOR takes (None: every weak pixel).
+    The record: ``used`` (the coverage was given), else ``reason``; ``r2`` (the coverage's R^2 on ``sample`` pixels,
+    those of data weight IDENTITY_MIN_WEIGHT or more), ``prior`` (pixels it went to), ``depth_holes``, and
+    EMPTY_PRIOR's counts (:func:`_empty_prior`)."""
     C = np.asarray(image)
     lit = C.max(axis=-1) < CLIP_LEVEL
     blind = np.asarray(unknown, bool) & (weight <= 0)
@@ -214,25 +190,21 @@ def blind_prior(image: np.ndarray, unknown: np.ndarray, target: np.ndarray, weig
                                     "no depth" if mask is None else "nothing blown out")
     cov = coverage(mask)
     detail = HIT_DETAIL * (np.asarray(mask, np.float64) - cov)  # the pixel's own hit (HIT_DETAIL)
-    empty = weak & (cov <= 0)  # EMPTY_PRIOR's pixels, where the table is refused
-    train = np.asarray(unknown, bool) & (weight >= MIN_CONFIDENCE) & lit
-    sample = np.asarray(unknown, bool) & (weight >= IDENTITY_MIN_WEIGHT) & lit  # IDENTITY_PRIOR's check
-    yy, xx = np.nonzero(train)
-    half = ((yy // HOLDOUT_BLOCK + xx // HOLDOUT_BLOCK) % 2).astype(bool)
-    rec["train"] = int(train.sum())
-    if min(half.sum(), (~half).sum()) < MIN_TRAIN:
-        return _refused(target, weight, cov, detail, sample, blind, weak, empty, mask,
-                        dict(rec, used=False, reason="too few known pixels"))
-    x, y, w = cov[train], target[train], weight[train]
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, COVERAGE_BINS + 1)[1:-1]))
-    r2 = 0.5 * (_r2(x, y, w, edges, half, ~half) + _r2(x, y, w, edges, ~half, half))
-    rec["r2"] = round(r2, 4)
-    if r2 <= 0:
-        return _refused(target, weight, cov, detail, sample, blind, weak, empty, mask,
-                        dict(rec, used=False, reason="coverage explains nothing on held-back pixels"))
-    prior = np.clip(_table(x, y, w, edges)[np.digitize(cov, edges)] + detail, 0.0, 1.0)
-    t, wt = _give(target, weight, prior, r2, blind, weak)
-    return t, wt, dict(rec, used=True)
+    empty = weak & (cov <= 0)  # EMPTY_PRIOR's pixels, where the coverage is refused
+    sample = np.asarray(unknown, bool) & (weight >= IDENTITY_MIN_WEIGHT) & lit  # the coverage's check
+    rec["sample"] = int(sample.sum())
+    if not IDENTITY_PRIOR or rec["sample"] < IDENTITY_MIN_TRAIN:
+        why = "off" if not IDENTITY_PRIOR else "too few pixels to check the coverage"
+        return _empty_prior(target, weight, empty, mask, dict(rec, used=False, reason=why))
+    holes = depth_holes(mask)
+    r2 = _weighted_r2(cov[sample], target[sample], weight[sample])
+    rec = dict(rec, r2=round(r2, 4), depth_holes=round(holes[0], 4))
+    if r2 <= 0 or holes[1] < MIN_INTERIOR or holes[0] > EMPTY_MAX_HOLES:
+        why = ("coverage explains nothing" if r2 <= 0 else "too little depth to check it" if holes[1] < MIN_INTERIOR
+               else "the depth has holes")
+        return _empty_prior(target, weight, empty, mask, dict(rec, used=False, reason=why), holes)
+    t, wt = _give(target, weight, np.clip(cov + detail, 0.0, 1.0), r2, blind, weak)
+    return t, wt, dict(rec, used=True, empty=0, prior=int((blind | weak).sum()))
 
 
 def _give(target, weight, prior, r2: float, blind, weak) -> tuple:
@@ -241,21 +213,6 @@ def _give(target, weight, prior, r2: float, blind, weak) -> tuple:
     pw = np.where(weak, r2 * (1.0 - weight / MIN_CONFIDENCE), 0.0)
     mixed = (weight * target + pw * prior) / np.maximum(weight + pw, 1e-12)
     return np.where(blind, prior, np.where(weak, mixed, target)), np.where(blind, r2, weight + pw)
-
-
-def _refused(target, weight, cov, detail, sample, blind, weak, empty, mask, rec: dict) -> tuple:
-    """Where the coverage table is refused: IDENTITY_PRIOR (the coverage plus the hit's ``detail`` as the prior,
-    weighted by the coverage's R^2 on the ``sample`` pixels, those of data weight IDENTITY_MIN_WEIGHT or more; record
-    ``identity``, ``identity_r2``) where it applies, else :func:`_empty_prior`."""
-    holes = None  # the depth's hole rate, measured once for both rules
-    if IDENTITY_PRIOR and int(sample.sum()) >= IDENTITY_MIN_TRAIN:
-        holes = depth_holes(mask)
-        r2 = _weighted_r2(cov[sample], target[sample], weight[sample])
-        rec = dict(rec, identity_r2=round(r2, 4), depth_holes=round(holes[0], 4))
-        if r2 > 0 and holes[1] >= MIN_INTERIOR and holes[0] <= EMPTY_MAX_HOLES:
-            t, wt = _give(target, weight, np.clip(cov + detail, 0.0, 1.0), r2, blind, weak)
-            return t, wt, dict(rec, empty=0, identity=int((blind | weak).sum()))
-    return _empty_prior(target, weight, empty, mask, rec, holes)
 
 
 def _empty_prior(target: np.ndarray, weight: np.ndarray, empty: np.ndarray, mask: np.ndarray, rec: dict,

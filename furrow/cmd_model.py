@@ -422,15 +422,16 @@ def _print_matte_data(console, m: dict) -> None:
         console.print(f"matte: {bp['weak_pixels']} pixels before a background of nearly their own colour took the "
                       "depth coverage's alpha beside their weak data term (capture.matting_blind.WEAK_PRIOR)",
                       highlight=False)
-    if bp.get("identity_pixels"):  # capture.matting_blind.IDENTITY_PRIOR: no coverage table, the coverage itself
-        console.print(f"matte: in {bp['identity_views']} view(s) too few sure pixels taught a coverage table; "
-                      f"{bp['identity_pixels']} pixels with a weak or no data term took the depth's own coverage as "
-                      "their alpha's prior, weighed by how well it predicts the view's sure pixels "
-                      "(capture.matting_blind.IDENTITY_PRIOR)", highlight=False)
-    if bp.get("empty_pixels"):  # capture.matting_blind.EMPTY_PRIOR: no coverage table, the depth saw nothing there
+    if bp.get("prior_pixels"):  # capture.matting_blind.IDENTITY_PRIOR: the depth's own coverage as alpha's prior
+        r2 = bp.get("r2") or [0.0]
+        console.print(f"matte: in {bp['prior_views']} view(s) {bp['prior_pixels']} pixels with a weak or no data term "
+                      "took the depth's own coverage as their alpha's prior, weighed by how well it predicts the "
+                      f"view's surer pixels (R^2 {min(r2):.2f}-{max(r2):.2f}; capture.matting_blind.IDENTITY_PRIOR)",
+                      highlight=False)
+    if bp.get("empty_pixels"):  # capture.matting_blind.EMPTY_PRIOR: no coverage prior, the depth saw nothing there
         console.print(f"matte: {bp['empty_pixels']} pixels in {bp['empty_views']} view(s) before a background of "
-                      "nearly their own colour, with no object depth beside them, were pulled towards alpha 0: too "
-                      "few sure pixels taught their view a coverage table (capture.matting_blind.EMPTY_PRIOR)",
+                      "nearly their own colour, with no object depth beside them, were pulled towards alpha 0: the "
+                      "depth's coverage did not predict their view's surer pixels (capture.matting_blind.EMPTY_PRIOR)",
                       highlight=False)
     if bp.get("empty_refused_pixels"):  # capture.matting_blind.EMPTY_MAX_HOLES: a depth that may miss needles
         from capture.matting_blind import EMPTY_MAX_HOLES

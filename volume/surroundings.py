@@ -431,12 +431,12 @@ def matte_record(work, notes: dict, cfg):
              "r2": [b["r2"] for b in bp if "r2" in b], "blind_pixels": sum(b["blind"] for b in bp),
              "weak_pixels": sum(b.get("weak", 0) for b in bp if b["used"]),  # those the prior went to
              "unseen_pixels": sum(b.get("unseen", 0) for b in bp if b["used"]),  # UNSEEN_PRIOR: no B, photo not blown
-             "empty_pixels": sum(b.get("empty", 0) for b in bp),  # EMPTY_PRIOR: table refused, weak, no depth near
+             "empty_pixels": sum(b.get("empty", 0) for b in bp),  # EMPTY_PRIOR: coverage refused, weak, no depth near
              "empty_views": sum(bool(b.get("empty")) for b in bp),
              "empty_refused_pixels": sum(b.get("empty_refused", 0) for b in bp),  # EMPTY_MAX_HOLES: depth with holes
              "empty_refused_views": sum(bool(b.get("empty_refused")) for b in bp),
-             "identity_pixels": sum(b.get("identity", 0) for b in bp),  # IDENTITY_PRIOR: table refused, coverage taken
-             "identity_views": sum(bool(b.get("identity")) for b in bp),
+             "prior_pixels": sum(b.get("prior", 0) for b in bp),  # IDENTITY_PRIOR: the coverage given
+             "prior_views": sum(bool(b.get("prior")) for b in bp),
              "empty_refused_reasons": sorted({b["empty_reason"] for b in bp if "empty_reason" in b}),
              "depth_holes": [b["depth_holes"] for b in bp if "depth_holes" in b],
              "weak_share": _share(sum(b.get("weak", 0) for b in bp), sum(b.get("band", 0) for b in bp)),

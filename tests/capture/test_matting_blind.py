@@ -8,7 +8,9 @@ window 3.0, seeds 0-3: 0.093 / 0.060, 0.089 / 0.064, 0.094 / 0.059, 0.097 / 0.06
 0.135 / 0.093, 0.131 / 0.098, 0.145 / 0.096, 0.139 / 0.093 (0.65-0.75x); held-back R^2 of the
 coverage table 0.71-0.79.  The colour fill from SOURCE_ALPHA instead of 0.5 (FILL_ALPHA) moved the
 premultiplied colour there by less than 3 % either way on these scenes (their F is smooth and the
-plate exact; it is the plate's error that the higher threshold keeps out: docs/matting.md)."""
+plate exact; it is the plate's error that the higher threshold keeps out: docs/matting.md).  (The R^2 and the
+figures above are the coverage table's, removed in stop 83; the tests on the needle scenes check that the depth's
+own coverage, which stands in, is given and what it does to alpha.)"""
 
 from __future__ import annotations
 
@@ -24,18 +26,23 @@ from tests import plate_scenes as ps
 WINDOW_COLUMNS = 54
 #: Alpha MSE with the prior at most this fraction of the one without, per seed (measured 0.65-0.75x).
 BEAT_BLIND = 0.8
-#: The coverage table's own tests teach it with pixels of data weight 0.25-1 (their scenes' sure pixels weigh 0.8):
-#: capture.matting_blind.MIN_CONFIDENCE's value before stop 82.  The default 1.0 leaves such pixels weak (the table
-#: is then taught by the surest pixels only, or refused, and the depth's own coverage stands in: the tests on the
-#: needle scenes below check that a prior is given either way and what it does to alpha).
-TABLE_CONFIDENCE = 0.25
+#: Data weight of the constructed scenes' sure pixels: capture.matting_blind.MIN_CONFIDENCE (1.0) or more, not weak.
+SURE = 1.0
 
 
 def _prior_given(rec: dict) -> bool:
-    """A coverage prior went into the matte: the table (held-back R^2 over 0.5) or, where the table is refused, the
-    depth's own coverage (IDENTITY_PRIOR, R^2 over 0.5)."""
-    table = rec.get("used") and rec.get("r2", 0) > 0.5
-    return bool(table or (rec.get("identity", 0) > 0 and rec.get("identity_r2", 0) > 0.5))
+    """The depth's coverage went into the matte as alpha's prior (IDENTITY_PRIOR) with an R^2 over 0.5."""
+    return bool(rec.get("used") and rec.get("prior", 0) > 0 and rec.get("r2", 0) > 0.5)
+
+
+def _fringed(rng, h: int, w: int) -> np.ndarray:
+    """(h, w) bool object depth: dense (0.95) left of w / 2, a sparse fringe (0.5) from 3 w / 8 to 5 w / 8: coverage
+    between 0 and 1 with few holes (capture.matting_blind.EMPTY_MAX_HOLES)."""
+    mask = np.zeros((h, w), bool)
+    mask[:, : w // 2] = rng.random((h, w // 2)) < 0.95
+    mask[:, 3 * w // 8: 5 * w // 8] &= rng.random((h, w // 4)) < 0.5
+    mask[:, w // 2: 5 * w // 8] |= rng.random((h, w // 8)) < 0.5
+    return mask
 
 
 def _q(x):
@@ -98,27 +105,33 @@ def test_a_depth_that_says_nothing_is_refused(monkeypatch):
     np.testing.assert_array_equal(on.alpha, off.alpha)
 
 
-def test_the_table_recovers_a_known_relation(monkeypatch):
-    """blind_prior on constructed data: alpha = 0.8 x coverage where the background is known, the
-    blown-out pixels get that relation back (exactly where a quantile bin holds one of the ten
-    coverage levels of a 3 x 3 box) and weight R^2 near 1.  The depth is random pixels, whose own hit says
-    nothing the coverage does not: HIT_DETAIL off (its own test below)."""
+def test_the_coverage_is_the_prior_weighed_by_its_r2(monkeypatch):
+    """blind_prior on constructed data: alpha = coverage where the background is known gives the blown-out pixels
+    their coverage exactly, with weight R^2 = 1; alpha = 0.8 x coverage gives them the coverage still (nothing is
+    fitted: the coverage table that fitted such a relation went in stop 83), weighed by its R^2 against the data,
+    computed here by hand.  The depth is random pixels, whose own hit says nothing the coverage does not: HIT_DETAIL
+    off (its own test below)."""
     monkeypatch.setattr(mb, "HIT_DETAIL", 0.0)
     rng = np.random.default_rng(0)
-    mask = rng.random((120, 160)) < 0.4
+    mask = np.zeros((120, 160), bool)
+    mask[10:110, 20:140] = rng.random((100, 120)) < 0.9  # a depth with few holes (EMPTY_MAX_HOLES)
+    mask[10:110, 60:100] &= rng.random((100, 40)) < 0.5  # a sparse band: coverage between 0 and 1
     cov = mb.coverage(mask)
-    truth = 0.8 * cov
     img = np.full((120, 160, 3), 0.3)
     img[:, :40] = 1.0  # blown out
-    unknown = np.ones((120, 160), bool)
-    weight = np.where(img.max(-1) < mb.CLIP_LEVEL, 1.0, 0.0)
-    target = np.where(weight > 0, truth, 0.0)
-    t, w, rec = mb.blind_prior(img, unknown, target, weight, mask)
-    assert rec["used"] and rec["r2"] > 0.95, rec
     blind = img.max(-1) >= mb.CLIP_LEVEL
-    err = np.abs(t - truth)[blind]
-    assert np.median(err) <= 1e-9 and err.mean() <= 0.02  # most bins hold one coverage level
-    assert np.allclose(w[blind], rec["r2"], atol=1e-4) and np.array_equal(t[~blind], target[~blind])
+    unknown = np.ones((120, 160), bool)
+    weight = np.where(blind, 0.0, SURE)
+    for gain in (1.0, 0.8):
+        target = np.where(blind, 0.0, gain * cov)
+        t, w, rec = mb.blind_prior(img, unknown, target, weight, mask)
+        y, c = target[~blind], cov[~blind]
+        r2 = 1 - ((y - c) ** 2).sum() / ((y - y.mean()) ** 2).sum()
+        assert rec["used"] and rec["r2"] == round(r2, 4) and rec["prior"] == int(blind.sum()), rec
+        assert (r2 == pytest.approx(1.0)) if gain == 1.0 else (0.5 < r2 < 0.99), r2
+        np.testing.assert_allclose(t[blind], cov[blind])
+        np.testing.assert_allclose(w[blind], r2)
+        np.testing.assert_array_equal(t[~blind], target[~blind])
 
 
 #: The working-resolution path (capture.matting_scale, scale 0.5; 192 x 256 scenes, 160 needles, a
@@ -185,18 +198,17 @@ def test_colour_from_seen_beats_unmixing_through_a_poor_estimate(monkeypatch, sh
 
 def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
     """capture.matting_blind.WEAK_PRIOR (docs/matting.md, stop 62): an unknown pixel whose photo is not clipped and
-    whose data weight w is in (0, MIN_CONFIDENCE) gets the coverage table's alpha p beside its target t:
+    whose data weight w is in (0, MIN_CONFIDENCE) gets its coverage p beside its target t:
     (w t + q p) / (w + q) with q = R^2 (1 - w / MIN_CONFIDENCE), weight w + q; sure pixels, clipped ones and w = 0
     keep theirs; given ``similar``, only the weak pixels in it; off, nothing changes at all."""
-    monkeypatch.setattr(mb, "MIN_CONFIDENCE", TABLE_CONFIDENCE)  # the table's mechanism (module constant's comment)
     monkeypatch.setattr(mb, "HIT_DETAIL", 0.0)  # random depth pixels: the hit adds nothing (own test)
     rng = np.random.default_rng(3)
     h, w = 64, 64
-    mask = rng.random((h, w)) < 0.5
+    mask = _fringed(rng, h, w)
     cov = mb.coverage(mask)
     truth = np.clip(cov + 0.02 * rng.standard_normal((h, w)), 0, 1)  # alpha that the coverage explains
     unknown = np.ones((h, w), bool)
-    weight = np.where(rng.random((h, w)) < 0.2, 0.1, 0.8)  # a fifth of the pixels weak
+    weight = np.where(rng.random((h, w)) < 0.2, 0.1, SURE)  # a fifth of the pixels weak
     weight[:4] = 0.0  # no data at all, photo not clipped: left alone
     target = np.where(weight >= 0.5, truth, 0.9)  # the weak pixels' data says 0.9
     image = np.full((h, w, 3), 0.3)
@@ -209,8 +221,9 @@ def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
     assert rec["band"] == h * w  # the matting band: every unknown pixel (the record's weak share divides by it)
     q = w_on - weight  # the prior's weight: R^2 (1 - w / MIN_CONFIDENCE) (the record's R^2 rounded to 4 digits)
     np.testing.assert_allclose(q[weak], (rec["r2"] * (1 - weight / mb.MIN_CONFIDENCE))[weak], atol=1e-4)
-    p = (t_on * (weight + q) - weight * target) / np.where(weak, q, 1.0)  # the table's alpha, out of the mix
-    assert np.abs(p[weak] - truth[weak]).mean() < 0.05  # the table's alpha, near the truth the coverage explains
+    p = (t_on * (weight + q) - weight * target) / np.where(weak, q, 1.0)  # the prior's alpha, out of the mix
+    np.testing.assert_allclose(p[weak], cov[weak], atol=1e-6)  # the coverage itself
+    assert np.abs(p[weak] - truth[weak]).mean() < 0.05  # near the truth the coverage explains
     assert np.abs(t_on[weak] - 0.9).mean() > 0.1  # pulled off the weak data's 0.9
     rest = ~weak & (image.max(-1) < mb.CLIP_LEVEL)
     np.testing.assert_array_equal(t_on[rest], target[rest])
@@ -229,17 +242,16 @@ def test_the_weak_prior_goes_beside_a_weak_data_term(monkeypatch):
 
 def test_the_unseen_prior_gives_the_pixels_without_data_the_coverage_alpha(monkeypatch):
     """capture.matting_blind.UNSEEN_PRIOR (docs/matting.md, stop 72): an unknown pixel with no data term (weight 0:
-    the plate does not know its background) whose photo is not clipped gets the coverage table's alpha with weight
+    the plate does not know its background) whose photo is not clipped gets its coverage as alpha with weight
     R^2, as a blown-out one does; the record counts it as unseen; the pixels with data keep theirs; off, it is left
     alone (the Laplacian's alone, the rule before)."""
-    monkeypatch.setattr(mb, "MIN_CONFIDENCE", TABLE_CONFIDENCE)  # the table's mechanism (module constant's comment)
     monkeypatch.setattr(mb, "HIT_DETAIL", 0.0)  # random depth pixels: the hit adds nothing (own test)
     rng = np.random.default_rng(4)
     h, w = 64, 64
-    mask = rng.random((h, w)) < 0.5
+    mask = _fringed(rng, h, w)
     truth = np.clip(mb.coverage(mask) + 0.02 * rng.standard_normal((h, w)), 0, 1)
     unknown = np.ones((h, w), bool)
-    weight = np.full((h, w), 0.8)
+    weight = np.full((h, w), SURE)
     weight[:12] = 0.0  # no data at all, the photo not clipped: the background is not known there
     target = np.where(weight > 0, truth, 0.0)
     image = np.full((h, w, 3), 0.3)
@@ -247,7 +259,8 @@ def test_the_unseen_prior_gives_the_pixels_without_data_the_coverage_alpha(monke
     t_on, w_on, rec = mb.blind_prior(image, unknown, target, weight, mask)
     unseen = weight <= 0
     assert rec["used"] and rec["unseen"] == rec["blind"] == int(unseen.sum()), rec
-    assert np.abs(t_on[unseen] - truth[unseen]).mean() < 0.05  # the table's alpha, near what the coverage explains
+    np.testing.assert_allclose(t_on[unseen], mb.coverage(mask)[unseen], atol=1e-12)  # the coverage itself
+    assert np.abs(t_on[unseen] - truth[unseen]).mean() < 0.05  # near what the coverage explains
     np.testing.assert_allclose(w_on[unseen], rec["r2"], atol=1e-4)
     np.testing.assert_array_equal(t_on[~unseen], target[~unseen])
     np.testing.assert_array_equal(w_on[~unseen], weight[~unseen])
@@ -296,12 +309,13 @@ def test_where_no_frame_saw_the_background_a_depth_that_says_nothing_is_refused(
     np.testing.assert_array_equal(on.alpha, off.alpha)
 
 
-def test_where_the_table_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(monkeypatch):
-    """capture.matting_blind.EMPTY_PRIOR (docs/matting.md "A night park", stop 74): with too few sure pixels to train
-    the coverage table, a weak pixel (weight in (0, MIN_CONFIDENCE), photo not clipped) whose coverage box holds no
-    object depth gets target w t / (w + q), weight w + q, q = EMPTY_PRIOR (1 - w / MIN_CONFIDENCE); weak pixels with
-    depth beside them, sure ones and the rest keep theirs; a trained table, or EMPTY_PRIOR 0, leaves the rule out."""
-    monkeypatch.setattr(mb, "MIN_CONFIDENCE", TABLE_CONFIDENCE)  # the table's mechanism (module constant's comment)
+def test_where_the_coverage_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(monkeypatch):
+    """capture.matting_blind.EMPTY_PRIOR (docs/matting.md "A night park", stop 74): where the coverage predicts nothing
+    (the data say alpha 0.4 everywhere: no variance to explain), a weak pixel (weight in (0, MIN_CONFIDENCE), photo
+    not clipped) whose coverage box holds no object depth gets target w t / (w + q), weight w + q,
+    q = EMPTY_PRIOR (1 - w / MIN_CONFIDENCE); weak pixels with
+    depth beside them, sure ones and the rest keep theirs; a coverage that predicts the data, or EMPTY_PRIOR 0, leaves
+    the rule out."""
     rng = np.random.default_rng(5)
     h, w = 64, 64
     mask = np.zeros((h, w), bool)
@@ -309,14 +323,15 @@ def test_where_the_table_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(mon
     unknown = np.ones((h, w), bool)
     weight = np.full((h, w), 0.1)  # weak everywhere (a background of the needles' own colour) ...
     sure = rng.random((h, w)) < 0.01
-    weight[sure] = 0.8  # ... but for a few sure pixels: too few to train a table (MIN_TRAIN a half)
+    weight[sure] = SURE  # ... but for a few sure pixels
     target = np.full((h, w), 0.4)  # the Laplacian's grey veil the weak data allows
     image = np.full((h, w, 3), 0.05)
     monkeypatch.setattr(mb, "WEAK_PRIOR", True)
     monkeypatch.setattr(mb, "EMPTY_PRIOR", 0.5)
     t, wt, rec = mb.blind_prior(image, unknown, target, weight, mask)
     empty = (weight < mb.MIN_CONFIDENCE) & (mb.coverage(mask) <= 0)
-    assert not rec["used"] and rec["reason"] == "too few known pixels" and rec["empty"] == int(empty.sum()) > 500, rec
+    assert not rec["used"] and rec["reason"] == "coverage explains nothing" and rec["r2"] == 0.0, rec
+    assert rec["empty"] == int(empty.sum()) > 500, rec
     q = 0.5 * (1 - 0.1 / mb.MIN_CONFIDENCE)
     np.testing.assert_allclose(t[empty], 0.1 * 0.4 / (0.1 + q))  # 0.4 -> 0.1: towards the empty depth's 0
     np.testing.assert_allclose(wt[empty], 0.1 + q)
@@ -328,11 +343,11 @@ def test_where_the_table_is_refused_the_empty_depth_pulls_weak_alpha_to_zero(mon
     np.testing.assert_array_equal(t0, target)
     np.testing.assert_array_equal(w0, weight)
     monkeypatch.setattr(mb, "EMPTY_PRIOR", 0.5)
-    many = rng.random((h, w)) < 0.5  # enough sure pixels: the table is trained and the rule stays out
-    weight2 = np.where(many, 0.8, 0.1)
+    many = rng.random((h, w)) < 0.5  # sure pixels whose alpha the coverage predicts: it is given, the rule stays out
+    weight2 = np.where(many, SURE, 0.1)
     target2 = np.where(many, mb.coverage(mask), 0.4)
     t2, _, rec2 = mb.blind_prior(image, unknown, target2, weight2, mask)
-    assert rec2["used"] and "empty" not in rec2, rec2
+    assert rec2["used"] and rec2["r2"] > 0.5 and rec2["empty"] == 0, rec2
 
 
 def test_depth_holes_counts_the_pixels_missing_inside_the_depth():
@@ -356,13 +371,12 @@ def test_a_depth_with_holes_refuses_the_empty_prior(monkeypatch):
     test above with 40 % of its depth pixels lost (a sensor that misses needles) measures a hole rate above
     EMPTY_MAX_HOLES and leaves target and weight as the data term gave them, the record saying why and how many pixels
     it did not take; a depth too small to measure is refused too."""
-    monkeypatch.setattr(mb, "MIN_CONFIDENCE", TABLE_CONFIDENCE)  # the table's mechanism (module constant's comment)
     rng = np.random.default_rng(5)
     h, w = 64, 64
     dense = np.zeros((h, w), bool)
     dense[:, :32] = rng.random((h, 32)) < 0.95
     lossy = dense & (rng.random((h, w)) >= 0.4)
-    weight = np.where(rng.random((h, w)) < 0.01, 0.8, 0.1)
+    weight = np.where(rng.random((h, w)) < 0.01, SURE, 0.1)
     target = np.full((h, w), 0.4)
     image = np.full((h, w, 3), 0.05)
     unknown = np.ones((h, w), bool)
@@ -383,14 +397,13 @@ def test_a_depth_with_holes_refuses_the_empty_prior(monkeypatch):
     np.testing.assert_array_equal(t3, target)
 
 
-def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch):
-    """capture.matting_blind.IDENTITY_PRIOR (docs/matting.md "The depth's coverage as alpha", stop 75): with too few
-    sure pixels for a table (MIN_TRAIN a half) but IDENTITY_MIN_TRAIN or more with a data weight of at least
+def test_the_coverage_itself_is_the_prior(monkeypatch):
+    """capture.matting_blind.IDENTITY_PRIOR (docs/matting.md "The depth's coverage as alpha", stop 75): with
+    IDENTITY_MIN_TRAIN or more pixels with a data weight of at least
     IDENTITY_MIN_WEIGHT (stop 76), whose alpha the coverage predicts (R^2 > 0 against alpha = coverage, weighted by
     the data weights), a weak pixel gets target (w t + q c) / (w + q), weight w + q, q = R^2 (1 - w / MIN_CONFIDENCE),
     c its coverage; sure pixels keep theirs.  Pixels the coverage does not predict (R^2 <= 0), or a depth with holes,
     leave it to EMPTY_PRIOR (and its own guard)."""
-    monkeypatch.setattr(mb, "MIN_CONFIDENCE", TABLE_CONFIDENCE)  # the table's mechanism (module constant's comment)
     monkeypatch.setattr(mb, "HIT_DETAIL", 0.0)  # random depth pixels: the hit adds nothing (own test)
     rng = np.random.default_rng(7)
     h, w = 64, 64
@@ -399,9 +412,9 @@ def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch
     mask[:, 28:40] &= rng.random((h, 12)) < 0.5  # a sparse fringe: coverage between 0 and 1
     cov = mb.coverage(mask)
     sure = np.zeros((h, w), bool)
-    sure[rng.integers(0, h, 150), rng.integers(0, w, 150)] = True  # ~150 sure pixels: too few for a table
+    sure[rng.integers(0, h, 150), rng.integers(0, w, 150)] = True  # ~150 sure pixels
     mid = ~sure & (rng.random((h, w)) < 0.2)  # weight 0.15: in IDENTITY_PRIOR's sample, below MIN_CONFIDENCE
-    weight = np.where(sure, 0.8, np.where(mid, 0.15, 0.02))
+    weight = np.where(sure, SURE, np.where(mid, 0.15, 0.02))
     truth = np.clip(cov + rng.normal(0, 0.05, (h, w)), 0, 1)
     target = np.where(sure | mid, truth, 0.4)
     image = np.full((h, w, 3), 0.05)
@@ -412,25 +425,26 @@ def test_where_the_table_is_refused_the_coverage_itself_is_the_prior(monkeypatch
     t, wt, rec = mb.blind_prior(image, unknown, target, weight, mask)
     s_, y, c = weight[sure | mid], truth[sure | mid], cov[sure | mid]  # R^2 of alpha = coverage, weighted
     r2 = 1 - (s_ * (y - c) ** 2).sum() / (s_ * (y - np.average(y, weights=s_)) ** 2).sum()
-    assert not rec["used"] and rec["reason"] == "too few known pixels" and 0.8 < r2 < 1, rec
-    assert rec["identity_r2"] == round(r2, 4), rec
-    assert rec["identity"] == int((~sure).sum()) and rec["empty"] == 0, rec
+    assert rec["used"] and "reason" not in rec and 0.8 < r2 < 1, rec
+    assert rec["r2"] == round(r2, 4) and rec["sample"] == int((sure | mid).sum()), rec
+    assert rec["prior"] == int((~sure).sum()) and rec["empty"] == 0, rec
     q = r2 * (1 - weight / mb.MIN_CONFIDENCE)  # the weak pixels' weight: the 0.15s and the 0.02s
     np.testing.assert_allclose(t[~sure], ((weight * target + q * cov) / (weight + q))[~sure], atol=1e-6)
     np.testing.assert_allclose(wt[~sure], (weight + q)[~sure], atol=1e-6)
     np.testing.assert_array_equal(t[sure], target[sure])
     # the sample against the coverage: the coverage predicts nothing, EMPTY_PRIOR takes the empty boxes only
     t2, _, rec2 = mb.blind_prior(image, unknown, np.where(sure | mid, 1 - cov, 0.4), weight, mask)
-    assert rec2["identity_r2"] <= 0 and "identity" not in rec2 and rec2["empty"] > 0, rec2
+    assert rec2["r2"] <= 0 and not rec2["used"] and "prior" not in rec2 and rec2["empty"] > 0, rec2
     # a depth with holes: neither rule
     lossy = mask & (rng.random((h, w)) >= 0.4)
     t3, w3, rec3 = mb.blind_prior(image, unknown, target, weight, lossy)
-    assert "identity" not in rec3 and rec3["empty"] == 0 and rec3["empty_reason"] == "the depth has holes", rec3
+    assert not rec3["used"] and rec3["reason"] == "the depth has holes" and rec3["empty"] == 0, rec3
+    assert rec3["empty_reason"] == "the depth has holes", rec3
     np.testing.assert_array_equal(t3, target)
     np.testing.assert_array_equal(w3, weight)
     monkeypatch.setattr(mb, "IDENTITY_PRIOR", False)
     _, _, rec4 = mb.blind_prior(image, unknown, target, weight, mask)
-    assert "identity" not in rec4 and "identity_r2" not in rec4, rec4
+    assert not rec4["used"] and rec4["reason"] == "off" and "r2" not in rec4 and "prior" not in rec4, rec4
 
 
 #: HIT_DETAIL on seeded needle scenes (192 x 256, 160 needles, depth where the pixel centre hits, the photo blown out
