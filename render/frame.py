@@ -41,6 +41,8 @@ class FrameStats:
         supersample: samples per pixel and axis the frame was drawn with (keyword).
         facets: primitives drawn (microfacet slices, mesh triangles, points), for a method that
             counts them; None = not reported (keyword).
+        alpha_pull: the pull d gather gave the frame's alpha, a - d a (1 - a) (render.gather.alpha_mass; 0 = as
+            drawn), for a method that holds its alpha's mass; None = not reported (keyword).
     """
 
     ms: float
@@ -48,13 +50,16 @@ class FrameStats:
     _: KW_ONLY
     supersample: int
     facets: int | None = None
+    alpha_pull: float | None = None
 
     def record(self) -> dict:
         """The numbers as a flat JSON-ready dict (per-frame records of render_stats.json and of
-        ``furrow eval``); ``facets`` only where the method counts them."""
+        ``furrow eval``); ``facets`` and ``alpha_pull`` only where the method reports them."""
         out = {"ms": float(self.ms), "cpu_ms": float(self.cpu_ms), "supersample": int(self.supersample)}
         if self.facets is not None:
             out["facets"] = int(self.facets)
+        if self.alpha_pull is not None:
+            out["alpha_pull"] = float(self.alpha_pull)
         return out
 
 

@@ -36,11 +36,14 @@ dropped (the twin keeps their inside pixels); nothing else differs.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from capture.camera import Camera, gl_rows_to_image
 from render.crops import RESIDENT_VIEWS, CropTextures
 from render.frame import Frame, FrameStats
+from render.gather import alpha_mass as am
 from render.gather import reference as gr
 from render.gl import program
 from render.methods import Renderer, RenderOptions
@@ -107,6 +110,10 @@ class GatherRenderer(Renderer):
         self.counts = np.full(len(self.cameras), -1, int)
         #: per view: of those, the measured ones (first in the buffer; the rest is the fill)
         self.measured_counts = np.zeros(len(self.cameras), int)
+        #: per view: the sum of its matte (render.gather.alpha_mass), NaN until the view is first loaded
+        self.masses = np.full(len(self.cameras), np.nan)
+        #: the model's alpha excess f (render.gather.alpha_mass.excess), measured on the first still frame read
+        self.excess: float | None = None
         self._point_vaos: dict[int, object] = {}
         self.point_bytes = 0
         has_alpha = self.crops.matte is not None
@@ -136,6 +143,8 @@ class GatherRenderer(Renderer):
         self.crops.load(todo, on_load=self._load_points, on_evict=self._drop_points)
 
     def _load_points(self, i, rect, rgb, depth, alpha) -> None:
+        if alpha is not None:  # render.gather.alpha_mass: the view's own matte mass, for the excess
+            self.masses[i] = float(np.sum(alpha, dtype=float))
         m = self.rgbz.measured_mask(i) if self.cfg.measured_first else None
         if m is None:
             pts = pr.back_project_crop(self.cameras[i], rect, rgb, depth).points
@@ -180,11 +189,14 @@ class GatherRenderer(Renderer):
         crop by crop (render.crops): never the full stacks."""
         return cls(ctx, model.rgbz, model.bounds, options, config)
 
-    def views(self, eye: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def views(self, eye: Camera, exclude: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(depth cameras, blend cameras, blend weights 1 / angle) of a frame: the nearest in
-        viewing angle (render.points.reference.nearest_views)."""
+        viewing angle (render.points.reference.nearest_views), view ``exclude`` left out."""
         cfg = self.cfg
-        idx, ang = pr.nearest_views(eye, self.cameras, self.centre, max(cfg.k_depth, cfg.k_blend))
+        k = max(cfg.k_depth, cfg.k_blend)
+        idx, ang = pr.nearest_views(eye, self.cameras, self.centre, k + (exclude is not None))
+        keep = idx != exclude
+        idx, ang = idx[keep][:k], ang[keep][:k]
         return idx[: cfg.k_depth], idx[: cfg.k_blend], 1.0 / np.maximum(ang[: cfg.k_blend], pr.ANGLE_EPS)
 
     def _depth_pass(self, eye: Camera, cams, near: float, far: float, fill_offset: float):
@@ -312,7 +324,30 @@ class GatherRenderer(Renderer):
         return tgt
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
-        depth_cams, blend, weights = self.views(eye)
+        fr = self._drawn(eye, options, read)
+        if not read or self.crops.matte is None or not self.cfg.alpha_mass or options.draft:
+            return fr
+        if self.excess is None:
+            self.excess = self._measure_excess(options)
+        alpha, pull = am.normalise(fr.alpha, self.excess)  # render.gather.alpha_mass (the reference's step)
+        return Frame(fr.rgb, alpha, fr.depth, replace(fr.stats, alpha_pull=pull))
+
+    def _measure_excess(self, options: RenderOptions) -> float:
+        """render.gather.alpha_mass.excess of this model: alpha_mass.loo_views's kept views drawn from the others."""
+        drawn, own = [], []
+        for k in am.loo_views(len(self.cameras)):
+            drawn.append(float(np.sum(self._drawn(self.cameras[k], options, True, exclude=k).alpha, dtype=float)))
+            own.append(float(self.masses[k]) if np.isfinite(self.masses[k]) else self._own_mass(k))
+        return am.excess(drawn, own)
+
+    def _own_mass(self, k: int) -> float:
+        """View k's matte mass, read from the model where the view has not been resident."""
+        a = self.rgbz.crop(k)[3]
+        return 0.0 if a is None else float(np.sum(a, dtype=float))
+
+    def _drawn(self, eye: Camera, options: RenderOptions, read: bool, exclude: int | None = None) -> Frame:
+        """The frame as drawn (without render.gather.alpha_mass), view ``exclude`` left out."""
+        depth_cams, blend, weights = self.views(eye, exclude)
         self.load(np.concatenate([depth_cams, blend]))
         near, far = near_far(eye, self.bounds)
         off = fill_offset(far)

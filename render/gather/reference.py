@@ -57,6 +57,7 @@ import numpy as np
 
 from capture.camera import Camera
 from capture.sampling import sample_image
+from render.gather import alpha_mass as am
 from render.points import reference as pr
 
 #: Colour resampling filters (GatherConfig.resample).
@@ -100,6 +101,11 @@ class GatherConfig:
     resample: str = "linear"
     """Colour resampling: "linear" (bilinear, 2 x 2 texels) or "cubic" (Catmull-Rom, 4 x 4; keeps
     more contrast, sharpness +0.1, but -0.15 to -0.2 dB on every scene and size measured)."""
+    alpha_mass: bool = False
+    """Hold the frame's alpha to the mass of the kept views' mattes (render.gather.alpha_mass, a model with a matte
+    only): the splats, the visibility floor and the second layer add 5-7 % of alpha to a conifer's partial pixels,
+    which a composite over a light background shows (docs/novel_views.md "Gather's alpha mass").  Off: the frame as
+    drawn."""
 
     def __post_init__(self) -> None:
         for k in ("k_depth", "splat_px", "k_blend"):
@@ -311,13 +317,15 @@ def frame_depths(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarra
 
 def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarray, centre: np.ndarray,
                  cfg: GatherConfig | None = None, alpha: np.ndarray | None = None,
-                 measured: np.ndarray | None = None):
+                 measured: np.ndarray | None = None, excess: float = 1.0):
     """The gather method's frame for ``eye`` (module docstring): (rgb (H, W, 3) float32 linear
     premultiplied (over black), alpha (H, W) float32 in [0, 1] (0 / 1 without a matte), depth
     (H, W) float32 z-depth, 0 = empty, points splatted).  ``clouds``:
     ``points_reference.back_project`` of (cameras, rgb, depth); ``alpha``: the views' (N, H, W)
     straight matte or None; ``measured``: the views' (N, H, W) bool measured depth
-    (volume.rgbz_store.RgbzImages.measured) or None = all; ``cfg`` default GatherConfig()."""
+    (volume.rgbz_store.RgbzImages.measured) or None = all; ``cfg`` default GatherConfig(); ``excess``: the model's
+    alpha excess f (render.gather.alpha_mass: its :func:`~render.gather.alpha_mass.loo_excess_reference`; 1: the
+    alpha as drawn)."""
     cfg = cfg or GatherConfig()
     layered = alpha is not None and cfg.back_gap_m > 0
     z, zb, n, idx, ang = frame_depths(eye, clouds, cameras, rgb, depth, centre, cfg, measured, layered)
@@ -328,4 +336,7 @@ def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarra
     if layered:
         col_b, a_b = gather(eye, zb, views, w, cfg)
         col, a = under_back(col, a, col_b, np.where(a > 0, a_b, 0.0), cfg.back_solid)
-    return (col.astype(np.float32), a.astype(np.float32), np.where(a > 0, z, 0.0).astype(np.float32), n)
+    a = a.astype(np.float32)
+    if alpha is not None and cfg.alpha_mass:
+        a = am.normalise(a, excess)[0]
+    return (col.astype(np.float32), a, np.where(a > 0, z, 0.0).astype(np.float32), n)

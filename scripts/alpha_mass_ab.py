@@ -1,0 +1,74 @@
+"""Gather's alpha mass rule (render.gather.alpha_mass) on and off, on one saved model's held-out views.
+
+    PYTHONPATH=. .venv/bin/python scripts/alpha_mass_ab.py CAPTURE MODEL [--json OUT] [--holdout K]
+
+CAPTURE: the capture `furrow eval CAPTURE --holdout K --save-model MODEL` was run on (its held-out frames carry the
+true matte); MODEL: that saved model.  Renders every held-out view with gather twice (GatherConfig.alpha_mass False,
+then True; the same model) and prints, per setting, the mean over the views of the masked PSNR / SSIM / sharpness over
+black, PSNR over white and over dark, alpha MSE (render.evaluate.score_view) and the pull the rule gave."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+KEYS = ("psnr_masked", "ssim_masked", "sharpness", "psnr_white", "psnr_dark", "alpha_mse")
+
+
+def scores(capture: Path, model_dir: Path, holdout: int = 2) -> dict:
+    """{"off": ..., "on": ...}: each the mean of KEYS over the held-out views and ``pulls`` (per view)."""
+    from capture.sources import open_source
+    from furrow import cmd_eval
+    from furrow.model_flags import pipeline_config
+    from render import evaluate as ev
+    from render.gather import reference as gr
+    from render.gather.gl import GatherRenderer
+    from render.gl import gl_context
+    from volume.model import load_model
+
+    p = argparse.ArgumentParser()
+    cmd_eval.add_arguments(p)
+    args = p.parse_args([str(capture), "--holdout", str(holdout), "--methods", "gather"])
+    cfg = pipeline_config(args, out=None)
+    options = cmd_eval.render_options(args, ("gather",))
+    held = ev.source_holdout(open_source(capture, cfg.undistort.mode), holdout, cfg, None, None).held
+    model = load_model(model_dir)
+    out = {}
+    with gl_context() as ctx:
+        for on in (False, True):
+            rows = []
+            with GatherRenderer.from_model(ctx, model, options, config=gr.GatherConfig(alpha_mass=on)) as r:
+                for scan in held:
+                    fr = r.render(scan.camera)
+                    rows.append({**ev.score_view(scan, fr), "pull": fr.stats.alpha_pull or 0.0})
+            res = {k: float(np.nanmean([x[k] for x in rows])) for k in KEYS}
+            out["on" if on else "off"] = {**res, "pulls": [x["pull"] for x in rows]}
+    return out
+
+
+def main(argv=None) -> dict:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("capture", type=Path)
+    p.add_argument("model", type=Path)
+    p.add_argument("--holdout", type=int, default=2)
+    p.add_argument("--json", type=Path, help="write both settings' numbers here")
+    a = p.parse_args(argv)
+    out = scores(a.capture, a.model, a.holdout)
+    off, on = out["off"], out["on"]
+    s = np.array(on["pulls"])
+    print(f"{a.capture}: over black {off['psnr_masked']:.3f} / {off['ssim_masked']:.4f} / {off['sharpness']:.3f} -> "
+          f"{on['psnr_masked']:.3f} / {on['ssim_masked']:.4f} / {on['sharpness']:.3f}; over white "
+          f"{off['psnr_white']:.2f} -> {on['psnr_white']:.2f}; over dark {off['psnr_dark']:.2f} -> "
+          f"{on['psnr_dark']:.2f}; alpha MSE {off['alpha_mse']:.4f} -> {on['alpha_mse']:.4f}; "
+          f"pull {s.min():.3f}-{s.max():.3f} ({int((s > 0).sum())} of {len(s)} views)")
+    if a.json:
+        from capture.atomic import write_json
+
+        write_json(a.json, out)
+    return out
+
+
+if __name__ == "__main__":
+    main()
