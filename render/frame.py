@@ -41,8 +41,9 @@ class FrameStats:
         supersample: samples per pixel and axis the frame was drawn with (keyword).
         facets: primitives drawn (microfacet slices, mesh triangles, points), for a method that
             counts them; None = not reported (keyword).
-        alpha_pull: the pull d gather gave the frame's alpha, a - d a (1 - a) (render.gather.alpha_mass; 0 = as
-            drawn), for a method that holds its alpha's mass; None = not reported (keyword).
+        alpha_pull: the pull d gather gave the frame's coverage, alpha a - d a (1 - a) and the colour with it
+            (render.gather.alpha_mass; 0 = as drawn), for a method that holds its alpha's mass; None = not reported
+            (keyword).
     """
 
     ms: float

@@ -4,22 +4,22 @@ The gather method (render/gather/reference.py) splats its kept views' points 2 x
 little of what it saw (its visibility floor) and composites a second layer under the front: each keeps the frame's
 thin strands whole, and each adds alpha.  On path-traced conifers (docs/novel_views.md "Gather's alpha mass") a
 held-out frame's alpha summed to 1.05-1.07 times what its cameras' mattes hold, the excess spread over the partial
-pixels (rendered 0.30 where the truth was 0.19 and the kept mattes 0.24); on fur and a furry bunny, whose partial
-pixels are a fringe around a solid body, 1.00.  The premultiplied colour was right (it is what is scored over black),
-so the excess showed only where the frame is composited: over white.
+pixels (rendered 0.30 where the truth was 0.19 and the kept mattes 0.24), and the premultiplied colour with it; on a
+fur ball, whose partial pixels are a fringe around a solid body, 1.00.
 
 The excess is measured per model (:func:`excess`), leave-one-out: kept views (LOO_VIEWS of them, spread over the
 capture) are drawn from the other views as a new eye would be, and the drawn alpha mass is compared with the view's
 own matte's; ``f`` is the median ratio.  A frame's alpha a is then pulled to a - d a (1 - a) (:func:`normalise`), d
-chosen so that its mass is its drawn mass / f: 0 and 1 stay, the mid alphas move most.  Only where f exceeds 1 +
-MIN_EXCESS, and d at most MAX_PULL.  The premultiplied colour is untouched: over black every frame is the same image.
-The GL renderer measures f with its own frames and reads each frame's alpha back through the same numpy step as the
-twin (reference.gather_frame's ``excess``; :func:`loo_excess_reference` measures f with the twin's frames).
+chosen so that its mass is its drawn mass / f: 0 and 1 stay, the mid alphas move most; and its premultiplied colour
+with it, pixel by pixel (:func:`pull`: the straight colour is kept).  Only where f exceeds 1 + MIN_EXCESS, and d at
+most MAX_PULL.  The GL renderer measures f with its own frames and reads each frame back through the same numpy step
+as the twin (reference.gather_frame's ``excess``; :func:`loo_excess_reference` measures f with the twin's frames).
 
 (Tried first and not kept: the frame's mass set to its two blend cameras' matte masses, brought to the eye's scale;
 on a furry bunny circling before a room it cost 0.54 dB over white: a body's silhouette changes between views, and
 the neighbours' mean is not the eye's mass.  Then the partial pixels scaled by one factor to the measured excess: the
-bunny's body pixels, alpha 0.99, let 3 % of the white through, -0.9 dB.)
+bunny's body pixels, alpha 0.99, let 3 % of the white through, -0.9 dB.  The alpha alone pulled, the colour left:
+over white the same as with it, over black nothing gained.)
 """
 
 from __future__ import annotations
@@ -68,6 +68,18 @@ def normalise(alpha: np.ndarray, f: float) -> tuple[np.ndarray, float]:
     if d > MAX_PULL:
         return a, 0.0
     return (a - np.float32(d) * q).astype(a.dtype, copy=False), d
+
+
+def pull(rgb: np.ndarray, alpha: np.ndarray, f: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """(rgb, alpha, d): the frame's coverage pulled by :func:`normalise` (``alpha`` (H, W)) and its premultiplied
+    colour ``rgb`` (H, W, 3) scaled with it pixel by pixel, a' / a: the straight colour rgb / alpha is kept (the
+    excess is coverage, in the colour as in the alpha)."""
+    a2, d = normalise(alpha, f)
+    if d == 0.0:
+        return rgb, alpha, d
+    a = np.asarray(alpha)
+    ratio = np.where(a > 0, a2 / np.where(a > 0, a, 1), 1).astype(np.float32)
+    return (np.asarray(rgb) * ratio[..., None]).astype(np.asarray(rgb).dtype, copy=False), a2, d
 
 
 def loo_excess_reference(clouds, cameras, rgb, depth, centre, cfg, alpha, measured=None) -> float:

@@ -329,8 +329,8 @@ class GatherRenderer(Renderer):
             return fr
         if self.excess is None:
             self.excess = self._measure_excess(options)
-        alpha, pull = am.normalise(fr.alpha, self.excess)  # render.gather.alpha_mass (the reference's step)
-        return Frame(fr.rgb, alpha, fr.depth, replace(fr.stats, alpha_pull=pull))
+        rgb, alpha, d = am.pull(fr.rgb, fr.alpha, self.excess)  # render.gather.alpha_mass (the reference's step)
+        return Frame(rgb, alpha, fr.depth, replace(fr.stats, alpha_pull=d))
 
     def _measure_excess(self, options: RenderOptions) -> float:
         """render.gather.alpha_mass.excess of this model: alpha_mass.loo_views's kept views drawn from the others."""

@@ -102,10 +102,9 @@ class GatherConfig:
     """Colour resampling: "linear" (bilinear, 2 x 2 texels) or "cubic" (Catmull-Rom, 4 x 4; keeps
     more contrast, sharpness +0.1, but -0.15 to -0.2 dB on every scene and size measured)."""
     alpha_mass: bool = False
-    """Hold the frame's alpha to the mass of the kept views' mattes (render.gather.alpha_mass, a model with a matte
-    only): the splats, the visibility floor and the second layer add 5-7 % of alpha to a conifer's partial pixels,
-    which a composite over a light background shows (docs/novel_views.md "Gather's alpha mass").  Off: the frame as
-    drawn."""
+    """Hold the frame's coverage to the mass of the kept views' mattes (render.gather.alpha_mass, a model with a
+    matte only): the splats, the visibility floor and the second layer add 5-7 % of coverage to a conifer's partial
+    pixels, in alpha and colour alike (docs/novel_views.md "Gather's alpha mass").  Off: the frame as drawn."""
 
     def __post_init__(self) -> None:
         for k in ("k_depth", "splat_px", "k_blend"):
@@ -336,7 +335,7 @@ def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarra
     if layered:
         col_b, a_b = gather(eye, zb, views, w, cfg)
         col, a = under_back(col, a, col_b, np.where(a > 0, a_b, 0.0), cfg.back_solid)
-    a = a.astype(np.float32)
+    col, a = col.astype(np.float32), a.astype(np.float32)
     if alpha is not None and cfg.alpha_mass:
-        a = am.normalise(a, excess)[0]
-    return (col.astype(np.float32), a, np.where(a > 0, z, 0.0).astype(np.float32), n)
+        col, a, _ = am.pull(col, a, excess)
+    return (col, a, np.where(a > 0, z, 0.0).astype(np.float32), n)

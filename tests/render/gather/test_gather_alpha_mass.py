@@ -1,5 +1,5 @@
-"""Gather's alpha held to the mass of its kept views' mattes (render.gather.alpha_mass): the pieces by hand, the
-excess measured leave-one-out, the GPU against the twin, and the premultiplied colour untouched."""
+"""Gather's coverage held to the mass of its kept views' mattes (render.gather.alpha_mass): the pieces by hand, the
+excess measured leave-one-out, the GPU against the twin, and the straight colour kept."""
 
 from __future__ import annotations
 
@@ -47,6 +47,24 @@ def test_normalise_by_hand():
     assert am.normalise(solid, 1.2)[1] == 0.0
 
 
+def test_pull_keeps_the_straight_colour():
+    """alpha_mass.pull: the alpha as :func:`normalise` pulls it, the premultiplied colour scaled with it pixel by
+    pixel (rgb / alpha unchanged where alpha > 0; 0 stays 0); as drawn where there is nothing to pull."""
+    rng = np.random.default_rng(1)
+    a = _frame(rng)
+    F = rng.uniform(0.0, 1.0, a.shape + (3,)).astype(np.float32)
+    rgb = F * a[..., None]
+    f = 1.06
+    rgb2, a2, d = am.pull(rgb, a, f)
+    np.testing.assert_array_equal(a2, am.normalise(a, f)[0])
+    assert d > 0 and float(rgb2.sum()) < float(rgb.sum())
+    drawn = a > 0
+    np.testing.assert_allclose(rgb2[drawn] / a2[drawn][:, None], F[drawn], rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(rgb2[~drawn], 0)
+    rgb3, a3, d3 = am.pull(rgb, a, 1.0)
+    assert d3 == 0.0 and rgb3 is rgb and a3 is a
+
+
 def test_excess_is_the_median_ratio():
     """f = the median of drawn / own mass over the views with both positive; 1 with fewer than MIN_LOO."""
     assert am.excess([106.0, 110.0, 103.0, 0.0], [100.0, 100.0, 100.0, 100.0]) == pytest.approx(1.06)
@@ -74,6 +92,7 @@ def test_an_excess_under_one_changes_nothing(gl_ctx):
             fr, fr0 = ren.render(eye), ren0.render(eye)
             assert fr.stats.alpha_pull == 0.0
             np.testing.assert_array_equal(fr.alpha, fr0.alpha)
+            np.testing.assert_array_equal(fr.rgb, fr0.rgb)
     assert ren.excess == pytest.approx(f, abs=0.01)
 
 
@@ -82,8 +101,7 @@ def test_gpu_matches_twin_and_keeps_the_colour(gl_ctx, trunk_model):  # noqa: F8
     others holds 1.28 x its own matte's alpha): the GPU's excess against the twin's (within 0.01), its frame's alpha
     against the twin's given the same excess (within COLOUR_TOL where their depths agree, plus 2e-3: each frame's
     pull is measured on its own pixels, which differ at a few splat-edge ties, test_gather's
-    COVERAGE_MISMATCH_FRAC); the premultiplied colour the same with the rule as without (over black the frame does
-    not change)."""
+    COVERAGE_MISMATCH_FRAC); the colour pulled with the alpha, its straight colour the same with the rule as without."""
     from render.gather.gl import GatherRenderer
 
     m, eye, _ = trunk_model
@@ -100,15 +118,19 @@ def test_gpu_matches_twin_and_keeps_the_colour(gl_ctx, trunk_model):  # noqa: F8
     part = q > 0.05
     pull = float(np.median((a0 - a)[part] / q[part]))
     assert 0 < pull <= am.MAX_PULL and np.allclose(a, a0 - pull * q, atol=1e-5)
-    np.testing.assert_array_equal(rgb, rgb0)
+    drawn = a0 > 0
+    np.testing.assert_allclose(rgb[drawn] / a[drawn][:, None], rgb0[drawn] / a0[drawn][:, None], rtol=1e-4, atol=1e-6)
     with GatherRenderer.from_model(gl_ctx, m, config=cfg) as ren, \
             GatherRenderer.from_model(gl_ctx, m, config=off) as ren0:
         fr, fr0 = ren.render(eye), ren0.render(eye)
     assert ren.excess == pytest.approx(f, abs=0.01) and ren0.excess is None
     assert fr.stats.alpha_pull == pytest.approx(pull, abs=5e-3) and fr0.stats.alpha_pull is None
-    np.testing.assert_array_equal(fr.rgb, fr0.rgb)
+    both0 = fr0.alpha > 0
+    np.testing.assert_allclose(fr.rgb[both0] / fr.alpha[both0][:, None], fr0.rgb[both0] / fr0.alpha[both0][:, None],
+                               rtol=1e-4, atol=1e-6)
     assert np.mean(fr.mask != (a > 0)) <= COVERAGE_MISMATCH_FRAC
     both = fr.mask & (a > 0)
     same = both & (np.abs(fr.depth - depth) <= DEPTH_RTOL * depth)
     assert same.sum() >= 0.97 * both.sum()
     np.testing.assert_allclose(fr.alpha[same], a[same], atol=COLOUR_TOL + 2e-3)
+    np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL + 2e-3)
