@@ -1,11 +1,12 @@
-"""Gather's alpha mass rule (render.gather.alpha_mass) on and off, on one saved model's held-out views.
+"""Gather's coverage pull (render.gather.alpha_mass) on and off, on one saved model's held-out views.
 
-    PYTHONPATH=. .venv/bin/python scripts/alpha_mass_ab.py CAPTURE MODEL [--json OUT] [--holdout K]
+    PYTHONPATH=. .venv/bin/python scripts/alpha_mass_ab.py CAPTURE MODEL [--json OUT] [--holdout K] [--mode on|auto]
 
 CAPTURE: the capture `furrow eval CAPTURE --holdout K --save-model MODEL` was run on (its held-out frames carry the
-true matte); MODEL: that saved model.  Renders every held-out view with gather twice (GatherConfig.alpha_mass False,
-then True; the same model) and prints, per setting, the mean over the views of the masked PSNR / SSIM / sharpness over
-black, PSNR over white and over dark, alpha MSE (render.evaluate.score_view) and the pull the rule gave."""
+true matte); MODEL: that saved model.  Renders every held-out view with gather twice (GatherConfig.alpha_mass "off",
+then --mode: "on" or "auto"; the same model) and prints, per setting, the mean over the views of the masked PSNR /
+SSIM / sharpness over black, PSNR over white and over dark, alpha MSE (render.evaluate.score_view) and the pull
+given."""
 
 from __future__ import annotations
 
@@ -17,8 +18,9 @@ import numpy as np
 KEYS = ("psnr_masked", "ssim_masked", "sharpness", "psnr_white", "psnr_dark", "alpha_mse")
 
 
-def scores(capture: Path, model_dir: Path, holdout: int = 2) -> dict:
-    """{"off": ..., "on": ...}: each the mean of KEYS over the held-out views and ``pulls`` (per view)."""
+def scores(capture: Path, model_dir: Path, holdout: int = 2, mode: str = "on") -> dict:
+    """{"off": ..., "on": ...} ("on": GatherConfig.alpha_mass ``mode``): each the mean of KEYS over the held-out
+    views and ``pulls`` (per view)."""
     from capture.sources import open_source
     from furrow import cmd_eval
     from furrow.model_flags import pipeline_config
@@ -39,7 +41,8 @@ def scores(capture: Path, model_dir: Path, holdout: int = 2) -> dict:
     with gl_context() as ctx:
         for on in (False, True):
             rows = []
-            with GatherRenderer.from_model(ctx, model, options, config=gr.GatherConfig(alpha_mass=on)) as r:
+            cfg_on = gr.GatherConfig(alpha_mass=mode if on else "off")
+            with GatherRenderer.from_model(ctx, model, options, config=cfg_on) as r:
                 for scan in held:
                     fr = r.render(scan.camera)
                     rows.append({**ev.score_view(scan, fr), "pull": fr.stats.alpha_pull or 0.0})
@@ -54,8 +57,9 @@ def main(argv=None) -> dict:
     p.add_argument("model", type=Path)
     p.add_argument("--holdout", type=int, default=2)
     p.add_argument("--json", type=Path, help="write both settings' numbers here")
+    p.add_argument("--mode", default="on", choices=("on", "auto"), help="GatherConfig.alpha_mass against off")
     a = p.parse_args(argv)
-    out = scores(a.capture, a.model, a.holdout)
+    out = scores(a.capture, a.model, a.holdout, a.mode)
     off, on = out["off"], out["on"]
     s = np.array(on["pulls"])
     print(f"{a.capture}: over black {off['psnr_masked']:.3f} / {off['ssim_masked']:.4f} / {off['sharpness']:.3f} -> "

@@ -38,6 +38,13 @@ MIN_LOO = 3
 MIN_EXCESS = 0.01
 
 
+def backdrop_matted(params: dict | None) -> bool:
+    """Whether a model's every kept view was matted against a backdrop (its parameters' surroundings.matte.methods,
+    capture.matting: the premultiplied colour C - (1 - a) B is exact there); False where the record is missing."""
+    methods = (((params or {}).get("surroundings") or {}).get("matte") or {}).get("methods") or {}
+    return bool(methods) and set(methods) == {"backdrop"}
+
+
 def loo_views(n: int, at_most: int = LOO_VIEWS) -> list[int]:
     """Up to ``at_most`` of ``n`` kept views, evenly spread (all of them when there are no more)."""
     if n <= at_most:
@@ -92,7 +99,7 @@ def loo_excess_reference(clouds, cameras, rgb, depth, centre, cfg, alpha, measur
 
     if clouds is None and measured is None:
         clouds = back_project(cameras, rgb, depth)
-    off = replace(cfg, alpha_mass=False)
+    off = replace(cfg, alpha_mass="off")
     drawn, own = [], []
     for k in loo_views(len(cameras)):
         rest = [i for i in range(len(cameras)) if i != k]

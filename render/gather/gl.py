@@ -90,14 +90,18 @@ class GatherRenderer(Renderer):
         options: default per-frame options (none is read).
         config: the method's constants (gather_reference.GatherConfig).
         resident: views held on the GPU at once (render.crops.RESIDENT_VIEWS; >= k_depth + k_blend).
+        backdrop: every kept view was matted against a backdrop (render.gather.alpha_mass.backdrop_matted; the
+            coverage pull's "auto").
     """
 
     name = "gather"
 
     def __init__(self, ctx, rgbz, bounds, options: RenderOptions | None = None,
-                 config: gr.GatherConfig | None = None, resident: int = RESIDENT_VIEWS):
+                 config: gr.GatherConfig | None = None, resident: int = RESIDENT_VIEWS, backdrop: bool = False):
         super().__init__(ctx, options)
         self.cfg = config or gr.GatherConfig()
+        #: the coverage pull runs (render.gather.alpha_mass): "on", or "auto" with every view matted on a backdrop
+        self.pulls = self.cfg.alpha_mass == "on" or (self.cfg.alpha_mass == "auto" and backdrop)
         self.cameras = tuple(rgbz.cameras)
         if not self.cameras:
             raise ValueError("gather renderer: the model has no input camera")
@@ -187,7 +191,7 @@ class GatherRenderer(Renderer):
                    config: gr.GatherConfig | None = None) -> GatherRenderer:
         """Renderer of a volume.model.Model's RGBz images (its kept views and their depth), read
         crop by crop (render.crops): never the full stacks."""
-        return cls(ctx, model.rgbz, model.bounds, options, config)
+        return cls(ctx, model.rgbz, model.bounds, options, config, backdrop=am.backdrop_matted(model.params))
 
     def views(self, eye: Camera, exclude: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(depth cameras, blend cameras, blend weights 1 / angle) of a frame: the nearest in
@@ -325,7 +329,7 @@ class GatherRenderer(Renderer):
 
     def _render(self, eye: Camera, options: RenderOptions, read: bool) -> Frame:
         fr = self._drawn(eye, options, read)
-        if not read or self.crops.matte is None or not self.cfg.alpha_mass or options.draft:
+        if not read or self.crops.matte is None or not self.pulls or options.draft:
             return fr
         if self.excess is None:
             self.excess = self._measure_excess(options)

@@ -62,6 +62,8 @@ from render.points import reference as pr
 
 #: Colour resampling filters (GatherConfig.resample).
 RESAMPLERS = ("cubic", "linear")
+#: GatherConfig.alpha_mass's modes.
+ALPHA_MASS_MODES = ("auto", "on", "off")
 #: Catmull-Rom: the Keys cubic convolution kernel with a = -0.5 (interpolating, exact on
 #: quadratics).
 CUBIC_A = -0.5
@@ -101,10 +103,12 @@ class GatherConfig:
     resample: str = "linear"
     """Colour resampling: "linear" (bilinear, 2 x 2 texels) or "cubic" (Catmull-Rom, 4 x 4; keeps
     more contrast, sharpness +0.1, but -0.15 to -0.2 dB on every scene and size measured)."""
-    alpha_mass: bool = False
+    alpha_mass: str = "off"
     """Hold the frame's coverage to the mass of the kept views' mattes (render.gather.alpha_mass, a model with a
     matte only): the splats, the visibility floor and the second layer add 5-7 % of coverage to a conifer's partial
-    pixels, in alpha and colour alike (docs/novel_views.md "Gather's alpha mass").  Off: the frame as drawn."""
+    pixels, in alpha and colour alike (docs/novel_views.md "Gather's alpha mass").  "auto": where every kept view
+    was matted against a backdrop (their premultiplied colour exact: render.gather.alpha_mass.backdrop_matted);
+    "on": every model with a matte; "off": the frame as drawn."""
 
     def __post_init__(self) -> None:
         for k in ("k_depth", "splat_px", "k_blend"):
@@ -122,6 +126,8 @@ class GatherConfig:
             raise ValueError(f"gather: vis_floor must be in [0, 1], got {self.vis_floor}")
         if self.resample not in RESAMPLERS:
             raise ValueError(f"gather: resample must be one of {RESAMPLERS}, got {self.resample!r}")
+        if self.alpha_mass not in ALPHA_MASS_MODES:
+            raise ValueError(f"gather: alpha_mass must be one of {ALPHA_MASS_MODES}, got {self.alpha_mass!r}")
 
 
 def front_depth(eye: Camera, clouds, side: int) -> tuple[np.ndarray, int]:
@@ -336,6 +342,6 @@ def gather_frame(eye: Camera, clouds, cameras, rgb: np.ndarray, depth: np.ndarra
         col_b, a_b = gather(eye, zb, views, w, cfg)
         col, a = under_back(col, a, col_b, np.where(a > 0, a_b, 0.0), cfg.back_solid)
     col, a = col.astype(np.float32), a.astype(np.float32)
-    if alpha is not None and cfg.alpha_mass:
+    if alpha is not None and cfg.alpha_mass != "off":  # "auto": the caller gives f only for a backdrop's mattes
         col, a, _ = am.pull(col, a, excess)
     return (col, a, np.where(a > 0, z, 0.0).astype(np.float32), n)

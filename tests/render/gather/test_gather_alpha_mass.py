@@ -14,7 +14,7 @@ from tests.render.gather.test_gather import COLOUR_TOL, COVERAGE_MISMATCH_FRAC, 
 from tests.render.gather.test_gather_back import _twin, trunk_model  # noqa: F401  (a fixture)
 
 #: The rule on (GatherConfig.alpha_mass; off by default: docs/novel_views.md "Gather's alpha mass").
-ON = gr.GatherConfig(alpha_mass=True)
+ON = gr.GatherConfig(alpha_mass="on")
 
 
 def _frame(rng):
@@ -87,7 +87,7 @@ def test_an_excess_under_one_changes_nothing(gl_ctx):
                                 ON, np.asarray(r.alpha))
     assert f < 1.0
     with GatherRenderer.from_model(gl_ctx, m, config=ON) as ren, \
-            GatherRenderer.from_model(gl_ctx, m, config=gr.GatherConfig(alpha_mass=False)) as ren0:
+            GatherRenderer.from_model(gl_ctx, m, config=gr.GatherConfig(alpha_mass="off")) as ren0:
         for eye in cams[1::2]:
             fr, fr0 = ren.render(eye), ren0.render(eye)
             assert fr.stats.alpha_pull == 0.0
@@ -106,7 +106,7 @@ def test_gpu_matches_twin_and_keeps_the_colour(gl_ctx, trunk_model):  # noqa: F8
 
     m, eye, _ = trunk_model
     r = m.rgbz
-    cfg, off = ON, gr.GatherConfig(alpha_mass=False)
+    cfg, off = ON, gr.GatherConfig(alpha_mass="off")
     f = am.loo_excess_reference(None, list(r.cameras), np.asarray(r.rgb), np.asarray(r.depth), m.bounds.mean(0), cfg,
                                 np.asarray(r.alpha))
     assert f > 1.2
@@ -134,3 +134,31 @@ def test_gpu_matches_twin_and_keeps_the_colour(gl_ctx, trunk_model):  # noqa: F8
     assert same.sum() >= 0.97 * both.sum()
     np.testing.assert_allclose(fr.alpha[same], a[same], atol=COLOUR_TOL + 2e-3)
     np.testing.assert_allclose(fr.rgb[same], rgb[same], atol=COLOUR_TOL + 2e-3)
+
+
+def test_auto_pulls_only_where_every_view_was_matted_on_a_backdrop(gl_ctx, trunk_model):  # noqa: F811
+    """GatherConfig.alpha_mass "auto": the renderer pulls a model whose every kept view was matted against a
+    backdrop (model.json's surroundings.matte.methods: {"backdrop": N}) as "on" does, and draws any other (a plate
+    among the methods, or no record) as "off" does."""
+    from dataclasses import replace
+
+    from render.gather.gl import GatherRenderer
+
+    m, eye, _ = trunk_model
+    def methods(x):
+        return {"surroundings": {"matte": {"methods": x}}}
+    assert am.backdrop_matted(methods({"backdrop": 4}))
+    assert not am.backdrop_matted(methods({"backdrop": 3, "plate": 1})) and not am.backdrop_matted({})
+    frames = {}
+    for name, params in (("backdrop", methods({"backdrop": 4})), ("plate", methods({"plate": 4})), ("none", {})):
+        with GatherRenderer.from_model(gl_ctx, replace(m, params=params), config=gr.GatherConfig(alpha_mass="auto")) \
+                as r:
+            frames[name] = (r.pulls, r.render(eye))
+    with GatherRenderer.from_model(gl_ctx, m, config=ON) as r_on, \
+            GatherRenderer.from_model(gl_ctx, m, config=gr.GatherConfig(alpha_mass="off")) as r_off:
+        on, off = r_on.render(eye), r_off.render(eye)
+    assert frames["backdrop"][0] and not frames["plate"][0] and not frames["none"][0]
+    np.testing.assert_array_equal(frames["backdrop"][1].alpha, on.alpha)
+    for name in ("plate", "none"):
+        np.testing.assert_array_equal(frames[name][1].alpha, off.alpha)
+    assert np.abs(on.alpha - off.alpha).max() > 0.01
