@@ -31,12 +31,17 @@ def _both(views, codes, scale: float):
 
 def test_noisy_frames_pass_the_check():
     """The turntable scene with noise of 3 steps: the smoothed frames' plate predicts the noisy held-back rings
-    better than the noisy frames' own (the noise adds alike to both errors), so the check keeps the smoothing."""
+    better than the noisy frames' own by the views' median error (the noise adds alike to both errors), and its RMS
+    stays within CHECK_TOL, so the check keeps the smoothing.  (The RMS, swamped by needles the depth misses, as
+    CHECK_TOL's comment says, is a tie here that the CPU decides: smoothed lower on the AVX-512 machines of earlier
+    stops, 0.06973 against 0.06968 on an AVX2 one in stop 83, where the medians were 0.02365 against 0.02473; the
+    test had asked the RMS to fall.)"""
     views, _, _, _ = ps.turntable_capture(n=12, width=128, height=96)
     codes = _codes(views, 3.0)
     got = smoothing_check(*_both(views, codes, noise.smoothing(3.0)), None, None, PlateConfig())
     assert got["mode"] == "fixed" and got["smoothed"], got
-    assert got["rms_smoothed"] < got["rms_raw"] and got["median_smoothed"] < got["median_raw"], got
+    assert got["median_smoothed"] < 0.97 * got["median_raw"], got
+    assert got["rms_smoothed"] <= CHECK_TOL * got["rms_raw"], got
 
 
 def test_a_textured_room_smoothed_fails_the_check():
