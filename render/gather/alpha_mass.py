@@ -44,6 +44,11 @@ MIN_LOO = 3
 MIN_EXCESS = 0.01
 
 
+def matte_mass(alpha) -> float:
+    """The mass of a matte (its alpha summed in float64); 0 for None."""
+    return 0.0 if alpha is None else float(np.sum(alpha, dtype=np.float64))
+
+
 def backdrop_matted(params: dict | None) -> bool:
     """Whether a model's every kept view was matted against a backdrop (its parameters' surroundings.matte.methods,
     capture.matting: the premultiplied colour C - (1 - a) B is exact there); False where the record is missing."""
@@ -111,6 +116,6 @@ def loo_excess_reference(clouds, cameras, rgb, depth, centre, cfg, alpha, measur
         rest = [i for i in range(len(cameras)) if i != k]
         sub = (None if clouds is None else [clouds[i] for i in rest], [cameras[i] for i in rest], rgb[rest],
                depth[rest], centre, off, alpha[rest], None if measured is None else measured[rest])
-        drawn.append(float(np.sum(gather_frame(cameras[k], *sub)[1], dtype=np.float64)))
-        own.append(float(np.sum(alpha[k], dtype=np.float64)))
+        drawn.append(matte_mass(gather_frame(cameras[k], *sub)[1]))
+        own.append(matte_mass(alpha[k]))
     return excess(drawn, own)

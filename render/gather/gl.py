@@ -147,8 +147,8 @@ class GatherRenderer(Renderer):
         self.crops.load(todo, on_load=self._load_points, on_evict=self._drop_points)
 
     def _load_points(self, i, rect, rgb, depth, alpha) -> None:
-        if alpha is not None:  # render.gather.alpha_mass: the view's own matte mass, for the excess
-            self.masses[i] = float(np.sum(alpha, dtype=float))
+        if self.pulls and alpha is not None:  # render.gather.alpha_mass: the view's own matte mass, for the excess
+            self.masses[i] = am.matte_mass(alpha)
         m = self.rgbz.measured_mask(i) if self.cfg.measured_first else None
         if m is None:
             pts = pr.back_project_crop(self.cameras[i], rect, rgb, depth).points
@@ -340,14 +340,9 @@ class GatherRenderer(Renderer):
         """render.gather.alpha_mass.excess of this model: alpha_mass.loo_views's kept views drawn from the others."""
         drawn, own = [], []
         for k in am.loo_views(len(self.cameras)):
-            drawn.append(float(np.sum(self._drawn(self.cameras[k], options, True, exclude=k).alpha, dtype=float)))
-            own.append(float(self.masses[k]) if np.isfinite(self.masses[k]) else self._own_mass(k))
+            drawn.append(am.matte_mass(self._drawn(self.cameras[k], options, True, exclude=k).alpha))
+            own.append(float(self.masses[k]) if np.isfinite(self.masses[k]) else am.matte_mass(self.rgbz.crop(k)[3]))
         return am.excess(drawn, own)
-
-    def _own_mass(self, k: int) -> float:
-        """View k's matte mass, read from the model where the view has not been resident."""
-        a = self.rgbz.crop(k)[3]
-        return 0.0 if a is None else float(np.sum(a, dtype=float))
 
     def _drawn(self, eye: Camera, options: RenderOptions, read: bool, exclude: int | None = None) -> Frame:
         """The frame as drawn (without render.gather.alpha_mass), view ``exclude`` left out."""
