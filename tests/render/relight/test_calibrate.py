@@ -45,6 +45,10 @@ def reference_transfer(normals, views, weights, beta: float, g: float, light) ->
     """(P,) luminance of E_K(n) + beta F(n, v) by brute force: sum over QUAD_DIRS directions w of
     K(n.w) L(w) (1 + beta HG_g(-v.w)) 4 pi / QUAD_DIRS, K = sum_j weights_j REF_KERNELS_j, HG the
     Henyey-Greenstein phase times 4 pi; ``light`` the radiance function (N, 3) -> (N, 3)."""
+    if not beta:   # no phase term: a function of the normal alone, computed once per distinct normal
+        uniq, back = np.unique(normals, axis=0, return_inverse=True)
+        if len(uniq) < len(normals):
+            return reference_transfer(uniq, uniq, weights, 0.0, g, light)[back.ravel()]
     d = _fibonacci(QUAD_DIRS)
     lw = light(d) @ LUMA * (4 * np.pi / QUAD_DIRS)
     out = np.empty(len(normals))
@@ -52,7 +56,8 @@ def reference_transfer(normals, views, weights, beta: float, g: float, light) ->
         c = normals[s:s + 2000] @ d.T
         k = sum(w * f(c) for w, f in zip(weights, REF_KERNELS) if w)
         if beta:   # the phase term only where it counts (exact: beta = 0 multiplies it away)
-            k = k * (1 + beta * (1 - g * g) / (1 + g * g - 2 * g * -(views[s:s + 2000] @ d.T)) ** 1.5)
+            q = 1 + g * g - 2 * g * -(views[s:s + 2000] @ d.T)
+            k = k * (1 + beta * (1 - g * g) / (q * np.sqrt(q)))
         out[s:s + 2000] = k @ lw
     return out
 
