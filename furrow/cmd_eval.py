@@ -32,7 +32,8 @@ Writes DIR/side_by_side/VIEW.png (top: reference | {sheets};
 bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
 there too (keys {keys}, each with psnr,
 ssim, psnr_masked, ssim_masked, sharpness, psnr_white, psnr_dark, alpha_mse, alpha_sad,
-ms_per_frame, ... and the per-view records; `options`: the options each method was drawn with).
+ms_per_frame, alpha_pull (gather's coverage pull, NaN where none), ... and the per-view records;
+`options`: the options each method was drawn with).
 
 The model of the kept frames is built by the pipeline of `furrow model` with the same flags (every
 flag of `furrow model` that changes the model: --matte, --backdrop, --no-photometric, --views,
@@ -188,10 +189,28 @@ def print_tables(console, res: dict, methods, out_dir: Path) -> None:
     if own:
         console.print("method options: " + "; ".join(f"{m} " + ", ".join(f"{k}={v}" for k, v in o.items())
                                                    for m, o in own.items()), highlight=False)
+    print_pulls(console, res, methods)
     print_composite_table(console, res, methods)
     sheet = " | ".join(m for m in methods if m in sheet_methods())
     console.print(f"side-by-side sheets (reference | {sheet}; below: {ev.ERROR_GAIN:g} x error): "
                   f"{out_dir / 'side_by_side'}")
+
+
+def print_pulls(console, res: dict, methods) -> None:
+    """One line per method that pulled its frames' coverage (render.gather.alpha_mass; frame stats ``alpha_pull``):
+    the pull's mean and range over the held-out frames, or that it drew them as drawn."""
+    import numpy as np
+
+    from render import evaluate as ev
+
+    for k in map(ev.result_key, methods):
+        d = np.array([v.get("alpha_pull", np.nan) for v in res[k]["views"]], np.float64)
+        if not np.isfinite(d).any():
+            continue
+        d = d[np.isfinite(d)]
+        what = f"d = {d.mean():.3f} (range {d.min():.3f}-{d.max():.3f})" if d.max() > 0 else "none (d = 0)"
+        console.print(f"{k}'s coverage pull (a - d a (1 - a), docs/novel_views.md): {what} over {len(d)} frames",
+                      highlight=False)
 
 
 def print_composite_table(console, res: dict, methods) -> None:
