@@ -44,6 +44,7 @@ from capture.camera import Camera, gl_rows_to_image
 from render.crops import RESIDENT_VIEWS, CropTextures
 from render.frame import Frame, FrameStats
 from render.gather import alpha_mass as am
+from render.gather import fine_depth as fd
 from render.gather import reference as gr
 from render.gl import program
 from render.methods import Renderer, RenderOptions
@@ -70,6 +71,14 @@ MARK_DEPTH = 0.25
 def mark_defines(cfg: gr.GatherConfig) -> dict:
     """Constants of gather_mark_frag.glsl."""
     return {"BACK_GAP": f"{cfg.back_gap_m:.9e}", "Z_EMPTY": f"{0.1 * Z_EMPTY:.3e}", "MARK_DEPTH": MARK_DEPTH}
+
+
+def unoffset(z: np.ndarray, offset: float) -> np.ndarray:
+    """Pass 1's z (H, W) with its class's offset (a multiple of ``offset``, :meth:`GatherRenderer._depth_pass`) taken
+    off; Z_EMPTY stays (the shaders' unoffset)."""
+    z = np.asarray(z, np.float32)
+    k = np.floor(z / np.float32(offset)) if offset > 0 else np.zeros_like(z)
+    return np.where(z < 0.1 * Z_EMPTY, z - np.float32(offset) * k, z)
 
 
 def fill_offset(far: float) -> float:
@@ -121,6 +130,9 @@ class GatherRenderer(Renderer):
         self._point_vaos: dict[int, object] = {}
         self.point_bytes = 0
         has_alpha = self.crops.matte is not None
+        #: 1-pixel splats first (GatherConfig.fine_depth; "auto" from the sampled views' mattes)
+        self.fine = fd.use_fine(self.cfg.fine_depth, (lambda k: rgbz.crop(k)[3]) if has_alpha else None,
+                                len(self.cameras)) and self.cfg.splat_px > 1
         self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
         #: passes 1b and 2a (the second layer) where the model has a matte and the config asks for it
         self.layered = has_alpha and self.cfg.back_gap_m > 0
@@ -213,20 +225,25 @@ class GatherRenderer(Renderer):
         ctx.blend_func = ctx.ONE, ctx.ONE
         ctx.blend_equation = ctx.MIN
         prev_point_size = ctx.point_size
-        ctx.point_size = float(self.cfg.splat_px)
         p = self.depth_prog
         p["view_proj"].write(mat4_bytes(eye.gl_projection(near, far) @ eye.gl_view()))
         p["eye_z_row"].value = tuple(float(x) for x in eye.cam_from_world[2])
-        for i in cams:
-            n, nm = int(self.counts[i]), int(self.measured_counts[i])
-            if n > 0:
-                vao = self._point_vaos[int(i)][1]
-                p["z_offset"].value = 0.0
-                if nm:
-                    vao.render(ctx.POINTS, vertices=nm)
-                p["z_offset"].value = fill_offset
-                if n > nm:
-                    vao.render(ctx.POINTS, vertices=n - nm, first=nm)
+        # (point size, measured points' offset, fill's offset): MIN keeps the first class that lands in a pixel;
+        # fine depth: measured 1 px, measured splats, fill 1 px, fill splats (the twin's measured_first_depth)
+        rounds = (((1.0, 0.0, 2 * fill_offset), (float(self.cfg.splat_px), fill_offset, 3 * fill_offset))
+                  if self.fine else ((float(self.cfg.splat_px), 0.0, fill_offset),))
+        for size, z_measured, z_fill in rounds:
+            ctx.point_size = size
+            for i in cams:
+                n, nm = int(self.counts[i]), int(self.measured_counts[i])
+                if n > 0:
+                    vao = self._point_vaos[int(i)][1]
+                    p["z_offset"].value = z_measured
+                    if nm:
+                        vao.render(ctx.POINTS, vertices=nm)
+                    p["z_offset"].value = z_fill
+                    if n > nm:
+                        vao.render(ctx.POINTS, vertices=n - nm, first=nm)
         # the context may be shared (tests, the viewer): leave its state as found
         ctx.point_size = prev_point_size
         ctx.blend_equation = ctx.FUNC_ADD
@@ -241,7 +258,7 @@ class GatherRenderer(Renderer):
         tgt = self.target(eye.width, eye.height, colours=(1, 1), depth=False, name="front")
         z = gl_rows_to_image(tgt.read_colour(0))
         far = -gl_rows_to_image(tgt.read_colour(1))
-        front = np.where(z >= self._fill_offset, z - self._fill_offset, z)
+        front = unoffset(z, self._fill_offset)
         return np.where((z < 0.1 * Z_EMPTY) & (far > front + np.float32(self.cfg.back_gap_m)), far, 0.0)
 
     def _blend_uniforms(self, p, eye: Camera, blend, weights) -> None:
@@ -360,7 +377,7 @@ class GatherRenderer(Renderer):
             return Frame.empty(eye.width, eye.height, stats)
         rgba = gl_rows_to_image(ct.read_colour(0))
         z = gl_rows_to_image(zt.read_colour(0))
-        z = np.where(z >= off, z - off, z)
+        z = unoffset(z, off)
         drawn = rgba[..., 3] > 0
         depth = np.where(drawn, z, 0.0)
         filled = drawn & ~(z < 0.1 * Z_EMPTY)   # pixels the shader's pinhole fill drew (a few)

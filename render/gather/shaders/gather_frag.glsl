@@ -14,15 +14,15 @@
 // PINHOLE_SPREAD, BACK_LAYER, BACK_SOLID.
 #include "framebuffer_row.glsl"
 uniform sampler2D front_z;       // pass 1 (framebuffer rows), Z_EMPTY where no splat landed
-uniform float fill_offset;       // added to the fill's z in pass 1 (render/gather/gl.py)
+uniform float fill_offset;       // pass 1's z carries a multiple of it by class (render/gather/gl.py _depth_pass)
 #if BACK_LAYER
 uniform sampler2D under;         // pass 2a: the second layer's colour x solid / alpha, and solid (0 where none)
 #endif
 #include "gather_blend.glsl"
-// Pass 1's z at texel p with the fill's offset taken off; Z_EMPTY where no splat landed.
+// Pass 1's z at texel p with its class's offset taken off; Z_EMPTY where no splat landed (twin: gl.py unoffset).
 float splat_z(ivec2 p) {
     float z = texelFetch(front_z, p, 0).r;
-    return (z < Z_EMPTY && z >= fill_offset) ? z - fill_offset : z;
+    return z < Z_EMPTY ? z - fill_offset * floor(z / fill_offset) : z;
 }
 
 // Depth of an empty texel p from its 4 edge neighbours (Z_EMPTY where they do not all agree).

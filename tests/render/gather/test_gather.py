@@ -8,6 +8,7 @@ import pytest
 
 from capture.camera import Camera, look_at
 from render.gather import reference as gr
+from render.gather.fine_depth import use_fine
 from render.methods import create_renderer
 from render.points import reference as pr
 from tests import scenes as scene
@@ -169,8 +170,11 @@ def test_alpha_gpu_matches_numpy_twin(gl_ctx, alpha_model, i, phase, resample):
     clouds = pr.back_project(m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth)
     rgb, a, depth, n = gr.gather_frame(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg,
                                        alpha=m.rgbz.alpha)
-    zb = gr.frame_depths(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg, back=True)[1]
+    fine = use_fine(cfg.fine_depth, m.rgbz.alpha)
+    zb = gr.frame_depths(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg, back=True,
+                         fine=fine)[1]
     with GatherRenderer.from_model(gl_ctx, m, config=cfg) as r:
+        assert r.fine == fine
         fr = r.render(eye)
         gb = r.read_back_depth(eye)
     assert np.mean((a > 0) & (a < 0.999)) > 0.05, "the matte gives partial pixels"
@@ -185,7 +189,7 @@ def test_alpha_blends_premultiplied_colour(model):
     eye = scene.ring_cameras(12, phase_deg=10.0, elevations=(12,))[7]
     clouds = pr.back_project(model.rgbz.cameras, model.rgbz.rgb, model.rgbz.depth)
     args = (eye, clouds, model.rgbz.cameras, model.rgbz.rgb, model.rgbz.depth, model.bounds.mean(0),
-            gr.GatherConfig(back_gap_m=0.0))
+            gr.GatherConfig(back_gap_m=0.0, fine_depth="off"))   # the same depth with and without a matte
     rgb0, a0, d0, _ = gr.gather_frame(*args)
     half = np.where(model.rgbz.depth > 0, 0.5, 0.0).astype(np.float32)
     rgb1, a1, d1, _ = gr.gather_frame(*args, alpha=half)

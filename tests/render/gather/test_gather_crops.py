@@ -78,7 +78,8 @@ def test_crops_path_matches_numpy_twin(gl_ctx, models, kind):
             assert fr.stats.facets == n > 0
             back = None
             if alpha is not None:
-                zb = gr.frame_depths(eye, clouds, r.cameras, rgb, depth, m.bounds.mean(0), cfg, back=True)[1]
+                zb = gr.frame_depths(eye, clouds, r.cameras, rgb, depth, m.bounds.mean(0), cfg, back=True,
+                                     fine=rr.fine)[1]
                 back = (zb, rr.read_back_depth(eye))
             assert_frame_matches_twin(fr, t_rgb, t_a, t_z, back)
 
