@@ -162,13 +162,19 @@ def alpha_model(model):
 @pytest.mark.parametrize("i,phase,resample", [(2, 17.0, "cubic"), (7, 10.0, "linear")])
 def test_alpha_gpu_matches_numpy_twin(gl_ctx, alpha_model, i, phase, resample):
     """With a matte: premultiplied colour and alpha blended alike on the GPU and in the twin."""
+    eye = scene.ring_cameras(12, phase_deg=phase, elevations=(12,))[i]
+    (rgb, a, depth), fr, back = twin_and_gpu_with_matte(gl_ctx, alpha_model, eye, gr.GatherConfig(resample=resample))
+    assert np.mean((a > 0) & (a < 0.999)) > 0.05, "the matte gives partial pixels"
+    assert_frame_matches_twin(fr, rgb, a, depth, back)
+
+
+def twin_and_gpu_with_matte(gl_ctx, m, eye, cfg):
+    """((rgb, alpha, depth) of the twin, the GPU frame, (twin, GPU) second-layer z) of model ``m`` with its matte at
+    ``eye`` (fine depth as each decides it; they must agree)."""
     from render.gather.gl import GatherRenderer
 
-    m = alpha_model
-    eye = scene.ring_cameras(12, phase_deg=phase, elevations=(12,))[i]
-    cfg = gr.GatherConfig(resample=resample)
     clouds = pr.back_project(m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth)
-    rgb, a, depth, n = gr.gather_frame(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg,
+    rgb, a, depth, _ = gr.gather_frame(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg,
                                        alpha=m.rgbz.alpha)
     fine = use_fine(cfg.fine_depth, m.rgbz.alpha)
     zb = gr.frame_depths(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg, back=True,
@@ -177,8 +183,7 @@ def test_alpha_gpu_matches_numpy_twin(gl_ctx, alpha_model, i, phase, resample):
         assert r.fine == fine
         fr = r.render(eye)
         gb = r.read_back_depth(eye)
-    assert np.mean((a > 0) & (a < 0.999)) > 0.05, "the matte gives partial pixels"
-    assert_frame_matches_twin(fr, rgb, a, depth, (zb, gb))
+    return (rgb, a, depth), fr, (zb, gb)
 
 
 def test_alpha_blends_premultiplied_colour(model):

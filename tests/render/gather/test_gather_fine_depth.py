@@ -10,7 +10,7 @@ from render.gather import fine_depth as fd
 from render.gather import reference as gr
 from render.points import reference as pr
 from tests import scenes as scene
-from tests.render.gather.test_gather import assert_frame_matches_twin
+from tests.render.gather.test_gather import assert_frame_matches_twin, twin_and_gpu_with_matte
 
 
 def test_fine_depth_by_hand():
@@ -37,22 +37,13 @@ def alpha_model():
 
 @pytest.mark.parametrize("mode, i, phase", [("on", 2, 17.0), ("on", 7, 10.0), ("off", 7, 10.0)])
 def test_gpu_matches_twin_with_fine_depth(gl_ctx, alpha_model, mode, i, phase):
-    from render.gather.gl import GatherRenderer
-
     m = alpha_model
     eye = scene.ring_cameras(12, phase_deg=phase, elevations=(12,))[i]
-    cfg = gr.GatherConfig(fine_depth=mode)
-    clouds = pr.back_project(m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth)
-    rgb, a, depth, _ = gr.gather_frame(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg,
-                                       alpha=m.rgbz.alpha)
-    zb = gr.frame_depths(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0), cfg, back=True,
-                         fine=mode == "on")[1]
-    with GatherRenderer.from_model(gl_ctx, m, config=cfg) as r:
-        assert r.fine == (mode == "on")
-        fr = r.render(eye)
-        gb = r.read_back_depth(eye)
-    assert_frame_matches_twin(fr, rgb, a, depth, (zb, gb))
+    (rgb, a, depth), fr, back = twin_and_gpu_with_matte(gl_ctx, m, eye, gr.GatherConfig(fine_depth=mode))
+    assert fd.use_fine(mode, m.rgbz.alpha) == (mode == "on")
+    assert_frame_matches_twin(fr, rgb, a, depth, back)
     if mode == "on":   # it changes the frame: the twin's depth differs from the wide splats' somewhere
+        clouds = pr.back_project(m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth)
         wide = gr.gather_frame(eye, clouds, m.rgbz.cameras, m.rgbz.rgb, m.rgbz.depth, m.bounds.mean(0),
                                gr.GatherConfig(), alpha=m.rgbz.alpha)[2]
         assert np.count_nonzero(np.abs(wide - depth) > 1e-6) > 20
