@@ -15,40 +15,17 @@ from pathlib import Path
 
 import numpy as np
 
-KEYS = ("psnr_masked", "ssim_masked", "sharpness", "psnr_white", "psnr_dark", "alpha_mse")
-
 
 def scores(capture: Path, model_dir: Path, holdout: int = 2, mode: str = "on") -> dict:
-    """{"off": ..., "on": ...} ("on": GatherConfig.alpha_mass ``mode``): each the mean of KEYS over the held-out
-    views and ``pulls`` (per view)."""
-    from capture.sources import open_source
-    from furrow import cmd_eval
-    from furrow.model_flags import pipeline_config
-    from render import evaluate as ev
-    from render.gather import reference as gr
-    from render.gather.gl import GatherRenderer
-    from render.gl import gl_context
-    from volume.model import load_model
+    """{"off": ..., "on": ...} ("on": GatherConfig.alpha_mass ``mode``): each the mean of gather_ab.KEYS over the
+    held-out views and ``pulls`` (per view); scripts/gather_ab.py's two arms."""
+    import sys
 
-    p = argparse.ArgumentParser()
-    cmd_eval.add_arguments(p)
-    args = p.parse_args([str(capture), "--holdout", str(holdout), "--methods", "gather"])
-    cfg = pipeline_config(args, out=None)
-    options = cmd_eval.render_options(args, ("gather",))
-    held = ev.source_holdout(open_source(capture, cfg.undistort.mode), holdout, cfg, None, None).held
-    model = load_model(model_dir)
-    out = {}
-    with gl_context() as ctx:
-        for on in (False, True):
-            rows = []
-            cfg_on = gr.GatherConfig(alpha_mass=mode if on else "off")
-            with GatherRenderer.from_model(ctx, model, options, config=cfg_on) as r:
-                for scan in held:
-                    fr = r.render(scan.camera)
-                    rows.append({**ev.score_view(scan, fr), "pull": fr.stats.alpha_pull or 0.0})
-            res = {k: float(np.nanmean([x[k] for x in rows])) for k in KEYS}
-            out["on" if on else "off"] = {**res, "pulls": [x["pull"] for x in rows]}
-    return out
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from gather_ab import scores as arm_scores
+
+    out = arm_scores(capture, model_dir, ["alpha_mass=off", f"alpha_mass={mode}"], holdout)
+    return {"off": out["alpha_mass=off"], "on": out[f"alpha_mass={mode}"]}
 
 
 def main(argv=None) -> dict:
