@@ -1,6 +1,7 @@
 """Gather's held-out scores on one saved model under several GatherConfig settings, side by side.
 
     PYTHONPATH=. .venv/bin/python scripts/gather_ab.py CAPTURE MODEL ARM [ARM ...] [--twin [--views N]] [--json OUT]
+    PYTHONPATH=. .venv/bin/python scripts/gather_ab.py CAPTURE MODEL ARM [ARM ...] --sheet OUT.jpg [--view K]
 
 CAPTURE: the capture `furrow eval CAPTURE --holdout K --save-model MODEL` was run on (its held-out frames carry the
 true matte); MODEL: that saved model; each ARM: GatherConfig fields as ``name=value,name=value`` ("" or "default":
@@ -91,6 +92,47 @@ def scores(capture: Path, model_dir: Path, arms, holdout: int = 2, twin: bool = 
     return out
 
 
+def sheet(capture: Path, model_dir: Path, arms, view: int, out: Path, holdout: int = 2) -> None:
+    """A JPEG of held-out view ``view`` over white (sRGB 235, render.evaluate.COMPOSITE_BACKDROPS): the true composite
+    (the photo over black plus (1 - true alpha) x white), then each arm's (GL), cropped to the object; below each arm,
+    ERROR_GAIN x its absolute error."""
+    import cv2
+
+    from capture.scan import srgb_to_linear
+    from render import evaluate as ev
+    from render import metrics
+    from render.gather.gl import GatherRenderer
+    from render.gl import gl_context
+    from volume.model import load_model
+
+    held, options = _held(capture, holdout)
+    scan, model = held[view], load_model(model_dir)
+    white = float(srgb_to_linear(np.float32(ev.COMPOSITE_BACKDROPS["white"] / 255)))
+    t = np.asarray(scan.alpha, np.float32)
+    ref = metrics.as_srgb8(srgb_to_linear(scan.srgb8.astype(np.float32) / 255) + (1 - t)[..., None] * white)
+    with gl_context() as ctx:
+        frames = []
+        for arm in arms:
+            with GatherRenderer.from_model(ctx, model, options, config=parse_arm(arm)) as r:
+                frames.append((arm or "default", r.render(scan.camera)))
+    ys, xs = np.nonzero((t > 0) | np.any([f.alpha > 0 for _, f in frames], axis=0))
+    m = 8
+    box = (slice(max(ys.min() - m, 0), ys.max() + m + 1), slice(max(xs.min() - m, 0), xs.max() + m + 1))
+    top, bottom = [ev.labelled(np.ascontiguousarray(ref[box]), "reference over white")], [np.zeros_like(ref[box])]
+    for name, f in frames:
+        im = metrics.as_srgb8(f.rgb + (1 - f.alpha)[..., None] * white)[box]
+        err = np.clip(np.abs(im.astype(np.float32) - ref[box].astype(np.float32)) * ev.ERROR_GAIN, 0, 255)
+        top.append(ev.labelled(np.ascontiguousarray(im), name))
+        bottom.append(ev.labelled(np.ascontiguousarray(err.astype(np.uint8)), f"{ev.ERROR_GAIN:g} x |error|"))
+    img = np.concatenate([np.concatenate(top, 1), np.concatenate(bottom, 1)], 0)
+    scale = max(1, int(round(720 / img.shape[0])))
+    img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp.jpg")
+    cv2.imwrite(str(tmp), cv2.cvtColor(img, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    tmp.replace(out)
+
+
 def main(argv=None) -> dict:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("capture", type=Path)
@@ -100,7 +142,12 @@ def main(argv=None) -> dict:
     p.add_argument("--twin", action="store_true", help="gather's numpy twin instead of the GL renderer")
     p.add_argument("--views", type=int, default=6, help="held-out views the twin draws (default 6)")
     p.add_argument("--json", type=Path, help="write every arm's numbers here")
+    p.add_argument("--sheet", type=Path, help="instead: a JPEG of one held-out view over white, reference and arms")
+    p.add_argument("--view", type=int, default=0, help="the held-out view of --sheet (default 0)")
     a = p.parse_args(argv)
+    if a.sheet:
+        sheet(a.capture, a.model, a.arms, a.view, a.sheet, a.holdout)
+        return {}
     out = scores(a.capture, a.model, a.arms, a.holdout, a.twin, a.views)
     for arm, r in out.items():
         s = np.array(r["pulls"])
