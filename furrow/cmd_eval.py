@@ -32,7 +32,8 @@ Writes DIR/side_by_side/VIEW.png (top: reference | {sheets};
 bottom: 4 x the absolute error of each) and DIR/eval.json, and with --json FILE the numbers
 there too (keys {keys}, each with psnr,
 ssim, psnr_masked, ssim_masked, sharpness, psnr_white, psnr_dark, alpha_mse, alpha_sad,
-ms_per_frame, alpha_pull (gather's coverage pull, NaN where none), ... and the per-view records;
+ms_per_frame, alpha_pull (gather's coverage pull, NaN where none), fine_depth / partial_share
+(gather's 1-pixel splats first: 1 or 0, and the mattes' partial share), ... and the per-view records;
 `options`: the options each method was drawn with).
 
 The model of the kept frames is built by the pipeline of `furrow model` with the same flags (every
@@ -198,10 +199,12 @@ def print_tables(console, res: dict, methods, out_dir: Path) -> None:
 
 def print_pulls(console, res: dict, methods) -> None:
     """One line per method that pulled its frames' coverage (render.gather.alpha_mass; frame stats ``alpha_pull``):
-    the pull's mean and range over the held-out frames, or that it drew them as drawn."""
+    the pull's mean and range over the held-out frames, or that it drew them as drawn; one per method that decides
+    its fine depth (render.gather.fine_depth; ``fine_depth``, ``partial_share``): on or off, and why."""
     import numpy as np
 
     from render import evaluate as ev
+    from render.gather.fine_depth import PARTIAL_SHARE
 
     for k in map(ev.result_key, methods):
         d = np.array([v.get("alpha_pull", np.nan) for v in res[k]["views"]], np.float64)
@@ -210,6 +213,14 @@ def print_pulls(console, res: dict, methods) -> None:
         d = d[np.isfinite(d)]
         what = f"d = {d.mean():.3f} (range {d.min():.3f}-{d.max():.3f})" if d.max() > 0 else "none (d = 0)"
         console.print(f"{k}'s coverage pull (a - d a (1 - a), docs/novel_views.md): {what} over {len(d)} frames",
+                      highlight=False)
+    for k in map(ev.result_key, methods):
+        on, share = res[k].get("fine_depth", np.nan), res[k].get("partial_share", np.nan)
+        if not np.isfinite(on):
+            continue
+        why = (f"its mattes {share:.2f} partial, {'at least' if on else 'under'} {PARTIAL_SHARE}" if np.isfinite(share)
+               else "as asked" if on else "no matte, or as asked")
+        console.print(f"{k}'s fine depth (1-pixel splats first, docs/novel_views.md): {'on' if on else 'off'} ({why})",
                       highlight=False)
 
 

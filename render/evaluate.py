@@ -30,10 +30,11 @@ GEOMETRIES = ("auto", "model", "gt")
 COMPOSITE_BACKDROPS = {"white": 235, "dark": 24}
 #: Matting convention: SAD is reported in thousands of pixels (sum of |alpha error| / 1000).
 SAD_UNIT = 1000.0
-#: Per-view scores averaged by summarise (composite ones are NaN where the scan has no matte; facets and alpha_pull
-#: NaN for a method that does not report them).
+#: Per-view scores averaged by summarise (composite ones are NaN where the scan has no matte; facets, alpha_pull,
+#: fine_depth and partial_share NaN for a method that does not report them).
 SUMMARY_KEYS = ("psnr", "ssim", "psnr_masked", "ssim_masked", "sharpness", "hole_fraction", "largest_hole", "ms",
-                "cpu_ms", "facets", "psnr_white", "psnr_dark", "alpha_mse", "alpha_sad", "alpha_pull")
+                "cpu_ms", "facets", "psnr_white", "psnr_dark", "alpha_mse", "alpha_sad", "alpha_pull",
+                "fine_depth", "partial_share")
 
 
 def result_key(method: str) -> str:

@@ -44,6 +44,10 @@ class FrameStats:
         alpha_pull: the pull d gather gave the frame's coverage, alpha a - d a (1 - a) and the colour with it
             (render.gather.alpha_mass; 0 = as drawn), for a method that holds its alpha's mass; None = not reported
             (keyword).
+        fine_depth: 1 where the frame's depth took 1-pixel splats first, 0 where not (render.gather.fine_depth), for a
+            method that decides it; None = not reported (keyword).
+        partial_share: the share of the model's matte pixels that are partial, on which "auto" decided that
+            (render.gather.fine_depth.partial_share; NaN without a matte); None = not reported (keyword).
     """
 
     ms: float
@@ -52,15 +56,19 @@ class FrameStats:
     supersample: int
     facets: int | None = None
     alpha_pull: float | None = None
+    fine_depth: float | None = None
+    partial_share: float | None = None
 
     def record(self) -> dict:
         """The numbers as a flat JSON-ready dict (per-frame records of render_stats.json and of
-        ``furrow eval``); ``facets`` and ``alpha_pull`` only where the method reports them."""
+        ``furrow eval``); ``facets``, ``alpha_pull``, ``fine_depth`` and ``partial_share`` only where the method
+        reports them."""
         out = {"ms": float(self.ms), "cpu_ms": float(self.cpu_ms), "supersample": int(self.supersample)}
         if self.facets is not None:
             out["facets"] = int(self.facets)
-        if self.alpha_pull is not None:
-            out["alpha_pull"] = float(self.alpha_pull)
+        for k in ("alpha_pull", "fine_depth", "partial_share"):
+            if getattr(self, k) is not None:
+                out[k] = float(getattr(self, k))
         return out
 
 

@@ -44,15 +44,20 @@ def partial_share(alphas) -> float:
 
 
 def use_fine(mode: str, alphas, n_views: int | None = None) -> bool:
-    """Whether a model's frames take fine depth: ``mode`` "on" / "off" as said; "auto": :func:`partial_share` of
-    the sampled views' mattes (``alphas``: a sequence, or a function of the view index with ``n_views``) at least
-    PARTIAL_SHARE (False without a matte)."""
+    """Whether a model's frames take fine depth (:func:`decide`'s first value)."""
+    return decide(mode, alphas, n_views)[0]
+
+
+def decide(mode: str, alphas, n_views: int | None = None) -> tuple[bool, float]:
+    """(whether a model's frames take fine depth, the share it was decided on): ``mode`` "on" / "off" as said (share
+    NaN); "auto": :func:`partial_share` of the sampled views' mattes (``alphas``: a sequence, or a function of the
+    view index with ``n_views``) at least PARTIAL_SHARE (False, NaN without a matte)."""
     if mode != "auto":
-        return mode == "on"
+        return mode == "on", float("nan")
     if alphas is None:
-        return False
+        return False, float("nan")
     if callable(alphas):
         share = partial_share(alphas(k) for k in loo_views(int(n_views or 0), SHARE_VIEWS))
     else:
         share = partial_share(alphas[k] for k in loo_views(len(alphas), SHARE_VIEWS))
-    return bool(share >= PARTIAL_SHARE)
+    return bool(share >= PARTIAL_SHARE), share

@@ -131,8 +131,9 @@ class GatherRenderer(Renderer):
         self.point_bytes = 0
         has_alpha = self.crops.matte is not None
         #: 1-pixel splats first (GatherConfig.fine_depth; "auto" from the sampled views' mattes)
-        self.fine = fd.use_fine(self.cfg.fine_depth, (lambda k: rgbz.crop(k)[3]) if has_alpha else None,
-                                len(self.cameras)) and self.cfg.splat_px > 1
+        fine, self.partial_share = fd.decide(self.cfg.fine_depth, (lambda k: rgbz.crop(k)[3]) if has_alpha else None,
+                                             len(self.cameras))
+        self.fine = fine and self.cfg.splat_px > 1
         self.depth_prog = self.own(program(ctx, "gather_depth_vert.glsl", "gather_depth_frag.glsl"))
         #: passes 1b and 2a (the second layer) where the model has a matte and the config asks for it
         self.layered = has_alpha and self.cfg.back_gap_m > 0
@@ -372,7 +373,8 @@ class GatherRenderer(Renderer):
             self._fill_offset = off
             ut = self._under_pass(eye, zt, blend, weights, off) if self.layered and not options.draft else None
             ct = self._gather_pass(eye, zt, blend, weights, off, ut)
-        stats = FrameStats(t.ms, t.cpu_ms, supersample=1, facets=int(self.counts[depth_cams].sum()))
+        stats = FrameStats(t.ms, t.cpu_ms, supersample=1, facets=int(self.counts[depth_cams].sum()),
+                           fine_depth=float(self.fine), partial_share=self.partial_share)
         if not read:
             return Frame.empty(eye.width, eye.height, stats)
         rgba = gl_rows_to_image(ct.read_colour(0))

@@ -35,3 +35,14 @@ def test_a_model_drawn_as_drawn_says_so_and_a_method_without_the_stat_says_nothi
     assert "pull (a - d a (1 - a), docs/novel_views.md): none (d = 0) over 2 frames" in _said(
         {"gather": summarise(_views([0.0, 0.0]))}, ("gather",))
     assert _said({"gather": summarise(_views([None, None]))}, ("gather",)) == ""
+
+
+def test_fine_depth_is_said_with_the_share_it_was_decided_on():
+    on = [{**v, "fine_depth": 1.0, "partial_share": 0.95} for v in _views([None, None])]
+    off = [{**v, "fine_depth": 0.0, "partial_share": 0.25} for v in _views([None, None])]
+    asked = [{**v, "fine_depth": 0.0, "partial_share": float("nan")} for v in _views([None])]
+    text = _said({"gather": summarise(on), "points": summarise(_views([None]))}, ("gather", "points"))
+    said = "gather's fine depth (1-pixel splats first, docs/novel_views.md): on (its mattes 0.95 partial, at least 0.6)"
+    assert said in text and "points" not in text
+    assert "off (its mattes 0.25 partial, under 0.6)" in _said({"gather": summarise(off)}, ("gather",))
+    assert "off (no matte, or as asked)" in _said({"gather": summarise(asked)}, ("gather",))
